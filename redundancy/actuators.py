@@ -1,0 +1,369 @@
+"""Actuator maps: joint space → hydraulic coordinates, x = h2(q) (Eq. 9), A = ∂x/∂q (Eq. 11).
+
+Each actuator coordinate x_i is one `ActuatorMap`. A kind of your own is a subclass: implement
+`evaluate` and `rate`, and, to declare it in a URDF, `from_transmission` and `transmission_data`
+(see `redundancy.transmissions`). Subclasses are found by class name; there is no registry.
+
+Maps are declarations (names of joints and links); `ActuatorSet.bind` resolves them against a
+Pinocchio model, on copies, so one declaration can serve several robots.
+"""
+
+from __future__ import annotations
+
+import copy
+import warnings
+from abc import ABC, abstractmethod
+from typing import TYPE_CHECKING
+
+import numpy as np
+import pinocchio as pin
+
+from redundancy.errors import RobotDescriptionError, SingularConfigurationError
+
+if TYPE_CHECKING:
+    from redundancy.robot import Kinematics
+
+
+class ActuatorMap(ABC):
+    """One actuator coordinate x_i(q) with its stroke limits [lower, upper] (m or rad).
+
+    ``joint`` names the joint the actuator drives; the set orders actuators like their joints.
+    """
+
+    def __init__(self, name: str, joint: str, lower: float = -np.inf, upper: float = np.inf):
+        if not lower < upper:
+            raise RobotDescriptionError(
+                f"actuator {name!r}: stroke lower {lower} must be below upper {upper}"
+            )
+        self.name = name
+        self.joint = joint
+        self.lower = float(lower)
+        self.upper = float(upper)
+        self.index = -1  # velocity index of ``joint``, set by bind
+        self.frames: list[int] = []  # Pinocchio frames whose motion evaluate() reads
+
+    def __repr__(self) -> str:
+        return (
+            f"{type(self).__name__}({self.name!r}, joint={self.joint!r}, "
+            f"stroke=[{self.lower:g}, {self.upper:g}])"
+        )
+
+    @classmethod
+    def kinds(cls) -> dict[str, type[ActuatorMap]]:
+        """Every concrete kind defined so far, including users' subclasses, by class name."""
+        found: dict[str, type[ActuatorMap]] = {}
+        pending = list(cls.__subclasses__())
+        while pending:
+            kind = pending.pop()
+            pending.extend(kind.__subclasses__())
+            if not getattr(kind, "__abstractmethods__", None):
+                found[kind.__name__] = kind
+        return found
+
+    def bind(self, model: pin.Model) -> None:
+        """Resolve names against ``model``; raise `RobotDescriptionError` naming the valid ones."""
+        joints = list(model.names)[1:]
+        if self.joint not in joints:
+            raise RobotDescriptionError(
+                f"actuator {self.name!r} drives joint {self.joint!r}, which does not exist; "
+                f"joints: {', '.join(joints)}"
+            )
+        self.index = model.joints[model.getJointId(self.joint)].idx_v
+
+    @abstractmethod
+    def evaluate(self, kinematics: Kinematics) -> tuple[np.ndarray, np.ndarray]:
+        """x_i (k,) and its row of A, ∂x_i/∂q (k, n), at a batch of states."""
+
+    @abstractmethod
+    def rate(self, kinematics: Kinematics) -> np.ndarray:
+        """The row of Ȧ = dA/dt (k, n); ``kinematics`` carries velocities."""
+
+    @classmethod
+    def evaluate_group(
+        cls, maps: list[ActuatorMap], kinematics: Kinematics
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """x (k, c) and rows of A (k, c, n) of c maps of this kind; kinds may vectorise it."""
+        parts = [m.evaluate(kinematics) for m in maps]
+        return np.stack([p[0] for p in parts], axis=1), np.stack([p[1] for p in parts], axis=1)
+
+    @classmethod
+    def rate_group(cls, maps: list[ActuatorMap], kinematics: Kinematics) -> np.ndarray:
+        """Rows of Ȧ (k, c, n) of c maps of this kind; kinds may vectorise it."""
+        return np.stack([m.rate(kinematics) for m in maps], axis=1)
+
+    @classmethod
+    def from_transmission(
+        cls, name: str, joint: str, lower: float, upper: float, data: dict[str, list[dict]]
+    ) -> ActuatorMap:
+        """Build from a ``<transmission>``: ``data`` maps each extra child tag to its elements'
+        attribute dicts, in order. Kinds with parameters override this."""
+        return cls(name, joint, lower, upper)
+
+    def transmission_data(self) -> dict[str, list[dict]]:
+        """The extra ``<transmission>`` children, the inverse of `from_transmission`."""
+        return {}
+
+
+class VectorisedMap(ActuatorMap):
+    """A kind that evaluates all its maps at once: it implements the group methods, and the
+    single-map methods follow from them."""
+
+    def evaluate(self, kinematics: Kinematics) -> tuple[np.ndarray, np.ndarray]:
+        x, rows = self.evaluate_group([self], kinematics)
+        return x[:, 0], rows[:, 0]
+
+    def rate(self, kinematics: Kinematics) -> np.ndarray:
+        return self.rate_group([self], kinematics)[:, 0]
+
+    @classmethod
+    @abstractmethod
+    def evaluate_group(cls, maps, kinematics):
+        """See `ActuatorMap.evaluate_group`."""
+
+    @classmethod
+    @abstractmethod
+    def rate_group(cls, maps, kinematics):
+        """See `ActuatorMap.rate_group`."""
+
+
+class Identity(VectorisedMap):
+    """An electric or directly driven joint: x_i = q_j + offset, A row = e_j, Ȧ row = 0."""
+
+    offset = 0.0
+
+    @classmethod
+    def evaluate_group(cls, maps, kinematics):
+        q = kinematics.q
+        joints = [m.index for m in maps]
+        rows = np.zeros((len(q), len(maps), q.shape[1]))
+        rows[:, np.arange(len(maps)), joints] = 1.0
+        return q[:, joints] + np.array([m.offset for m in maps]), rows
+
+    @classmethod
+    def rate_group(cls, maps, kinematics):
+        q = kinematics.q
+        return np.zeros((len(q), len(maps), q.shape[1]))
+
+
+class Prismatic(Identity):
+    """A prismatic joint driven directly by a cylinder: x_i = q_j + offset.
+
+    The crane's telescope: x3 = d3 − L2 + L3 (Eq. 9), offset = L3 − L2.
+    """
+
+    def __init__(
+        self, name: str, joint: str, lower: float = -np.inf, upper: float = np.inf, offset=0.0
+    ):
+        super().__init__(name, joint, lower, upper)
+        self.offset = float(offset)
+
+    def bind(self, model: pin.Model) -> None:
+        super().bind(model)
+        kind = model.joints[model.getJointId(self.joint)].shortname()
+        if "Prismatic" not in kind and not kind.startswith("JointModelP"):
+            raise RobotDescriptionError(
+                f"actuator {self.name!r}: joint {self.joint!r} is {kind}, not prismatic; "
+                "use Identity or LinearCylinder for a revolute joint"
+            )
+
+    @classmethod
+    def from_transmission(cls, name, joint, lower, upper, data):
+        offsets = data.get("offset", [])
+        offset = float(offsets[0]["value"]) if offsets else 0.0
+        return cls(name, joint, lower, upper, offset)
+
+    def transmission_data(self) -> dict[str, list[dict]]:
+        return {"offset": [{"value": repr(self.offset)}]}
+
+
+class LinearCylinder(VectorisedMap):
+    """A cylinder between a point on one link and a point on another: x_i = |p_rod − p_base|.
+
+    A row = uᵀ (J_rod − J_base), u = (p_rod − p_base)/x_i; its rate
+    Ȧ row = u̇ᵀ (J_rod − J_base) + uᵀ (J̇_rod − J̇_base), u̇ = (I − u uᵀ)(ṗ_rod − ṗ_base)/x_i.
+    For the crane this is Eq. (9), x_i = √(L_i1² + L_i2² − 2 L_i1 L_i2 cos q_i), with the torque
+    arm a_i = L_i1 L_i2 sin q_i / x_i (Eq. 14) on the diagonal of A. Points are (3,) in m, given
+    in the link frames.
+    """
+
+    def __init__(
+        self,
+        name: str,
+        joint: str,
+        lower: float,
+        upper: float,
+        base: tuple[str, np.ndarray | list[float]],
+        rod: tuple[str, np.ndarray | list[float]],
+    ):
+        super().__init__(name, joint, lower, upper)
+        self.base = (base[0], np.asarray(base[1], dtype=float))
+        self.rod = (rod[0], np.asarray(rod[1], dtype=float))
+
+    def bind(self, model: pin.Model) -> None:
+        """Resolve the links and add a Pinocchio frame at each attachment point."""
+        super().bind(model)
+        links = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
+        self.frames = []
+        for end, (link, point) in zip(("base", "rod"), (self.base, self.rod)):
+            if link not in links:
+                raise RobotDescriptionError(
+                    f"actuator {self.name!r} is attached to link {link!r}, which does not "
+                    f"exist; links: {', '.join(links)}"
+                )
+            parent_id = model.getFrameId(link, pin.FrameType.BODY)
+            parent = model.frames[parent_id]
+            placement = parent.placement * pin.SE3(np.eye(3), point)
+            frame = pin.Frame(
+                f"{self.name}/{end}",
+                parent.parentJoint,
+                parent_id,
+                placement,
+                pin.FrameType.OP_FRAME,
+            )
+            self.frames.append(model.addFrame(frame, False))
+
+    @staticmethod
+    def _geometry(maps, kinematics: Kinematics):
+        """Both ends' slots (c,), the unit vectors u (k, c, 3) and lengths x (k, c)."""
+        base = [kinematics.slots[m.frames[0]] for m in maps]
+        rod = [kinematics.slots[m.frames[1]] for m in maps]
+        d = kinematics.positions[:, rod] - kinematics.positions[:, base]
+        length = np.sqrt(np.sum(d * d, axis=2))
+        if np.any(length < 1e-12):
+            names = [m.name for m, short in zip(maps, np.any(length < 1e-12, axis=0)) if short]
+            raise SingularConfigurationError(
+                f"cylinders {names} have zero length: their attachment points coincide"
+            )
+        return base, rod, d / length[..., None], length
+
+    @classmethod
+    def evaluate_group(cls, maps, kinematics):
+        base, rod, u, length = cls._geometry(maps, kinematics)
+        relative = kinematics.jacobians[:, rod] - kinematics.jacobians[:, base]
+        return length, (u[:, :, None, :] @ relative)[:, :, 0]
+
+    @classmethod
+    def rate_group(cls, maps, kinematics):
+        base, rod, u, length = cls._geometry(maps, kinematics)
+        velocities, rates = kinematics.velocities, kinematics.jacobian_rates
+        relative = velocities[:, rod] - velocities[:, base]  # type: ignore[index]
+        u_dot = (relative - u * np.sum(u * relative, axis=2)[..., None]) / length[..., None]
+        jacobian = kinematics.jacobians[:, rod] - kinematics.jacobians[:, base]
+        rate = rates[:, rod] - rates[:, base]  # type: ignore[index]
+        return (u_dot[:, :, None, :] @ jacobian + u[:, :, None, :] @ rate)[:, :, 0]
+
+    @classmethod
+    def from_transmission(cls, name, joint, lower, upper, data):
+        ends = data.get("attachment", [])
+        if len(ends) != 2 or any("link" not in e or "xyz" not in e for e in ends):
+            raise RobotDescriptionError(
+                f"cylinder {name!r} needs two <attachment link=... xyz=...> elements "
+                f"(base, then rod); got {len(ends)}"
+            )
+        base, rod = ((e["link"], [float(c) for c in e["xyz"].split()]) for e in ends)
+        return cls(name, joint, lower, upper, base=base, rod=rod)
+
+    def transmission_data(self) -> dict[str, list[dict]]:
+        return {
+            "attachment": [
+                {"link": link, "xyz": " ".join(repr(float(c)) for c in point)}
+                for link, point in (self.base, self.rod)
+            ]
+        }
+
+
+class ActuatorSet:
+    """The robot's actuators, one per joint, ordered like the joints: x (k, n), A (k, n, n)."""
+
+    def __init__(self, maps: list[ActuatorMap]):
+        self.maps = maps
+        self._grouped = self._groups()
+
+    @classmethod
+    def bind(cls, maps: list[ActuatorMap], model: pin.Model) -> ActuatorSet:
+        """Bound copies of ``maps``, one per joint of ``model``.
+
+        Joints no map drives get an `Identity` actuator named after the joint, with the joint
+        limits as stroke, and a warning names them.
+        """
+        joints = list(model.names)[1:]
+        bound: dict[str, ActuatorMap] = {}
+        for declared in maps:
+            actuator = copy.copy(declared)
+            actuator.bind(model)
+            if actuator.joint in bound:
+                raise RobotDescriptionError(
+                    f"joint {actuator.joint!r} is driven twice: by {bound[actuator.joint].name!r} "
+                    f"and {actuator.name!r}; each joint takes one actuator"
+                )
+            bound[actuator.joint] = actuator
+        names = [a.name for a in bound.values()]
+        if len(set(names)) != len(names):
+            raise RobotDescriptionError(f"actuator names must be distinct; got {names}")
+        undriven = [j for j in joints if j not in bound]
+        if undriven:
+            warnings.warn(
+                f"joints without an actuator declaration are driven directly (Identity): "
+                f"{', '.join(undriven)}",
+                stacklevel=3,
+            )
+        for joint in undriven:
+            index = model.getJointId(joint)
+            j = model.joints[index].idx_q
+            actuator = Identity(
+                joint, joint, model.lowerPositionLimit[j], model.upperPositionLimit[j]
+            )
+            actuator.bind(model)
+            bound[joint] = actuator
+        return cls(sorted(bound.values(), key=lambda a: a.index))
+
+    def __len__(self) -> int:
+        return len(self.maps)
+
+    def __iter__(self):
+        return iter(self.maps)
+
+    def __getitem__(self, name: str) -> ActuatorMap:
+        for actuator in self.maps:
+            if actuator.name == name:
+                return actuator
+        raise KeyError(f"no actuator {name!r}; actuators: {', '.join(self.names)}")
+
+    @property
+    def names(self) -> list[str]:
+        return [a.name for a in self.maps]
+
+    @property
+    def lower(self) -> np.ndarray:
+        """Lower stroke limits (n,)."""
+        return np.array([a.lower for a in self.maps])
+
+    @property
+    def upper(self) -> np.ndarray:
+        """Upper stroke limits (n,)."""
+        return np.array([a.upper for a in self.maps])
+
+    def _groups(self):
+        """The maps by kind, with their rows: [(kind, maps, rows)]."""
+        kinds: dict[type[ActuatorMap], list[int]] = {}
+        for row, actuator in enumerate(self.maps):
+            kinds.setdefault(type(actuator), []).append(row)
+        return [
+            (kind, [self.maps[r] for r in rows], np.array(rows)) for kind, rows in kinds.items()
+        ]
+
+    def evaluate(self, kinematics: Kinematics) -> tuple[np.ndarray, np.ndarray]:
+        """x = h2(q) (k, n) and A = ∂x/∂q (k, n, n) (Eqs. 10-11)."""
+        k, n = kinematics.q.shape
+        x, A = np.empty((k, len(self.maps))), np.empty((k, len(self.maps), n))
+        for kind, maps, rows in self._grouped:
+            x[:, rows], A[:, rows] = kind.evaluate_group(maps, kinematics)
+        return x, A
+
+    def rate(self, kinematics: Kinematics) -> np.ndarray:
+        """Ȧ (k, n, n), so that ẍ = A q̈ + Ȧ q̇ (Eq. 12)."""
+        k, n = kinematics.q.shape
+        A_dot = np.empty((k, len(self.maps), n))
+        for kind, maps, rows in self._grouped:
+            A_dot[:, rows] = kind.rate_group(maps, kinematics)
+        return A_dot

@@ -1,0 +1,89 @@
+"""The ``redundancy`` command line.
+
+Every failure a user can cause ends in one line on stderr naming the problem, and exit status 2;
+an interrupt ends with status 130. Neither prints a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+import numpy as np
+
+from redundancy.actuator_space import actuator_space
+from redundancy.errors import RedundancyError
+from redundancy.robot import Robot, bundled_robots, load_robot
+
+
+def _add_robot_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--robot", default="hiab031", help="bundled robot name, or path of a robot.toml or .urdf"
+    )
+    parser.add_argument(
+        "--payload", type=float, default=None, help="payload at the tool, kg (robot default)"
+    )
+
+
+def describe(robot: Robot) -> str:
+    """A summary of a robot: joints, actuators and strokes, mass, M_H at mid-range."""
+    lines = [f"{robot.name}: n = {robot.n} joints, task = tool {robot.task_axes} (m = {robot.m})"]
+    lines.append("joints:")
+    for name, lo, hi in zip(robot.joint_names, robot.lower, robot.upper):
+        lines.append(f"  {name:<20} [{lo: .4f}, {hi: .4f}]")
+    lines.append("actuators:")
+    for actuator in robot.actuators:
+        lines.append(
+            f"  {actuator.name:<8} {type(actuator).__name__:<15} on {actuator.joint:<18} "
+            f"stroke [{actuator.lower:.3f}, {actuator.upper:.3f}]"
+        )
+    masses = [inertia.mass for inertia in robot.model.inertias]
+    lines.append(f"mass: {sum(masses):.1f} kg, of which payload {robot.payload:.1f} kg")
+    q = (robot.lower + robot.upper) / 2
+    space = actuator_space(robot, q)
+    with np.printoptions(precision=4, suppress=True):
+        lines.append(f"at mid-range q = {q}: x = {space.x[0]}, y = {space.y[0]}")
+        lines.append(f"M_H (kg) =\n{space.M_H[0]}")
+        lines.append(f"F_H holding still (N) = {space.forces(np.zeros_like(space.x))[0]}")
+    return "\n".join(lines)
+
+
+def _describe_command(args: argparse.Namespace) -> None:
+    print(describe(load_robot(args.robot, payload=args.payload)))
+
+
+def _robots_command(args: argparse.Namespace) -> None:
+    for name in bundled_robots():
+        robot = load_robot(name)
+        actuators = ", ".join(robot.actuators.names)
+        print(f"{name:<12} n = {robot.n}, m = {robot.m}, actuators: {actuators}")
+
+
+def parser() -> argparse.ArgumentParser:
+    main = argparse.ArgumentParser(
+        prog="redundancy",
+        description="Redundancy resolution of hydraulic manipulators in actuator coordinates.",
+    )
+    commands = main.add_subparsers(dest="command", required=True)
+    describe_parser = commands.add_parser("describe", help="summarise a robot")
+    _add_robot_options(describe_parser)
+    describe_parser.set_defaults(run=_describe_command)
+    commands.add_parser("robots", help="list the bundled robots").set_defaults(run=_robots_command)
+    return main
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parser().parse_args(argv)
+    try:
+        args.run(args)
+    except RedundancyError as error:
+        print(f"redundancy: error: {error}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("redundancy: interrupted", file=sys.stderr)
+        return 130
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,24 @@
+"""One exception family: every failure a user can cause is a :class:`RedundancyError`.
+
+Messages name the bad value and, where there is a closed set, the valid choices.
+"""
+
+
+class RedundancyError(Exception):
+    """Base of every user-facing error of the toolkit."""
+
+
+class RobotDescriptionError(RedundancyError):
+    """A robot that cannot be loaded: unknown name, broken URDF, bad actuator declaration."""
+
+
+class InvalidInputError(RedundancyError, ValueError):
+    """An argument of the wrong shape, out of its domain, or not finite."""
+
+
+class SingularConfigurationError(RedundancyError):
+    """A configuration where a Jacobian the computation needs loses rank."""
+
+
+class UnreachableError(RedundancyError):
+    """A task point no configuration inside the joint and stroke limits reaches."""

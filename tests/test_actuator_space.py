@@ -1,0 +1,49 @@
+"""Hydraulic coordinates against their definitions and against Pinocchio's inverse dynamics."""
+
+import numpy as np
+from sampling import random_configurations, random_velocities
+
+from redundancy import actuator_space
+
+
+def test_actuator_forces_match_inverse_dynamics(crane):
+    """F_H = M_H ẍ + N_H equals A⁻ᵀ RNEA(q, q̇, q̈) with ẋ = A q̇, ẍ = A q̈ + Ȧ q̇."""
+    q = random_configurations(crane, 50, seed=20, margin=0.01)
+    v = random_velocities(crane, 50, seed=21)
+    a = random_velocities(crane, 50, seed=22)
+    space = actuator_space(crane, q, v)
+    x_ddot = np.einsum("kij,kj->ki", space.A, a) + np.einsum("kij,kj->ki", space.A_dot, v)
+    tau = crane.inverse_dynamics(q, v, a)
+    expected = np.linalg.solve(np.swapaxes(space.A, 1, 2), tau[:, :, None])[:, :, 0]
+    np.testing.assert_allclose(space.forces(x_ddot), expected, rtol=1e-10, atol=1e-6)
+
+
+def test_hydraulic_quantities_follow_their_definitions(crane):
+    q = random_configurations(crane, 30, seed=23)
+    v = random_velocities(crane, 30, seed=24)
+    space = actuator_space(crane, q, v)
+    for i in range(len(q)):
+        A_inv = np.linalg.inv(space.A[i])
+        np.testing.assert_allclose(space.J_H[i], space.J[i] @ A_inv, rtol=1e-12, atol=1e-12)
+        M = crane.mass(q[i])
+        np.testing.assert_allclose(space.M_H[i], A_inv.T @ M @ A_inv, rtol=1e-10)
+        np.testing.assert_allclose(space.x_dot[i], space.A[i] @ v[i], rtol=1e-12)
+        # ẏ is the same in joint and actuator coordinates (Eq. 16).
+        np.testing.assert_allclose(space.J_H[i] @ space.x_dot[i], space.J[i] @ v[i], atol=1e-12)
+    assert np.all(np.linalg.eigvalsh(space.M_H) > 0)
+
+
+def test_holding_still_takes_the_gravity_forces(crane):
+    q = random_configurations(crane, 10, seed=25)
+    space = actuator_space(crane, q)
+    G = crane.gravity(q)
+    expected = np.linalg.solve(np.swapaxes(space.A, 1, 2), G[:, :, None])[:, :, 0]
+    np.testing.assert_allclose(space.forces(np.zeros_like(q)), expected, rtol=1e-12)
+
+
+def test_one_state_is_a_batch_of_one(crane):
+    q = random_configurations(crane, 3, seed=26)
+    batch = actuator_space(crane, q)
+    single = actuator_space(crane, q[1])
+    np.testing.assert_allclose(single.M_H[0], batch.M_H[1], rtol=1e-14)
+    assert single.J_H.shape == (1, 2, 3)

@@ -1,0 +1,55 @@
+"""Every derivative against central finite differences: J, A, Ȧ, and the robot-independent
+point kinematics under them."""
+
+import numpy as np
+import pytest
+from sampling import random_configurations, random_velocities
+
+from redundancy import actuator_space, load_robot
+
+STEP = 1e-6
+
+
+def central_difference(f, q, direction):
+    return (f(q + STEP * direction) - f(q - STEP * direction)) / (2 * STEP)
+
+
+def columns(f, q):
+    """∂f/∂q by central differences, one column per joint."""
+    return np.stack([central_difference(f, q, e) for e in np.eye(len(q))], axis=-1)
+
+
+@pytest.fixture(scope="module", params=["hiab031"])
+def robot(request):
+    return load_robot(request.param)
+
+
+def test_task_jacobian_matches_finite_differences(robot):
+    for q in random_configurations(robot, 20, seed=10, margin=0.01):
+        np.testing.assert_allclose(robot.jacobian(q), columns(robot.fk, q), atol=1e-8)
+
+
+def test_actuator_jacobian_matches_finite_differences(robot):
+    for q in random_configurations(robot, 20, seed=11, margin=0.01):
+
+        def x(qq):
+            return actuator_space(robot, qq).x[0]
+
+        np.testing.assert_allclose(actuator_space(robot, q).A[0], columns(x, q), atol=1e-8)
+
+
+def test_actuator_jacobian_rate_matches_finite_differences(robot):
+    q = random_configurations(robot, 20, seed=12, margin=0.01)
+    v = random_velocities(robot, 20, seed=13)
+    space = actuator_space(robot, q, v)
+    for qi, vi, A_dot in zip(q, v, space.A_dot):
+        expected = central_difference(lambda qq: actuator_space(robot, qq).A[0], qi, vi)
+        np.testing.assert_allclose(A_dot, expected, atol=1e-7)
+
+
+def test_task_jacobian_rate_matches_finite_differences(robot):
+    q = random_configurations(robot, 10, seed=14, margin=0.01)
+    v = random_velocities(robot, 10, seed=15)
+    motion = robot.task(robot.kinematics(q, v))
+    for qi, vi, J_dot in zip(q, v, motion.jacobian_rate):
+        np.testing.assert_allclose(J_dot, central_difference(robot.jacobian, qi, vi), atol=1e-7)

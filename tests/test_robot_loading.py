@@ -1,0 +1,205 @@
+"""Loading robots: bundled files, user-defined actuator kinds, and every bad input named."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import redundancy
+from redundancy import (
+    ActuatorMap,
+    InvalidInputError,
+    LinearCylinder,
+    Prismatic,
+    RobotDescriptionError,
+    actuator_space,
+    bundled_robots,
+    load_robot,
+)
+from redundancy.robot import bundled_root
+from redundancy.transmissions import write_transmissions
+
+CRANE_URDF = bundled_root() / "hiab031" / "hiab031.urdf"
+REPO = Path(__file__).resolve().parents[1]
+
+
+def crane_variant(tmp_path, old, new):
+    text = CRANE_URDF.read_text()
+    assert old in text
+    path = tmp_path / "variant.urdf"
+    path.write_text(text.replace(old, new))
+    return path
+
+
+def test_every_bundled_robot_loads_and_its_files_exist():
+    assert "hiab031" in bundled_robots()
+    for name in bundled_robots():
+        robot = load_robot(name)
+        folder = bundled_root() / name
+        assert (folder / "README.md").is_file()
+        assert robot.n == len(robot.actuators) and 1 <= robot.m <= robot.n
+
+
+def test_committed_crane_urdf_is_what_the_generator_writes():
+    spec = __import__("importlib.util").util.spec_from_file_location(
+        "generate", REPO / "robots" / "hiab031" / "generate.py"
+    )
+    generate = __import__("importlib.util").util.module_from_spec(spec)
+    spec.loader.exec_module(generate)
+    assert CRANE_URDF.read_text() == generate.urdf()
+
+
+def test_unknown_robot_lists_the_bundled_ones():
+    with pytest.raises(RobotDescriptionError, match=r"unknown robot 'hiab32'.*hiab031"):
+        load_robot("hiab32")
+
+
+def test_malformed_urdf_is_named(tmp_path):
+    path = crane_variant(tmp_path, "</robot>", "")
+    with pytest.raises(RobotDescriptionError, match="not readable XML"):
+        load_robot(path)
+    path = crane_variant(tmp_path, '<parent link="boom1"/>', '<parent link="nowhere"/>')
+    with pytest.raises(RobotDescriptionError, match="not a valid URDF"):
+        load_robot(path)
+
+
+def test_actuator_on_a_missing_joint_lists_the_joints(tmp_path):
+    path = crane_variant(tmp_path, '<joint name="boom2_joint"/>', '<joint name="boom3_joint"/>')
+    with pytest.raises(RobotDescriptionError, match=r"'boom3_joint'.*boom1_joint, boom2_joint"):
+        load_robot(path)
+
+
+def test_actuator_on_a_missing_link_lists_the_links(tmp_path):
+    path = crane_variant(tmp_path, '<attachment link="column"', '<attachment link="colum"')
+    with pytest.raises(RobotDescriptionError, match=r"link 'colum'.*links: .*column"):
+        load_robot(path)
+
+
+def test_a_joint_driven_twice_is_refused(tmp_path):
+    path = crane_variant(tmp_path, '<joint name="boom2_joint"/>', '<joint name="boom1_joint"/>')
+    with pytest.raises(RobotDescriptionError, match="'boom1_joint' is driven twice"):
+        load_robot(path)
+
+
+def test_unknown_actuator_kind_lists_the_known_ones(tmp_path):
+    path = crane_variant(tmp_path, "redundancy/Prismatic", "redundancy/Telescope")
+    with pytest.raises(RobotDescriptionError, match=r"Telescope.*redundancy/Prismatic"):
+        load_robot(path)
+
+
+def test_a_cylinder_on_a_prismatic_map_of_a_revolute_joint_is_refused():
+    model = load_robot("hiab031").model
+    with pytest.raises(RobotDescriptionError, match="not prismatic"):
+        Prismatic("x", "boom1_joint").bind(model)
+
+
+@pytest.mark.parametrize(
+    "q, message",
+    [([1.0, 1.0], r"shape \(3,\)"), ([1.0, np.nan, 0.5], "NaN"), (np.ones((2, 2, 3)), "shape")],
+)
+def test_bad_configurations_are_named(crane, q, message):
+    with pytest.raises(InvalidInputError, match=message):
+        actuator_space(crane, q)
+
+
+@pytest.mark.parametrize("payload", [-1.0, float("nan")])
+def test_bad_payload_is_refused(payload):
+    with pytest.raises(InvalidInputError, match="payload"):
+        load_robot("hiab031", payload=payload)
+
+
+def test_urdf_without_declarations_drives_every_joint_directly(tmp_path):
+    text = CRANE_URDF.read_text()
+    path = tmp_path / "bare.urdf"
+    path.write_text(write_transmissions(text, []))
+    with pytest.warns(UserWarning, match="boom1_joint, boom2_joint, telescope_joint"):
+        robot = load_robot(path)
+    q = (robot.lower + robot.upper) / 2
+    np.testing.assert_array_equal(actuator_space(robot, q).A[0], np.eye(3))
+
+
+def test_actuator_map_written_from_python_loads_back(tmp_path, crane):
+    path = tmp_path / "rewritten.urdf"
+    path.write_text(write_transmissions(CRANE_URDF.read_text(), crane.actuators.maps))
+    again = load_robot(path)
+    q = (crane.lower + crane.upper) / 2
+    for a, b in zip(crane.actuators, again.actuators):
+        assert (type(a), a.name, a.joint, a.lower, a.upper) == (
+            type(b),
+            b.name,
+            b.joint,
+            b.lower,
+            b.upper,
+        )
+    np.testing.assert_array_equal(actuator_space(again, q).A, actuator_space(crane, q).A)
+
+
+class GearedMotor(ActuatorMap):
+    """A user's own kind: a rotary motor through a gear, x = ratio * q."""
+
+    def __init__(self, name, joint, lower=-np.inf, upper=np.inf, ratio=1.0):
+        super().__init__(name, joint, lower, upper)
+        self.ratio = ratio
+
+    def evaluate(self, kinematics):
+        row = np.zeros_like(kinematics.q)
+        row[:, self.index] = self.ratio
+        return self.ratio * kinematics.q[:, self.index], row
+
+    def rate(self, kinematics):
+        return np.zeros_like(kinematics.q)
+
+    @classmethod
+    def from_transmission(cls, name, joint, lower, upper, data):
+        return cls(name, joint, lower, upper, float(data["gear"][0]["ratio"]))
+
+    def transmission_data(self):
+        return {"gear": [{"ratio": str(self.ratio)}]}
+
+
+def test_a_users_own_actuator_kind_plugs_in_through_the_urdf(tmp_path, crane):
+    maps = [a for a in crane.actuators if a.name != "x1"]
+    maps.append(GearedMotor("slew", "boom1_joint", -10, 10, ratio=50.0))
+    path = tmp_path / "geared.urdf"
+    path.write_text(write_transmissions(CRANE_URDF.read_text(), maps))
+    robot = load_robot(path)
+    assert isinstance(robot.actuators["slew"], GearedMotor)
+    space = actuator_space(robot, (robot.lower + robot.upper) / 2)
+    assert space.A[0, 0, 0] == 50.0
+    assert isinstance(robot.actuators["x2"], LinearCylinder)
+
+
+def test_bundled_robots_load_after_a_plain_install_elsewhere(tmp_path):
+    """``pip install .`` (not editable) into a fresh folder, then load from another directory."""
+    target = tmp_path / "site"
+    subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "pip",
+            "install",
+            "--quiet",
+            "--no-deps",
+            "--target",
+            str(target),
+            str(REPO),
+        ],
+        check=True,
+        capture_output=True,
+    )
+    code = (
+        "import redundancy; r = redundancy.load_robot('hiab031'); "
+        "assert 'site' in redundancy.__file__, redundancy.__file__; print(r.n, r.m)"
+    )
+    run = subprocess.run(
+        [sys.executable, "-c", code],
+        cwd=tmp_path,
+        env={"PYTHONPATH": str(target), "PATH": "/usr/bin:/bin"},
+        capture_output=True,
+        text=True,
+    )
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.split() == ["3", "2"]
+    assert redundancy.__file__  # the tested install is a separate copy
