@@ -30,11 +30,15 @@ def solve_right(B: np.ndarray, A: np.ndarray) -> np.ndarray:
     return np.swapaxes(np.linalg.solve(np.swapaxes(A, 1, 2), np.swapaxes(B, 1, 2)), 1, 2)
 
 
-def check_invertible(A: np.ndarray, q: np.ndarray, names: list[str]) -> None:
-    """Raise `SingularConfigurationError` where |det A| is tiny against its rows' norms."""
+def invertibility(A: np.ndarray) -> np.ndarray:
+    """|det A| / Π_i |row_i(A)| (k,): 1 for orthogonal rows, 0 for a singular A (Hadamard)."""
     scale = np.prod(np.linalg.norm(A, axis=2), axis=1)
-    ratio = np.abs(np.linalg.det(A)) / np.where(scale > 0, scale, 1.0)
-    bad = np.flatnonzero(ratio < SINGULAR_TOLERANCE)
+    return np.abs(np.linalg.det(A)) / np.where(scale > 0, scale, 1.0)
+
+
+def check_invertible(A: np.ndarray, q: np.ndarray, names: list[str]) -> None:
+    """Raise `SingularConfigurationError` where A is singular to working precision."""
+    bad = np.flatnonzero(invertibility(A) < SINGULAR_TOLERANCE)
     if bad.size:
         i = bad[0]
         weakest = names[int(np.argmin(np.linalg.norm(A[i], axis=1)))]
@@ -87,10 +91,11 @@ class ActuatorSpace:
         return (self.M_H @ np.asarray(x_ddot)[:, :, None])[:, :, 0] + self.N_H
 
 
-def actuator_space(robot: Robot, q, v=None) -> ActuatorSpace:
+def actuator_space(robot: Robot, q, v=None, check: bool = True) -> ActuatorSpace:
     """`ActuatorSpace` at q of shape (n,) or (k, n) and joint velocities v like q (default rest).
 
-    One state comes back as a batch of one.
+    One state comes back as a batch of one. ``check`` raises `SingularConfigurationError` where
+    A is singular; callers that handle singular states themselves (the simulation) turn it off.
     """
     qb = robot.configuration(q)
     vb = None if v is None else robot.configuration(v, "v")
@@ -98,7 +103,8 @@ def actuator_space(robot: Robot, q, v=None) -> ActuatorSpace:
         raise InvalidInputError(f"v has shape {vb.shape}; q has {qb.shape}")
     kinematics = robot.kinematics(qb, vb)
     x, A = robot.actuators.evaluate(kinematics)
-    check_invertible(A, qb, robot.actuators.names)
+    if check:
+        check_invertible(A, qb, robot.actuators.names)
     task = robot.task(kinematics)
     if vb is None:
         vb, A_dot = np.zeros_like(qb), np.zeros_like(A)

@@ -8,12 +8,17 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 import numpy as np
 
 from redundancy.actuator_space import actuator_space
-from redundancy.errors import RedundancyError
+from redundancy.errors import InvalidInputError, RedundancyError
+from redundancy.objectives import OBJECTIVES, objective
+from redundancy.plots import write_figures
 from redundancy.robot import Robot, bundled_robots, load_robot
+from redundancy.study import run_study, write_report
+from redundancy.tasks import WorkCycle
 
 
 def _add_robot_options(parser: argparse.ArgumentParser) -> None:
@@ -52,6 +57,43 @@ def _describe_command(args: argparse.Namespace) -> None:
     print(describe(load_robot(args.robot, payload=args.payload)))
 
 
+def _positive(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be a whole number ≥ 1; got {text}")
+    return value
+
+
+def _load_task(robot: Robot, path: str | None) -> WorkCycle:
+    if path is None:
+        if robot.task_file is None:
+            raise InvalidInputError(f"{robot.name} ships no task; give one with --task FILE")
+        path = str(robot.task_file)
+    return WorkCycle.from_toml(path, dimension=robot.m)
+
+
+def _study_command(args: argparse.Namespace) -> None:
+    robot = load_robot(args.robot, payload=args.payload)
+    cycle = _load_task(robot, args.task)
+    chosen = tuple(OBJECTIVES) if args.objective == "both" else (args.objective,)
+    checked = None if args.check is None else tuple(args.check.split(","))
+    study = run_study(
+        robot,
+        cycle,
+        tuple(objective(name) for name in chosen),
+        samples=args.samples,
+        checked=checked,
+        progress=not args.quiet,
+    )
+    print(study.table())
+    out = Path(args.out)
+    report = Path(args.json) if args.json else out / "report.json"
+    write_report(study, report)
+    figures = write_figures(study, out)
+    print(f"report: {report}")
+    print(f"figures: {', '.join(str(p) for p in figures)}")
+
+
 def _robots_command(args: argparse.Namespace) -> None:
     for name in bundled_robots():
         robot = load_robot(name)
@@ -69,6 +111,23 @@ def parser() -> argparse.ArgumentParser:
     _add_robot_options(describe_parser)
     describe_parser.set_defaults(run=_describe_command)
     commands.add_parser("robots", help="list the bundled robots").set_defaults(run=_robots_command)
+    study = commands.add_parser(
+        "study", help="the paper's study: improved initial configurations and strategies compared"
+    )
+    _add_robot_options(study)
+    study.add_argument("--task", help="task file (TOML); default: the robot's own")
+    study.add_argument(
+        "--objective", choices=[*OBJECTIVES, "both"], default="both", help="what to minimise"
+    )
+    study.add_argument("--samples", type=_positive, default=100, help="starts per sweep")
+    study.add_argument(
+        "--check",
+        help="comma-separated actuators whose limits count (default: all; the paper: x1,x2)",
+    )
+    study.add_argument("--out", default="results", help="output folder (figures, report)")
+    study.add_argument("--json", help="report path (default: OUT/report.json)")
+    study.add_argument("--quiet", action="store_true", help="no progress bar")
+    study.set_defaults(run=_study_command)
     return main
 
 

@@ -110,12 +110,14 @@ class Robot:
         actuators: ActuatorSet,
         payload: float,
         folder: Path,
+        task_file: Path | None = None,
     ) -> None:
         self.name = name
         self.model = model
         self.data = model.createData()
         self.payload = payload
         self.folder = folder
+        self.task_file = task_file
         self.tool_frame = tool_frame
         self.task_axes = task_axes
         self.actuators = actuators
@@ -314,7 +316,8 @@ def load_robot(robot: str | Path, payload: float | None = None) -> Robot:
     """Load a bundled robot by name, or a robot from a ``robot.toml`` or ``.urdf`` path.
 
     A ``robot.toml`` names the URDF, the tool frame, the task axes (world components of the tool
-    position, e.g. "xz"), and optionally a default payload in kg and the robot's task file. A bare
+    position, e.g. "xz"), and optionally a default payload in kg and the robot's task file
+    (``task``, see `redundancy.tasks`). A bare
     URDF takes its last link as the tool and the full position "xyz" as the task. ``payload``
     (kg, ≥ 0) is a point mass at the tool frame; None takes the description's default, or 0.
     """
@@ -343,4 +346,6 @@ def load_robot(robot: str | Path, payload: float | None = None) -> Robot:
     if payload > 0:
         _add_payload(model, tool_frame, payload)
     actuators = ActuatorSet.bind(read_transmissions(root, urdf_path.name), model)
-    return Robot(name, model, tool_frame, task_axes, actuators, payload, folder)
+    task = description.get("task")
+    task_file = None if task is None else folder / task
+    return Robot(name, model, tool_frame, task_axes, actuators, payload, folder, task_file)

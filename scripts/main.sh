@@ -1,4 +1,4 @@
 #!/usr/bin/env bash
 # The main job, in .venv (created on first use). Extra arguments go to the command.
 source "$(dirname "$0")/env.sh"
-redundancy describe "$@"
+redundancy study "$@"

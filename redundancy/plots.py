@@ -1,0 +1,126 @@
+"""The study's figures (matplotlib): the paper's Figs. 4a-4c, 5a and 5b.
+
+Figures read results; they compute nothing of their own.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from redundancy.errors import RedundancyError
+from redundancy.initial_configuration import SearchResult
+from redundancy.simulate import Trajectory
+from redundancy.study import Study, write_atomically
+
+
+def _pyplot():
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError as error:  # pragma: no cover - a dependency of the package
+        raise RedundancyError("figures need matplotlib: pip install matplotlib") from error
+    return plt
+
+
+def peaks_figure(searches: tuple[SearchResult, ...], title: str):
+    """Peak of the objective against the held actuator's start value, one curve per segment,
+    feasible samples solid with their range shaded (Figs. 4a, 5a)."""
+    plt = _pyplot()
+    figure, axes = plt.subplots(figsize=(7, 4.5))
+    for search in searches:
+        reachable = [s for s in search.samples if s.peak is not None]
+        line = axes.plot(
+            [s.value for s in reachable],
+            [s.peak for s in reachable],
+            ":",
+            alpha=0.6,
+            label=f"segment {search.segment.name}",
+        )[0]
+        feasible = search.feasible
+        axes.plot(
+            [s.value for s in feasible],
+            [s.peak for s in feasible],
+            "o-",
+            ms=2.5,
+            color=line.get_color(),
+        )
+        if search.feasible_range is not None:
+            axes.axvspan(*search.feasible_range, color=line.get_color(), alpha=0.08)
+        if search.best is not None:
+            axes.plot(search.best.value, search.best.peak, "*", ms=12, color=line.get_color())
+    objective = searches[0].objective
+    axes.set_xlabel(f"initial {searches[0].held} (m)")
+    axes.set_ylabel(f"peak {objective.label} ({objective.unit})")
+    axes.set_title(title)
+    axes.grid(alpha=0.3)
+    axes.legend(title="solid: feasible, ★ best")
+    figure.tight_layout()
+    return figure
+
+
+def motion_figure(trajectory: Trajectory, title: str):
+    """Actuator displacements and velocities along one motion (Figs. 4b, 4c, 5b), with the
+    stroke limits dashed."""
+    plt = _pyplot()
+    figure, (top, bottom) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
+    actuators = trajectory.robot.actuators
+    for row, actuator in enumerate(actuators):
+        line = top.plot(trajectory.t, trajectory.x[0, :, row], label=actuator.name)[0]
+        for bound in (actuator.lower, actuator.upper):
+            top.axhline(bound, ls="--", lw=0.8, color=line.get_color(), alpha=0.6)
+        bottom.plot(trajectory.t, trajectory.x_dot[0, :, row], label=f"ẋ of {actuator.name}")
+    top.set_ylabel("actuator displacement x (m)")
+    bottom.set_ylabel("actuator velocity ẋ (m/s)")
+    bottom.set_xlabel("t (s)")
+    top.set_title(title)
+    for axes in (top, bottom):
+        axes.grid(alpha=0.3)
+        axes.legend(loc="best", fontsize=8)
+    figure.tight_layout()
+    return figure
+
+
+def nonoptimal_sample(search: SearchResult):
+    """The paper's Fig. 4c start: the least extended feasible start, else the lowest reachable."""
+    candidates = search.feasible or [s for s in search.samples if s.peak is not None]
+    return min(candidates, key=lambda s: s.value)
+
+
+def write_figures(study: Study, folder: Path, segment: str | None = None) -> list[Path]:
+    """Write the paper's figures for the study into ``folder``; return their paths.
+
+    ``segment`` is the one shown in the motion figures (default: the cycle's first).
+    """
+    plt = _pyplot()
+    segment = segment or study.cycle.segments[0].name
+    figures = {}
+    numbers = {"velocity": "4", "energy": "5"}
+    for name, searches in study.searches.items():
+        number = numbers.get(name, name)
+        objective = searches[0].objective
+        figures[f"fig{number}a_peak_{name}.png"] = peaks_figure(
+            searches, f"Peak {objective.label} against the initial {study.held}"
+        )
+        search = study.search(name, segment)
+        if search.best is not None:
+            figures[f"fig{number}b_best_{name}_{segment}.png"] = motion_figure(
+                search.motion(search.best),
+                f"min {objective.label}, segment {segment}, optimal {study.held} = "
+                f"{search.best.value:.3f} m",
+            )
+        if name == "velocity":
+            other = nonoptimal_sample(search)
+            figures[f"fig4c_nonoptimal_{name}_{segment}.png"] = motion_figure(
+                search.motion(other),
+                f"min {objective.label}, segment {segment}, non-optimal {study.held} = "
+                f"{other.value:.3f} m",
+            )
+    paths = []
+    for filename, figure in figures.items():
+        path = folder / filename
+        write_atomically(path, lambda p, f=figure: f.savefig(p, dpi=110, format="png"))
+        plt.close(figure)
+        paths.append(path)
+    return paths
