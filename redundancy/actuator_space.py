@@ -31,9 +31,9 @@ def solve_right(B: np.ndarray, A: np.ndarray) -> np.ndarray:
 
 
 def invertibility(A: np.ndarray) -> np.ndarray:
-    """|det A| / Π_i |row_i(A)| (k,): 1 for orthogonal rows, 0 for a singular A (Hadamard)."""
-    scale = np.prod(np.linalg.norm(A, axis=2), axis=1)
-    return np.abs(np.linalg.det(A)) / np.where(scale > 0, scale, 1.0)
+    """σ_min / σ_max of each A (k, n, n), (k,): 1 for an orthogonal A, 0 for a singular one."""
+    singular_values = np.linalg.svd(A, compute_uv=False)
+    return singular_values[:, -1] / np.maximum(singular_values[:, 0], np.finfo(float).tiny)
 
 
 def check_invertible(A: np.ndarray, q: np.ndarray, names: list[str]) -> None:
@@ -44,7 +44,7 @@ def check_invertible(A: np.ndarray, q: np.ndarray, names: list[str]) -> None:
         weakest = names[int(np.argmin(np.linalg.norm(A[i], axis=1)))]
         raise SingularConfigurationError(
             f"actuator Jacobian A is singular at q = {np.round(q[i], 6).tolist()} "
-            f"(weakest row: actuator {weakest!r}); the actuators cannot move the joints there"
+            f"(weakest: actuator {weakest!r}); the actuators cannot move the joints there"
         )
 
 

@@ -1,9 +1,10 @@
 """Hydraulic coordinates against their definitions and against Pinocchio's inverse dynamics."""
 
 import numpy as np
+import pytest
 from sampling import random_configurations, random_velocities
 
-from redundancy import actuator_space
+from redundancy import SingularConfigurationError, actuator_space
 
 
 def test_actuator_forces_match_inverse_dynamics(crane):
@@ -47,3 +48,11 @@ def test_one_state_is_a_batch_of_one(crane):
     single = actuator_space(crane, q[1])
     np.testing.assert_allclose(single.M_H[0], batch.M_H[1], rtol=1e-14)
     assert single.J_H.shape == (1, 2, 3)
+
+
+def test_a_singular_actuator_jacobian_is_named(crane):
+    """At q1 = 0 the lift cylinder's line passes through joint 1: no torque arm."""
+    with pytest.raises(
+        SingularConfigurationError, match=r"singular at q = \[0.0, 1.0, 0.5\].*'x1'"
+    ):
+        actuator_space(crane, [0.0, 1.0, 0.5])

@@ -1,0 +1,41 @@
+"""Inverse kinematics with held actuators: round trips, branch choice, and unreachable points."""
+
+import numpy as np
+import pytest
+from hiab031_closed_form import tool
+
+from redundancy import InvalidInputError, UnreachableError, actuator_space
+from redundancy.ik import configuration_at, inverse_kinematics
+
+
+def test_round_trip_reaches_the_point_with_the_held_actuator_at_its_value(crane):
+    rng = np.random.default_rng(40)
+    values = rng.uniform(0.9, 1.09, size=(20, 1))
+    point = np.array([3.5, -0.5])
+    solution = inverse_kinematics(crane, point, ["x3"], values)
+    assert solution.reached.all()
+    # checked against the paper's closed form (Eqs. 4-5, 9), not the solver's own model
+    for q, value in zip(solution.q, values[:, 0]):
+        assert np.linalg.norm(tool(q) - point) <= 1e-9
+        assert abs(actuator_space(crane, q).x[0, 2] - value) <= 1e-9
+        assert np.all((q >= crane.lower) & (q <= crane.upper))
+
+
+def test_the_branch_inside_the_joint_limits_is_chosen(crane):
+    q = configuration_at(crane, [2.25, 3.0], {"x3": 0.3})
+    assert np.all((q >= crane.lower) & (q <= crane.upper))
+    # the other branch (boom 2 folded the other way) has q2 < 0, outside [12.4°, 137.6°]
+    assert q[1] > 0
+
+
+def test_unreachable_point_says_by_how_much(crane):
+    # joint 1 at (-0.228, 0.957); with x3 = 0.5 the tool reaches at most ~3.73 m from it
+    with pytest.raises(UnreachableError, match=r"\[6.0, 3.0\].*misses it by 2.8\d* m"):
+        configuration_at(crane, [6.0, 3.0], {"x3": 0.5})
+
+
+def test_holding_the_wrong_number_of_actuators_is_refused(crane):
+    with pytest.raises(InvalidInputError, match="n − m = 1 redundant"):
+        configuration_at(crane, [2.0, 1.0], {"x2": 1.0, "x3": 0.5})
+    with pytest.raises(InvalidInputError, match="unknown actuators"):
+        configuration_at(crane, [2.0, 1.0], {"x4": 1.0})

@@ -1,0 +1,112 @@
+"""Simulation along the paper's segments: tracking accuracy, limits, failures."""
+
+import numpy as np
+import pytest
+
+from redundancy import InvalidInputError
+from redundancy.ik import inverse_kinematics
+from redundancy.objectives import ENERGY, VELOCITY
+from redundancy.resolvers import GradientProjection
+from redundancy.simulate import simulate
+from redundancy.tasks import Segment, WorkCycle
+
+
+@pytest.fixture(scope="module")
+def cycle(crane):
+    return WorkCycle.from_toml(crane.task_file, dimension=crane.m)
+
+
+def reachable_starts(robot, segment, values):
+    ik = inverse_kinematics(robot, segment.start, ["x3"], np.asarray(values)[:, None])
+    return ik.q[ik.reached]
+
+
+@pytest.mark.parametrize("segment_name", ["1-2", "2-3", "3-1"])
+@pytest.mark.parametrize("resolver", [VELOCITY.resolver, ENERGY.resolver, GradientProjection()])
+def test_tracking_error_stays_below_a_micrometre_on_every_paper_segment(
+    crane, cycle, segment_name, resolver
+):
+    segment = cycle[segment_name]
+    starts = reachable_starts(crane, segment, np.linspace(0.0, 1.09, 6))
+    trajectory = simulate(crane, resolver, segment, starts)
+    assert len(trajectory) >= 2
+    assert trajectory.max_tracking_error.max() <= 1e-6
+    np.testing.assert_allclose(
+        trajectory.y[:, -1], np.tile(segment.end, (len(starts), 1)), atol=1e-6
+    )
+
+
+def test_the_recorded_velocities_are_those_of_the_motion(crane, cycle):
+    """ẋ sampled from the resolver equals the time derivative of the integrated strokes x."""
+    segment = cycle["2-3"]
+    trajectory = simulate(
+        crane, VELOCITY.resolver, segment, reachable_starts(crane, segment, [0.4])
+    )
+    derivative = np.gradient(trajectory.x[0], trajectory.t, axis=0, edge_order=2)
+    np.testing.assert_allclose(trajectory.x_dot[0, 1:-1], derivative[1:-1], atol=1e-5)
+
+
+def test_actuator_forces_along_a_motion_match_inverse_dynamics(crane, cycle):
+    segment = cycle["1-2"]
+    trajectory = simulate(
+        crane, VELOCITY.resolver, segment, reachable_starts(crane, segment, [1.0])
+    )
+    q, t = trajectory.q[0], trajectory.t
+    v = np.gradient(q, t, axis=0, edge_order=2)
+    a = np.gradient(v, t, axis=0, edge_order=2)
+    inner = slice(5, -5)  # away from the one-sided differences at the ends
+    tau = crane.inverse_dynamics(q[inner], v[inner], a[inner])
+    states = trajectory._states
+    A = states.A.reshape(len(t), crane.n, crane.n)[inner]
+    expected = np.linalg.solve(np.swapaxes(A, 1, 2), tau[..., None])[..., 0]
+    np.testing.assert_allclose(trajectory.forces[0, inner], expected, rtol=1e-3)
+
+
+def test_limits_are_flagged_with_actuator_time_and_excess(crane, cycle):
+    segment = cycle["3-1"]
+    values = np.linspace(0.0, 0.9, 10)
+    trajectory = simulate(
+        crane, VELOCITY.resolver, segment, reachable_starts(crane, segment, values)
+    )
+    lower, upper = crane.actuators.lower, crane.actuators.upper
+    assert not trajectory.within_limits.all() and trajectory.within_limits.any()
+    for i in range(len(trajectory)):
+        inside = np.all((trajectory.x[i] >= lower - 1e-9) & (trajectory.x[i] <= upper + 1e-9))
+        assert trajectory.within_limits[i] == inside
+        violations = trajectory.violations(i)
+        assert bool(violations) != inside
+        for violation in violations:
+            row = crane.actuators.names.index(violation.actuator)
+            span = (trajectory.t >= violation.start) & (trajectory.t <= violation.end)
+            x = trajectory.x[i, span, row]
+            past = lower[row] - x if violation.bound == "lower" else x - upper[row]
+            assert past.max() == pytest.approx(violation.excess)
+            assert np.all(past > 0)
+
+
+def test_checking_named_actuators_only(crane, cycle):
+    segment = cycle["3-1"]
+    starts = reachable_starts(crane, segment, np.linspace(0.0, 0.9, 10))
+    every = simulate(crane, ENERGY.resolver, segment, starts)
+    paper = simulate(crane, ENERGY.resolver, segment, starts, checked=("x1", "x2"))
+    assert not every.within_limits.any()  # the telescope leaves its stroke
+    assert paper.within_limits.any()
+    assert all(v.actuator in ("x1", "x2") for i in range(len(paper)) for v in paper.violations(i))
+
+
+def test_a_start_at_a_singular_actuator_jacobian_is_frozen_and_flagged(crane):
+    """At q1 = 0 the lift cylinder's line passes through joint 1: its torque arm a1 vanishes."""
+    q = np.array([[0.0, 1.0, 0.5], [1.5, 1.0, 0.5]])
+    y0 = crane.fk(q[1])
+    segment = Segment("short", y0, y0 + np.array([-0.2, 0.0]), 0.5)
+    trajectory = simulate(crane, VELOCITY.resolver, segment, q)
+    assert trajectory.failed.tolist() == [True, False]
+    assert trajectory.within_limits[0] == np.False_
+    np.testing.assert_array_equal(trajectory.q[0], np.tile(q[0], (len(trajectory.t), 1)))
+    assert trajectory.max_tracking_error[1] <= 1e-6
+
+
+def test_a_segment_of_the_wrong_dimension_is_refused(crane):
+    segment = Segment("3d", np.zeros(3), np.ones(3), 0.5)
+    with pytest.raises(InvalidInputError, match=r"3 coordinates.*task has 2"):
+        simulate(crane, VELOCITY.resolver, segment, np.array([[1.5, 1.0, 0.5]]))

@@ -1,0 +1,152 @@
+"""The paper's study on the bundled crane, checked against the paper's findings (section 3)."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from redundancy.study import run_study
+from redundancy.tasks import WorkCycle
+
+SEGMENTS = ["1-2", "2-3", "3-1"]
+
+
+@pytest.fixture(scope="module")
+def study(crane):
+    cycle = WorkCycle.from_toml(crane.task_file, dimension=crane.m)
+    return run_study(crane, cycle, samples=40, progress=False)
+
+
+def width(search):
+    return 0.0 if search.feasible_range is None else np.subtract(*search.feasible_range[::-1])
+
+
+def relative_reduction(search):
+    """(worst − best) / worst peak over the feasible samples."""
+    peaks = [s.peak for s in search.feasible]
+    return (max(peaks) - min(peaks)) / max(peaks)
+
+
+def test_every_feasible_sample_stays_inside_every_checked_limit(study, crane):
+    lower, upper = crane.actuators.lower, crane.actuators.upper
+    for searches in study.searches.values():
+        for search in searches:
+            for i, sample in enumerate(search.samples):
+                row = search.rows[i]
+                if sample.feasible:
+                    x = search.trajectory.x[row]
+                    assert np.all((x >= lower - 1e-9) & (x <= upper + 1e-9))
+                else:
+                    assert sample.reason
+                    assert sample.violations or row < 0 or search.trajectory.failed[row]
+
+
+@pytest.mark.parametrize("segment", SEGMENTS)
+def test_peak_velocity_norm_falls_as_the_initial_telescope_extension_grows(study, segment):
+    """Fig. 4a: the best start is the most extended feasible one, and the gain is substantial."""
+    search = study.search("velocity", segment)
+    values = [s.value for s in search.feasible]
+    peaks = np.array([s.peak for s in search.feasible])
+    assert len(values) >= 5 and values == sorted(values)
+    assert np.all(np.diff(peaks) <= 1e-9 * peaks[:-1])
+    assert search.best.value == search.feasible_range[1]
+    assert relative_reduction(search) > 0.4
+
+
+@pytest.mark.parametrize("segment", SEGMENTS)
+def test_energy_objective_gains_marginally_on_a_narrower_feasible_range(study, segment):
+    """Fig. 5a: a marginal reduction of the peak kinetic energy and a narrow feasible range."""
+    velocity, energy = study.search("velocity", segment), study.search("energy", segment)
+    assert width(energy) < width(velocity)
+    if energy.feasible:
+        assert relative_reduction(energy) < 0.1
+
+
+def test_velocity_objective_beats_energy_objective_on_segment_1_2(study):
+    """The paper's conclusion: the improved min ẋᵀẋ solution has lower actuator velocities."""
+    runs = {run.strategy: run.trajectory for run in study.runs if run.segment == "1-2"}
+    fast, energetic = runs["improved, velocity objective"], runs["improved, energy objective"]
+    assert fast.peak_velocity_norm[0] < energetic.peak_velocity_norm[0]
+    assert np.abs(fast.x_dot).max() < np.abs(energetic.x_dot).max()
+
+
+def test_improved_start_beats_the_default_start_on_every_segment(study):
+    for segment in SEGMENTS:
+        runs = {r.strategy: r.trajectory for r in study.runs if r.segment == segment}
+        improved = runs["improved, velocity objective"]
+        plain = runs["unweighted, default start"]
+        assert improved.within_limits[0]
+        assert improved.peak_velocity_norm[0] <= plain.peak_velocity_norm[0]
+
+
+def test_a_segment_without_a_feasible_start_is_reported_not_raised(study):
+    search = study.search("energy", "2-3")
+    assert search.best is None and search.feasible_range is None
+    assert "x3" in str(search.closest_violation)
+    report = study.report()
+    energy = next(s for s in report["studies"] if s["objective"] == "energy")
+    entry = next(s for s in energy["segments"] if s["name"] == "2-3")
+    assert entry["feasible_range"] is None and entry["best"] is None
+    assert "past its" in entry["closest_violation"]
+    assert "2-3" in study.table() and "no sampled start" in study.table()
+
+
+def run_cli(*args, cwd=None):
+    return subprocess.run(
+        [sys.executable, "-m", "redundancy.cli", *args], capture_output=True, text=True, cwd=cwd
+    )
+
+
+def test_study_command_writes_the_report_and_the_five_figures(tmp_path):
+    out = tmp_path / "out"
+    run = run_cli("study", "--samples", "5", "--out", str(out), "--quiet")
+    assert run.returncode == 0, run.stderr
+    report = json.loads((out / "report.json").read_text())
+    assert report["robot"] == "hiab031"
+    assert [s["objective"] for s in report["studies"]] == ["velocity", "energy"]
+    for entry in report["studies"]:
+        assert [s["name"] for s in entry["segments"]] == SEGMENTS
+        for segment in entry["segments"]:
+            assert segment["held_actuator"] == "x3"
+            assert len(segment["samples"]) == 5
+            assert {"value", "peak", "feasible"} <= set(segment["samples"][0])
+    figures = sorted(p.name for p in out.glob("fig*.png"))
+    assert [name[:5] for name in figures] == ["fig4a", "fig4b", "fig4c", "fig5a", "fig5b"]
+    for name in figures:
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert "improved, velocity objective" in run.stdout
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--samples", "0"], "must be a whole number ≥ 1"),
+        (["--objective", "speed"], "invalid choice: 'speed'"),
+        (["--robot", "hiab32"], "unknown robot 'hiab32'; bundled robots: hiab031"),
+        (["--check", "x1,x9"], "unknown actuators ['x9']"),
+    ],
+)
+def test_bad_study_options_exit_with_a_message_and_no_traceback(tmp_path, args, message):
+    run = run_cli("study", "--out", str(tmp_path), "--quiet", *args)
+    assert run.returncode == 2
+    assert message in run.stderr
+    assert "Traceback" not in run.stderr
+
+
+def test_an_unreachable_segment_point_fails_cleanly_and_keeps_the_old_report(tmp_path):
+    task = tmp_path / "far.toml"
+    task.write_text(
+        'segments = ["1-2"]\nheld = ["x3"]\n[points]\n1 = [9.0, 9.0]\n2 = [1.0, -0.5]\n'
+    )
+    report = tmp_path / "report.json"
+    report.write_text('{"previous": true}\n')
+    run = run_cli(
+        "study", "--task", str(task), "--json", str(report), "--out", str(tmp_path), "--quiet"
+    )
+    assert run.returncode == 2
+    assert "cannot reach the start [9.0, 9.0] of segment 1-2" in run.stderr
+    assert "Traceback" not in run.stderr
+    assert report.read_text() == '{"previous": true}\n'
+    assert not list(tmp_path.glob("fig*")) and not list(tmp_path.glob(".*"))

@@ -1,0 +1,56 @@
+"""Segments follow Eqs. (33)-(34); task files are read with their errors named."""
+
+import numpy as np
+import pytest
+
+from redundancy import InvalidInputError
+from redundancy.robot import bundled_root
+from redundancy.tasks import Segment, WorkCycle
+
+
+def test_segment_follows_eqs_33_34():
+    segment = Segment("1-2", np.array([3.5, -0.5]), np.array([1.0, -0.5]), 0.5)
+    assert segment.duration == pytest.approx(5.0)
+    np.testing.assert_allclose(
+        segment.position([0.0, 2.5, 5.0]), [[3.5, -0.5], [2.25, -0.5], [1.0, -0.5]]
+    )
+    np.testing.assert_allclose(segment.velocity, [-0.5, 0.0])
+    t = np.linspace(0, 5, 11)
+    np.testing.assert_allclose(
+        np.gradient(segment.position(t), t, axis=0), np.tile(segment.velocity, (11, 1))
+    )
+
+
+def test_the_paper_cycle_ships_with_the_crane():
+    cycle = WorkCycle.from_toml(bundled_root() / "hiab031" / "task.toml", dimension=2)
+    assert [s.name for s in cycle.segments] == ["1-2", "2-3", "3-1"]
+    assert cycle.held == ("x3",)
+    np.testing.assert_array_equal(cycle["2-3"].start, [1.0, -0.5])
+    np.testing.assert_array_equal(cycle["2-3"].end, [2.25, 3.0])
+    assert all(s.speed == 0.5 for s in cycle.segments)
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        (
+            'segments = ["1-2"]\n[points]\n1 = [0, 0, 0]\n2 = [1, 0, 0]\n',
+            "3 coordinates; the robot's task has 2",
+        ),
+        ('segments = ["1-4"]\n[points]\n1 = [0, 0]\n2 = [1, 0]\n', "points among 1, 2"),
+        ('segments = ["1-2"]\n', r"\[points\] table"),
+        ('segments = ["1-1"]\n[points]\n1 = [0, 0]\n', "coincide"),
+        ("not toml [", "not a readable task file"),
+    ],
+)
+def test_bad_task_files_are_named(tmp_path, text, message):
+    path = tmp_path / "task.toml"
+    path.write_text(text)
+    with pytest.raises(InvalidInputError, match=message):
+        WorkCycle.from_toml(path, dimension=2)
+
+
+def test_unknown_segment_lists_the_segments():
+    cycle = WorkCycle.from_toml(bundled_root() / "hiab031" / "task.toml")
+    with pytest.raises(InvalidInputError, match="segments: 1-2, 2-3, 3-1"):
+        cycle["1-3"]
