@@ -124,7 +124,7 @@ class Study:
 
 def _search_report(search: SearchResult) -> dict:
     best = search.best
-    closest = search.closest_violation
+    closest = search.closest_violation if best is None else None
     return {
         "name": search.segment.name,
         "start": search.segment.start.tolist(),
