@@ -26,13 +26,16 @@ def _pyplot():
 
 def peaks_figure(searches: tuple[SearchResult, ...], title: str):
     """Peak of the objective against the held actuator's start value, one curve per segment,
-    feasible samples solid with their range shaded (Figs. 4a, 5a)."""
+    feasible samples solid with their range shaded (Figs. 4a, 5a). With several held actuators,
+    against the first of them."""
     plt = _pyplot()
     figure, axes = plt.subplots(figsize=(7, 4.5))
     for search in searches:
-        reachable = [s for s in search.samples if s.peak is not None]
+        reachable = sorted(
+            (s for s in search.samples if s.peak is not None), key=lambda s: s.values
+        )
         line = axes.plot(
-            [s.value for s in reachable],
+            [s.values[0] for s in reachable],
             [s.peak for s in reachable],
             ":",
             alpha=0.6,
@@ -51,7 +54,7 @@ def peaks_figure(searches: tuple[SearchResult, ...], title: str):
         if search.best is not None:
             axes.plot(search.best.value, search.best.peak, "*", ms=12, color=line.get_color())
     objective = searches[0].objective
-    axes.set_xlabel(f"initial {searches[0].held} (m)")
+    axes.set_xlabel(f"initial {searches[0].held[0]}")
     axes.set_ylabel(f"peak {objective.label} ({objective.unit})")
     axes.set_title(title)
     axes.grid(alpha=0.3)
@@ -85,7 +88,11 @@ def motion_figure(trajectory: Trajectory, title: str):
 def nonoptimal_sample(search: SearchResult):
     """The paper's Fig. 4c start: the least extended feasible start, else the lowest reachable."""
     candidates = search.feasible or [s for s in search.samples if s.peak is not None]
-    return min(candidates, key=lambda s: s.value)
+    return min(candidates, key=lambda s: s.values)
+
+
+def _start(held, values) -> str:
+    return ", ".join(f"{name} = {value:.3f}" for name, value in zip(held, values))
 
 
 def write_figures(study: Study, folder: Path, segment: str | None = None) -> list[Path]:
@@ -101,21 +108,21 @@ def write_figures(study: Study, folder: Path, segment: str | None = None) -> lis
         number = numbers.get(name, name)
         objective = searches[0].objective
         figures[f"fig{number}a_peak_{name}.png"] = peaks_figure(
-            searches, f"Peak {objective.label} against the initial {study.held}"
+            searches, f"Peak {objective.label} against the initial {study.held[0]}"
         )
         search = study.search(name, segment)
         if search.best is not None:
             figures[f"fig{number}b_best_{name}_{segment}.png"] = motion_figure(
                 search.motion(search.best),
-                f"min {objective.label}, segment {segment}, optimal {study.held} = "
-                f"{search.best.value:.3f} m",
+                f"min {objective.label}, segment {segment}, optimal start "
+                f"{_start(study.held, search.best.values)}",
             )
         if name == "velocity":
             other = nonoptimal_sample(search)
             figures[f"fig4c_nonoptimal_{name}_{segment}.png"] = motion_figure(
                 search.motion(other),
-                f"min {objective.label}, segment {segment}, non-optimal {study.held} = "
-                f"{other.value:.3f} m",
+                f"min {objective.label}, segment {segment}, non-optimal start "
+                f"{_start(study.held, other.values)}",
             )
     paths = []
     for filename, figure in figures.items():

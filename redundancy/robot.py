@@ -10,6 +10,7 @@ answers in the same form, with the batch axis first.
 
 from __future__ import annotations
 
+import importlib.metadata
 import importlib.resources
 import tomllib
 from dataclasses import dataclass
@@ -282,7 +283,28 @@ def _describe(robot: str | Path) -> tuple[str, Path, dict]:
     return str(robot), folder, _read_description(folder / "robot.toml")
 
 
-def _build_model(urdf_path: Path) -> tuple[pin.Model, etree._Element]:
+def _urdf_path(folder: Path, reference: str) -> Path:
+    """A URDF named relative to the robot's folder, or ``package://<distribution>/<path>`` for
+    one shipped by an installed Python distribution (e.g. example-robot-data)."""
+    if not reference.startswith("package://"):
+        return folder / reference
+    distribution, _, inner = reference[len("package://") :].partition("/")
+    try:
+        files = importlib.metadata.distribution(distribution).files or []
+    except importlib.metadata.PackageNotFoundError as error:
+        raise RobotDescriptionError(
+            f"{reference}: the package {distribution!r} is not installed; "
+            f"pip install {distribution}"
+        ) from error
+    for file in files:
+        if str(file).endswith(f"{distribution}/{inner}"):
+            return Path(str(file.locate()))
+    raise RobotDescriptionError(f"{reference}: no such file in the package {distribution!r}")
+
+
+def _build_model(urdf_path: Path, locked: list[str]) -> tuple[pin.Model, etree._Element]:
+    """The Pinocchio model of a URDF, with the ``locked`` joints fixed at their neutral value,
+    and the URDF's XML root."""
     try:
         tree = etree.parse(str(urdf_path))
     except (OSError, etree.XMLSyntaxError) as error:
@@ -292,6 +314,15 @@ def _build_model(urdf_path: Path) -> tuple[pin.Model, etree._Element]:
     except (ValueError, RuntimeError) as error:
         first = str(error).splitlines()[0:3]
         raise RobotDescriptionError(f"{urdf_path}: not a valid URDF: {' '.join(first)}") from error
+    joints = list(model.names)[1:]
+    unknown = [j for j in locked if j not in joints]
+    if unknown:
+        raise RobotDescriptionError(
+            f"locked joints {unknown} are not joints of {urdf_path.name}; joints: {joints}"
+        )
+    if locked:
+        ids = [model.getJointId(j) for j in locked]
+        model = pin.buildReducedModel(model, ids, pin.neutral(model))
     odd = [
         name
         for name, joint in zip(model.names[1:], model.joints[1:])
@@ -300,7 +331,7 @@ def _build_model(urdf_path: Path) -> tuple[pin.Model, etree._Element]:
     if odd:
         raise RobotDescriptionError(
             f"{urdf_path}: joints {odd} are not revolute or prismatic; the toolkit handles "
-            "one-degree-of-freedom joints only"
+            "one-degree-of-freedom joints only (lock the others with locked_joints)"
         )
     return model, tree.getroot()
 
@@ -312,25 +343,30 @@ def _add_payload(model: pin.Model, frame: str, payload: float) -> None:
     model.inertias[tool.parentJoint] = model.inertias[tool.parentJoint] + point_mass
 
 
-def load_robot(robot: str | Path, payload: float | None = None) -> Robot:
+def load_robot(
+    robot: str | Path, payload: float | None = None, task_axes: str | None = None
+) -> Robot:
     """Load a bundled robot by name, or a robot from a ``robot.toml`` or ``.urdf`` path.
 
-    A ``robot.toml`` names the URDF, the tool frame, the task axes (world components of the tool
-    position, e.g. "xz"), and optionally a default payload in kg and the robot's task file
-    (``task``, see `redundancy.tasks`). A bare
-    URDF takes its last link as the tool and the full position "xyz" as the task. ``payload``
-    (kg, ≥ 0) is a point mass at the tool frame; None takes the description's default, or 0.
+    A ``robot.toml`` names the URDF (``urdf``: a path beside it, or
+    ``package://<distribution>/<path>``), the tool frame (``tool_frame``), the task axes
+    (``task_axes``: world components of the tool position, e.g. "xz"), and optionally joints to
+    lock at their neutral value (``locked_joints``), a default payload in kg (``payload``) and
+    the robot's task file (``task``, see `redundancy.tasks`). A bare URDF takes its last link as
+    the tool and the full position "xyz" as the task. ``payload`` (kg, ≥ 0) is a point mass at
+    the tool frame, None taking the description's default, or 0; ``task_axes`` overrides the
+    description's.
     """
     name, folder, description = _describe(robot)
-    urdf_path = folder / description["urdf"]
-    model, root = _build_model(urdf_path)
+    urdf_path = _urdf_path(folder, description["urdf"])
+    model, root = _build_model(urdf_path, list(description.get("locked_joints", [])))
     bodies = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
     tool_frame = description.get("tool_frame", bodies[-1])
     if tool_frame not in bodies:
         raise RobotDescriptionError(
             f"tool frame {tool_frame!r} is not a link of {urdf_path.name}; links: {bodies}"
         )
-    task_axes = str(description.get("task_axes", AXES))
+    task_axes = task_axes or str(description.get("task_axes", AXES))
     if (
         not task_axes
         or any(a not in AXES for a in task_axes)

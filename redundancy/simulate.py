@@ -70,6 +70,17 @@ class Trajectory:
     def __len__(self) -> int:
         return len(self.q)
 
+    def concatenated(self, other: Trajectory) -> Trajectory:
+        """These motions followed by ``other``'s (same robot, segment, resolver and grid)."""
+        return replace(
+            self,
+            q=np.concatenate([self.q, other.q]),
+            x=np.concatenate([self.x, other.x]),
+            x_dot=np.concatenate([self.x_dot, other.x_dot]),
+            y=np.concatenate([self.y, other.y]),
+            failed=np.concatenate([self.failed, other.failed]),
+        )
+
     def select(self, rows) -> Trajectory:
         """The motions ``rows`` alone."""
         rows = np.atleast_1d(rows)

@@ -41,7 +41,7 @@ class StrategyRun:
 
     segment: str
     strategy: str
-    start_value: float
+    start: tuple[float, ...]
     trajectory: Trajectory
 
     def summary(self) -> dict:
@@ -50,7 +50,7 @@ class StrategyRun:
         return {
             "segment": self.segment,
             "strategy": self.strategy,
-            "start_value": self.start_value,
+            "start_value": _scalar_or_list(self.start),
             "peak_velocity_norm": float(motion.peak_velocity_norm[0]),
             "peak_kinetic": float(motion.peak_kinetic[0]),
             "within_limits": bool(motion.within_limits[0]),
@@ -65,7 +65,7 @@ class Study:
 
     robot: Robot
     cycle: WorkCycle
-    held: str
+    held: tuple[str, ...]
     samples: int
     checked: tuple[str, ...]
     searches: dict[str, tuple[SearchResult, ...]]
@@ -98,16 +98,19 @@ class Study:
 
     def table(self) -> str:
         """The comparison as a fixed-width text table."""
+        start = "start " + ",".join(self.held)
+        width = max(10, len(start) + 1, 8 * len(self.held) + 1)
         header = (
-            f"{'segment':<8}{'strategy':<36}{'start ' + self.held:>10}"
+            f"{'segment':<8}{'strategy':<36}{start:>{width}}"
             f"{'peak ẋᵀẋ':>12}{'peak ẋᵀM_Hẋ':>13}  limits"
         )
         lines = [header, "-" * len(header)]
         for run in self.runs:
             row = run.summary()
             held = "held" if row["within_limits"] else "VIOLATED"
+            values = ",".join(f"{v:.3f}" for v in run.start)
             lines.append(
-                f"{run.segment:<8}{run.strategy:<36}{run.start_value:>10.4f}"
+                f"{run.segment:<8}{run.strategy:<36}{values:>{width}}"
                 f"{row['peak_velocity_norm']:>12.5f}{row['peak_kinetic']:>13.3f}  {held}"
             )
         for name, searches in self.searches.items():
@@ -122,19 +125,33 @@ class Study:
         return "\n".join(lines)
 
 
+def _scalar_or_list(values):
+    """One held actuator's value as a number, several as a list (the report's shape)."""
+    values = [float(v) for v in values]
+    return values[0] if len(values) == 1 else values
+
+
 def _search_report(search: SearchResult) -> dict:
     best = search.best
     closest = search.closest_violation if best is None else None
+    box = search.feasible_box
     return {
         "name": search.segment.name,
         "start": search.segment.start.tolist(),
         "end": search.segment.end.tolist(),
-        "held_actuator": search.held,
-        "feasible_range": None if search.feasible_range is None else list(search.feasible_range),
-        "best": None if best is None else {"value": best.value, "peak": best.peak},
+        "held_actuator": search.held[0] if len(search.held) == 1 else list(search.held),
+        "feasible_range": None if box is None else (box[0] if len(box) == 1 else box).tolist(),
+        "best": None
+        if best is None
+        else {"value": _scalar_or_list(best.values), "peak": best.peak},
         "closest_violation": None if closest is None else str(closest),
         "samples": [
-            {"value": s.value, "peak": s.peak, "feasible": s.feasible, "reason": s.reason}
+            {
+                "value": _scalar_or_list(s.values),
+                "peak": s.peak,
+                "feasible": s.feasible,
+                "reason": s.reason,
+            }
             for s in search.samples
         ],
     }
@@ -149,14 +166,13 @@ def run_study(
     time_step: float = TIME_STEP,
     progress: bool = True,
 ) -> Study:
-    """Run every objective's improved search and the comparison strategies on every segment."""
+    """Run every objective's improved search and the comparison strategies on every segment.
+
+    The held actuators are the task's ``held`` or, if it names none, the last n − m actuators.
+    """
     from tqdm import tqdm
 
-    if len(cycle.held) != 1:
-        raise InvalidInputError(
-            f"the study sweeps one held actuator; task {cycle.name!r} holds {list(cycle.held)}"
-        )
-    held = cycle.held[0]
+    held = cycle.held or tuple(robot.actuators.names[robot.m :])
     steps = sum(len(time_grid(s, time_step)) - 1 for s in cycle.segments)
     total = steps * (len(objectives) + len(BASELINES))
     bar = tqdm(total=total, unit="step", desc="study", disable=not progress, mininterval=0.5)
@@ -164,7 +180,7 @@ def run_study(
         searches: dict[str, tuple[SearchResult, ...]] = {}
         runs: list[StrategyRun] = []
         for segment in cycle.segments:
-            value, start = default_start(robot, segment, held)
+            values, start = default_start(robot, segment, held)
             for name, resolver in BASELINES:
                 bar.set_description(f"{segment.name}: {name}")
                 motion = simulate(
@@ -176,7 +192,7 @@ def run_study(
                     checked=checked,
                     progress=bar.update,
                 )
-                runs.append(StrategyRun(segment.name, name, value, motion))
+                runs.append(StrategyRun(segment.name, name, tuple(values), motion))
         for objective in objectives:
             found = []
             for segment in cycle.segments:
@@ -191,7 +207,7 @@ def run_study(
                         StrategyRun(
                             segment.name,
                             f"improved, {objective.name} objective",
-                            best.value,
+                            best.values,
                             search.motion(best),
                         )
                     )

@@ -1,22 +1,46 @@
 """Hydraulic coordinates against their definitions and against Pinocchio's inverse dynamics."""
 
 import numpy as np
+import pinocchio as pin
 import pytest
 from sampling import random_configurations, random_velocities
 
-from redundancy import SingularConfigurationError, actuator_space
+from redundancy import SingularConfigurationError, actuator_space, load_robot
+
+CRANES = ["hiab031", "hiab031_slewing"]
 
 
-def test_actuator_forces_match_inverse_dynamics(crane):
+@pytest.mark.parametrize("name", CRANES)
+def test_actuator_forces_match_inverse_dynamics(name):
     """F_H = M_H ẍ + N_H equals A⁻ᵀ RNEA(q, q̇, q̈) with ẋ = A q̇, ẍ = A q̈ + Ȧ q̇."""
-    q = random_configurations(crane, 50, seed=20, margin=0.01)
-    v = random_velocities(crane, 50, seed=21)
-    a = random_velocities(crane, 50, seed=22)
-    space = actuator_space(crane, q, v)
+    robot = load_robot(name)
+    q = random_configurations(robot, 50, seed=20, margin=0.01)
+    v = random_velocities(robot, 50, seed=21)
+    a = random_velocities(robot, 50, seed=22)
+    space = actuator_space(robot, q, v)
     x_ddot = np.einsum("kij,kj->ki", space.A, a) + np.einsum("kij,kj->ki", space.A_dot, v)
-    tau = crane.inverse_dynamics(q, v, a)
+    tau = robot.inverse_dynamics(q, v, a)
     expected = np.linalg.solve(np.swapaxes(space.A, 1, 2), tau[:, :, None])[:, :, 0]
     np.testing.assert_allclose(space.forces(x_ddot), expected, rtol=1e-10, atol=1e-6)
+
+
+@pytest.mark.parametrize("name", CRANES)
+def test_hydraulic_mass_matrix_gives_pinocchios_kinetic_energy(name):
+    """½ ẋᵀ M_H ẋ equals Pinocchio's kinetic energy at q̇ = A⁻¹ ẋ, with A from finite
+    differences of x: a path independent of CRBA and of the actuator Jacobian."""
+    robot = load_robot(name)
+    for q, x_dot in zip(
+        random_configurations(robot, 20, seed=27, margin=0.01), random_velocities(robot, 20, 28)
+    ):
+        columns = [
+            (actuator_space(robot, q + 1e-6 * e).x[0] - actuator_space(robot, q - 1e-6 * e).x[0])
+            / 2e-6
+            for e in np.eye(robot.n)
+        ]
+        v = np.linalg.solve(np.array(columns).T, x_dot)
+        energy = pin.computeKineticEnergy(robot.model, robot.model.createData(), q, v)
+        M_H = actuator_space(robot, q).M_H[0]
+        assert 0.5 * x_dot @ M_H @ x_dot == pytest.approx(energy, rel=1e-7)
 
 
 def test_hydraulic_quantities_follow_their_definitions(crane):
