@@ -27,9 +27,10 @@ def _pyplot():
 def peaks_figure(searches: tuple[SearchResult, ...], title: str):
     """Peak of the objective against the held actuator's start value, one curve per segment,
     feasible samples solid with their range shaded (Figs. 4a, 5a). With several held actuators,
-    against the first of them."""
+    each sample is a point over the first of them."""
     plt = _pyplot()
     figure, axes = plt.subplots(figsize=(7, 4.5))
+    style = "o-" if len(searches[0].held) == 1 else "o"
     for search in searches:
         reachable = sorted(
             (s for s in search.samples if s.peak is not None), key=lambda s: s.values
@@ -37,22 +38,19 @@ def peaks_figure(searches: tuple[SearchResult, ...], title: str):
         line = axes.plot(
             [s.values[0] for s in reachable],
             [s.peak for s in reachable],
-            ":",
+            ":" if len(search.held) == 1 else ".",
             alpha=0.6,
             label=f"segment {search.segment.name}",
         )[0]
-        feasible = search.feasible
+        feasible = sorted(search.feasible, key=lambda s: s.values)
+        colour = line.get_color()
         axes.plot(
-            [s.value for s in feasible],
-            [s.peak for s in feasible],
-            "o-",
-            ms=2.5,
-            color=line.get_color(),
+            [s.values[0] for s in feasible], [s.peak for s in feasible], style, ms=2.5, color=colour
         )
-        if search.feasible_range is not None:
-            axes.axvspan(*search.feasible_range, color=line.get_color(), alpha=0.08)
+        if search.feasible_box is not None:
+            axes.axvspan(*search.feasible_box[0], color=colour, alpha=0.08)
         if search.best is not None:
-            axes.plot(search.best.value, search.best.peak, "*", ms=12, color=line.get_color())
+            axes.plot(search.best.values[0], search.best.peak, "*", ms=12, color=colour)
     objective = searches[0].objective
     axes.set_xlabel(f"initial {searches[0].held[0]}")
     axes.set_ylabel(f"peak {objective.label} ({objective.unit})")

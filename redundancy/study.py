@@ -100,8 +100,9 @@ class Study:
         """The comparison as a fixed-width text table."""
         start = "start " + ",".join(self.held)
         width = max(10, len(start) + 1, 8 * len(self.held) + 1)
+        names = max(8, *(len(s.name) + 2 for s in self.cycle.segments))
         header = (
-            f"{'segment':<8}{'strategy':<36}{start:>{width}}"
+            f"{'segment':<{names}}{'strategy':<36}{start:>{width}}"
             f"{'peak ẋᵀẋ':>12}{'peak ẋᵀM_Hẋ':>13}  limits"
         )
         lines = [header, "-" * len(header)]
@@ -110,7 +111,7 @@ class Study:
             held = "held" if row["within_limits"] else "VIOLATED"
             values = ",".join(f"{v:.3f}" for v in run.start)
             lines.append(
-                f"{run.segment:<8}{run.strategy:<36}{values:>{width}}"
+                f"{run.segment:<{names}}{run.strategy:<36}{values:>{width}}"
                 f"{row['peak_velocity_norm']:>12.5f}{row['peak_kinetic']:>13.3f}  {held}"
             )
         for name, searches in self.searches.items():
