@@ -1,8 +1,9 @@
 """`Robot` and `load_robot`: a URDF, its actuators and its task, with Pinocchio underneath.
 
 This is the only module that builds Pinocchio models. Every joint-space quantity comes from
-Pinocchio: forward kinematics and the world-frame joint motion axes (`Kinematics`), the mass
-matrix M(q) (CRBA), the nonlinear terms N(q, v) = V(q, v) + G(q) and inverse dynamics (RNEA).
+Pinocchio: positions and world-aligned frame Jacobians (and their rates) of the tool and of
+every actuator attachment point (`Kinematics`), the mass matrix M(q) (CRBA), the nonlinear terms
+N(q, v) = V(q, v) + G(q) and inverse dynamics (RNEA).
 
 Configurations come one at a time, shape (n,), or as a batch, shape (k, n); every method
 answers in the same form, with the batch axis first.
