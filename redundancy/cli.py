@@ -7,18 +7,24 @@ an interrupt ends with status 130. Neither prints a traceback.
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
 
 from redundancy.actuator_space import actuator_space
-from redundancy.errors import InvalidInputError, RedundancyError
-from redundancy.objectives import OBJECTIVES, objective
+from redundancy.errors import InvalidInputError, RedundancyError, UnreachableError
+from redundancy.ik import configuration_at
+from redundancy.initial_configuration import default_start, held_actuators, improved_start
+from redundancy.objectives import OBJECTIVES, Objective, objective
 from redundancy.plots import write_figures
 from redundancy.robot import Robot, bundled_robots, load_robot
+from redundancy.simulate import Trajectory, simulate
 from redundancy.study import run_study, write_report
-from redundancy.tasks import WorkCycle
+from redundancy.tasks import Segment, WorkCycle
+from redundancy.viz import export_html, play, task_points, write_playbacks
 
 
 def _add_robot_options(parser: argparse.ArgumentParser) -> None:
@@ -90,15 +96,72 @@ def _study_command(args: argparse.Namespace) -> None:
     report = Path(args.json) if args.json else out / "report.json"
     write_report(study, report)
     figures = write_figures(study, out)
+    playbacks = write_playbacks(study, out)
     print(f"report: {report}")
     print(f"figures: {', '.join(str(p) for p in figures)}")
+    print(f"playbacks: {', '.join(str(p) for p in playbacks)}")
+
+
+def _play_motion(
+    robot: Robot, cycle: WorkCycle, segment: Segment, chosen: Objective, args: argparse.Namespace
+) -> tuple[Trajectory, str]:
+    """The motion ``play`` shows, from the start the options choose, and that start in words."""
+    held = held_actuators(robot, cycle)
+    if args.best:
+        search = improved_start(robot, segment, chosen, held, args.samples)
+        if search.best is None:
+            raise UnreachableError(
+                f"no sampled start keeps every actuator inside its limits on segment "
+                f"{segment.name}; closest: {search.closest_violation}"
+            )
+        values = search.best.values
+        return search.motion(search.best), f"best of {args.samples} starts, {_held(held, values)}"
+    if args.x3init is not None:
+        if len(held) != 1:
+            raise InvalidInputError(
+                f"--x3init sets one held actuator; task {cycle.name!r} holds {list(held)}"
+            )
+        stroke = robot.actuators[held[0]]
+        if not stroke.lower <= args.x3init <= stroke.upper:
+            raise InvalidInputError(
+                f"--x3init {args.x3init:g} is outside the stroke of {held[0]}, "
+                f"[{stroke.lower:g}, {stroke.upper:g}] m"
+            )
+        q = configuration_at(robot, segment.start, {held[0]: args.x3init})
+        label = _held(held, [args.x3init])
+    else:
+        values, q = default_start(robot, segment, held)
+        label = f"default start, {_held(held, values)}"
+    return simulate(robot, chosen.resolver, segment, q[None]), label
+
+
+def _held(names, values) -> str:
+    return ", ".join(f"{name} = {value:.4g}" for name, value in zip(names, values))
+
+
+def _play_command(args: argparse.Namespace) -> None:
+    robot = load_robot(args.robot, payload=args.payload)
+    cycle = _load_task(robot, args.task)
+    segment = cycle[args.segment] if args.segment else cycle.segments[0]
+    chosen = objective(args.objective)
+    motion, start = _play_motion(robot, cycle, segment, chosen, args)
+    points = task_points(cycle)
+    if args.html:
+        print(f"playback: {export_html(motion, args.html, points)}")
+        return
+    heading = f"segment {segment.name}, {chosen.name} objective, {start}"
+    # Ctrl-C (even where a shell started the command with it ignored) and termination both
+    # stop the loop, and play's clean-up takes the meshcat server down with it.
+    for number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(number, signal.default_int_handler)
+    play(motion, points, lambda url: print(f"{heading}: open {url} (Ctrl-C stops)", flush=True))
 
 
 def _robots_command(args: argparse.Namespace) -> None:
     for name in bundled_robots():
         robot = load_robot(name)
         actuators = ", ".join(robot.actuators.names)
-        print(f"{name:<12} n = {robot.n}, m = {robot.m}, actuators: {actuators}")
+        print(f"{name:<16} n = {robot.n}, m = {robot.m}, actuators: {actuators}")
 
 
 def parser() -> argparse.ArgumentParser:
@@ -128,11 +191,41 @@ def parser() -> argparse.ArgumentParser:
     study.add_argument("--json", help="report path (default: OUT/report.json)")
     study.add_argument("--quiet", action="store_true", help="no progress bar")
     study.set_defaults(run=_study_command)
+    play = commands.add_parser(
+        "play", help="play one motion in meshcat: live in a browser, or as an HTML page"
+    )
+    _add_robot_options(play)
+    play.add_argument("--task", help="task file (TOML); default: the robot's own")
+    play.add_argument("--segment", help="segment to play (default: the task's first)")
+    play.add_argument(
+        "--objective", choices=list(OBJECTIVES), default="velocity", help="what to minimise"
+    )
+    start = play.add_mutually_exclusive_group()
+    start.add_argument(
+        "--x3init",
+        type=float,
+        metavar="V",
+        help="start with the held actuator (the crane's x3) at V, m (default: mid-stroke)",
+    )
+    start.add_argument(
+        "--best", action="store_true", help="start from the improved initial configuration"
+    )
+    play.add_argument("--samples", type=_positive, default=100, help="starts searched by --best")
+    play.add_argument(
+        "--html", metavar="FILE", help="write a self-contained page instead of serving one"
+    )
+    play.set_defaults(run=_play_command)
     return main
+
+
+def _note(message, category, filename, lineno, file=None, line=None) -> None:
+    """Warnings (e.g. joints driven directly for want of declarations) as one line each."""
+    print(f"redundancy: note: {message}", file=sys.stderr)
 
 
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
+    warnings.showwarning = _note
     try:
         args.run(args)
     except RedundancyError as error:

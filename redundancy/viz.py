@@ -1,0 +1,439 @@
+"""Playback of a motion in meshcat: live in a browser, or as one self-contained HTML page.
+
+What is drawn: the links (Pinocchio's meshcat visualizer, from the URDF's visual geometry);
+every `LinearCylinder` as a barrel from its base point and a rod ending at its rod point, red
+while its length is at or past a stroke limit; the desired path, the path the tool traced, and
+the task points. The camera looks at the task plane (for the crane, world x–z, from −y).
+
+`play` serves the scene from a meshcat server on localhost and loops the motion in real time
+until interrupted; the server stops with it. `export_html` needs no server: a stand-in for
+meshcat's viewer window records the drawing commands, including a recorded
+`meshcat.animation.Animation`, and writes them into a page that embeds meshcat's viewer script
+and loads nothing from the network. Opening the page with ``?t=SECONDS`` shows that instant of
+the motion, paused.
+"""
+
+from __future__ import annotations
+
+import base64
+import contextlib
+import html
+import io
+import math
+import subprocess
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from redundancy.actuators import LinearCylinder
+from redundancy.errors import InvalidInputError, RedundancyError, RobotDescriptionError
+from redundancy.robot import AXES
+from redundancy.simulate import Trajectory
+from redundancy.study import Study, write_atomically
+from redundancy.tasks import WorkCycle
+
+FRAME_RATE = 30.0  # frames per second of playback; the motion is sampled at most this often
+FIELD_OF_VIEW = 30.0  # degrees, vertical
+ASPECT = 4 / 3  # width / height the camera distance is fitted for
+LIMIT_MARGIN = 1e-3  # m: a cylinder this close to a stroke limit counts as at it
+ROOT = "playback"  # every drawn object hangs below this node
+PARTS = ("barrel", "rod")
+
+COLOURS = {
+    "barrel": 0x46505A,
+    "rod": 0xD2D2D2,
+    "limit": 0xD62728,
+    "desired": 0x2CA02C,
+    "traced": 0x1F4FB4,
+    "points": 0x202020,
+}
+BACKGROUND = [0.93, 0.94, 0.96]  # RGB, 0-1: light, yet light links stand out
+
+# Camera direction (from the scene towards the camera) for each planar task, so the task axes
+# appear left to right and bottom to top; other tasks get an oblique view.
+VIEWS = {"xz": (0.0, -1.0, 0.0), "yz": (1.0, 0.0, 0.0), "xy": (0.0, -0.3, 1.0)}
+OBLIQUE = (1.0, -1.0, 0.7)
+
+
+def _meshcat():
+    try:
+        import meshcat
+        import meshcat.animation
+        import meshcat.geometry
+    except ImportError as error:  # pragma: no cover - a dependency of the package
+        raise RedundancyError("playback needs meshcat: pip install 'meshcat>=0.3.2'") from error
+    return meshcat
+
+
+def _rgb(colour: int) -> list[float]:
+    """A 0xRRGGBB colour as [r, g, b] in 0-1."""
+    return [((colour >> shift) & 0xFF) / 255 for shift in (16, 8, 0)]
+
+
+def _between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Transforms (k, 4, 4) that place a meshcat cylinder (its axis is its local y) with its ends
+    at a and b, each (k, 3) in m; the cylinder's height must be |b − a|."""
+    d = b - a
+    u = d / np.linalg.norm(d, axis=1, keepdims=True)
+    least = np.eye(3)[np.argmin(np.abs(u), axis=1)]  # the world axis farthest from u
+    side = np.cross(u, least)
+    side /= np.linalg.norm(side, axis=1, keepdims=True)
+    T = np.zeros((len(a), 4, 4))
+    T[:, :3, 0], T[:, :3, 1], T[:, :3, 2] = side, u, np.cross(side, u)
+    T[:, :3, 3] = (a + b) / 2
+    T[:, 3, 3] = 1.0
+    return T
+
+
+def _translation(p: np.ndarray) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, 3] = p
+    return T
+
+
+def task_points(cycle: WorkCycle) -> np.ndarray:
+    """The distinct ends of a work cycle's segments, (P, m) in m."""
+    ends = [p for s in cycle.segments for p in (s.start, s.end)]
+    return np.unique(np.array(ends), axis=0)
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """How one `LinearCylinder` is drawn: a barrel of length ``part`` (m) from the base point
+    and a rod of the same length ending at the rod point. The drawing spans the base point to
+    the rod point, so its length is the actuator value x_i (Eq. 9); ``part`` is the closed
+    length, so the rod stays inside the barrel over any stroke shorter than that, as a real
+    cylinder's is."""
+
+    actuator: LinearCylinder
+    part: float
+
+    @property
+    def name(self) -> str:
+        return self.actuator.name
+
+    def poses(self, base: np.ndarray, rod: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Barrel and rod transforms (k, 4, 4) for attachment points ``base``, ``rod`` (k, 3)."""
+        u = (rod - base) / np.linalg.norm(rod - base, axis=1, keepdims=True)
+        return _between(base, base + self.part * u), _between(rod - self.part * u, rod)
+
+    def at_limit(self, length: np.ndarray) -> np.ndarray:
+        """Whether each length (k,) in m is within `LIMIT_MARGIN` of a stroke limit or past it."""
+        actuator = self.actuator
+        return (length <= actuator.lower + LIMIT_MARGIN) | (length >= actuator.upper - LIMIT_MARGIN)
+
+
+class Playback:
+    """The drawing of one motion (a `Trajectory` of one) and its poses over time.
+
+    ``points`` (P, m) are task points to mark, in task coordinates (default: the segment's
+    ends). ``samples`` are the indices of the motion's times that playback shows, at most
+    `FRAME_RATE` per second and always the last. ``centre`` (3,) is the world point shown at the
+    middle of the view and ``distance`` (m) the camera's distance from it, fitted so that every
+    frame, the paths and the points are in view; ``size`` (m) is the scene's largest extent,
+    which sizes the markers.
+    """
+
+    def __init__(self, motion: Trajectory, points: np.ndarray | None = None) -> None:
+        if len(motion) != 1:
+            raise InvalidInputError(f"a playback shows one motion; got {len(motion)}")
+        self.robot = robot = motion.robot
+        segment = motion.segment
+        self.q = motion.q[0]
+        self.t = motion.t
+        step = math.ceil(1 / (FRAME_RATE * (self.t[1] - self.t[0])) - 1e-9)
+        self.samples = np.unique(np.append(np.arange(0, len(self.t), step), len(self.t) - 1))
+        kinematics = robot.kinematics(self.q)
+        self.traced = robot.tool(kinematics).position
+        rows = [AXES.index(a) for a in robot.task_axes]
+
+        def world(y: np.ndarray) -> np.ndarray:
+            """Task points (P, m) as world points (P, 3), off-plane components from the start."""
+            p = np.repeat(self.traced[:1], len(y), axis=0)
+            p[:, rows] = y
+            return p
+
+        self.desired = world(np.array([segment.start, segment.end]))
+        marked = np.array([segment.start, segment.end]) if points is None else points
+        self.points = world(np.atleast_2d(np.asarray(marked, dtype=float)))
+        self.cylinders = []
+        for actuator in robot.actuators:
+            if isinstance(actuator, LinearCylinder):
+                base, rod = (kinematics.point(f).position for f in actuator.frames)
+                shortest = float(np.linalg.norm(rod - base, axis=1).min())
+                closed = actuator.lower if 0 < actuator.lower < np.inf else shortest
+                self.cylinders.append(Cylinder(actuator, min(closed, shortest)))
+        self._fit_camera(np.concatenate([self._frame_origins(), self.traced, self.points]))
+        self._links: Any = None  # Pinocchio's meshcat visualizer, once drawn
+        self._shown: dict[str, bool] = {}
+
+    def _frame_origins(self) -> np.ndarray:
+        """Every Pinocchio frame's origin at every shown sample, (F·S, 3) in m."""
+        import pinocchio as pin
+
+        model = self.robot.model
+        data = model.createData()
+        origins: list[np.ndarray] = []
+        for q in self.q[self.samples]:
+            pin.framesForwardKinematics(model, data, q)
+            origins.extend(frame.translation.copy() for frame in data.oMf)
+        return np.array(origins)
+
+    def _fit_camera(self, points: np.ndarray) -> None:
+        axes = "".join(sorted(self.robot.task_axes))
+        self.view = np.array(VIEWS.get(axes, OBLIQUE))
+        self.view /= np.linalg.norm(self.view)
+        low, high = points.min(axis=0), points.max(axis=0)
+        self.centre = (low + high) / 2
+        self.size = float(np.max(high - low))
+        right = np.cross([0.0, 0.0, 1.0], self.view)
+        right /= np.linalg.norm(right)
+        up = np.cross(self.view, right)
+        offsets = points - self.centre
+        half_width = np.max(np.abs(offsets @ right))
+        half_height = np.max(np.abs(offsets @ up))
+        fit = max(half_height, half_width / ASPECT) / math.tan(math.radians(FIELD_OF_VIEW) / 2)
+        self.distance = float(np.max(offsets @ self.view) + 1.15 * fit)
+
+    def draw(self, vis) -> None:
+        """Put the scene into the meshcat visualizer ``vis`` and show the motion's first pose."""
+        meshcat = _meshcat()
+        mg = meshcat.geometry
+        import pinocchio as pin
+        from pinocchio.visualize import MeshcatVisualizer
+
+        for node in ("/Grid", "/Axes"):
+            vis[node].set_property("visible", False)
+        vis["/Background"].set_property("top_color", BACKGROUND)
+        vis["/Background"].set_property("bottom_color", BACKGROUND)
+        camera = vis["/Cameras/default/rotated/<object>"]
+        camera.set_property("fov", FIELD_OF_VIEW)
+        x, y, z = self.distance * self.view
+        camera.set_property("position", [x, z, -y])  # the camera's frame has y up
+        # The camera orbits the world origin, so the scene is moved to put its centre there.
+        root = vis[ROOT]
+        root.set_transform(_translation(-self.centre))
+
+        robot = self.robot
+        path = robot.urdf
+        # A mesh named package://<package>/... lies in <package> in one of the URDF's ancestors.
+        ancestors = [str(folder) for folder in path.parents]
+        try:
+            visuals = pin.buildGeomFromUrdf(
+                robot.model, str(path), pin.GeometryType.VISUAL, package_dirs=ancestors
+            )
+        except (ValueError, RuntimeError) as error:
+            raise RobotDescriptionError(
+                f"{path}: cannot load its visual geometry: {error}"
+            ) from error
+        self._links = MeshcatVisualizer(robot.model, None, visuals)
+        self._links.initViewer(viewer=root)
+        self._links.loadViewerModel(rootNodeName="links")
+
+        for cylinder in self.cylinders:
+            for part, radius in zip(PARTS, (0.06, 0.035)):
+                material = mg.MeshLambertMaterial(color=COLOURS[part])
+                geometry = mg.Cylinder(cylinder.part, radius * cylinder.part)
+                root[f"cylinders/{cylinder.name}/{part}"].set_object(geometry, material)
+
+        size = self.size
+        start, end = self.desired
+        # A translucent band for the desired path, the traced path as dots along its middle.
+        band = mg.Cylinder(float(np.linalg.norm(end - start)), 0.008 * size)
+        root["desired"].set_object(
+            band, mg.MeshLambertMaterial(color=COLOURS["desired"], opacity=0.35)
+        )
+        root["desired"].set_transform(_between(start[None], end[None])[0])
+        colours = np.outer(_rgb(COLOURS["traced"]), np.ones(len(self.traced)))
+        # meshcat's points take their colour from per-vertex colours only
+        dots = mg.PointsGeometry(self.traced.T.astype(np.float32), colours.astype(np.float32))
+        root["traced"].set_object(dots, mg.PointsMaterial(size=0.006 * size))
+        for i, point in enumerate(self.points):
+            node = root[f"points/{i}"]
+            node.set_object(
+                mg.Sphere(0.012 * size), mg.MeshLambertMaterial(color=COLOURS["points"])
+            )
+            node.set_transform(_translation(point))
+        self._shown = {}
+        self.show(vis, self.q[0])
+
+    def _place(self, target, q: np.ndarray) -> np.ndarray:
+        """Pose links and cylinders at ``q`` (n,) on ``target`` (the scene's root node of a
+        visualizer, or of an animation frame); return which cylinders are at or past a stroke
+        limit, (C,) bool."""
+        if self._links is None:
+            raise InvalidInputError("draw the playback into a visualizer first")
+        # Pinocchio's visualizer poses the links on its viewer's nodes; an animation frame in
+        # its place records those poses as keys.
+        self._links.viewer = target
+        self._links.display(q)
+        kinematics = self.robot.kinematics(q[None])
+        limited = []
+        for cylinder in self.cylinders:
+            base, rod = (kinematics.point(f).position for f in cylinder.actuator.frames)
+            for part, pose in zip(PARTS, cylinder.poses(base, rod)):
+                target[f"cylinders/{cylinder.name}/{part}"].set_transform(pose[0])
+            limited.append(cylinder.at_limit(np.linalg.norm(rod - base, axis=1))[0])
+        return np.array(limited, dtype=bool)
+
+    def show(self, vis, q: np.ndarray) -> None:
+        """Pose the drawn scene at configuration ``q`` (n,) in the visualizer ``vis``, turning
+        each cylinder red while it is at or past a stroke limit."""
+        limited = self._place(vis[ROOT], q)
+        for cylinder, red in zip(self.cylinders, limited):
+            if self._shown.get(cylinder.name) == red:
+                continue  # a server keeps every property sent, so send only changes
+            self._shown[cylinder.name] = bool(red)
+            for part in PARTS:
+                colour = _rgb(COLOURS["limit" if red else part])
+                vis[ROOT][f"cylinders/{cylinder.name}/{part}"].set_property("color", [*colour, 1])
+
+    def animation(self, vis):
+        """The motion as a `meshcat.animation.Animation` for ``vis``, one key per shown
+        sample at its time t (s)."""
+        animation = _meshcat().animation.Animation(default_framerate=FRAME_RATE)
+        for i in self.samples:
+            with animation.at_frame(vis, self.t[i] * FRAME_RATE) as frame:
+                limited = self._place(frame[ROOT], self.q[i])
+                for cylinder, red in zip(self.cylinders, limited):
+                    for part in PARTS:
+                        node = frame[f"{ROOT}/cylinders/{cylinder.name}/{part}/<object>"]
+                        colour = _rgb(COLOURS["limit" if red else part])
+                        node.set_property("material.color", "color", colour)
+        return animation
+
+
+class Recording:
+    """A stand-in for meshcat's viewer window that keeps every command instead of sending it
+    to a server; ``get_scene`` (behind `meshcat.Visualizer.static_html`) writes them into a
+    self-contained page. ``commands`` holds each command msgpack-encoded, in order."""
+
+    def __init__(self, title: str = "redundancy playback") -> None:
+        self.title = title
+        self.commands: list[bytes] = []
+
+    def send(self, command) -> None:
+        import umsgpack
+
+        self.commands.append(umsgpack.packb(command.lower()))
+
+    def get_scene(self) -> str:
+        viewer = Path(_meshcat().__file__).parent / "viewer" / "dist" / "main.min.js"
+        commands = ",\n".join(f'"{base64.b64encode(c).decode()}"' for c in self.commands)
+        # Commands are decoded in order and synchronously (meshcat's own page fetches each one
+        # asynchronously), so that the scene and animation exist when the time is chosen.
+        return PAGE.format(
+            title=html.escape(self.title), viewer=viewer.read_text(), commands=commands
+        )
+
+
+PAGE = """<!DOCTYPE html>
+<html>
+<head>
+<meta charset="utf-8">
+<title>{title}</title>
+<style>body {{ margin: 0; }} #meshcat-pane {{ width: 100vw; height: 100vh; overflow: hidden; }}
+</style>
+</head>
+<body>
+<div id="meshcat-pane"></div>
+<script>
+{viewer}
+</script>
+<script>
+var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
+for (const command of [
+{commands}
+]) {{
+  viewer.handle_command_bytearray(Uint8Array.from(atob(command), c => c.charCodeAt(0)));
+}}
+const time = new URLSearchParams(window.location.search).get("t");
+if (time !== null) {{
+  viewer.animator.pause();
+  viewer.animator.seek(Number(time));
+  viewer.animator.display_progress(Number(time));
+}}
+</script>
+</body>
+</html>
+"""
+
+
+def page(motion: Trajectory, points: np.ndarray | None = None) -> str:
+    """A self-contained HTML page that plays ``motion`` in a loop, with no server and no
+    network; ``points`` as in `Playback`."""
+    meshcat = _meshcat()
+    segment = motion.segment
+    recording = Recording(f"{motion.robot.name}: segment {segment.name}")
+    vis = meshcat.Visualizer(window=recording)
+    playback = Playback(motion, points)
+    playback.draw(vis)
+    vis.set_animation(playback.animation(vis), play=True, repetitions=math.inf)
+    return vis.static_html()
+
+
+def export_html(motion: Trajectory, path: Path | str, points: np.ndarray | None = None) -> Path:
+    """Write `page` for ``motion`` to ``path`` (atomically); return the path."""
+    path = Path(path)
+    text = page(motion, points)
+    write_atomically(path, lambda p: p.write_text(text, encoding="utf-8"))
+    return path
+
+
+def write_playbacks(study: Study, folder: Path) -> list[Path]:
+    """One page per objective and segment, for the best start of its search, named
+    ``playback_<objective>_<segment>.html`` in ``folder``; return their paths."""
+    points = task_points(study.cycle)
+    paths = []
+    for name, searches in study.searches.items():
+        for search in searches:
+            if search.best is not None:
+                path = folder / f"playback_{name}_{search.segment.name}.html"
+                paths.append(export_html(search.motion(search.best), path, points))
+    return paths
+
+
+@contextlib.contextmanager
+def served() -> Iterator:
+    """A meshcat visualizer whose server runs on localhost for the duration of the block; the
+    server process is stopped, and its ports freed, however the block ends."""
+    meshcat = _meshcat()
+    try:
+        with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints its address; callers say
+            vis = meshcat.Visualizer()
+    except RuntimeError as error:
+        raise RedundancyError(f"the meshcat server did not start: {error}") from error
+    window = vis.window
+    try:
+        yield vis
+    finally:
+        window.zmq_socket.close(linger=0)
+        window.server_proc.terminate()
+        try:
+            window.server_proc.communicate(timeout=5)
+        except subprocess.TimeoutExpired:
+            window.server_proc.kill()
+            window.server_proc.communicate()
+
+
+def play(
+    motion: Trajectory,
+    points: np.ndarray | None = None,
+    announce: Callable[[str], None] = print,
+) -> None:
+    """Serve the playback of ``motion`` on localhost and loop it in real time until interrupted
+    (KeyboardInterrupt, which propagates); ``announce`` is given the page's address once the
+    scene is drawn. The server stops when this returns or raises."""
+    with served() as vis:
+        playback = Playback(motion, points)
+        playback.draw(vis)
+        announce(vis.url())
+        while True:
+            start = time.monotonic()
+            for i in playback.samples:
+                time.sleep(max(0.0, playback.t[i] - (time.monotonic() - start)))
+                playback.show(vis, playback.q[i])

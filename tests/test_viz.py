@@ -1,0 +1,315 @@
+"""Playback: the drawing against the actuator map, the standalone page in a real browser, and
+the live server's clean exit."""
+
+import base64
+import json
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import urllib.request
+from pathlib import Path
+
+import meshcat
+import numpy as np
+import pinocchio as pin
+import pytest
+import umsgpack
+import zmq
+from PIL import Image
+from sampling import random_configurations
+
+from redundancy import actuator_space
+from redundancy.cli import main
+from redundancy.ik import configuration_at
+from redundancy.objectives import VELOCITY
+from redundancy.simulate import simulate
+from redundancy.tasks import WorkCycle
+from redundancy.viz import (
+    BACKGROUND,
+    FIELD_OF_VIEW,
+    FRAME_RATE,
+    Playback,
+    Recording,
+    export_html,
+)
+
+START = ["--robot", "hiab031", "--segment", "1-2", "--objective", "velocity", "--x3init", "1.0"]
+
+
+@pytest.fixture(scope="module")
+def motion(crane):
+    """Segment 1-2 from x3init = 1.0 m under the unweighted pseudoinverse (5 s)."""
+    segment = WorkCycle.from_toml(crane.task_file, dimension=crane.m)["1-2"]
+    q = configuration_at(crane, segment.start, {"x3": 1.0})
+    return simulate(crane, VELOCITY.resolver, segment, q[None])
+
+
+def recorded(motion):
+    """A playback drawn into a visualizer that records its commands instead of sending them."""
+    recording = Recording()
+    vis = meshcat.Visualizer(window=recording)
+    playback = Playback(motion)
+    playback.draw(vis)
+    return playback, vis, recording
+
+
+def decoded(commands):
+    return [umsgpack.unpackb(c) for c in commands]
+
+
+def cylinder_path(name, part):
+    return f"/meshcat/playback/cylinders/{name}/{part}"
+
+
+def test_drawn_cylinder_length_equals_the_actuator_value(crane, motion):
+    """From the barrel's far end to the rod's far end, as sent to meshcat (a cylinder's axis is
+    its local y), each cylinder is x_i long: Eq. (9) through the actuator map."""
+    playback, vis, recording = recorded(motion)
+    heights = {
+        c["path"]: c["object"]["geometries"][0]["height"]
+        for c in decoded(recording.commands)
+        if c["type"] == "set_object" and "/cylinders/" in c["path"]
+    }
+    assert len(heights) == 4
+    q = random_configurations(crane, 30, seed=41)
+    x = actuator_space(crane, q).x
+    for qi, xi in zip(q, x):
+        sent = len(recording.commands)
+        playback.show(vis, qi)
+        poses = {
+            c["path"]: np.array(c["matrix"]).reshape(4, 4).T
+            for c in decoded(recording.commands[sent:])
+            if c["type"] == "set_transform"
+        }
+        for row, name in enumerate(["x1", "x2"]):
+            barrel, rod = (cylinder_path(name, part) for part in ("barrel", "rod"))
+            far_barrel = poses[barrel][:3, 3] - poses[barrel][:3, 1] * heights[barrel] / 2
+            far_rod = poses[rod][:3, 3] + poses[rod][:3, 1] * heights[rod] / 2
+            assert np.linalg.norm(far_rod - far_barrel) == pytest.approx(xi[row], abs=1e-12)
+            assert np.allclose(poses[barrel][:3, 1], poses[rod][:3, 1], atol=1e-12)
+
+
+def test_a_cylinder_turns_red_at_its_stroke_limit_and_back(crane, motion):
+    playback, vis, recording = recorded(motion)
+    middle = (crane.lower + crane.upper) / 2
+    past = middle.copy()
+    past[0] = crane.lower[0] - 0.05
+    x = actuator_space(crane, np.array([middle, past])).x
+    assert crane.actuators.lower[0] < x[0, 0] < crane.actuators.upper[0]
+    assert x[1, 0] < crane.actuators.lower[0]
+
+    def colours(q):
+        sent = len(recording.commands)
+        playback.show(vis, q)
+        return {
+            c["path"]: c["value"][:3]
+            for c in decoded(recording.commands[sent:])
+            if c["type"] == "set_property" and c["property"] == "color"
+        }
+
+    red = pytest.approx([0xD6 / 255, 0x27 / 255, 0x28 / 255])
+    assert colours(past) == {cylinder_path("x1", "barrel"): red, cylinder_path("x1", "rod"): red}
+    back = colours(middle)
+    assert set(back) == {cylinder_path("x1", "barrel"), cylinder_path("x1", "rod")}
+    assert red not in back.values()
+
+
+def page_commands(page):
+    """The commands a page replays, decoded."""
+    listing = re.search(r"for \(const command of \[(.*?)\]\)", page, re.DOTALL).group(1)
+    return [umsgpack.unpackb(base64.b64decode(c)) for c in re.findall(r'"([^"]+)"', listing)]
+
+
+def test_html_export_runs_without_a_server_and_holds_the_animation(
+    motion, tmp_path, monkeypatch, capsys
+):
+    """The command writes the page with no process started and no socket opened; the page
+    replays the scene and one animation keyed at the motion's times, at most 30 a second,
+    and loads nothing."""
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("the export must not start a server or open a socket")
+
+    monkeypatch.setattr(subprocess, "Popen", refuse)
+    monkeypatch.setattr(zmq.Context, "socket", refuse)
+    path = tmp_path / "crane.html"
+    assert main(["play", *START, "--html", str(path)]) == 0
+    assert f"playback: {path}" in capsys.readouterr().out
+
+    page = path.read_text()
+    commands = page_commands(page)
+    animations = [c for c in commands if c["type"] == "set_animation"]
+    assert len(animations) == 1 and animations[0]["options"]["play"]
+    clips = {a["path"]: a["clip"] for a in animations[0]["animations"]}
+    links = [p for p in clips if "/links/visuals/" in p]
+    assert len(links) == 4
+    assert {cylinder_path(n, p) for n in ("x1", "x2") for p in ("barrel", "rod")} <= set(clips)
+    shown = motion.t[Playback(motion).samples]
+    assert shown[0] == 0 and shown[-1] == motion.t[-1] == pytest.approx(5.0)
+    assert np.diff(shown)[:-1].min() >= 1 / FRAME_RATE
+    for clip in clips.values():
+        for track in clip["tracks"]:
+            times = [key["time"] / clip["fps"] for key in track["keys"]]
+            np.testing.assert_allclose(times, shown, rtol=0, atol=1e-12)
+    assert "<script src" not in page and "<link" not in page and "viewer.connect" not in page
+    # The viewer script names XHTML's namespace, and a socket address in the connect method
+    # that the page never calls.
+    addresses = set(re.findall(r"(?:https?|wss?)://[^\s\"'`)]*", page))
+    assert addresses <= {"http://www.w3.org/1999/xhtml", "ws://${location.host}"}
+
+
+def test_study_writes_a_playback_per_segment_for_the_best_start(tmp_path, capsys):
+    """One page per segment with a feasible best start; none where there is no best."""
+    task = tmp_path / "short.toml"
+    task.write_text(
+        'segments = ["1-2", "2-1"]\nheld = ["x3"]\n[points]\n1 = [3.5, -0.5]\n2 = [3.2, -0.5]\n'
+    )
+    out = tmp_path / "out"
+    args = ["study", "--task", str(task), "--objective", "velocity", "--samples", "3"]
+    assert main([*args, "--out", str(out), "--quiet"]) == 0
+    segments = json.loads((out / "report.json").read_text())["studies"][0]["segments"]
+    best = [s["name"] for s in segments if s["best"] is not None]
+    assert best == ["1-2"]  # with 3 samples, no start of 2-1 stays inside the limits
+    pages = sorted(p.name for p in out.glob("playback_*.html"))
+    assert pages == [f"playback_velocity_{name}.html" for name in best]
+    assert f"playbacks: {out / pages[0]}" in capsys.readouterr().out
+    for page in pages:
+        commands = page_commands((out / page).read_text())
+        assert [c["type"] for c in commands].count("set_animation") == 1
+
+
+def chromium():
+    found = shutil.which("chromium")
+    if found is None:
+        if os.environ.get("REQUIRE_BROWSER") == "1":
+            pytest.fail(
+                "REQUIRE_BROWSER=1 but chromium is not installed (apt-get install chromium)"
+            )
+        pytest.skip("chromium is not installed (apt-get install chromium); REQUIRE_BROWSER=1 fails")
+    return found
+
+
+def screenshots(page, times, folder):
+    """Headless Chromium's screenshots of ``page`` paused at each time (s), RGB (H, W, 3)."""
+    runs, shots = [], []
+    for i, t in enumerate(times):
+        shot = folder / f"shot{i}.png"
+        command = [
+            chromium(),
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--enable-unsafe-swiftshader",
+            "--disable-quic",
+            "--no-first-run",
+            "--disable-background-networking",
+            "--disable-component-update",
+            "--disable-sync",
+            f"--user-data-dir={folder / f'profile{i}'}",
+            "--window-size=1024,768",
+            "--virtual-time-budget=3000",
+            f"--screenshot={shot}",
+            f"{page.as_uri()}?t={t}",
+        ]
+        runs.append(subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE))
+        shots.append(shot)
+    for run in runs:
+        _, errors = run.communicate(timeout=60)
+        assert run.returncode == 0, errors.decode()[-2000:]
+    return [np.asarray(Image.open(shot).convert("RGB")).astype(int) for shot in shots]
+
+
+def pixel(playback, point, size):
+    """Where the camera shows a world point (3,) in a (width, height) image: (column, row)."""
+    offset = point - playback.centre
+    right = np.cross([0.0, 0.0, 1.0], playback.view)
+    right /= np.linalg.norm(right)
+    up = np.cross(playback.view, right)
+    depth = playback.distance - offset @ playback.view
+    focal = size[1] / 2 / np.tan(np.radians(FIELD_OF_VIEW) / 2)
+    return (
+        round(size[0] / 2 + focal * (offset @ right) / depth),
+        round(size[1] / 2 - focal * (offset @ up) / depth),
+    )
+
+
+def test_exported_page_draws_the_crane_and_animates_it_in_a_browser(crane, motion, tmp_path):
+    """Screenshots at t = 0 and 4 s: the column stands where the camera puts it, the booms are
+    drawn, and the two frames differ where the crane moved."""
+    page = export_html(motion, tmp_path / "crane.html")
+    first, later = screenshots(page, [0.0, 4.0], tmp_path)
+    background = np.round(np.array(BACKGROUND) * 255)
+    drawn = [np.abs(shot - background).max(axis=2) > 24 for shot in (first, later)]
+
+    data = crane.model.createData()
+    pin.framesForwardKinematics(crane.model, data, motion.q[0, 0])
+    column = data.oMf[crane.model.getFrameId("column")].translation * [1, 1, 0.5]
+    col, row = pixel(Playback(motion), column, (first.shape[1], first.shape[0]))
+    for mask in drawn:
+        assert mask[row - 8 : row + 9, col - 8 : col + 9].mean() > 0.9
+        assert 0.03 < mask.mean() < 0.5
+    changed = np.abs(first - later).max(axis=2) > 24
+    assert changed.mean() > 0.02
+
+
+def children(pid):
+    """Processes whose parent is ``pid``."""
+    found = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid:
+            found.append(int(stat.parent.name))
+    return found
+
+
+def listening_ports(pid=None):
+    """TCP ports in the LISTEN state, of the process ``pid`` or of any."""
+    inodes = None
+    if pid is not None:
+        links = [os.readlink(fd) for fd in Path(f"/proc/{pid}/fd").iterdir()]
+        inodes = {link[8:-1] for link in links if link.startswith("socket:[")}
+    ports = set()
+    for table in ("/proc/net/tcp", "/proc/net/tcp6"):
+        for line in Path(table).read_text().splitlines()[1:]:
+            fields = line.split()
+            if fields[3] == "0A" and (inodes is None or fields[9] in inodes):
+                ports.add(int(fields[1].rsplit(":", 1)[1], 16))
+    return ports
+
+
+@pytest.mark.skipif(not Path("/proc/net/tcp").exists(), reason="reads processes from /proc")
+@pytest.mark.parametrize("stop", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "terminate"])
+def test_live_playback_answers_on_localhost_and_leaves_nothing_behind(stop):
+    run = subprocess.Popen(
+        [sys.executable, "-m", "redundancy.cli", "play", *START],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    watchdog = threading.Timer(60, run.kill)
+    watchdog.start()
+    try:
+        line = run.stdout.readline()
+        address = re.search(r"http://127\.0\.0\.1:(\d+)/static/", line)
+        assert address, line + run.stderr.read()
+        servers = children(run.pid)
+        assert len(servers) == 1
+        ports = listening_ports(servers[0])
+        assert int(address.group(1)) in ports
+        with urllib.request.urlopen(address.group(0), timeout=10) as response:
+            assert response.status == 200 and b"MeshCat" in response.read()
+        run.send_signal(stop)
+        _, errors = run.communicate(timeout=30)
+    finally:
+        watchdog.cancel()
+        run.kill()
+    assert run.returncode == 130 and "interrupted" in errors and "Traceback" not in errors
+    assert not Path(f"/proc/{servers[0]}").exists()
+    assert not ports & listening_ports()
