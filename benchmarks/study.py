@@ -40,21 +40,17 @@ def main() -> None:
 
     q = robot.lower + (robot.upper - robot.lower) * np.random.default_rng(0).random(robot.n)
     y_dot = np.array([[0.5, 0.0]])
+    repeat = 3000
     for objective in (VELOCITY, ENERGY):
-        space = actuator_space(robot, q)
-        repeat = 3000
-        only = (
-            min(
-                timeit.repeat(
-                    lambda s=space: objective.resolver.resolve(s, y_dot), number=repeat, repeat=5
-                )
-            )
-            / repeat
-        )
+        resolver, space = objective.resolver, actuator_space(robot, q)
 
-        def step(o=objective):
-            return o.resolver.resolve(actuator_space(robot, q), y_dot)
+        def law(r=resolver, s=space):
+            return r.resolve(s, y_dot)
 
+        def step(r=resolver):
+            return r.resolve(actuator_space(robot, q), y_dot)
+
+        only = min(timeit.repeat(law, number=repeat, repeat=5)) / repeat
         whole = min(timeit.repeat(step, number=repeat, repeat=5)) / repeat
         print(
             f"resolver {type(objective.resolver).__name__:<17} law alone {only * 1e6:7.1f} µs, "

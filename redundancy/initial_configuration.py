@@ -26,7 +26,7 @@ from redundancy.ik import held_indices, inverse_kinematics
 from redundancy.objectives import Objective
 from redundancy.robot import Robot
 from redundancy.simulate import TIME_STEP, Trajectory, Violation, simulate
-from redundancy.tasks import Segment
+from redundancy.tasks import Segment, WorkCycle
 
 REFINED_AROUND = 3  # best feasible samples the compass search refines (r > 1)
 REFINEMENT_ROUNDS = 30  # at most, each one batch of REFINED_AROUND · 2r simulations
@@ -124,6 +124,11 @@ class SearchResult:
             self.trajectory.concatenated(other.trajectory),
             rows,
         )
+
+
+def held_actuators(robot: Robot, cycle: WorkCycle) -> tuple[str, ...]:
+    """The actuators a search holds on ``cycle``: the task's ``held``, or the last n − m."""
+    return cycle.held or tuple(robot.actuators.names[robot.m :])
 
 
 def stroke_box(robot: Robot, held: tuple[str, ...]) -> np.ndarray:

@@ -111,14 +111,14 @@ class Robot:
         task_axes: str,
         actuators: ActuatorSet,
         payload: float,
-        folder: Path,
+        urdf: Path,
         task_file: Path | None = None,
     ) -> None:
         self.name = name
         self.model = model
         self.data = model.createData()
         self.payload = payload
-        self.folder = folder
+        self.urdf = urdf
         self.task_file = task_file
         self.tool_frame = tool_frame
         self.task_axes = task_axes
@@ -385,4 +385,4 @@ def load_robot(
     actuators = ActuatorSet.bind(read_transmissions(root, urdf_path.name), model)
     task = description.get("task")
     task_file = None if task is None else folder / task
-    return Robot(name, model, tool_frame, task_axes, actuators, payload, folder, task_file)
+    return Robot(name, model, tool_frame, task_axes, actuators, payload, urdf_path, task_file)

@@ -20,6 +20,7 @@ from redundancy.errors import InvalidInputError
 from redundancy.initial_configuration import (
     SearchResult,
     default_start,
+    held_actuators,
     improved_start,
 )
 from redundancy.objectives import ENERGY, VELOCITY, Objective
@@ -169,11 +170,12 @@ def run_study(
 ) -> Study:
     """Run every objective's improved search and the comparison strategies on every segment.
 
-    The held actuators are the task's ``held`` or, if it names none, the last n − m actuators.
+    The held actuators are the task's ``held`` or, if it names none, the last n − m actuators
+    (`held_actuators`).
     """
     from tqdm import tqdm
 
-    held = cycle.held or tuple(robot.actuators.names[robot.m :])
+    held = held_actuators(robot, cycle)
     steps = sum(len(time_grid(s, time_step)) - 1 for s in cycle.segments)
     total = steps * (len(objectives) + len(BASELINES))
     bar = tqdm(total=total, unit="step", desc="study", disable=not progress, mininterval=0.5)
