@@ -93,13 +93,13 @@ def inverse_kinematics(
         active = active[~stalled]
     residual, _ = _residual(robot, q, rows, target)
     error = np.linalg.norm(residual, axis=1).reshape(k, seeds)
-    q = q.reshape(k, seeds, robot.n)
+    per_seed = q.reshape(k, seeds, robot.n)
     converged = error < 1e3 * TOLERANCE
     middle = (robot.lower + robot.upper) / 2
-    distance = np.linalg.norm((q - middle) / (robot.upper - robot.lower), axis=2)
+    distance = np.linalg.norm((per_seed - middle) / (robot.upper - robot.lower), axis=2)
     choice = np.argmin(np.where(converged, distance, 1e6 + error), axis=1)
     picked = np.arange(k)
-    return InverseKinematics(q[picked, choice], converged.any(axis=1), error.min(axis=1))
+    return InverseKinematics(per_seed[picked, choice], converged.any(axis=1), error.min(axis=1))
 
 
 def _residual(robot: Robot, q: np.ndarray, rows: list[int], target: np.ndarray):

@@ -189,8 +189,8 @@ def evaluate_starts(
     for value, row, miss in zip(values, rows, ik.miss):
         start = tuple(float(v) for v in value)
         if row < 0:
-            reason = f"start unreachable (misses by {miss:.3g} m)"
-            samples.append(Sample(start, None, False, (), reason))
+            unreachable = f"start unreachable (misses by {miss:.3g} m)"
+            samples.append(Sample(start, None, False, (), unreachable))
             continue
         violations = tuple(trajectory.violations(row))
         reason = "singular actuator Jacobian" if trajectory.failed[row] else None
