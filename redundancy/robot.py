@@ -246,10 +246,6 @@ class Robot:
         )
         return _answer(out, single)
 
-    def within_joint_limits(self, q: np.ndarray, tolerance: float = 1e-9) -> np.ndarray:
-        """Whether each configuration of (k, n) lies inside the joint limits, (k,) bool."""
-        return np.all((q >= self.lower - tolerance) & (q <= self.upper + tolerance), axis=-1)
-
 
 def _read_description(path: Path) -> dict:
     try:
