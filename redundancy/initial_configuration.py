@@ -287,3 +287,33 @@ def default_start(robot: Robot, segment: Segment, held: str | Sequence[str] = "x
         )
     first = int(np.argmax(ik.reached))
     return candidates[order][first], ik.q[first]
+
+
+def scalar_or_list(values):
+    """One held actuator's value as a number, several as a list (the report's shape)."""
+    values = [float(v) for v in values]
+    return values[0] if len(values) == 1 else values
+
+
+@dataclass(frozen=True)
+class StrategyRun:
+    """One motion of one strategy along one segment."""
+
+    segment: str
+    strategy: str
+    start: tuple[float, ...]
+    trajectory: Trajectory
+
+    def summary(self) -> dict:
+        motion = self.trajectory
+        violations = motion.violations(0)
+        return {
+            "segment": self.segment,
+            "strategy": self.strategy,
+            "start_value": scalar_or_list(self.start),
+            "peak_velocity_norm": float(motion.peak_velocity_norm[0]),
+            "peak_kinetic": float(motion.peak_kinetic[0]),
+            "within_limits": bool(motion.within_limits[0]),
+            "max_tracking_error": float(motion.max_tracking_error[0]),
+            "violations": [str(v) for v in violations],
+        }

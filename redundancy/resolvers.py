@@ -23,6 +23,10 @@ import numpy as np
 
 from redundancy.actuator_space import ActuatorSpace
 
+# The gradient-projection gain α, m²/s, tuned on the paper's segments by
+# `redundancy.peers.tune_gradient_projection`: the least worst-case peak ẋᵀẋ among the gains
+# that keep every stroke inside its limits from the default starts (see benchmarks/results.md).
+TUNED_GAIN = 0.07
 SINGULAR_RATIO = 1e-8  # ε: G counts as near singular below σ_min / σ_max = ε (cond J_H ≈ 1e4)
 
 
@@ -32,11 +36,14 @@ def weighted_pseudoinverse(J_H: np.ndarray, W_inv_J_T: np.ndarray) -> np.ndarray
     λ² is zero unless J_H W⁻¹ J_Hᵀ is near singular (see the module docstring).
     """
     gram = J_H @ W_inv_J_T
-    eigenvalues = np.linalg.eigvalsh(gram)
-    threshold = SINGULAR_RATIO * eigenvalues[:, -1]
-    ratio = np.clip(eigenvalues[:, 0] / threshold, 0.0, 1.0)
-    damping = threshold * (1 - ratio**2)
-    gram = gram + damping[:, None, None] * np.eye(gram.shape[1])
+    m = gram.shape[1]
+    # det G / (tr G)^m is at most σ_min / σ_max: where it reaches ε, λ² = 0 without eigenvalues
+    if not np.all(np.linalg.det(gram) >= SINGULAR_RATIO * np.einsum("kii->k", gram) ** m):
+        eigenvalues = np.linalg.eigvalsh(gram)
+        threshold = SINGULAR_RATIO * eigenvalues[:, -1]
+        ratio = np.minimum(np.maximum(eigenvalues[:, 0] / threshold, 0.0), 1.0)
+        damping = threshold * (1 - ratio**2)
+        gram = gram + damping[:, None, None] * np.eye(m)
     return np.swapaxes(np.linalg.solve(gram, np.swapaxes(W_inv_J_T, 1, 2)), 1, 2)
 
 
@@ -88,7 +95,7 @@ class GradientProjection(MinVelocityNorm):
 
     name = "gradient projection (limit avoidance)"
 
-    def __init__(self, gain: float = 0.5):
+    def __init__(self, gain: float = TUNED_GAIN):
         self.gain = gain
 
     def __repr__(self) -> str:

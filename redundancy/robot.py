@@ -163,21 +163,24 @@ class Robot:
     def kinematics(self, q: np.ndarray, v: np.ndarray | None = None) -> Kinematics:
         """Pinocchio's kinematics of the tracked points at the states (q, v), each (k, n)."""
         model, data, frames = self.model, self.data, self._tracked
-        k, count = len(q), len(frames)
-        positions = np.empty((k, count, 3))
-        jacobians = np.empty((k, count, 3, model.nv))
-        rates = None if v is None else np.empty_like(jacobians)
         world = pin.LOCAL_WORLD_ALIGNED
-        for i in range(k):
+        gathered, placed, changing = [], [], []
+        for i in range(len(q)):
             if v is None:
                 pin.computeJointJacobians(model, data, q[i])
             else:
                 pin.computeJointJacobiansTimeVariation(model, data, q[i], v[i])
-            for j, frame in enumerate(frames):
-                jacobians[i, j] = pin.getFrameJacobian(model, data, frame, world)[:3]
-                positions[i, j] = data.oMf[frame].translation
-                if rates is not None:
-                    rates[i, j] = pin.getFrameJacobianTimeVariation(model, data, frame, world)[:3]
+            for frame in frames:
+                gathered.append(pin.getFrameJacobian(model, data, frame, world))
+                # updateFramePlacement hands back data.oMf[frame], faster than indexing it; its
+                # translation is a view into data, hence the copy
+                placed.append(pin.updateFramePlacement(model, data, frame).translation.copy())
+                if v is not None:
+                    changing.append(pin.getFrameJacobianTimeVariation(model, data, frame, world))
+        shape = (len(q), len(frames))
+        jacobians = np.array(gathered).reshape(*shape, 6, model.nv)[:, :, :3]
+        positions = np.array(placed).reshape(*shape, 3)
+        rates = None if v is None else np.array(changing).reshape(*shape, 6, model.nv)[:, :, :3]
         velocities = None if v is None else jacobians @ v[:, None, :, None]
         return Kinematics(
             q,

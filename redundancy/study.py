@@ -19,14 +19,16 @@ from pathlib import Path
 from redundancy.errors import InvalidInputError
 from redundancy.initial_configuration import (
     SearchResult,
+    StrategyRun,
     default_start,
     held_actuators,
     improved_start,
+    scalar_or_list,
 )
 from redundancy.objectives import ENERGY, VELOCITY, Objective
 from redundancy.resolvers import GradientProjection, Resolver
 from redundancy.robot import Robot
-from redundancy.simulate import TIME_STEP, Trajectory, simulate, time_grid
+from redundancy.simulate import TIME_STEP, simulate, time_grid
 from redundancy.tasks import WorkCycle
 
 BASELINES: tuple[tuple[str, Resolver], ...] = (
@@ -34,30 +36,6 @@ BASELINES: tuple[tuple[str, Resolver], ...] = (
     ("M_H-weighted, default start", ENERGY.resolver),
     ("gradient projection, default start", GradientProjection()),
 )
-
-
-@dataclass(frozen=True)
-class StrategyRun:
-    """One motion of one strategy along one segment."""
-
-    segment: str
-    strategy: str
-    start: tuple[float, ...]
-    trajectory: Trajectory
-
-    def summary(self) -> dict:
-        motion = self.trajectory
-        violations = motion.violations(0)
-        return {
-            "segment": self.segment,
-            "strategy": self.strategy,
-            "start_value": _scalar_or_list(self.start),
-            "peak_velocity_norm": float(motion.peak_velocity_norm[0]),
-            "peak_kinetic": float(motion.peak_kinetic[0]),
-            "within_limits": bool(motion.within_limits[0]),
-            "max_tracking_error": float(motion.max_tracking_error[0]),
-            "violations": [str(v) for v in violations],
-        }
 
 
 @dataclass(frozen=True)
@@ -127,12 +105,6 @@ class Study:
         return "\n".join(lines)
 
 
-def _scalar_or_list(values):
-    """One held actuator's value as a number, several as a list (the report's shape)."""
-    values = [float(v) for v in values]
-    return values[0] if len(values) == 1 else values
-
-
 def _search_report(search: SearchResult) -> dict:
     best = search.best
     closest = search.closest_violation if best is None else None
@@ -143,13 +115,11 @@ def _search_report(search: SearchResult) -> dict:
         "end": search.segment.end.tolist(),
         "held_actuator": search.held[0] if len(search.held) == 1 else list(search.held),
         "feasible_range": None if box is None else (box[0] if len(box) == 1 else box).tolist(),
-        "best": None
-        if best is None
-        else {"value": _scalar_or_list(best.values), "peak": best.peak},
+        "best": None if best is None else {"value": scalar_or_list(best.values), "peak": best.peak},
         "closest_violation": None if closest is None else str(closest),
         "samples": [
             {
-                "value": _scalar_or_list(s.values),
+                "value": scalar_or_list(s.values),
                 "peak": s.peak,
                 "feasible": s.feasible,
                 "reason": s.reason,
