@@ -1,0 +1,346 @@
+"""The bound: the motion along a segment whose whole history of the held actuator is optimised.
+
+The paper's improved method chooses only where the motion starts; from there the pseudoinverse
+law decides every instant. Here the held actuator's stroke r(t) is free at every instant, and
+the motion that tracks the task exactly, keeps every checked stroke and has the least peak of
+the objective is found by direct transcription:
+
+- unknowns: r_j = x_h(t_j) at N + 1 nodes t_j = j h, h = t_f / N, and the peak s;
+- at each node the configuration q_j solves y(q_j) = y_d(t_j), x_h(q_j) = r_j (Eqs. 6, 10) by
+  Newton's method from the previous iterate: the task is tracked exactly at every node;
+- the held rates ṙ = D r (second-order differences) fix the velocities: K_j q̇_j = [ẏ_d; ṙ_j]
+  with K = [J; A_h] (Eqs. 7, 11) and ẋ_j = A_j q̇_j, so that J_H ẋ_j = ẏ_d (Eq. 16); node j
+  measures q̇ᵀ W q̇ with W = AᵀA (that is ẋᵀẋ) or M (ẋᵀ M_H ẋ);
+- minimise s, with a tie-break `SMOOTHING` on mean ṙ², subject to s ≥ the measure and
+  lower ≤ x(q_j) ≤ upper for every checked actuator at every node (the held one through the
+  bounds on r).
+
+Gradients: ∂q_j/∂r_j = K_j⁻¹ e and ∂x_j/∂r_j = A_j ∂q_j/∂r_j; the measure's derivative through
+ṙ_j is 2 q̇ᵀ W K⁻¹ e, and through q_j at fixed ṙ_j a central difference along ∂q_j/∂r_j. SciPy's
+SLSQP solves the problem on a sequence of grids: the first from several pseudoinverse motions
+(the problem is not convex), each later one from the previous optimum. The optimum converges at
+second order in h; `GlobalOptimum.change` says how much the last refinement moved it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+from scipy.optimize import minimize
+
+from redundancy.errors import InvalidInputError, UnreachableError
+from redundancy.fast_search import FOUND, FastResolver, State, fast_start, held_configurations
+from redundancy.ik import held_indices, inverse_kinematics
+from redundancy.objectives import VELOCITY, Objective
+from redundancy.robot import Robot
+from redundancy.simulate import TIME_STEP, Trajectory, simulate
+from redundancy.tasks import Segment
+
+GRIDS = (48, 96, 192)  # intervals of the successive grids
+CANDIDATES = 3  # starts over the feasible range the first grid is also solved from
+CONVERGED = 0.005  # a last refinement that moves the optimum by less than this has converged
+ITERATIONS = 400  # SLSQP iterations per grid, at most
+FUNCTION_TOLERANCE = 1e-7  # SLSQP's ftol on the scaled peak
+LIMIT_MARGIN = 1e-6  # m: the strokes are kept this far inside their limits, so that solver
+# round-off never puts a node outside them
+SMOOTHING = 1e-4  # weight of mean ṙ² (m²/s², like ẋᵀẋ) beside the peak: picks one optimum
+# where many share the peak, and moves the peak by less than this fraction
+DIFFERENCE_STEP = 1e-6  # m: step in r of the central difference through q
+
+
+@dataclass(frozen=True)
+class GridSolution:
+    """The optimum on one grid: its ``intervals``, the optimal ``peak`` (m²/s² or J), and the
+    solver's report (``success``, ``iterations``, ``message``), with the largest constraint
+    violation at its solution (``violation``: a fraction of the starting peak for the peak's
+    constraints, of the stroke for the strokes')."""
+
+    intervals: int
+    peak: float
+    success: bool
+    iterations: int
+    message: str
+    violation: float
+
+
+@dataclass(frozen=True)
+class GlobalOptimum:
+    """The optimised motion on the finest grid and every grid's solution.
+
+    ``motion`` holds the nodes of the finest grid: q, x and y (= y_d to Newton's tolerance),
+    and ẋ from the transcribed held rates, so that its peak of the objective is the optimum;
+    its ``resolver`` is the objective's law, whose measure the motion minimises. ``start`` is
+    the held stroke at t = 0 (m).
+    """
+
+    segment: Segment
+    objective: Objective
+    held: str
+    motion: Trajectory
+    start: float
+    grids: tuple[GridSolution, ...]
+
+    @property
+    def bound(self) -> float:
+        """The optimal peak on the finest grid."""
+        return self.grids[-1].peak
+
+    @property
+    def change(self) -> float | None:
+        """|peak on the finest grid − peak on the one before| / peak on the finest, or None."""
+        if len(self.grids) < 2:
+            return None
+        return abs(self.grids[-1].peak - self.grids[-2].peak) / self.grids[-1].peak
+
+    @property
+    def converged(self) -> bool:
+        """The finest grid's solve succeeded and refining the grid last moved the optimum by
+        less than `CONVERGED`."""
+        change = self.change
+        return self.grids[-1].success and change is not None and change < CONVERGED
+
+
+def differentiation(intervals: int, h: float) -> np.ndarray:
+    """The (N + 1, N + 1) matrix D with ṙ ≈ D r on a uniform grid of step h: central
+    differences inside, second-order one-sided ones at both ends."""
+    D = np.zeros((intervals + 1, intervals + 1))
+    inside = np.arange(1, intervals)
+    D[inside, inside - 1], D[inside, inside + 1] = -0.5, 0.5
+    D[0, :3] = [-1.5, 2.0, -0.5]
+    D[-1, -3:] = [0.5, -2.0, 1.5]
+    return D / h
+
+
+class Transcription:
+    """The problem on one grid of ``intervals`` along ``segment``: the constraints and their
+    Jacobian with respect to z = (r_0 … r_N, s), for SLSQP.
+
+    ``law`` evaluates the kinematics (and says which objective), ``row`` is the held actuator,
+    ``columns`` the other checked actuators, ``guess`` (N + 1, n) the configurations Newton's
+    method starts from at the nodes.
+    """
+
+    def __init__(
+        self,
+        law: FastResolver,
+        segment: Segment,
+        row: int,
+        columns: list[int],
+        intervals: int,
+        guess: np.ndarray,
+    ):
+        robot = law.robot
+        self.law, self.robot, self.row, self.columns = law, robot, row, columns
+        self.t = np.linspace(0.0, segment.duration, intervals + 1)
+        self.D = differentiation(intervals, self.t[1])
+        self.points = segment.position(self.t)
+        self.y_dot = np.broadcast_to(segment.velocity, (intervals + 1, robot.m))
+        self.q = np.array(guess, dtype=float)
+        self.lower = robot.actuators.lower[columns] + LIMIT_MARGIN
+        self.upper = robot.actuators.upper[columns] - LIMIT_MARGIN
+        self.span = self.upper - self.lower  # strokes enter the constraints as fractions of it
+        self.cache: tuple[bytes, Nodes] | None = None
+        self.scale = 1.0
+
+    def configurations(self, r: np.ndarray) -> np.ndarray:
+        """q at every node for the held strokes r (N + 1,), Newton-continued from the last."""
+        q, residual = held_configurations(self.law, self.points, [self.row], r[:, None], self.q)
+        if np.any(residual > FOUND):
+            raise InvalidInputError(
+                f"no configuration reaches the task at t = {self.t[residual > FOUND][0]:.3f} s "
+                f"with the held stroke {r[residual > FOUND][0]:.4f}"
+            )
+        self.q = q
+        return q
+
+    def motion(self, q: np.ndarray, r_dot: np.ndarray):
+        """At configurations q (N + 1, n) with held rates ṙ (N + 1,): the kinematics, the
+        velocities q̇ and ẋ = A q̇ (N + 1, n) with K q̇ = [ẏ_d; ṙ], K = [J; A_h] (Eqs. 7, 11),
+        the weight W of the measure q̇ᵀ W q̇ (AᵀA for ẋᵀẋ, M for ẋᵀ M_H ẋ) and the measure."""
+        state = self.law.state(q)
+        K = np.concatenate([state.J, state.A[:, [self.row]]], axis=1)
+        rhs = np.concatenate([self.y_dot, r_dot[:, None]], axis=1)
+        q_dot = np.linalg.solve(K, rhs[..., None])[..., 0]
+        W = self.robot.mass(q) if self.law.energy else np.swapaxes(state.A, 1, 2) @ state.A
+        measure = np.einsum("ji,jik,jk->j", q_dot, W, q_dot)
+        return state, K, q_dot, W, measure
+
+    def evaluate(self, z: np.ndarray) -> Nodes:
+        """The transcription at z = (r, s), computed once per iterate."""
+        key = z.tobytes()
+        if self.cache is not None and self.cache[0] == key:
+            return self.cache[1]
+        r_dot = self.D @ z[:-1]
+        q = self.configurations(z[:-1])
+        state, K, q_dot, W, measure = self.motion(q, r_dot)
+        unit = np.zeros((len(q), self.robot.n, 1))
+        unit[:, -1] = 1.0
+        dq = np.linalg.solve(K, unit)[..., 0]  # ∂q_j/∂r_j = K⁻¹ e, and ∂q̇_j/∂ṙ_j
+        rate = 2 * np.einsum("ji,jik,jk->j", q_dot, W, dq)  # ∂ measure_j / ∂ṙ_j
+        step = DIFFERENCE_STEP * dq  # through q_j at fixed ṙ_j: a central difference
+        ahead, behind = self.motion(q + step, r_dot)[-1], self.motion(q - step, r_dot)[-1]
+        own = (ahead - behind) / (2 * DIFFERENCE_STEP)
+        x_dot = (state.A @ q_dot[..., None])[..., 0]
+        dx = (state.A @ dq[..., None])[..., 0]  # ∂x_j/∂r_j
+        nodes = Nodes(measure, rate[:, None] * self.D + np.diag(own), state, x_dot, dx)
+        self.cache = (key, nodes)
+        return nodes
+
+    def objective(self, z):
+        """(s + ε mean ṙ²) / s₀ and its gradient: the peak, with a tie-break (ε = `SMOOTHING`)
+        for the smoothest held history where many share the least peak."""
+        r_dot = self.D @ z[:-1]
+        gradient = np.append(2 * SMOOTHING * (self.D.T @ r_dot) / len(r_dot), 1.0) / self.scale
+        return (z[-1] + SMOOTHING * np.mean(r_dot**2)) / self.scale, gradient
+
+    def constraints(self, z):
+        nodes = self.evaluate(z)
+        strokes = nodes.state.x[:, self.columns]
+        return np.concatenate(
+            [
+                (z[-1] - nodes.measure) / self.scale,
+                ((strokes - self.lower) / self.span).ravel(),
+                ((self.upper - strokes) / self.span).ravel(),
+            ]
+        )
+
+    def jacobian(self, z):
+        nodes = self.evaluate(z)
+        count = len(nodes.measure)
+        peak = np.concatenate([-nodes.gradient, np.ones((count, 1))], axis=1) / self.scale
+        d_strokes = nodes.dx[:, self.columns]
+        c = d_strokes.shape[1]
+        lower = np.zeros((count, c, count + 1))
+        j = np.arange(count)
+        lower[j, :, j] = d_strokes / self.span
+        lower = lower.reshape(count * c, count + 1)
+        return np.concatenate([peak, lower, -lower])
+
+
+class Nodes(NamedTuple):
+    """The transcription at one iterate: the measure at each node (N + 1,), its gradient with
+    respect to r (N + 1, N + 1), the kinematics, ẋ (N + 1, n) and ∂x_j/∂r_j (N + 1, n)."""
+
+    measure: np.ndarray
+    gradient: np.ndarray
+    state: State
+    x_dot: np.ndarray
+    dx: np.ndarray
+
+
+def _solve(problem: Transcription, r0: np.ndarray, box: tuple, intervals: int):
+    """SLSQP from r0: the grid's solution and the transcription at it."""
+    measure = problem.evaluate(np.append(r0, 0.0)).measure
+    problem.scale = float(measure.max())
+    z = np.append(r0, measure.max())
+    bounds = [box] * len(r0) + [(0.0, None)]
+    solution = minimize(
+        problem.objective,
+        z,
+        jac=True,
+        method="SLSQP",
+        bounds=bounds,
+        constraints=[{"type": "ineq", "fun": problem.constraints, "jac": problem.jacobian}],
+        options={"maxiter": ITERATIONS, "ftol": FUNCTION_TOLERANCE},
+    )
+    z = solution.x
+    nodes = problem.evaluate(z)
+    grid = GridSolution(
+        intervals,
+        float(nodes.measure.max()),
+        bool(solution.success),
+        int(solution.nit),
+        str(solution.message),
+        float(max(0.0, -problem.constraints(z).min())),
+    )
+    return z[:-1], grid, nodes
+
+
+def global_optimum(
+    robot: Robot,
+    segment: Segment,
+    objective: Objective = VELOCITY,
+    held: str = "x3",
+    checked: tuple[str, ...] | None = None,
+    grids: tuple[int, ...] = GRIDS,
+    initial: tuple[float, ...] | None = None,
+) -> GlobalOptimum:
+    """The motion along ``segment`` of least peak of ``objective`` over every history of the
+    held actuator (see the module docstring), on each of ``grids`` (intervals) in turn.
+
+    The problem is not convex: the first grid is solved from the pseudoinverse motion of each
+    ``initial`` start (held strokes at t = 0, m; by default the improved method's best start,
+    `fast_start`, and `CANDIDATES` starts evenly over its feasible range), and the least optimum
+    is refined through the later grids, each started from the previous one. ``checked`` names
+    the actuators whose strokes bind (default all).
+    """
+    row = held_indices(robot, [held])[0]
+    if not grids or any(int(g) < 2 for g in grids) or list(grids) != sorted(grids):
+        raise InvalidInputError(f"grids must be increasing interval counts ≥ 2; got {grids}")
+    checked = tuple(robot.actuators.names if checked is None else checked)
+    unknown = sorted(set(checked) - set(robot.actuators.names))
+    if unknown:
+        raise InvalidInputError(
+            f"unknown actuators {unknown}; actuators: {', '.join(robot.actuators.names)}"
+        )
+    if initial is None:
+        search = fast_start(robot, segment, objective, held, checked)
+        if search.best is None:
+            raise InvalidInputError(
+                f"no start on segment {segment.name} keeps every checked stroke for the "
+                f"{objective.name} objective; the global optimum starts from feasible motions"
+            )
+        lowest, highest = search.feasible_range  # type: ignore[misc]
+        spread = np.linspace(lowest, highest, CANDIDATES).tolist()
+        initial = tuple(dict.fromkeys([search.best.value, *spread]))  # distinct, best first
+    law = FastResolver(robot, objective)
+    columns = [robot.actuators.names.index(name) for name in checked if name != held]
+    actuator = robot.actuators[held]
+    box = (actuator.lower, actuator.upper) if held in checked else (None, None)
+
+    def solve(intervals: int, t: np.ndarray, r: np.ndarray, q: np.ndarray):
+        """The optimum on a grid, from r and q sampled at times t; its r, solution, nodes, q."""
+        times = np.linspace(0.0, segment.duration, intervals + 1)
+        q = np.stack([np.interp(times, t, q[:, i]) for i in range(robot.n)], axis=1)
+        problem = Transcription(law, segment, row, columns, intervals, q)
+        return (*_solve(problem, np.interp(times, t, r), box, intervals), problem.q)
+
+    every = int(np.ceil(segment.duration / (grids[0] * TIME_STEP)))  # steps per interval
+    starts = inverse_kinematics(robot, segment.start, [held], np.array(initial)[:, None])
+    if not starts.reached.any():
+        raise UnreachableError(
+            f"{robot.name} cannot reach the start {segment.start.tolist()} of segment "
+            f"{segment.name} with {held} at any of {list(initial)}"
+        )
+    motions = simulate(
+        robot,
+        objective.resolver,
+        segment,
+        starts.q[starts.reached],
+        segment.duration / (grids[0] * every),
+    )
+    t = motions.t[::every]
+    candidates = [
+        solve(grids[0], t, motions.x[i, ::every, row], motions.q[i, ::every])
+        for i in range(len(motions))
+    ]
+    r, grid, nodes, q = min(candidates, key=lambda c: c[1].peak)
+    solutions = [grid]
+    for intervals in grids[1:]:
+        r, grid, nodes, q = solve(intervals, np.linspace(0.0, segment.duration, len(r)), r, q)
+        solutions.append(grid)
+    optimum = Trajectory(
+        robot,
+        segment,
+        objective.resolver,
+        np.linspace(0.0, segment.duration, len(r)),
+        q[None],
+        nodes.state.x[None],
+        nodes.x_dot[None],
+        nodes.state.y[None],
+        np.zeros(1, dtype=bool),
+        checked,
+    )
+    return GlobalOptimum(segment, objective, held, optimum, float(r[0]), tuple(solutions))

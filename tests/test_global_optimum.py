@@ -1,0 +1,107 @@
+"""The global optimum (the bound) on the crane's paper segments: exact tracking, every stroke
+kept, never above the improved method, converged, and exact gradients. Grids are coarser here
+(16 and 32 intervals) than in the benchmark (48, 96, 192) to keep the tests quick."""
+
+import numpy as np
+import pytest
+
+from redundancy import InvalidInputError, actuator_space
+from redundancy.fast_search import FastResolver, fast_start
+from redundancy.global_optimum import Transcription, global_optimum
+from redundancy.ik import inverse_kinematics
+from redundancy.objectives import ENERGY, VELOCITY
+from redundancy.simulate import simulate
+from redundancy.tasks import WorkCycle
+
+SEGMENTS = ["1-2", "2-3", "3-1"]
+GRIDS = (16, 32)
+
+
+@pytest.fixture(scope="module")
+def cycle(crane):
+    return WorkCycle.from_toml(crane.task_file, dimension=crane.m)
+
+
+@pytest.fixture(scope="module")
+def optima(crane, cycle):
+    return {name: global_optimum(crane, cycle[name], grids=GRIDS) for name in SEGMENTS}
+
+
+@pytest.mark.parametrize("name", SEGMENTS)
+def test_global_optimum_tracks_the_task_and_keeps_every_stroke(crane, optima, name):
+    motion = optima[name].motion
+    assert motion.max_tracking_error[0] < 1e-9
+    assert motion.within_limits[0] and not motion.violations(0)
+    x = motion.x[0]
+    assert np.all((x >= crane.actuators.lower) & (x <= crane.actuators.upper))
+    # ẋ at the nodes tracks the task velocity: J_H ẋ = ẏ_d (Eq. 16)
+    J_H = actuator_space(crane, motion.q[0]).J_H
+    np.testing.assert_allclose(
+        np.einsum("kij,kj->ki", J_H, motion.x_dot[0]),
+        np.broadcast_to(optima[name].segment.velocity, (len(J_H), crane.m)),
+        atol=1e-9,
+    )
+
+
+@pytest.mark.parametrize("name", SEGMENTS)
+def test_global_peak_is_never_above_the_improved_methods(crane, cycle, optima, name):
+    """The improved method by its fast search (as good as the sweep, or better). Up to the
+    solver's tolerance: on segment 1-2 the two coincide, the peak being at the
+    start, where the improved start already sits at the end of the telescope's stroke."""
+    improved = fast_start(crane, cycle[name]).motion()
+    assert optima[name].bound <= improved.peak_velocity_norm[0] * (1 + 1e-6)
+
+
+def test_global_optimum_beats_the_improved_method_where_the_history_matters(optima, cycle, crane):
+    """On 2-3 and 3-1 the free history lowers the peak by a few per cent."""
+    for name in ("2-3", "3-1"):
+        improved = fast_start(crane, cycle[name]).best.peak
+        assert optima[name].bound < 0.99 * improved
+
+
+@pytest.mark.parametrize("name", SEGMENTS)
+def test_refining_the_grid_moves_the_optimum_by_less_than_half_a_percent(optima, name):
+    optimum = optima[name]
+    assert [g.intervals for g in optimum.grids] == list(GRIDS)
+    assert optimum.change < 0.005 and optimum.converged
+    assert optimum.motion.peak_velocity_norm[0] == pytest.approx(optimum.bound, rel=1e-12)
+
+
+@pytest.mark.parametrize("objective", [VELOCITY, ENERGY], ids=lambda o: o.name)
+def test_transcription_gradients_match_finite_differences(crane, cycle, objective):
+    segment, intervals = cycle["1-2"], 12
+    start = inverse_kinematics(crane, segment.start, ["x3"], np.array([[1.05]])).q
+    every = 40
+    motion = simulate(
+        crane, objective.resolver, segment, start, segment.duration / (intervals * every)
+    )
+    r = motion.x[0, ::every, 2] + 0.01 * np.sin(np.arange(intervals + 1))
+    problem = Transcription(
+        FastResolver(crane, objective), segment, 2, [0, 1], intervals, motion.q[0, ::every]
+    )
+    z = np.append(r, 1.0)
+    problem.scale = 0.05 if objective is VELOCITY else 40.0
+    numeric = np.empty_like(problem.jacobian(z))
+    step = 1e-6
+    for i in range(len(z)):
+        dz = np.zeros_like(z)
+        dz[i] = step
+        numeric[:, i] = (problem.constraints(z + dz) - problem.constraints(z - dz)) / (2 * step)
+    analytic = problem.jacobian(z)
+    np.testing.assert_allclose(analytic, numeric, atol=1e-6 * np.abs(analytic).max())
+
+
+def test_energy_option_lowers_the_peak_kinetic_energy_on_segment_1_2(crane, cycle):
+    segment = cycle["1-2"]
+    optimum = global_optimum(crane, segment, ENERGY, grids=GRIDS)
+    improved = fast_start(crane, segment, ENERGY).motion()
+    assert optimum.motion.within_limits[0] and optimum.motion.max_tracking_error[0] < 1e-9
+    assert optimum.motion.peak_kinetic[0] == pytest.approx(optimum.bound, rel=1e-9)
+    assert optimum.bound < 0.99 * improved.peak_kinetic[0]
+
+
+def test_global_optimum_rejects_bad_grids(crane, cycle):
+    with pytest.raises(InvalidInputError, match="grids"):
+        global_optimum(crane, cycle["1-2"], grids=(32, 16))
+    with pytest.raises(InvalidInputError, match="unknown actuators"):
+        global_optimum(crane, cycle["1-2"], checked=("x1", "z"))
