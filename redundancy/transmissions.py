@@ -1,6 +1,7 @@
 """Actuator declarations in URDF ``<transmission>`` elements: reading and writing.
 
-URDF parsers (yourdfpy, urdfdom) drop transmissions, so they are read here with lxml. Schema::
+URDF parsers (urdfdom under Pinocchio, yourdfpy) drop transmissions, so they are read here with
+lxml. Schema::
 
     <transmission name="x1">                        <!-- the actuator's name -->
       <type>redundancy/LinearCylinder</type>        <!-- redundancy/<ActuatorMap subclass> -->
