@@ -1,11 +1,10 @@
 """The toolkit on robots it was not written for: the slewing crane, the Panda, any URDF."""
 
-import subprocess
-import sys
 import warnings
 
 import numpy as np
 import pytest
+from commands import run_cli
 
 from redundancy import UnreachableError, bundled_robots, load_robot
 from redundancy.initial_configuration import evaluate_starts, improved_start, stroke_box
@@ -83,26 +82,19 @@ def test_the_command_line_takes_a_robot_and_a_task_by_path(tmp_path):
         'segments = ["a-b"]\nheld = ["x3"]\nspeed = 0.5\n'
         "[points]\na = [3.0, 0.0, -0.3]\nb = [2.2, 0.0, 1.8]\n"
     )
-    run = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "redundancy.cli",
-            "study",
-            "--robot",
-            str(folder / "robot.toml"),
-            "--task",
-            str(task),
-            "--samples",
-            "4",
-            "--objective",
-            "velocity",
-            "--quiet",
-            "--out",
-            str(tmp_path / "out"),
-        ],
-        capture_output=True,
-        text=True,
+    run = run_cli(
+        "study",
+        "--robot",
+        str(folder / "robot.toml"),
+        "--task",
+        str(task),
+        "--samples",
+        "4",
+        "--objective",
+        "velocity",
+        "--quiet",
+        "--out",
+        str(tmp_path / "out"),
     )
     assert run.returncode == 0, run.stderr
     assert "a-b" in run.stdout and "improved, velocity objective" in run.stdout
@@ -112,22 +104,15 @@ def test_the_command_line_takes_a_robot_and_a_task_by_path(tmp_path):
 def test_a_task_of_the_wrong_dimension_is_refused_on_the_command_line(tmp_path):
     task = tmp_path / "task.toml"
     task.write_text('segments = ["a-b"]\n[points]\na = [3.0, -0.3]\nb = [2.2, 1.8]\n')
-    run = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "redundancy.cli",
-            "study",
-            "--robot",
-            "hiab031_slewing",
-            "--task",
-            str(task),
-            "--quiet",
-            "--out",
-            str(tmp_path),
-        ],
-        capture_output=True,
-        text=True,
+    run = run_cli(
+        "study",
+        "--robot",
+        "hiab031_slewing",
+        "--task",
+        str(task),
+        "--quiet",
+        "--out",
+        str(tmp_path),
     )
     assert run.returncode == 2
     assert "point a has 2 coordinates; the robot's task has 3" in run.stderr

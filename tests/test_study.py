@@ -1,11 +1,10 @@
 """The paper's study on the bundled crane, checked against the paper's findings (section 3)."""
 
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
+from commands import run_cli
 
 from redundancy.study import run_study
 from redundancy.tasks import WorkCycle
@@ -91,12 +90,6 @@ def test_a_segment_without_a_feasible_start_is_reported_not_raised(study):
     assert entry["feasible_range"] is None and entry["best"] is None
     assert "past its" in entry["closest_violation"]
     assert "2-3" in study.table() and "no sampled start" in study.table()
-
-
-def run_cli(*args, cwd=None):
-    return subprocess.run(
-        [sys.executable, "-m", "redundancy.cli", *args], capture_output=True, text=True, cwd=cwd
-    )
 
 
 def test_study_command_writes_the_report_and_the_five_figures(tmp_path):

@@ -1,0 +1,11 @@
+"""Running the command line as a user does: a separate process."""
+
+import subprocess
+import sys
+
+
+def run_cli(*args, cwd=None):
+    """``redundancy ARGS`` in a fresh interpreter; the completed process, text output."""
+    return subprocess.run(
+        [sys.executable, "-m", "redundancy.cli", *args], capture_output=True, text=True, cwd=cwd
+    )
