@@ -8,7 +8,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import redundancy
 from redundancy import (
     ActuatorMap,
     InvalidInputError,
@@ -196,8 +195,11 @@ def test_bundled_robots_load_after_a_plain_install_elsewhere(tmp_path):
         capture_output=True,
     )
     code = (
-        "import redundancy; r = redundancy.load_robot('hiab031'); "
-        "assert 'site' in redundancy.__file__, redundancy.__file__; print(r.n, r.m)"
+        "import redundancy\n"
+        "assert 'site' in redundancy.__file__, redundancy.__file__\n"
+        "for name in redundancy.bundled_robots():\n"
+        "    r = redundancy.load_robot(name)\n"
+        "    print(name, r.n, r.m, r.task_file.is_file())\n"
     )
     run = subprocess.run(
         [sys.executable, "-c", code],
@@ -207,5 +209,7 @@ def test_bundled_robots_load_after_a_plain_install_elsewhere(tmp_path):
         text=True,
     )
     assert run.returncode == 0, run.stderr
-    assert run.stdout.split() == ["3", "2"]
-    assert redundancy.__file__  # the tested install is a separate copy
+    installed = [line.split() for line in run.stdout.splitlines()]
+    assert [row[0] for row in installed] == bundled_robots()
+    assert installed[0] == ["hiab031", "3", "2", "True"]
+    assert all(row[3] == "True" for row in installed)
