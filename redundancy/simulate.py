@@ -42,7 +42,7 @@ class Violation:
 
     def __str__(self) -> str:
         return (
-            f"{self.actuator} {self.excess * 1000:.3g} mm past its {self.bound} limit "
+            f"{self.actuator} {self.excess * 1000:.4g} mm past its {self.bound} limit "
             f"over t = {self.start:.2f}-{self.end:.2f} s"
         )
 

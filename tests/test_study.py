@@ -1,12 +1,14 @@
 """The paper's study on the bundled crane, checked against the paper's findings (section 3)."""
 
 import json
+import os
+import stat
 
 import numpy as np
 import pytest
 from commands import run_cli
 
-from redundancy.study import run_study
+from redundancy.study import run_study, write_atomically
 from redundancy.tasks import WorkCycle
 
 SEGMENTS = ["1-2", "2-3", "3-1"]
@@ -143,3 +145,15 @@ def test_an_unreachable_segment_point_fails_cleanly_and_keeps_the_old_report(tmp
     assert "Traceback" not in run.stderr
     assert report.read_text() == '{"previous": true}\n'
     assert not list(tmp_path.glob("fig*")) and not list(tmp_path.glob(".*"))
+
+
+def test_written_files_get_the_mode_the_umask_gives(tmp_path):
+    path = tmp_path / "report.txt"
+    previous = os.umask(0o022)
+    try:
+        write_atomically(path, lambda p: p.write_text("done\n"))
+    finally:
+        os.umask(previous)
+    assert path.read_text() == "done\n"
+    assert stat.S_IMODE(path.stat().st_mode) == 0o644
+    assert [p.name for p in tmp_path.iterdir()] == ["report.txt"]
