@@ -24,6 +24,7 @@ import numpy as np
 from redundancy.errors import InvalidInputError, UnreachableError
 from redundancy.ik import held_indices, inverse_kinematics
 from redundancy.objectives import Objective
+from redundancy.resolvers import Resolver
 from redundancy.robot import Robot
 from redundancy.simulate import TIME_STEP, Trajectory, Violation, simulate
 from redundancy.tasks import Segment, WorkCycle
@@ -317,3 +318,23 @@ class StrategyRun:
             "max_tracking_error": float(motion.max_tracking_error[0]),
             "violations": [str(v) for v in violations],
         }
+
+
+def fixed_start_run(
+    robot: Robot,
+    resolver: Resolver,
+    name: str,
+    segment: Segment,
+    held: str | Sequence[str] = "x3",
+    start: tuple[np.ndarray, np.ndarray] | None = None,
+    checked: tuple[str, ...] | None = None,
+    time_step: float = TIME_STEP,
+    progress: Callable[[int], None] | None = None,
+) -> StrategyRun:
+    """``resolver`` along ``segment`` from a fixed start: ``start`` = (held values (r,), q (n,)),
+    by default `default_start`; the run is called ``name``."""
+    values, q = default_start(robot, segment, held) if start is None else start
+    motion = simulate(
+        robot, resolver, segment, q[None], time_step, checked=checked, progress=progress
+    )
+    return StrategyRun(segment.name, name, tuple(float(v) for v in values), motion)

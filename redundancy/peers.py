@@ -21,10 +21,10 @@ import numpy as np
 
 from redundancy.actuator_space import actuator_space
 from redundancy.errors import InvalidInputError, RedundancyError
-from redundancy.initial_configuration import StrategyRun, default_start
+from redundancy.initial_configuration import StrategyRun, default_start, fixed_start_run
 from redundancy.resolvers import TUNED_GAIN, GradientProjection, MinVelocityNorm, Resolver
 from redundancy.robot import AXES, Robot
-from redundancy.simulate import TIME_STEP, Trajectory, simulate, time_grid
+from redundancy.simulate import TIME_STEP, Trajectory, time_grid
 from redundancy.tasks import Segment
 
 # The candidates `tune_gradient_projection` tried on the crane's paper segments (velocity
@@ -44,8 +44,8 @@ def pseudoinverse_run(
     time_step: float = TIME_STEP,
 ) -> StrategyRun:
     """ẋ = J_H⁺ ẏ (Eq. 24) along ``segment`` from the default start."""
-    return _resolver_run(
-        robot, MinVelocityNorm(), "pseudoinverse", segment, held, checked, time_step
+    return fixed_start_run(
+        robot, MinVelocityNorm(), "pseudoinverse", segment, held, None, checked, time_step
     )
 
 
@@ -59,13 +59,8 @@ def gradient_projection_run(
 ) -> StrategyRun:
     """Gradient projection with actuator-limit avoidance, gain α (m²/s), from the default start."""
     name = f"gradient projection (α = {gain:g} m²/s)"
-    return _resolver_run(robot, GradientProjection(gain), name, segment, held, checked, time_step)
-
-
-def _resolver_run(robot, resolver: Resolver, name, segment, held, checked, time_step):
-    value, start = default_start(robot, segment, held)
-    motion = simulate(robot, resolver, segment, start[None], time_step, checked=checked)
-    return StrategyRun(segment.name, name, tuple(float(v) for v in value), motion)
+    resolver = GradientProjection(gain)
+    return fixed_start_run(robot, resolver, name, segment, held, None, checked, time_step)
 
 
 @dataclass(frozen=True)

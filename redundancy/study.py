@@ -21,6 +21,7 @@ from redundancy.initial_configuration import (
     SearchResult,
     StrategyRun,
     default_start,
+    fixed_start_run,
     held_actuators,
     improved_start,
     scalar_or_list,
@@ -28,7 +29,7 @@ from redundancy.initial_configuration import (
 from redundancy.objectives import ENERGY, VELOCITY, Objective
 from redundancy.resolvers import GradientProjection, Resolver
 from redundancy.robot import Robot
-from redundancy.simulate import TIME_STEP, simulate, time_grid
+from redundancy.simulate import TIME_STEP, time_grid
 from redundancy.tasks import WorkCycle
 
 BASELINES: tuple[tuple[str, Resolver], ...] = (
@@ -153,19 +154,14 @@ def run_study(
         searches: dict[str, tuple[SearchResult, ...]] = {}
         runs: list[StrategyRun] = []
         for segment in cycle.segments:
-            values, start = default_start(robot, segment, held)
+            start = default_start(robot, segment, held)
             for name, resolver in BASELINES:
                 bar.set_description(f"{segment.name}: {name}")
-                motion = simulate(
-                    robot,
-                    resolver,
-                    segment,
-                    start[None],
-                    time_step,
-                    checked=checked,
-                    progress=bar.update,
+                runs.append(
+                    fixed_start_run(
+                        robot, resolver, name, segment, held, start, checked, time_step, bar.update
+                    )
                 )
-                runs.append(StrategyRun(segment.name, name, tuple(values), motion))
         for objective in objectives:
             found = []
             for segment in cycle.segments:
