@@ -36,9 +36,28 @@ def invertibility(A: np.ndarray) -> np.ndarray:
     return singular_values[:, -1] / np.maximum(singular_values[:, 0], np.finfo(float).tiny)
 
 
+def singular(A: np.ndarray, tolerance: float = SINGULAR_TOLERANCE) -> np.ndarray:
+    """Where `invertibility` (k,) falls below ``tolerance`` or A is not finite, (k,) bool.
+
+    |det A| / ‖A‖_F^n bounds σ_min / σ_max from below (|det A| = Π σ_i ≤ σ_min σ_max^(n−1) and
+    σ_max ≤ ‖A‖_F), so the singular values are computed only where that bound is not enough.
+    """
+    n = A.shape[-1]
+    frobenius = np.einsum("kij,kij->k", A, A)
+    with np.errstate(invalid="ignore", over="ignore"):
+        settled = np.linalg.det(A) ** 2 >= tolerance**2 * frobenius**n
+    found = np.zeros(len(A), dtype=bool)
+    rows = np.flatnonzero(~settled)
+    if rows.size:
+        finite = np.all(np.isfinite(A[rows]), axis=(1, 2))
+        found[rows] = ~finite
+        found[rows[finite]] = invertibility(A[rows[finite]]) < tolerance
+    return found
+
+
 def check_invertible(A: np.ndarray, q: np.ndarray, names: list[str]) -> None:
     """Raise `SingularConfigurationError` where A is singular to working precision."""
-    bad = np.flatnonzero(invertibility(A) < SINGULAR_TOLERANCE)
+    bad = np.flatnonzero(singular(A))
     if bad.size:
         i = bad[0]
         weakest = names[int(np.argmin(np.linalg.norm(A[i], axis=1)))]
@@ -72,7 +91,7 @@ class ActuatorSpace:
     def M_H(self) -> np.ndarray:
         """M_H = A⁻ᵀ M A⁻¹ (Eq. 22), symmetric positive definite."""
         A_T = np.swapaxes(self.A, 1, 2)
-        half = np.linalg.solve(A_T, self.robot.mass(self.q))  # A⁻ᵀ M
+        half = np.linalg.solve(A_T, self.robot.mass_matrices(self.q))  # A⁻ᵀ M
         M_H = np.linalg.solve(A_T, np.swapaxes(half, 1, 2))  # A⁻ᵀ (A⁻ᵀ M)ᵀ = A⁻ᵀ M A⁻¹
         return (M_H + np.swapaxes(M_H, 1, 2)) / 2
 

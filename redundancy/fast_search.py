@@ -46,7 +46,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg.lapack import dposv, dpotrf, dpotrs
 
-from redundancy.actuator_space import SINGULAR_TOLERANCE, invertibility
+from redundancy.actuator_space import singular as singular_states
 from redundancy.actuators import Identity, LinearCylinder
 from redundancy.errors import InvalidInputError, SingularConfigurationError, UnreachableError
 from redundancy.ik import DAMPING, TOLERANCE, held_indices, inverse_kinematics
@@ -103,21 +103,6 @@ class Step(NamedTuple):
     x_dot: np.ndarray
     q_dot: np.ndarray
     y: np.ndarray
-
-
-def _singular(A: np.ndarray) -> np.ndarray:
-    """Where A (k, n, n) is singular as `simulate` judges it (invertibility below
-    `SINGULAR_TOLERANCE`) or not finite, (k,). The SVD runs only where det(A)² / ‖A‖_F^(2n), a
-    lower bound on the squared invertibility, does not settle it."""
-    frobenius = np.einsum("kij,kij->k", A, A)
-    settled = np.linalg.det(A) ** 2 >= SINGULAR_TOLERANCE**2 * frobenius ** len(A[0])
-    singular = np.zeros(len(A), dtype=bool)
-    rows = np.flatnonzero(~settled)
-    if rows.size:
-        finite = np.all(np.isfinite(A[rows]), axis=(1, 2))
-        singular[rows] = ~finite
-        singular[rows[finite]] = invertibility(A[rows[finite]]) < SINGULAR_TOLERANCE
-    return singular
 
 
 def _index(rows: np.ndarray) -> slice | np.ndarray:
@@ -201,7 +186,7 @@ class FastResolver:
         get ẋ = q̇ = 0."""
         state = self.state(q)
         A, J = state.A, state.J
-        singular = _singular(A)
+        singular = singular_states(A)
         if singular.any():
             A = np.where(singular[:, None, None], np.eye(len(A[0])), A)
         W = self.robot.mass(q) if self.energy else np.swapaxes(A, 1, 2) @ A

@@ -128,6 +128,7 @@ class Robot:
         tracked = [self._tool] + [f for a in actuators for f in a.frames]
         self._tracked = list(dict.fromkeys(tracked))
         self._slots = {frame: i for i, frame in enumerate(self._tracked)}
+        self._lower_triangle = np.tril_indices(model.nv, -1)
 
     def __repr__(self) -> str:
         return f"Robot({self.name!r}, n={self.n}, m={self.m}, payload={self.payload} kg)"
@@ -220,11 +221,16 @@ class Robot:
     def mass(self, q: np.ndarray | list[float]) -> np.ndarray:
         """Joint-space inertia matrix M(q) (Eq. 18) by CRBA, (n, n) or (k, n, n)."""
         batch, single = _as_batch("q", q, self.n)
-        out = np.empty((len(batch), self.n, self.n))
-        for i, qi in enumerate(batch):
-            out[i] = pin.crba(self.model, self.data, qi)  # upper triangle filled
-        upper = np.triu(out)
-        return _answer(upper + np.swapaxes(np.triu(out, 1), 1, 2), single)
+        return _answer(self.mass_matrices(batch), single)
+
+    def mass_matrices(self, q: np.ndarray) -> np.ndarray:
+        """M(q) (k, n, n) for configurations q (k, n) already checked (`configuration`)."""
+        out = np.empty((len(q), self.n, self.n))
+        for i, qi in enumerate(q):
+            out[i] = pin.crba(self.model, self.data, qi)  # the upper triangle is M's
+        lower, upper = self._lower_triangle
+        out[:, lower, upper] = out[:, upper, lower]
+        return out
 
     def nonlinear(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """N(q, v) = V(q, v) + G(q) (Eq. 20), (n,) or (k, n), in N·m or N."""

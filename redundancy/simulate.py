@@ -18,7 +18,7 @@ from functools import cached_property
 
 import numpy as np
 
-from redundancy.actuator_space import SINGULAR_TOLERANCE, actuator_space, invertibility
+from redundancy.actuator_space import actuator_space, singular
 from redundancy.errors import InvalidInputError
 from redundancy.resolvers import Resolver
 from redundancy.robot import Robot
@@ -231,7 +231,7 @@ def simulate(
     def rates(time: float, q: np.ndarray):
         """q̇ (k, n) and ẋ (k, n) at time ``time``; frozen (zero) for failed starts."""
         space = actuator_space(robot, q, check=False)
-        bad = ~np.all(np.isfinite(q), axis=1) | (invertibility(space.A) < SINGULAR_TOLERANCE)
+        bad = ~np.all(np.isfinite(q), axis=1) | singular(space.A)
         failed[bad] = True
         y_dot = segment.velocity + gain * (segment.position(time) - space.y)
         x_dot = resolver.resolve(space, y_dot)
