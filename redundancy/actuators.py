@@ -343,7 +343,7 @@ class ActuatorSet:
         """Upper stroke limits (n,)."""
         return np.array([a.upper for a in self.maps])
 
-    def _groups(self):
+    def _groups(self) -> list[tuple[type[ActuatorMap], list[ActuatorMap], np.ndarray]]:
         """The maps by kind, with their rows: [(kind, maps, rows)]."""
         kinds: dict[type[ActuatorMap], list[int]] = {}
         for row, actuator in enumerate(self.maps):
