@@ -13,23 +13,45 @@ from redundancy.errors import (
     SingularConfigurationError,
     UnreachableError,
 )
+from redundancy.initial_configuration import SearchResult, default_start, improved_start
+from redundancy.objectives import ENERGY, VELOCITY, Objective
+from redundancy.resolvers import GradientProjection, MinKineticEnergy, MinVelocityNorm, Resolver
 from redundancy.robot import Kinematics, Robot, bundled_robots, load_robot
+from redundancy.simulate import Trajectory, simulate
+from redundancy.study import Study, run_study
+from redundancy.tasks import Segment, WorkCycle
 
 __all__ = [
+    "ENERGY",
+    "VELOCITY",
     "ActuatorMap",
     "ActuatorSet",
     "ActuatorSpace",
+    "GradientProjection",
     "Identity",
     "InvalidInputError",
     "Kinematics",
     "LinearCylinder",
+    "MinKineticEnergy",
+    "MinVelocityNorm",
+    "Objective",
     "Prismatic",
     "RedundancyError",
+    "Resolver",
     "Robot",
     "RobotDescriptionError",
+    "SearchResult",
+    "Segment",
     "SingularConfigurationError",
+    "Study",
+    "Trajectory",
     "UnreachableError",
+    "WorkCycle",
     "actuator_space",
     "bundled_robots",
+    "default_start",
+    "improved_start",
     "load_robot",
+    "run_study",
+    "simulate",
 ]
