@@ -50,7 +50,7 @@ from redundancy.actuator_space import singular as singular_states
 from redundancy.actuators import Identity, LinearCylinder
 from redundancy.errors import InvalidInputError, SingularConfigurationError, UnreachableError
 from redundancy.ik import DAMPING, TOLERANCE, held_indices, inverse_kinematics
-from redundancy.initial_configuration import Sample, sweep_values
+from redundancy.initial_configuration import Sample, SampledStarts, sweep_values
 from redundancy.objectives import VELOCITY, Objective
 from redundancy.resolvers import (
     SINGULAR_RATIO,
@@ -548,13 +548,14 @@ def _vertex_probe(values, peaks, tolerance) -> list[float]:
 
 
 @dataclass(frozen=True)
-class FastSearch:
+class FastSearch(SampledStarts):
     """Every start `fast_start` integrated or found unreachable along one segment, in order of
     the held value.
 
     ``samples`` as in `SearchResult` (without violation intervals: ``reason`` names the worst
-    excess); ``margins`` (len(samples),) their margins μ; ``reachable`` the least and greatest
-    reachable start located (None if none); ``rounds`` the batched integrations it took;
+    excess), each end of the feasible set located to the search's tolerance; ``margins``
+    (len(samples),) their margins μ; ``reachable`` the least and greatest reachable start
+    located (None if none); ``rounds`` the batched integrations it took;
     ``simulations`` the motions integrated.
     """
 
@@ -573,23 +574,6 @@ class FastSearch:
     def values(self) -> np.ndarray:
         """The held values of the samples, (k,)."""
         return np.array([s.value for s in self.samples])
-
-    @property
-    def feasible(self) -> list[Sample]:
-        return [s for s in self.samples if s.feasible]
-
-    @property
-    def feasible_range(self) -> tuple[float, float] | None:
-        """The smallest and largest feasible value integrated (each end of the feasible set
-        located to the search's tolerance), or None."""
-        values = [s.value for s in self.feasible]
-        return (min(values), max(values)) if values else None
-
-    @property
-    def best(self) -> Sample | None:
-        """The feasible start of least peak, or None."""
-        feasible = self.feasible
-        return min(feasible, key=lambda s: s.peak) if feasible else None  # type: ignore[arg-type,return-value]
 
     def motion(self, time_step: float = TIME_STEP) -> Trajectory:
         """The best start's motion by `simulate`, the integrator of the paper's sweep."""

@@ -58,8 +58,31 @@ def _held(held: str | Sequence[str]) -> tuple[str, ...]:
     return (held,) if isinstance(held, str) else tuple(held)
 
 
+class SampledStarts:
+    """What a search over starts finds, from its ``samples``: the feasible ones, their range
+    and the best (step v). Shared by the sweep's `SearchResult` and the fast search."""
+
+    samples: tuple[Sample, ...]
+
+    @property
+    def feasible(self) -> list[Sample]:
+        return [s for s in self.samples if s.feasible]
+
+    @property
+    def feasible_range(self) -> tuple[float, float] | None:
+        """The smallest and largest feasible sampled value (one held actuator), or None."""
+        values = [s.value for s in self.feasible]
+        return (min(values), max(values)) if values else None
+
+    @property
+    def best(self) -> Sample | None:
+        """The feasible sample with the lowest peak (step v), or None."""
+        feasible = self.feasible
+        return min(feasible, key=lambda s: s.peak) if feasible else None  # type: ignore[arg-type,return-value]
+
+
 @dataclass(frozen=True)
-class SearchResult:
+class SearchResult(SampledStarts):
     """Every sample of a search along one segment, and the motions of the reachable ones.
 
     ``trajectory`` holds one motion per reachable sample; ``rows[i]`` is sample i's row there
@@ -79,26 +102,10 @@ class SearchResult:
         return np.array([s.values for s in self.samples])
 
     @property
-    def feasible(self) -> list[Sample]:
-        return [s for s in self.samples if s.feasible]
-
-    @property
-    def feasible_range(self) -> tuple[float, float] | None:
-        """The smallest and largest feasible sampled value (one held actuator), or None."""
-        values = [s.value for s in self.feasible]
-        return (min(values), max(values)) if values else None
-
-    @property
     def feasible_box(self) -> np.ndarray | None:
         """Per held actuator, the smallest and largest feasible sampled value (r, 2), or None."""
         feasible = np.array([s.values for s in self.feasible])
         return np.stack([feasible.min(0), feasible.max(0)], axis=1) if feasible.size else None
-
-    @property
-    def best(self) -> Sample | None:
-        """The feasible sample with the lowest peak (step v), or None."""
-        feasible = self.feasible
-        return min(feasible, key=lambda s: s.peak) if feasible else None  # type: ignore[arg-type,return-value]
 
     @property
     def closest_violation(self) -> Violation | None:
