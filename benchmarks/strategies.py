@@ -26,9 +26,6 @@ import timeit
 from pathlib import Path
 
 import numpy as np
-
-from redundancy import actuator_space, load_robot
-from redundancy.fast_search import FastResolver, fast_start
 from redundancy.global_optimum import global_optimum
 from redundancy.ik import inverse_kinematics
 from redundancy.initial_configuration import StrategyRun, default_start, improved_start
@@ -43,6 +40,9 @@ from redundancy.peers import (
 )
 from redundancy.resolvers import GradientProjection
 from redundancy.tasks import WorkCycle
+
+from redundancy import actuator_space, load_robot
+from redundancy.fast_search import FastResolver, fast_start
 
 SAMPLES = 100  # the paper's sweep
 DENSE = 1000  # the reference sweep for the fast search's targets

@@ -8,12 +8,12 @@ import time
 import timeit
 
 import numpy as np
-
-from redundancy import actuator_space, load_robot
 from redundancy.initial_configuration import improved_start
 from redundancy.objectives import ENERGY, VELOCITY
-from redundancy.study import run_study
 from redundancy.tasks import WorkCycle
+
+from redundancy import actuator_space, load_robot
+from redundancy.study import run_study
 
 
 def seconds(function) -> float:

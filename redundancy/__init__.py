@@ -1,11 +1,12 @@
 """Kinematic redundancy resolution of manipulators driven by linear hydraulic actuators.
 
 Pinocchio gives the joint-space model of a URDF; an actuator map turns it into hydraulic
-coordinates x (cylinder lengths, telescope strokes), in which redundancy is resolved.
+coordinates x (cylinder lengths, telescope strokes), in which redundancy is resolved. The
+package is layered (see docs/architecture.md): `model` (what the machine is), `resolution` (what
+it should do now), `planning` (what it does over time), `study` (what the user asked for),
+`viz`; the public API is re-exported here, flat.
 """
 
-from redundancy.actuator_space import ActuatorSpace, actuator_space
-from redundancy.actuators import ActuatorMap, ActuatorSet, Identity, LinearCylinder, Prismatic
 from redundancy.errors import (
     InvalidInputError,
     RedundancyError,
@@ -13,13 +14,32 @@ from redundancy.errors import (
     SingularConfigurationError,
     UnreachableError,
 )
-from redundancy.initial_configuration import SearchResult, default_start, improved_start
-from redundancy.objectives import ENERGY, VELOCITY, Objective
-from redundancy.resolvers import GradientProjection, MinKineticEnergy, MinVelocityNorm, Resolver
-from redundancy.robot import Kinematics, Robot, bundled_robots, load_robot
-from redundancy.simulate import Trajectory, simulate
-from redundancy.study import Study, run_study
-from redundancy.tasks import Segment, WorkCycle
+from redundancy.model.actuators import (
+    ActuatorMap,
+    ActuatorSet,
+    Identity,
+    LinearCylinder,
+    Prismatic,
+)
+from redundancy.model.kinematics import Kinematics
+from redundancy.model.loading import bundled_robots, load_robot
+from redundancy.model.robot import Robot
+from redundancy.planning.bound import GlobalOptimum, global_optimum
+from redundancy.planning.ik import configuration_at, inverse_kinematics
+from redundancy.planning.integrate import Trajectory, simulate
+from redundancy.planning.starts import Sample, SearchResult, default_start, improved_start
+from redundancy.planning.tasks import Segment, WorkCycle
+from redundancy.resolution.laws import (
+    GradientProjection,
+    MinKineticEnergy,
+    MinVelocityNorm,
+    Resolver,
+    Step,
+)
+from redundancy.resolution.limits import Limits, Violation
+from redundancy.resolution.objectives import ENERGY, VELOCITY, Objective
+from redundancy.resolution.state import ActuatorSpace, actuator_space
+from redundancy.study.study import Study, run_study
 
 __all__ = [
     "ENERGY",
@@ -27,10 +47,12 @@ __all__ = [
     "ActuatorMap",
     "ActuatorSet",
     "ActuatorSpace",
+    "GlobalOptimum",
     "GradientProjection",
     "Identity",
     "InvalidInputError",
     "Kinematics",
+    "Limits",
     "LinearCylinder",
     "MinKineticEnergy",
     "MinVelocityNorm",
@@ -40,17 +62,23 @@ __all__ = [
     "Resolver",
     "Robot",
     "RobotDescriptionError",
+    "Sample",
     "SearchResult",
     "Segment",
     "SingularConfigurationError",
+    "Step",
     "Study",
     "Trajectory",
     "UnreachableError",
+    "Violation",
     "WorkCycle",
     "actuator_space",
     "bundled_robots",
+    "configuration_at",
     "default_start",
+    "global_optimum",
     "improved_start",
+    "inverse_kinematics",
     "load_robot",
     "run_study",
     "simulate",

@@ -14,17 +14,18 @@ from pathlib import Path
 
 import numpy as np
 
-from redundancy.actuator_space import actuator_space
-from redundancy.errors import InvalidInputError, RedundancyError, UnreachableError
-from redundancy.ik import configuration_at
-from redundancy.initial_configuration import default_start, held_actuators, improved_start
-from redundancy.objectives import OBJECTIVES, Objective, objective
-from redundancy.plots import write_figures
-from redundancy.robot import Robot, bundled_robots, load_robot
-from redundancy.simulate import Trajectory, simulate
-from redundancy.study import run_study, write_report
-from redundancy.tasks import Segment, WorkCycle
-from redundancy.viz import export_html, play, task_points, write_playbacks
+from redundancy.errors import InvalidInputError, RedundancyError
+from redundancy.model.loading import bundled_robots, load_robot
+from redundancy.model.robot import Robot
+from redundancy.planning.ik import configuration_at
+from redundancy.planning.integrate import Trajectory, simulate
+from redundancy.planning.starts import METHODS, default_start, held_actuators, improved_start
+from redundancy.planning.tasks import Segment, WorkCycle
+from redundancy.resolution.objectives import OBJECTIVES, Objective, objective
+from redundancy.resolution.state import actuator_space
+from redundancy.study.study import run_study, write_report
+from redundancy.viz.playback import export_html, play, task_points, write_playbacks
+from redundancy.viz.plots import write_figures
 
 
 def _add_robot_options(parser: argparse.ArgumentParser) -> None:
@@ -89,6 +90,7 @@ def _study_command(args: argparse.Namespace) -> None:
         tuple(objective(name) for name in chosen),
         samples=args.samples,
         checked=checked,
+        method=args.method,
         progress=not args.quiet,
     )
     print(study.table())
@@ -109,13 +111,9 @@ def _play_motion(
     held = held_actuators(robot, cycle)
     if args.best:
         search = improved_start(robot, segment, chosen, held, args.samples)
-        if search.best is None:
-            raise UnreachableError(
-                f"no sampled start keeps every actuator inside its limits on segment "
-                f"{segment.name}; closest: {search.closest_violation}"
-            )
-        values = search.best.values
-        return search.motion(search.best), f"best of {args.samples} starts, {_held(held, values)}"
+        motion = search.motion()  # the best; says so when no start keeps the limits
+        values = search.best.values  # type: ignore[union-attr]
+        return motion, f"best of {search.simulations} starts, {_held(held, values)}"
     if args.x3init is not None:
         if len(held) != 1:
             raise InvalidInputError(
@@ -183,6 +181,13 @@ def parser() -> argparse.ArgumentParser:
         "--objective", choices=[*OBJECTIVES, "both"], default="both", help="what to minimise"
     )
     study.add_argument("--samples", type=_positive, default=100, help="starts per sweep")
+    study.add_argument(
+        "--method",
+        choices=METHODS,
+        default=None,
+        help="the improved start's search: fast (default, one held actuator) or the paper's "
+        "uniform sweep",
+    )
     study.add_argument(
         "--check",
         help="comma-separated actuators whose limits count (default: all; the paper: x1,x2)",

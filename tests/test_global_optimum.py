@@ -6,12 +6,13 @@ import numpy as np
 import pytest
 
 from redundancy import InvalidInputError, actuator_space
-from redundancy.fast_search import FastResolver, fast_start
-from redundancy.global_optimum import Transcription, global_optimum
-from redundancy.ik import inverse_kinematics
-from redundancy.objectives import ENERGY, VELOCITY
-from redundancy.simulate import simulate
-from redundancy.tasks import WorkCycle
+from redundancy.planning.bound import Transcription, global_optimum
+from redundancy.planning.ik import inverse_kinematics
+from redundancy.planning.integrate import simulate
+from redundancy.planning.starts import improved_start
+from redundancy.planning.tasks import WorkCycle
+from redundancy.resolution.limits import Limits
+from redundancy.resolution.objectives import ENERGY, VELOCITY
 
 SEGMENTS = ["1-2", "2-3", "3-1"]
 GRIDS = (16, 32)
@@ -48,14 +49,14 @@ def test_global_peak_is_never_above_the_improved_methods(crane, cycle, optima, n
     """The improved method by its fast search (as good as the sweep, or better). Up to the
     solver's tolerance: on segment 1-2 the two coincide, the peak being at the
     start, where the improved start already sits at the end of the telescope's stroke."""
-    improved = fast_start(crane, cycle[name]).motion()
+    improved = improved_start(crane, cycle[name], VELOCITY).motion()
     assert optima[name].bound <= improved.peak_velocity_norm[0] * (1 + 1e-6)
 
 
 def test_global_optimum_beats_the_improved_method_where_the_history_matters(optima, cycle, crane):
     """On 2-3 and 3-1 the free history lowers the peak by a few per cent."""
     for name in ("2-3", "3-1"):
-        improved = fast_start(crane, cycle[name]).best.peak
+        improved = improved_start(crane, cycle[name], VELOCITY).best.peak
         assert optima[name].bound < 0.99 * improved
 
 
@@ -71,14 +72,10 @@ def test_refining_the_grid_moves_the_optimum_by_less_than_half_a_percent(optima,
 def test_transcription_gradients_match_finite_differences(crane, cycle, objective):
     segment, intervals = cycle["1-2"], 12
     start = inverse_kinematics(crane, segment.start, ["x3"], np.array([[1.05]])).q
-    every = 40
-    motion = simulate(
-        crane, objective.resolver, segment, start, segment.duration / (intervals * every)
-    )
-    r = motion.x[0, ::every, 2] + 0.01 * np.sin(np.arange(intervals + 1))
-    problem = Transcription(
-        FastResolver(crane, objective), segment, 2, [0, 1], intervals, motion.q[0, ::every]
-    )
+    motion = simulate(crane, objective.resolver, segment, start, segment.duration / intervals)
+    r = motion.x[0, :, 2] + 0.01 * np.sin(np.arange(intervals + 1))
+    limits = Limits.strokes(crane, ["x1", "x2"])
+    problem = Transcription(crane, objective, segment, 2, limits, intervals, motion.q[0])
     z = np.append(r, 1.0)
     problem.scale = 0.05 if objective is VELOCITY else 40.0
     numeric = np.empty_like(problem.jacobian(z))
@@ -94,7 +91,7 @@ def test_transcription_gradients_match_finite_differences(crane, cycle, objectiv
 def test_energy_option_lowers_the_peak_kinetic_energy_on_segment_1_2(crane, cycle):
     segment = cycle["1-2"]
     optimum = global_optimum(crane, segment, ENERGY, grids=GRIDS)
-    improved = fast_start(crane, segment, ENERGY).motion()
+    improved = improved_start(crane, segment, ENERGY).motion()
     assert optimum.motion.within_limits[0] and optimum.motion.max_tracking_error[0] < 1e-9
     assert optimum.motion.peak_kinetic[0] == pytest.approx(optimum.bound, rel=1e-9)
     assert optimum.bound < 0.99 * improved.peak_kinetic[0]

@@ -5,7 +5,7 @@ import pytest
 from hiab031_closed_form import tool
 
 from redundancy import InvalidInputError, UnreachableError, actuator_space
-from redundancy.ik import configuration_at, inverse_kinematics
+from redundancy.planning.ik import configuration_at, inverse_kinematics
 
 
 def test_round_trip_reaches_the_point_with_the_held_actuator_at_its_value(crane):

@@ -7,11 +7,11 @@ import pytest
 from commands import run_cli
 
 from redundancy import UnreachableError, bundled_robots, load_robot
-from redundancy.initial_configuration import evaluate_starts, improved_start, stroke_box
-from redundancy.objectives import VELOCITY
-from redundancy.robot import bundled_root
-from redundancy.study import run_study
-from redundancy.tasks import Segment, WorkCycle
+from redundancy.model.loading import bundled_root
+from redundancy.planning.starts import evaluate_starts, improved_start, stroke_box
+from redundancy.planning.tasks import Segment, WorkCycle
+from redundancy.resolution.objectives import VELOCITY
+from redundancy.study.study import run_study
 
 
 def quiet_load(name, **options):
@@ -30,7 +30,7 @@ def test_every_bundled_robots_study_runs_and_finds_a_feasible_start(name):
         WorkCycle(cycle.name, (segment,), cycle.held),
         (VELOCITY,),
         samples=6,
-        time_step=0.05,
+        bound=False,
         progress=False,
     )
     search = study.searches["velocity"][0]
@@ -38,7 +38,7 @@ def test_every_bundled_robots_study_runs_and_finds_a_feasible_start(name):
     assert search.best is not None
     motion = search.motion(search.best)
     assert motion.within_limits[0]
-    assert motion.max_tracking_error[0] < 1e-4  # at the coarse test step of 0.05 s
+    assert motion.max_tracking_error[0] < 1e-4
 
 
 def test_sampled_search_with_two_held_actuators_is_within_1_percent_of_a_dense_grid():
@@ -50,8 +50,8 @@ def test_sampled_search_with_two_held_actuators_is_within_1_percent_of_a_dense_g
     grid = np.stack(
         np.meshgrid(np.linspace(*box[0], 40), np.linspace(*box[1], 40)), axis=-1
     ).reshape(-1, 2)
-    dense = evaluate_starts(robot, segment, VELOCITY, held, grid, time_step=0.05)
-    sampled = improved_start(robot, segment, VELOCITY, held, samples=20, time_step=0.05)
+    dense = evaluate_starts(robot, segment, VELOCITY, held, grid)
+    sampled = improved_start(robot, segment, VELOCITY, held, samples=20)
     assert len(sampled.samples) < len(grid) / 5
     assert sampled.best.peak <= 1.01 * dense.best.peak
     assert sampled.motion(sampled.best).within_limits[0]
@@ -60,9 +60,7 @@ def test_sampled_search_with_two_held_actuators_is_within_1_percent_of_a_dense_g
 def test_the_panda_is_searched_over_four_held_joints():
     robot = quiet_load("panda")
     cycle = WorkCycle.from_toml(robot.task_file, dimension=3)
-    search = improved_start(
-        robot, cycle.segments[0], VELOCITY, cycle.held, samples=8, time_step=0.05
-    )
+    search = improved_start(robot, cycle.segments[0], VELOCITY, cycle.held, samples=8)
     assert search.held == ("panda_joint3", "panda_joint5", "panda_joint6", "panda_joint7")
     assert search.values.shape[1] == 4
     assert search.best is not None and len(search.samples) > 8  # refined beyond the design

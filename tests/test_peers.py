@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from redundancy import RedundancyError, actuator_space, load_robot
-from redundancy.peers import (
+from redundancy.planning.tasks import WorkCycle
+from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
+from redundancy.study.peers import (
     TUNED_GAIN,
     PinkResolver,
     gradient_projection_run,
@@ -16,8 +18,6 @@ from redundancy.peers import (
     pseudoinverse_run,
     tune_gradient_projection,
 )
-from redundancy.simulate import LIMIT_TOLERANCE
-from redundancy.tasks import WorkCycle
 
 SEGMENTS = ["1-2", "2-3", "3-1"]
 STEP = 0.02

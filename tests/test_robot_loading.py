@@ -18,8 +18,8 @@ from redundancy import (
     bundled_robots,
     load_robot,
 )
-from redundancy.robot import bundled_root
-from redundancy.transmissions import write_transmissions
+from redundancy.model.loading import bundled_root
+from redundancy.model.transmissions import write_transmissions
 
 CRANE_URDF = bundled_root() / "hiab031" / "hiab031.urdf"
 REPO = Path(__file__).resolve().parents[1]

@@ -1,14 +1,15 @@
-"""Simulation along the paper's segments: tracking accuracy, limits, failures."""
+"""The fixed-step method (the paper's simulation) along the paper's segments: tracking accuracy,
+limits, failures. The adaptive method is checked against it in test_searches.py."""
 
 import numpy as np
 import pytest
 
 from redundancy import InvalidInputError
-from redundancy.ik import inverse_kinematics
-from redundancy.objectives import ENERGY, VELOCITY
-from redundancy.resolvers import GradientProjection
-from redundancy.simulate import simulate
-from redundancy.tasks import Segment, WorkCycle
+from redundancy.planning.ik import inverse_kinematics
+from redundancy.planning.integrate import simulate
+from redundancy.planning.tasks import Segment, WorkCycle
+from redundancy.resolution.laws import GradientProjection
+from redundancy.resolution.objectives import ENERGY, VELOCITY
 
 
 @pytest.fixture(scope="module")
@@ -28,7 +29,7 @@ def test_tracking_error_stays_below_a_micrometre_on_every_paper_segment(
 ):
     segment = cycle[segment_name]
     starts = reachable_starts(crane, segment, np.linspace(0.0, 1.09, 6))
-    trajectory = simulate(crane, resolver, segment, starts)
+    trajectory = simulate(crane, resolver, segment, starts, method="rk4")
     assert len(trajectory) >= 2
     assert trajectory.max_tracking_error.max() <= 1e-6
     np.testing.assert_allclose(
@@ -40,23 +41,23 @@ def test_the_recorded_velocities_are_those_of_the_motion(crane, cycle):
     """ẋ sampled from the resolver equals the time derivative of the integrated strokes x."""
     segment = cycle["2-3"]
     trajectory = simulate(
-        crane, VELOCITY.resolver, segment, reachable_starts(crane, segment, [0.4])
+        crane, VELOCITY.resolver, segment, reachable_starts(crane, segment, [0.4]), method="rk4"
     )
-    derivative = np.gradient(trajectory.x[0], trajectory.t, axis=0, edge_order=2)
+    derivative = np.gradient(trajectory.x[0], trajectory.t[0], axis=0, edge_order=2)
     np.testing.assert_allclose(trajectory.x_dot[0, 1:-1], derivative[1:-1], atol=1e-5)
 
 
 def test_actuator_forces_along_a_motion_match_inverse_dynamics(crane, cycle):
     segment = cycle["1-2"]
     trajectory = simulate(
-        crane, VELOCITY.resolver, segment, reachable_starts(crane, segment, [1.0])
+        crane, VELOCITY.resolver, segment, reachable_starts(crane, segment, [1.0]), method="rk4"
     )
-    q, t = trajectory.q[0], trajectory.t
+    q, t = trajectory.q[0], trajectory.t[0]
     v = np.gradient(q, t, axis=0, edge_order=2)
     a = np.gradient(v, t, axis=0, edge_order=2)
     inner = slice(5, -5)  # away from the one-sided differences at the ends
     tau = crane.inverse_dynamics(q[inner], v[inner], a[inner])
-    states = trajectory._states
+    states = trajectory.states
     A = states.A.reshape(len(t), crane.n, crane.n)[inner]
     expected = np.linalg.solve(np.swapaxes(A, 1, 2), tau[..., None])[..., 0]
     np.testing.assert_allclose(trajectory.forces[0, inner], expected, rtol=1e-3)
@@ -66,7 +67,7 @@ def test_limits_are_flagged_with_actuator_time_and_excess(crane, cycle):
     segment = cycle["3-1"]
     values = np.linspace(0.0, 0.9, 10)
     trajectory = simulate(
-        crane, VELOCITY.resolver, segment, reachable_starts(crane, segment, values)
+        crane, VELOCITY.resolver, segment, reachable_starts(crane, segment, values), method="rk4"
     )
     lower, upper = crane.actuators.lower, crane.actuators.upper
     assert not trajectory.within_limits.all() and trajectory.within_limits.any()
@@ -77,7 +78,8 @@ def test_limits_are_flagged_with_actuator_time_and_excess(crane, cycle):
         assert bool(violations) != inside
         for violation in violations:
             row = crane.actuators.names.index(violation.actuator)
-            span = (trajectory.t >= violation.start) & (trajectory.t <= violation.end)
+            t = trajectory.t[i]
+            span = (t >= violation.start) & (t <= violation.end)
             x = trajectory.x[i, span, row]
             past = lower[row] - x if violation.bound == "lower" else x - upper[row]
             assert past.max() == pytest.approx(violation.excess)
@@ -87,8 +89,8 @@ def test_limits_are_flagged_with_actuator_time_and_excess(crane, cycle):
 def test_checking_named_actuators_only(crane, cycle):
     segment = cycle["3-1"]
     starts = reachable_starts(crane, segment, np.linspace(0.0, 0.9, 10))
-    every = simulate(crane, ENERGY.resolver, segment, starts)
-    paper = simulate(crane, ENERGY.resolver, segment, starts, checked=("x1", "x2"))
+    every = simulate(crane, ENERGY.resolver, segment, starts, method="rk4")
+    paper = simulate(crane, ENERGY.resolver, segment, starts, checked=("x1", "x2"), method="rk4")
     assert not every.within_limits.any()  # the telescope leaves its stroke
     assert paper.within_limits.any()
     assert all(v.actuator in ("x1", "x2") for i in range(len(paper)) for v in paper.violations(i))
@@ -99,10 +101,10 @@ def test_a_start_at_a_singular_actuator_jacobian_is_frozen_and_flagged(crane):
     q = np.array([[0.0, 1.0, 0.5], [1.5, 1.0, 0.5]])
     y0 = crane.fk(q[1])
     segment = Segment("short", y0, y0 + np.array([-0.2, 0.0]), 0.5)
-    trajectory = simulate(crane, VELOCITY.resolver, segment, q)
+    trajectory = simulate(crane, VELOCITY.resolver, segment, q, method="rk4")
     assert trajectory.failed.tolist() == [True, False]
     assert trajectory.within_limits[0] == np.False_
-    np.testing.assert_array_equal(trajectory.q[0], np.tile(q[0], (len(trajectory.t), 1)))
+    np.testing.assert_array_equal(trajectory.q[0], np.tile(q[0], (trajectory.t.shape[1], 1)))
     assert trajectory.max_tracking_error[1] <= 1e-6
 
 

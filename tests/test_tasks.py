@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from redundancy import InvalidInputError
-from redundancy.robot import bundled_root
-from redundancy.tasks import Segment, WorkCycle
+from redundancy.model.loading import bundled_root
+from redundancy.planning.tasks import Segment, WorkCycle
 
 
 def test_segment_follows_eqs_33_34():

@@ -24,11 +24,11 @@ from sampling import random_configurations
 
 from redundancy import actuator_space
 from redundancy.cli import main
-from redundancy.ik import configuration_at
-from redundancy.objectives import VELOCITY
-from redundancy.simulate import simulate
-from redundancy.tasks import WorkCycle
-from redundancy.viz import (
+from redundancy.planning.ik import configuration_at
+from redundancy.planning.integrate import simulate
+from redundancy.planning.tasks import WorkCycle
+from redundancy.resolution.objectives import VELOCITY
+from redundancy.viz.playback import (
     BACKGROUND,
     FIELD_OF_VIEW,
     FRAME_RATE,
@@ -148,8 +148,8 @@ def test_html_export_runs_without_a_server_and_holds_the_animation(
     links = [p for p in clips if "/links/visuals/" in p]
     assert len(links) == 4
     assert {cylinder_path(n, p) for n in ("x1", "x2") for p in ("barrel", "rod")} <= set(clips)
-    shown = motion.t[Playback(motion).samples]
-    assert shown[0] == 0 and shown[-1] == motion.t[-1] == pytest.approx(5.0)
+    shown = motion.t[0, Playback(motion).samples]
+    assert shown[0] == 0 and shown[-1] == motion.t[0, -1] == pytest.approx(5.0)
     assert np.diff(shown)[:-1].min() >= 1 / FRAME_RATE
     for clip in clips.values():
         for track in clip["tracks"]:
@@ -170,6 +170,7 @@ def test_study_writes_a_playback_per_segment_for_the_best_start(tmp_path, capsys
     )
     out = tmp_path / "out"
     args = ["study", "--task", str(task), "--objective", "velocity", "--samples", "3"]
+    args += ["--method", "sweep"]
     assert main([*args, "--out", str(out), "--quiet"]) == 0
     segments = json.loads((out / "report.json").read_text())["studies"][0]["segments"]
     best = [s["name"] for s in segments if s["best"] is not None]

@@ -22,8 +22,8 @@ from __future__ import annotations
 
 from lxml import etree
 
-from redundancy.actuators import ActuatorMap
 from redundancy.errors import RobotDescriptionError
+from redundancy.model.actuators import ActuatorMap
 
 PREFIX = "redundancy/"
 _COMMON = {"type", "joint", "actuator"}

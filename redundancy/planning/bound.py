@@ -10,13 +10,14 @@ the objective is found by direct transcription:
   Newton's method from the previous iterate: the task is tracked exactly at every node;
 - the held rates ṙ = D r (second-order differences) fix the velocities: K_j q̇_j = [ẏ_d; ṙ_j]
   with K = [J; A_h] (Eqs. 7, 11) and ẋ_j = A_j q̇_j, so that J_H ẋ_j = ẏ_d (Eq. 16); node j
-  measures q̇ᵀ W q̇ with W = AᵀA (that is ẋᵀẋ) or M (ẋᵀ M_H ẋ);
+  takes the objective's measure of its state and ẋ_j (ẋᵀẋ, ẋᵀ M_H ẋ, or a user's own);
 - minimise s, with a tie-break `SMOOTHING` on mean ṙ², subject to s ≥ the measure and
   lower ≤ x(q_j) ≤ upper for every checked actuator at every node (the held one through the
   bounds on r).
 
 Gradients: ∂q_j/∂r_j = K_j⁻¹ e and ∂x_j/∂r_j = A_j ∂q_j/∂r_j; the measure's derivative through
-ṙ_j is 2 q̇ᵀ W K⁻¹ e, and through q_j at fixed ṙ_j a central difference along ∂q_j/∂r_j. SciPy's
+ṙ_j is a central difference along ∂ẋ_j/∂ṙ_j = A_j K_j⁻¹ e (exact for a quadratic measure), and
+through q_j at fixed ṙ_j a central difference along ∂q_j/∂r_j. SciPy's
 SLSQP solves the problem on a sequence of grids: the first from several pseudoinverse motions
 (the problem is not convex), each later one from the previous optimum. The optimum converges at
 second order in h; `GlobalOptimum.change` says how much the last refinement moved it.
@@ -31,14 +32,22 @@ import numpy as np
 from scipy.optimize import minimize
 
 from redundancy.errors import InvalidInputError, UnreachableError
-from redundancy.fast_search import FOUND, FastResolver, State, fast_start, held_configurations
-from redundancy.ik import held_indices, inverse_kinematics
-from redundancy.objectives import VELOCITY, Objective
-from redundancy.robot import Robot
-from redundancy.simulate import TIME_STEP, Trajectory, simulate
-from redundancy.tasks import Segment
+from redundancy.model.robot import Robot
+from redundancy.planning.ik import (
+    CONTINUATION_ITERATIONS,
+    FOUND,
+    held_indices,
+    inverse_kinematics,
+    newton,
+)
+from redundancy.planning.integrate import Trajectory, simulate
+from redundancy.planning.starts import SearchResult, improved_start
+from redundancy.planning.tasks import Segment
+from redundancy.resolution.limits import Limits
+from redundancy.resolution.objectives import VELOCITY, Objective
+from redundancy.resolution.state import ActuatorSpace, evaluate
 
-GRIDS = (48, 96, 192)  # intervals of the successive grids
+GRIDS = (24, 48)  # intervals of the successive grids
 CANDIDATES = 3  # starts over the feasible range the first grid is also solved from
 CONVERGED = 0.005  # a last refinement that moves the optimum by less than this has converged
 ITERATIONS = 400  # SLSQP iterations per grid, at most
@@ -47,7 +56,7 @@ LIMIT_MARGIN = 1e-6  # m: the strokes are kept this far inside their limits, so 
 # round-off never puts a node outside them
 SMOOTHING = 1e-4  # weight of mean ṙ² (m²/s², like ẋᵀẋ) beside the peak: picks one optimum
 # where many share the peak, and moves the peak by less than this fraction
-DIFFERENCE_STEP = 1e-6  # m: step in r of the central difference through q
+DIFFERENCE_STEP = 1e-6  # m (and m/s): step of the central differences through q and ṙ
 
 
 @dataclass(frozen=True)
@@ -117,36 +126,38 @@ class Transcription:
     """The problem on one grid of ``intervals`` along ``segment``: the constraints and their
     Jacobian with respect to z = (r_0 … r_N, s), for SLSQP.
 
-    ``law`` evaluates the kinematics (and says which objective), ``row`` is the held actuator,
-    ``columns`` the other checked actuators, ``guess`` (N + 1, n) the configurations Newton's
-    method starts from at the nodes.
+    ``objective`` gives the measure, ``row`` is the held actuator, ``limits`` the other checked
+    actuators' strokes, ``guess`` (N + 1, n) the configurations Newton's method starts from at
+    the nodes.
     """
 
     def __init__(
         self,
-        law: FastResolver,
+        robot: Robot,
+        objective: Objective,
         segment: Segment,
         row: int,
-        columns: list[int],
+        limits: Limits,
         intervals: int,
         guess: np.ndarray,
     ):
-        robot = law.robot
-        self.law, self.robot, self.row, self.columns = law, robot, row, columns
+        self.robot, self.objective, self.row = robot, objective, row
+        self.columns = limits.columns
         self.t = np.linspace(0.0, segment.duration, intervals + 1)
         self.D = differentiation(intervals, self.t[1])
         self.points = segment.position(self.t)
         self.y_dot = np.broadcast_to(segment.velocity, (intervals + 1, robot.m))
         self.q = np.array(guess, dtype=float)
-        self.lower = robot.actuators.lower[columns] + LIMIT_MARGIN
-        self.upper = robot.actuators.upper[columns] - LIMIT_MARGIN
+        self.lower = limits.lower + LIMIT_MARGIN
+        self.upper = limits.upper - LIMIT_MARGIN
         self.span = self.upper - self.lower  # strokes enter the constraints as fractions of it
         self.cache: tuple[bytes, Nodes] | None = None
         self.scale = 1.0
 
     def configurations(self, r: np.ndarray) -> np.ndarray:
         """q at every node for the held strokes r (N + 1,), Newton-continued from the last."""
-        q, residual = held_configurations(self.law, self.points, [self.row], r[:, None], self.q)
+        target = np.concatenate([self.points, r[:, None]], axis=1)
+        q, residual = newton(self.robot, self.q, [self.row], target, CONTINUATION_ITERATIONS)
         if np.any(residual > FOUND):
             raise InvalidInputError(
                 f"no configuration reaches the task at t = {self.t[residual > FOUND][0]:.3f} s "
@@ -156,16 +167,13 @@ class Transcription:
         return q
 
     def motion(self, q: np.ndarray, r_dot: np.ndarray):
-        """At configurations q (N + 1, n) with held rates ṙ (N + 1,): the kinematics, the
-        velocities q̇ and ẋ = A q̇ (N + 1, n) with K q̇ = [ẏ_d; ṙ], K = [J; A_h] (Eqs. 7, 11),
-        the weight W of the measure q̇ᵀ W q̇ (AᵀA for ẋᵀẋ, M for ẋᵀ M_H ẋ) and the measure."""
-        state = self.law.state(q)
-        K = np.concatenate([state.J, state.A[:, [self.row]]], axis=1)
+        """At configurations q (N + 1, n) with held rates ṙ (N + 1,): the actuator space, K =
+        [J; A_h] (Eqs. 7, 11), ẋ = A q̇ (N + 1, n) with K q̇ = [ẏ_d; ṙ], and the measure."""
+        space = evaluate(self.robot, q)
+        K = np.concatenate([space.J, space.A[:, [self.row]]], axis=1)
         rhs = np.concatenate([self.y_dot, r_dot[:, None]], axis=1)
-        q_dot = np.linalg.solve(K, rhs[..., None])[..., 0]
-        W = self.robot.mass(q) if self.law.energy else np.swapaxes(state.A, 1, 2) @ state.A
-        measure = np.einsum("ji,jik,jk->j", q_dot, W, q_dot)
-        return state, K, q_dot, W, measure
+        x_dot = (space.A @ np.linalg.solve(K, rhs[..., None]))[..., 0]
+        return space, K, x_dot, self.objective.measure(space, x_dot)
 
     def evaluate(self, z: np.ndarray) -> Nodes:
         """The transcription at z = (r, s), computed once per iterate."""
@@ -174,21 +182,23 @@ class Transcription:
             return self.cache[1]
         r_dot = self.D @ z[:-1]
         q = self.configurations(z[:-1])
-        state, K, q_dot, W, measure = self.motion(q, r_dot)
+        space, K, x_dot, measure = self.motion(q, r_dot)
         unit = np.zeros((len(q), self.robot.n, 1))
         unit[:, -1] = 1.0
         dq = np.linalg.solve(K, unit)[..., 0]  # ∂q_j/∂r_j = K⁻¹ e, and ∂q̇_j/∂ṙ_j
-        rate = 2 * np.einsum("ji,jik,jk->j", q_dot, W, dq)  # ∂ measure_j / ∂ṙ_j
+        dx = (space.A @ dq[..., None])[..., 0]  # ∂x_j/∂r_j, and ∂ẋ_j/∂ṙ_j
+        measure_of = self.objective.measure
+        ahead = measure_of(space, x_dot + DIFFERENCE_STEP * dx)
+        behind = measure_of(space, x_dot - DIFFERENCE_STEP * dx)
+        rate = (ahead - behind) / (2 * DIFFERENCE_STEP)  # ∂ measure_j / ∂ṙ_j
         step = DIFFERENCE_STEP * dq  # through q_j at fixed ṙ_j: a central difference
         ahead, behind = self.motion(q + step, r_dot)[-1], self.motion(q - step, r_dot)[-1]
         own = (ahead - behind) / (2 * DIFFERENCE_STEP)
-        x_dot = (state.A @ q_dot[..., None])[..., 0]
-        dx = (state.A @ dq[..., None])[..., 0]  # ∂x_j/∂r_j
-        nodes = Nodes(measure, rate[:, None] * self.D + np.diag(own), state, x_dot, dx)
+        nodes = Nodes(measure, rate[:, None] * self.D + np.diag(own), space, x_dot, dx)
         self.cache = (key, nodes)
         return nodes
 
-    def objective(self, z):
+    def cost(self, z):
         """(s + ε mean ṙ²) / s₀ and its gradient: the peak, with a tie-break (ε = `SMOOTHING`)
         for the smoothest held history where many share the least peak."""
         r_dot = self.D @ z[:-1]
@@ -197,7 +207,7 @@ class Transcription:
 
     def constraints(self, z):
         nodes = self.evaluate(z)
-        strokes = nodes.state.x[:, self.columns]
+        strokes = nodes.space.x[:, self.columns]
         return np.concatenate(
             [
                 (z[-1] - nodes.measure) / self.scale,
@@ -221,11 +231,11 @@ class Transcription:
 
 class Nodes(NamedTuple):
     """The transcription at one iterate: the measure at each node (N + 1,), its gradient with
-    respect to r (N + 1, N + 1), the kinematics, ẋ (N + 1, n) and ∂x_j/∂r_j (N + 1, n)."""
+    respect to r (N + 1, N + 1), the actuator space, ẋ (N + 1, n) and ∂x_j/∂r_j (N + 1, n)."""
 
     measure: np.ndarray
     gradient: np.ndarray
-    state: State
+    space: ActuatorSpace
     x_dot: np.ndarray
     dx: np.ndarray
 
@@ -237,7 +247,7 @@ def _solve(problem: Transcription, r0: np.ndarray, box: tuple, intervals: int):
     z = np.append(r0, measure.max())
     bounds = [box] * len(r0) + [(0.0, None)]
     solution = minimize(
-        problem.objective,
+        problem.cost,
         z,
         jac=True,
         method="SLSQP",
@@ -266,27 +276,31 @@ def global_optimum(
     checked: tuple[str, ...] | None = None,
     grids: tuple[int, ...] = GRIDS,
     initial: tuple[float, ...] | None = None,
+    search: SearchResult | None = None,
 ) -> GlobalOptimum:
     """The motion along ``segment`` of least peak of ``objective`` over every history of the
     held actuator (see the module docstring), on each of ``grids`` (intervals) in turn.
 
-    The problem is not convex: the first grid is solved from the pseudoinverse motion of each
-    ``initial`` start (held strokes at t = 0, m; by default the improved method's best start,
-    `fast_start`, and `CANDIDATES` starts evenly over its feasible range), and the least optimum
-    is refined through the later grids, each started from the previous one. ``checked`` names
-    the actuators whose strokes bind (default all).
+    The problem is not convex: the first grid is solved from the law's motion from each
+    ``initial`` start (held strokes at t = 0, m; by default the best start of the improved
+    method's ``search``, by default the fast search, and `CANDIDATES` starts evenly over its
+    feasible range), and the least
+    optimum is refined through the later grids, each started from the previous one.
+    ``checked`` names the actuators whose strokes bind (default all). The objective must be a
+    peak objective (its reduction "peak").
     """
     row = held_indices(robot, [held])[0]
     if not grids or any(int(g) < 2 for g in grids) or list(grids) != sorted(grids):
         raise InvalidInputError(f"grids must be increasing interval counts ≥ 2; got {grids}")
-    checked = tuple(robot.actuators.names if checked is None else checked)
-    unknown = sorted(set(checked) - set(robot.actuators.names))
-    if unknown:
+    if objective.reduction != "peak":
         raise InvalidInputError(
-            f"unknown actuators {unknown}; actuators: {', '.join(robot.actuators.names)}"
+            f"the bound minimises a peak; objective {objective.name!r} reduces its measure by "
+            f"{objective.reduction!r}"
         )
+    limits = Limits.strokes(robot, checked)
     if initial is None:
-        search = fast_start(robot, segment, objective, held, checked)
+        if search is None:
+            search = improved_start(robot, segment, objective, held, checked=checked)
         if search.best is None:
             raise InvalidInputError(
                 f"no start on segment {segment.name} keeps every checked stroke for the "
@@ -295,19 +309,18 @@ def global_optimum(
         lowest, highest = search.feasible_range  # type: ignore[misc]
         spread = np.linspace(lowest, highest, CANDIDATES).tolist()
         initial = tuple(dict.fromkeys([search.best.value, *spread]))  # distinct, best first
-    law = FastResolver(robot, objective)
-    columns = [robot.actuators.names.index(name) for name in checked if name != held]
-    actuator = robot.actuators[held]
-    box = (actuator.lower, actuator.upper) if held in checked else (None, None)
+    others = [name for name in limits.names if name != held]
+    stroke = robot.actuators[held]
+    box = (stroke.lower, stroke.upper) if held in limits.names else (None, None)
 
     def solve(intervals: int, t: np.ndarray, r: np.ndarray, q: np.ndarray):
         """The optimum on a grid, from r and q sampled at times t; its r, solution, nodes, q."""
         times = np.linspace(0.0, segment.duration, intervals + 1)
         q = np.stack([np.interp(times, t, q[:, i]) for i in range(robot.n)], axis=1)
-        problem = Transcription(law, segment, row, columns, intervals, q)
+        bound = Limits.strokes(robot, others)
+        problem = Transcription(robot, objective, segment, row, bound, intervals, q)
         return (*_solve(problem, np.interp(times, t, r), box, intervals), problem.q)
 
-    every = int(np.ceil(segment.duration / (grids[0] * TIME_STEP)))  # steps per interval
     starts = inverse_kinematics(robot, segment.start, [held], np.array(initial)[:, None])
     if not starts.reached.any():
         raise UnreachableError(
@@ -315,15 +328,10 @@ def global_optimum(
             f"{segment.name} with {held} at any of {list(initial)}"
         )
     motions = simulate(
-        robot,
-        objective.resolver,
-        segment,
-        starts.q[starts.reached],
-        segment.duration / (grids[0] * every),
+        robot, objective.resolver, segment, starts.q[starts.reached], segment.duration / grids[0]
     )
-    t = motions.t[::every]
     candidates = [
-        solve(grids[0], t, motions.x[i, ::every, row], motions.q[i, ::every])
+        solve(grids[0], motions.t[i], motions.x[i, :, row], motions.q[i])
         for i in range(len(motions))
     ]
     r, grid, nodes, q = min(candidates, key=lambda c: c[1].peak)
@@ -331,16 +339,20 @@ def global_optimum(
     for intervals in grids[1:]:
         r, grid, nodes, q = solve(intervals, np.linspace(0.0, segment.duration, len(r)), r, q)
         solutions.append(grid)
+    times = np.linspace(0.0, segment.duration, len(r))
     optimum = Trajectory(
         robot,
         segment,
         objective.resolver,
-        np.linspace(0.0, segment.duration, len(r)),
+        times[None],
         q[None],
-        nodes.state.x[None],
+        nodes.space.x[None],
         nodes.x_dot[None],
-        nodes.state.y[None],
+        nodes.space.y[None],
         np.zeros(1, dtype=bool),
-        checked,
+        limits.names,
+        np.zeros(1, dtype=bool),
+        objective,
+        nodes.measure[None],
     )
     return GlobalOptimum(segment, objective, held, optimum, float(r[0]), tuple(solutions))

@@ -8,9 +8,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from redundancy.errors import RedundancyError
-from redundancy.initial_configuration import SearchResult
-from redundancy.simulate import Trajectory
-from redundancy.study import Study, write_atomically
+from redundancy.planning.integrate import Trajectory
+from redundancy.planning.starts import SearchResult
+from redundancy.study.study import Study, write_atomically
 
 
 def _pyplot():
@@ -24,14 +24,17 @@ def _pyplot():
     return plt
 
 
-def peaks_figure(searches: tuple[SearchResult, ...], title: str):
-    """Peak of the objective against the held actuator's start value, one curve per segment,
-    feasible samples solid with their range shaded (Figs. 4a, 5a). With several held actuators,
-    each sample is a point over the first of them."""
+def peaks_figure(
+    searches: tuple[SearchResult, ...], title: str, chosen: tuple[SearchResult, ...] | None = None
+):
+    """Peak of the objective against the held actuator's start value, one curve per segment
+    (each search's samples), feasible samples solid with their range shaded, the best start a
+    star: ``chosen``'s, the search that chose it, by default the curve's own (Figs. 4a, 5a).
+    With several held actuators, each sample is a point over the first of them."""
     plt = _pyplot()
     figure, axes = plt.subplots(figsize=(7, 4.5))
     style = "o-" if len(searches[0].held) == 1 else "o"
-    for search in searches:
+    for search, choice in zip(searches, chosen or searches):
         reachable = sorted(
             (s for s in search.samples if s.peak is not None), key=lambda s: s.values
         )
@@ -49,8 +52,8 @@ def peaks_figure(searches: tuple[SearchResult, ...], title: str):
         )
         if search.feasible_box is not None:
             axes.axvspan(*search.feasible_box[0], color=colour, alpha=0.08)
-        if search.best is not None:
-            axes.plot(search.best.values[0], search.best.peak, "*", ms=12, color=colour)
+        if choice.best is not None:
+            axes.plot(choice.best.values[0], choice.best.peak, "*", ms=12, color=colour)
     objective = searches[0].objective
     axes.set_xlabel(f"initial {searches[0].held[0]}")
     axes.set_ylabel(f"peak {objective.label} ({objective.unit})")
@@ -67,11 +70,12 @@ def motion_figure(trajectory: Trajectory, title: str):
     plt = _pyplot()
     figure, (top, bottom) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
     actuators = trajectory.robot.actuators
+    t = trajectory.t[0]
     for row, actuator in enumerate(actuators):
-        line = top.plot(trajectory.t, trajectory.x[0, :, row], label=actuator.name)[0]
+        line = top.plot(t, trajectory.x[0, :, row], label=actuator.name)[0]
         for bound in (actuator.lower, actuator.upper):
             top.axhline(bound, ls="--", lw=0.8, color=line.get_color(), alpha=0.6)
-        bottom.plot(trajectory.t, trajectory.x_dot[0, :, row], label=f"ẋ of {actuator.name}")
+        bottom.plot(t, trajectory.x_dot[0, :, row], label=f"ẋ of {actuator.name}")
     top.set_ylabel("actuator displacement x (m)")
     bottom.set_ylabel("actuator velocity ẋ (m/s)")
     bottom.set_xlabel("t (s)")
@@ -106,19 +110,22 @@ def write_figures(study: Study, folder: Path, segment: str | None = None) -> lis
         number = numbers.get(name, name)
         objective = searches[0].objective
         figures[f"fig{number}a_peak_{name}.png"] = peaks_figure(
-            searches, f"Peak {objective.label} against the initial {study.held[0]}"
+            study.sweeps[name],
+            f"Peak {objective.label} against the initial {study.held[0]}",
+            searches,
         )
         search = study.search(name, segment)
         if search.best is not None:
             figures[f"fig{number}b_best_{name}_{segment}.png"] = motion_figure(
-                search.motion(search.best),
+                search.motion(),
                 f"min {objective.label}, segment {segment}, optimal start "
                 f"{_start(study.held, search.best.values)}",
             )
         if name == "velocity":
-            other = nonoptimal_sample(search)
+            sweep = study.sweep(name, segment)
+            other = nonoptimal_sample(sweep)
             figures[f"fig4c_nonoptimal_{name}_{segment}.png"] = motion_figure(
-                search.motion(other),
+                sweep.motion(other),
                 f"min {objective.label}, segment {segment}, non-optimal start "
                 f"{_start(study.held, other.values)}",
             )

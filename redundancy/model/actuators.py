@@ -2,7 +2,7 @@
 
 Each actuator coordinate x_i is one `ActuatorMap`. A kind of your own is a subclass: implement
 `evaluate` and `rate`, and, to declare it in a URDF, `from_transmission` and `transmission_data`
-(see `redundancy.transmissions`). Subclasses are found by class name; there is no registry.
+(see `redundancy.model.transmissions`). Subclasses are found by class name; there is no registry.
 
 Maps are declarations (names of joints and links); `ActuatorSet.bind` resolves them against a
 Pinocchio model, on copies, so one declaration can serve several robots.
@@ -13,22 +13,22 @@ from __future__ import annotations
 import copy
 import warnings
 from abc import ABC, abstractmethod
-from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
 
 from redundancy.errors import RobotDescriptionError, SingularConfigurationError
-
-if TYPE_CHECKING:
-    from redundancy.robot import Kinematics
+from redundancy.model.kinematics import Kinematics
 
 
 class ActuatorMap(ABC):
     """One actuator coordinate x_i(q) with its stroke limits [lower, upper] (m or rad).
 
     ``joint`` names the joint the actuator drives; the set orders actuators like their joints.
+    ``rotary`` says whether x_i is an angle (rad) rather than a length (m).
     """
+
+    rotary = False
 
     def __init__(self, name: str, joint: str, lower: float = -np.inf, upper: float = np.inf):
         if not lower < upper:
@@ -104,6 +104,12 @@ class ActuatorMap(ABC):
         return {}
 
 
+def prismatic(model: pin.Model, joint: str) -> bool:
+    """Whether ``joint`` of ``model`` is prismatic (its coordinate a length, m)."""
+    kind = model.joints[model.getJointId(joint)].shortname()
+    return "Prismatic" in kind or kind.startswith("JointModelP")
+
+
 class VectorisedMap(ActuatorMap):
     """A kind that evaluates all its maps at once: it implements the group methods, and the
     single-map methods follow from them."""
@@ -127,9 +133,16 @@ class VectorisedMap(ActuatorMap):
 
 
 class Identity(VectorisedMap):
-    """An electric or directly driven joint: x_i = q_j + offset, A row = e_j, Ȧ row = 0."""
+    """An electric or directly driven joint: x_i = q_j + offset, A row = e_j, Ȧ row = 0.
+
+    Rotary (rad) on a revolute joint, a length (m) on a prismatic one.
+    """
 
     offset = 0.0
+
+    def bind(self, model: pin.Model) -> None:
+        super().bind(model)
+        self.rotary = not prismatic(model, self.joint)
 
     @classmethod
     def evaluate_group(cls, maps, kinematics):
@@ -159,8 +172,8 @@ class Prismatic(Identity):
 
     def bind(self, model: pin.Model) -> None:
         super().bind(model)
-        kind = model.joints[model.getJointId(self.joint)].shortname()
-        if "Prismatic" not in kind and not kind.startswith("JointModelP"):
+        if self.rotary:
+            kind = model.joints[model.getJointId(self.joint)].shortname()
             raise RobotDescriptionError(
                 f"actuator {self.name!r}: joint {self.joint!r} is {kind}, not prismatic; "
                 "use Identity or LinearCylinder for a revolute joint"
@@ -342,6 +355,11 @@ class ActuatorSet:
     def upper(self) -> np.ndarray:
         """Upper stroke limits (n,)."""
         return np.array([a.upper for a in self.maps])
+
+    @property
+    def rotary(self) -> np.ndarray:
+        """Which actuators are angles (rad) rather than lengths (m), (n,) bool."""
+        return np.array([a.rotary for a in self.maps])
 
     def _groups(self) -> list[tuple[type[ActuatorMap], list[ActuatorMap], np.ndarray]]:
         """The maps by kind, with their rows: [(kind, maps, rows)]."""

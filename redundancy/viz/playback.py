@@ -29,12 +29,13 @@ from typing import Any
 
 import numpy as np
 
-from redundancy.actuators import LinearCylinder
 from redundancy.errors import InvalidInputError, RedundancyError, RobotDescriptionError
-from redundancy.robot import AXES
-from redundancy.simulate import Trajectory
-from redundancy.study import Study, write_atomically
-from redundancy.tasks import WorkCycle
+from redundancy.model.actuators import LinearCylinder
+from redundancy.model.robot import AXES
+from redundancy.planning.integrate import Trajectory
+from redundancy.planning.tasks import WorkCycle
+from redundancy.resolution.limits import Limits
+from redundancy.study.study import Study, write_atomically
 
 FRAME_RATE = 30.0  # frames per second of playback; the motion is sampled at most this often
 FIELD_OF_VIEW = 30.0  # degrees, vertical
@@ -123,8 +124,14 @@ class Cylinder:
 
     def at_limit(self, length: np.ndarray) -> np.ndarray:
         """Whether each length (k,) in m is within `LIMIT_MARGIN` of a stroke limit or past it."""
-        actuator = self.actuator
-        return (length <= actuator.lower + LIMIT_MARGIN) | (length >= actuator.upper - LIMIT_MARGIN)
+        stroke = Limits(
+            (self.name,),
+            np.zeros(1, dtype=int),
+            np.array([self.actuator.lower]),
+            np.array([self.actuator.upper]),
+            np.zeros(1, dtype=bool),
+        )
+        return stroke.margin(length[:, None]) <= LIMIT_MARGIN
 
 
 class Playback:
@@ -144,7 +151,7 @@ class Playback:
         self.robot = robot = motion.robot
         segment = motion.segment
         self.q = motion.q[0]
-        self.t = motion.t
+        self.t = motion.t[0]
         step = math.ceil(1 / (FRAME_RATE * (self.t[1] - self.t[0])) - 1e-9)
         self.samples = np.unique(np.append(np.arange(0, len(self.t), step), len(self.t) - 1))
         kinematics = robot.kinematics(self.q)
@@ -389,12 +396,20 @@ def write_playbacks(study: Study, folder: Path) -> list[Path]:
     ``playback_<objective>_<segment>.html`` in ``folder``; return their paths."""
     points = task_points(study.cycle)
     paths = []
-    for name, searches in study.searches.items():
-        for search in searches:
-            if search.best is not None:
-                path = folder / f"playback_{name}_{search.segment.name}.html"
-                paths.append(export_html(search.motion(search.best), path, points))
+    for name, runs in _best_motions(study).items():
+        for segment, motion in runs:
+            path = folder / f"playback_{name}_{segment}.html"
+            paths.append(export_html(motion, path, points))
     return paths
+
+
+def _best_motions(study: Study) -> dict[str, list[tuple[str, Trajectory]]]:
+    """Each objective's improved motions, by segment, as the study ran them."""
+    found: dict[str, list[tuple[str, Trajectory]]] = {}
+    for name in study.searches:
+        strategy = f"improved, {name} objective"
+        found[name] = [(r.segment, r.trajectory) for r in study.runs if r.strategy == strategy]
+    return found
 
 
 @contextlib.contextmanager

@@ -15,17 +15,18 @@ clipped.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from redundancy.actuator_space import actuator_space
 from redundancy.errors import InvalidInputError, RedundancyError
-from redundancy.initial_configuration import StrategyRun, default_start, fixed_start_run
-from redundancy.resolvers import TUNED_GAIN, GradientProjection, MinVelocityNorm, Resolver
-from redundancy.robot import AXES, Robot
-from redundancy.simulate import TIME_STEP, Trajectory, time_grid
-from redundancy.tasks import Segment
+from redundancy.model.robot import AXES, Robot
+from redundancy.planning.integrate import TIME_STEP, Trajectory, simulate, time_grid
+from redundancy.planning.starts import default_start, scalar_or_list
+from redundancy.planning.tasks import Segment
+from redundancy.resolution.laws import TUNED_GAIN, GradientProjection, MinVelocityNorm, Resolver
+from redundancy.resolution.state import evaluate
 
 # The candidates `tune_gradient_projection` tried on the crane's paper segments (velocity
 # objective, every stroke checked, default starts, 0.01 s steps) to choose `TUNED_GAIN`: the gain
@@ -34,6 +35,47 @@ from redundancy.tasks import Segment
 # the peak at the start of segment 1-2, whose default start lies near the stroke ends.
 GAINS = (0.02, 0.03, 0.05, 0.07, 0.1, 0.15, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 2.0)  # candidates, m²/s
 PINK_SOLVER = "daqp"  # the QP backend (any of qpsolvers' available_solvers)
+
+
+@dataclass(frozen=True)
+class StrategyRun:
+    """One motion of one strategy along one segment."""
+
+    segment: str
+    strategy: str
+    start: tuple[float, ...]
+    trajectory: Trajectory
+
+    def summary(self) -> dict:
+        motion = self.trajectory
+        return {
+            "segment": self.segment,
+            "strategy": self.strategy,
+            "start_value": scalar_or_list(self.start),
+            "peak_velocity_norm": float(motion.peak_velocity_norm[0]),
+            "peak_kinetic": float(motion.peak_kinetic[0]),
+            "within_limits": bool(motion.within_limits[0]),
+            "max_tracking_error": float(motion.max_tracking_error[0]),
+            "violations": [str(v) for v in motion.violations(0)],
+        }
+
+
+def fixed_start_run(
+    robot: Robot,
+    resolver: Resolver,
+    name: str,
+    segment: Segment,
+    held: str | Sequence[str] = "x3",
+    start: tuple[np.ndarray, np.ndarray] | None = None,
+    checked: tuple[str, ...] | None = None,
+    time_step: float = TIME_STEP,
+    method: str = "adaptive",
+) -> StrategyRun:
+    """``resolver`` along ``segment`` from a fixed start: ``start`` = (held values (r,), q (n,)),
+    by default `default_start`; the run is called ``name``."""
+    values, q = default_start(robot, segment, held) if start is None else start
+    motion = simulate(robot, resolver, segment, q[None], time_step, checked=checked, method=method)
+    return StrategyRun(segment.name, name, tuple(float(v) for v in values), motion)
 
 
 def pseudoinverse_run(
@@ -45,7 +87,7 @@ def pseudoinverse_run(
 ) -> StrategyRun:
     """ẋ = J_H⁺ ẏ (Eq. 24) along ``segment`` from the default start."""
     return fixed_start_run(
-        robot, MinVelocityNorm(), "pseudoinverse", segment, held, None, checked, time_step
+        robot, MinVelocityNorm(), "pseudoinverse", segment, held, None, checked, time_step, "rk4"
     )
 
 
@@ -60,7 +102,7 @@ def gradient_projection_run(
     """Gradient projection with actuator-limit avoidance, gain α (m²/s), from the default start."""
     name = f"gradient projection (α = {gain:g} m²/s)"
     resolver = GradientProjection(gain)
-    return fixed_start_run(robot, resolver, name, segment, held, None, checked, time_step)
+    return fixed_start_run(robot, resolver, name, segment, held, None, checked, time_step, "rk4")
 
 
 @dataclass(frozen=True)
@@ -147,7 +189,9 @@ class PinkResolver(Resolver):
     def __repr__(self) -> str:
         return f"PinkResolver(time_step={self.time_step}, solver={self.solver!r})"
 
-    def step(self, q: np.ndarray, target: np.ndarray, dt: float | None = None) -> np.ndarray:
+    def control_step(
+        self, q: np.ndarray, target: np.ndarray, dt: float | None = None
+    ) -> np.ndarray:
         """The joint velocity v (n,) pink commands at q (n,) to bring the tool to ``target``
         (m,), in m, one time step (``dt``, by default `time_step`) later: one control step."""
         configuration = self.configuration
@@ -167,13 +211,13 @@ class PinkResolver(Resolver):
     def resolve(self, space, y_dot: np.ndarray) -> np.ndarray:
         """ẋ = A v (k, n) with v the step towards y + ẏ dt from each state."""
         targets = space.y + y_dot * self.time_step
-        v = np.array([self.step(q, target) for q, target in zip(space.q, targets)])
+        v = np.array([self.control_step(q, target) for q, target in zip(space.q, targets)])
         return (space.A @ v[..., None])[..., 0]
 
     def run(self, segment: Segment, start: np.ndarray, checked=None) -> Trajectory:
         """pink's motion along ``segment`` from ``start`` (n,), as it runs in a control loop on
-        `simulate`'s time grid (steps dt of at most `time_step`): q_k+1 = q_k + v_k dt with v_k
-        aimed at y_d(t_k + dt); ẋ at each sample is A v_k."""
+        the uniform grid of steps dt of at most `time_step` (`time_grid`): q_k+1 = q_k + v_k dt
+        with v_k aimed at y_d(t_k + dt); ẋ at each sample is A v_k."""
         robot = self.robot
         t = time_grid(segment, self.time_step)
         dt = t[1] - t[0]
@@ -181,21 +225,22 @@ class PinkResolver(Resolver):
         v = np.empty_like(q)
         q[0] = robot.configuration(start, "start")[0]
         for i, time in enumerate(t):
-            v[i] = self.step(q[i], segment.position(time + dt), dt)
+            v[i] = self.control_step(q[i], segment.position(time + dt), dt)
             if i + 1 < len(t):
                 q[i + 1] = q[i] + v[i] * dt
-        space = actuator_space(robot, q, check=False)
+        space = evaluate(robot, q)
         return Trajectory(
             robot,
             segment,
             self,
-            t,
+            t[None],
             q[None],
             space.x[None],
             (space.A @ v[..., None])[..., 0][None],
             space.y[None],
             np.zeros(1, dtype=bool),
             tuple(robot.actuators.names if checked is None else checked),
+            np.zeros(1, dtype=bool),
         )
 
 

@@ -1,0 +1,181 @@
+"""`Robot`: a Pinocchio model with its tool point, task axes, actuators and joint limits.
+
+Every joint-space quantity comes from Pinocchio: the tracked frames' kinematics
+(`redundancy.model.kinematics`), the mass matrix M(q) (CRBA), the nonlinear terms
+N(q, v) = V(q, v) + G(q) and inverse dynamics (RNEA). Robots are built by
+`redundancy.model.loading.load_robot`.
+
+Configurations come one at a time, shape (n,), or as a batch, shape (k, n); every method
+answers in the same form, with the batch axis first.
+"""
+
+from __future__ import annotations
+
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from redundancy.errors import InvalidInputError
+from redundancy.model.actuators import ActuatorSet, prismatic
+from redundancy.model.kinematics import Kinematics, PointMotion, track
+
+AXES = "xyz"
+
+
+def _as_batch(name: str, values: np.ndarray | list[float], n: int) -> tuple[np.ndarray, bool]:
+    """``values`` as a (k, n) float array and whether it came as one (n,) vector."""
+    array = np.asarray(values, dtype=float)
+    single = array.ndim == 1
+    if array.ndim not in (1, 2) or array.shape[-1] != n:
+        raise InvalidInputError(f"{name} must have shape ({n},) or (k, {n}); got {array.shape}")
+    if not np.all(np.isfinite(array)):
+        raise InvalidInputError(f"{name} contains NaN or infinite values: {array.tolist()}")
+    return np.atleast_2d(array), single
+
+
+def _answer(batch: np.ndarray, single: bool) -> np.ndarray:
+    return batch[0] if single else batch
+
+
+class Robot:
+    """A manipulator: Pinocchio model, tool point, task axes, actuators and limits.
+
+    The task y is the tool position's world components ``task_axes`` (m of them); n joints; one
+    actuator per joint (``actuators``), so that A = ∂x/∂q is square.
+    """
+
+    def __init__(
+        self,
+        name: str,
+        model: pin.Model,
+        tool_frame: str,
+        task_axes: str,
+        actuators: ActuatorSet,
+        payload: float,
+        urdf: Path,
+        task_file: Path | None = None,
+    ) -> None:
+        self.name = name
+        self.model = model
+        self.data = model.createData()
+        self.payload = payload
+        self.urdf = urdf
+        self.task_file = task_file
+        self.tool_frame = tool_frame
+        self.task_axes = task_axes
+        self.actuators = actuators
+        self._tool = model.getFrameId(tool_frame)
+        self._task_rows = [AXES.index(a) for a in task_axes]
+        tracked = [self._tool] + [f for a in actuators for f in a.frames]
+        self._tracked = list(dict.fromkeys(tracked))
+        self._slots = {frame: i for i, frame in enumerate(self._tracked)}
+        self._lower_triangle = np.tril_indices(model.nv, -1)
+
+    def __repr__(self) -> str:
+        return f"Robot({self.name!r}, n={self.n}, m={self.m}, payload={self.payload} kg)"
+
+    @property
+    def n(self) -> int:
+        """Number of joints (= actuators)."""
+        return self.model.nv
+
+    @property
+    def m(self) -> int:
+        """Dimension of the task."""
+        return len(self._task_rows)
+
+    @cached_property
+    def joint_names(self) -> list[str]:
+        return list(self.model.names)[1:]
+
+    @cached_property
+    def rotary_joints(self) -> np.ndarray:
+        """Which joints are angles (rad) rather than lengths (m), (n,) bool."""
+        return np.array([not prismatic(self.model, name) for name in self.joint_names])
+
+    @property
+    def lower(self) -> np.ndarray:
+        """Lower joint limits (n,), rad or m."""
+        return self.model.lowerPositionLimit
+
+    @property
+    def upper(self) -> np.ndarray:
+        """Upper joint limits (n,), rad or m."""
+        return self.model.upperPositionLimit
+
+    def configuration(self, q: np.ndarray | list[float], name: str = "q") -> np.ndarray:
+        """``q`` as a checked (k, n) array: right shape, finite."""
+        return _as_batch(name, q, self.n)[0]
+
+    def kinematics(self, q: np.ndarray, v: np.ndarray | None = None) -> Kinematics:
+        """Pinocchio's kinematics of the tracked frames at the states (q, v), each (k, n)."""
+        return track(self.model, self.data, self._tracked, self._slots, q, v)
+
+    def tool(self, kinematics: Kinematics) -> PointMotion:
+        """Motion of the tool point, all three world components."""
+        return kinematics.point(self._tool)
+
+    def task_point(self, kinematics: Kinematics) -> tuple[np.ndarray, np.ndarray]:
+        """Task coordinates y (k, m) and task Jacobian J = ∂y/∂q (k, m, n) (Eqs. 6-7)."""
+        slot, rows = kinematics.slots[self._tool], self._task_rows
+        return kinematics.positions[:, slot, rows], kinematics.jacobians[:, slot, rows]
+
+    def task(self, kinematics: Kinematics) -> PointMotion:
+        """Task coordinates y (k, m), task Jacobian J (k, m, n) and, with v, ẏ and J̇ (Eqs. 6-8)."""
+        tool = self.tool(kinematics)
+        rows = self._task_rows
+        return PointMotion(
+            tool.position[:, rows],
+            tool.jacobian[:, rows],
+            None if tool.velocity is None else tool.velocity[:, rows],
+            None if tool.jacobian_rate is None else tool.jacobian_rate[:, rows],
+        )
+
+    def fk(self, q: np.ndarray | list[float]) -> np.ndarray:
+        """Task coordinates y = h1(q) (Eq. 6), (m,) or (k, m), in m."""
+        batch, single = _as_batch("q", q, self.n)
+        return _answer(self.task(self.kinematics(batch)).position, single)
+
+    def jacobian(self, q: np.ndarray | list[float]) -> np.ndarray:
+        """Task Jacobian J = ∂y/∂q (Eq. 7), (m, n) or (k, m, n)."""
+        batch, single = _as_batch("q", q, self.n)
+        return _answer(self.task(self.kinematics(batch)).jacobian, single)
+
+    def mass(self, q: np.ndarray | list[float]) -> np.ndarray:
+        """Joint-space inertia matrix M(q) (Eq. 18) by CRBA, (n, n) or (k, n, n)."""
+        batch, single = _as_batch("q", q, self.n)
+        return _answer(self.mass_matrices(batch), single)
+
+    def mass_matrices(self, q: np.ndarray) -> np.ndarray:
+        """M(q) (k, n, n) for configurations q (k, n) already checked (`configuration`)."""
+        out = np.empty((len(q), self.n, self.n))
+        for i, qi in enumerate(q):
+            out[i] = pin.crba(self.model, self.data, qi)  # the upper triangle is M's
+        lower, upper = self._lower_triangle
+        out[:, lower, upper] = out[:, upper, lower]
+        return out
+
+    def nonlinear(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """N(q, v) = V(q, v) + G(q) (Eq. 20), (n,) or (k, n), in N·m or N."""
+        qb, single = _as_batch("q", q, self.n)
+        vb, _ = _as_batch("v", v, self.n)
+        out = np.array([pin.nonLinearEffects(self.model, self.data, a, b) for a, b in zip(qb, vb)])
+        return _answer(out, single)
+
+    def gravity(self, q: np.ndarray | list[float]) -> np.ndarray:
+        """Gravity torques G(q) (Eq. 18), (n,) or (k, n)."""
+        qb, single = _as_batch("q", q, self.n)
+        out = np.array([pin.computeGeneralizedGravity(self.model, self.data, a) for a in qb])
+        return _answer(out, single)
+
+    def inverse_dynamics(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
+        """τ = M(q) a + V(q, v) + G(q) (Eq. 18) by RNEA, (n,) or (k, n)."""
+        qb, single = _as_batch("q", q, self.n)
+        vb, _ = _as_batch("v", v, self.n)
+        ab, _ = _as_batch("a", a, self.n)
+        out = np.array(
+            [pin.rnea(self.model, self.data, qi, vi, ai) for qi, vi, ai in zip(qb, vb, ab)]
+        )
+        return _answer(out, single)

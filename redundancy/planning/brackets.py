@@ -1,0 +1,85 @@
+"""Locating where a function of one variable changes sign, and its least value, from samples.
+
+The fast improved search (`redundancy.planning.starts`) samples the margin μ(v) of a start v (its
+least distance to a limit over the whole motion: continuous in v, so the ends of the feasible set
+are its zeros) and the objective's peak. These helpers choose the next values to sample:
+
+- `bracket_probes`: for every bracket (neighbours on either side of a zero), the zeros in it of
+  the line through its ends, of the parabolas through its ends and either next value, and of the
+  lines through each side's own two nearest values (μ may have a kink at its zero, where the
+  binding limit changes, and then a side's own line is the accurate one), each probed 0.45 of a
+  tolerance either side, so that a zero that close closes the bracket; and the bracket's midpoint
+  where those zeros disagree.
+- `vertex_probe`: the vertex of the parabola through the least peak and its neighbours.
+- `new_probes`: the probes not already sampled.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def bracket_probes(values, margins, inside, tolerance) -> list[float]:
+    """Probes for every bracket of ``inside`` (k,) wider than ``tolerance`` (see the module
+    docstring): the zeros, in the bracket, of the line through its ends, of the parabolas
+    through its ends and either next value, and of each side's own line through its two nearest
+    values, at 0.45 of a tolerance either side of each; and the bracket's midpoint where those
+    zeros disagree by more than a quarter of it."""
+    probes: list[float] = []
+    usable = np.isfinite(margins)
+    for i in np.flatnonzero(inside[:-1] != inside[1:]):
+        a, b = values[i], values[i + 1]
+        if b - a <= tolerance:
+            continue
+        fits = [(i, i + 1), (i - 1, i + 1), (i, i + 2)]  # across the bracket
+        sides = [j for j in (i - 1, i + 1) if 0 <= j < len(values) - 1]
+        fits += [(j, j + 1) for j in sides if inside[j] == inside[j + 1]]  # each side's own
+        zeros = []
+        for first, last in fits:
+            if first < 0 or last >= len(values) or not usable[first : last + 1].all():
+                continue
+            v, m = values[first : last + 1], margins[first : last + 1]
+            roots = np.roots(np.polyfit(v - a, m, len(v) - 1))
+            zeros += [a + z.real for z in roots if z.imag == 0 and 0 < z.real < b - a]
+        if not zeros or max(zeros) - min(zeros) > (b - a) / 4:
+            probes.append((a + b) / 2)
+        for zero in clusters(sorted(zeros), tolerance):
+            probes += list(np.clip(zero + tolerance * np.array([-0.45, 0.45]), a, b))
+    return probes
+
+
+def clusters(values: list[float], tolerance: float) -> list[float]:
+    """The means of runs of sorted ``values`` less than ``tolerance`` apart."""
+    runs: list[list[float]] = []
+    for value in values:
+        if runs and value - runs[-1][-1] < tolerance:
+            runs[-1].append(value)
+        else:
+            runs.append([value])
+    return [sum(run) / len(run) for run in runs]
+
+
+def new_probes(probes: list[float], values: np.ndarray, tolerance: float) -> np.ndarray:
+    """The probes, sorted, without those within a tenth of ``tolerance`` of a known value or
+    of a smaller probe."""
+    kept: list[float] = []
+    for probe in sorted(probes):
+        if np.abs(values - probe).min() > tolerance / 10 and (
+            not kept or probe - kept[-1] > tolerance / 10
+        ):
+            kept.append(probe)
+    return np.array(kept)
+
+
+def vertex_probe(values, peaks, tolerance) -> list[float]:
+    """The vertex of the parabola through the least finite peak and its two neighbours, when
+    both are finite and higher and they span more than twice ``tolerance``."""
+    best = int(np.argmin(peaks))
+    if not (0 < best < len(values) - 1 and np.all(np.isfinite(peaks[best - 1 : best + 2]))):
+        return []
+    v, p = values[best - 1 : best + 2], peaks[best - 1 : best + 2]
+    near, far = (v[1] - v[0]) * (p[1] - p[2]), (v[1] - v[2]) * (p[1] - p[0])
+    if v[2] - v[0] <= 2 * tolerance or near == far:
+        return []
+    vertex = v[1] - ((v[1] - v[0]) * near - (v[1] - v[2]) * far) / (2 * (near - far))
+    return [float(np.clip(vertex, v[0] + tolerance / 2, v[2] - tolerance / 2))]

@@ -1,0 +1,213 @@
+"""Inverse kinematics: a configuration that puts the tool at a task point with chosen actuators
+held at chosen values (the paper's step iv: the initial configuration from x3init).
+
+With r held actuators and m task coordinates, r = n − m makes the system square:
+
+    h1(q) = y*   (Eq. 6, m equations)      x_h(q) = x_h*   (Eq. 10, r equations)
+
+One routine solves it (`newton`): damped Gauss-Newton steps on the residual, for a batch at
+once, optionally projected onto the joint limits. `inverse_kinematics` runs it from several
+seeds spread over the joint-limit box and keeps, of the solutions inside the limits, the branch
+nearest the middle of the joint ranges; `continue_held` runs it from configurations already
+found at nearby held values (continuation along the held stroke), where the limits do not bind,
+so that a start beyond them is found there.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from redundancy.errors import InvalidInputError, UnreachableError
+from redundancy.model.robot import Robot
+from redundancy.resolution.state import evaluate
+
+TOLERANCE = 1e-12  # m (and m or rad for held actuators): a residual this small has converged
+FOUND = 1e3 * TOLERANCE  # a residual below this has found a configuration
+ITERATIONS = 40  # from a seed far away
+CONTINUATION_ITERATIONS = 10  # from a configuration nearby, Newton converges in about 4
+DAMPING = 1e-10
+
+
+@dataclass(frozen=True)
+class InverseKinematics:
+    """Solutions for k held values: q (k, n); reached (k,) whether the point was reached inside
+    the joint limits; miss (k,) the smallest residual |[y − y*, x_h − x_h*]| found, in m."""
+
+    q: np.ndarray
+    reached: np.ndarray
+    miss: np.ndarray
+
+
+def held_indices(robot: Robot, held: list[str] | tuple[str, ...]) -> list[int]:
+    """Rows of the held actuators, checking there are exactly n − m of them."""
+    names = robot.actuators.names
+    unknown = [h for h in held if h not in names]
+    if unknown:
+        raise InvalidInputError(f"unknown actuators {unknown}; actuators: {', '.join(names)}")
+    if len(held) != robot.n - robot.m:
+        raise InvalidInputError(
+            f"{robot.name} has n − m = {robot.n - robot.m} redundant degrees; hold that many "
+            f"actuators (got {list(held)}; actuators: {', '.join(names)})"
+        )
+    return [names.index(h) for h in held]
+
+
+def _residual(robot: Robot, q: np.ndarray, rows: list[int], target: np.ndarray):
+    """[y(q); x_h(q)] − target (k, n) and its Jacobian [J; A_h] (k, n, n)."""
+    space = evaluate(robot, q)
+    residual = np.concatenate([space.y, space.x[:, rows]], axis=1) - target
+    return residual, np.concatenate([space.J, space.A[:, rows]], axis=1)
+
+
+def newton(
+    robot: Robot,
+    guess: np.ndarray,
+    rows: list[int],
+    target: np.ndarray,
+    iterations: int,
+    bounded: bool = False,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Damped Gauss-Newton on [y(q); x_h(q)] = target (k, n) from ``guess`` (k, n): steps
+    δ = (KᵀK + δ₀ I)⁻¹ Kᵀ r with K = [J; A_h] (Eqs. 7, 11), each iterate clipped to the joint
+    limits when ``bounded`` (a projected Levenberg-Marquardt). A row stops once its residual is
+    below `TOLERANCE` or its step no longer moves it. Returns q (k, n) and |r| (k,)."""
+    q = np.array(guess, dtype=float)
+    active = np.arange(len(q))
+    eye = DAMPING * np.eye(robot.n)
+    for _ in range(iterations):
+        residual, jacobian = _residual(robot, q[active], rows, target[active])
+        moving = np.linalg.norm(residual, axis=1) > TOLERANCE
+        active, residual, jacobian = active[moving], residual[moving], jacobian[moving]
+        if not active.size:
+            break
+        jacobian_t = np.swapaxes(jacobian, 1, 2)
+        step = np.linalg.solve(jacobian_t @ jacobian + eye, jacobian_t @ residual[..., None])
+        updated = q[active] - step[..., 0]
+        if bounded:
+            updated = np.clip(updated, robot.lower, robot.upper)
+        stalled = np.all(np.abs(updated - q[active]) < 1e-15, axis=1)
+        q[active] = updated
+        active = active[~stalled]
+    residual, _ = _residual(robot, q, rows, target)
+    return q, np.linalg.norm(residual, axis=1)
+
+
+def _seeds(robot: Robot, count: int) -> np.ndarray:
+    """``count`` seeds spread over the joint-limit box (a scrambled Halton design, fixed seed)."""
+    from scipy.stats import qmc
+
+    unit = qmc.Halton(d=robot.n, scramble=True, seed=7).random(count)
+    return robot.lower + (robot.upper - robot.lower) * (0.05 + 0.9 * unit)
+
+
+def _point(robot: Robot, point) -> np.ndarray:
+    point = np.asarray(point, dtype=float)
+    if point.shape != (robot.m,) or not np.all(np.isfinite(point)):
+        raise InvalidInputError(
+            f"task point must be {robot.m} finite numbers (axes {robot.task_axes}); got {point}"
+        )
+    return point
+
+
+def inverse_kinematics(
+    robot: Robot,
+    point: np.ndarray,
+    held: list[str] | tuple[str, ...],
+    values: np.ndarray,
+    seeds: int = 8,
+) -> InverseKinematics:
+    """Configurations reaching ``point`` (m,) with actuators ``held`` at ``values`` (k, r)."""
+    point = _point(robot, point)
+    rows = held_indices(robot, held)
+    values = np.atleast_2d(np.asarray(values, dtype=float))
+    if values.shape[1] != len(rows) or not np.all(np.isfinite(values)):
+        raise InvalidInputError(f"held values must be finite, shape (k, {len(rows)})")
+    k, starts = len(values), _seeds(robot, seeds)
+    guess = np.repeat(starts[None], k, axis=0).reshape(k * seeds, robot.n)
+    target = np.concatenate([np.repeat(point[None], k, 0), values], axis=1)
+    q, error = newton(robot, guess, rows, np.repeat(target, seeds, axis=0), ITERATIONS, True)
+    error = error.reshape(k, seeds)
+    per_seed = q.reshape(k, seeds, robot.n)
+    converged = error < FOUND
+    middle = (robot.lower + robot.upper) / 2
+    distance = np.linalg.norm((per_seed - middle) / (robot.upper - robot.lower), axis=2)
+    choice = np.argmin(np.where(converged, distance, 1e6 + error), axis=1)
+    picked = np.arange(k)
+    reached = np.any(converged, axis=1)
+    return InverseKinematics(per_seed[picked, choice], reached, error.min(axis=1))
+
+
+def continue_held(
+    robot: Robot,
+    point: np.ndarray,
+    row: int,
+    known: tuple[np.ndarray, np.ndarray],
+    values: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Configurations reaching ``point`` with the held actuator ``row`` at ``values`` (k,),
+    Newton-continued from the found configurations ``known`` = (held values (j,), q (j, n))
+    nearest each, and again from a nearer one whenever a pass finds one. The joint limits do not
+    bind. Returns q (k, n) and the residuals (k,), in m (below `FOUND` where found)."""
+    known_values, configurations = known
+    q = np.empty((len(values), robot.n))
+    residual = np.full(len(values), np.inf)
+    tried = np.full(len(values), np.inf)  # distance of the value last continued from
+    pending = np.arange(len(values))
+    while pending.size:
+        distance = np.abs(values[pending, None] - known_values[None])
+        closer = distance.min(axis=1) < tried[pending]
+        pending, nearest = pending[closer], np.argmin(distance, axis=1)[closer]
+        if not pending.size:
+            break
+        tried[pending] = np.abs(values[pending] - known_values[nearest])
+        target = np.concatenate(
+            [np.broadcast_to(point, (pending.size, robot.m)), values[pending, None]], axis=1
+        )
+        q[pending], residual[pending] = newton(
+            robot, configurations[nearest], [row], target, CONTINUATION_ITERATIONS
+        )
+        done = residual[pending] < FOUND
+        known_values = np.concatenate([known_values, values[pending[done]]])
+        configurations = np.concatenate([configurations, q[pending[done]]])
+        pending = pending[~done]
+    return q, residual
+
+
+def configuration_at(robot: Robot, point: np.ndarray, held: dict[str, float]) -> np.ndarray:
+    """The configuration (n,) reaching ``point`` with actuators held at ``held`` {name: value}.
+
+    Raises `UnreachableError` with the distance by which the point is missed.
+    """
+    solution = inverse_kinematics(robot, point, list(held), np.array([list(held.values())]))
+    if not solution.reached[0]:
+        miss = _closest_miss(robot, np.asarray(point, dtype=float), held, solution.q[0])
+        raise UnreachableError(
+            f"{robot.name} cannot reach task point {np.asarray(point).tolist()} with "
+            f"{', '.join(f'{k} = {v:g}' for k, v in held.items())} inside its joint limits: "
+            f"the closest configuration misses it by {miss:.4g} m"
+        )
+    return solution.q[0]
+
+
+def _closest_miss(robot: Robot, point: np.ndarray, held: dict[str, float], q0: np.ndarray):
+    """min |y(q) − y*| over the joint-limit box with the held actuators at their values (held
+    by a heavy penalty), by bounded least squares, in m."""
+    from scipy.optimize import least_squares
+
+    rows = held_indices(robot, list(held))
+    target = np.concatenate([point, list(held.values())])[None]
+    weight = np.concatenate([np.ones(robot.m), np.full(len(rows), 1e4)])
+
+    def residual(q):
+        return weight * _residual(robot, q[None], rows, target)[0][0]
+
+    def jacobian(q):
+        return weight[:, None] * _residual(robot, q[None], rows, target)[1][0]
+
+    fits = [
+        least_squares(residual, start, jac=jacobian, bounds=(robot.lower, robot.upper))
+        for start in [q0, *_seeds(robot, 8)]
+    ]
+    return min(float(np.linalg.norm(fit.fun[: robot.m])) for fit in fits)

@@ -1,0 +1,521 @@
+"""Integration of a law along a segment, for a batch of starting configurations at once.
+
+The joint state follows q̇ = A⁻¹ ẋ (Eq. 11), with ẋ from the law (`Resolver.resolve`) for the
+task velocity, with closed-loop correction of the tracking error where a gain K (1/s) is given,
+
+    ẏ = ẏ_d + K (y_d(t) − y(q)).
+
+Two methods, one result type (`Trajectory`):
+
+- "adaptive" (the default): Dormand-Prince 5(4) steps with error control on q (relative and
+  absolute ``tolerance``), every start with its own step size, each stage one batched
+  evaluation of the starts still running. The method controls its own error, so it runs open
+  loop (K = 0) unless a gain is given. The motion is sampled on the uniform grid of
+  ``time_step`` by the method's 4th-order dense output (Shampine's), or, with ``sparse``, at
+  the accepted steps and their midpoints only: fewer samples for a search, between which strokes
+  follow the cubic Hermite interpolant through x and ẋ, so that a limit passed between samples
+  still counts. Such a motion's strokes count `ALLOWANCE` × ``tolerance`` closer to their limits
+  (the start itself is exact), so that a start found feasible from sparse samples is feasible
+  on the grid too.
+- "rk4": the classical Runge-Kutta method on the uniform grid of ``time_step``, closed loop with
+  K = `GAIN` by default (the paper's fixed-step simulation).
+
+A start whose actuator Jacobian turns singular or whose state stops being finite is frozen there
+and flagged (`Trajectory.failed`), so one bad start never spoils the batch.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from functools import cached_property
+from typing import NamedTuple
+
+import numpy as np
+
+from redundancy.errors import InvalidInputError
+from redundancy.model.robot import Robot
+from redundancy.planning.tasks import Segment
+from redundancy.resolution.laws import Resolver
+from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
+from redundancy.resolution.limits import Limits, Violation
+from redundancy.resolution.objectives import Objective, kinetic, velocity_norm
+from redundancy.resolution.state import ActuatorSpace, evaluate, singular
+
+TIME_STEP = 0.01  # s
+GAIN = 20.0  # K, 1/s, of the fixed-step method
+TOLERANCE = 1e-6  # relative and absolute error per adaptive step on q (rad, m)
+ALLOWANCE = 30  # sparse samples' strokes count ALLOWANCE × tolerance (m) closer to their
+# limits: the integrator's error in x, measured below 6 × tolerance on the crane
+METHODS = ("adaptive", "rk4")
+
+# Dormand-Prince 5(4): the stage nodes c, the stage weights (the last row gives the 5th-order
+# step, whose rates are the next step's first stage), the error weights (5th − 4th order) and
+# the dense output: the weights at θ of a step are P · (θ, θ², θ³, θ⁴) (Shampine, 1986).
+NODES = (1 / 5, 3 / 10, 4 / 5, 8 / 9, 1.0, 1.0)
+STAGES = (
+    (1 / 5,),
+    (3 / 40, 9 / 40),
+    (44 / 45, -56 / 15, 32 / 9),
+    (19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729),
+    (9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656),
+    (35 / 384, 0.0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84),
+)
+ERROR = (71 / 57600, 0.0, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40)
+DENSE = np.array(
+    [
+        [1, -8048581381 / 2820520608, 8663915743 / 2820520608, -12715105075 / 11282082432],
+        [0, 0, 0, 0],
+        [0, 131558114200 / 32700410799, -68118460800 / 10900136933, 87487479700 / 32700410799],
+        [0, -1754552775 / 470086768, 14199869525 / 1410260304, -10690763975 / 1880347072],
+        [
+            0,
+            127303824393 / 49829197408,
+            -318862633887 / 49829197408,
+            701980252875 / 199316789632,
+        ],
+        [0, -282668133 / 205662961, 2019193451 / 616988883, -1453857185 / 822651844],
+        [0, 40617522 / 29380423, -110615467 / 29380423, 69997945 / 29380423],
+    ]
+)
+MIDDLE = DENSE @ [0.5, 0.25, 0.125, 0.0625]  # the dense output's weights at θ = 1/2
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """k motions along one segment.
+
+    t (k, T) sample times, s (a motion with fewer samples repeats its last); q (k, T, n) joints;
+    x, x_dot (k, T, n) actuator strokes (m) and velocities (m/s); y (k, T, m) tool; failed (k,)
+    starts frozen at a singular or non-finite state; stopped (k,) motions a search stopped past
+    their limits; checked: the actuators whose strokes count; measure (k, T) the measure of
+    ``objective`` at the samples, when integrated for one; ``sparse``: sampled at the adaptive
+    steps (see the module docstring), with the strokes' error ``allowance`` (m).
+    """
+
+    robot: Robot = field(repr=False)
+    segment: Segment
+    resolver: Resolver
+    t: np.ndarray
+    q: np.ndarray
+    x: np.ndarray
+    x_dot: np.ndarray
+    y: np.ndarray
+    failed: np.ndarray
+    checked: tuple[str, ...]
+    stopped: np.ndarray
+    objective: Objective | None = None
+    measure: np.ndarray | None = None
+    sparse: bool = False
+    allowance: float = 0.0
+
+    def __len__(self) -> int:
+        return len(self.q)
+
+    def select(self, rows) -> Trajectory:
+        """The motions ``rows`` alone."""
+        rows = np.atleast_1d(rows)
+        return replace(
+            self,
+            t=self.t[rows],
+            q=self.q[rows],
+            x=self.x[rows],
+            x_dot=self.x_dot[rows],
+            y=self.y[rows],
+            failed=self.failed[rows],
+            stopped=self.stopped[rows],
+            measure=None if self.measure is None else self.measure[rows],
+        )
+
+    @cached_property
+    def limits(self) -> Limits:
+        """The checked actuators' strokes."""
+        return Limits.strokes(self.robot, self.checked)
+
+    @cached_property
+    def states(self) -> ActuatorSpace:
+        """The actuator space at every sample, with q̇ = A⁻¹ ẋ, as one flat batch of k·T."""
+        k, T, n = self.q.shape
+        q = self.q.reshape(k * T, n)
+        at_rest = evaluate(self.robot, q)
+        v = np.linalg.solve(at_rest.A, self.x_dot.reshape(k * T, n, 1))[..., 0]
+        return evaluate(self.robot, q, v)
+
+    def values(self, objective: Objective) -> np.ndarray:
+        """``objective``'s measure at every sample (k, T)."""
+        if objective is self.objective and self.measure is not None:
+            return self.measure
+        k, T, n = self.q.shape
+        return objective.measure(self.states, self.x_dot.reshape(k * T, n)).reshape(k, T)
+
+    def score(self, objective: Objective) -> np.ndarray:
+        """``objective`` over each motion (k,): its measure's peak or integral."""
+        return objective.reduce(self.t, self.values(objective))
+
+    @cached_property
+    def M_H(self) -> np.ndarray:
+        """M_H (k, T, n, n) along the motion, kg."""
+        k, T, n = self.q.shape
+        return self.states.M_H.reshape(k, T, n, n)
+
+    @cached_property
+    def x_ddot(self) -> np.ndarray:
+        """ẍ (k, T, n) in m/s², by second-order differences of ẋ in time (of each motion's own
+        samples; repeated last samples repeat the last value)."""
+        if np.all(self.t == self.t[:1]):
+            return np.gradient(self.x_dot, self.t[0], axis=1, edge_order=2)
+        out = np.empty_like(self.x_dot)
+        for i, times in enumerate(self.t):
+            count = int(np.searchsorted(times, times[-1])) + 1
+            out[i, :count] = np.gradient(self.x_dot[i, :count], times[:count], axis=0)
+            out[i, count:] = out[i, count - 1]
+        return out
+
+    @cached_property
+    def forces(self) -> np.ndarray:
+        """Actuator forces F_H = M_H ẍ + N_H (k, T, n) (Eq. 21), N."""
+        k, T, n = self.q.shape
+        return self.states.forces(self.x_ddot.reshape(k * T, n)).reshape(k, T, n)
+
+    @property
+    def velocity_norm(self) -> np.ndarray:
+        """ẋᵀẋ (k, T), m²/s²."""
+        k, T, n = self.q.shape
+        return velocity_norm(self.states, self.x_dot.reshape(k * T, n)).reshape(k, T)
+
+    @cached_property
+    def kinetic(self) -> np.ndarray:
+        """ẋᵀ M_H ẋ (k, T) = twice the kinetic energy (Eq. 28), J."""
+        k, T, n = self.q.shape
+        return kinetic(self.states, self.x_dot.reshape(k * T, n)).reshape(k, T)
+
+    @property
+    def peak_velocity_norm(self) -> np.ndarray:
+        """max_t ẋᵀẋ (k,), m²/s²."""
+        return np.sum(self.x_dot**2, axis=2).max(axis=1)
+
+    @property
+    def peak_kinetic(self) -> np.ndarray:
+        """max_t ẋᵀ M_H ẋ (k,), J."""
+        return self.kinetic.max(axis=1)
+
+    @cached_property
+    def tracking_error(self) -> np.ndarray:
+        """|y(t) − y_d(t)| (k, T), in m."""
+        return np.linalg.norm(self.y - self.segment.position(self.t), axis=2)
+
+    @property
+    def max_tracking_error(self) -> np.ndarray:
+        """max_t |y − y_d| (k,), in m."""
+        return self.tracking_error.max(axis=1)
+
+    @cached_property
+    def margins(self) -> np.ndarray:
+        """The least margin of the checked strokes over each motion (k,), m or rad (negative
+        past a limit; −inf where the motion failed or was stopped): at the samples, and for
+        sparse samples also between them (Hermite) less the error allowance."""
+        limits = self.limits
+        start = limits.margin(self.x[:, 0])
+        if self.sparse:
+            lowest, highest = stroke_extremes(self.t, self.x, self.x_dot)
+            along = limits.range_margin(lowest, highest) - self.allowance
+        else:
+            along = limits.margin(self.x[:, 1:]).min(axis=1)
+        return np.where(self.failed | self.stopped, -np.inf, np.minimum(start, along))
+
+    @property
+    def within_limits(self) -> np.ndarray:
+        """Whether each motion keeps every checked actuator inside its stroke (k,) and did not
+        fail."""
+        return self.margins >= -LIMIT_TOLERANCE
+
+    def violations(self, i: int) -> list[Violation]:
+        """Every interval over which motion ``i`` has a checked actuator outside its stroke, at
+        its samples."""
+        return self.limits.violations(self.t[i], self.x[i])
+
+
+def stroke_extremes(
+    t: np.ndarray, x: np.ndarray, x_dot: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Least and greatest stroke of every actuator over each motion after its start (the start
+    itself excluded), (k, n) each, for samples at times t (k, T) of x and ẋ (k, T, n).
+
+    Between samples x follows the cubic Hermite interpolant through x and ẋ at both ends; its
+    interior extrema are where its derivative, a quadratic, vanishes.
+    """
+    h = np.diff(t, axis=1)[:, :, None]
+    x0, x1, d0, d1 = x[:, :-1], x[:, 1:], h * x_dot[:, :-1], h * x_dot[:, 1:]
+    a = 2 * (x0 - x1) + d0 + d1  # p(s) = a s³ + b s² + d0 s + x0, s ∈ [0, 1]
+    b = 3 * (x1 - x0) - 2 * d0 - d1
+    discriminant = b * b - 3 * a * d0
+    root = np.sqrt(np.maximum(discriminant, 0.0))
+    lowest, highest = x[:, 1:].min(axis=1), x[:, 1:].max(axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cubic = np.abs(a) > 1e-12 * (np.abs(b) + np.abs(d0))
+        candidates = [
+            np.where(cubic, (-b + root) / (3 * a), -d0 / (2 * b)),
+            np.where(cubic, (-b - root) / (3 * a), np.nan),
+        ]
+    for s in candidates:
+        inside = (discriminant >= 0) & (s > 0) & (s < 1)
+        s = np.where(inside, s, 0.0)
+        value = ((a * s + b) * s + d0) * s + x0
+        lowest = np.minimum(lowest, np.where(inside, value, np.inf).min(axis=1))
+        highest = np.maximum(highest, np.where(inside, value, -np.inf).max(axis=1))
+    return lowest, highest
+
+
+def time_grid(segment: Segment, time_step: float = TIME_STEP) -> np.ndarray:
+    """Uniform sample times over the segment, at most ``time_step`` apart, (T,) in s."""
+    steps = max(1, int(np.ceil(segment.duration / time_step - 1e-9)))
+    return np.linspace(0.0, segment.duration, steps + 1)
+
+
+class Rates(NamedTuple):
+    """The law at k states: q̇, ẋ (k, n); x (k, n), y (k, m); the objective's measure (k,) or
+    None; bad (k,) where A is singular or the state not finite (there q̇ = ẋ = 0)."""
+
+    q_dot: np.ndarray
+    x_dot: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    measure: np.ndarray | None
+    bad: np.ndarray
+
+
+class Law:
+    """The right-hand side q̇(t, q) of a law along a segment, evaluated for a batch of states."""
+
+    def __init__(self, robot, resolver, segment, gain, objective):
+        self.robot, self.resolver, self.segment = robot, resolver, segment
+        self.gain, self.objective = gain, objective
+
+    def __call__(self, t: np.ndarray, q: np.ndarray) -> Rates:
+        """At times t (k,) and configurations q (k, n)."""
+        space = evaluate(self.robot, q)
+        bad = singular(space.A) | ~np.all(np.isfinite(q), axis=1)
+        if bad.any():
+            eye = np.eye(self.robot.n)
+            space = replace(space, A=np.where(bad[:, None, None], eye, space.A))
+        segment = self.segment
+        y_dot = np.broadcast_to(segment.velocity, space.y.shape)
+        if self.gain:
+            y_dot = y_dot + self.gain * (segment.position(t) - space.y)
+        x_dot = self.resolver.resolve(space, y_dot)
+        q_dot = space.joint_velocities(x_dot)
+        bad |= ~np.all(np.isfinite(q_dot), axis=1)
+        q_dot[bad], x_dot[bad] = 0.0, 0.0
+        measure = None if self.objective is None else self.objective.measure(space, x_dot)
+        return Rates(q_dot, x_dot, space.x, space.y, measure, bad)
+
+
+def simulate(
+    robot: Robot,
+    resolver: Resolver,
+    segment: Segment,
+    starts: np.ndarray,
+    time_step: float = TIME_STEP,
+    gain: float | None = None,
+    checked: tuple[str, ...] | None = None,
+    method: str = "adaptive",
+    tolerance: float = TOLERANCE,
+    objective: Objective | None = None,
+    sparse: bool = False,
+    stop_past: bool = False,
+) -> Trajectory:
+    """Integrate ``resolver`` along ``segment`` from every start (k, n) at once.
+
+    ``method`` "adaptive" or "rk4" (see the module docstring); ``gain`` K of the closed loop,
+    1/s (default `GAIN` for "rk4", 0 for "adaptive"); ``checked`` the actuators whose strokes
+    count for `Trajectory.within_limits` (default all); ``objective`` records its measure at the
+    samples. Adaptive only: ``sparse`` samples at the steps instead of the grid; ``stop_past``
+    stops a motion once it and its neighbours in the batch are all past a checked stroke by more
+    than the error allowance (a search's motions that cannot matter).
+    """
+    starts = robot.configuration(starts, "starts")
+    if segment.start.shape != (robot.m,):
+        raise InvalidInputError(
+            f"segment {segment.name} has {segment.start.size} coordinates; {robot.name}'s task "
+            f"has {robot.m} ({robot.task_axes})"
+        )
+    if method not in METHODS:
+        raise InvalidInputError(f"unknown method {method!r}; methods: {', '.join(METHODS)}")
+    gain = (GAIN if method == "rk4" else 0.0) if gain is None else gain
+    if not (time_step > 0 and gain >= 0 and tolerance > 0):
+        raise InvalidInputError("time_step must be > 0 s, gain ≥ 0 1/s and tolerance > 0")
+    limits = Limits.strokes(robot, checked)
+    law = Law(robot, resolver, segment, gain, objective)
+    grid = time_grid(segment, time_step)
+    if method == "rk4":
+        samples = _runge_kutta(law, starts, grid)
+        sparse, allowance = False, 0.0
+    else:
+        allowance = ALLOWANCE * tolerance if sparse else 0.0
+        bounds = (limits, allowance) if stop_past else None
+        samples = _dormand_prince(law, starts, segment.duration, tolerance, grid, sparse, bounds)
+    t, q, x, x_dot, y, measure, failed, stopped = samples
+    return Trajectory(
+        robot,
+        segment,
+        resolver,
+        t,
+        q,
+        x,
+        x_dot,
+        y,
+        failed,
+        limits.names,
+        stopped,
+        objective,
+        measure,
+        sparse,
+        allowance,
+    )
+
+
+def _runge_kutta(law: Law, starts: np.ndarray, t: np.ndarray):
+    """The classical Runge-Kutta method on the grid t (T,); samples at every grid time."""
+    k, n = starts.shape
+    h = t[1] - t[0]
+    failed = np.zeros(k, dtype=bool)
+    records = []
+    q = np.empty((k, len(t), n))
+    q[:, 0] = starts
+
+    def rates(time, state):
+        result = law(np.full(k, time), state)
+        failed[result.bad] = True
+        result.q_dot[failed], result.x_dot[failed] = 0.0, 0.0
+        return result
+
+    for i, time in enumerate(t[:-1]):
+        first = rates(time, q[:, i])
+        records.append(first)
+        k2 = rates(time + h / 2, q[:, i] + h / 2 * first.q_dot).q_dot
+        k3 = rates(time + h / 2, q[:, i] + h / 2 * k2).q_dot
+        k4 = rates(time + h, q[:, i] + h * k3).q_dot
+        step = h / 6 * (first.q_dot + 2 * k2 + 2 * k3 + k4)
+        q[:, i + 1] = q[:, i] + np.where(failed[:, None], 0.0, step)
+    records.append(rates(t[-1], q[:, -1]))
+    x, x_dot, y = (
+        np.stack([getattr(r, part) for r in records], axis=1) for part in ("x", "x_dot", "y")
+    )
+    measure = None if law.objective is None else np.stack([r.measure for r in records], axis=1)
+    times = np.broadcast_to(t, (k, len(t))).copy()
+    return times, q, x, x_dot, y, measure, failed.copy(), np.zeros(k, dtype=bool)
+
+
+def _combine(weights, stages):
+    return sum(w * stage for w, stage in zip(weights, stages) if w)
+
+
+def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
+    """Dormand-Prince 5(4) with error control, every start with its own step size (see the
+    module docstring); samples on ``grid`` (T,) or, ``sparse``, at the steps and midpoints.
+    ``bounds`` = (limits, allowance) stops motions that with both neighbours passed them."""
+    k = len(starts)
+    first = law(np.zeros(k), starts)
+    t, q, f, failed = np.zeros(k), starts.copy(), first.q_dot.copy(), first.bad.copy()
+    past, stopped = np.zeros(k, dtype=bool), np.zeros(k, dtype=bool)
+    evaluated = [(np.arange(k), np.zeros(k), starts, first)]  # samples whose rates are known
+    pending = []  # (rows, times, q) of samples still to evaluate
+    scale = tolerance * (1 + np.abs(q))
+    size = np.sqrt(np.mean((q / scale) ** 2, axis=1))
+    speed = np.sqrt(np.mean((f / scale) ** 2, axis=1))
+    h = np.minimum(duration, 0.01 * size / np.maximum(speed, 1e-12))
+    while True:
+        rows = np.flatnonzero(~failed & ~stopped & (t < duration))
+        if not rows.size:
+            break
+        step = np.minimum(h[rows], duration - t[rows])[:, None]
+        stages = [f[rows]]
+        for node, weights in zip(NODES, STAGES):
+            end = law(t[rows] + node * step[:, 0], q[rows] + step * _combine(weights, stages))
+            stages.append(end.q_dot)
+            failed[rows[end.bad]] = True
+        q_new = q[rows] + step * _combine(STAGES[-1], stages)
+        scale = tolerance * (1 + np.maximum(np.abs(q[rows]), np.abs(q_new)))
+        error = np.sqrt(np.mean((step * _combine(ERROR, stages) / scale) ** 2, axis=1))
+        accept = (error <= 1) & ~failed[rows]
+        done = rows[accept]
+        kept = [stage[accept] for stage in stages]
+        if sparse:
+            ends = _select(end, accept)
+            evaluated.append((done, t[done] + step[accept, 0], q_new[accept], ends))
+            middle = q[done] + step[accept] * _combine(MIDDLE, kept)
+            pending.append((done, t[done] + step[accept, 0] / 2, middle))
+        else:
+            pending.append(_dense(grid, t[done], step[accept, 0], q[done], kept, done))
+        t[done] += step[accept, 0]
+        q[done], f[done] = q_new[accept], stages[-1][accept]
+        growth = np.clip(0.9 * np.maximum(error, 1e-10) ** -0.2, 0.2, 10.0)
+        h[rows] = step[:, 0] * np.where(accept, growth, np.minimum(growth, 1.0))
+        failed[rows[h[rows] < 1e-9 * duration]] = True
+        if bounds is not None:
+            limits, allowance = bounds
+            past[done] |= limits.margin(end.x[accept]) < -allowance
+            stopped = past & np.append(True, past[:-1]) & np.append(past[1:], True)
+    rows, times, configurations = (np.concatenate(part) for part in zip(*pending))
+    evaluated.append((rows, times, configurations, law(times, configurations)))
+    return _assemble(k, evaluated, failed, stopped, None if sparse else grid)
+
+
+def _dense(grid, t0, h, q0, stages, rows):
+    """The dense output at the grid times in (t0, t0 + h] of each accepted step: rows, times
+    and configurations of those samples."""
+    first = np.searchsorted(grid, t0, side="right")
+    last = np.searchsorted(grid, t0 + h * (1 + 1e-12), side="right")
+    counts = last - first
+    owner = np.repeat(np.arange(len(rows)), counts)
+    index = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts) + first[owner]
+    times = grid[index]
+    theta = (times - t0[owner]) / h[owner]
+    weights = np.stack([theta, theta**2, theta**3, theta**4], axis=1) @ DENSE.T  # (p, 7)
+    slopes = np.stack(stages, axis=1)[owner]  # (p, 7, n)
+    q = q0[owner] + h[owner, None] * np.einsum("ps,psn->pn", weights, slopes)
+    return rows[owner], times, q
+
+
+def _select(rates: Rates, mask: np.ndarray) -> Rates:
+    """The rates of the states ``mask`` selects."""
+    measure = None if rates.measure is None else rates.measure[mask]
+    return Rates(
+        rates.q_dot[mask], rates.x_dot[mask], rates.x[mask], rates.y[mask], measure, rates.bad[mask]
+    )
+
+
+def _assemble(k, evaluated, failed, stopped, grid):
+    """Samples (rows, times, q, rates) of k motions, in time order per motion, padded by
+    repeating each motion's last sample; on a ``grid``, a motion frozen early stays at rest over
+    the grid's remaining times."""
+    rows = np.concatenate([part[0] for part in evaluated])
+    times = np.concatenate([part[1] for part in evaluated])
+    order = np.lexsort((times, rows))
+    counts = np.bincount(rows, minlength=k)
+    length = counts.max() if grid is None else len(grid)
+    start = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    index = order[start[:, None] + np.minimum(np.arange(length)[None], counts[:, None] - 1)]
+    padded = np.arange(length)[None] >= counts[:, None]
+
+    def gathered(parts):
+        parts = list(parts)
+        return None if parts[0] is None else np.concatenate(parts)[index]
+
+    x_dot = gathered(part[3].x_dot for part in evaluated)
+    measure = gathered(part[3].measure for part in evaluated)
+    t = times[index]
+    if grid is not None:
+        t = np.broadcast_to(grid, (k, length)).copy()
+        x_dot[padded] = 0.0
+        if measure is not None:
+            measure[padded] = 0.0
+    return (
+        t,
+        gathered(part[2] for part in evaluated),
+        gathered(part[3].x for part in evaluated),
+        x_dot,
+        gathered(part[3].y for part in evaluated),
+        measure,
+        failed,
+        stopped,
+    )

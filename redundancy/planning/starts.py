@@ -1,0 +1,567 @@
+"""Choosing the start of a motion: the default start, or the paper's improved initial
+configuration.
+
+The improved method (section 2, steps i-v): sample the held actuators (the crane's x3init) over
+their strokes; for each sample find the initial configuration by inverse kinematics, integrate
+the objective's law along the segment, keep the samples whose motion stays inside the actuator
+limits the whole way, and return the one with the lowest peak (or integral) of the objective.
+Every sample, whichever search asks for it, is evaluated by `evaluate_starts`: the same
+configurations, integration and definition of feasible (margin ≥ −`TOLERANCE`, see
+`redundancy.resolution.limits`).
+
+Methods:
+
+- "fast" (r = 1, the default): few samples, placed where they matter. The margin μ(v) of a start
+  v is the least distance of a checked actuator to its stroke limits over the motion, and of the
+  start configuration to its joint limits; it is continuous in v, so the ends of the feasible set
+  are its zeros. The reachable starts are located first, by continuation of the start
+  configuration along v alone (no integration); `GRID` starts over them are integrated, and each
+  round integrates the probes of every bracket of the feasible set (`redundancy.planning.
+  brackets`) and of the least peak, until every end is located to ``tolerance``.
+- "sweep": the paper's uniform sweep of ``samples`` values (r = 1); with r > 1 a uniform grid
+  would cost samples^r, so ``samples`` scrambled Halton points are spread over the stroke box,
+  then the best feasible ones are refined by compass search: each round tries every leader ± h
+  along every held actuator (clipped to the strokes, one batch), moves a leader to its best
+  feasible improvement, and halves h when no leader improved, from h = stroke / samples^(1/r)
+  down to stroke / 1000.
+
+All samples of a round are integrated as one batch, adaptively, sampled sparsely (see
+`redundancy.planning.integrate`); `SearchResult.motion` integrates one start on the grid.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from redundancy.errors import InvalidInputError, UnreachableError
+from redundancy.model.robot import Robot
+from redundancy.planning.brackets import bracket_probes, new_probes, vertex_probe
+from redundancy.planning.ik import FOUND, continue_held, held_indices, inverse_kinematics
+from redundancy.planning.integrate import TIME_STEP, TOLERANCE, Trajectory, simulate
+from redundancy.planning.tasks import Segment, WorkCycle
+from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
+from redundancy.resolution.limits import Limits, Violation, amount
+from redundancy.resolution.objectives import Objective
+
+METHODS = ("fast", "sweep")
+GRID = 12  # integrated starts of the fast search's first round, evenly over the reachable ones
+REACH_GRID = 24  # starts whose reachability the fast search checks first, over the stroke
+END_TOLERANCE = 5e-4  # of the held stroke: the fast search locates the feasible ends to this,
+# half the spacing of a 1,000-sample sweep
+ROUNDS = 8  # refinement rounds of the fast search, at most, per phase
+REFINED_AROUND = 3  # best feasible samples the compass search refines (r > 1)
+REFINEMENT_ROUNDS = 30  # at most, each one batch of REFINED_AROUND · 2r simulations
+FINEST_STEP = 1e-3  # compass step at which refinement stops, as a fraction of each stroke
+
+
+@dataclass(frozen=True)
+class Sample:
+    """One start of a search: the held actuators' ``values`` (m or rad), the objective's
+    ``peak`` (its peak or integral; None if the start was unreachable), whether every checked
+    limit held, the ``margin`` μ (m or rad; −inf where unknown), its violations and why it is
+    not feasible."""
+
+    values: tuple[float, ...]
+    peak: float | None
+    feasible: bool
+    margin: float = -np.inf
+    violations: tuple[Violation, ...] = ()
+    reason: str | None = None
+
+    @property
+    def value(self) -> float:
+        """The held value, for one held actuator."""
+        if len(self.values) != 1:
+            raise InvalidInputError(f"this sample holds {len(self.values)} actuators; use values")
+        return self.values[0]
+
+
+@dataclass(frozen=True)
+class SearchResult:
+    """Every sample of a search along one segment, and the motions of the reachable ones.
+
+    ``trajectory`` holds one motion per reachable sample (sparse samples); ``rows[i]`` is
+    sample i's row there (−1 when unreachable). ``method`` is the search that chose the
+    samples, ``rounds`` the batches it integrated.
+    """
+
+    robot: Robot = field(repr=False)
+    segment: Segment
+    objective: Objective
+    held: tuple[str, ...]
+    samples: tuple[Sample, ...]
+    trajectory: Trajectory = field(repr=False)
+    rows: np.ndarray
+    method: str = "sweep"
+    rounds: int = 1
+
+    @property
+    def values(self) -> np.ndarray:
+        """The samples' held values, (k, r)."""
+        return np.array([s.values for s in self.samples])
+
+    @property
+    def simulations(self) -> int:
+        """How many motions the search integrated."""
+        return int(np.count_nonzero(self.rows >= 0))
+
+    @property
+    def feasible(self) -> list[Sample]:
+        """The feasible samples, in order of their held values."""
+        return sorted((s for s in self.samples if s.feasible), key=lambda s: s.values)
+
+    @property
+    def feasible_box(self) -> np.ndarray | None:
+        """Per held actuator, the smallest and largest feasible sampled value (r, 2), or None."""
+        feasible = np.array([s.values for s in self.feasible])
+        return np.stack([feasible.min(0), feasible.max(0)], axis=1) if feasible.size else None
+
+    @property
+    def feasible_range(self) -> tuple[float, float] | None:
+        """The smallest and largest feasible sampled value of one held actuator, or None."""
+        box = self.feasible_box
+        if box is None:
+            return None
+        if len(box) != 1:
+            raise InvalidInputError(
+                f"this search holds {len(box)} actuators ({', '.join(self.held)}); use feasible_box"
+            )
+        return float(box[0, 0]), float(box[0, 1])
+
+    @property
+    def best(self) -> Sample | None:
+        """The feasible sample with the lowest objective (step v), or None."""
+        feasible = self.feasible
+        return min(feasible, key=lambda s: s.peak) if feasible else None  # type: ignore[arg-type,return-value]
+
+    @property
+    def closest_violation(self) -> Violation | None:
+        """When nothing is feasible: the smallest worst-excess among the reachable samples."""
+        worst = [max(s.violations, key=lambda v: v.excess) for s in self.samples if s.violations]
+        return min(worst, key=lambda v: v.excess) if worst else None
+
+    def motion(self, sample: Sample | None = None, time_step: float = TIME_STEP) -> Trajectory:
+        """The motion from ``sample`` (default the best), integrated and sampled on the grid of
+        ``time_step``: a trajectory of one."""
+        sample = self.best if sample is None else sample
+        if sample is None:
+            raise InvalidInputError(
+                f"no start on segment {self.segment.name} keeps every checked limit for the "
+                f"{self.objective.name} objective; closest: {self.closest_violation}"
+            )
+        if sample not in self.samples:
+            raise InvalidInputError(f"{sample} is not a sample of this search")
+        row = int(self.rows[self.samples.index(sample)])
+        if row < 0:
+            raise InvalidInputError(f"the start {sample.values} of {self.held} is unreachable")
+        start = self.trajectory.q[row, :1]
+        return simulate(
+            self.robot,
+            self.objective.resolver,
+            self.segment,
+            start,
+            time_step,
+            checked=self.trajectory.checked,
+            objective=self.objective,
+        )
+
+    def extended(self, other: SearchResult) -> SearchResult:
+        """This search with the samples of ``other`` (same segment and objective) appended."""
+        offset = len(self.trajectory)
+        rows = np.concatenate([self.rows, np.where(other.rows < 0, -1, other.rows + offset)])
+        return SearchResult(
+            self.robot,
+            self.segment,
+            self.objective,
+            self.held,
+            self.samples + other.samples,
+            _concatenated(self.trajectory, other.trajectory),
+            rows,
+            self.method,
+            self.rounds + other.rounds,
+        )
+
+
+def _concatenated(first: Trajectory, second: Trajectory) -> Trajectory:
+    """Two batches of motions on one segment as one, padded to the longer by repetition."""
+    length = max(first.t.shape[1], second.t.shape[1])
+
+    def padded(array):
+        if array is None or array.shape[1] == length:
+            return array
+        extra = np.repeat(array[:, -1:], length - array.shape[1], axis=1)
+        return np.concatenate([array, extra], axis=1)
+
+    def joined(name):
+        a, b = getattr(first, name), getattr(second, name)
+        return None if a is None else np.concatenate([padded(a), padded(b)])
+
+    t, q, x, x_dot, y = (joined(name) for name in ("t", "q", "x", "x_dot", "y"))
+    return Trajectory(
+        first.robot,
+        first.segment,
+        first.resolver,
+        t,
+        q,
+        x,
+        x_dot,
+        y,
+        np.concatenate([first.failed, second.failed]),
+        first.checked,
+        np.concatenate([first.stopped, second.stopped]),
+        first.objective,
+        joined("measure"),
+        first.sparse,
+        first.allowance,
+    )
+
+
+def _held(held: str | Sequence[str]) -> tuple[str, ...]:
+    return (held,) if isinstance(held, str) else tuple(held)
+
+
+def held_actuators(robot: Robot, cycle: WorkCycle) -> tuple[str, ...]:
+    """The actuators a search holds on ``cycle``: the task's ``held``, or the last n − m."""
+    return cycle.held or tuple(robot.actuators.names[robot.m :])
+
+
+def stroke_box(robot: Robot, held: tuple[str, ...]) -> np.ndarray:
+    """The held actuators' strokes (r, 2), checked finite."""
+    held_indices(robot, held)
+    box = np.array([[robot.actuators[h].lower, robot.actuators[h].upper] for h in held])
+    if not np.all(np.isfinite(box)):
+        raise InvalidInputError(f"held actuators {list(held)} need finite strokes to sample")
+    return box
+
+
+def sweep_values(robot: Robot, held: str, samples: int) -> np.ndarray:
+    """``samples`` values evenly over one held actuator's stroke (step iii), (samples,)."""
+    if samples < 1:
+        raise InvalidInputError(f"samples must be at least 1; got {samples}")
+    lower, upper = stroke_box(robot, (held,))[0]
+    if samples == 1:
+        return np.array([(lower + upper) / 2])
+    return np.linspace(lower, upper, samples)
+
+
+@dataclass(frozen=True)
+class Starts:
+    """Start configurations of a segment at held values: values (k, r), q (k, n), and the
+    joint margins (k,) of q (−inf where no configuration reaches the point); ``miss`` (k,) m,
+    how far the closest configuration inside the joint limits misses the point (0 where
+    reached)."""
+
+    values: np.ndarray
+    q: np.ndarray
+    joint_margins: np.ndarray
+    miss: np.ndarray
+
+    @property
+    def reachable(self) -> np.ndarray:
+        return self.joint_margins >= -LIMIT_TOLERANCE
+
+    def reason(self, i: int) -> str:
+        """Why start i is unreachable."""
+        if self.miss[i] > 0:
+            return f"start unreachable (misses by {self.miss[i]:.3g} m)"
+        if not np.isfinite(self.joint_margins[i]):
+            return "start unreachable (no configuration reaches it)"
+        outside = -self.joint_margins[i]
+        return f"start unreachable inside the joint limits (outside them by {outside:.3g})"
+
+
+class Configurations:
+    """Start configurations at the point of a segment for one held actuator, by continuation
+    from those found so far; seeded by multi-seed inverse kinematics at mid-stroke."""
+
+    def __init__(self, robot: Robot, segment: Segment, held: str):
+        point = segment.start
+        self.robot, self.point = robot, point
+        self.row = held_indices(robot, [held])[0]
+        self.joints = Limits.joints(robot)
+        scan = sweep_values(robot, held, REACH_GRID)
+        order = np.argsort(np.abs(scan - scan.mean()), kind="stable")
+        anchor = inverse_kinematics(robot, point, [held], scan[order[:1], None])
+        if not anchor.reached[0]:
+            anchor = inverse_kinematics(robot, point, [held], scan[:, None])
+        found = anchor.reached
+        if not found.any():
+            raise UnreachableError(
+                f"{robot.name} cannot reach the start {point.tolist()} of segment "
+                f"{segment.name} with {held} anywhere in its stroke inside its joint limits; the "
+                f"closest configuration misses it by {anchor.miss.min():.4g} m"
+            )
+        values = scan[order[:1]] if len(anchor.q) == 1 else scan
+        self.known = (values[found], anchor.q[found])
+
+    def at(self, values: np.ndarray) -> Starts:
+        """Starts at held ``values`` (k,)."""
+        q, residual = continue_held(self.robot, self.point, self.row, self.known, values)
+        found = residual < FOUND
+        margins = np.where(found, self.joints.margin(q), -np.inf)
+        inside = found & (margins >= -LIMIT_TOLERANCE)
+        self.known = (
+            np.concatenate([self.known[0], values[inside]]),
+            np.concatenate([self.known[1], q[inside]]),
+        )
+        return Starts(values[:, None], q, margins, np.zeros(len(values)))
+
+
+def _ik_starts(robot: Robot, segment: Segment, held: tuple[str, ...], values) -> Starts:
+    """Starts by multi-seed inverse kinematics at held ``values`` (k, r)."""
+    ik = inverse_kinematics(robot, segment.start, held, values)
+    margins = np.where(ik.reached, 0.0, -np.inf)
+    return Starts(values, ik.q, margins, np.where(ik.reached, 0.0, ik.miss))
+
+
+def evaluate_starts(
+    robot: Robot,
+    segment: Segment,
+    objective: Objective,
+    held: str | Sequence[str],
+    values: np.ndarray | Starts,
+    checked: tuple[str, ...] | None = None,
+    tolerance: float = TOLERANCE,
+    stop_past: bool = False,
+    method: str = "sweep",
+) -> SearchResult:
+    """Steps iv-v for the given held values, (k,) for one held actuator or (k, r), or for
+    `Starts` already found: integrate the reachable ones as one batch, check the limits, take
+    the objective. ``stop_past`` stops motions that, with both neighbours in the batch, are past
+    a checked stroke (their margin is then unknown, −inf)."""
+    held = _held(held)
+    held_indices(robot, held)
+    if not isinstance(values, Starts):
+        values = np.asarray(values, dtype=float).reshape(-1, len(held))
+        values = _ik_starts(robot, segment, held, values)
+    starts = values
+    reachable = np.flatnonzero(starts.reachable)
+    rows = np.full(len(starts.values), -1)
+    rows[reachable] = np.arange(reachable.size)
+    if not reachable.size:
+        miss = starts.miss[starts.miss > 0]
+        raise UnreachableError(
+            f"{robot.name} cannot reach the start {segment.start.tolist()} of segment "
+            f"{segment.name} from any of the {len(starts.values)} sampled values of "
+            f"{', '.join(held)}"
+            + (f"; the closest configuration misses it by {miss.min():.4g} m" if miss.size else "")
+        )
+    trajectory = simulate(
+        robot,
+        objective.resolver,
+        segment,
+        starts.q[reachable],
+        checked=checked,
+        tolerance=tolerance,
+        objective=objective,
+        sparse=True,
+        stop_past=stop_past,
+    )
+    scores = trajectory.score(objective)
+    margins = trajectory.margins
+    samples = []
+    for i, row in enumerate(rows):
+        start = tuple(float(v) for v in starts.values[i])
+        if row < 0:
+            samples.append(
+                Sample(start, None, False, starts.joint_margins[i], (), starts.reason(i))
+            )
+            continue
+        margin = float(min(margins[row], starts.joint_margins[i]))
+        feasible = margin >= -LIMIT_TOLERANCE
+        violations = tuple(trajectory.violations(row))
+        samples.append(
+            Sample(
+                start,
+                float(scores[row]),
+                feasible,
+                margin,
+                violations,
+                None if feasible else _reason(trajectory, row, violations),
+            )
+        )
+    return SearchResult(robot, segment, objective, held, tuple(samples), trajectory, rows, method)
+
+
+def _reason(trajectory: Trajectory, row: int, violations: tuple[Violation, ...]) -> str:
+    """Why a reachable start is not feasible."""
+    if trajectory.failed[row]:
+        return "singular actuator Jacobian"
+    if trajectory.stopped[row]:
+        return "past a stroke limit, as its neighbours: stopped"
+    if violations:
+        return str(max(violations, key=lambda v: v.excess))
+    return (
+        f"within the integration allowance ({amount(trajectory.allowance, False)}) of a "
+        "stroke limit"
+    )
+
+
+def improved_start(
+    robot: Robot,
+    segment: Segment,
+    objective: Objective,
+    held: str | Sequence[str] = "x3",
+    samples: int = 100,
+    checked: tuple[str, ...] | None = None,
+    method: str | None = None,
+    tolerance: float | None = None,
+) -> SearchResult:
+    """The paper's improved initial configuration (steps i-v), searching the held actuators.
+
+    ``method`` "fast" (the default for one held actuator) or "sweep" (the default, and the only
+    method, for several): see the module docstring. ``samples`` is the sweep's count (the
+    fast search's budget is its own). ``checked`` restricts the limit check to named actuators
+    (the paper's step iv checks x1 and x2); by default every actuator counts. ``tolerance``
+    (m, or rad) locates the fast search's feasible ends; default `END_TOLERANCE` of the stroke.
+    """
+    held = _held(held)
+    held_indices(robot, held)
+    if not isinstance(samples, int | np.integer) or samples < 1:
+        raise InvalidInputError(f"samples must be a whole number ≥ 1; got {samples!r}")
+    method = method or ("fast" if len(held) == 1 else "sweep")
+    if method not in METHODS:
+        raise InvalidInputError(f"unknown method {method!r}; methods: {', '.join(METHODS)}")
+    if method == "fast":
+        if len(held) != 1:
+            raise InvalidInputError(
+                f"the fast search holds one actuator; {list(held)} are {len(held)}: use "
+                "method='sweep'"
+            )
+        return _fast(robot, segment, objective, held[0], checked, tolerance)
+    if len(held) == 1:
+        configurations = Configurations(robot, segment, held[0])
+        starts = configurations.at(sweep_values(robot, held[0], samples))
+        return evaluate_starts(robot, segment, objective, held, starts, checked)
+    return _compass(robot, segment, objective, held, samples, checked)
+
+
+def _fast(robot, segment, objective, held, checked, tolerance) -> SearchResult:
+    """The fast search for one held actuator (see the module docstring)."""
+    scan = sweep_values(robot, held, REACH_GRID)
+    tolerance = END_TOLERANCE * (scan[-1] - scan[0]) if tolerance is None else tolerance
+    if not tolerance > 0:
+        raise InvalidInputError(f"tolerance must be > 0; got {tolerance}")
+    Limits.strokes(robot, checked)  # names checked before any work
+    configurations = Configurations(robot, segment, held)
+    reach = configurations.at(scan)
+    for _ in range(ROUNDS):  # the ends of the reachable starts: no integration needed
+        values = reach.values[:, 0]
+        inside = reach.reachable
+        probes = new_probes(
+            bracket_probes(values, reach.joint_margins, inside, tolerance), values, tolerance
+        )
+        if not probes.size:
+            break
+        reach = _merged(reach, configurations.at(probes))
+    reachable = reach.values[reach.reachable, 0]
+    if not reachable.size:
+        raise UnreachableError(
+            f"{robot.name} cannot reach the start {segment.start.tolist()} of segment "
+            f"{segment.name} inside its joint limits with {held} anywhere in its stroke"
+        )
+    grid = configurations.at(np.linspace(reachable.min(), reachable.max(), GRID))
+    search = evaluate_starts(
+        robot, segment, objective, (held,), grid, checked, stop_past=True, method="fast"
+    )
+    for _ in range(ROUNDS):
+        order = np.argsort(search.values[:, 0], kind="stable")
+        ordered = [search.samples[i] for i in order]
+        values = np.array([s.value for s in ordered])
+        margins = np.array([s.margin for s in ordered])
+        feasible = np.array([s.feasible for s in ordered])
+        peaks = np.array([s.peak if s.feasible else np.inf for s in ordered])
+        candidates = bracket_probes(values, margins, feasible, tolerance)
+        candidates += vertex_probe(values, peaks, tolerance)
+        probes = new_probes(candidates, values, tolerance)
+        if not probes.size:
+            break
+        starts = configurations.at(probes)
+        search = search.extended(
+            evaluate_starts(robot, segment, objective, (held,), starts, checked, method="fast")
+        )
+    return search
+
+
+def _merged(first: Starts, second: Starts) -> Starts:
+    """Both sets of starts in order of their held value."""
+    values = np.concatenate([first.values, second.values])
+    order = np.argsort(values[:, 0], kind="stable")
+    return Starts(
+        values[order],
+        np.concatenate([first.q, second.q])[order],
+        np.concatenate([first.joint_margins, second.joint_margins])[order],
+        np.concatenate([first.miss, second.miss])[order],
+    )
+
+
+def _compass(robot, segment, objective, held, samples, checked) -> SearchResult:
+    """Halton points over the stroke box, then compass-search refinement (r > 1)."""
+    from scipy.stats import qmc
+
+    box = stroke_box(robot, held)
+    lower, span = box[:, 0], box[:, 1] - box[:, 0]
+
+    def run(values):
+        return evaluate_starts(robot, segment, objective, held, values, checked)
+
+    result = run(lower + span * qmc.Halton(len(held), seed=1).random(samples))
+    leaders = sorted(result.feasible, key=lambda s: s.peak)[:REFINED_AROUND]  # type: ignore[arg-type,return-value]
+    step = 1 / samples ** (1 / len(held))  # fraction of each stroke
+    directions = np.concatenate([np.eye(len(held)), -np.eye(len(held))])
+    for _ in range(REFINEMENT_ROUNDS):
+        if not leaders or step < FINEST_STEP:
+            break
+        centres = np.array([s.values for s in leaders])
+        trials = centres[:, None] + step * span * directions  # (leaders, 2r, r)
+        tried = run(np.clip(trials, box[:, 0], box[:, 1]).reshape(-1, len(held)))
+        result = result.extended(tried)
+        improved = False
+        for i, leader in enumerate(leaders):
+            options = tried.samples[i * len(directions) : (i + 1) * len(directions)]
+            better = [s for s in options if s.feasible and s.peak < leader.peak]  # type: ignore[operator]
+            if better:
+                leaders[i] = min(better, key=lambda s: s.peak)  # type: ignore[arg-type,return-value]
+                improved = True
+        if not improved:
+            step /= 2
+    return result
+
+
+def default_start(robot: Robot, segment: Segment, held: str | Sequence[str] = "x3"):
+    """The documented default start: the held actuators at mid-stroke or, where the segment's
+    start is out of reach there, the reachable candidate nearest mid-stroke (candidates: 101
+    values per held actuator for one, 256 Halton points for several).
+
+    Returns (values (r,), q (n,)).
+    """
+    held = _held(held)
+    box = stroke_box(robot, held)
+    if len(held) == 1:
+        candidates = sweep_values(robot, held[0], 101)[:, None]
+    else:
+        from scipy.stats import qmc
+
+        unit = qmc.Halton(len(held), seed=3).random(256)
+        candidates = box[:, 0] + (box[:, 1] - box[:, 0]) * unit
+    middle = box.mean(axis=1)
+    distance = np.linalg.norm((candidates - middle) / (box[:, 1] - box[:, 0]), axis=1)
+    order = np.argsort(distance, kind="stable")
+    ik = inverse_kinematics(robot, segment.start, held, candidates[order])
+    if not ik.reached.any():
+        raise UnreachableError(
+            f"{robot.name} cannot reach the start {segment.start.tolist()} of segment "
+            f"{segment.name} with {', '.join(held)} anywhere in their strokes; the closest "
+            f"configuration misses it by {ik.miss.min():.4g} m"
+        )
+    first = int(np.argmax(ik.reached))
+    return candidates[order][first], ik.q[first]
+
+
+def scalar_or_list(values):
+    """One held actuator's value as a number, several as a list (the report's shape)."""
+    values = [float(v) for v in values]
+    return values[0] if len(values) == 1 else values

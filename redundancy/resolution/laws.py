@@ -1,0 +1,137 @@
+"""Instantaneous redundancy resolution laws in actuator coordinates: ẋ = resolve(state, ẏ).
+
+A law is a weight W(state) and an optional null-space term z(state). It answers
+
+    ẋ = J_W⁺ ẏ + (I − J_W⁺ J_H) z,     J_W⁺ = W⁻¹ J_Hᵀ (J_H W⁻¹ J_Hᵀ)⁻¹   (Eqs. 1, 27)
+
+the solution of J_H ẋ = ẏ (Eq. 16) nearest z in the norm ẋᵀ W ẋ: with z = 0, the one of least
+ẋᵀ W ẋ. W = I gives the minimum actuator-velocity norm (Eqs. 24, 26), W = M_H the minimum
+kinetic energy (Eqs. 29, 32); gradient projection is W = I with z = α ∇Φ (Eq. 1).
+
+Near a singularity of J_H (the task Jacobian losing rank), the m×m matrix G = J_H W⁻¹ J_Hᵀ is
+damped: λ² I is added to it, λ² = ε σ_max (1 − (σ_min / (ε σ_max))²), when the ratio of its
+smallest to its largest eigenvalue falls below ε (Nakamura and Hanafusa's variable damping,
+made scale-free). ẋ then stays finite and bounded, and J_H ẋ departs from ẏ by an amount the
+integrators report as tracking error; away from singularities the laws are exact.
+
+`Resolver.resolve` serves a batch of states, `Resolver.step` one configuration in a control
+loop; both run the same code (`redundancy.resolution.linalg` keeps a stack of one lean).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from redundancy.model.robot import Robot
+from redundancy.resolution.linalg import solve, solve_conditioned
+from redundancy.resolution.state import ActuatorSpace, evaluate
+
+# The gradient-projection gain α, m²/s, tuned on the paper's segments by
+# `redundancy.study.peers.tune_gradient_projection`: the least worst-case peak ẋᵀẋ among the
+# gains that keep every stroke inside its limits from the default starts (see
+# benchmarks/results.md).
+TUNED_GAIN = 0.07
+SINGULAR_RATIO = 1e-8  # ε: G counts as near singular below σ_min / σ_max = ε (cond J_H ≈ 1e4)
+
+
+def solve_gram(G: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(G + λ² I)⁻¹ b for G = J_H W⁻¹ J_Hᵀ (k, m, m) and b (k, m, p), λ² zero unless G is near
+    singular (see the module docstring)."""
+    exact = solve_conditioned(G, b, SINGULAR_RATIO)
+    if exact is not None:
+        return exact
+    eigenvalues = np.linalg.eigvalsh(G)
+    threshold = SINGULAR_RATIO * eigenvalues[:, -1]
+    ratio = np.minimum(np.maximum(eigenvalues[:, 0] / threshold, 0.0), 1.0)
+    damping = threshold * (1 - ratio**2)
+    return np.linalg.solve(G + damping[:, None, None] * np.eye(G.shape[-1]), b)
+
+
+class Step(NamedTuple):
+    """One control step at one configuration: ẋ (n,) m/s, q̇ = A⁻¹ ẋ (n,), and the task point
+    y (m,) m the step started from (for a closed-loop term)."""
+
+    x_dot: np.ndarray
+    q_dot: np.ndarray
+    y: np.ndarray
+
+
+class Resolver:
+    """A resolution law: its weight W (`weight`) and null-space term z (`null_space`).
+
+    A law of your own is a subclass overriding either; the base is the unweighted
+    pseudoinverse with no null-space term.
+    """
+
+    name: str = "unweighted pseudoinverse (min ẋᵀẋ)"
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}()"
+
+    def weight(self, space: ActuatorSpace) -> np.ndarray | None:
+        """W (k, n, n), symmetric positive definite, or None for W = I."""
+        return None
+
+    def null_space(self, space: ActuatorSpace) -> np.ndarray | None:
+        """z (k, n) in m/s, projected onto the null space of J_H, or None for z = 0."""
+        return None
+
+    def resolve(self, space: ActuatorSpace, y_dot: np.ndarray) -> np.ndarray:
+        """ẋ (k, n) for task velocities ẏ (k, m) at the states of ``space``:
+        ẋ = J_W⁺ (ẏ − J_H z) + z, the module docstring's law."""
+        J_H = space.J_H
+        J_H_T = np.swapaxes(J_H, 1, 2)
+        W = self.weight(space)
+        W_inv_J_T = J_H_T if W is None else solve(W, J_H_T)
+        z = self.null_space(space)
+        target = y_dot if z is None else y_dot - (J_H @ z[..., None])[..., 0]
+        x_dot = (W_inv_J_T @ solve_gram(J_H @ W_inv_J_T, target[..., None]))[..., 0]
+        return x_dot if z is None else x_dot + z
+
+    def step(self, robot: Robot, q: np.ndarray, y_dot: np.ndarray) -> Step:
+        """The law at one configuration q (n,) for the task velocity ẏ (m,) m/s: one control
+        step, by the same code as `resolve` on a batch of one."""
+        space = evaluate(robot, q[None])
+        x_dot = self.resolve(space, y_dot[None])
+        return Step(x_dot[0], space.joint_velocities(x_dot)[0], space.y[0])
+
+
+class MinVelocityNorm(Resolver):
+    """ẋ = J_H⁺ ẏ (Eq. 24): among all ẋ with J_H ẋ = ẏ, the one of least ẋᵀẋ."""
+
+
+class MinKineticEnergy(Resolver):
+    """ẋ = J_MH⁺ ẏ (Eqs. 29, 32): among all ẋ with J_H ẋ = ẏ, the one of least ẋᵀ M_H ẋ."""
+
+    name = "M_H-weighted pseudoinverse (min ẋᵀ M_H ẋ)"
+
+    def weight(self, space: ActuatorSpace) -> np.ndarray:
+        return space.M_H
+
+
+class GradientProjection(Resolver):
+    """ẋ = J_H⁺ ẏ + (I − J_H⁺ J_H) z, z = α ∇Φ(x) (Eq. 1 in actuator coordinates).
+
+    Φ(x) = −½ Σ_i ((x_i − x̄_i) / (x_i,max − x_i,min))² rewards strokes near mid-range x̄
+    (Liégeois' joint-limit avoidance, on actuators), so z_i = −α (x_i − x̄_i) / Δx_i², in m/s for
+    the gain α in m²/s. Actuators with infinite strokes are not pushed. The null-space term
+    leaves J_H ẋ = ẏ unchanged. This is the baseline the paper argues against.
+    """
+
+    name = "gradient projection (limit avoidance)"
+
+    def __init__(self, gain: float = TUNED_GAIN):
+        self.gain = gain
+
+    def __repr__(self) -> str:
+        return f"GradientProjection(gain={self.gain})"
+
+    def null_space(self, space: ActuatorSpace) -> np.ndarray:
+        actuators = space.robot.actuators
+        span = actuators.upper - actuators.lower
+        finite = np.isfinite(span)
+        middle = np.where(finite, (actuators.upper + actuators.lower) / 2, 0.0)
+        scale = np.where(finite, 1 / np.where(finite, span, 1.0) ** 2, 0.0)
+        return -self.gain * (space.x - middle) * scale

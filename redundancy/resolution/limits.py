@@ -1,0 +1,128 @@
+"""Limits: actuator strokes and joint ranges, one margin and one `Violation` for all.
+
+The margin of a value to its limits [lower, upper] is min(value − lower, upper − value): the
+distance inside (m, or rad for rotary actuators and revolute joints), negative past a limit. A
+set of limits' margin is the least of its members'. Whoever checks limits (the integrators, both
+searches, the bound, the playback) reads this one definition; a value within `TOLERANCE` past a
+limit counts as inside. Messages give lengths in mm and angles in degrees.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from redundancy.errors import InvalidInputError
+from redundancy.model.robot import Robot
+
+TOLERANCE = 1e-9  # m or rad: a value this close past a limit counts as inside
+
+
+def amount(value: float, rotary: bool) -> str:
+    """A length (m) in mm, or an angle (rad) in degrees, for messages."""
+    return f"{np.degrees(value):.4g}°" if rotary else f"{value * 1000:.4g} mm"
+
+
+@dataclass(frozen=True)
+class Violation:
+    """A limit passed over [start, end] (s): ``name`` at worst ``excess`` (m or rad) past its
+    ``bound`` ("lower" or "upper")."""
+
+    actuator: str
+    bound: str
+    start: float
+    end: float
+    excess: float
+    rotary: bool = False
+
+    def __str__(self) -> str:
+        return (
+            f"{self.actuator} {amount(self.excess, self.rotary)} past its {self.bound} limit "
+            f"over t = {self.start:.2f}-{self.end:.2f} s"
+        )
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Limits [lower, upper] (c,) on c of a state's n coordinates: ``columns`` (c,) index them,
+    ``names`` name them, ``rotary`` (c,) marks angles."""
+
+    names: tuple[str, ...]
+    columns: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    rotary: np.ndarray
+
+    @classmethod
+    def strokes(cls, robot: Robot, checked: tuple[str, ...] | list[str] | None = None) -> Limits:
+        """The strokes of the actuators ``checked`` (default every one)."""
+        actuators = robot.actuators
+        names = actuators.names
+        checked = tuple(names if checked is None else checked)
+        unknown = sorted(set(checked) - set(names))
+        if unknown:
+            raise InvalidInputError(f"unknown actuators {unknown}; actuators: {', '.join(names)}")
+        columns = np.array([names.index(name) for name in checked], dtype=int)
+        return cls(
+            checked,
+            columns,
+            actuators.lower[columns],
+            actuators.upper[columns],
+            actuators.rotary[columns],
+        )
+
+    @classmethod
+    def joints(cls, robot: Robot) -> Limits:
+        """The joint ranges (from the URDF)."""
+        return cls(
+            tuple(robot.joint_names),
+            np.arange(robot.n),
+            robot.lower.copy(),
+            robot.upper.copy(),
+            robot.rotary_joints,
+        )
+
+    def excess(self, values: np.ndarray) -> np.ndarray:
+        """How far each checked value is past its limit, (..., c): positive past, negative
+        inside, for values (..., n)."""
+        checked = values[..., self.columns]
+        return np.maximum(self.lower - checked, checked - self.upper)
+
+    def margin(self, values: np.ndarray) -> np.ndarray:
+        """The least margin over the checked values, (...,), for values (..., n)."""
+        if not len(self.columns):
+            return np.full(values.shape[:-1], np.inf)
+        return -self.excess(values).max(axis=-1)
+
+    def range_margin(self, lowest: np.ndarray, highest: np.ndarray) -> np.ndarray:
+        """The least margin over ranges [lowest, highest] (..., n) of each coordinate, (...,)."""
+        if not len(self.columns):
+            return np.full(lowest.shape[:-1], np.inf)
+        inside = np.minimum(
+            lowest[..., self.columns] - self.lower, self.upper - highest[..., self.columns]
+        )
+        return inside.min(axis=-1)
+
+    def violations(self, t: np.ndarray, values: np.ndarray) -> list[Violation]:
+        """Every interval over which a checked value of the samples values (T, n) at times
+        t (T,) is past its limit by more than `TOLERANCE`, in order of time."""
+        found = []
+        for j, column in enumerate(self.columns):
+            series = values[:, column]
+            below, above = self.lower[j] - series, series - self.upper[j]
+            for bound, excess in (("lower", below), ("upper", above)):
+                outside = excess > TOLERANCE
+                edges = np.flatnonzero(np.diff(np.concatenate([[0], outside.astype(int), [0]])))
+                for start, stop in zip(edges[::2], edges[1::2]):
+                    found.append(
+                        Violation(
+                            self.names[j],
+                            bound,
+                            float(t[start]),
+                            float(t[stop - 1]),
+                            float(excess[start:stop].max()),
+                            bool(self.rotary[j]),
+                        )
+                    )
+        return sorted(found, key=lambda v: v.start)

@@ -1,0 +1,71 @@
+"""What a strategy minimises: an objective is a law plus a measure along the motion.
+
+The measure is a quantity at each state, computed from the state and its actuator velocities;
+the objective reduces it over a motion to its peak (the paper's choice, Figs. 4a, 5a) or its
+time integral. The paper's two improved solutions are `VELOCITY` (the law of least ẋᵀẋ, Eq. 24,
+measured by ẋᵀẋ) and `ENERGY` (the law of least ẋᵀ M_H ẋ, Eq. 32, measured by ẋᵀ M_H ẋ, twice
+the kinetic energy, Eq. 28). An objective of your own is one more `Objective`: every search
+(the sweep, the fast search) and the bound take it as they take these.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from redundancy.errors import InvalidInputError
+from redundancy.resolution.laws import MinKineticEnergy, MinVelocityNorm, Resolver
+from redundancy.resolution.state import ActuatorSpace
+
+REDUCTIONS = ("peak", "integral")
+
+
+@dataclass(frozen=True)
+class Objective:
+    """A named objective: its ``resolver`` (the law the motion follows), its ``measure``
+    (states, ẋ (k, n)) → (k,), and how a motion's measure is reduced: "peak" (the maximum) or
+    "integral" (over time, trapezoidal). ``label`` and ``unit`` name the measure."""
+
+    name: str
+    resolver: Resolver
+    measure: Callable[[ActuatorSpace, np.ndarray], np.ndarray]
+    label: str
+    unit: str
+    reduction: str = "peak"
+
+    def __post_init__(self) -> None:
+        if self.reduction not in REDUCTIONS:
+            raise InvalidInputError(
+                f"objective {self.name!r}: reduction {self.reduction!r} is not one of "
+                f"{', '.join(REDUCTIONS)}"
+            )
+
+    def reduce(self, t: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """The objective of k motions from the measure ``values`` (k, T) at times t (k, T)."""
+        if self.reduction == "peak":
+            return values.max(axis=1)
+        return np.sum((values[:, 1:] + values[:, :-1]) / 2 * np.diff(t, axis=1), axis=1)
+
+
+def velocity_norm(space: ActuatorSpace, x_dot: np.ndarray) -> np.ndarray:
+    """ẋᵀẋ (k,), m²/s²."""
+    return np.einsum("ki,ki->k", x_dot, x_dot)
+
+
+def kinetic(space: ActuatorSpace, x_dot: np.ndarray) -> np.ndarray:
+    """ẋᵀ M_H ẋ (k,) = twice the kinetic energy (Eq. 28), J."""
+    return np.einsum("ki,kij,kj->k", x_dot, space.M_H, x_dot)
+
+
+VELOCITY = Objective("velocity", MinVelocityNorm(), velocity_norm, "ẋᵀẋ", "m²/s²")
+ENERGY = Objective("energy", MinKineticEnergy(), kinetic, "ẋᵀ M_H ẋ", "J")
+OBJECTIVES = {o.name: o for o in (VELOCITY, ENERGY)}
+
+
+def objective(name: str) -> Objective:
+    """The objective called ``name``; the error lists the choices."""
+    if name not in OBJECTIVES:
+        raise InvalidInputError(f"unknown objective {name!r}; objectives: {', '.join(OBJECTIVES)}")
+    return OBJECTIVES[name]

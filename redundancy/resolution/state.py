@@ -1,0 +1,167 @@
+"""Hydraulic (actuator) coordinates at a batch of states: the one object every consumer reads.
+
+One Pinocchio pass (`Robot.kinematics`) gives the tracked frames; x, A = ∂x/∂q (Eqs. 10-11),
+y and J = ∂y/∂q (Eqs. 6-7) are read from it, and the rest is derived when first asked for.
+With ẋ = A q̇ and ẍ = A q̈ + Ȧ q̇ (Eq. 12), the joint-space model M q̈ + N = τ (Eq. 18,
+N = V + G) with τ = Aᵀ F (virtual work; the paper writes τ = A F, Eq. 15, because its A is
+diagonal) becomes, in actuator coordinates (Eqs. 16, 20-23, 25),
+
+    J_H = J A⁻¹                   ẏ = J_H ẋ
+    M_H = A⁻ᵀ M A⁻¹               N_H = A⁻ᵀ N − M_H Ȧ A⁻¹ ẋ
+    F_H = M_H ẍ + N_H
+
+A is never inverted: every product with A⁻¹ is a linear solve. A is singular where a cylinder's
+torque arm vanishes (its line passes through the joint); `actuator_space` then raises
+`SingularConfigurationError` naming the weakest actuator, and the integrators freeze such states.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from redundancy.errors import InvalidInputError, SingularConfigurationError
+from redundancy.model.kinematics import Kinematics
+from redundancy.model.robot import Robot
+from redundancy.resolution.linalg import solve
+
+SINGULAR_TOLERANCE = 1e-9
+
+
+def invertibility(A: np.ndarray) -> np.ndarray:
+    """σ_min / σ_max of each A (k, n, n), (k,): 1 for an orthogonal A, 0 for a singular one."""
+    singular_values = np.linalg.svd(A, compute_uv=False)
+    return singular_values[:, -1] / np.maximum(singular_values[:, 0], np.finfo(float).tiny)
+
+
+def singular(A: np.ndarray, tolerance: float = SINGULAR_TOLERANCE) -> np.ndarray:
+    """Where `invertibility` (k,) falls below ``tolerance`` or A is not finite, (k,) bool.
+
+    |det A| / ‖A‖_F^n bounds σ_min / σ_max from below (|det A| = Π σ_i ≤ σ_min σ_max^(n−1) and
+    σ_max ≤ ‖A‖_F), so the singular values are computed only where that bound is not enough.
+    """
+    n = A.shape[-1]
+    frobenius = np.einsum("kij,kij->k", A, A)
+    with np.errstate(invalid="ignore", over="ignore"):
+        settled = np.linalg.det(A) ** 2 >= tolerance**2 * frobenius**n
+    found = np.zeros(len(A), dtype=bool)
+    rows = np.flatnonzero(~settled)
+    if rows.size:
+        finite = np.all(np.isfinite(A[rows]), axis=(1, 2))
+        found[rows] = ~finite
+        found[rows[finite]] = invertibility(A[rows[finite]]) < tolerance
+    return found
+
+
+def check_invertible(A: np.ndarray, q: np.ndarray, names: list[str]) -> None:
+    """Raise `SingularConfigurationError` where A is singular to working precision."""
+    bad = np.flatnonzero(singular(A))
+    if bad.size:
+        i = bad[0]
+        weakest = names[int(np.argmin(np.linalg.norm(A[i], axis=1)))]
+        raise SingularConfigurationError(
+            f"actuator Jacobian A is singular at q = {np.round(q[i], 6).tolist()} "
+            f"(weakest: actuator {weakest!r}); the actuators cannot move the joints there"
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class ActuatorSpace:
+    """The robot in actuator coordinates at a batch of k states (batch axis always first).
+
+    Read from the one Pinocchio pass: q (k, n) joints; x (k, n) strokes (m, or rad for a rotary
+    actuator); A (k, n, n); y (k, m) task point (m); J (k, m, n); v (k, n) joint velocities, or
+    None at rest. Derived when first read: x_dot, A_dot, J_H, M, M_H (kg), N_H (N).
+    """
+
+    robot: Robot = field(repr=False)
+    kinematics: Kinematics = field(repr=False)
+    q: np.ndarray
+    v: np.ndarray | None
+    x: np.ndarray
+    A: np.ndarray
+    y: np.ndarray
+    J: np.ndarray
+
+    @cached_property
+    def x_dot(self) -> np.ndarray:
+        """ẋ = A q̇ (Eq. 11), (k, n); zero at rest."""
+        if self.v is None:
+            return np.zeros_like(self.x)
+        return (self.A @ self.v[..., None])[..., 0]
+
+    @cached_property
+    def A_dot(self) -> np.ndarray:
+        """Ȧ (k, n, n), so that ẍ = A q̈ + Ȧ q̇ (Eq. 12); zero at rest."""
+        if self.v is None:
+            return np.zeros_like(self.A)
+        return self.robot.actuators.rate(self.kinematics)
+
+    @cached_property
+    def J_H(self) -> np.ndarray:
+        """J_H = J A⁻¹ (Eqs. 16, 25), (k, m, n)."""
+        return np.swapaxes(solve(np.swapaxes(self.A, 1, 2), np.swapaxes(self.J, 1, 2)), 1, 2)
+
+    @cached_property
+    def M(self) -> np.ndarray:
+        """Joint-space inertia M(q) (Eq. 18), (k, n, n), by CRBA."""
+        return self.robot.mass_matrices(self.q)
+
+    @cached_property
+    def M_H(self) -> np.ndarray:
+        """M_H = A⁻ᵀ M A⁻¹ (Eq. 22), symmetric positive definite."""
+        A_T = np.swapaxes(self.A, 1, 2)
+        half = solve(A_T, self.M)  # A⁻ᵀ M
+        M_H = solve(A_T, np.swapaxes(half, 1, 2))  # A⁻ᵀ (A⁻ᵀ M)ᵀ = A⁻ᵀ M A⁻¹
+        return (M_H + np.swapaxes(M_H, 1, 2)) / 2
+
+    @cached_property
+    def N_H(self) -> np.ndarray:
+        """N_H = A⁻ᵀ N − M_H Ȧ A⁻¹ ẋ (Eq. 23), with A⁻¹ ẋ = q̇; A⁻ᵀ G at rest."""
+        v = np.zeros_like(self.q) if self.v is None else self.v
+        N = self.robot.nonlinear(self.q, v)
+        a_dot_v = (self.A_dot @ v[..., None])[..., 0]
+        return (
+            solve(np.swapaxes(self.A, 1, 2), N[..., None])[..., 0]
+            - (self.M_H @ a_dot_v[..., None])[..., 0]
+        )
+
+    def forces(self, x_ddot: np.ndarray) -> np.ndarray:
+        """Actuator forces F_H = M_H ẍ + N_H (Eq. 21), (k, n) in N, for x_ddot (k, n)."""
+        x_ddot = np.asarray(x_ddot, dtype=float)
+        if x_ddot.shape != self.x.shape:
+            raise InvalidInputError(
+                f"x_ddot must have shape {self.x.shape} (one ẍ per state); got {x_ddot.shape}"
+            )
+        return (self.M_H @ x_ddot[..., None])[..., 0] + self.N_H
+
+    def joint_velocities(self, x_dot: np.ndarray) -> np.ndarray:
+        """q̇ = A⁻¹ ẋ (Eq. 11) for actuator velocities ẋ (k, n)."""
+        return solve(self.A, x_dot[..., None])[..., 0]
+
+
+def evaluate(robot: Robot, q: np.ndarray, v: np.ndarray | None = None) -> ActuatorSpace:
+    """`ActuatorSpace` at checked states q (k, n) and v (k, n) or None: the lean entry every
+    computation of the toolkit goes through."""
+    kinematics = robot.kinematics(q, v)
+    x, A = robot.actuators.evaluate(kinematics)
+    y, J = robot.task_point(kinematics)
+    return ActuatorSpace(robot, kinematics, q, v, x, A, y, J)
+
+
+def actuator_space(robot: Robot, q, v=None, check: bool = True) -> ActuatorSpace:
+    """`ActuatorSpace` at q of shape (n,) or (k, n) and joint velocities v like q (default rest).
+
+    One state comes back as a batch of one. ``check`` raises `SingularConfigurationError` where
+    A is singular.
+    """
+    qb = robot.configuration(q)
+    vb = None if v is None else robot.configuration(v, "v")
+    if vb is not None and vb.shape != qb.shape:
+        raise InvalidInputError(f"v has shape {vb.shape}; q has {qb.shape}")
+    space = evaluate(robot, qb, vb)
+    if check:
+        check_invertible(space.A, qb, robot.actuators.names)
+    return space

@@ -1,0 +1,292 @@
+"""The paper's study: every segment of a work cycle, each objective's improved initial
+configuration and its bound, and the strategies it is compared with, as one report.
+
+For each segment and objective:
+- the improved start, by the fast search (or, with ``method="sweep"``, the paper's uniform
+  sweep), and its motion;
+- the sweep's curve of the objective against the held value (the paper's Figs. 4a, 5a),
+  integrated adaptively as one batch;
+- the bound: the global optimum over every history of the held actuator
+  (`redundancy.planning.bound`), and the improved start's gap to it, in per cent.
+
+For each segment the comparison holds, with both peaks and whether every limit held:
+- the unweighted and the M_H-weighted pseudoinverse from the default start (the held actuator at
+  mid-stroke, or the reachable value nearest it: `default_start`);
+- gradient projection with actuator-limit avoidance from the same start (the paper's baseline);
+- the improved method for each objective.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+from redundancy.errors import InvalidInputError
+from redundancy.model.robot import Robot
+from redundancy.planning.bound import GlobalOptimum, global_optimum
+from redundancy.planning.starts import (
+    METHODS,
+    SearchResult,
+    default_start,
+    held_actuators,
+    improved_start,
+    scalar_or_list,
+)
+from redundancy.planning.tasks import WorkCycle
+from redundancy.resolution.laws import GradientProjection, Resolver
+from redundancy.resolution.objectives import ENERGY, VELOCITY, Objective
+from redundancy.study.peers import StrategyRun, fixed_start_run
+
+BASELINES: tuple[tuple[str, Resolver], ...] = (
+    ("unweighted, default start", VELOCITY.resolver),
+    ("M_H-weighted, default start", ENERGY.resolver),
+    ("gradient projection, default start", GradientProjection()),
+)
+
+
+@dataclass(frozen=True)
+class Study:
+    """Per objective and segment: the search that chose the improved start, the sweep behind
+    the figures (the same search with ``method="sweep"``) and the bound (None where no start is
+    feasible or the bound was not asked for); and the strategy comparison."""
+
+    robot: Robot
+    cycle: WorkCycle
+    held: tuple[str, ...]
+    samples: int
+    method: str
+    checked: tuple[str, ...]
+    searches: dict[str, tuple[SearchResult, ...]]
+    sweeps: dict[str, tuple[SearchResult, ...]]
+    bounds: dict[str, tuple[GlobalOptimum | None, ...]]
+    runs: tuple[StrategyRun, ...]
+
+    def search(self, objective: str, segment: str) -> SearchResult:
+        return self.searches[objective][self._segment(segment)]
+
+    def sweep(self, objective: str, segment: str) -> SearchResult:
+        return self.sweeps[objective][self._segment(segment)]
+
+    def bound(self, objective: str, segment: str) -> GlobalOptimum | None:
+        return self.bounds[objective][self._segment(segment)]
+
+    def _segment(self, name: str) -> int:
+        names = [s.name for s in self.cycle.segments]
+        if name not in names:
+            raise InvalidInputError(f"no segment {name!r}; segments: {', '.join(names)}")
+        return names.index(name)
+
+    def gap(self, objective: str, segment: str) -> float | None:
+        """(improved peak − bound) / bound, in per cent, or None."""
+        best, bound = self.search(objective, segment).best, self.bound(objective, segment)
+        if best is None or bound is None:
+            return None
+        return 100 * (best.peak - bound.bound) / bound.bound  # type: ignore[operator]
+
+    def report(self) -> dict:
+        """The study as JSON-ready data."""
+        return {
+            "robot": self.robot.name,
+            "payload": self.robot.payload,
+            "task": self.cycle.name,
+            "samples": self.samples,
+            "method": self.method,
+            "checked_actuators": list(self.checked),
+            "studies": [
+                {
+                    "objective": name,
+                    "measure": searches[0].objective.label if searches else None,
+                    "segments": [
+                        self._segment_report(name, search.segment.name) for search in searches
+                    ],
+                }
+                for name, searches in self.searches.items()
+            ],
+            "comparison": [run.summary() for run in self.runs],
+        }
+
+    def _segment_report(self, objective: str, segment: str) -> dict:
+        search, sweep = self.search(objective, segment), self.sweep(objective, segment)
+        bound = self.bound(objective, segment)
+        best = search.best
+        closest = sweep.closest_violation if best is None else None
+        box = search.feasible_box
+        return {
+            "name": segment,
+            "start": search.segment.start.tolist(),
+            "end": search.segment.end.tolist(),
+            "held_actuator": search.held[0] if len(search.held) == 1 else list(search.held),
+            "feasible_range": None if box is None else (box[0] if len(box) == 1 else box).tolist(),
+            "best": None
+            if best is None
+            else {"value": scalar_or_list(best.values), "peak": best.peak},
+            "closest_violation": None if closest is None else str(closest),
+            "bound": None
+            if bound is None
+            else {
+                "peak": bound.bound,
+                "start": bound.start,
+                "change": bound.change,
+                "converged": bound.converged,
+            },
+            "gap_percent": self.gap(objective, segment),
+            "simulations": search.simulations,
+            "samples": [
+                {
+                    "value": scalar_or_list(s.values),
+                    "peak": s.peak,
+                    "feasible": s.feasible,
+                    "reason": s.reason,
+                }
+                for s in sweep.samples
+            ],
+        }
+
+    def table(self) -> str:
+        """The comparison as a fixed-width text table, then the bounds."""
+        start = "start " + ",".join(self.held)
+        width = max(10, len(start) + 1, 8 * len(self.held) + 1)
+        names = max(8, *(len(s.name) + 2 for s in self.cycle.segments))
+        header = (
+            f"{'segment':<{names}}{'strategy':<36}{start:>{width}}"
+            f"{'peak ẋᵀẋ':>12}{'peak ẋᵀM_Hẋ':>13}  limits"
+        )
+        lines = [header, "-" * len(header)]
+        for run in self.runs:
+            row = run.summary()
+            held = "held" if row["within_limits"] else "VIOLATED"
+            values = ",".join(f"{v:.3f}" for v in run.start)
+            lines.append(
+                f"{run.segment:<{names}}{run.strategy:<36}{values:>{width}}"
+                f"{row['peak_velocity_norm']:>12.5f}{row['peak_kinetic']:>13.3f}  {held}"
+            )
+        lines += [
+            "",
+            f"{'segment':<{names}}{'objective':<10}{'improved':>12}{'bound':>12}{'gap %':>8}",
+        ]
+        for name, searches in self.searches.items():
+            for search in searches:
+                segment = search.segment.name
+                bound, gap = self.bound(name, segment), self.gap(name, segment)
+                if search.best is None:
+                    closest = self.sweep(name, segment).closest_violation
+                    lines.append(
+                        f"{segment:<{names}}{name:<10}{'none':>12}{'-':>12}{'-':>8}  "
+                        f"no sampled start stays inside the limits"
+                        + (f"; closest: {closest}" if closest else "")
+                    )
+                    continue
+                lines.append(
+                    f"{segment:<{names}}{name:<10}{search.best.peak:>12.5g}"
+                    + ("" if bound is None else f"{bound.bound:>12.5g}{gap:>8.2f}")
+                )
+        return "\n".join(lines)
+
+
+def run_study(
+    robot: Robot,
+    cycle: WorkCycle,
+    objectives: tuple[Objective, ...] = (VELOCITY, ENERGY),
+    samples: int = 100,
+    checked: tuple[str, ...] | None = None,
+    method: str | None = None,
+    bound: bool = True,
+    progress: bool = True,
+) -> Study:
+    """Run every objective's improved search, sweep and bound, and the comparison strategies,
+    on every segment.
+
+    The held actuators are the task's ``held`` or, if it names none, the last n − m actuators
+    (`held_actuators`). ``method`` chooses the improved start: "fast" (the default with one
+    held actuator) or "sweep" (``samples`` starts; always with several). The bound is computed
+    with one held actuator, where a start is feasible, unless ``bound`` is False.
+    """
+    from tqdm import tqdm
+
+    held = held_actuators(robot, cycle)
+    method = method or ("fast" if len(held) == 1 else "sweep")
+    if method not in METHODS:
+        raise InvalidInputError(f"unknown method {method!r}; methods: {', '.join(METHODS)}")
+    segments = cycle.segments
+    total = len(segments) * (len(BASELINES) + 3 * len(objectives))
+    bar = tqdm(total=total, unit="task", desc="study", disable=not progress, mininterval=0.5)
+    searches: dict[str, list[SearchResult]] = {o.name: [] for o in objectives}
+    sweeps: dict[str, list[SearchResult]] = {o.name: [] for o in objectives}
+    bounds: dict[str, list[GlobalOptimum | None]] = {o.name: [] for o in objectives}
+    runs: list[StrategyRun] = []
+    with bar:
+        for segment in segments:
+            start = default_start(robot, segment, held)
+            for name, resolver in BASELINES:
+                bar.set_description(f"{segment.name}: {name}")
+                runs.append(fixed_start_run(robot, resolver, name, segment, held, start, checked))
+                bar.update()
+            for objective in objectives:
+                bar.set_description(f"{segment.name}: improved, {objective.name}")
+                sweep = improved_start(
+                    robot, segment, objective, held, samples, checked, method="sweep"
+                )
+                bar.update()
+                search = sweep
+                if method == "fast":
+                    search = improved_start(robot, segment, objective, held, checked=checked)
+                bar.update()
+                searches[objective.name].append(search)
+                sweeps[objective.name].append(sweep)
+                best, optimum = search.best, None
+                if best is not None:
+                    runs.append(
+                        StrategyRun(
+                            segment.name,
+                            f"improved, {objective.name} objective",
+                            best.values,
+                            search.motion(best),
+                        )
+                    )
+                    if bound and len(held) == 1 and objective.reduction == "peak":
+                        bar.set_description(f"{segment.name}: bound, {objective.name}")
+                        optimum = global_optimum(
+                            robot, segment, objective, held[0], checked, search=search
+                        )
+                bounds[objective.name].append(optimum)
+                bar.update()
+    return Study(
+        robot,
+        cycle,
+        held,
+        samples,
+        method,
+        tuple(robot.actuators.names if checked is None else checked),
+        {name: tuple(found) for name, found in searches.items()},
+        {name: tuple(found) for name, found in sweeps.items()},
+        {name: tuple(found) for name, found in bounds.items()},
+        tuple(runs),
+    )
+
+
+def write_atomically(path: Path, write) -> None:
+    """Call ``write(temporary_path)``, then move the result over ``path`` in one step, so a
+    failure never leaves ``path`` half-written or loses what it held."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, temporary = tempfile.mkstemp(
+        dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix
+    )
+    os.close(handle)
+    try:
+        write(Path(temporary))
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(temporary, 0o666 & ~umask)  # mkstemp makes it private; give a normal file's mode
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+
+
+def write_report(study: Study, path: Path) -> None:
+    """The study's JSON report, written atomically."""
+    text = json.dumps(study.report(), indent=1, allow_nan=False)
+    write_atomically(path, lambda p: p.write_text(text + "\n"))

@@ -1,0 +1,221 @@
+"""The improved searches: the fast search against the paper's uniform sweep, both through the
+one evaluation; adaptive integration against the fixed-step reference; a user's own actuator
+kind and objective through every search. The sweeps here are coarser than the benchmark's (23
+samples, refined locally at the 1,000-sample spacing where the best start lies) to keep the tests
+quick."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import redundancy.planning.integrate as integrate
+from redundancy import (
+    ActuatorMap,
+    InvalidInputError,
+    Objective,
+    actuator_space,
+    global_optimum,
+    improved_start,
+    load_robot,
+)
+from redundancy.model.loading import bundled_root
+from redundancy.model.transmissions import write_transmissions
+from redundancy.planning.ik import inverse_kinematics
+from redundancy.planning.integrate import simulate, stroke_extremes
+from redundancy.planning.starts import evaluate_starts
+from redundancy.planning.tasks import WorkCycle
+from redundancy.resolution.laws import GradientProjection, MinVelocityNorm
+from redundancy.resolution.objectives import ENERGY, VELOCITY
+
+SEGMENTS = ["1-2", "2-3", "3-1"]
+COARSE = 23  # samples of the test's uniform sweep
+DENSE = 1000  # the benchmark's reference sweep, whose spacing the local refinement uses
+
+
+@pytest.fixture(scope="module")
+def cycle(crane):
+    return WorkCycle.from_toml(crane.task_file, dimension=crane.m)
+
+
+@pytest.fixture(scope="module")
+def searches(crane, cycle):
+    return {name: improved_start(crane, cycle[name], VELOCITY) for name in SEGMENTS}
+
+
+def test_hermite_extremes_find_a_maximum_between_samples():
+    """x = sin t sampled at 0, 1, 2 s: the maximum 1 at t = π/2 lies between samples."""
+    t = np.array([[0.0, 1.0, 2.0]])
+    x = np.sin(t)[..., None]
+    lowest, highest = stroke_extremes(t, x, np.cos(t)[..., None])
+    assert highest[0, 0] == pytest.approx(1.0, abs=5e-3) and highest[0, 0] > np.sin(2.0)
+    assert lowest[0, 0] == pytest.approx(np.sin(1.0))  # the start itself is excluded
+
+
+@pytest.mark.parametrize("sparse", [True, False], ids=["steps", "grid"])
+def test_adaptive_motions_agree_with_the_fixed_step_method_within_the_error_allowance(
+    crane, cycle, sparse
+):
+    segment = cycle["3-1"]
+    ik = inverse_kinematics(crane, segment.start, ["x3"], np.array([[0.6], [0.75], [0.9]]))
+    reference = simulate(crane, VELOCITY.resolver, segment, ik.q, 0.005, method="rk4")
+    motion = simulate(crane, VELOCITY.resolver, segment, ik.q, sparse=sparse)
+    lowest, highest = stroke_extremes(motion.t, motion.x, motion.x_dot)
+    lowest, highest = np.minimum(lowest, motion.x[:, 0]), np.maximum(highest, motion.x[:, 0])
+    allowance = integrate.ALLOWANCE * integrate.TOLERANCE
+    assert np.abs(lowest - reference.x.min(axis=1)).max() < allowance
+    assert np.abs(highest - reference.x.max(axis=1)).max() < allowance
+    np.testing.assert_allclose(motion.x[:, -1], reference.x[:, -1], atol=allowance)
+    np.testing.assert_allclose(motion.peak_velocity_norm, reference.peak_velocity_norm, rtol=1e-3)
+    assert motion.max_tracking_error.max() < allowance
+
+
+def test_dense_output_lies_on_the_grid_and_matches_the_law(crane, cycle):
+    """Grid samples come from the dense output: on the uniform grid, and their ẋ is the law's
+    at the sampled configuration (J_H ẋ = ẏ_d, Eq. 16)."""
+    segment = cycle["1-2"]
+    start = inverse_kinematics(crane, segment.start, ["x3"], np.array([[1.0]])).q
+    motion = simulate(crane, VELOCITY.resolver, segment, start, 0.05)
+    np.testing.assert_allclose(motion.t[0], np.linspace(0, segment.duration, 101))
+    J_H = actuator_space(crane, motion.q[0]).J_H
+    np.testing.assert_allclose(
+        np.einsum("kij,kj->ki", J_H, motion.x_dot[0]),
+        np.broadcast_to(segment.velocity, (101, 2)),
+        atol=1e-12,
+    )
+
+
+@pytest.mark.parametrize("name", SEGMENTS)
+def test_fast_search_and_uniform_sweep_agree(crane, cycle, searches, name):
+    """Same feasible range within one sample spacing; same best peak within 0.5% of the best a
+    1,000-sample sweep finds (the sweep's peak falls over its feasible range, so that best lies
+    within one coarse spacing above the coarse sweep's best, where the 1,000-sample grid is
+    swept)."""
+    segment, fast = cycle[name], searches[name]
+    assert fast.method == "fast"
+    sweep = improved_start(crane, segment, VELOCITY, "x3", COARSE, method="sweep")
+    spacing = 1.09 / (COARSE - 1)
+    assert np.abs(np.subtract(fast.feasible_range, sweep.feasible_range)).max() <= spacing
+    peaks = [s.peak for s in sweep.feasible]
+    assert np.all(np.diff(peaks) < 0) and sweep.best == sweep.feasible[-1]
+    grid = np.linspace(0.0, 1.09, DENSE)
+    local = grid[(grid >= sweep.best.value) & (grid <= sweep.best.value + spacing)]
+    dense = evaluate_starts(crane, segment, VELOCITY, "x3", local).best
+    assert abs(fast.best.peak - dense.peak) / dense.peak < 0.005
+    assert fast.best.value >= dense.value - 1.09 / (DENSE - 1)
+
+
+@pytest.mark.parametrize("name", SEGMENTS)
+def test_fast_searchs_best_start_keeps_every_stroke_on_the_grid(searches, name):
+    motion = searches[name].motion()
+    assert motion.within_limits[0], motion.violations(0)
+    assert VELOCITY.reduce(motion.t, motion.values(VELOCITY))[0] == pytest.approx(
+        searches[name].best.peak, rel=1e-3
+    )
+
+
+def test_fast_search_needs_few_simulations(searches):
+    """A fraction of the paper's 100 samples; the feasible ends located to the tolerance."""
+    for fast in searches.values():
+        assert fast.simulations < 40 and fast.rounds <= 3
+
+
+def test_one_motion_signature_for_every_search(crane, cycle, searches):
+    """`motion()` is the best's motion, `motion(sample)` any reachable sample's, whatever the
+    method."""
+    sweep = improved_start(crane, cycle["1-2"], VELOCITY, samples=5, method="sweep")
+    for search in (searches["1-2"], sweep):
+        best = search.motion()
+        np.testing.assert_array_equal(best.q, search.motion(search.best).q)
+        assert best.t.shape == (1, 501)
+
+
+def test_search_rejects_bad_arguments(crane, cycle):
+    segment = cycle["1-2"]
+    with pytest.raises(InvalidInputError, match="x9"):
+        improved_start(crane, segment, VELOCITY, held="x9")
+    with pytest.raises(InvalidInputError, match="unknown actuators"):
+        improved_start(crane, segment, VELOCITY, checked=("x1", "y7"))
+    with pytest.raises(InvalidInputError, match="unknown method 'grid'"):
+        improved_start(crane, segment, VELOCITY, method="grid")
+    with pytest.raises(InvalidInputError, match="whole number"):
+        improved_start(crane, segment, VELOCITY, samples=2.5)
+
+
+class GearedCylinder(ActuatorMap):
+    """A user's own kind, written here: the telescope through a 2:1 gear, x = 2 (q + offset).
+    Only `evaluate` and `rate`: the group methods come from the base class."""
+
+    def __init__(self, name, joint, lower=-np.inf, upper=np.inf, offset=0.0):
+        super().__init__(name, joint, lower, upper)
+        self.offset = offset
+
+    def evaluate(self, kinematics):
+        row = np.zeros_like(kinematics.q)
+        row[:, self.index] = 2.0
+        return 2.0 * (kinematics.q[:, self.index] + self.offset), row
+
+    def rate(self, kinematics):
+        return np.zeros_like(kinematics.q)
+
+    @classmethod
+    def from_transmission(cls, name, joint, lower, upper, data):
+        return cls(name, joint, lower, upper, float(data["offset"][0]["value"]))
+
+    def transmission_data(self):
+        return {"offset": [{"value": repr(self.offset)}]}
+
+
+def test_a_users_own_actuator_kind_runs_through_every_path(tmp_path, crane, cycle):
+    """The geared telescope doubles x3 and its stroke: actuator space, the fast search and the
+    bound all run on it, and the best start is the crane's at twice the stroke."""
+    telescope = crane.actuators["x3"]
+    maps = [a for a in crane.actuators if a.name != "x3"]
+    maps.append(GearedCylinder("x3", telescope.joint, 0.0, 2 * 1.09, telescope.offset))
+    path = tmp_path / "geared.urdf"
+    path.write_text(
+        write_transmissions((bundled_root() / "hiab031" / "hiab031.urdf").read_text(), maps)
+    )
+    geared = load_robot(path, task_axes="xz")
+    q = (crane.lower + crane.upper) / 2
+    np.testing.assert_allclose(
+        actuator_space(geared, q).x[0, 2], 2 * actuator_space(crane, q).x[0, 2]
+    )
+    segment = cycle["1-2"]
+    search = improved_start(geared, segment, VELOCITY)
+    assert search.best.value == pytest.approx(2 * 1.09)
+    assert search.motion().within_limits[0]
+    optimum = global_optimum(geared, segment, VELOCITY, grids=(12, 24))
+    assert optimum.motion.within_limits[0] and optimum.bound <= search.best.peak * (1 + 1e-6)
+
+
+def test_a_users_own_objective_runs_through_the_sweep_the_fast_search_and_the_bound(crane, cycle):
+    """Peak telescope speed |ẋ3| with the unweighted law: every search takes it, and the bound
+    is at or below the improved start's."""
+
+    def telescope_speed(space, x_dot):
+        return x_dot[:, 2] ** 2
+
+    own = Objective("telescope", MinVelocityNorm(), telescope_speed, "ẋ3²", "m²/s²")
+    segment = cycle["2-3"]
+    fast = improved_start(crane, segment, own)
+    sweep = improved_start(crane, segment, own, samples=12, method="sweep")
+    assert fast.best is not None and sweep.best is not None
+    assert fast.best.peak <= sweep.best.peak * (1 + 1e-3)
+    motion = fast.motion()
+    np.testing.assert_allclose(motion.values(own)[0], motion.x_dot[0, :, 2] ** 2, rtol=1e-12)
+    optimum = global_optimum(crane, segment, own, grids=(12, 24), search=fast)
+    assert optimum.bound <= fast.best.peak * (1 + 1e-6)
+    integral = dataclasses.replace(own, reduction="integral")
+    assert improved_start(crane, segment, integral).best is not None
+    with pytest.raises(InvalidInputError, match="peak"):
+        global_optimum(crane, segment, integral)
+    with pytest.raises(InvalidInputError, match="reduction 'sum'"):
+        dataclasses.replace(own, reduction="sum")
+
+
+def test_gradient_projection_runs_through_the_search(crane, cycle):
+    """Any law: gradient projection's own objective through the fast search."""
+    law = dataclasses.replace(VELOCITY, name="projected", resolver=GradientProjection(0.1))
+    assert improved_start(crane, cycle["3-1"], law).best is not None
+    assert ENERGY.reduction == "peak"
