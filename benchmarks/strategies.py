@@ -7,7 +7,8 @@ bound and its planning time (what it computes before the motion can start); then
 search against a dense 1,000-sample sweep; the global optimum's convergence over its grids; the
 energy objective on segment 1-2; the gradient-projection gain tuning; and the cost of one
 control step, ours against pink's, measured in the same run. Every motion is measured alike: by
-`simulate` at 0.01 s (pink by its own control loop at 0.01 s, the global optimum at its nodes).
+`simulate` (adaptive, sampled every 0.01 s; pink by its own control loop at 0.01 s, the global
+optimum at its nodes).
 Times are best-of-N wall times on a machine that may be shared; printed, never asserted.
 
 Run: python benchmarks/strategies.py [--out benchmarks/results.md] [--quick]
@@ -26,23 +27,23 @@ import timeit
 from pathlib import Path
 
 import numpy as np
-from redundancy.global_optimum import global_optimum
-from redundancy.ik import inverse_kinematics
-from redundancy.initial_configuration import StrategyRun, default_start, improved_start
-from redundancy.objectives import ENERGY, VELOCITY
-from redundancy.peers import (
+
+from redundancy import actuator_space, load_robot
+from redundancy.planning.bound import global_optimum
+from redundancy.planning.ik import inverse_kinematics
+from redundancy.planning.starts import default_start, improved_start
+from redundancy.planning.tasks import WorkCycle
+from redundancy.resolution.laws import GradientProjection
+from redundancy.resolution.objectives import ENERGY, VELOCITY
+from redundancy.study.peers import (
     TUNED_GAIN,
     PinkResolver,
+    StrategyRun,
     gradient_projection_run,
     pink_run,
     pseudoinverse_run,
     tune_gradient_projection,
 )
-from redundancy.resolvers import GradientProjection
-from redundancy.tasks import WorkCycle
-
-from redundancy import actuator_space, load_robot
-from redundancy.fast_search import FastResolver, fast_start
 
 SAMPLES = 100  # the paper's sweep
 DENSE = 1000  # the reference sweep for the fast search's targets
@@ -110,9 +111,10 @@ def strategies(robot, segment):
     bound_run = StrategyRun(
         segment.name, "global optimum (the bound)", (bound.start,), bound.motion
     )
-    fast_time, fast = best_time(lambda: fast_start(robot, segment))
+    fast_time, fast = best_time(lambda: improved_start(robot, segment, VELOCITY))
     sweep_time, sweep = best_time(
-        lambda: improved_start(robot, segment, VELOCITY, "x3", SAMPLES), repeat=1
+        lambda: improved_start(robot, segment, VELOCITY, "x3", SAMPLES, method="sweep"),
+        repeat=1,
     )
     start_time, _ = best_time(lambda: default_start(robot, segment, "x3"))
     runs = [
@@ -176,9 +178,10 @@ def main() -> None:
             continue
         print(f"  {DENSE}-sample sweep", flush=True)
         dense_time, dense = best_time(
-            lambda s=segment: improved_start(robot, s, VELOCITY, "x3", DENSE), repeat=1
+            lambda s=segment: improved_start(robot, s, VELOCITY, "x3", DENSE, method="sweep"),
+            repeat=1,
         )
-        peak = VELOCITY.peak(fast.motion())[0]
+        peak = fast.motion().peak_velocity_norm[0]
         targets.append(
             [
                 segment.name,
@@ -244,7 +247,7 @@ def main() -> None:
     print("energy objective, segment 1-2", flush=True)
     segment = cycle["1-2"]
     energy_bound = global_optimum(robot, segment, ENERGY)
-    energy_peak = ENERGY.peak(fast_start(robot, segment, ENERGY).motion())[0]
+    energy_peak = improved_start(robot, segment, ENERGY).motion().peak_kinetic[0]
     lines += ["", "## Energy objective (peak ẋᵀ M_H ẋ), segment 1-2", ""]
     lines += table(
         ["strategy", "peak ẋᵀ M_H ẋ (J)", "gap to bound (%)"],
@@ -277,8 +280,8 @@ def main() -> None:
     segment = cycle["1-2"]
     q = inverse_kinematics(robot, segment.start, ["x3"], np.array([[1.0]])).q[0]
     y_dot = segment.velocity
-    law = FastResolver(robot, VELOCITY)
-    ours = per_call(lambda: law.step(q, y_dot), 20000)
+    law = VELOCITY.resolver
+    ours = per_call(lambda: law.step(robot, q, y_dot), 20000)
     generic = per_call(
         lambda: VELOCITY.resolver.resolve(actuator_space(robot, q), y_dot[None]), 3000
     )
@@ -286,12 +289,12 @@ def main() -> None:
     gradient = per_call(lambda: projection.resolve(actuator_space(robot, q), y_dot[None]), 3000)
     pink = PinkResolver(robot)
     target = robot.fk(q) + y_dot * pink.time_step
-    theirs = per_call(lambda: pink.step(q, target), 3000)
+    theirs = per_call(lambda: pink.control_step(q, target), 3000)
     lines += ["", "## One control step (one state on segment 1-2, best of 9)", ""]
     lines += table(
         ["step", "µs per step", "relative to ours"],
         [
-            ["ours: `FastResolver.step`, min ẋᵀẋ (Eq. 24)", f"{ours * 1e6:.1f}", "1"],
+            ["ours: `MinVelocityNorm().step`, min ẋᵀẋ (Eq. 24)", f"{ours * 1e6:.1f}", "1"],
             [
                 "`actuator_space` + `MinVelocityNorm.resolve`",
                 f"{generic * 1e6:.1f}",
