@@ -9,28 +9,13 @@ Best-of-N wall times on a machine that may be shared; printed, never asserted.
 import subprocess
 import sys
 import tempfile
-import time
-import timeit
 
 import numpy as np
+from strategies import best_time, per_call  # the script's folder: the timing helpers
 
 from redundancy import VELOCITY, actuator_space, global_optimum, improved_start, load_robot
 from redundancy.planning.ik import inverse_kinematics
 from redundancy.planning.tasks import WorkCycle
-
-
-def per_call(function, number: int, repeat: int = 7) -> float:
-    """Best-of-``repeat`` seconds per call."""
-    return min(timeit.repeat(function, number=number, repeat=repeat)) / number
-
-
-def best(function, repeat: int = 5):
-    times, result = [], None
-    for _ in range(repeat):
-        start = time.perf_counter()
-        result = function()
-        times.append(time.perf_counter() - start)
-    return min(times), result
 
 
 def main() -> None:
@@ -56,14 +41,14 @@ def main() -> None:
     except Exception as error:  # pink is an optional peer
         print(f"pink's step not measured: {error}")
     for s in cycle.segments:
-        cost, search = best(lambda s=s: improved_start(robot, s, VELOCITY))
+        cost, search = best_time(lambda s=s: improved_start(robot, s, VELOCITY), 5)
         rows.append((f"improved start (fast), segment {s.name}", cost * 1e3, "ms", 10))
-        cost, optimum = best(lambda s=s, r=search: global_optimum(robot, s, search=r), 3)
+        cost, optimum = best_time(lambda s=s, r=search: global_optimum(robot, s, search=r), 3)
         label = f"bound, segment {s.name} (change {100 * optimum.change:.4f} %)"
         rows.append((label, cost, "s", 1))
     with tempfile.TemporaryDirectory() as out:
         command = [sys.executable, "-m", "redundancy.cli", "study", "--quiet", "--out", out]
-        cost, _ = best(lambda: subprocess.run(command, check=True, capture_output=True), 3)
+        cost, _ = best_time(lambda: subprocess.run(command, check=True, capture_output=True), 3)
     rows.append(("redundancy study, defaults (wall, whole command)", cost, "s", 3))
     width = max(len(r[0]) for r in rows)
     print(f"{'what':<{width}}  {'measured':>10}  {'target':>8}  ratio")
