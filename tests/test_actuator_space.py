@@ -6,6 +6,7 @@ import pytest
 from sampling import random_configurations, random_velocities
 
 from redundancy import SingularConfigurationError, actuator_space, load_robot
+from redundancy.resolution.state import singular
 
 CRANES = ["hiab031", "hiab031_slewing"]
 
@@ -80,3 +81,21 @@ def test_a_singular_actuator_jacobian_is_named(crane):
         SingularConfigurationError, match=r"singular at q = \[0.0, 1.0, 0.5\].*'x1'"
     ):
         actuator_space(crane, [0.0, 1.0, 0.5])
+
+
+def test_singularity_test_matches_the_singular_values():
+    """`singular` agrees with σ_min < 1e-9 σ_max from the SVD, on matrices from orthogonal to
+    zero, with NaN and near overflow, one at a time and as a batch."""
+    rng = np.random.default_rng(3)
+    u, _, vt = np.linalg.svd(rng.normal(size=(3, 3)))
+    cases = [rng.normal(size=(3, 3)) for _ in range(5)]
+    cases += [u @ np.diag([1.0, 1.0, ratio]) @ vt for ratio in (1e-8, 2e-9, 5e-10, 0.0)]
+    cases += [np.zeros((3, 3)), np.full((3, 3), 1e300), 1e300 * u, np.full((3, 3), np.nan)]
+    expected = []
+    for a in cases[:-1]:
+        s = np.linalg.svd(a, compute_uv=False)
+        expected.append(bool(s[-1] < 1e-9 * s[0] or s[0] == 0))
+    expected.append(True)  # not finite
+    assert expected == [False] * 7 + [True] * 4 + [False, True]
+    assert singular(np.array(cases)).tolist() == expected
+    assert [bool(singular(a[None])[0]) for a in cases] == expected

@@ -149,8 +149,9 @@ class Identity(VectorisedMap):
         q = kinematics.q
         joints = [m.index for m in maps]
         rows = np.zeros((len(q), len(maps), q.shape[1]))
-        rows[:, np.arange(len(maps)), joints] = 1.0
-        return q[:, joints] + np.array([m.offset for m in maps]), rows
+        for row, joint in enumerate(joints):
+            rows[:, row, joint] = 1.0
+        return q.take(joints, 1) + np.array([m.offset for m in maps]), rows
 
     @classmethod
     def rate_group(cls, maps, kinematics):
@@ -240,29 +241,34 @@ class LinearCylinder(VectorisedMap):
         """Both ends' slots (c,), the unit vectors u (k, c, 3) and lengths x (k, c)."""
         base = [kinematics.slots[m.frames[0]] for m in maps]
         rod = [kinematics.slots[m.frames[1]] for m in maps]
-        d = kinematics.positions[:, rod] - kinematics.positions[:, base]
-        length = np.sqrt(np.sum(d * d, axis=2))
-        if np.any(length < 1e-12):
+        positions = kinematics.positions
+        d = positions.take(rod, 1) - positions.take(base, 1)
+        length = np.sqrt((d * d).sum(2))
+        if length.size and length.min() < 1e-12:
             names = [m.name for m, short in zip(maps, np.any(length < 1e-12, axis=0)) if short]
             raise SingularConfigurationError(
                 f"cylinders {names} have zero length: their attachment points coincide"
             )
         return base, rod, d / length[..., None], length
 
+    @staticmethod
+    def _relative(points: np.ndarray, base: list[int], rod: list[int]) -> np.ndarray:
+        """The rod end's quantity minus the base end's, for per-frame ``points`` (k, F, ...)."""
+        return points.take(rod, 1) - points.take(base, 1)
+
     @classmethod
     def evaluate_group(cls, maps, kinematics):
         base, rod, u, length = cls._geometry(maps, kinematics)
-        relative = kinematics.jacobians[:, rod] - kinematics.jacobians[:, base]
+        relative = cls._relative(kinematics.jacobians, base, rod)
         return length, (u[:, :, None, :] @ relative)[:, :, 0]
 
     @classmethod
     def rate_group(cls, maps, kinematics):
         base, rod, u, length = cls._geometry(maps, kinematics)
-        velocities, rates = kinematics.velocities, kinematics.jacobian_rates
-        relative = velocities[:, rod] - velocities[:, base]  # type: ignore[index]
-        u_dot = (relative - u * np.sum(u * relative, axis=2)[..., None]) / length[..., None]
-        jacobian = kinematics.jacobians[:, rod] - kinematics.jacobians[:, base]
-        rate = rates[:, rod] - rates[:, base]  # type: ignore[index]
+        relative = cls._relative(kinematics.velocities, base, rod)
+        u_dot = (relative - u * (u * relative).sum(2)[..., None]) / length[..., None]
+        jacobian = cls._relative(kinematics.jacobians, base, rod)
+        rate = cls._relative(kinematics.jacobian_rates, base, rod)
         return (u_dot[:, :, None, :] @ jacobian + u[:, :, None, :] @ rate)[:, :, 0]
 
     @classmethod
@@ -361,14 +367,18 @@ class ActuatorSet:
         """Which actuators are angles (rad) rather than lengths (m), (n,) bool."""
         return np.array([a.rotary for a in self.maps])
 
-    def _groups(self) -> list[tuple[type[ActuatorMap], list[ActuatorMap], np.ndarray]]:
-        """The maps by kind, with their rows: [(kind, maps, rows)]."""
+    def _groups(self) -> list[tuple[type[ActuatorMap], list[ActuatorMap], slice | np.ndarray]]:
+        """The maps by kind, with their rows (a slice where they are consecutive):
+        [(kind, maps, rows)]."""
         kinds: dict[type[ActuatorMap], list[int]] = {}
         for row, actuator in enumerate(self.maps):
             kinds.setdefault(type(actuator), []).append(row)
-        return [
-            (kind, [self.maps[r] for r in rows], np.array(rows)) for kind, rows in kinds.items()
-        ]
+        groups = []
+        for kind, rows in kinds.items():
+            consecutive = rows == list(range(rows[0], rows[-1] + 1))
+            chosen = slice(rows[0], rows[-1] + 1) if consecutive else np.array(rows)
+            groups.append((kind, [self.maps[r] for r in rows], chosen))
+        return groups
 
     def evaluate(self, kinematics: Kinematics) -> tuple[np.ndarray, np.ndarray]:
         """x = h2(q) (k, n) and A = ∂x/∂q (k, n, n) (Eqs. 10-11)."""

@@ -69,23 +69,25 @@ def track(
 ) -> Kinematics:
     """Kinematics of ``frames`` at the states q (k, n) and, if given, v (k, n)."""
     jacobian, placement = pin.getFrameJacobian, pin.updateFramePlacement
-    gathered, placed, changing = [], [], []
-    for i in range(len(q)):
-        if v is None:
+    rate = pin.getFrameJacobianTimeVariation
+    k, count = len(q), len(frames)
+    # Pinocchio's results are written straight into preallocated arrays: the translation
+    # updateFramePlacement hands back is a view into data, valid until the next state
+    jacobians = np.empty((k, count, 6, model.nv))
+    positions = np.empty((k, count, 3))
+    rates = None if v is None else np.empty((k, count, 6, model.nv))
+    for i in range(k):
+        if rates is None:
             pin.computeJointJacobians(model, data, q[i])
         else:
             pin.computeJointJacobiansTimeVariation(model, data, q[i], v[i])
-            rate = pin.getFrameJacobianTimeVariation
-            changing += [rate(model, data, frame, WORLD) for frame in frames]
-        gathered += [jacobian(model, data, frame, WORLD) for frame in frames]
-        # updateFramePlacement hands back data.oMf[frame], faster than indexing it; its
-        # translation is a view into data, hence the copy
-        placed += [placement(model, data, frame).translation.copy() for frame in frames]
-    shape = (len(q), len(frames))
-    jacobians = np.array(gathered).reshape(*shape, 6, model.nv)[:, :, :3]
-    positions = np.array(placed).reshape(*shape, 3)
-    if v is None:
-        return Kinematics(q, None, positions, jacobians, None, None, slots)
-    rates = np.array(changing).reshape(*shape, 6, model.nv)[:, :, :3]
-    velocities = (jacobians @ v[:, None, :, None])[..., 0]
-    return Kinematics(q, v, positions, jacobians, velocities, rates, slots)
+            for slot, frame in enumerate(frames):
+                rates[i, slot] = rate(model, data, frame, WORLD)
+        for slot, frame in enumerate(frames):
+            jacobians[i, slot] = jacobian(model, data, frame, WORLD)
+            positions[i, slot] = placement(model, data, frame).translation
+    linear = jacobians[:, :, :3]
+    if v is None or rates is None:
+        return Kinematics(q, None, positions, linear, None, None, slots)
+    velocities = (linear @ v[:, None, :, None])[..., 0]
+    return Kinematics(q, v, positions, linear, velocities, rates[:, :, :3], slots)

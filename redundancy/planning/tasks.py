@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import tomllib
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -42,15 +43,17 @@ class Segment:
         if not np.linalg.norm(self.end - self.start) > 0:
             raise InvalidInputError(f"segment {self.name}: start and end coincide")
 
-    @property
+    @cached_property
     def duration(self) -> float:
         """t_f = |Q − P| / speed, in s."""
         return float(np.linalg.norm(self.end - self.start) / self.speed)
 
-    @property
+    @cached_property
     def velocity(self) -> np.ndarray:
-        """ẏ_d = (Q − P) / t_f (Eq. 34), constant, (m,) in m/s."""
-        return (self.end - self.start) / self.duration
+        """ẏ_d = (Q − P) / t_f (Eq. 34), constant, (m,) in m/s (read-only)."""
+        velocity = (self.end - self.start) / self.duration
+        velocity.setflags(write=False)
+        return velocity
 
     def position(self, t: np.ndarray | float) -> np.ndarray:
         """y_d(t) = Q + (1 − t/t_f)(P − Q) (Eq. 33), (..., m) for t (...,) in s."""

@@ -43,15 +43,15 @@ def singular(A: np.ndarray, tolerance: float = SINGULAR_TOLERANCE) -> np.ndarray
     σ_max ≤ ‖A‖_F), so the singular values are computed only where that bound is not enough.
     """
     n = A.shape[-1]
-    frobenius = np.einsum("kij,kij->k", A, A)
-    with np.errstate(invalid="ignore", over="ignore"):
-        settled = np.linalg.det(A) ** 2 >= tolerance**2 * frobenius**n
+    with np.errstate(all="ignore"):  # overflow and NaN fall through to the singular values
+        settled = np.linalg.det(A) ** 2 > tolerance**2 * (A * A).sum(axis=(1, 2)) ** n
     found = np.zeros(len(A), dtype=bool)
+    if settled.all():
+        return found
     rows = np.flatnonzero(~settled)
-    if rows.size:
-        finite = np.all(np.isfinite(A[rows]), axis=(1, 2))
-        found[rows] = ~finite
-        found[rows[finite]] = invertibility(A[rows[finite]]) < tolerance
+    finite = np.all(np.isfinite(A[rows]), axis=(1, 2))
+    found[rows] = ~finite
+    found[rows[finite]] = invertibility(A[rows[finite]]) < tolerance
     return found
 
 
