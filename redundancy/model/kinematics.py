@@ -77,7 +77,7 @@ def track(
     positions = np.empty((k, count, 3))
     rates = None if v is None else np.empty((k, count, 6, model.nv))
     for i in range(k):
-        if rates is None:
+        if v is None or rates is None:
             pin.computeJointJacobians(model, data, q[i])
         else:
             pin.computeJointJacobiansTimeVariation(model, data, q[i], v[i])
