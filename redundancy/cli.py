@@ -35,6 +35,11 @@ def _add_robot_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--payload", type=float, default=None, help="payload at the tool, kg (robot default)"
     )
+    parser.add_argument(
+        "--hydraulics",
+        metavar="FILE",
+        help="TOML file with a [hydraulics] table (default: the robot's own, if any)",
+    )
 
 
 def describe(robot: Robot) -> str:
@@ -61,7 +66,7 @@ def describe(robot: Robot) -> str:
 
 
 def _describe_command(args: argparse.Namespace) -> None:
-    print(describe(load_robot(args.robot, payload=args.payload)))
+    print(describe(load_robot(args.robot, payload=args.payload, hydraulics=args.hydraulics)))
 
 
 def _positive(text: str) -> int:
@@ -80,9 +85,9 @@ def _load_task(robot: Robot, path: str | None) -> WorkCycle:
 
 
 def _study_command(args: argparse.Namespace) -> None:
-    robot = load_robot(args.robot, payload=args.payload)
+    robot = load_robot(args.robot, payload=args.payload, hydraulics=args.hydraulics)
     cycle = _load_task(robot, args.task)
-    chosen = tuple(OBJECTIVES) if args.objective == "both" else (args.objective,)
+    chosen = ("velocity", "energy") if args.objective == "both" else (args.objective,)
     checked = None if args.check is None else tuple(args.check.split(","))
     study = run_study(
         robot,
@@ -92,6 +97,7 @@ def _study_command(args: argparse.Namespace) -> None:
         checked=checked,
         method=args.method,
         progress=not args.quiet,
+        energy_bound=args.energy_bound,
     )
     print(study.table())
     out = Path(args.out)
@@ -138,7 +144,7 @@ def _held(names, values) -> str:
 
 
 def _play_command(args: argparse.Namespace) -> None:
-    robot = load_robot(args.robot, payload=args.payload)
+    robot = load_robot(args.robot, payload=args.payload, hydraulics=args.hydraulics)
     cycle = _load_task(robot, args.task)
     segment = cycle[args.segment] if args.segment else cycle.segments[0]
     chosen = objective(args.objective)
@@ -178,7 +184,10 @@ def parser() -> argparse.ArgumentParser:
     _add_robot_options(study)
     study.add_argument("--task", help="task file (TOML); default: the robot's own")
     study.add_argument(
-        "--objective", choices=[*OBJECTIVES, "both"], default="both", help="what to minimise"
+        "--objective",
+        choices=[*OBJECTIVES, "both"],
+        default="both",
+        help="what to minimise; both: the paper's velocity and energy",
     )
     study.add_argument("--samples", type=_positive, default=100, help="starts per sweep")
     study.add_argument(
@@ -191,6 +200,11 @@ def parser() -> argparse.ArgumentParser:
     study.add_argument(
         "--check",
         help="comma-separated actuators whose limits count (default: all; the paper: x1,x2)",
+    )
+    study.add_argument(
+        "--energy-bound",
+        action="store_true",
+        help="also the energy bound of each segment under LS and CP (seconds per segment)",
     )
     study.add_argument("--out", default="results", help="output folder (figures, report)")
     study.add_argument("--json", help="report path (default: OUT/report.json)")

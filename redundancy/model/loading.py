@@ -16,6 +16,7 @@ from lxml import etree
 
 from redundancy.errors import InvalidInputError, RobotDescriptionError
 from redundancy.model.actuators import ActuatorSet
+from redundancy.model.hydraulics import circuit_from_table, read_hydraulics_file
 from redundancy.model.robot import AXES, Robot
 from redundancy.model.transmissions import read_transmissions
 
@@ -124,7 +125,10 @@ def _add_payload(model: pin.Model, frame: str, payload: float) -> None:
 
 
 def load_robot(
-    robot: str | Path, payload: float | None = None, task_axes: str | None = None
+    robot: str | Path,
+    payload: float | None = None,
+    task_axes: str | None = None,
+    hydraulics: str | Path | None = None,
 ) -> Robot:
     """Load a bundled robot by name, or a robot from a ``robot.toml`` or ``.urdf`` path.
 
@@ -135,7 +139,8 @@ def load_robot(
     the robot's task file (``task``, see `redundancy.planning.tasks`). A bare URDF takes its last
     link as the tool and the full position "xyz" as the task. ``payload`` (kg, ≥ 0) is a point
     mass at the tool frame, None taking the description's default, or 0; ``task_axes``
-    overrides the description's.
+    overrides the description's. The hydraulic circuit comes from the ``[hydraulics]`` table of
+    the TOML file ``hydraulics`` if given, else from the description's (schema in the README).
     """
     name, folder, description = _describe(robot)
     urdf_path = _urdf_path(folder, description["urdf"])
@@ -164,4 +169,14 @@ def load_robot(
     actuators = ActuatorSet.bind(read_transmissions(root, urdf_path.name), model)
     task = description.get("task")
     task_file = None if task is None else folder / task
-    return Robot(name, model, tool_frame, task_axes, actuators, payload, urdf_path, task_file)
+    names, rotary = actuators.names, actuators.rotary.tolist()
+    circuit = None
+    if hydraulics is not None:
+        table = read_hydraulics_file(Path(hydraulics))
+        circuit = circuit_from_table(table, str(hydraulics), names, rotary)
+    elif "hydraulics" in description:
+        source = Path(robot) if Path(robot).suffix == ".toml" else folder / "robot.toml"
+        circuit = circuit_from_table(description["hydraulics"], str(source), names, rotary)
+    return Robot(
+        name, model, tool_frame, task_axes, actuators, payload, urdf_path, task_file, circuit
+    )

@@ -19,6 +19,7 @@ import pinocchio as pin
 
 from redundancy.errors import InvalidInputError
 from redundancy.model.actuators import ActuatorSet, prismatic
+from redundancy.model.hydraulics import Circuit
 from redundancy.model.kinematics import Kinematics, PointMotion, track
 
 AXES = "xyz"
@@ -40,7 +41,8 @@ def _answer(batch: np.ndarray, single: bool) -> np.ndarray:
 
 
 class Robot:
-    """A manipulator: Pinocchio model, tool point, task axes, actuators and limits.
+    """A manipulator: Pinocchio model, tool point, task axes, actuators and limits, and its
+    hydraulic circuit where one is declared (`redundancy.model.hydraulics`).
 
     The task y is the tool position's world components ``task_axes`` (m of them); n joints; one
     actuator per joint (``actuators``), so that A = ∂x/∂q is square.
@@ -56,6 +58,7 @@ class Robot:
         payload: float,
         urdf: Path,
         task_file: Path | None = None,
+        hydraulics: Circuit | None = None,
     ) -> None:
         self.name = name
         self.model = model
@@ -66,6 +69,7 @@ class Robot:
         self.tool_frame = tool_frame
         self.task_axes = task_axes
         self.actuators = actuators
+        self.hydraulics = hydraulics
         self._tool = model.getFrameId(tool_frame)
         self._task_rows = [AXES.index(a) for a in task_axes]
         tracked = [self._tool] + [f for a in actuators for f in a.frames]
@@ -75,6 +79,15 @@ class Robot:
 
     def __repr__(self) -> str:
         return f"Robot({self.name!r}, n={self.n}, m={self.m}, payload={self.payload} kg)"
+
+    def circuit(self) -> Circuit:
+        """The robot's hydraulics, or `InvalidInputError` saying how to declare them."""
+        if self.hydraulics is None:
+            raise InvalidInputError(
+                f"{self.name} has no hydraulics; declare a [hydraulics] table in its robot.toml "
+                "or give one with --hydraulics FILE (schema in the README)"
+            )
+        return self.hydraulics
 
     @property
     def n(self) -> int:

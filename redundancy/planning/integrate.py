@@ -33,12 +33,13 @@ from typing import NamedTuple
 import numpy as np
 
 from redundancy.errors import InvalidInputError
+from redundancy.model.hydraulics import Flows, Supply
 from redundancy.model.robot import Robot
 from redundancy.planning.tasks import Segment
 from redundancy.resolution.laws import Resolver
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
-from redundancy.resolution.limits import Limits, Violation
-from redundancy.resolution.objectives import Objective, kinetic, velocity_norm
+from redundancy.resolution.limits import Limits, Violation, hydraulic_values
+from redundancy.resolution.objectives import Objective, integral, kinetic, velocity_norm
 from redundancy.resolution.state import ActuatorSpace, evaluate, singular
 
 TIME_STEP = 0.01  # s
@@ -133,12 +134,13 @@ class Trajectory:
 
     @cached_property
     def states(self) -> ActuatorSpace:
-        """The actuator space at every sample, with q̇ = A⁻¹ ẋ, as one flat batch of k·T."""
+        """The actuator space at every sample, with q̇ = A⁻¹ ẋ and ẍ (`x_ddot`), as one flat
+        batch of k·T."""
         k, T, n = self.q.shape
         q = self.q.reshape(k * T, n)
         at_rest = evaluate(self.robot, q)
         v = np.linalg.solve(at_rest.A, self.x_dot.reshape(k * T, n, 1))[..., 0]
-        return evaluate(self.robot, q, v)
+        return replace(evaluate(self.robot, q, v), x_ddot=self.x_ddot.reshape(k * T, n))
 
     def values(self, objective: Objective) -> np.ndarray:
         """``objective``'s measure at every sample (k, T)."""
@@ -173,8 +175,34 @@ class Trajectory:
     @cached_property
     def forces(self) -> np.ndarray:
         """Actuator forces F_H = M_H ẍ + N_H (k, T, n) (Eq. 21), N."""
-        k, T, n = self.q.shape
-        return self.states.forces(self.x_ddot.reshape(k * T, n)).reshape(k, T, n)
+        return self.states.F_H.reshape(self.x.shape)
+
+    @cached_property
+    def flows(self) -> Flows:
+        """The robot's hydraulic circuit along the motion, (k, T, c) per cylinder
+        (`redundancy.model.hydraulics`)."""
+        return self.robot.circuit().flows(self.x_dot, self.forces)
+
+    def energy(self, supply: Supply | None = None) -> np.ndarray:
+        """Pump energy E = ∫ p_P Q_P dt (k,), J, under ``supply`` (default the machine's)."""
+        supply = supply or self.robot.circuit().supply
+        return integral(self.t, self.flows.power(supply))
+
+    @cached_property
+    def hydraulic_limits(self) -> Limits:
+        """The circuit's limits (`Limits.hydraulic`), on `hydraulic_values`."""
+        return Limits.hydraulic(self.robot)
+
+    @cached_property
+    def hydraulic_values(self) -> np.ndarray:
+        """What the circuit's limits bound, (k, T, 2c + 1): each cylinder's load pressure (Pa),
+        the pump flow (m³/s), each cylinder's speed (m/s)."""
+        return hydraulic_values(self.robot.circuit(), self.x_dot, self.flows)
+
+    def hydraulic_violations(self, i: int) -> list[Violation]:
+        """Every interval over which motion ``i`` passes a limit of the circuit, at its
+        samples."""
+        return self.hydraulic_limits.violations(self.t[i], self.hydraulic_values[i])
 
     @property
     def velocity_norm(self) -> np.ndarray:
@@ -344,7 +372,10 @@ def simulate(
     if not (time_step > 0 and gain >= 0 and tolerance > 0):
         raise InvalidInputError("time_step must be > 0 s, gain ≥ 0 1/s and tolerance > 0")
     limits = Limits.strokes(robot, checked)
-    law = Law(robot, resolver, segment, gain, objective)
+    # a dynamic objective's measure needs ẍ, known only on the finished motion
+    law = Law(
+        robot, resolver, segment, gain, None if objective and objective.dynamic else objective
+    )
     grid = time_grid(segment, time_step)
     if method == "rk4":
         samples = _runge_kutta(law, starts, grid)

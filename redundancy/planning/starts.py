@@ -395,8 +395,7 @@ def _reason(trajectory: Trajectory, row: int, violations: tuple[Violation, ...])
     if violations:
         return str(max(violations, key=lambda v: v.excess))
     return (
-        f"within the integration allowance ({amount(trajectory.allowance, False)}) of a "
-        "stroke limit"
+        f"within the integration allowance ({amount(trajectory.allowance, 'm')}) of a stroke limit"
     )
 
 

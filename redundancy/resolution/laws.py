@@ -6,7 +6,8 @@ A law is a weight W(state) and an optional null-space term z(state). It answers
 
 the solution of J_H ẋ = ẏ (Eq. 16) nearest z in the norm ẋᵀ W ẋ: with z = 0, the one of least
 ẋᵀ W ẋ. W = I gives the minimum actuator-velocity norm (Eqs. 24, 26), W = M_H the minimum
-kinetic energy (Eqs. 29, 32); gradient projection is W = I with z = α ∇Φ (Eq. 1).
+kinetic energy (Eqs. 29, 32), W = diag(A_A²) the least sum of squared piston-side flows
+(`MinFlow`); gradient projection is W = I with z = α ∇Φ (Eq. 1).
 
 Near a singularity of J_H (the task Jacobian losing rank), the m×m matrix G = J_H W⁻¹ J_Hᵀ is
 damped: λ² I is added to it, λ² = ε σ_max (1 − (σ_min / (ε σ_max))²), when the ratio of its
@@ -109,6 +110,21 @@ class MinKineticEnergy(Resolver):
 
     def weight(self, space: ActuatorSpace) -> np.ndarray:
         return space.M_H
+
+
+class MinFlow(Resolver):
+    """ẋ = J_W⁺ ẏ with W = diag(A_A²): among all ẋ with J_H ẋ = ẏ, the one of least Σ (A_A,i ẋ_i)²,
+    the squared piston-side flows of the robot's cylinders (`redundancy.model.hydraulics`).
+    W is scaled to a mean of 1 over the cylinders; actuators that are not cylinders weigh as the
+    mean cylinder. A robot without hydraulics raises `InvalidInputError`."""
+
+    name = "flow-weighted pseudoinverse (min Σ (A_A ẋ)²)"
+
+    def weight(self, space: ActuatorSpace) -> np.ndarray:
+        circuit = space.robot.circuit()
+        diagonal = np.ones(space.robot.n)
+        diagonal[circuit.columns] = circuit.piston_areas**2 / np.mean(circuit.piston_areas**2)
+        return np.broadcast_to(np.diag(diagonal), space.A.shape)
 
 
 class GradientProjection(Resolver):

@@ -1,10 +1,12 @@
-"""Limits: actuator strokes and joint ranges, one margin and one `Violation` for all.
+"""Limits: actuator strokes, joint ranges and the hydraulic circuit's limits, one margin and one
+`Violation` for all.
 
 The margin of a value to its limits [lower, upper] is min(value − lower, upper − value): the
 distance inside (m, or rad for rotary actuators and revolute joints), negative past a limit. A
 set of limits' margin is the least of its members'. Whoever checks limits (the integrators, both
 searches, the bound, the playback) reads this one definition; a value within `TOLERANCE` past a
-limit counts as inside. Messages give lengths in mm and angles in degrees.
+limit counts as inside. Messages give lengths in mm, angles in degrees, pressures in bar, flows
+in L/min and speeds in m/s.
 """
 
 from __future__ import annotations
@@ -14,31 +16,44 @@ from dataclasses import dataclass
 import numpy as np
 
 from redundancy.errors import InvalidInputError
+from redundancy.model.hydraulics import Circuit, Flows
 from redundancy.model.robot import Robot
 
 TOLERANCE = 1e-9  # m or rad: a value this close past a limit counts as inside
 
 
-def amount(value: float, rotary: bool) -> str:
-    """A length (m) in mm, or an angle (rad) in degrees, for messages."""
-    return f"{np.degrees(value):.4g}°" if rotary else f"{value * 1000:.4g} mm"
+# SI unit → (factor, shown unit) for messages
+SHOWN = {
+    "m": (1e3, " mm"),
+    "rad": (180 / np.pi, "°"),
+    "Pa": (1e-5, " bar"),
+    "m³/s": (6e4, " L/min"),
+    "m/s": (1.0, " m/s"),
+}
+
+
+def amount(value: float, unit: str) -> str:
+    """``value`` in the SI ``unit`` (a key of `SHOWN`) as messages show it: m in mm, rad in
+    degrees, Pa in bar, m³/s in L/min."""
+    factor, shown = SHOWN[unit]
+    return f"{value * factor:.4g}{shown}"
 
 
 @dataclass(frozen=True)
 class Violation:
-    """A limit passed over [start, end] (s): ``name`` at worst ``excess`` (m or rad) past its
-    ``bound`` ("lower" or "upper")."""
+    """A limit passed over [start, end] (s): ``actuator`` (or a hydraulic quantity's name) at
+    worst ``excess`` (in the SI ``unit``) past its ``bound`` ("lower" or "upper")."""
 
     actuator: str
     bound: str
     start: float
     end: float
     excess: float
-    rotary: bool = False
+    unit: str = "m"
 
     def __str__(self) -> str:
         return (
-            f"{self.actuator} {amount(self.excess, self.rotary)} past its {self.bound} limit "
+            f"{self.actuator} {amount(self.excess, self.unit)} past its {self.bound} limit "
             f"over t = {self.start:.2f}-{self.end:.2f} s"
         )
 
@@ -46,13 +61,13 @@ class Violation:
 @dataclass(frozen=True)
 class Limits:
     """Limits [lower, upper] (c,) on c of a state's n coordinates: ``columns`` (c,) index them,
-    ``names`` name them, ``rotary`` (c,) marks angles."""
+    ``names`` name them, ``units`` (c,) give their SI units (keys of `SHOWN`)."""
 
     names: tuple[str, ...]
     columns: np.ndarray
     lower: np.ndarray
     upper: np.ndarray
-    rotary: np.ndarray
+    units: tuple[str, ...]
 
     @classmethod
     def strokes(cls, robot: Robot, checked: tuple[str, ...] | list[str] | None = None) -> Limits:
@@ -69,7 +84,7 @@ class Limits:
             columns,
             actuators.lower[columns],
             actuators.upper[columns],
-            actuators.rotary[columns],
+            tuple("rad" if rotary else "m" for rotary in actuators.rotary[columns]),
         )
 
     @classmethod
@@ -80,8 +95,30 @@ class Limits:
             np.arange(robot.n),
             robot.lower.copy(),
             robot.upper.copy(),
-            robot.rotary_joints,
+            tuple("rad" if rotary else "m" for rotary in robot.rotary_joints),
         )
+
+    @classmethod
+    def hydraulic(cls, robot: Robot) -> Limits:
+        """The circuit's limits on `hydraulic_values`: each cylinder's load
+        pressure at most what the supply can serve, the pump flow at most its maximum, each
+        cylinder's speed at most its maximum (`redundancy.model.hydraulics`)."""
+        circuit = robot.circuit()
+        c = len(circuit.names)
+        names = (
+            *(f"{name} load pressure" for name in circuit.names),
+            "pump flow",
+            *(f"{name} speed" for name in circuit.names),
+        )
+        upper = np.concatenate(
+            [
+                np.full(c, circuit.supply.available(circuit.relief)),
+                [circuit.pump_flow],
+                circuit.max_speeds,
+            ]
+        )
+        units = ("Pa",) * c + ("m³/s",) + ("m/s",) * c
+        return cls(names, np.arange(2 * c + 1), np.full(2 * c + 1, -np.inf), upper, units)
 
     def excess(self, values: np.ndarray) -> np.ndarray:
         """How far each checked value is past its limit, (..., c): positive past, negative
@@ -122,7 +159,15 @@ class Limits:
                             float(t[start]),
                             float(t[stop - 1]),
                             float(excess[start:stop].max()),
-                            bool(self.rotary[j]),
+                            self.units[j],
                         )
                     )
         return sorted(found, key=lambda v: v.start)
+
+
+def hydraulic_values(circuit: Circuit, x_dot: np.ndarray, flows: Flows) -> np.ndarray:
+    """What `Limits.hydraulic` bounds, (..., 2c + 1): each cylinder's load pressure (Pa), the
+    pump flow (m³/s), each cylinder's speed (m/s), for actuator velocities ẋ (..., n) and the
+    circuit's ``flows`` at them."""
+    speeds = np.abs(x_dot[..., circuit.columns])
+    return np.concatenate([flows.load, flows.pump_flow[..., None], speeds], axis=-1)

@@ -4,8 +4,13 @@ The measure is a quantity at each state, computed from the state and its actuato
 the objective reduces it over a motion to its peak (the paper's choice, Figs. 4a, 5a) or its
 time integral. The paper's two improved solutions are `VELOCITY` (the law of least ẋᵀẋ, Eq. 24,
 measured by ẋᵀẋ) and `ENERGY` (the law of least ẋᵀ M_H ẋ, Eq. 32, measured by ẋᵀ M_H ẋ, twice
-the kinetic energy, Eq. 28). An objective of your own is one more `Objective`: every search
-(the sweep, the fast search) and the bound take it as they take these.
+the kinetic energy, Eq. 28). With a hydraulic circuit (`redundancy.model.hydraulics`) three
+more follow the flow-weighted law (`MinFlow`): `FLOW`, the peak pump flow Q_P, and `LS_ENERGY`
+and `CP_ENERGY`, the pump energy ∫ p_P Q_P dt under load sensing and constant pressure. The
+energies need the forces F_H = M_H ẍ + N_H, hence ẍ: such an objective is ``dynamic``, measured
+on finished motions (ẍ from their samples), not inside the integrator. An objective of your own
+is one more `Objective`: every search (the sweep, the fast search) and, for a peak, the bound
+take it as they take these.
 """
 
 from __future__ import annotations
@@ -16,7 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from redundancy.errors import InvalidInputError
-from redundancy.resolution.laws import MinKineticEnergy, MinVelocityNorm, Resolver
+from redundancy.model.hydraulics import KILOJOULE, LITRES_PER_MINUTE
+from redundancy.resolution.laws import MinFlow, MinKineticEnergy, MinVelocityNorm, Resolver
 from redundancy.resolution.state import ActuatorSpace
 
 REDUCTIONS = ("peak", "integral")
@@ -26,7 +32,8 @@ REDUCTIONS = ("peak", "integral")
 class Objective:
     """A named objective: its ``resolver`` (the law the motion follows), its ``measure``
     (states, ẋ (k, n)) → (k,), and how a motion's measure is reduced: "peak" (the maximum) or
-    "integral" (over time, trapezoidal). ``label`` and ``unit`` name the measure."""
+    "integral" (over time, trapezoidal). ``label`` and ``unit`` name the measure. A
+    ``dynamic`` measure reads the forces ``space.F_H``, so it is taken on finished motions."""
 
     name: str
     resolver: Resolver
@@ -34,6 +41,7 @@ class Objective:
     label: str
     unit: str
     reduction: str = "peak"
+    dynamic: bool = False
 
     def __post_init__(self) -> None:
         if self.reduction not in REDUCTIONS:
@@ -46,7 +54,12 @@ class Objective:
         """The objective of k motions from the measure ``values`` (k, T) at times t (k, T)."""
         if self.reduction == "peak":
             return values.max(axis=1)
-        return np.sum((values[:, 1:] + values[:, :-1]) / 2 * np.diff(t, axis=1), axis=1)
+        return integral(t, values)
+
+
+def integral(t: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """∫ values dt (k,) by the trapezoidal rule, for samples values (k, T) at times t (k, T)."""
+    return np.sum((values[:, 1:] + values[:, :-1]) / 2 * np.diff(t, axis=1), axis=1)
 
 
 def velocity_norm(space: ActuatorSpace, x_dot: np.ndarray) -> np.ndarray:
@@ -59,9 +72,33 @@ def kinetic(space: ActuatorSpace, x_dot: np.ndarray) -> np.ndarray:
     return np.einsum("ki,kij,kj->k", x_dot, space.M_H, x_dot)
 
 
+def pump_flow(space: ActuatorSpace, x_dot: np.ndarray) -> np.ndarray:
+    """Pump flow Q_P = Σ Q (k,), L/min."""
+    return space.robot.circuit().flow_rates(x_dot) / LITRES_PER_MINUTE
+
+
+def ls_power(space: ActuatorSpace, x_dot: np.ndarray) -> np.ndarray:
+    """Pump power p_P Q_P (k,) under load sensing, kW (its integral in kJ)."""
+    circuit = space.robot.circuit()
+    return circuit.flows(x_dot, space.F_H).power(circuit.load_sensing) / KILOJOULE
+
+
+def cp_power(space: ActuatorSpace, x_dot: np.ndarray) -> np.ndarray:
+    """Pump power p_S Q_P (k,) under constant pressure, kW (its integral in kJ)."""
+    circuit = space.robot.circuit()
+    return circuit.flows(x_dot, space.F_H).power(circuit.constant_pressure) / KILOJOULE
+
+
 VELOCITY = Objective("velocity", MinVelocityNorm(), velocity_norm, "ẋᵀẋ", "m²/s²")
 ENERGY = Objective("energy", MinKineticEnergy(), kinetic, "ẋᵀ M_H ẋ", "J")
-OBJECTIVES = {o.name: o for o in (VELOCITY, ENERGY)}
+FLOW = Objective("flow", MinFlow(), pump_flow, "pump flow Q_P", "L/min")
+LS_ENERGY = Objective(
+    "ls_energy", MinFlow(), ls_power, "LS pump power", "kW", "integral", dynamic=True
+)
+CP_ENERGY = Objective(
+    "cp_energy", MinFlow(), cp_power, "CP pump power", "kW", "integral", dynamic=True
+)
+OBJECTIVES = {o.name: o for o in (VELOCITY, ENERGY, FLOW, LS_ENERGY, CP_ENERGY)}
 
 
 def objective(name: str) -> Objective:

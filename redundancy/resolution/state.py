@@ -73,7 +73,8 @@ class ActuatorSpace:
 
     Read from the one Pinocchio pass: q (k, n) joints; x (k, n) strokes (m, or rad for a rotary
     actuator); A (k, n, n); y (k, m) task point (m); J (k, m, n); v (k, n) joint velocities, or
-    None at rest. Derived when first read: x_dot, A_dot, J_H, M, M_H (kg), N_H (N).
+    None at rest; x_ddot (k, n) actuator accelerations where known. Derived when first read:
+    x_dot, A_dot, J_H, M, M_H (kg), N_H (N), and with x_ddot F_H (N).
     """
 
     robot: Robot = field(repr=False)
@@ -84,6 +85,7 @@ class ActuatorSpace:
     A: np.ndarray
     y: np.ndarray
     J: np.ndarray
+    x_ddot: np.ndarray | None = None
 
     @cached_property
     def x_dot(self) -> np.ndarray:
@@ -127,6 +129,14 @@ class ActuatorSpace:
             solve(np.swapaxes(self.A, 1, 2), N[..., None])[..., 0]
             - (self.M_H @ a_dot_v[..., None])[..., 0]
         )
+
+    @cached_property
+    def F_H(self) -> np.ndarray:
+        """F_H = M_H ẍ + N_H (Eq. 21) (k, n) in N, at the accelerations ``x_ddot`` the states
+        were given (`InvalidInputError` without them)."""
+        if self.x_ddot is None:
+            raise InvalidInputError("these states carry no accelerations ẍ; use forces(x_ddot)")
+        return self.forces(self.x_ddot)
 
     def forces(self, x_ddot: np.ndarray) -> np.ndarray:
         """Actuator forces F_H = M_H ẍ + N_H (Eq. 21), (k, n) in N, for x_ddot (k, n)."""

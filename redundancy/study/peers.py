@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from redundancy.errors import InvalidInputError, RedundancyError
+from redundancy.model.hydraulics import BAR, KILOJOULE, LITRES_PER_MINUTE
 from redundancy.model.robot import AXES, Robot
 from redundancy.planning.integrate import TIME_STEP, Trajectory, simulate, time_grid
 from redundancy.planning.starts import default_start, scalar_or_list
@@ -57,7 +58,25 @@ class StrategyRun:
             "within_limits": bool(motion.within_limits[0]),
             "max_tracking_error": float(motion.max_tracking_error[0]),
             "violations": [str(v) for v in motion.violations(0)],
+            **({} if motion.robot.hydraulics is None else {"hydraulics": hydraulics(motion)}),
         }
+
+
+def hydraulics(motion: Trajectory) -> dict:
+    """The hydraulic figures of the first motion of ``motion`` in the units the field uses:
+    peak pump flow (L/min), highest load pressure (bar), pump energy under load sensing and
+    constant pressure (kJ), whether a load overran, and the circuit's limits passed."""
+    circuit, flows = motion.robot.circuit(), motion.flows
+    violations = motion.hydraulic_violations(0)
+    return {
+        "peak_pump_flow_l_min": float(flows.pump_flow[0].max() / LITRES_PER_MINUTE),
+        "max_load_pressure_bar": float(flows.load[0].max() / BAR),
+        "ls_energy_kj": float(motion.energy(circuit.load_sensing)[0] / KILOJOULE),
+        "cp_energy_kj": float(motion.energy(circuit.constant_pressure)[0] / KILOJOULE),
+        "overrunning": bool(flows.overrunning[0].any()),
+        "within_limits": not violations,
+        "violations": [str(v) for v in violations],
+    }
 
 
 def fixed_start_run(

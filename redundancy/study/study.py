@@ -13,7 +13,10 @@ For each segment the comparison holds, with both peaks and whether every limit h
 - the unweighted and the M_H-weighted pseudoinverse from the default start (the held actuator at
   mid-stroke, or the reachable value nearest it: `default_start`);
 - gradient projection with actuator-limit avoidance from the same start (the paper's baseline);
-- the improved method for each objective.
+- the improved method for each objective;
+- with a hydraulic circuit, each motion's peak pump flow, highest load pressure and pump energy
+  under load sensing and constant pressure, and, when asked for, how far each lies above the
+  energy bound of each supply (`redundancy.planning.energy_bound`).
 """
 
 from __future__ import annotations
@@ -25,8 +28,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from redundancy.errors import InvalidInputError
+from redundancy.model.hydraulics import KILOJOULE
 from redundancy.model.robot import Robot
 from redundancy.planning.bound import GlobalOptimum, global_optimum
+from redundancy.planning.energy_bound import EnergyOptimum, energy_optimum
 from redundancy.planning.starts import (
     METHODS,
     SearchResult,
@@ -63,6 +68,7 @@ class Study:
     sweeps: dict[str, tuple[SearchResult, ...]]
     bounds: dict[str, tuple[GlobalOptimum | None, ...]]
     runs: tuple[StrategyRun, ...]
+    energy_bounds: dict[str, dict[str, EnergyOptimum]] | None = None  # segment → supply → bound
 
     def search(self, objective: str, segment: str) -> SearchResult:
         return self.searches[objective][self._segment(segment)]
@@ -105,7 +111,41 @@ class Study:
                 }
                 for name, searches in self.searches.items()
             ],
-            "comparison": [run.summary() for run in self.runs],
+            "comparison": [self._run_report(run) for run in self.runs],
+            **({} if self.energy_bounds is None else {"energy_bounds": self._energy_report()}),
+        }
+
+    def above_energy_bound(self, run: StrategyRun) -> dict[str, float]:
+        """How far ``run``'s pump energy lies above the energy bound of each supply, per cent
+        (empty without energy bounds)."""
+        if self.energy_bounds is None or run.segment not in self.energy_bounds:
+            return {}
+        energies = run.summary()["hydraulics"]
+        return {
+            supply: 100 * (energies[f"{supply.lower()}_energy_kj"] * KILOJOULE / b.energy - 1)
+            for supply, b in self.energy_bounds[run.segment].items()
+        }
+
+    def _run_report(self, run: StrategyRun) -> dict:
+        summary = run.summary()
+        above = self.above_energy_bound(run)
+        if above:
+            summary["hydraulics"]["above_energy_bound_percent"] = above
+        return summary
+
+    def _energy_report(self) -> dict:
+        return {
+            segment: {
+                supply: {
+                    "energy_kj": bound.energy / KILOJOULE,
+                    "change": bound.change,
+                    "converged": bound.converged,
+                    "grids": [g.intervals for g in bound.grids],
+                    "start": float(bound.r[0]),
+                }
+                for supply, bound in bounds.items()
+            }
+            for segment, bounds in (self.energy_bounds or {}).items()
         }
 
     def _segment_report(self, objective: str, segment: str) -> dict:
@@ -183,7 +223,42 @@ class Study:
                     f"{segment:<{names}}{name:<10}{search.best.peak:>12.5g}"
                     + ("" if bound is None else f"{bound.bound:>12.5g}{gap:>8.2f}")
                 )
+        if self.robot.hydraulics is not None:
+            lines += ["", *self._hydraulic_table(names)]
         return "\n".join(lines)
+
+    def _hydraulic_table(self, names: int) -> list[str]:
+        """The hydraulic comparison: peak pump flow, highest load pressure, pump energies and,
+        with energy bounds, per cent above them."""
+        header = (
+            f"{'segment':<{names}}{'strategy':<36}{'Q_P L/min':>10}{'p_L bar':>9}"
+            f"{'LS kJ':>8}{'CP kJ':>8}{'LS +%':>7}{'CP +%':>7}  circuit"
+        )
+        lines = [header, "-" * len(header)]
+        for run in self.runs:
+            figures, above = run.summary()["hydraulics"], self.above_energy_bound(run)
+            percent = "".join(
+                f"{above[s]:>7.1f}" if s in above else f"{'-':>7}" for s in ("LS", "CP")
+            )
+            lines.append(
+                f"{run.segment:<{names}}{run.strategy:<36}"
+                f"{figures['peak_pump_flow_l_min']:>10.1f}{figures['max_load_pressure_bar']:>9.1f}"
+                f"{figures['ls_energy_kj']:>8.2f}{figures['cp_energy_kj']:>8.2f}{percent}  "
+                + ("held" if figures["within_limits"] else "; ".join(figures["violations"]))
+            )
+        for segment, bounds in (self.energy_bounds or {}).items():
+            for supply, bound in bounds.items():
+                state = "converged" if bound.converged else "NOT converged"
+                lines.append(
+                    f"{segment:<{names}}{f'energy bound, {supply}':<36}{'':>19}"
+                    + (
+                        f"{bound.energy / KILOJOULE:>8.2f}{'':>8}"
+                        if supply == "LS"
+                        else f"{'':>8}{bound.energy / KILOJOULE:>8.2f}"
+                    )
+                    + f"{'':>14}  {state}, change {100 * (bound.change or 0):.2f} %"
+                )
+        return lines
 
 
 def run_study(
@@ -195,6 +270,7 @@ def run_study(
     method: str | None = None,
     bound: bool = True,
     progress: bool = True,
+    energy_bound: bool = False,
 ) -> Study:
     """Run every objective's improved search, sweep and bound, and the comparison strategies,
     on every segment.
@@ -202,7 +278,9 @@ def run_study(
     The held actuators are the task's ``held`` or, if it names none, the last n − m actuators
     (`held_actuators`). ``method`` chooses the improved start: "fast" (the default with one
     held actuator) or "sweep" (``samples`` starts; always with several). The bound is computed
-    with one held actuator, where a start is feasible, unless ``bound`` is False.
+    with one held actuator, where a start is feasible, unless ``bound`` is False. With
+    ``energy_bound`` (one held actuator and a hydraulic circuit), each segment's energy bound
+    under load sensing and constant pressure is computed too.
     """
     from tqdm import tqdm
 
@@ -253,6 +331,19 @@ def run_study(
                         )
                 bounds[objective.name].append(optimum)
                 bar.update()
+    energy_bounds = None
+    if energy_bound:
+        circuit = robot.circuit()
+        if len(held) != 1:
+            raise InvalidInputError(f"the energy bound holds one actuator; the task holds {held}")
+        supplies = (circuit.load_sensing, circuit.constant_pressure)
+        energy_bounds = {
+            segment.name: {
+                supply.name: energy_optimum(robot, segment, supply, held[0], checked)
+                for supply in supplies
+            }
+            for segment in tqdm(segments, desc="energy bounds", disable=not progress)
+        }
     return Study(
         robot,
         cycle,
@@ -264,6 +355,7 @@ def run_study(
         {name: tuple(found) for name, found in sweeps.items()},
         {name: tuple(found) for name, found in bounds.items()},
         tuple(runs),
+        energy_bounds,
     )
 
 

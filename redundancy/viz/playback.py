@@ -129,7 +129,7 @@ class Cylinder:
             np.zeros(1, dtype=int),
             np.array([self.actuator.lower]),
             np.array([self.actuator.upper]),
-            np.zeros(1, dtype=bool),
+            ("m",),
         )
         return stroke.margin(length[:, None]) <= LIMIT_MARGIN
 

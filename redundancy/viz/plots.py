@@ -1,4 +1,5 @@
-"""The study's figures (matplotlib): the paper's Figs. 4a-4c, 5a and 5b.
+"""The study's figures (matplotlib): the paper's Figs. 4a-4c, 5a and 5b, and, with a hydraulic
+circuit, pump flow and pressures along the best motions.
 
 Figures read results; they compute nothing of their own.
 """
@@ -8,6 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from redundancy.errors import RedundancyError
+from redundancy.model.hydraulics import BAR, LITRES_PER_MINUTE
 from redundancy.planning.integrate import Trajectory
 from redundancy.planning.starts import SearchResult
 from redundancy.study.study import Study, write_atomically
@@ -87,6 +89,38 @@ def motion_figure(trajectory: Trajectory, title: str):
     return figure
 
 
+def hydraulics_figure(trajectory: Trajectory, title: str):
+    """Pump flow and pressures along one motion: Q_P with the pump's maximum dashed; each
+    cylinder's load pressure and the load-sensing pump pressure, with the highest load pressure
+    the supply serves dashed, overrunning stretches marked."""
+    plt = _pyplot()
+    circuit, flows = trajectory.robot.circuit(), trajectory.flows
+    figure, (top, bottom) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
+    t = trajectory.t[0]
+    top.plot(t, flows.pump_flow[0] / LITRES_PER_MINUTE, label="pump flow Q_P")
+    top.axhline(circuit.pump_flow / LITRES_PER_MINUTE, ls="--", lw=0.8, label="pump maximum")
+    for column, name in enumerate(circuit.names):
+        line = bottom.plot(t, flows.load[0, :, column] / BAR, label=f"p_L of {name}")[0]
+        overrun = flows.overrunning[0, :, column]
+        if overrun.any():
+            bottom.plot(
+                t[overrun], flows.load[0, overrun, column] / BAR, "x", color=line.get_color()
+            )
+    pump = flows.pump_pressure(circuit.load_sensing)[0] / BAR
+    bottom.plot(t, pump, "k", lw=1, label="LS pump pressure")
+    available = circuit.supply.available(circuit.relief) / BAR
+    bottom.axhline(available, ls="--", lw=0.8, color="k", label="highest load served")
+    top.set_ylabel("flow (L/min)")
+    bottom.set_ylabel("pressure (bar); × overrunning")
+    bottom.set_xlabel("t (s)")
+    top.set_title(title)
+    for axes in (top, bottom):
+        axes.grid(alpha=0.3)
+        axes.legend(loc="best", fontsize=8)
+    figure.tight_layout()
+    return figure
+
+
 def nonoptimal_sample(search: SearchResult):
     """The paper's Fig. 4c start: the least extended feasible start, else the lowest reachable."""
     candidates = search.feasible or [s for s in search.samples if s.peak is not None]
@@ -116,11 +150,15 @@ def write_figures(study: Study, folder: Path, segment: str | None = None) -> lis
         )
         search = study.search(name, segment)
         if search.best is not None:
+            best = search.motion()
+            start = _start(study.held, search.best.values)
             figures[f"fig{number}b_best_{name}_{segment}.png"] = motion_figure(
-                search.motion(),
-                f"min {objective.label}, segment {segment}, optimal start "
-                f"{_start(study.held, search.best.values)}",
+                best, f"min {objective.label}, segment {segment}, optimal start {start}"
             )
+            if study.robot.hydraulics is not None:
+                figures[f"hydraulics_best_{name}_{segment}.png"] = hydraulics_figure(
+                    best, f"Pump flow and pressures: min {objective.label}, segment {segment}"
+                )
         if name == "velocity":
             sweep = study.sweep(name, segment)
             other = nonoptimal_sample(sweep)

@@ -1,0 +1,294 @@
+"""The hydraulic circuit: cylinders, the pump's supply, and the quasi-static meter-in model.
+
+Each hydraulic actuator is a double-acting cylinder of bore D and rod d, with the chamber areas
+
+    A_A = π D² / 4 (piston side),        A_B = π (D² − d²) / 4 (rod side).
+
+For its velocity ẋ and its force F (= F_H, Eq. 21: gravity, payload and inertia; positive when
+it pushes the cylinder longer), the valve meters oil into the chamber that grows and lets the
+other one drain to tank at p_T:
+
+    ẋ ≥ 0:  Q = A_A ẋ,     p_L = (F + p_T A_B) / A_A
+    ẋ < 0:  Q = A_B |ẋ|,   p_L = (−F + p_T A_A) / A_B
+
+Where p_L < p_T the load drives the cylinder (overrunning): p_L counts as p_T and is flagged.
+The pump delivers Q_P = Σ Q at the pressure its supply sets:
+
+    load sensing (LS):       p_P = max over moving cylinders of p_L + Δp_LS
+    constant pressure (CP):  p_P = p_S
+
+and spends the power P = p_P Q_P, the energy E = ∫ P dt; of it Σ p_L Q reaches the cylinders
+and P − Σ p_L Q is lost throttling in the valves. A supply of your own is a `Supply` subclass.
+
+The circuit's limits: each load pressure at most what the supply can give (the relief pressure
+less Δp_LS under LS, p_S under CP), the pump flow at most its maximum, and each cylinder's speed
+at most its maximum. Inside, values are SI (m, m², m³/s, Pa, W, J); files and reports use mm,
+bar, L/min and kJ.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from redundancy.errors import InvalidInputError
+
+BAR = 1e5  # Pa
+LITRES_PER_MINUTE = 1e-3 / 60  # m³/s
+MM = 1e-3  # m
+KILOJOULE = 1e3  # J
+MOVING = 1e-9  # m/s: a cylinder slower than this does not count as moving for LS
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """A double-acting cylinder: ``bore`` D and ``rod`` d (m), and its ``max_speed`` (m/s)."""
+
+    bore: float
+    rod: float
+    max_speed: float
+
+    @property
+    def piston_area(self) -> float:
+        """A_A = π D² / 4, m²."""
+        return math.pi * self.bore**2 / 4
+
+    @property
+    def rod_side_area(self) -> float:
+        """A_B = π (D² − d²) / 4, m²."""
+        return math.pi * (self.bore**2 - self.rod**2) / 4
+
+
+class Supply(ABC):
+    """How the pump sets its pressure from the cylinders' load pressures."""
+
+    name: str
+
+    @abstractmethod
+    def pressure(self, load: np.ndarray, moving: np.ndarray) -> np.ndarray:
+        """Pump pressure p_P (k,) in Pa for load pressures p_L (k, c) in Pa, where ``moving``
+        (k, c) marks the cylinders that move."""
+
+    @abstractmethod
+    def available(self, relief: float) -> float:
+        """The highest load pressure the supply can serve (Pa) under the relief pressure."""
+
+
+@dataclass(frozen=True)
+class LoadSensing(Supply):
+    """LS: the pump follows the highest moving load pressure plus the ``margin`` Δp_LS (Pa)."""
+
+    margin: float
+    name: str = "LS"
+
+    def pressure(self, load: np.ndarray, moving: np.ndarray) -> np.ndarray:
+        highest = np.where(moving, load, -np.inf).max(axis=-1, initial=-np.inf)
+        return np.where(np.isfinite(highest), highest + self.margin, 0.0)
+
+    def available(self, relief: float) -> float:
+        return relief - self.margin
+
+
+@dataclass(frozen=True)
+class ConstantPressure(Supply):
+    """CP: the pump holds the supply pressure p_S (Pa) whatever the loads."""
+
+    pressure_level: float
+    name: str = "CP"
+
+    def pressure(self, load: np.ndarray, moving: np.ndarray) -> np.ndarray:
+        return np.full(load.shape[:-1], self.pressure_level)
+
+    def available(self, relief: float) -> float:
+        return min(self.pressure_level, relief)
+
+
+@dataclass(frozen=True)
+class Flows:
+    """The circuit along k states: per cylinder the flow Q (k, c) m³/s, the load pressure p_L
+    (k, c) Pa (at least p_T) and where it is ``overrunning`` (k, c); ``moving`` (k, c)."""
+
+    flow: np.ndarray
+    load: np.ndarray
+    overrunning: np.ndarray
+    moving: np.ndarray
+
+    @property
+    def pump_flow(self) -> np.ndarray:
+        """Q_P = Σ Q (k,), m³/s."""
+        return self.flow.sum(axis=-1)
+
+    @property
+    def useful_power(self) -> np.ndarray:
+        """Σ p_L Q (k,), W: the hydraulic power that reaches the cylinders."""
+        return (self.load * self.flow).sum(axis=-1)
+
+    def pump_pressure(self, supply: Supply) -> np.ndarray:
+        """p_P (k,) in Pa under ``supply``."""
+        return supply.pressure(self.load, self.moving)
+
+    def power(self, supply: Supply) -> np.ndarray:
+        """P = p_P Q_P (k,), W, under ``supply``."""
+        return self.pump_pressure(supply) * self.pump_flow
+
+    def loss(self, supply: Supply) -> np.ndarray:
+        """Throttling loss P − Σ p_L Q (k,), W, under ``supply``."""
+        return self.power(supply) - self.useful_power
+
+
+@dataclass(frozen=True)
+class Circuit:
+    """A machine's hydraulics: ``cylinders`` by actuator name (in actuator order) with their
+    ``columns`` among the actuators, the machine's own ``supply``, both supplies' parameters for
+    comparison (``load_sensing``, ``constant_pressure``), the ``relief`` pressure and the tank
+    pressure ``tank`` (Pa), and the pump's maximum flow ``pump_flow`` (m³/s)."""
+
+    names: tuple[str, ...]
+    columns: np.ndarray
+    cylinders: tuple[Cylinder, ...]
+    supply: Supply
+    load_sensing: LoadSensing
+    constant_pressure: ConstantPressure
+    relief: float
+    pump_flow: float
+    tank: float
+
+    @property
+    def piston_areas(self) -> np.ndarray:
+        """A_A (c,), m²."""
+        return np.array([c.piston_area for c in self.cylinders])
+
+    @property
+    def rod_side_areas(self) -> np.ndarray:
+        """A_B (c,), m²."""
+        return np.array([c.rod_side_area for c in self.cylinders])
+
+    @property
+    def max_speeds(self) -> np.ndarray:
+        """Maximum cylinder speeds (c,), m/s."""
+        return np.array([c.max_speed for c in self.cylinders])
+
+    def flows(self, x_dot: np.ndarray, forces: np.ndarray) -> Flows:
+        """The meter-in model (module docstring) at actuator velocities ẋ (..., n) m/s and
+        forces F (..., n) N."""
+        v, force = x_dot[..., self.columns], forces[..., self.columns]
+        a, b, p_t = self.piston_areas, self.rod_side_areas, self.tank
+        extending = v >= 0
+        flow = np.where(extending, a * v, -b * v)
+        load = np.where(extending, (force + p_t * b) / a, (p_t * a - force) / b)
+        overrunning = load < p_t
+        moving = np.abs(v) > MOVING
+        return Flows(flow, np.maximum(load, p_t), overrunning & moving, moving)
+
+    def flow_rates(self, x_dot: np.ndarray) -> np.ndarray:
+        """Pump flow Q_P (...,) in m³/s at actuator velocities ẋ (..., n): it needs no forces."""
+        v = x_dot[..., self.columns]
+        return np.where(v >= 0, self.piston_areas * v, -self.rod_side_areas * v).sum(axis=-1)
+
+
+SUPPLIES = ("LS", "CP")
+MACHINE_KEYS = {
+    "supply": "the machine's supply, 'LS' or 'CP'",
+    "ls_margin": "LS margin Δp_LS, bar",
+    "cp_pressure": "CP supply pressure p_S, bar",
+    "relief": "relief pressure, bar",
+    "pump_flow": "pump's maximum flow, L/min",
+    "tank": "tank pressure p_T, bar",
+}
+CYLINDER_KEYS = {"bore": "bore D, mm", "rod": "rod d, mm", "max_speed": "maximum speed, m/s"}
+
+
+def _number(table: dict, key: str, where: str, meaning: str) -> float:
+    """``table[key]`` as a finite number ≥ 0, or one line naming it and its source."""
+    if key not in table:
+        raise InvalidInputError(f"{where}: missing {key!r} ({meaning})")
+    value = table[key]
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise InvalidInputError(f"{where}: {key} = {value!r} must be a number ({meaning})")
+    if value < 0:
+        raise InvalidInputError(f"{where}: {key} = {value!r} must be ≥ 0 ({meaning})")
+    return float(value)
+
+
+def _unknown(table: dict, known, where: str) -> None:
+    extra = sorted(set(table) - set(known))
+    if extra:
+        raise InvalidInputError(f"{where}: unknown keys {extra}; keys: {', '.join(known)}")
+
+
+def circuit_from_table(
+    table: object, source: str, actuators: list[str], rotary: list[bool]
+) -> Circuit:
+    """A `Circuit` from a ``[hydraulics]`` table (schema in the README), read from ``source``,
+    for a robot with actuators ``actuators`` (``rotary`` marks angles, which cylinders cannot
+    drive)."""
+    where = f"{source} [hydraulics]"
+    if not isinstance(table, dict):
+        raise InvalidInputError(f"{where} must be a table; got {table!r}")
+    _unknown(table, [*MACHINE_KEYS, "cylinders"], where)
+    supply = table.get("supply")
+    if supply not in SUPPLIES:
+        raise InvalidInputError(f"{where}: supply = {supply!r}; supplies: {', '.join(SUPPLIES)}")
+    values = {k: _number(table, k, where, m) for k, m in MACHINE_KEYS.items() if k != "supply"}
+    cylinders = table.get("cylinders")
+    if not isinstance(cylinders, dict) or not cylinders:
+        raise InvalidInputError(
+            f"{where}: needs [hydraulics.cylinders.<actuator>] tables; actuators: "
+            f"{', '.join(actuators)}"
+        )
+    found = []
+    for name, entry in cylinders.items():
+        place = f"{where} cylinders.{name}"
+        if name not in actuators:
+            raise InvalidInputError(f"{place}: no actuator {name!r}; actuators: {actuators}")
+        if rotary[actuators.index(name)]:
+            raise InvalidInputError(f"{place}: actuator {name!r} is rotary, not a cylinder")
+        if not isinstance(entry, dict):
+            raise InvalidInputError(f"{place} must be a table with {', '.join(CYLINDER_KEYS)}")
+        _unknown(entry, CYLINDER_KEYS, place)
+        bore, rod, speed = (_number(entry, k, place, m) for k, m in CYLINDER_KEYS.items())
+        if not 0 <= rod < bore or speed <= 0:
+            raise InvalidInputError(
+                f"{place}: needs 0 ≤ rod < bore and max_speed > 0; got bore = {bore:g} mm, "
+                f"rod = {rod:g} mm, max_speed = {speed:g} m/s"
+            )
+        found.append((actuators.index(name), name, Cylinder(bore * MM, rod * MM, speed)))
+    found.sort()
+    if not values["pump_flow"] > 0 or not values["relief"] > values["tank"]:
+        raise InvalidInputError(
+            f"{where}: needs pump_flow > 0 and relief > tank; got pump_flow = "
+            f"{values['pump_flow']:g} L/min, relief = {values['relief']:g} bar, "
+            f"tank = {values['tank']:g} bar"
+        )
+    load_sensing = LoadSensing(values["ls_margin"] * BAR)
+    constant_pressure = ConstantPressure(values["cp_pressure"] * BAR)
+    return Circuit(
+        tuple(name for _, name, _ in found),
+        np.array([column for column, _, _ in found], dtype=int),
+        tuple(cylinder for _, _, cylinder in found),
+        load_sensing if supply == "LS" else constant_pressure,
+        load_sensing,
+        constant_pressure,
+        values["relief"] * BAR,
+        values["pump_flow"] * LITRES_PER_MINUTE,
+        values["tank"] * BAR,
+    )
+
+
+def read_hydraulics_file(path: Path) -> object:
+    """The ``[hydraulics]`` table of a TOML file (``--hydraulics FILE``)."""
+    try:
+        with path.open("rb") as f:
+            content = tomllib.load(f)
+    except OSError as error:
+        raise InvalidInputError(f"cannot read hydraulics file {path}: {error.strerror}") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
+        raise InvalidInputError(f"{path}: not valid TOML: {error}") from None
+    if "hydraulics" not in content:
+        raise InvalidInputError(f"{path}: no [hydraulics] table")
+    return content["hydraulics"]

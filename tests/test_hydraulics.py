@@ -1,0 +1,296 @@
+"""The hydraulic circuit: hand calculations, the power balance, the energy chain, the objectives
+and the energy bound on the paper's crane."""
+
+import math
+import re
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from commands import run_cli
+from sampling import random_configurations
+
+from redundancy import load_robot
+from redundancy.errors import InvalidInputError
+from redundancy.model.hydraulics import BAR, LITRES_PER_MINUTE, circuit_from_table
+from redundancy.planning.energy_bound import EXACT, Tables, _nodes, energy_optimum
+from redundancy.planning.integrate import simulate
+from redundancy.planning.starts import default_start, improved_start
+from redundancy.planning.tasks import WorkCycle
+from redundancy.resolution.laws import MinFlow
+from redundancy.resolution.limits import Limits
+from redundancy.resolution.objectives import CP_ENERGY, FLOW, LS_ENERGY, VELOCITY
+from redundancy.resolution.state import actuator_space
+from redundancy.study.study import BASELINES
+
+
+@pytest.fixture(scope="module")
+def cycle(crane):
+    return WorkCycle.from_toml(crane.task_file, dimension=crane.m)
+
+
+@pytest.fixture(scope="module")
+def motions(crane, cycle):
+    """Each paper segment's baselines from the default start, on a 3 ms grid."""
+    found = {}
+    for segment in cycle.segments:
+        start = default_start(crane, segment, ["x3"])[1][None]
+        found[segment.name] = [
+            simulate(crane, resolver, segment, start, 0.003, method="rk4")
+            for _, resolver in BASELINES
+        ]
+    return found
+
+
+def test_the_crane_declares_its_cylinders(crane):
+    circuit = crane.circuit()
+    assert circuit.names == ("x1", "x2", "x3")
+    lift = circuit.cylinders[0]
+    assert lift.piston_area == pytest.approx(math.pi * 0.080**2 / 4, rel=1e-15)
+    assert lift.rod_side_area == pytest.approx(math.pi * (0.080**2 - 0.045**2) / 4, rel=1e-15)
+    assert circuit.supply.name == "LS"
+    assert circuit.relief == pytest.approx(210e5)
+    assert circuit.pump_flow == pytest.approx(100 / 60000)
+
+
+def test_flows_and_pressures_by_hand(crane):
+    """The meter-in model against numbers worked out by hand for the lift cylinder (80/45 mm,
+    p_T = 2 bar) and the fold cylinder (70/40 mm)."""
+    circuit = crane.circuit()
+    a_lift, b_lift = 5.026548245743669e-3, 3.436116964863837e-3  # π 0.08²/4, π(0.08²−0.045²)/4
+    a_fold, b_fold = 3.848451000647497e-3, 2.591813939211580e-3  # π 0.07²/4, π(0.07²−0.04²)/4
+    x_dot = np.array([[0.1, -0.05, 0.0], [0.0, 0.0, 0.0], [-0.1, 0.02, 0.0]])
+    forces = np.array([[20e3, -5e3, 1e3], [20e3, 8e3, 0.0], [20e3, 8e3, 0.0]])
+    flows = circuit.flows(x_dot, forces)
+    # extending lift: Q = A_A ẋ, p_L = (F + p_T A_B)/A_A
+    assert flows.flow[0, 0] == pytest.approx(a_lift * 0.1, rel=1e-12)
+    assert flows.load[0, 0] == pytest.approx((20e3 + 2e5 * b_lift) / a_lift, rel=1e-12)
+    assert flows.load[0, 0] / BAR == pytest.approx(41.155, abs=1e-3)
+    # retracting fold against a pulling load: Q = A_B |ẋ|, p_L = (−F + p_T A_A)/A_B
+    assert flows.flow[0, 1] == pytest.approx(b_fold * 0.05, rel=1e-12)
+    assert flows.load[0, 1] == pytest.approx((5e3 + 2e5 * a_fold) / b_fold, rel=1e-12)
+    assert not flows.overrunning[0].any()
+    # LS: the highest moving load plus 20 bar; the still telescope does not count
+    assert flows.pump_pressure(circuit.load_sensing)[0] == pytest.approx(
+        flows.load[0, 0] + 20e5, rel=1e-12
+    )
+    assert flows.pump_flow[0] / LITRES_PER_MINUTE == pytest.approx(
+        (a_lift * 0.1 + b_fold * 0.05) * 60000, rel=1e-12
+    )
+    # holding still: no flow, no power, the static pressure of the extending branch
+    assert flows.pump_flow[1] == 0 and flows.power(circuit.load_sensing)[1] == 0
+    assert flows.load[1, 1] == pytest.approx((8e3 + 2e5 * b_fold) / a_fold, rel=1e-12)
+    # lowering the lift under its load overruns: p_L is negative, counted at p_T and flagged
+    assert (-20e3 + 2e5 * a_lift) / b_lift < 0
+    assert flows.load[2, 0] == pytest.approx(2e5) and flows.overrunning[2, 0]
+    assert flows.power(circuit.constant_pressure)[2] == pytest.approx(
+        180e5 * (b_lift * 0.1 + a_fold * 0.02), rel=1e-12
+    )
+    useful = flows.load[0, 0] * a_lift * 0.1 + flows.load[0, 1] * b_fold * 0.05
+    assert flows.useful_power[0] == pytest.approx(useful, rel=1e-12)
+    assert flows.loss(circuit.load_sensing)[0] == pytest.approx(
+        flows.power(circuit.load_sensing)[0] - useful, rel=1e-12
+    )
+
+
+def test_static_pressures_hold_the_crane(crane):
+    """Holding still, each cylinder's pressure is its gravity force (A⁻ᵀ G from Pinocchio)
+    over its piston area, plus the rod side's tank pressure."""
+    circuit = crane.circuit()
+    q = random_configurations(crane, 5, seed=41, margin=0.05)
+    space = actuator_space(crane, q)
+    forces = space.forces(np.zeros_like(space.x))
+    flows = circuit.flows(np.zeros_like(space.x), forces)
+    expected = (forces + 2e5 * circuit.rod_side_areas) / circuit.piston_areas
+    np.testing.assert_allclose(flows.load, np.maximum(expected, 2e5), rtol=1e-12)
+    np.testing.assert_array_equal(flows.flow, 0.0)
+
+
+def _mechanical_energy(robot, q, v):
+    """Kinetic plus potential energy (J) of each state, from Pinocchio."""
+    return np.array(
+        [
+            pin.computeKineticEnergy(robot.model, robot.data, a, b)
+            + pin.computePotentialEnergy(robot.model, robot.data, a)
+            for a, b in zip(q, v)
+        ]
+    )
+
+
+def test_power_balance_along_the_paper_segments(crane, motions):
+    """Σ F_i ẋ_i = d/dt (T + V), payload included, along every baseline motion: the actuator
+    forces F_H = M_H ẍ + N_H do the work the crane stores. ẍ and the energy's rate are both
+    central differences on the 3 ms grid, so they agree to O(h²): within 1e-5 of the peak power
+    (3e-6 measured)."""
+    assert crane.payload == 100.0
+    for runs in motions.values():
+        for motion in runs:
+            t, q = motion.t[0], motion.q[0]
+            v = motion.states.v.reshape(q.shape)
+            power = np.einsum("ti,ti->t", motion.forces[0], motion.x_dot[0])
+            stored = np.gradient(_mechanical_energy(crane, q, v), t, edge_order=2)
+            inside = slice(2, -2)
+            error = np.abs(power[inside] - stored[inside]).max()
+            assert error <= 1e-5 * np.abs(power).max(), error
+
+
+def test_energy_chain(crane, motions):
+    """LS pump energy ≥ the useful hydraulic work ∫ Σ p_L Q dt ≥ the mechanical work
+    ∫ Σ F ẋ dt = Δ(T + V); CP ≥ LS where loads stay below p_S − Δp_LS."""
+    circuit = crane.circuit()
+    for runs in motions.values():
+        for motion in runs:
+            t = motion.t[0]
+            ls = motion.energy(circuit.load_sensing)[0]
+            cp = motion.energy(circuit.constant_pressure)[0]
+            useful = np.trapezoid(motion.flows.useful_power[0], t)
+            mechanical = np.trapezoid(np.einsum("ti,ti->t", motion.forces[0], motion.x_dot[0]), t)
+            v = motion.states.v.reshape(motion.q.shape)[0]
+            stored = _mechanical_energy(crane, motion.q[0], v)
+            assert mechanical == pytest.approx(stored[-1] - stored[0], abs=1e-3 * ls)
+            assert ls >= useful >= mechanical
+            assert motion.flows.load[0].max() < 180e5 - 20e5
+            assert cp >= ls
+
+
+def test_flow_law_is_the_weighted_pseudoinverse(crane):
+    """MinFlow's ẋ tracks the task and has the least Σ (A_A ẋ)² among the task's solutions."""
+    q = random_configurations(crane, 4, seed=43, margin=0.1)
+    space = actuator_space(crane, q)
+    y_dot = np.random.default_rng(44).normal(size=(4, crane.m))
+    x_dot = MinFlow().resolve(space, y_dot)
+    np.testing.assert_allclose(np.einsum("kij,kj->ki", space.J_H, x_dot), y_dot, atol=1e-12)
+    areas = crane.circuit().piston_areas
+    for i in range(4):
+        null = np.linalg.svd(space.J_H[i])[2][-1]  # the task's one self-motion direction
+        along = [np.sum((areas * (x_dot[i] + e * null)) ** 2) for e in (-1e-3, 0.0, 1e-3)]
+        assert along[1] < along[0] and along[1] < along[2]
+        weighted = areas**2 * x_dot[i] @ null
+        assert abs(weighted) <= 1e-12 * np.linalg.norm(areas**2 * x_dot[i])
+
+
+def test_hydraulic_objectives_run_through_the_searches(crane, cycle):
+    """Peak pump flow through the fast search and the sweep, and the pump energies (integral,
+    dynamic) through the fast search: the best start is feasible and no sampled start beats it.
+    """
+    segment = cycle["2-3"]
+    fast = improved_start(crane, segment, FLOW)
+    sweep = improved_start(crane, segment, FLOW, samples=25, method="sweep")
+    assert fast.best is not None and sweep.best is not None
+    assert fast.best.peak <= sweep.best.peak * 1.005
+    motion = fast.motion()
+    peak = motion.flows.pump_flow[0].max() / LITRES_PER_MINUTE
+    assert peak == pytest.approx(fast.best.peak, rel=2e-3)
+    for objective, supply in ((LS_ENERGY, "load_sensing"), (CP_ENERGY, "constant_pressure")):
+        search = improved_start(crane, segment, objective, samples=15, method="sweep")
+        assert search.best is not None
+        energies = [s.peak for s in search.feasible]
+        assert search.best.peak == min(energies)
+        best = search.motion()
+        kilojoules = best.energy(getattr(crane.circuit(), supply))[0] / 1e3
+        assert kilojoules == pytest.approx(search.best.peak, rel=5e-3)
+
+
+def test_limits_of_the_circuit_are_named(crane, motions):
+    """The M_H-weighted law drives the light telescope faster than its 0.25 m/s on segment 1-2:
+    the violation names the cylinder, the limit and the amount in m/s."""
+    weighted = motions["1-2"][1]
+    violations = weighted.hydraulic_violations(0)
+    assert violations and violations[0].actuator == "x3 speed"
+    assert str(violations[0]).startswith("x3 speed ")
+    assert "m/s past its upper limit" in str(violations[0])
+    assert np.abs(weighted.x_dot[0, :, 2]).max() > 0.25
+    assert not motions["1-2"][0].hydraulic_violations(0)
+
+
+def test_splines_between_solved_strokes_match_exact_configurations(crane, cycle):
+    """The energy bound's tables interpolate x between solved held strokes: against Newton's
+    solution at the midpoints, the error is below 5e-5 m (largest at the stroke's ends) and
+    mostly below 1e-6 m."""
+    segment = cycle["3-1"]
+    t = np.linspace(0.0, segment.duration, 6)
+    tables = Tables(crane, segment, 2, Limits.strokes(crane), t)
+    middles = (tables.values[1:] + tables.values[:-1]) / 2
+    q, found = _nodes(crane, segment, 2, middles, t)
+    x, _, usable = tables.at(np.tile(middles, (len(t), 1)))
+    exact = actuator_space(crane, q.reshape(-1, crane.n)).x.reshape(x.shape)
+    both = found & usable
+    assert both.sum() > EXACT
+    error = np.abs(x - exact)[both]
+    assert error.max() < 5e-5 and np.median(error) < 1e-6
+
+
+@pytest.fixture(scope="module")
+def bounds(crane, cycle):
+    return {s.name: energy_optimum(crane, s) for s in cycle.segments}
+
+
+def test_energy_bound_converges_and_is_below_every_strategy(crane, cycle, motions, bounds):
+    """On every paper segment the LS energy bound changes by less than 0.5 % on refinement,
+    keeps every limit (a speed limit binds it), and lies below every baseline and the improved
+    start's energy; the improved start lands between the bound and the default start."""
+    supply = crane.circuit().load_sensing
+    for segment in cycle.segments:
+        bound = bounds[segment.name]
+        assert bound.converged, bound.grids
+        improved = improved_start(crane, segment, VELOCITY).motion()
+        energies = [m.energy(supply)[0] for m in motions[segment.name]]
+        assert all(bound.energy < e for e in [*energies, improved.energy(supply)[0]])
+        assert improved.energy(supply)[0] < energies[0]
+        stroke = crane.actuators["x3"]
+        assert np.all((bound.r >= stroke.lower) & (bound.r <= stroke.upper))
+        speeds = np.abs(np.diff(bound.r) / np.diff(bound.t))
+        assert speeds.max() <= 0.25 + 1e-9
+
+
+def test_inertia_changes_the_energy_by_little(crane, motions):
+    """The bound leaves inertia and velocity terms out of the forces: along the baselines they
+    change the LS pump energy by under 1 %."""
+    circuit = crane.circuit()
+    for runs in motions.values():
+        for motion in runs:
+            k, T, n = motion.q.shape
+            q = motion.q.reshape(k * T, n)
+            static = actuator_space(crane, q).forces(np.zeros((k * T, n))).reshape(k, T, n)
+            full = motion.energy(circuit.load_sensing)[0]
+            power = circuit.flows(motion.x_dot, static).power(circuit.load_sensing)
+            quasi_static = np.trapezoid(power[0], motion.t[0])
+            assert abs(quasi_static - full) < 0.01 * full
+
+
+def test_hydraulics_file_errors_name_the_value_and_the_choices(tmp_path):
+    names, rotary = ["x1", "x2", "x3"], [False, False, False]
+    good = {
+        "supply": "LS",
+        "ls_margin": 20,
+        "cp_pressure": 180,
+        "relief": 210,
+        "pump_flow": 100,
+        "tank": 2,
+        "cylinders": {"x1": {"bore": 80, "rod": 45, "max_speed": 0.25}},
+    }
+    assert circuit_from_table(good, "f.toml", names, rotary).names == ("x1",)
+    cases = [
+        ({"supply": "XX"}, "supply = 'XX'; supplies: LS, CP"),
+        ({"relief": "high"}, "relief = 'high' must be a number (relief pressure, bar)"),
+        ({"cylinders": {"x9": {}}}, "no actuator 'x9'; actuators: ['x1', 'x2', 'x3']"),
+        ({"cylinders": {"x1": {"bore": 40, "rod": 45, "max_speed": 1}}}, "0 ≤ rod < bore"),
+        ({"pump_flow": 0}, "needs pump_flow > 0"),
+        ({"colour": 1}, "unknown keys ['colour']"),
+    ]
+    for change, message in cases:
+        with pytest.raises(InvalidInputError, match=re.escape(message)):
+            circuit_from_table({**good, **change}, "f.toml", names, rotary)
+    path = tmp_path / "h.toml"
+    path.write_text("[hydraulics]\nsupply = 'CP'\n")
+    with pytest.raises(InvalidInputError, match=r"h.toml \[hydraulics\]: missing 'ls_margin'"):
+        load_robot("hiab031", hydraulics=path)
+    run = run_cli("describe", "--hydraulics", str(tmp_path / "none.toml"))
+    assert run.returncode == 2 and "Traceback" not in run.stderr
+    assert "cannot read hydraulics file" in run.stderr and len(run.stderr.splitlines()) == 1
+
+
+def test_a_robot_without_hydraulics_says_how_to_declare_them():
+    panda = load_robot("panda")
+    with pytest.raises(InvalidInputError, match=r"declare a \[hydraulics\] table"):
+        panda.circuit()
