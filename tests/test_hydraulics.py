@@ -17,6 +17,7 @@ from redundancy.planning.energy_bound import EXACT, Tables, _nodes, energy_optim
 from redundancy.planning.integrate import simulate
 from redundancy.planning.starts import default_start, improved_start
 from redundancy.planning.tasks import WorkCycle
+from redundancy.planning.time_scaling import shortest_duration
 from redundancy.resolution.laws import MinFlow
 from redundancy.resolution.limits import Limits
 from redundancy.resolution.objectives import CP_ENERGY, FLOW, LS_ENERGY, VELOCITY
@@ -267,14 +268,21 @@ def test_hydraulics_file_errors_name_the_value_and_the_choices(tmp_path):
         "relief": 210,
         "pump_flow": 100,
         "tank": 2,
-        "cylinders": {"x1": {"bore": 80, "rod": 45, "max_speed": 0.25}},
+        "cylinders": {"x1": {"bore": 80, "rod": 45, "max_speed": 0.25, "max_acceleration": 1}},
     }
     assert circuit_from_table(good, "f.toml", names, rotary).names == ("x1",)
     cases = [
         ({"supply": "XX"}, "supply = 'XX'; supplies: LS, CP"),
         ({"relief": "high"}, "relief = 'high' must be a number (relief pressure, bar)"),
         ({"cylinders": {"x9": {}}}, "no actuator 'x9'; actuators: ['x1', 'x2', 'x3']"),
-        ({"cylinders": {"x1": {"bore": 40, "rod": 45, "max_speed": 1}}}, "0 ≤ rod < bore"),
+        (
+            {"cylinders": {"x1": {"bore": 40, "rod": 45, "max_speed": 1, "max_acceleration": 1}}},
+            "0 ≤ rod < bore",
+        ),
+        (
+            {"cylinders": {"x1": {"bore": 80, "rod": 45, "max_speed": 1}}},
+            "missing 'max_acceleration'",
+        ),
         ({"pump_flow": 0}, "needs pump_flow > 0"),
         ({"colour": 1}, "unknown keys ['colour']"),
     ]
@@ -291,6 +299,24 @@ def test_hydraulics_file_errors_name_the_value_and_the_choices(tmp_path):
 
 
 def test_a_robot_without_hydraulics_says_how_to_declare_them():
-    panda = load_robot("panda")
+    with pytest.warns(UserWarning, match="driven directly"):
+        panda = load_robot("panda")
     with pytest.raises(InvalidInputError, match=r"declare a \[hydraulics\] table"):
         panda.circuit()
+
+
+def test_shortest_duration_reaches_a_limit_and_exceeds_none(crane, cycle):
+    """TOPP-RA's timing of each improved path, checked on the re-timed motion: some limit is
+    used to within 0.1 % and none is passed; the path is the same, only faster than 0.5 m/s."""
+    for segment in cycle.segments:
+        motion = improved_start(crane, segment, VELOCITY).motion()
+        retimed = shortest_duration(motion)
+        usage = retimed.usage(crane)
+        assert max(usage.values()) == pytest.approx(1.0, abs=1e-3), usage
+        assert all(share <= 1.0 + 1e-12 for share in usage.values()), usage
+        assert retimed.duration < segment.duration
+        columns = crane.circuit().columns
+        np.testing.assert_allclose(retimed.x[[0, -1]], motion.x[0, [0, -1]][:, columns], atol=1e-9)
+        np.testing.assert_allclose(retimed.x_dot[[0, -1]], 0.0, atol=1e-9)
+        rate = np.gradient(retimed.x, retimed.t, axis=0)
+        assert np.abs(rate - retimed.x_dot).max() < 1e-2 * crane.circuit().max_speeds.max()

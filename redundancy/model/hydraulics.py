@@ -47,11 +47,13 @@ MOVING = 1e-9  # m/s: a cylinder slower than this does not count as moving for L
 
 @dataclass(frozen=True)
 class Cylinder:
-    """A double-acting cylinder: ``bore`` D and ``rod`` d (m), and its ``max_speed`` (m/s)."""
+    """A double-acting cylinder: ``bore`` D and ``rod`` d (m), its ``max_speed`` (m/s) and
+    ``max_acceleration`` (m/s²)."""
 
     bore: float
     rod: float
     max_speed: float
+    max_acceleration: float
 
     @property
     def piston_area(self) -> float:
@@ -173,13 +175,23 @@ class Circuit:
         """Maximum cylinder speeds (c,), m/s."""
         return np.array([c.max_speed for c in self.cylinders])
 
+    @property
+    def max_accelerations(self) -> np.ndarray:
+        """Maximum cylinder accelerations (c,), m/s²."""
+        return np.array([c.max_acceleration for c in self.cylinders])
+
+    def cylinder_flows(self, v: np.ndarray) -> np.ndarray:
+        """Q (..., c) m³/s for cylinder velocities v (..., c): A_A v extending, A_B |v|
+        retracting (or the oil volumes for stroke changes v, m)."""
+        return np.where(v >= 0, self.piston_areas * v, -self.rod_side_areas * v)
+
     def flows(self, x_dot: np.ndarray, forces: np.ndarray) -> Flows:
         """The meter-in model (module docstring) at actuator velocities ẋ (..., n) m/s and
         forces F (..., n) N."""
         v, force = x_dot[..., self.columns], forces[..., self.columns]
         a, b, p_t = self.piston_areas, self.rod_side_areas, self.tank
         extending = v >= 0
-        flow = np.where(extending, a * v, -b * v)
+        flow = self.cylinder_flows(v)
         load = np.where(extending, (force + p_t * b) / a, (p_t * a - force) / b)
         overrunning = load < p_t
         moving = np.abs(v) > MOVING
@@ -187,8 +199,7 @@ class Circuit:
 
     def flow_rates(self, x_dot: np.ndarray) -> np.ndarray:
         """Pump flow Q_P (...,) in m³/s at actuator velocities ẋ (..., n): it needs no forces."""
-        v = x_dot[..., self.columns]
-        return np.where(v >= 0, self.piston_areas * v, -self.rod_side_areas * v).sum(axis=-1)
+        return self.cylinder_flows(x_dot[..., self.columns]).sum(axis=-1)
 
 
 SUPPLIES = ("LS", "CP")
@@ -200,7 +211,12 @@ MACHINE_KEYS = {
     "pump_flow": "pump's maximum flow, L/min",
     "tank": "tank pressure p_T, bar",
 }
-CYLINDER_KEYS = {"bore": "bore D, mm", "rod": "rod d, mm", "max_speed": "maximum speed, m/s"}
+CYLINDER_KEYS = {
+    "bore": "bore D, mm",
+    "rod": "rod d, mm",
+    "max_speed": "maximum speed, m/s",
+    "max_acceleration": "maximum acceleration, m/s²",
+}
 
 
 def _number(table: dict, key: str, where: str, meaning: str) -> float:
@@ -251,13 +267,17 @@ def circuit_from_table(
         if not isinstance(entry, dict):
             raise InvalidInputError(f"{place} must be a table with {', '.join(CYLINDER_KEYS)}")
         _unknown(entry, CYLINDER_KEYS, place)
-        bore, rod, speed = (_number(entry, k, place, m) for k, m in CYLINDER_KEYS.items())
-        if not 0 <= rod < bore or speed <= 0:
+        bore, rod, speed, acceleration = (
+            _number(entry, k, place, m) for k, m in CYLINDER_KEYS.items()
+        )
+        if not 0 <= rod < bore or speed <= 0 or acceleration <= 0:
             raise InvalidInputError(
-                f"{place}: needs 0 ≤ rod < bore and max_speed > 0; got bore = {bore:g} mm, "
-                f"rod = {rod:g} mm, max_speed = {speed:g} m/s"
+                f"{place}: needs 0 ≤ rod < bore, max_speed > 0 and max_acceleration > 0; got "
+                f"bore = {bore:g} mm, rod = {rod:g} mm, max_speed = {speed:g} m/s, "
+                f"max_acceleration = {acceleration:g} m/s²"
             )
-        found.append((actuators.index(name), name, Cylinder(bore * MM, rod * MM, speed)))
+        cylinder = Cylinder(bore * MM, rod * MM, speed, acceleration)
+        found.append((actuators.index(name), name, cylinder))
     found.sort()
     if not values["pump_flow"] > 0 or not values["relief"] > values["tank"]:
         raise InvalidInputError(

@@ -26,6 +26,7 @@ from redundancy.model.robot import AXES, Robot
 from redundancy.planning.integrate import TIME_STEP, Trajectory, simulate, time_grid
 from redundancy.planning.starts import default_start, scalar_or_list
 from redundancy.planning.tasks import Segment
+from redundancy.planning.time_scaling import shortest_duration
 from redundancy.resolution.laws import TUNED_GAIN, GradientProjection, MinVelocityNorm, Resolver
 from redundancy.resolution.state import evaluate
 
@@ -65,7 +66,8 @@ class StrategyRun:
 def hydraulics(motion: Trajectory) -> dict:
     """The hydraulic figures of the first motion of ``motion`` in the units the field uses:
     peak pump flow (L/min), highest load pressure (bar), pump energy under load sensing and
-    constant pressure (kJ), whether a load overran, and the circuit's limits passed."""
+    constant pressure (kJ), whether a load overran, the circuit's limits passed, and the
+    shortest duration of its path within the circuit's limits (s, `shortest_duration`)."""
     circuit, flows = motion.robot.circuit(), motion.flows
     violations = motion.hydraulic_violations(0)
     return {
@@ -76,6 +78,7 @@ def hydraulics(motion: Trajectory) -> dict:
         "overrunning": bool(flows.overrunning[0].any()),
         "within_limits": not violations,
         "violations": [str(v) for v in violations],
+        "shortest_duration_s": shortest_duration(motion).duration,
     }
 
 

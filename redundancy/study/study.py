@@ -232,7 +232,7 @@ class Study:
         with energy bounds, per cent above them."""
         header = (
             f"{'segment':<{names}}{'strategy':<36}{'Q_P L/min':>10}{'p_L bar':>9}"
-            f"{'LS kJ':>8}{'CP kJ':>8}{'LS +%':>7}{'CP +%':>7}  circuit"
+            f"{'LS kJ':>8}{'CP kJ':>8}{'LS +%':>7}{'CP +%':>7}{'t_min s':>8}  circuit"
         )
         lines = [header, "-" * len(header)]
         for run in self.runs:
@@ -243,7 +243,8 @@ class Study:
             lines.append(
                 f"{run.segment:<{names}}{run.strategy:<36}"
                 f"{figures['peak_pump_flow_l_min']:>10.1f}{figures['max_load_pressure_bar']:>9.1f}"
-                f"{figures['ls_energy_kj']:>8.2f}{figures['cp_energy_kj']:>8.2f}{percent}  "
+                f"{figures['ls_energy_kj']:>8.2f}{figures['cp_energy_kj']:>8.2f}{percent}"
+                f"{figures['shortest_duration_s']:>8.2f}  "
                 + ("held" if figures["within_limits"] else "; ".join(figures["violations"]))
             )
         for segment, bounds in (self.energy_bounds or {}).items():
@@ -256,7 +257,7 @@ class Study:
                         if supply == "LS"
                         else f"{'':>8}{bound.energy / KILOJOULE:>8.2f}"
                     )
-                    + f"{'':>14}  {state}, change {100 * (bound.change or 0):.2f} %"
+                    + f"{'':>22}  {state}, change {100 * (bound.change or 0):.2f} %"
                 )
         return lines
 
