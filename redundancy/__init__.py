@@ -21,32 +21,58 @@ from redundancy.model.actuators import (
     LinearCylinder,
     Prismatic,
 )
+from redundancy.model.hydraulics import (
+    Circuit,
+    ConstantPressure,
+    Cylinder,
+    Flows,
+    LoadSensing,
+    Supply,
+)
 from redundancy.model.kinematics import Kinematics
 from redundancy.model.loading import bundled_robots, load_robot
 from redundancy.model.robot import Robot
 from redundancy.planning.bound import GlobalOptimum, global_optimum
+from redundancy.planning.energy_bound import EnergyOptimum, energy_optimum
 from redundancy.planning.ik import configuration_at, inverse_kinematics
 from redundancy.planning.integrate import Trajectory, simulate
 from redundancy.planning.starts import Sample, SearchResult, default_start, improved_start
 from redundancy.planning.tasks import Segment, WorkCycle
+from redundancy.planning.time_scaling import Retimed, shortest_duration
 from redundancy.resolution.laws import (
     GradientProjection,
+    MinFlow,
     MinKineticEnergy,
     MinVelocityNorm,
     Resolver,
     Step,
 )
 from redundancy.resolution.limits import Limits, Violation
-from redundancy.resolution.objectives import ENERGY, VELOCITY, Objective
+from redundancy.resolution.objectives import (
+    CP_ENERGY,
+    ENERGY,
+    FLOW,
+    LS_ENERGY,
+    VELOCITY,
+    Objective,
+)
 from redundancy.resolution.state import ActuatorSpace, actuator_space
 from redundancy.study.study import Study, run_study
 
 __all__ = [
+    "CP_ENERGY",
     "ENERGY",
+    "FLOW",
+    "LS_ENERGY",
     "VELOCITY",
     "ActuatorMap",
     "ActuatorSet",
     "ActuatorSpace",
+    "Circuit",
+    "ConstantPressure",
+    "Cylinder",
+    "EnergyOptimum",
+    "Flows",
     "GlobalOptimum",
     "GradientProjection",
     "Identity",
@@ -54,12 +80,15 @@ __all__ = [
     "Kinematics",
     "Limits",
     "LinearCylinder",
+    "LoadSensing",
+    "MinFlow",
     "MinKineticEnergy",
     "MinVelocityNorm",
     "Objective",
     "Prismatic",
     "RedundancyError",
     "Resolver",
+    "Retimed",
     "Robot",
     "RobotDescriptionError",
     "Sample",
@@ -68,6 +97,7 @@ __all__ = [
     "SingularConfigurationError",
     "Step",
     "Study",
+    "Supply",
     "Trajectory",
     "UnreachableError",
     "Violation",
@@ -76,10 +106,12 @@ __all__ = [
     "bundled_robots",
     "configuration_at",
     "default_start",
+    "energy_optimum",
     "global_optimum",
     "improved_start",
     "inverse_kinematics",
     "load_robot",
     "run_study",
+    "shortest_duration",
     "simulate",
 ]

@@ -15,8 +15,10 @@ clipped.
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -49,6 +51,11 @@ class StrategyRun:
     trajectory: Trajectory
 
     def summary(self) -> dict:
+        """The run's figures as JSON-ready data (a fresh copy each call)."""
+        return copy.deepcopy(self._summary)
+
+    @cached_property
+    def _summary(self) -> dict:
         motion = self.trajectory
         return {
             "segment": self.segment,
