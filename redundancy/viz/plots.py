@@ -78,15 +78,7 @@ def motion_figure(trajectory: Trajectory, title: str):
         for bound in (actuator.lower, actuator.upper):
             top.axhline(bound, ls="--", lw=0.8, color=line.get_color(), alpha=0.6)
         bottom.plot(t, trajectory.x_dot[0, :, row], label=f"ẋ of {actuator.name}")
-    top.set_ylabel("actuator displacement x (m)")
-    bottom.set_ylabel("actuator velocity ẋ (m/s)")
-    bottom.set_xlabel("t (s)")
-    top.set_title(title)
-    for axes in (top, bottom):
-        axes.grid(alpha=0.3)
-        axes.legend(loc="best", fontsize=8)
-    figure.tight_layout()
-    return figure
+    return _over_time(figure, title, "actuator displacement x (m)", "actuator velocity ẋ (m/s)")
 
 
 def hydraulics_figure(trajectory: Trajectory, title: str):
@@ -110,8 +102,15 @@ def hydraulics_figure(trajectory: Trajectory, title: str):
     bottom.plot(t, pump, "k", lw=1, label="LS pump pressure")
     available = circuit.supply.available(circuit.relief) / BAR
     bottom.axhline(available, ls="--", lw=0.8, color="k", label="highest load served")
-    top.set_ylabel("flow (L/min)")
-    bottom.set_ylabel("pressure (bar); × overrunning")
+    return _over_time(figure, title, "flow (L/min)", "pressure (bar); × overrunning")
+
+
+def _over_time(figure, title: str, upper: str, lower: str):
+    """Label a figure of two plots over time t (s), sharing the time axis: titles, grids and
+    legends."""
+    top, bottom = figure.axes
+    top.set_ylabel(upper)
+    bottom.set_ylabel(lower)
     bottom.set_xlabel("t (s)")
     top.set_title(title)
     for axes in (top, bottom):
