@@ -98,6 +98,7 @@ def _study_command(args: argparse.Namespace) -> None:
         method=args.method,
         progress=not args.quiet,
         energy_bound=args.energy_bound,
+        circuit=args.circuit_limits,
     )
     print(study.table())
     out = Path(args.out)
@@ -205,6 +206,11 @@ def parser() -> argparse.ArgumentParser:
         "--energy-bound",
         action="store_true",
         help="also the energy bound of each segment under LS and CP (seconds per segment)",
+    )
+    study.add_argument(
+        "--circuit-limits",
+        action="store_true",
+        help="the hydraulic circuit's limits (pressure, pump flow, speeds) count like strokes",
     )
     study.add_argument("--out", default="results", help="output folder (figures, report)")
     study.add_argument("--json", help="report path (default: OUT/report.json)")

@@ -11,7 +11,7 @@ from commands import run_cli
 from sampling import random_configurations
 
 from redundancy import load_robot
-from redundancy.errors import InvalidInputError
+from redundancy.errors import InvalidInputError, RobotDescriptionError
 from redundancy.model.hydraulics import BAR, LITRES_PER_MINUTE, circuit_from_table
 from redundancy.planning.energy_bound import EXACT, Tables, _nodes, energy_optimum
 from redundancy.planning.integrate import simulate
@@ -20,7 +20,7 @@ from redundancy.planning.tasks import WorkCycle
 from redundancy.planning.time_scaling import shortest_duration
 from redundancy.resolution.laws import MinFlow
 from redundancy.resolution.limits import Limits
-from redundancy.resolution.objectives import CP_ENERGY, FLOW, LS_ENERGY, VELOCITY
+from redundancy.resolution.objectives import CP_ENERGY, ENERGY, FLOW, LS_ENERGY, VELOCITY
 from redundancy.resolution.state import actuator_space
 from redundancy.study.study import BASELINES
 
@@ -320,3 +320,57 @@ def test_shortest_duration_reaches_a_limit_and_exceeds_none(crane, cycle):
         np.testing.assert_allclose(retimed.x_dot[[0, -1]], 0.0, atol=1e-9)
         rate = np.gradient(retimed.x, retimed.t, axis=0)
         assert np.abs(rate - retimed.x_dot).max() < 1e-2 * crane.circuit().max_speeds.max()
+
+
+def test_circuit_limits_count_in_the_searches(crane, cycle, tmp_path):
+    """With the circuit's limits counted, a pump of 70 L/min cuts the feasible starts of 1-2 and
+    3-1 where the pump flow passes it; the fast search and the sweep agree on the new ends within
+    one sample spacing and on the best peak within 0.5 %. The M_H-weighted law, whose telescope
+    passes its 0.25 m/s everywhere on 1-2, keeps no start there."""
+    text = (crane.urdf.parent / "robot.toml").read_text()
+    table = text[text.index("[hydraulics]") :].replace("pump_flow = 100.0", "pump_flow = 70.0")
+    (tmp_path / "pump.toml").write_text(table)
+    small = load_robot("hiab031", hydraulics=tmp_path / "pump.toml")
+    spacing = (crane.actuators["x3"].upper - crane.actuators["x3"].lower) / 99
+    for name, cut in (("1-2", 0.9), ("3-1", 0.6)):
+        segment = cycle[name]
+        free = improved_start(small, segment, VELOCITY)
+        fast = improved_start(small, segment, VELOCITY, circuit=True)
+        sweep = improved_start(small, segment, VELOCITY, method="sweep", circuit=True)
+        assert free.feasible_range[0] < cut < fast.feasible_range[0]
+        assert abs(fast.feasible_range[0] - sweep.feasible_range[0]) < spacing
+        assert fast.best.peak <= sweep.best.peak * 1.005
+        pumped = fast.motion().flows.pump_flow[0].max()
+        assert pumped <= small.circuit().pump_flow * (1 + 1e-9)
+        low = [s for s in fast.samples if s.peak is not None and s.values[0] < cut]
+        assert any("pump flow" in (s.reason or "") for s in low)
+    energy = improved_start(crane, cycle["1-2"], ENERGY, circuit=True)
+    assert energy.best is None
+    assert str(energy.closest_violation).startswith("x3 speed")
+
+
+def test_cylinders_declared_in_the_transmissions_equal_the_toml_tables(crane, tmp_path):
+    """The crane's cylinders given as <cylinder> elements of its transmissions, with the
+    machine's supply alone in robot.toml, make the same circuit as the bundled tables; a
+    cylinder declared in both places, or with an unknown attribute, is one line."""
+    folder = crane.urdf.parent
+    urdf = crane.urdf.read_text()
+    for name, (bore, rod) in {"x1": (80, 45), "x2": (70, 40), "x3": (50, 32)}.items():
+        head = f'<actuator name="{name}">'
+        cylinder = f'<cylinder bore="{bore}" rod="{rod}" max_speed="0.25" max_acceleration="1"/>'
+        assert urdf.count(head) == 1
+        urdf = urdf.replace(head, head + cylinder)
+    (tmp_path / "crane.urdf").write_text(urdf)
+    toml = (folder / "robot.toml").read_text()
+    machine = toml[: toml.index("[hydraulics.cylinders.x1]")]
+    (tmp_path / "robot.toml").write_text(machine.replace("hiab031.urdf", "crane.urdf"))
+    declared, bundled = load_robot(tmp_path / "robot.toml").circuit(), crane.circuit()
+    for field in ("names", "cylinders", "supply", "constant_pressure", "relief", "pump_flow"):
+        assert getattr(declared, field) == getattr(bundled, field)
+    np.testing.assert_array_equal(declared.columns, bundled.columns)
+    (tmp_path / "both.toml").write_text(toml.replace("hiab031.urdf", "crane.urdf"))
+    with pytest.raises(InvalidInputError, match=r"cylinders \['x1', 'x2', 'x3'\] are declared"):
+        load_robot(tmp_path / "both.toml")
+    (tmp_path / "crane.urdf").write_text(urdf.replace('rod="45"', 'rod="45" colour="red"'))
+    with pytest.raises(RobotDescriptionError, match=r"unknown attributes \['colour'\]"):
+        load_robot(tmp_path / "robot.toml")

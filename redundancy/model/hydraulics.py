@@ -143,7 +143,7 @@ class Flows:
         return self.power(supply) - self.useful_power
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Circuit:
     """A machine's hydraulics: ``cylinders`` by actuator name (in actuator order) with their
     ``columns`` among the actuators, the machine's own ``supply``, both supplies' parameters for
@@ -238,11 +238,17 @@ def _unknown(table: dict, known, where: str) -> None:
 
 
 def circuit_from_table(
-    table: object, source: str, actuators: list[str], rotary: list[bool]
+    table: object,
+    source: str,
+    actuators: list[str],
+    rotary: list[bool],
+    declared: dict[str, dict] | None = None,
+    declared_in: str = "",
 ) -> Circuit:
     """A `Circuit` from a ``[hydraulics]`` table (schema in the README), read from ``source``,
     for a robot with actuators ``actuators`` (``rotary`` marks angles, which cylinders cannot
-    drive)."""
+    drive), with the cylinders ``declared`` beside the actuators (in ``declared_in``, a URDF's
+    transmissions) besides the table's own; a cylinder declared in both is an error."""
     where = f"{source} [hydraulics]"
     if not isinstance(table, dict):
         raise InvalidInputError(f"{where} must be a table; got {table!r}")
@@ -251,15 +257,25 @@ def circuit_from_table(
     if supply not in SUPPLIES:
         raise InvalidInputError(f"{where}: supply = {supply!r}; supplies: {', '.join(SUPPLIES)}")
     values = {k: _number(table, k, where, m) for k, m in MACHINE_KEYS.items() if k != "supply"}
-    cylinders = table.get("cylinders")
-    if not isinstance(cylinders, dict) or not cylinders:
+    cylinders = table.get("cylinders", {})
+    if not isinstance(cylinders, dict):
+        raise InvalidInputError(f"{where}: cylinders must be [hydraulics.cylinders.<actuator>]")
+    both = sorted(set(cylinders) & set(declared or {}))
+    if both:
         raise InvalidInputError(
-            f"{where}: needs [hydraulics.cylinders.<actuator>] tables; actuators: "
-            f"{', '.join(actuators)}"
+            f"{where}: cylinders {both} are declared here and in {declared_in}; keep one"
+        )
+    places = {name: f"{where} cylinders.{name}" for name in cylinders}
+    places |= {name: f"{declared_in} transmission {name!r}" for name in declared or {}}
+    cylinders = {**cylinders, **(declared or {})}
+    if not cylinders:
+        raise InvalidInputError(
+            f"{where}: no cylinders; declare [hydraulics.cylinders.<actuator>] tables or "
+            f"<cylinder> elements in the transmissions; actuators: {', '.join(actuators)}"
         )
     found = []
     for name, entry in cylinders.items():
-        place = f"{where} cylinders.{name}"
+        place = places[name]
         if name not in actuators:
             raise InvalidInputError(f"{place}: no actuator {name!r}; actuators: {actuators}")
         if rotary[actuators.index(name)]:

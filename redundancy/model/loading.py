@@ -8,6 +8,7 @@ from __future__ import annotations
 import importlib.metadata
 import importlib.resources
 import tomllib
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +19,7 @@ from redundancy.errors import InvalidInputError, RobotDescriptionError
 from redundancy.model.actuators import ActuatorSet
 from redundancy.model.hydraulics import circuit_from_table, read_hydraulics_file
 from redundancy.model.robot import AXES, Robot
-from redundancy.model.transmissions import read_transmissions
+from redundancy.model.transmissions import read_cylinders, read_transmissions
 
 
 def bundled_root() -> Path:
@@ -170,13 +171,22 @@ def load_robot(
     task = description.get("task")
     task_file = None if task is None else folder / task
     names, rotary = actuators.names, actuators.rotary.tolist()
-    circuit = None
+    declared = read_cylinders(root, urdf_path.name)
+    table, source = None, ""
     if hydraulics is not None:
-        table = read_hydraulics_file(Path(hydraulics))
-        circuit = circuit_from_table(table, str(hydraulics), names, rotary)
+        table, source = read_hydraulics_file(Path(hydraulics)), str(hydraulics)
     elif "hydraulics" in description:
-        source = Path(robot) if Path(robot).suffix == ".toml" else folder / "robot.toml"
-        circuit = circuit_from_table(description["hydraulics"], str(source), names, rotary)
+        table = description["hydraulics"]
+        source = str(Path(robot) if Path(robot).suffix == ".toml" else folder / "robot.toml")
+    elif declared:
+        warnings.warn(
+            f"{urdf_path.name} declares cylinders {sorted(declared)} but no [hydraulics] table "
+            "gives the machine's supply; hydraulics are off",
+            stacklevel=2,
+        )
+    circuit = None
+    if table is not None:
+        circuit = circuit_from_table(table, source, names, rotary, declared, urdf_path.name)
     return Robot(
         name, model, tool_frame, task_axes, actuators, payload, urdf_path, task_file, circuit
     )

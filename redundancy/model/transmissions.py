@@ -8,14 +8,17 @@ lxml. Schema::
       <joint name="boom1_joint"/>                   <!-- the joint it drives -->
       <actuator name="x1">
         <stroke lower="0.830" upper="1.375"/>       <!-- stroke limits, m (rad for rotary) -->
-      </actuator>
+        <cylinder bore="80" rod="45" max_speed="0.25" max_acceleration="1.0"/>
+      </actuator>                                   <!-- optional hydraulic data: mm, m/s, m/s² -->
       <attachment link="column" xyz="..."/>         <!-- kind-specific children: a cylinder's -->
       <attachment link="boom1" xyz="..."/>          <!-- base point, then its rod point -->
     </transmission>
 
 ``Prismatic`` takes ``<offset value="..."/>`` (x = q + offset); ``Identity`` nothing more. A kind
 of your own takes whatever children its ``from_transmission`` reads. Transmissions of other types
-(e.g. ROS ``transmission_interface/SimpleTransmission``) are left alone.
+(e.g. ROS ``transmission_interface/SimpleTransmission``) are left alone. A ``<cylinder>`` in the
+``<actuator>`` gives the cylinder's hydraulic data, as a ``[hydraulics.cylinders.<name>]`` table
+of ``robot.toml`` does (`redundancy.model.hydraulics`; the machine's supply stays in the TOML).
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ from lxml import etree
 
 from redundancy.errors import RobotDescriptionError
 from redundancy.model.actuators import ActuatorMap
+from redundancy.model.hydraulics import CYLINDER_KEYS
 
 PREFIX = "redundancy/"
 _COMMON = {"type", "joint", "actuator"}
@@ -73,6 +77,30 @@ def _read_one(element: etree._Element, source: str) -> ActuatorMap:
         data,
     )
     return actuator
+
+
+def read_cylinders(root: etree._Element, source: str) -> dict[str, dict[str, float]]:
+    """The hydraulic data of the cylinders declared in a URDF's redundancy transmissions, by
+    actuator name: each ``<actuator><cylinder .../></actuator>`` element's attributes as numbers
+    (`CYLINDER_KEYS`; missing ones are left for `circuit_from_table` to name)."""
+    found = {}
+    for element in root.findall("transmission"):
+        if not (element.findtext("type") or "").strip().startswith(PREFIX):
+            continue
+        name = element.get("name") or ""
+        for cylinder in element.findall("actuator/cylinder"):
+            extra = sorted(set(cylinder.attrib) - set(CYLINDER_KEYS))
+            if extra:
+                raise RobotDescriptionError(
+                    f"{source}: transmission {name!r}: <cylinder> has unknown attributes "
+                    f"{extra}; attributes: {', '.join(CYLINDER_KEYS)}"
+                )
+            found[name] = {
+                key: _number(source, name, cylinder, key, float("nan"))
+                for key in CYLINDER_KEYS
+                if key in cylinder.attrib
+            }
+    return found
 
 
 def read_transmissions(root: etree._Element, source: str) -> list[ActuatorMap]:

@@ -90,7 +90,8 @@ class Trajectory:
     starts frozen at a singular or non-finite state; stopped (k,) motions a search stopped past
     their limits; checked: the actuators whose strokes count; measure (k, T) the measure of
     ``objective`` at the samples, when integrated for one; ``sparse``: sampled at the adaptive
-    steps (see the module docstring), with the strokes' error ``allowance`` (m).
+    steps (see the module docstring), with the strokes' error ``allowance`` (m); ``circuit``:
+    the hydraulic circuit's limits count too (`within_limits`, `violations`).
     """
 
     robot: Robot = field(repr=False)
@@ -108,6 +109,7 @@ class Trajectory:
     measure: np.ndarray | None = None
     sparse: bool = False
     allowance: float = 0.0
+    circuit: bool = False
 
     def __len__(self) -> int:
         return len(self.q)
@@ -252,14 +254,26 @@ class Trajectory:
 
     @property
     def within_limits(self) -> np.ndarray:
-        """Whether each motion keeps every checked actuator inside its stroke (k,) and did not
-        fail."""
-        return self.margins >= -LIMIT_TOLERANCE
+        """Whether each motion keeps every checked actuator inside its stroke (k,), and, where
+        the circuit counts, within every limit of the circuit at its samples, and did not fail."""
+        inside = self.margins >= -LIMIT_TOLERANCE
+        return inside & self.within_circuit if self.circuit else inside
+
+    @cached_property
+    def within_circuit(self) -> np.ndarray:
+        """Whether each motion keeps within every limit of the hydraulic circuit at its samples
+        (k,), a hair of relative `LIMIT_TOLERANCE` allowed."""
+        limits = self.hydraulic_limits
+        excess = limits.excess(self.hydraulic_values) / limits.upper
+        return excess.max(axis=(1, 2)) <= LIMIT_TOLERANCE
 
     def violations(self, i: int) -> list[Violation]:
-        """Every interval over which motion ``i`` has a checked actuator outside its stroke, at
-        its samples."""
-        return self.limits.violations(self.t[i], self.x[i])
+        """Every interval over which motion ``i`` has a checked actuator outside its stroke, or,
+        where the circuit counts, passes one of its limits, at its samples, in order of time."""
+        found = self.limits.violations(self.t[i], self.x[i])
+        if self.circuit:
+            found = sorted(found + self.hydraulic_violations(i), key=lambda v: v.start)
+        return found
 
 
 def stroke_extremes(
@@ -350,6 +364,7 @@ def simulate(
     objective: Objective | None = None,
     sparse: bool = False,
     stop_past: bool = False,
+    circuit: bool = False,
 ) -> Trajectory:
     """Integrate ``resolver`` along ``segment`` from every start (k, n) at once.
 
@@ -358,7 +373,8 @@ def simulate(
     count for `Trajectory.within_limits` (default all); ``objective`` records its measure at the
     samples. Adaptive only: ``sparse`` samples at the steps instead of the grid; ``stop_past``
     stops a motion once it and its neighbours in the batch are all past a checked stroke by more
-    than the error allowance (a search's motions that cannot matter).
+    than the error allowance (a search's motions that cannot matter). With ``circuit`` the
+    hydraulic circuit's limits count for `Trajectory.within_limits` too.
     """
     starts = robot.configuration(starts, "starts")
     if segment.start.shape != (robot.m,):
@@ -372,6 +388,8 @@ def simulate(
     if not (time_step > 0 and gain >= 0 and tolerance > 0):
         raise InvalidInputError("time_step must be > 0 s, gain ≥ 0 1/s and tolerance > 0")
     limits = Limits.strokes(robot, checked)
+    if circuit:
+        robot.circuit()  # says how to declare one before any work
     # a dynamic objective's measure needs ẍ, known only on the finished motion
     law = Law(
         robot, resolver, segment, gain, None if objective and objective.dynamic else objective
@@ -401,6 +419,7 @@ def simulate(
         measure,
         sparse,
         allowance,
+        circuit,
     )
 
 

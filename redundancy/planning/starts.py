@@ -166,6 +166,7 @@ class SearchResult:
             time_step,
             checked=self.trajectory.checked,
             objective=self.objective,
+            circuit=self.trajectory.circuit,
         )
 
     def extended(self, other: SearchResult) -> SearchResult:
@@ -216,6 +217,7 @@ def _concatenated(first: Trajectory, second: Trajectory) -> Trajectory:
         joined("measure"),
         first.sparse,
         first.allowance,
+        first.circuit,
     )
 
 
@@ -327,11 +329,13 @@ def evaluate_starts(
     tolerance: float = TOLERANCE,
     stop_past: bool = False,
     method: str = "sweep",
+    circuit: bool = False,
 ) -> SearchResult:
     """Steps iv-v for the given held values, (k,) for one held actuator or (k, r), or for
     `Starts` already found: integrate the reachable ones as one batch, check the limits, take
     the objective. ``stop_past`` stops motions that, with both neighbours in the batch, are past
-    a checked stroke (their margin is then unknown, −inf)."""
+    a checked stroke (their margin is then unknown, −inf). With ``circuit`` a start is feasible
+    only if its motion also keeps the hydraulic circuit's limits; its margin stays the strokes'."""
     held = _held(held)
     held_indices(robot, held)
     if not isinstance(values, Starts):
@@ -359,6 +363,7 @@ def evaluate_starts(
         objective=objective,
         sparse=True,
         stop_past=stop_past,
+        circuit=circuit,
     )
     scores = trajectory.score(objective)
     margins = trajectory.margins
@@ -371,7 +376,7 @@ def evaluate_starts(
             )
             continue
         margin = float(min(margins[row], starts.joint_margins[i]))
-        feasible = margin >= -LIMIT_TOLERANCE
+        feasible = margin >= -LIMIT_TOLERANCE and bool(trajectory.within_limits[row])
         violations = tuple(trajectory.violations(row))
         samples.append(
             Sample(
@@ -408,6 +413,7 @@ def improved_start(
     checked: tuple[str, ...] | None = None,
     method: str | None = None,
     tolerance: float | None = None,
+    circuit: bool = False,
 ) -> SearchResult:
     """The paper's improved initial configuration (steps i-v), searching the held actuators.
 
@@ -416,6 +422,8 @@ def improved_start(
     fast search's budget is its own). ``checked`` restricts the limit check to named actuators
     (the paper's step iv checks x1 and x2); by default every actuator counts. ``tolerance``
     (m, or rad) locates the fast search's feasible ends; default `END_TOLERANCE` of the stroke.
+    With ``circuit`` a start must also keep the robot's hydraulic circuit within its limits
+    (load pressures, pump flow, cylinder speeds): the fast search then bisects where those bind.
     """
     held = _held(held)
     held_indices(robot, held)
@@ -430,15 +438,15 @@ def improved_start(
                 f"the fast search holds one actuator; {list(held)} are {len(held)}: use "
                 "method='sweep'"
             )
-        return _fast(robot, segment, objective, held[0], checked, tolerance)
+        return _fast(robot, segment, objective, held[0], checked, tolerance, circuit)
     if len(held) == 1:
         configurations = Configurations(robot, segment, held[0])
         starts = configurations.at(sweep_values(robot, held[0], samples))
-        return evaluate_starts(robot, segment, objective, held, starts, checked)
-    return _compass(robot, segment, objective, held, samples, checked)
+        return evaluate_starts(robot, segment, objective, held, starts, checked, circuit=circuit)
+    return _compass(robot, segment, objective, held, samples, checked, circuit)
 
 
-def _fast(robot, segment, objective, held, checked, tolerance) -> SearchResult:
+def _fast(robot, segment, objective, held, checked, tolerance, circuit) -> SearchResult:
     """The fast search for one held actuator (see the module docstring)."""
     scan = sweep_values(robot, held, REACH_GRID)
     tolerance = END_TOLERANCE * (scan[-1] - scan[0]) if tolerance is None else tolerance
@@ -464,7 +472,15 @@ def _fast(robot, segment, objective, held, checked, tolerance) -> SearchResult:
         )
     grid = configurations.at(np.linspace(reachable.min(), reachable.max(), GRID))
     search = evaluate_starts(
-        robot, segment, objective, (held,), grid, checked, stop_past=True, method="fast"
+        robot,
+        segment,
+        objective,
+        (held,),
+        grid,
+        checked,
+        stop_past=True,
+        method="fast",
+        circuit=circuit,
     )
     for _ in range(ROUNDS):
         order = np.argsort(search.values[:, 0], kind="stable")
@@ -480,7 +496,16 @@ def _fast(robot, segment, objective, held, checked, tolerance) -> SearchResult:
             break
         starts = configurations.at(probes)
         search = search.extended(
-            evaluate_starts(robot, segment, objective, (held,), starts, checked, method="fast")
+            evaluate_starts(
+                robot,
+                segment,
+                objective,
+                (held,),
+                starts,
+                checked,
+                method="fast",
+                circuit=circuit,
+            )
         )
     return search
 
@@ -497,7 +522,7 @@ def _merged(first: Starts, second: Starts) -> Starts:
     )
 
 
-def _compass(robot, segment, objective, held, samples, checked) -> SearchResult:
+def _compass(robot, segment, objective, held, samples, checked, circuit) -> SearchResult:
     """Halton points over the stroke box, then compass-search refinement (r > 1)."""
     from scipy.stats import qmc
 
@@ -505,7 +530,7 @@ def _compass(robot, segment, objective, held, samples, checked) -> SearchResult:
     lower, span = box[:, 0], box[:, 1] - box[:, 0]
 
     def run(values):
-        return evaluate_starts(robot, segment, objective, held, values, checked)
+        return evaluate_starts(robot, segment, objective, held, values, checked, circuit=circuit)
 
     result = run(lower + span * qmc.Halton(len(held), seed=1).random(samples))
     leaders = sorted(result.feasible, key=lambda s: s.peak)[:REFINED_AROUND]  # type: ignore[arg-type,return-value]

@@ -99,11 +99,22 @@ def fixed_start_run(
     checked: tuple[str, ...] | None = None,
     time_step: float = TIME_STEP,
     method: str = "adaptive",
+    circuit: bool = False,
 ) -> StrategyRun:
     """``resolver`` along ``segment`` from a fixed start: ``start`` = (held values (r,), q (n,)),
-    by default `default_start`; the run is called ``name``."""
+    by default `default_start`; the run is called ``name``. With ``circuit`` the hydraulic
+    circuit's limits count for its `within_limits` too."""
     values, q = default_start(robot, segment, held) if start is None else start
-    motion = simulate(robot, resolver, segment, q[None], time_step, checked=checked, method=method)
+    motion = simulate(
+        robot,
+        resolver,
+        segment,
+        q[None],
+        time_step,
+        checked=checked,
+        method=method,
+        circuit=circuit,
+    )
     return StrategyRun(segment.name, name, tuple(float(v) for v in values), motion)
 
 

@@ -64,6 +64,7 @@ class Study:
     samples: int
     method: str
     checked: tuple[str, ...]
+    circuit: bool
     searches: dict[str, tuple[SearchResult, ...]]
     sweeps: dict[str, tuple[SearchResult, ...]]
     bounds: dict[str, tuple[GlobalOptimum | None, ...]]
@@ -101,6 +102,7 @@ class Study:
             "samples": self.samples,
             "method": self.method,
             "checked_actuators": list(self.checked),
+            "circuit_limits_checked": self.circuit,
             "studies": [
                 {
                     "objective": name,
@@ -272,6 +274,7 @@ def run_study(
     bound: bool = True,
     progress: bool = True,
     energy_bound: bool = False,
+    circuit: bool = False,
 ) -> Study:
     """Run every objective's improved search, sweep and bound, and the comparison strategies,
     on every segment.
@@ -281,7 +284,9 @@ def run_study(
     held actuator) or "sweep" (``samples`` starts; always with several). The bound is computed
     with one held actuator, where a start is feasible, unless ``bound`` is False. With
     ``energy_bound`` (one held actuator and a hydraulic circuit), each segment's energy bound
-    under load sensing and constant pressure is computed too.
+    under load sensing and constant pressure is computed too. With ``circuit`` the hydraulic
+    circuit's limits count wherever strokes do (the searches' feasibility, every run's limits);
+    the min-max bound still keeps the strokes alone, so it stays a bound.
     """
     from tqdm import tqdm
 
@@ -301,17 +306,30 @@ def run_study(
             start = default_start(robot, segment, held)
             for name, resolver in BASELINES:
                 bar.set_description(f"{segment.name}: {name}")
-                runs.append(fixed_start_run(robot, resolver, name, segment, held, start, checked))
+                runs.append(
+                    fixed_start_run(
+                        robot, resolver, name, segment, held, start, checked, circuit=circuit
+                    )
+                )
                 bar.update()
             for objective in objectives:
                 bar.set_description(f"{segment.name}: improved, {objective.name}")
                 sweep = improved_start(
-                    robot, segment, objective, held, samples, checked, method="sweep"
+                    robot,
+                    segment,
+                    objective,
+                    held,
+                    samples,
+                    checked,
+                    method="sweep",
+                    circuit=circuit,
                 )
                 bar.update()
                 search = sweep
                 if method == "fast":
-                    search = improved_start(robot, segment, objective, held, checked=checked)
+                    search = improved_start(
+                        robot, segment, objective, held, checked=checked, circuit=circuit
+                    )
                 bar.update()
                 searches[objective.name].append(search)
                 sweeps[objective.name].append(sweep)
@@ -334,10 +352,10 @@ def run_study(
                 bar.update()
     energy_bounds = None
     if energy_bound:
-        circuit = robot.circuit()
+        machine = robot.circuit()
         if len(held) != 1:
             raise InvalidInputError(f"the energy bound holds one actuator; the task holds {held}")
-        supplies = (circuit.load_sensing, circuit.constant_pressure)
+        supplies = (machine.load_sensing, machine.constant_pressure)
         energy_bounds = {
             segment.name: {
                 supply.name: energy_optimum(robot, segment, supply, held[0], checked)
@@ -352,6 +370,7 @@ def run_study(
         samples,
         method,
         tuple(robot.actuators.names if checked is None else checked),
+        circuit,
         {name: tuple(found) for name, found in searches.items()},
         {name: tuple(found) for name, found in sweeps.items()},
         {name: tuple(found) for name, found in bounds.items()},
