@@ -374,3 +374,31 @@ def test_cylinders_declared_in_the_transmissions_equal_the_toml_tables(crane, tm
     (tmp_path / "crane.urdf").write_text(urdf.replace('rod="45"', 'rod="45" colour="red"'))
     with pytest.raises(RobotDescriptionError, match=r"unknown attributes \['colour'\]"):
         load_robot(tmp_path / "robot.toml")
+
+
+def test_telescope_at_constant_speed_by_hand(crane):
+    """The booms still and the telescope moving at a constant ±0.1 m/s: ẍ = 0, and the only
+    force on x3 is the weight of telescope and payload along boom 2, (36 + 100) kg · 9.81 m/s² ·
+    sin(θ1 + θ2) with θ_i = q_i + c_i (Eqs. 2-3); here boom 2 points 47.67° down, so it is
+    −986.3 N (the cylinder holds the telescope in). Extending, the load overruns; retracting,
+    p_L = (986.3 N + p_T A_A) / A_B = 11.90 bar."""
+    q = np.array([np.radians(100), np.radians(60), 0.7])
+    c1, c2 = np.radians(-57.70), np.radians(-149.97)
+    weight = 136 * 9.81 * np.sin(q[0] + c1 + q[1] + c2)
+    assert weight == pytest.approx(-986.316, abs=1e-3)
+    a, b = math.pi * 0.05**2 / 4, math.pi * (0.05**2 - 0.032**2) / 4
+    circuit = crane.circuit()
+    for speed in (0.1, -0.1):
+        space = actuator_space(crane, q, [0.0, 0.0, speed])
+        np.testing.assert_allclose(space.A_dot[0] @ [0.0, 0.0, speed], 0.0, atol=1e-15)
+        force = space.forces(np.zeros((1, 3)))
+        assert force[0, 2] == pytest.approx(weight, rel=1e-9)
+        flows = circuit.flows(space.x_dot, force)
+        if speed > 0:
+            assert flows.flow[0, 2] == pytest.approx(a * 0.1, rel=1e-12)
+            assert (weight + 2e5 * b) / a < 2e5 and flows.overrunning[0, 2]
+        else:
+            assert flows.flow[0, 2] == pytest.approx(b * 0.1, rel=1e-12)
+            assert flows.load[0, 2] == pytest.approx((-weight + 2e5 * a) / b, rel=1e-9)
+            assert flows.load[0, 2] / BAR == pytest.approx(11.90, abs=5e-3)
+        assert flows.pump_flow[0] * 60000 == pytest.approx(flows.flow[0, 2] * 60000, rel=1e-12)
