@@ -1,6 +1,7 @@
 """The hydraulic circuit: hand calculations, the power balance, the energy chain, the objectives
 and the energy bound on the paper's crane."""
 
+import json
 import math
 import re
 
@@ -11,7 +12,7 @@ from commands import run_cli
 from sampling import random_configurations
 
 from redundancy import load_robot
-from redundancy.errors import InvalidInputError, RobotDescriptionError
+from redundancy.errors import InvalidInputError, RobotDescriptionError, UnreachableError
 from redundancy.model.hydraulics import BAR, LITRES_PER_MINUTE, circuit_from_table
 from redundancy.planning.energy_bound import EXACT, Tables, _nodes, energy_optimum
 from redundancy.planning.integrate import simulate
@@ -22,7 +23,7 @@ from redundancy.resolution.laws import MinFlow
 from redundancy.resolution.limits import Limits
 from redundancy.resolution.objectives import CP_ENERGY, ENERGY, FLOW, LS_ENERGY, VELOCITY
 from redundancy.resolution.state import actuator_space
-from redundancy.study.study import BASELINES
+from redundancy.study.study import BASELINES, run_study
 
 
 @pytest.fixture(scope="module")
@@ -402,3 +403,24 @@ def test_telescope_at_constant_speed_by_hand(crane):
             assert flows.load[0, 2] == pytest.approx((-weight + 2e5 * a) / b, rel=1e-9)
             assert flows.load[0, 2] / BAR == pytest.approx(11.90, abs=5e-3)
         assert flows.pump_flow[0] * 60000 == pytest.approx(flows.flow[0, 2] * 60000, rel=1e-12)
+
+
+def test_the_study_goes_on_where_a_bound_fails(crane, cycle, monkeypatch):
+    """A bound whose solver fails (as the min-max bound of peak pump flow does on 3-1, where
+    SLSQP steps out of the task's reach) leaves that segment without a bound, says why in one
+    line, and the study goes on."""
+    import redundancy.study.study as study_module
+
+    solved = study_module.global_optimum
+
+    def failing_on_2_3(robot, segment, *args, **kwargs):
+        if segment.name == "2-3":
+            raise UnreachableError("no configuration reaches the task at t = 1.000 s")
+        return solved(robot, segment, *args, **kwargs)
+
+    monkeypatch.setattr(study_module, "global_optimum", failing_on_2_3)
+    study = run_study(crane, cycle, (VELOCITY,), samples=5, progress=False)
+    segments = json.loads(json.dumps(study.report(), allow_nan=False))["studies"][0]["segments"]
+    assert [s["bound"] is None for s in segments] == [False, True, False]
+    assert segments[1]["bound_failure"] == "no configuration reaches the task at t = 1.000 s"
+    assert "no bound: no configuration reaches the task" in study.table()

@@ -330,10 +330,14 @@ def global_optimum(
     motions = simulate(
         robot, objective.resolver, segment, starts.q[starts.reached], segment.duration / grids[0]
     )
-    candidates = [
-        solve(grids[0], motions.t[i], motions.x[i, :, row], motions.q[i])
-        for i in range(len(motions))
-    ]
+    candidates, failures = [], []
+    for i, value in enumerate(np.array(initial)[starts.reached]):
+        try:
+            candidates.append(solve(grids[0], motions.t[i], motions.x[i, :, row], motions.q[i]))
+        except InvalidInputError as error:  # the solver stepped where the task is out of reach
+            failures.append(f"from {held} = {value:.4g}: {error}")
+    if not candidates:
+        raise InvalidInputError(f"the bound found no optimum; {'; '.join(failures)}")
     r, grid, nodes, q = min(candidates, key=lambda c: c[1].peak)
     solutions = [grid]
     for intervals in grids[1:]:

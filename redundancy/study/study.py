@@ -27,7 +27,7 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from redundancy.errors import InvalidInputError
+from redundancy.errors import InvalidInputError, UnreachableError
 from redundancy.model.hydraulics import KILOJOULE
 from redundancy.model.robot import Robot
 from redundancy.planning.bound import GlobalOptimum, global_optimum
@@ -70,6 +70,7 @@ class Study:
     bounds: dict[str, tuple[GlobalOptimum | None, ...]]
     runs: tuple[StrategyRun, ...]
     energy_bounds: dict[str, dict[str, EnergyOptimum]] | None = None  # segment → supply → bound
+    bound_failures: dict[str, str] | None = None  # "objective/segment" → why it has no bound
 
     def search(self, objective: str, segment: str) -> SearchResult:
         return self.searches[objective][self._segment(segment)]
@@ -175,6 +176,7 @@ class Study:
                 "converged": bound.converged,
             },
             "gap_percent": self.gap(objective, segment),
+            "bound_failure": (self.bound_failures or {}).get(f"{objective}/{segment}"),
             "simulations": search.simulations,
             "samples": [
                 {
@@ -221,9 +223,11 @@ class Study:
                         + (f"; closest: {closest}" if closest else "")
                     )
                     continue
+                failure = (self.bound_failures or {}).get(f"{name}/{segment}")
                 lines.append(
                     f"{segment:<{names}}{name:<10}{search.best.peak:>12.5g}"
                     + ("" if bound is None else f"{bound.bound:>12.5g}{gap:>8.2f}")
+                    + ("" if failure is None else f"{'-':>12}{'-':>8}  no bound: {failure}")
                 )
         if self.robot.hydraulics is not None:
             lines += ["", *self._hydraulic_table(names)]
@@ -300,6 +304,7 @@ def run_study(
     searches: dict[str, list[SearchResult]] = {o.name: [] for o in objectives}
     sweeps: dict[str, list[SearchResult]] = {o.name: [] for o in objectives}
     bounds: dict[str, list[GlobalOptimum | None]] = {o.name: [] for o in objectives}
+    failures: dict[str, str] = {}  # a bound that failed does not stop the study
     runs: list[StrategyRun] = []
     with bar:
         for segment in segments:
@@ -345,9 +350,12 @@ def run_study(
                     )
                     if bound and len(held) == 1 and objective.reduction == "peak":
                         bar.set_description(f"{segment.name}: bound, {objective.name}")
-                        optimum = global_optimum(
-                            robot, segment, objective, held[0], checked, search=search
-                        )
+                        try:
+                            optimum = global_optimum(
+                                robot, segment, objective, held[0], checked, search=search
+                            )
+                        except (InvalidInputError, UnreachableError) as error:
+                            failures[f"{objective.name}/{segment.name}"] = str(error)
                 bounds[objective.name].append(optimum)
                 bar.update()
     energy_bounds = None
@@ -376,6 +384,7 @@ def run_study(
         {name: tuple(found) for name, found in bounds.items()},
         tuple(runs),
         energy_bounds,
+        failures,
     )
 
 
