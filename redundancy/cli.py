@@ -1,7 +1,9 @@
 """The ``redundancy`` command line.
 
 Every failure a user can cause ends in one line on stderr naming the problem, and exit status 2;
-an interrupt ends with status 130. Neither prints a traceback.
+an interrupt ends with status 130, a termination (SIGTERM) with 143, anything else (a bug) with
+one "internal error" line and status 1. None prints a traceback. The study's outputs appear all
+together or not at all (`redundancy.study.output`).
 """
 
 from __future__ import annotations
@@ -10,7 +12,6 @@ import argparse
 import signal
 import sys
 import warnings
-from pathlib import Path
 
 import numpy as np
 
@@ -23,6 +24,7 @@ from redundancy.planning.starts import METHODS, default_start, held_actuators, i
 from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.resolution.objectives import OBJECTIVES, Objective, objective
 from redundancy.resolution.state import actuator_space
+from redundancy.study.output import OutputFolder, writable
 from redundancy.study.study import run_study, write_report
 from redundancy.viz.playback import export_html, play, task_points, write_playbacks
 from redundancy.viz.plots import write_figures
@@ -85,28 +87,31 @@ def _load_task(robot: Robot, path: str | None) -> WorkCycle:
 
 
 def _study_command(args: argparse.Namespace) -> None:
-    robot = load_robot(args.robot, payload=args.payload, hydraulics=args.hydraulics)
-    cycle = _load_task(robot, args.task)
-    chosen = ("velocity", "energy") if args.objective == "both" else (args.objective,)
-    checked = None if args.check is None else tuple(args.check.split(","))
-    study = run_study(
-        robot,
-        cycle,
-        tuple(objective(name) for name in chosen),
-        samples=args.samples,
-        checked=checked,
-        method=args.method,
-        progress=not args.quiet,
-        energy_bound=args.energy_bound,
-        circuit=args.circuit_limits,
-    )
-    print(study.table())
-    out = Path(args.out)
-    report = Path(args.json) if args.json else out / "report.json"
-    write_report(study, report)
-    figures = write_figures(study, out)
-    playbacks = write_playbacks(study, out)
-    print(f"report: {report}")
+    report = None if args.json is None else writable(args.json, "--json")
+    with OutputFolder(args.out) as out:  # committed only if everything below succeeds
+        robot = load_robot(args.robot, payload=args.payload, hydraulics=args.hydraulics)
+        cycle = _load_task(robot, args.task)
+        chosen = ("velocity", "energy") if args.objective == "both" else (args.objective,)
+        checked = None if args.check is None else tuple(args.check.split(","))
+        study = run_study(
+            robot,
+            cycle,
+            tuple(objective(name) for name in chosen),
+            samples=args.samples,
+            checked=checked,
+            method=args.method,
+            progress=not args.quiet,
+            energy_bound=args.energy_bound,
+            circuit=args.circuit_limits,
+        )
+        print(study.table())
+        if report is None:
+            write_report(study, out / "report.json")
+        figures = [out.final(p) for p in write_figures(study, out.staging)]
+        playbacks = [out.final(p) for p in write_playbacks(study, out.staging)]
+    if report is not None:
+        write_report(study, report)
+    print(f"report: {report or out.target / 'report.json'}")
     print(f"figures: {', '.join(str(p) for p in figures)}")
     print(f"playbacks: {', '.join(str(p) for p in playbacks)}")
 
@@ -145,20 +150,19 @@ def _held(names, values) -> str:
 
 
 def _play_command(args: argparse.Namespace) -> None:
+    html = None if args.html is None else writable(args.html, "--html")
     robot = load_robot(args.robot, payload=args.payload, hydraulics=args.hydraulics)
     cycle = _load_task(robot, args.task)
     segment = cycle[args.segment] if args.segment else cycle.segments[0]
     chosen = objective(args.objective)
     motion, start = _play_motion(robot, cycle, segment, chosen, args)
     points = task_points(cycle)
-    if args.html:
-        print(f"playback: {export_html(motion, args.html, points)}")
+    if html is not None:
+        print(f"playback: {export_html(motion, html, points)}")
         return
     heading = f"segment {segment.name}, {chosen.name} objective, {start}"
-    # Ctrl-C (even where a shell started the command with it ignored) and termination both
-    # stop the loop, and play's clean-up takes the meshcat server down with it.
-    for number in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(number, signal.default_int_handler)
+    # Ctrl-C and termination both stop the loop (`main` catches them, even where a shell started
+    # the command with SIGINT ignored), and play's clean-up takes the meshcat server down with it.
     play(motion, points, lambda url: print(f"{heading}: open {url} (Ctrl-C stops)", flush=True))
 
 
@@ -248,18 +252,47 @@ def _note(message, category, filename, lineno, file=None, line=None) -> None:
     print(f"redundancy: note: {message}", file=sys.stderr)
 
 
+class Terminated(BaseException):
+    """SIGTERM, raised where the program is so that clean-ups run as for Ctrl-C."""
+
+
+_signalled: list[int] = []  # the signals received, whatever a library made of their exceptions
+
+
+def _interrupt(number, frame) -> None:
+    _signalled.append(number)
+    raise Terminated if number == signal.SIGTERM else KeyboardInterrupt
+
+
 def main(argv: list[str] | None = None) -> int:
+    """Run the command line; exit status 0, 2 for a user's error (one line), 130 / 143 when
+    interrupted / terminated, 1 for an internal error (one line with the exception's type)."""
     args = parser().parse_args(argv)
     warnings.showwarning = _note
+    for number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(number, _interrupt)
     try:
         args.run(args)
-    except RedundancyError as error:
+    except BaseException as error:
+        return _ending(error)
+    return 0
+
+
+def _ending(error: BaseException) -> int:
+    """The one line and the exit status for an exception that reached the command line. A
+    signal decides, even where a library turned its exception into another (an import cut
+    short ends in ImportError)."""
+    if _signalled or isinstance(error, KeyboardInterrupt | Terminated):
+        terminated = (_signalled or [0])[-1] == signal.SIGTERM or isinstance(error, Terminated)
+        print(f"redundancy: {'terminated' if terminated else 'interrupted'}", file=sys.stderr)
+        return 143 if terminated else 130
+    if isinstance(error, RedundancyError):
         print(f"redundancy: error: {error}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("redundancy: interrupted", file=sys.stderr)
-        return 130
-    return 0
+    if isinstance(error, SystemExit):
+        raise error
+    print(f"redundancy: internal error: {type(error).__name__}: {error}", file=sys.stderr)
+    return 1
 
 
 if __name__ == "__main__":

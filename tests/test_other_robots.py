@@ -110,7 +110,8 @@ def test_a_task_of_the_wrong_dimension_is_refused_on_the_command_line(tmp_path):
         str(task),
         "--quiet",
         "--out",
-        str(tmp_path),
+        str(tmp_path / "out"),
     )
     assert run.returncode == 2
     assert "point a has 2 coordinates; the robot's task has 3" in run.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["task.toml"]

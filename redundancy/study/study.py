@@ -22,8 +22,6 @@ For each segment the comparison holds, with both peaks and whether every limit h
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -43,6 +41,7 @@ from redundancy.planning.starts import (
 from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.laws import GradientProjection, Resolver
 from redundancy.resolution.objectives import ENERGY, VELOCITY, Objective
+from redundancy.study.output import write_atomically
 from redundancy.study.peers import StrategyRun, fixed_start_run
 
 BASELINES: tuple[tuple[str, Resolver], ...] = (
@@ -386,25 +385,6 @@ def run_study(
         energy_bounds,
         failures,
     )
-
-
-def write_atomically(path: Path, write) -> None:
-    """Call ``write(temporary_path)``, then move the result over ``path`` in one step, so a
-    failure never leaves ``path`` half-written or loses what it held."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(
-        dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix
-    )
-    os.close(handle)
-    try:
-        write(Path(temporary))
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(temporary, 0o666 & ~umask)  # mkstemp makes it private; give a normal file's mode
-        os.replace(temporary, path)
-    except BaseException:
-        Path(temporary).unlink(missing_ok=True)
-        raise
 
 
 def write_report(study: Study, path: Path) -> None:

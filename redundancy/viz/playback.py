@@ -35,7 +35,8 @@ from redundancy.model.robot import AXES
 from redundancy.planning.integrate import Trajectory
 from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.limits import Limits
-from redundancy.study.study import Study, write_atomically
+from redundancy.study.output import write_atomically
+from redundancy.study.study import Study
 
 FRAME_RATE = 30.0  # frames per second of playback; the motion is sampled at most this often
 FIELD_OF_VIEW = 30.0  # degrees, vertical
@@ -61,12 +62,11 @@ OBLIQUE = (1.0, -1.0, 0.7)
 
 
 def _meshcat():
-    try:
-        import meshcat
-        import meshcat.animation
-        import meshcat.geometry
-    except ImportError as error:  # pragma: no cover - a dependency of the package
-        raise RedundancyError("playback needs meshcat: pip install 'meshcat>=0.3.2'") from error
+    """meshcat, imported when first drawn."""
+    import meshcat
+    import meshcat.animation
+    import meshcat.geometry
+
     return meshcat
 
 

@@ -6,23 +6,23 @@ Figures read results; they compute nothing of their own.
 
 from __future__ import annotations
 
+from functools import partial
 from pathlib import Path
 
-from redundancy.errors import RedundancyError
 from redundancy.model.hydraulics import BAR, LITRES_PER_MINUTE
 from redundancy.planning.integrate import Trajectory
 from redundancy.planning.starts import SearchResult
-from redundancy.study.study import Study, write_atomically
+from redundancy.study.output import write_atomically
+from redundancy.study.study import Study
 
 
 def _pyplot():
-    try:
-        import matplotlib
+    """matplotlib's pyplot on the file-only Agg backend, imported when first drawn."""
+    import matplotlib
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-    except ImportError as error:  # pragma: no cover - a dependency of the package
-        raise RedundancyError("figures need matplotlib: pip install matplotlib") from error
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
     return plt
 
 
@@ -169,7 +169,7 @@ def write_figures(study: Study, folder: Path, segment: str | None = None) -> lis
     paths = []
     for filename, figure in figures.items():
         path = folder / filename
-        write_atomically(path, lambda p, f=figure: f.savefig(p, dpi=110, format="png"))
+        write_atomically(path, partial(figure.savefig, dpi=110, format="png"))
         plt.close(figure)
         paths.append(path)
     return paths

@@ -1,0 +1,139 @@
+"""All-or-nothing output: interrupted, failed and concurrent runs leave one complete output."""
+
+import hashlib
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from commands import run_cli
+
+from redundancy.errors import InvalidInputError
+from redundancy.study.output import MARKER, OutputFolder, writable
+
+STUDY = ("study", "--objective", "velocity", "--samples", "3", "--quiet")
+
+
+def _contents(folder: Path) -> dict[str, str]:
+    """Every file below ``folder`` by relative path, with its SHA-256."""
+    return {
+        str(path.relative_to(folder)): hashlib.sha256(path.read_bytes()).hexdigest()
+        for path in sorted(folder.rglob("*"))
+        if path.is_file()
+    }
+
+
+@pytest.fixture(scope="module")
+def earlier(tmp_path_factory):
+    """A complete output folder of an earlier run, and its contents."""
+    folder = tmp_path_factory.mktemp("earlier") / "out"
+    run = run_cli(*STUDY, "--out", str(folder))
+    assert run.returncode == 0, run.stderr
+    return folder, _contents(folder)
+
+
+def test_a_committed_folder_replaces_the_old_one_whole(tmp_path):
+    target = tmp_path / "out"
+    with OutputFolder(target) as out:
+        (out / "report.json").write_text("1")
+    with OutputFolder(target) as out:
+        (out / "fig.png").write_text("2")
+    assert sorted(p.name for p in target.iterdir()) == sorted([MARKER, "fig.png"])
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def test_a_failed_run_leaves_the_old_folder_and_no_staging(tmp_path):
+    target = tmp_path / "out"
+    with OutputFolder(target) as out:
+        (out / "report.json").write_text("old")
+    before = _contents(target)
+    with pytest.raises(RuntimeError), OutputFolder(target) as out:
+        (out / "report.json").write_text("new")
+        raise RuntimeError("the figures failed")
+    assert _contents(target) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def test_a_folder_of_other_files_is_refused_not_replaced(tmp_path):
+    (tmp_path / "thesis.tex").write_text("mine")
+    with pytest.raises(InvalidInputError, match=r"holds files this toolkit did not write"):
+        OutputFolder(tmp_path)
+    (tmp_path / "file").write_text("")
+    with pytest.raises(InvalidInputError, match=r"--out .*file is a file; give a folder"):
+        OutputFolder(tmp_path / "file")
+    with pytest.raises(InvalidInputError, match=r"--json .*cannot write there"):
+        writable(tmp_path / "file" / "report.json", "--json")
+    assert (tmp_path / "thesis.tex").read_text() == "mine"
+
+
+def test_unwritable_paths_fail_before_any_computing(tmp_path):
+    blocker = tmp_path / "plain"
+    blocker.write_text("")
+    for option in ("--out", "--json"):
+        path = blocker / "below" / ("report.json" if option == "--json" else "out")
+        start = time.monotonic()
+        run = run_cli("study", option, str(path))
+        assert run.returncode == 2 and "Traceback" not in run.stderr
+        assert run.stderr.count("\n") == 1 and f"{option} {path}: cannot write there" in run.stderr
+        assert time.monotonic() - start < 3.0  # no study was run
+    run = run_cli("play", "--html", str(blocker / "page.html" / "x"))
+    assert run.returncode == 2 and "--html" in run.stderr and run.stderr.count("\n") == 1
+
+
+def _staged_files(parent: Path) -> int:
+    return sum(
+        len(list(folder.iterdir())) for folder in parent.glob(".out.partial-*") if folder.is_dir()
+    )
+
+
+@pytest.mark.parametrize(
+    ("stop", "staged", "status"),
+    [(signal.SIGINT, 2, 130), (signal.SIGTERM, 2, 143), (signal.SIGTERM, 5, 143)],
+    ids=["ctrl-c, first file", "terminate, first file", "terminate, later"],
+)
+def test_an_interrupted_write_leaves_the_earlier_output_byte_identical(
+    earlier, stop, staged, status
+):
+    """The signal lands once the run has staged ``staged`` files (the marker, then its report
+    and figures): the earlier folder stays byte-identical, nothing temporary remains."""
+    folder, contents = earlier
+    command = [sys.executable, "-m", "redundancy.cli", *STUDY, "--out", str(folder)]
+    run = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while _staged_files(folder.parent) < staged and run.poll() is None:
+        assert time.monotonic() < deadline
+        time.sleep(0.005)
+    if run.poll() is not None:
+        pytest.fail(f"the run ended before {staged} files were staged: {run.stderr.read()}")
+    os.kill(run.pid, stop)
+    _, errors = run.communicate(timeout=30)
+    assert run.returncode == status, errors
+    assert errors.count("\n") == 1 and "Traceback" not in errors
+    assert _contents(folder) == contents
+    assert sorted(p.name for p in folder.parent.iterdir()) == ["out"]
+
+
+def test_two_runs_into_one_folder_leave_one_complete_output(tmp_path):
+    folder = tmp_path / "out"
+    command = [sys.executable, "-m", "redundancy.cli", *STUDY[:-2]]
+    runs = [
+        subprocess.Popen(
+            [*command, samples, "--quiet", "--out", str(folder)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+        )
+        for samples in ("3", "4")
+    ]
+    for run in runs:
+        run.communicate(timeout=120)
+        assert run.returncode == 0
+    report = json.loads((folder / "report.json").read_text())
+    assert report["samples"] in (3, 4)
+    names = sorted(p.name for p in folder.iterdir())
+    assert MARKER in names and "fig4a_peak_velocity.png" in names and "report.json" in names
+    assert len(names) == len(set(names)) and not any(n.startswith(".out") for n in names)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
