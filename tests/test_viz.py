@@ -10,6 +10,7 @@ import signal
 import subprocess
 import sys
 import threading
+import time
 import urllib.request
 from pathlib import Path
 
@@ -270,8 +271,10 @@ def children(pid):
     return found
 
 
-def listening_ports(pid=None):
-    """TCP ports in the LISTEN state, of the process ``pid`` or of any."""
+def listening_ports(pid=None, addresses=None):
+    """TCP ports in the LISTEN state, of the process ``pid`` or of any; with ``addresses``
+    (a set), the local addresses they are bound to are added to it ("127.0.0.1", "0.0.0.0", or
+    an IPv6 address in /proc's hex)."""
     inodes = None
     if pid is not None:
         links = [os.readlink(fd) for fd in Path(f"/proc/{pid}/fd").iterdir()]
@@ -282,12 +285,21 @@ def listening_ports(pid=None):
             fields = line.split()
             if fields[3] == "0A" and (inodes is None or fields[9] in inodes):
                 ports.add(int(fields[1].rsplit(":", 1)[1], 16))
+                if addresses is not None:
+                    address = fields[1].rsplit(":", 1)[0]
+                    if len(address) == 8:  # IPv4, little-endian hex
+                        address = ".".join(str(b) for b in reversed(bytes.fromhex(address)))
+                    addresses.add(address)
     return ports
 
 
 @pytest.mark.skipif(not Path("/proc/net/tcp").exists(), reason="reads processes from /proc")
-@pytest.mark.parametrize("stop", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "terminate"])
+@pytest.mark.parametrize(
+    "stop", [signal.SIGINT, signal.SIGTERM, signal.SIGKILL], ids=["ctrl-c", "terminate", "kill"]
+)
 def test_live_playback_answers_on_localhost_and_leaves_nothing_behind(stop):
+    """The page answers on 127.0.0.1, and only there; however play ends, even by SIGKILL, its
+    server is gone and its ports are free within 2 s (the test kills only its own process)."""
     run = subprocess.Popen(
         [sys.executable, "-m", "redundancy.cli", "play", *START],
         stdout=subprocess.PIPE,
@@ -302,8 +314,10 @@ def test_live_playback_answers_on_localhost_and_leaves_nothing_behind(stop):
         assert address, line + run.stderr.read()
         servers = children(run.pid)
         assert len(servers) == 1
-        ports = listening_ports(servers[0])
+        bound: set[str] = set()
+        ports = listening_ports(servers[0], bound)
         assert int(address.group(1)) in ports
+        assert bound == {"127.0.0.1"}
         with urllib.request.urlopen(address.group(0), timeout=10) as response:
             assert response.status == 200 and b"MeshCat" in response.read()
         run.send_signal(stop)
@@ -311,7 +325,14 @@ def test_live_playback_answers_on_localhost_and_leaves_nothing_behind(stop):
     finally:
         watchdog.cancel()
         run.kill()
-    status, word = (130, "interrupted") if stop == signal.SIGINT else (143, "terminated")
-    assert run.returncode == status and word in errors and "Traceback" not in errors
-    assert not Path(f"/proc/{servers[0]}").exists()
+    if stop == signal.SIGKILL:
+        assert run.returncode == -signal.SIGKILL
+    else:
+        status, word = (130, "interrupted") if stop == signal.SIGINT else (143, "terminated")
+        assert run.returncode == status and word in errors and "Traceback" not in errors
+    deadline = time.monotonic() + 2.0
+    while Path(f"/proc/{servers[0]}").exists() and time.monotonic() < deadline:
+        time.sleep(0.02)
+    state = Path(f"/proc/{servers[0]}/stat")
+    assert not state.exists() or state.read_text().rsplit(")", 1)[1].split()[0] == "Z"
     assert not ports & listening_ports()

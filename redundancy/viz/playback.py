@@ -20,7 +20,9 @@ import contextlib
 import html
 import io
 import math
+import os
 import subprocess
+import sys
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -414,25 +416,34 @@ def _best_motions(study: Study) -> dict[str, list[tuple[str, Trajectory]]]:
 
 @contextlib.contextmanager
 def served() -> Iterator:
-    """A meshcat visualizer whose server runs on localhost for the duration of the block; the
-    server process is stopped, and its ports freed, however the block ends."""
+    """A meshcat visualizer whose server (`redundancy.viz.server`: 127.0.0.1 only, ended with
+    this process however it ends) runs for the duration of the block; the server process is
+    stopped, and its ports freed, however the block ends."""
     meshcat = _meshcat()
+    command = [sys.executable, "-u", "-m", "redundancy.viz.server", str(os.getpid())]
+    server = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints its address; callers say
-            vis = meshcat.Visualizer()
-    except RuntimeError as error:
-        raise RedundancyError(f"the meshcat server did not start: {error}") from error
-    window = vis.window
-    try:
-        yield vis
-    finally:
-        window.zmq_socket.close(linger=0)
-        window.server_proc.terminate()
+        line = ""
+        while not line.startswith("zmq_url=") and server.poll() is None:
+            line = server.stdout.readline().strip()  # type: ignore[union-attr]
+        if not line.startswith("zmq_url="):
+            reason = server.stderr.read().strip().splitlines()  # type: ignore[union-attr]
+            raise RedundancyError(
+                f"the meshcat server did not start: {reason[-1] if reason else 'no reason given'}"
+            )
+        with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints its address; we say it
+            vis = meshcat.Visualizer(zmq_url=line[len("zmq_url=") :])
         try:
-            window.server_proc.communicate(timeout=5)
+            yield vis
+        finally:
+            vis.window.zmq_socket.close(linger=0)
+    finally:
+        server.terminate()
+        try:
+            server.communicate(timeout=5)
         except subprocess.TimeoutExpired:
-            window.server_proc.kill()
-            window.server_proc.communicate()
+            server.kill()
+            server.communicate()
 
 
 def play(
