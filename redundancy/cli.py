@@ -9,6 +9,7 @@ together or not at all (`redundancy.study.output`).
 from __future__ import annotations
 
 import argparse
+import math
 import signal
 import sys
 import warnings
@@ -18,9 +19,16 @@ import numpy as np
 from redundancy.errors import InvalidInputError, RedundancyError
 from redundancy.model.loading import bundled_robots, load_robot
 from redundancy.model.robot import Robot
+from redundancy.model.values import MAX_PAYLOAD
 from redundancy.planning.ik import configuration_at
 from redundancy.planning.integrate import Trajectory, simulate
-from redundancy.planning.starts import METHODS, default_start, held_actuators, improved_start
+from redundancy.planning.starts import (
+    MAX_SAMPLES,
+    METHODS,
+    default_start,
+    held_actuators,
+    improved_start,
+)
 from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.resolution.objectives import OBJECTIVES, Objective, objective
 from redundancy.resolution.state import actuator_space
@@ -35,7 +43,7 @@ def _add_robot_options(parser: argparse.ArgumentParser) -> None:
         "--robot", default="hiab031", help="bundled robot name, or path of a robot.toml or .urdf"
     )
     parser.add_argument(
-        "--payload", type=float, default=None, help="payload at the tool, kg (robot default)"
+        "--payload", type=payload_mass, default=None, help="payload at the tool, kg (robot default)"
     )
     parser.add_argument(
         "--hydraulics",
@@ -71,11 +79,36 @@ def _describe_command(args: argparse.Namespace) -> None:
     print(describe(load_robot(args.robot, payload=args.payload, hydraulics=args.hydraulics)))
 
 
-def _positive(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be a whole number ≥ 1; got {text}")
+def sample_count(text: str) -> int:
+    """A count of starts: a whole number within [1, `MAX_SAMPLES`]."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if not 1 <= value <= MAX_SAMPLES:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} must be a whole number within [1, {MAX_SAMPLES:,}]"
+        )
     return value
+
+
+def payload_mass(text: str) -> float:
+    """A payload: a finite mass within [0, `MAX_PAYLOAD`] kg."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not 0 <= value <= MAX_PAYLOAD:
+        raise argparse.ArgumentTypeError(f"{text!r} must be a mass within [0, {MAX_PAYLOAD:g}] kg")
+    return value
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """argparse that reports a bad argument in one line, without the usage block."""
+
+    def error(self, message: str):  # type: ignore[override]
+        print(f"{self.prog}: error: {message}; see {self.prog} --help", file=sys.stderr)
+        sys.exit(2)
 
 
 def _load_task(robot: Robot, path: str | None) -> WorkCycle:
@@ -174,7 +207,7 @@ def _robots_command(args: argparse.Namespace) -> None:
 
 
 def parser() -> argparse.ArgumentParser:
-    main = argparse.ArgumentParser(
+    main = OneLineParser(
         prog="redundancy",
         description="Redundancy resolution of hydraulic manipulators in actuator coordinates.",
     )
@@ -194,7 +227,7 @@ def parser() -> argparse.ArgumentParser:
         default="both",
         help="what to minimise; both: the paper's velocity and energy",
     )
-    study.add_argument("--samples", type=_positive, default=100, help="starts per sweep")
+    study.add_argument("--samples", type=sample_count, default=100, help="starts per sweep")
     study.add_argument(
         "--method",
         choices=METHODS,
@@ -239,7 +272,7 @@ def parser() -> argparse.ArgumentParser:
     start.add_argument(
         "--best", action="store_true", help="start from the improved initial configuration"
     )
-    play.add_argument("--samples", type=_positive, default=100, help="starts searched by --best")
+    play.add_argument("--samples", type=sample_count, default=100, help="starts searched by --best")
     play.add_argument(
         "--html", metavar="FILE", help="write a self-contained page instead of serving one"
     )
@@ -269,12 +302,15 @@ def main(argv: list[str] | None = None) -> int:
     interrupted / terminated, 1 for an internal error (one line with the exception's type)."""
     args = parser().parse_args(argv)
     warnings.showwarning = _note
-    for number in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(number, _interrupt)
+    _signalled.clear()
+    previous = {n: signal.signal(n, _interrupt) for n in (signal.SIGINT, signal.SIGTERM)}
     try:
         args.run(args)
     except BaseException as error:
         return _ending(error)
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
     return 0
 
 

@@ -274,7 +274,7 @@ def test_hydraulics_file_errors_name_the_value_and_the_choices(tmp_path):
     assert circuit_from_table(good, "f.toml", names, rotary).names == ("x1",)
     cases = [
         ({"supply": "XX"}, "supply = 'XX'; supplies: LS, CP"),
-        ({"relief": "high"}, "relief = 'high' must be a number (relief pressure, bar)"),
+        ({"relief": "high"}, "relief = 'high' must be a finite number (relief pressure, bar)"),
         ({"cylinders": {"x9": {}}}, "no actuator 'x9'; actuators: ['x1', 'x2', 'x3']"),
         (
             {"cylinders": {"x1": {"bore": 40, "rod": 45, "max_speed": 1, "max_acceleration": 1}}},

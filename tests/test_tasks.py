@@ -40,7 +40,7 @@ def test_the_paper_cycle_ships_with_the_crane():
         ('segments = ["1-4"]\n[points]\n1 = [0, 0]\n2 = [1, 0]\n', "points among 1, 2"),
         ('segments = ["1-2"]\n', r"\[points\] table"),
         ('segments = ["1-1"]\n[points]\n1 = [0, 0]\n', "coincide"),
-        ("not toml [", "not a readable task file"),
+        ("not toml [", "not valid TOML"),
     ],
 )
 def test_bad_task_files_are_named(tmp_path, text, message):

@@ -183,7 +183,18 @@ class Prismatic(Identity):
     @classmethod
     def from_transmission(cls, name, joint, lower, upper, data):
         offsets = data.get("offset", [])
-        offset = float(offsets[0]["value"]) if offsets else 0.0
+        if len(offsets) > 1:
+            raise RobotDescriptionError(f"prismatic {name!r}: one <offset value=...> at most")
+        text = offsets[0].get("value", "") if offsets else "0"
+        try:
+            offset = float(text)
+        except ValueError:
+            offset = np.nan
+        if not np.isfinite(offset):
+            raise RobotDescriptionError(
+                f"prismatic {name!r}: <offset value=...> must be a finite number (m); got "
+                f"value={text!r}"
+            )
         return cls(name, joint, lower, upper, offset)
 
     def transmission_data(self) -> dict[str, list[dict]]:
@@ -274,13 +285,25 @@ class LinearCylinder(VectorisedMap):
     @classmethod
     def from_transmission(cls, name, joint, lower, upper, data):
         ends = data.get("attachment", [])
-        if len(ends) != 2 or any("link" not in e or "xyz" not in e for e in ends):
+        if len(ends) != 2:
             raise RobotDescriptionError(
                 f"cylinder {name!r} needs two <attachment link=... xyz=...> elements "
-                f"(base, then rod); got {len(ends)}"
+                f"(base, then rod); it has {len(ends)}"
             )
-        base, rod = ((e["link"], [float(c) for c in e["xyz"].split()]) for e in ends)
-        return cls(name, joint, lower, upper, base=base, rod=rod)
+        points = []
+        for end, attributes in zip(("base", "rod"), ends):
+            text = attributes.get("xyz", "")
+            try:
+                point = [float(c) for c in text.split()]
+            except ValueError:
+                point = []
+            if "link" not in attributes or len(point) != 3 or not np.all(np.isfinite(point)):
+                raise RobotDescriptionError(
+                    f"cylinder {name!r}: its {end} <attachment> needs link=... and xyz= three "
+                    f"finite numbers (m); got link={attributes.get('link')!r} xyz={text!r}"
+                )
+            points.append((attributes["link"], point))
+        return cls(name, joint, lower, upper, base=points[0], rod=points[1])
 
     def transmission_data(self) -> dict[str, list[dict]]:
         return {

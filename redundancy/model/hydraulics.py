@@ -29,7 +29,6 @@ bar, L/min and kJ.
 from __future__ import annotations
 
 import math
-import tomllib
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from redundancy.errors import InvalidInputError
+from redundancy.model.values import number, read_toml
 
 BAR = 1e5  # Pa
 LITRES_PER_MINUTE = 1e-3 / 60  # m³/s
@@ -219,18 +219,6 @@ CYLINDER_KEYS = {
 }
 
 
-def _number(table: dict, key: str, where: str, meaning: str) -> float:
-    """``table[key]`` as a finite number ≥ 0, or one line naming it and its source."""
-    if key not in table:
-        raise InvalidInputError(f"{where}: missing {key!r} ({meaning})")
-    value = table[key]
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise InvalidInputError(f"{where}: {key} = {value!r} must be a number ({meaning})")
-    if value < 0:
-        raise InvalidInputError(f"{where}: {key} = {value!r} must be ≥ 0 ({meaning})")
-    return float(value)
-
-
 def _unknown(table: dict, known, where: str) -> None:
     extra = sorted(set(table) - set(known))
     if extra:
@@ -256,7 +244,9 @@ def circuit_from_table(
     supply = table.get("supply")
     if supply not in SUPPLIES:
         raise InvalidInputError(f"{where}: supply = {supply!r}; supplies: {', '.join(SUPPLIES)}")
-    values = {k: _number(table, k, where, m) for k, m in MACHINE_KEYS.items() if k != "supply"}
+    values = {
+        k: number(table, k, where, m, lower=0.0) for k, m in MACHINE_KEYS.items() if k != "supply"
+    }
     cylinders = table.get("cylinders", {})
     if not isinstance(cylinders, dict):
         raise InvalidInputError(f"{where}: cylinders must be [hydraulics.cylinders.<actuator>]")
@@ -284,7 +274,7 @@ def circuit_from_table(
             raise InvalidInputError(f"{place} must be a table with {', '.join(CYLINDER_KEYS)}")
         _unknown(entry, CYLINDER_KEYS, place)
         bore, rod, speed, acceleration = (
-            _number(entry, k, place, m) for k, m in CYLINDER_KEYS.items()
+            number(entry, k, place, m, lower=0.0) for k, m in CYLINDER_KEYS.items()
         )
         if not 0 <= rod < bore or speed <= 0 or acceleration <= 0:
             raise InvalidInputError(
@@ -318,13 +308,7 @@ def circuit_from_table(
 
 def read_hydraulics_file(path: Path) -> object:
     """The ``[hydraulics]`` table of a TOML file (``--hydraulics FILE``)."""
-    try:
-        with path.open("rb") as f:
-            content = tomllib.load(f)
-    except OSError as error:
-        raise InvalidInputError(f"cannot read hydraulics file {path}: {error.strerror}") from None
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
-        raise InvalidInputError(f"{path}: not valid TOML: {error}") from None
+    content = read_toml(path, "hydraulics file")
     if "hydraulics" not in content:
         raise InvalidInputError(f"{path}: no [hydraulics] table")
     return content["hydraulics"]

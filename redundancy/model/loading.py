@@ -5,10 +5,14 @@ This is the only module that builds Pinocchio models (`load_robot`).
 
 from __future__ import annotations
 
+import contextlib
 import importlib.metadata
 import importlib.resources
-import tomllib
+import os
+import sys
+import tempfile
 import warnings
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +24,7 @@ from redundancy.model.actuators import ActuatorSet
 from redundancy.model.hydraulics import circuit_from_table, read_hydraulics_file
 from redundancy.model.robot import AXES, Robot
 from redundancy.model.transmissions import read_cylinders, read_transmissions
+from redundancy.model.values import MAX_PAYLOAD, names, number, read_toml, text
 
 
 def bundled_root() -> Path:
@@ -33,28 +38,27 @@ def bundled_robots() -> list[str]:
 
 
 def _read_description(path: Path) -> dict:
-    try:
-        with path.open("rb") as f:
-            description = tomllib.load(f)
-    except tomllib.TOMLDecodeError as error:
-        raise RobotDescriptionError(f"{path}: not valid TOML: {error}") from error
+    description = read_toml(path, "robot description")
     missing = [key for key in ("urdf", "tool_frame", "task_axes") if key not in description]
     if missing:
         raise RobotDescriptionError(f"{path}: missing keys {missing}")
     return description
 
 
-def _describe(robot: str | Path) -> tuple[str, Path, dict]:
-    """Name, folder and description (robot.toml contents) of a bundled name or a file path."""
+def _describe(robot: str | Path) -> tuple[str, Path, dict, str]:
+    """Name, folder, description (robot.toml contents) and where the description came from, of
+    a bundled name or a file path."""
+    if not isinstance(robot, str | Path):
+        raise InvalidInputError(f"robot must be a name or a path; got {robot!r}")
     path = Path(robot)
     if path.suffix == ".urdf":
         if not path.is_file():
             raise RobotDescriptionError(f"no URDF file at {path}")
-        return path.stem, path.parent, {"urdf": path.name}
+        return path.stem, path.parent, {"urdf": path.name}, str(path)
     if path.suffix == ".toml":
         if not path.is_file():
             raise RobotDescriptionError(f"no robot description at {path}")
-        return path.parent.name, path.parent, _read_description(path)
+        return path.parent.name, path.parent, _read_description(path), str(path)
     names = bundled_robots()
     if str(robot) not in names:
         raise RobotDescriptionError(
@@ -62,7 +66,8 @@ def _describe(robot: str | Path) -> tuple[str, Path, dict]:
             "or give the path of a .urdf or robot.toml file"
         )
     folder = bundled_root() / str(robot)
-    return str(robot), folder, _read_description(folder / "robot.toml")
+    source = folder / "robot.toml"
+    return str(robot), folder, _read_description(source), str(source)
 
 
 def _urdf_path(folder: Path, reference: str) -> Path:
@@ -91,11 +96,17 @@ def _build_model(urdf_path: Path, locked: list[str]) -> tuple[pin.Model, etree._
         tree = etree.parse(str(urdf_path))
     except (OSError, etree.XMLSyntaxError) as error:
         raise RobotDescriptionError(f"{urdf_path}: not readable XML: {error}") from error
-    try:
-        model = pin.buildModelFromUrdf(str(urdf_path))
-    except (ValueError, RuntimeError) as error:
-        first = str(error).splitlines()[0:3]
-        raise RobotDescriptionError(f"{urdf_path}: not a valid URDF: {' '.join(first)}") from error
+    failure: Exception | None = None
+    with _captured_stderr() as said:
+        try:
+            model = pin.buildModelFromUrdf(str(urdf_path))
+        except (ValueError, RuntimeError) as error:
+            failure = error
+    if failure is not None:
+        reason = next((line for line in said() if line.strip()), str(failure).splitlines()[0])
+        raise RobotDescriptionError(
+            f"{urdf_path}: not a valid URDF: {reason.strip().removeprefix('Error:').strip()}"
+        ) from None
     joints = list(model.names)[1:]
     unknown = [j for j in locked if j not in joints]
     if unknown:
@@ -116,6 +127,24 @@ def _build_model(urdf_path: Path, locked: list[str]) -> tuple[pin.Model, etree._
             "one-degree-of-freedom joints only (lock the others with locked_joints)"
         )
     return model, tree.getroot()
+
+
+@contextlib.contextmanager
+def _captured_stderr() -> Iterator[Callable[[], list[str]]]:
+    """Whatever C++ libraries (urdfdom) write to the process's stderr during the block, held back
+    and given, as lines, by the function the block receives (after the block)."""
+    lines: list[str] = []
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as buffer:
+        os.dup2(buffer.fileno(), 2)
+        try:
+            yield lambda: lines
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            buffer.seek(0)
+            lines += buffer.read().decode(errors="replace").splitlines()
 
 
 def _add_payload(model: pin.Model, frame: str, payload: float) -> None:
@@ -143,41 +172,51 @@ def load_robot(
     overrides the description's. The hydraulic circuit comes from the ``[hydraulics]`` table of
     the TOML file ``hydraulics`` if given, else from the description's (schema in the README).
     """
-    name, folder, description = _describe(robot)
-    urdf_path = _urdf_path(folder, description["urdf"])
-    model, root = _build_model(urdf_path, list(description.get("locked_joints", [])))
+    name, folder, description, where = _describe(robot)
+    reference = text(description, "urdf", where, "the URDF, beside this file or package://")
+    urdf_path = _urdf_path(folder, reference)
+    locked = names(description, "locked_joints", where, "joints fixed at their neutral value")
+    model, root = _build_model(urdf_path, list(locked))
     bodies = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
-    tool_frame = description.get("tool_frame", bodies[-1])
+    tool_frame = text(description, "tool_frame", where, "the tool's link", bodies[-1])
     if tool_frame not in bodies:
         raise RobotDescriptionError(
             f"tool frame {tool_frame!r} is not a link of {urdf_path.name}; links: {bodies}"
         )
-    task_axes = task_axes or str(description.get("task_axes", AXES))
+    if task_axes is None:
+        task_axes = text(description, "task_axes", where, "world axes of the task", AXES)
     if (
-        not task_axes
+        not isinstance(task_axes, str)
+        or not task_axes
         or any(a not in AXES for a in task_axes)
         or len(set(task_axes)) != len(task_axes)
     ):
         raise RobotDescriptionError(
             f"task_axes {task_axes!r} must be distinct letters among 'x', 'y', 'z'"
         )
+    meaning = f"kg at the tool, 0 to {MAX_PAYLOAD:g}"
     if payload is None:
-        payload = float(description.get("payload", 0.0))
-    if not np.isfinite(payload) or payload < 0:
-        raise InvalidInputError(f"payload must be a finite mass ≥ 0 kg; got {payload}")
+        payload = number(description, "payload", where, meaning, 0.0, 0.0, MAX_PAYLOAD)
+    else:
+        payload = number(
+            {"payload": payload}, "payload", "load_robot", meaning, 0.0, 0.0, MAX_PAYLOAD
+        )
     if payload > 0:
         _add_payload(model, tool_frame, payload)
     actuators = ActuatorSet.bind(read_transmissions(root, urdf_path.name), model)
-    task = description.get("task")
+    task = (
+        text(description, "task", where, "the robot's task file", None)
+        if "task" in description
+        else None
+    )
     task_file = None if task is None else folder / task
-    names, rotary = actuators.names, actuators.rotary.tolist()
+    actuator_names, rotary = actuators.names, actuators.rotary.tolist()
     declared = read_cylinders(root, urdf_path.name)
     table, source = None, ""
     if hydraulics is not None:
         table, source = read_hydraulics_file(Path(hydraulics)), str(hydraulics)
     elif "hydraulics" in description:
-        table = description["hydraulics"]
-        source = str(Path(robot) if Path(robot).suffix == ".toml" else folder / "robot.toml")
+        table, source = description["hydraulics"], where
     elif declared:
         warnings.warn(
             f"{urdf_path.name} declares cylinders {sorted(declared)} but no [hydraulics] table "
@@ -186,7 +225,9 @@ def load_robot(
         )
     circuit = None
     if table is not None:
-        circuit = circuit_from_table(table, source, names, rotary, declared, urdf_path.name)
+        circuit = circuit_from_table(
+            table, source, actuator_names, rotary, declared, urdf_path.name
+        )
     return Robot(
         name, model, tool_frame, task_axes, actuators, payload, urdf_path, task_file, circuit
     )

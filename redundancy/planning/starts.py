@@ -47,6 +47,7 @@ from redundancy.resolution.limits import Limits, Violation, amount
 from redundancy.resolution.objectives import Objective
 
 METHODS = ("fast", "sweep")
+MAX_SAMPLES = 10_000  # starts of one sweep, integrated as one batch: about 40 MB per 1,000
 GRID = 12  # integrated starts of the fast search's first round, evenly over the reachable ones
 REACH_GRID = 24  # starts whose reachability the fast search checks first, over the stroke
 END_TOLERANCE = 5e-4  # of the held stroke: the fast search locates the feasible ends to this,
@@ -427,8 +428,10 @@ def improved_start(
     """
     held = _held(held)
     held_indices(robot, held)
-    if not isinstance(samples, int | np.integer) or samples < 1:
-        raise InvalidInputError(f"samples must be a whole number ≥ 1; got {samples!r}")
+    if not isinstance(samples, int | np.integer) or not 1 <= samples <= MAX_SAMPLES:
+        raise InvalidInputError(
+            f"samples must be a whole number within [1, {MAX_SAMPLES:,}]; got {samples!r}"
+        )
     method = method or ("fast" if len(held) == 1 else "sweep")
     if method not in METHODS:
         raise InvalidInputError(f"unknown method {method!r}; methods: {', '.join(METHODS)}")

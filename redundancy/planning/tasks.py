@@ -3,7 +3,7 @@
 A task file (TOML) names its points in task coordinates and the segments between them::
 
     name = "paper work cycle"
-    speed = 0.5                       # m/s on every segment
+    speed = 0.5                       # m/s on every segment (at most 10)
     segments = ["1-2", "2-3", "3-1"]  # "<from>-<to>" by point name
     held = ["x3"]                     # actuators the improved search holds (optional)
     [points]
@@ -14,7 +14,6 @@ A task file (TOML) names its points in task coordinates and the segments between
 
 from __future__ import annotations
 
-import tomllib
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -22,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from redundancy.errors import InvalidInputError
+from redundancy.model.values import MAX_SPEED, coordinates, names, number, read_toml, text
 
 
 @dataclass(frozen=True)
@@ -80,30 +80,26 @@ class WorkCycle:
     def from_toml(cls, path: Path | str, dimension: int | None = None) -> WorkCycle:
         """Read a task file; ``dimension`` (the robot's m) checks every point's size."""
         path = Path(path)
-        try:
-            with path.open("rb") as f:
-                data = tomllib.load(f)
-        except (OSError, tomllib.TOMLDecodeError) as error:
-            raise InvalidInputError(f"{path}: not a readable task file: {error}") from error
+        data = read_toml(path, "task file")
+        where = str(path)
         points = data.get("points")
         if not isinstance(points, dict) or not points:
             raise InvalidInputError(f"{path}: needs a [points] table of name = [coordinates]")
-        for name, value in points.items():
-            if dimension is not None and np.shape(value) != (dimension,):
-                raise InvalidInputError(
-                    f"{path}: point {name} has {np.size(value)} coordinates; the robot's task "
-                    f"has {dimension}"
-                )
+        found = {
+            name: coordinates(value, f"{where}: point {name}", dimension)
+            for name, value in points.items()
+        }
+        speed = number(data, "speed", where, "m/s on every segment", 0.5, 0.0, MAX_SPEED)
         segments = []
-        for label in data.get("segments", []):
-            ends = str(label).split("-")
-            if len(ends) != 2 or any(e not in points for e in ends):
+        for label in names(data, "segments", where, "'<from>-<to>' by point name"):
+            ends = label.split("-")
+            if len(ends) != 2 or any(e not in found for e in ends):
                 raise InvalidInputError(
                     f"{path}: segment {label!r} must be '<from>-<to>' with points among "
-                    f"{', '.join(points)}"
+                    f"{', '.join(found)}"
                 )
-            start, end = (np.asarray(points[e], dtype=float) for e in ends)
-            segments.append(Segment(str(label), start, end, float(data.get("speed", 0.5))))
+            segments.append(Segment(label, found[ends[0]], found[ends[1]], speed))
         if not segments:
             raise InvalidInputError(f"{path}: no segments")
-        return cls(str(data.get("name", path.stem)), tuple(segments), tuple(data.get("held", ())))
+        held = names(data, "held", where, "the actuators the improved search holds")
+        return cls(text(data, "name", where, "the task's name", path.stem), tuple(segments), held)

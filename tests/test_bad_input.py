@@ -1,0 +1,431 @@
+"""The bad-input catalogue: every case ends in one line that names the offending value, exit 2
+on the command line (a `RedundancyError` from the API), and never a traceback or an internal
+error. The command line runs in-process (`redundancy.cli.main`), as a user's shell would run it,
+but without an interpreter start per case."""
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from redundancy import (
+    VELOCITY,
+    RedundancyError,
+    actuator_space,
+    improved_start,
+    load_robot,
+    simulate,
+)
+from redundancy.cli import main
+from redundancy.planning.tasks import WorkCycle
+
+CRANE = Path(__file__).parent.parent / "robots" / "hiab031"
+URDF = (CRANE / "hiab031.urdf").read_text()
+TASK = (CRANE / "task.toml").read_text()
+ROBOT = (CRANE / "robot.toml").read_text()
+HYDRAULICS = ROBOT[ROBOT.index("[hydraulics]") :]
+
+
+def _description(**changes) -> str:
+    """The crane's robot.toml, pointing at its URDF, with ``changes`` (TOML values) applied."""
+    lines = {
+        "urdf": f'"{CRANE / "hiab031.urdf"}"',
+        "tool_frame": '"tool"',
+        "task_axes": '"xz"',
+        "payload": "100.0",
+        "task": f'"{CRANE / "task.toml"}"',
+    } | changes
+    return "".join(f"{key} = {value}\n" for key, value in lines.items() if value is not None)
+
+
+# (name, argv, file contents by name, the message's fragment)
+WRONG = ['"heavy"', "true", "[1, 2]", "{a = 1}", "-1", "1e300", "nan", "inf"]
+CASES = [
+    # command-line options
+    *[
+        (f"--payload {v}", ["describe", "--payload", v], {}, f"--payload: {v!r} must be a mass")
+        for v in ("abc", "nan", "inf", "1e18", "1e308", "", "0x10", "1,5")
+    ],
+    *[  # argparse reads a leading minus as an option
+        (f"--payload {v}", ["describe", "--payload", v], {}, "argument --payload")
+        for v in ("-inf", "-1")
+    ],
+    *[
+        (f"--samples {v}", ["study", "--samples", v], {}, f"--samples: {v!r} must be a whole")
+        for v in ("0", "-3", "2.5", "abc", "1e3", "", "10001", "1000000000", "nan")
+    ],
+    *[
+        (f"--{option} bad", ["study", f"--{option}", "bad"], {}, f"argument --{option}: invalid")
+        for option in ("method", "objective")
+    ],
+    ("unknown option", ["study", "--bogus"], {}, "unrecognized arguments: --bogus"),
+    ("unknown command", ["frobnicate"], {}, "invalid choice: 'frobnicate'"),
+    ("unknown robot", ["describe", "--robot", "nope"], {}, "unknown robot 'nope'"),
+    ("robot folder", ["describe", "--robot", "/"], {}, "unknown robot '/'"),
+    ("missing urdf", ["describe", "--robot", "none.urdf"], {}, "no URDF file at none.urdf"),
+    ("missing toml", ["describe", "--robot", "none.toml"], {}, "no robot description at"),
+    ("check unknown", ["study", "--check", "x9"], {}, "unknown actuators ['x9']"),
+    ("check empty", ["study", "--check", ""], {}, "unknown actuators ['']"),
+    ("x3init outside", ["play", "--x3init", "5", "--html", "p.html"], {}, "--x3init 5 is outside"),
+    ("x3init nan", ["play", "--x3init", "nan", "--html", "p.html"], {}, "--x3init nan is outside"),
+    ("segment unknown", ["play", "--segment", "9-9", "--html", "p.html"], {}, "no segment '9-9'"),
+    ("out is a file", ["study", "--out", "plain"], {"plain": ""}, "--out plain is a file"),
+    ("json is a folder", ["study", "--json", "."], {}, "--json . is a folder"),
+    ("html below a file", ["play", "--html", "plain/p.html"], {"plain": ""}, "cannot write"),
+    ("out of other files", ["study", "--out", "mine"], {"mine/notes.txt": "x"}, "did not write"),
+    # task files
+    ("task missing", ["study", "--task", "none.toml"], {}, "cannot read task file none.toml"),
+    ("task binary", ["study", "--task", "t.toml"], {"t.toml": b"\x00\xff\xfe"}, "not UTF-8"),
+    ("task not toml", ["study", "--task", "t.toml"], {"t.toml": "[points"}, "not valid TOML"),
+    *[
+        (
+            f"task speed {v}",
+            ["study", "--task", "t.toml"],
+            {"t.toml": TASK.replace("speed = 0.5", f"speed = {v}")},
+            "speed = ",
+        )
+        for v in ('"heavy"', "true", "[1]", "-1", "11", "1e300", "nan", "inf")
+    ],
+    (
+        "task speed zero",
+        ["study", "--task", "t.toml"],
+        {"t.toml": TASK.replace("speed = 0.5", "speed = 0")},
+        "speed must be > 0",
+    ),
+    *[
+        (
+            f"task held {v}",
+            ["study", "--task", "t.toml"],
+            {"t.toml": TASK.replace('held = ["x3"]', f"held = {v}")},
+            "held = ",
+        )
+        for v in ('"x3"', "3", "[3]", "{x = 3}", "true")
+    ],
+    (
+        "task held unknown",
+        ["study", "--task", "t.toml"],
+        {"t.toml": TASK.replace('held = ["x3"]', 'held = ["x9"]')},
+        "unknown actuators ['x9']",
+    ),
+    *[
+        (
+            f"task segments {v}",
+            ["study", "--task", "t.toml"],
+            {"t.toml": re.sub(r"segments = \[.*\]", f"segments = {v}", TASK)},
+            message,
+        )
+        for v, message in (
+            ('"1-2"', "segments = '1-2' must be a list"),
+            ("[12]", "segments = [12] must be a list"),
+            ('["1-9"]', "segment '1-9' must be '<from>-<to>'"),
+            ('["1"]', "segment '1' must be '<from>-<to>'"),
+            ('["1-1"]', "start and end coincide"),
+            ("[]", "no segments"),
+        )
+    ],
+    *[
+        (
+            f"task point {v}",
+            ["study", "--task", "t.toml"],
+            {"t.toml": TASK.replace("1 = [3.5, -0.5]", f"1 = {v}")},
+            message,
+        )
+        for v, message in (
+            ('["a", "b"]', "point 1 = ['a', 'b'] must be a list of numbers"),
+            ("[3.5, -0.5, 1.0]", "point 1 has 3 coordinates; the robot's task has 2"),
+            ("[3.5]", "point 1 has 1 coordinates"),
+            ("[nan, 0]", "point 1 = [nan, 0] must be finite"),
+            ("[inf, 0]", "must be finite"),
+            ('"3.5, -0.5"', "must be a list of numbers"),
+            ("[true, 0]", "must be a list of numbers"),
+            ("[100.0, -0.5]", "cannot reach"),
+        )
+    ],
+    (
+        "task no points",
+        ["study", "--task", "t.toml"],
+        {"t.toml": 'segments = ["1-2"]\n'},
+        "needs a [points] table",
+    ),
+    # robot descriptions
+    *[
+        (
+            f"robot.toml {key} = {v}",
+            ["describe", "--robot", "r.toml"],
+            {"r.toml": _description(**{key: v})},
+            f"{key} = ",
+        )
+        for key in ("urdf", "tool_frame", "task_axes", "task")
+        for v in ("3", "true", "[1]", "{a = 1}")
+    ],
+    *[
+        (
+            f"robot.toml payload = {v}",
+            ["describe", "--robot", "r.toml"],
+            {"r.toml": _description(payload=v)},
+            "payload = ",
+        )
+        for v in WRONG
+    ],
+    *[
+        (
+            f"robot.toml locked_joints = {v}",
+            ["describe", "--robot", "r.toml"],
+            {"r.toml": _description(locked_joints=v)},
+            message,
+        )
+        for v, message in (
+            ('"boom1_joint"', "locked_joints = 'boom1_joint' must be a list of names"),
+            ("[1]", "must be a list of names"),
+            ('["nope"]', "locked joints ['nope'] are not joints"),
+        )
+    ],
+    (
+        "robot.toml tool unknown",
+        ["describe", "--robot", "r.toml"],
+        {"r.toml": _description(tool_frame='"nope"')},
+        "tool frame 'nope' is not a link",
+    ),
+    (
+        "robot.toml axes unknown",
+        ["describe", "--robot", "r.toml"],
+        {"r.toml": _description(task_axes='"xq"')},
+        "task_axes 'xq' must be distinct letters",
+    ),
+    (
+        "robot.toml missing keys",
+        ["describe", "--robot", "r.toml"],
+        {"r.toml": 'urdf = "x.urdf"\n'},
+        "missing keys ['tool_frame', 'task_axes']",
+    ),
+    (
+        "robot.toml not toml",
+        ["describe", "--robot", "r.toml"],
+        {"r.toml": "urdf ="},
+        "not valid TOML",
+    ),
+    ("robot.toml binary", ["describe", "--robot", "r.toml"], {"r.toml": b"\xff\xfe"}, "not UTF-8"),
+    # URDFs and actuator declarations
+    (
+        "urdf broken xml",
+        ["describe", "--robot", "b.urdf"],
+        {"b.urdf": "<robot><link"},
+        "not readable XML",
+    ),
+    (
+        "urdf not a robot",
+        ["describe", "--robot", "b.urdf"],
+        {"b.urdf": "<foo/>"},
+        "not a valid URDF: Could not find the 'robot' element",
+    ),
+    *[
+        (
+            f"attachment xyz {v}",
+            ["describe", "--robot", "b.urdf"],
+            {"b.urdf": re.sub(r'(<attachment link="column" xyz=")[^"]*', rf"\g<1>{v}", URDF)},
+            f"xyz={v!r}",
+        )
+        for v in ("1 2", "a b c", "1 2 3 4", "", "nan 0 0", "1,2,3")
+    ],
+    (
+        "attachment link unknown",
+        ["describe", "--robot", "b.urdf"],
+        {"b.urdf": URDF.replace('<attachment link="column"', '<attachment link="nope"', 1)},
+        "attached to link 'nope', which does not exist",
+    ),
+    (
+        "one attachment",
+        ["describe", "--robot", "b.urdf"],
+        {"b.urdf": re.sub(r'\s*<attachment link="column"[^>]*/>', "", URDF, count=1)},
+        "needs two <attachment",
+    ),
+    *[
+        (
+            f"offset {v}",
+            ["describe", "--robot", "b.urdf"],
+            {"b.urdf": re.sub(r'<offset value="[^"]*"/>', f"<offset {v}/>", URDF)},
+            "<offset value=...> must be a finite number",
+        )
+        for v in ("", 'value=""', 'value="abc"', 'value="nan"', 'value="inf"')
+    ],
+    *[
+        (
+            f"stroke {v}",
+            ["describe", "--robot", "b.urdf"],
+            {"b.urdf": URDF.replace('<stroke lower="0.83"', f"<stroke {v}", 1)},
+            message,
+        )
+        for v, message in (
+            ('lower="abc"', "lower='abc' is not a number"),
+            ('lower="2.0"', "stroke lower 2.0 must be below upper"),
+            ('lower="nan"', "stroke lower nan must be below upper"),
+        )
+    ],
+    (
+        "unknown kind",
+        ["describe", "--robot", "b.urdf"],
+        {"b.urdf": URDF.replace("redundancy/LinearCylinder", "redundancy/Nope", 1)},
+        "unknown type redundancy/Nope",
+    ),
+    (
+        "missing joint",
+        ["describe", "--robot", "b.urdf"],
+        {"b.urdf": URDF.replace('<joint name="boom1_joint"/>', '<joint name="nope"/>', 1)},
+        "drives joint 'nope', which does not exist",
+    ),
+    (
+        "joint driven twice",
+        ["describe", "--robot", "b.urdf"],
+        {"b.urdf": URDF.replace('<joint name="boom2_joint"/>', '<joint name="boom1_joint"/>', 1)},
+        "joint 'boom1_joint' is driven twice",
+    ),
+    (
+        "cylinder attribute",
+        ["describe", "--robot", "b.urdf"],
+        {
+            "b.urdf": URDF.replace(
+                '<stroke lower="0.83"', '<cylinder colour="red"/><stroke lower="0.83"', 1
+            )
+        },
+        "unknown attributes ['colour']",
+    ),
+    # hydraulics files
+    (
+        "hydraulics missing",
+        ["describe", "--hydraulics", "none.toml"],
+        {},
+        "cannot read hydraulics file none.toml",
+    ),
+    (
+        "hydraulics no table",
+        ["describe", "--hydraulics", "h.toml"],
+        {"h.toml": "a = 1\n"},
+        "no [hydraulics] table",
+    ),
+    (
+        "hydraulics not a table",
+        ["describe", "--hydraulics", "h.toml"],
+        {"h.toml": "hydraulics = 3\n"},
+        "[hydraulics] must be a table",
+    ),
+    *[
+        (
+            f"hydraulics {key} = {v}",
+            ["describe", "--hydraulics", "h.toml"],
+            {"h.toml": re.sub(rf"(?m)^{key} = [^#\n]*", f"{key} = {v}", HYDRAULICS, count=1)},
+            f"{key} = ",
+        )
+        for key in ("ls_margin", "relief", "pump_flow", "bore", "max_speed")
+        for v in ('"x"', "true", "-1", "nan", "[1]")
+    ],
+    (
+        "hydraulics supply",
+        ["describe", "--hydraulics", "h.toml"],
+        {"h.toml": HYDRAULICS.replace('supply = "LS"', 'supply = "XX"')},
+        "supply = 'XX'; supplies: LS, CP",
+    ),
+    (
+        "hydraulics rod too big",
+        ["describe", "--hydraulics", "h.toml"],
+        {"h.toml": HYDRAULICS.replace("rod = 45.0", "rod = 90.0")},
+        "0 ≤ rod < bore",
+    ),
+]
+
+
+@pytest.mark.parametrize(
+    ("argv", "files", "fragment"), [c[1:] for c in CASES], ids=[c[0] for c in CASES]
+)
+def test_bad_command_line_input_is_one_line(tmp_path, monkeypatch, capsys, argv, files, fragment):
+    monkeypatch.chdir(tmp_path)
+    for name, content in files.items():
+        path = tmp_path / name
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if isinstance(content, bytes):
+            path.write_bytes(content)
+        else:
+            path.write_text(content)
+    try:
+        status = main([*argv, "--quiet"] if argv[0] == "study" else argv)
+    except SystemExit as exit:
+        status = exit.code
+    errors = capsys.readouterr().err.strip().splitlines()
+    errors = [line for line in errors if not line.startswith("redundancy: note:")]
+    assert status == 2, errors
+    assert len(errors) == 1, errors
+    assert "internal error" not in errors[0] and "Traceback" not in errors[0]
+    assert fragment in errors[0], errors[0]
+
+
+@pytest.fixture(scope="module")
+def crane():
+    return load_robot("hiab031")
+
+
+API = [
+    ("load_robot payload text", lambda r: load_robot("hiab031", payload="abc"), "payload = 'abc'"),
+    ("load_robot payload nan", lambda r: load_robot("hiab031", payload=np.nan), "payload = nan"),
+    ("load_robot payload huge", lambda r: load_robot("hiab031", payload=1e18), "payload = 1e+18"),
+    ("load_robot robot int", lambda r: load_robot(3), "robot must be a name or a path"),
+    ("load_robot axes", lambda r: load_robot("hiab031", task_axes="xq"), "task_axes 'xq'"),
+    (
+        "forces of a vector",
+        lambda r: actuator_space(r, [1.6, 1.0, 0.5]).forces(np.zeros(3)),
+        "x_ddot must have shape (1, 3)",
+    ),
+    ("space of a wrong shape", lambda r: actuator_space(r, [1.0, 2.0]), "q must have shape"),
+    ("space of nan", lambda r: actuator_space(r, [np.nan, 1.0, 0.5]), "NaN or infinite"),
+    ("space at a singularity", lambda r: actuator_space(r, [0.0, 1.0, 0.5]), "singular at q"),
+    (
+        "samples 2.5",
+        lambda r: improved_start(r, _segment(r), VELOCITY, samples=2.5),
+        "samples must be a whole number",
+    ),
+    (
+        "samples huge",
+        lambda r: improved_start(r, _segment(r), VELOCITY, samples=10**9),
+        "samples must be a whole number within [1, 10,000]",
+    ),
+    (
+        "unknown method",
+        lambda r: improved_start(r, _segment(r), VELOCITY, method="x"),
+        "unknown method 'x'",
+    ),
+    (
+        "held twice",
+        lambda r: improved_start(r, _segment(r), VELOCITY, held=["x3", "x2"]),
+        "hold that many",
+    ),
+    (
+        "simulate bad method",
+        lambda r: simulate(
+            r, VELOCITY.resolver, _segment(r), np.array([[1.6, 1.0, 0.5]]), method="euler"
+        ),
+        "unknown method 'euler'",
+    ),
+    (
+        "simulate bad step",
+        lambda r: simulate(
+            r, VELOCITY.resolver, _segment(r), np.array([[1.6, 1.0, 0.5]]), time_step=-1
+        ),
+        "time_step must be > 0",
+    ),
+    ("no hydraulics", lambda r: load_robot("panda").circuit(), "declare a [hydraulics] table"),
+]
+
+
+def _segment(robot):
+    return WorkCycle.from_toml(robot.task_file, dimension=robot.m)["1-2"]
+
+
+@pytest.mark.filterwarnings("ignore:joints without an actuator declaration")
+@pytest.mark.parametrize(("call", "fragment"), [c[1:] for c in API], ids=[c[0] for c in API])
+def test_bad_api_input_is_a_redundancy_error(crane, call, fragment):
+    with pytest.raises(RedundancyError) as caught:
+        call(crane)
+    assert fragment in str(caught.value) and "\n" not in str(caught.value)
+
+
+def test_the_catalogue_is_large():
+    assert len(CASES) + len(API) >= 150
