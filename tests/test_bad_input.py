@@ -290,6 +290,36 @@ CASES = [
         },
         "unknown attributes ['colour']",
     ),
+    # physical validation
+    (
+        "inverted joint limits",
+        ["describe", "--robot", "b.urdf"],
+        {
+            "b.urdf": re.sub(
+                r'(<joint name="boom1_joint".*?<limit lower=")([^"]*)(" upper=")([^"]*)',
+                r"\g<1>\g<4>\g<3>\g<2>",
+                URDF,
+                count=1,
+                flags=re.S,
+            )
+        },
+        "inverted: boom1_joint [2.6145, 0.827286]",
+    ),
+    (
+        "no masses",
+        ["study", "--robot", "m.toml"],
+        {
+            "m.urdf": re.sub(r"<inertial>.*?</inertial>", "", URDF, flags=re.S),
+            "m.toml": _description(urdf='"m.urdf"', payload="0"),
+        },
+        "massless links: boom1, boom2, telescope",
+    ),
+    (
+        "unreachable end",
+        ["study", "--task", "t.toml"],
+        {"t.toml": TASK.replace("2 = [1.0, -0.5]", "2 = [100.0, -0.5]")},
+        "cannot reach",
+    ),
     # hydraulics files
     (
         "hydraulics missing",

@@ -15,6 +15,7 @@ from redundancy import (
     InvalidInputError,
     Objective,
     actuator_space,
+    default_start,
     global_optimum,
     improved_start,
     load_robot,
@@ -219,3 +220,16 @@ def test_gradient_projection_runs_through_the_search(crane, cycle):
     law = dataclasses.replace(VELOCITY, name="projected", resolver=GradientProjection(0.1))
     assert improved_start(crane, cycle["3-1"], law).best is not None
     assert ENERGY.reduction == "peak"
+
+
+def test_a_sweep_of_one_sample_runs_the_default_start(crane, cycle):
+    """On 1-2 mid-stroke is out of reach; one sample is the default start, the reachable value
+    nearest mid-stroke, and its motion is the one the baseline runs."""
+    segment = cycle["1-2"]
+    values, q = default_start(crane, segment, ["x3"])
+    search = improved_start(crane, segment, VELOCITY, samples=1, method="sweep")
+    assert len(search.samples) == 1 and search.samples[0].values == tuple(values)
+    assert search.best is not None
+    assert search.best.peak == pytest.approx(
+        simulate(crane, VELOCITY.resolver, segment, q[None]).peak_velocity_norm[0], rel=1e-3
+    )

@@ -126,6 +126,17 @@ def _build_model(urdf_path: Path, locked: list[str]) -> tuple[pin.Model, etree._
             f"{urdf_path}: joints {odd} are not revolute or prismatic; the toolkit handles "
             "one-degree-of-freedom joints only (lock the others with locked_joints)"
         )
+    inverted = [
+        f"{name} [{lower:g}, {upper:g}]"
+        for name, lower, upper in zip(
+            model.names[1:], model.lowerPositionLimit, model.upperPositionLimit
+        )
+        if not lower <= upper
+    ]
+    if inverted:
+        raise RobotDescriptionError(
+            f"{urdf_path}: joint limits must have lower ≤ upper; inverted: {', '.join(inverted)}"
+        )
     return model, tree.getroot()
 
 

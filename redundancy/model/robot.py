@@ -168,7 +168,24 @@ class Robot:
             out[i] = pin.crba(self.model, self.data, qi)  # the upper triangle is M's
         lower, upper = self._lower_triangle
         out[:, lower, upper] = out[:, upper, lower]
+        if np.any(np.diagonal(out, axis1=1, axis2=2) <= 0):
+            raise InvalidInputError(
+                f"{self.name} has no mass beyond some joints, so M(q) is singular and its "
+                f"dynamics (M_H, N_H, F_H, the energy objective) are undefined; massless links: "
+                f"{', '.join(self.massless_links) or 'none'}; give them <inertial> elements"
+            )
         return out
+
+    @cached_property
+    def massless_links(self) -> list[str]:
+        """The links (bodies) of zero mass."""
+        return [
+            frame.name
+            for frame in self.model.frames
+            if frame.type == pin.FrameType.BODY
+            and frame.parentJoint > 0
+            and self.model.inertias[frame.parentJoint].mass == 0
+        ]
 
     def nonlinear(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """N(q, v) = V(q, v) + G(q) (Eq. 20), (n,) or (k, n), in N·m or N."""

@@ -444,7 +444,11 @@ def improved_start(
         return _fast(robot, segment, objective, held[0], checked, tolerance, circuit)
     if len(held) == 1:
         configurations = Configurations(robot, segment, held[0])
-        starts = configurations.at(sweep_values(robot, held[0], samples))
+        # one sample is the default start: mid-stroke, or the reachable value nearest it
+        values = default_start(robot, segment, held)[0] if samples == 1 else None
+        starts = configurations.at(
+            sweep_values(robot, held[0], samples) if values is None else values
+        )
         return evaluate_starts(robot, segment, objective, held, starts, checked, circuit=circuit)
     return _compass(robot, segment, objective, held, samples, checked, circuit)
 
