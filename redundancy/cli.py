@@ -13,6 +13,7 @@ import math
 import signal
 import sys
 import warnings
+from pathlib import Path
 
 import numpy as np
 
@@ -120,8 +121,10 @@ def _load_task(robot: Robot, path: str | None) -> WorkCycle:
 
 
 def _study_command(args: argparse.Namespace) -> None:
-    report = None if args.json is None else writable(args.json, "--json")
     with OutputFolder(args.out) as out:  # committed only if everything below succeeds
+        report = out / "report.json"
+        if args.json is not None:
+            report = out.beside(Path(args.json), "--json")
         robot = load_robot(args.robot, payload=args.payload, hydraulics=args.hydraulics)
         cycle = _load_task(robot, args.task)
         chosen = ("velocity", "energy") if args.objective == "both" else (args.objective,)
@@ -138,13 +141,10 @@ def _study_command(args: argparse.Namespace) -> None:
             circuit=args.circuit_limits,
         )
         print(study.table())
-        if report is None:
-            write_report(study, out / "report.json")
+        write_report(study, report)
         figures = [out.final(p) for p in write_figures(study, out.staging)]
         playbacks = [out.final(p) for p in write_playbacks(study, out.staging)]
-    if report is not None:
-        write_report(study, report)
-    print(f"report: {report or out.target / 'report.json'}")
+    print(f"report: {args.json or out.target / 'report.json'}")
     print(f"figures: {', '.join(str(p) for p in figures)}")
     print(f"playbacks: {', '.join(str(p) for p in playbacks)}")
 
@@ -303,7 +303,12 @@ def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
     warnings.showwarning = _note
     _signalled.clear()
-    previous = {n: signal.signal(n, _interrupt) for n in (signal.SIGINT, signal.SIGTERM)}
+    # a Ctrl-C meant for a foreground job leaves a background one (SIGINT ignored) running;
+    # play's loop is stopped by it all the same
+    numbers = [signal.SIGTERM]
+    if args.run is _play_command or signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:
+        numbers.append(signal.SIGINT)
+    previous = {n: signal.signal(n, _interrupt) for n in numbers}
     try:
         args.run(args)
     except BaseException as error:

@@ -424,3 +424,12 @@ def test_the_study_goes_on_where_a_bound_fails(crane, cycle, monkeypatch):
     assert [s["bound"] is None for s in segments] == [False, True, False]
     assert segments[1]["bound_failure"] == "no configuration reaches the task at t = 1.000 s"
     assert "no bound: no configuration reaches the task" in study.table()
+
+
+def test_each_supply_bounds_the_load_pressures_it_can_serve(crane):
+    """Under LS a load may reach relief − Δp_LS = 190 bar; under CP only p_S = 180 bar; the
+    energy bound of each supply keeps its own."""
+    circuit = crane.circuit()
+    for supply, most in ((circuit.load_sensing, 190e5), (circuit.constant_pressure, 180e5)):
+        limits = Limits.hydraulic(crane, supply)
+        np.testing.assert_allclose(limits.upper[:3], most)

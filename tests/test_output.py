@@ -137,3 +137,53 @@ def test_two_runs_into_one_folder_leave_one_complete_output(tmp_path):
     assert MARKER in names and "fig4a_peak_velocity.png" in names and "report.json" in names
     assert len(names) == len(set(names)) and not any(n.startswith(".out") for n in names)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def test_signals_during_the_swap_wait_for_its_end():
+    """A Ctrl-C that arrives inside the swap is handled after it, as the Ctrl-C it was."""
+    from redundancy.study.output import _deferred_signals
+
+    with pytest.raises(KeyboardInterrupt), _deferred_signals():
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.05)
+        finished = True  # not interrupted inside the block
+    assert finished
+
+
+def test_a_failed_swap_puts_the_old_folder_back(tmp_path, monkeypatch):
+    target = tmp_path / "out"
+    with OutputFolder(target) as out:
+        (out / "report.json").write_text("old")
+    before = _contents(target)
+    replace = os.replace
+
+    def failing(source, destination):
+        if ".partial-" in str(source):
+            raise OSError(28, "No space left on device")
+        replace(source, destination)
+
+    monkeypatch.setattr(os, "replace", failing)
+    with pytest.raises(OSError), OutputFolder(target) as out:
+        (out / "report.json").write_text("new")
+    assert _contents(target) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def test_files_saved_into_the_target_while_a_run_computes_are_kept(tmp_path):
+    target = tmp_path / "out"
+    with OutputFolder(target) as out:
+        (out / "report.json").write_text("old")
+    run = OutputFolder(target)
+    (target / "notes.txt").write_text("mine")
+    with pytest.raises(InvalidInputError, match=r"holds files this toolkit did not write"), run:
+        (run / "report.json").write_text("new")
+    assert (target / "notes.txt").read_text() == "mine"
+    assert (target / "report.json").read_text() == "old"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def test_the_current_folder_is_not_an_output_folder(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    for name in (".", ".."):
+        with pytest.raises(InvalidInputError, match="give a folder by its own name"):
+            OutputFolder(name)

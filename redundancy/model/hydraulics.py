@@ -285,11 +285,17 @@ def circuit_from_table(
         cylinder = Cylinder(bore * MM, rod * MM, speed, acceleration)
         found.append((actuators.index(name), name, cylinder))
     found.sort()
-    if not values["pump_flow"] > 0 or not values["relief"] > values["tank"]:
+    pressures = values["tank"] < values["cp_pressure"] <= values["relief"]
+    if (
+        not values["pump_flow"] > 0
+        or not pressures
+        or not values["ls_margin"] < (values["relief"] - values["tank"])
+    ):
         raise InvalidInputError(
-            f"{where}: needs pump_flow > 0 and relief > tank; got pump_flow = "
-            f"{values['pump_flow']:g} L/min, relief = {values['relief']:g} bar, "
-            f"tank = {values['tank']:g} bar"
+            f"{where}: needs pump_flow > 0, tank < cp_pressure ≤ relief and ls_margin < relief "
+            f"− tank; got pump_flow = {values['pump_flow']:g} L/min, tank = {values['tank']:g}, "
+            f"cp_pressure = {values['cp_pressure']:g}, relief = {values['relief']:g}, "
+            f"ls_margin = {values['ls_margin']:g} bar"
         )
     load_sensing = LoadSensing(values["ls_margin"] * BAR)
     constant_pressure = ConstantPressure(values["cp_pressure"] * BAR)

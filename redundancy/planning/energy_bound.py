@@ -37,6 +37,7 @@ strategies' energies are computed with them. The bound converges as the grid is 
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -95,7 +96,7 @@ class EnergyOptimum:
     @property
     def change(self) -> float | None:
         """|energy on the finest grid − on the one before| / energy on the finest, or None."""
-        if len(self.grids) < 2:
+        if len(self.grids) < 2 or self.grids[-1].energy == 0:
             return None
         return abs(self.grids[-1].energy - self.grids[-2].energy) / self.grids[-1].energy
 
@@ -186,7 +187,7 @@ def _pass(robot: Robot, supply: Supply, tables: Tables, t: np.ndarray, values: n
     least energy (J, inf where nothing is feasible) and its held strokes at the nodes."""
     intervals, count = len(t) - 1, values.shape[1]
     x, forces, usable = tables.at(values)
-    circuit, limits, h = robot.circuit(), Limits.hydraulic(robot), t[1]
+    circuit, limits, h = robot.circuit(), Limits.hydraulic(robot, supply), t[1]
     cost = np.where(usable[0], 0.0, np.inf)
     choices = np.empty((intervals, count), dtype=int)
     for j in range(intervals):
@@ -225,8 +226,11 @@ def energy_optimum(
     circuit = robot.circuit()
     supply = supply or circuit.supply
     row = held_indices(robot, [held])[0]
-    if not grids or any(int(n) < 1 for n in grids) or list(grids) != sorted(grids):
-        raise InvalidInputError(f"grids must be increasing interval counts ≥ 1; got {grids}")
+    whole = all(isinstance(n, int | np.integer) and n >= 1 for n in grids)
+    if not grids or not whole or any(b <= a for a, b in itertools.pairwise(grids)):
+        raise InvalidInputError(
+            f"grids must be strictly increasing whole interval counts ≥ 1; got {grids}"
+        )
     strokes = Limits.strokes(robot, checked)
     actuator = robot.actuators[held]
     lower, upper = actuator.lower, actuator.upper

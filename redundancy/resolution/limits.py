@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from redundancy.errors import InvalidInputError
-from redundancy.model.hydraulics import Circuit, Flows
+from redundancy.model.hydraulics import Circuit, Flows, Supply
 from redundancy.model.robot import Robot
 
 TOLERANCE = 1e-9  # m or rad: a value this close past a limit counts as inside
@@ -99,11 +99,13 @@ class Limits:
         )
 
     @classmethod
-    def hydraulic(cls, robot: Robot) -> Limits:
+    def hydraulic(cls, robot: Robot, supply: Supply | None = None) -> Limits:
         """The circuit's limits on `hydraulic_values`: each cylinder's load
         pressure at most what the supply can serve, the pump flow at most its maximum, each
-        cylinder's speed at most its maximum (`redundancy.model.hydraulics`)."""
+        cylinder's speed at most its maximum (`redundancy.model.hydraulics`), under ``supply``
+        (default the machine's)."""
         circuit = robot.circuit()
+        supply = supply or circuit.supply
         c = len(circuit.names)
         names = (
             *(f"{name} load pressure" for name in circuit.names),
@@ -112,7 +114,7 @@ class Limits:
         )
         upper = np.concatenate(
             [
-                np.full(c, circuit.supply.available(circuit.relief)),
+                np.full(c, supply.available(circuit.relief)),
                 [circuit.pump_flow],
                 circuit.max_speeds,
             ]

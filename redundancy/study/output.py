@@ -1,12 +1,15 @@
 """All-or-nothing output: a run's files appear together, or not at all.
 
-`OutputFolder` stages a run's whole output set (report, figures, pages) in a fresh hidden
-folder beside the target, created before any computing, so an unwritable target fails at once.
-`commit` swaps it in: under an exclusive lock on the parent folder, with SIGINT and SIGTERM held
-back, the old folder is renamed aside, the new one renamed into place and the old one removed. A
-run that fails or is interrupted before then removes its staging folder and leaves the target as
-it was; two runs into one folder leave one complete output, the last to commit. A target that
-holds files this toolkit did not write is refused rather than replaced.
+`OutputFolder` stages a run's whole output set (report, figures, pages, and files elsewhere
+such as ``--json``, via `beside`) in fresh hidden places beside their targets, created before any
+computing, so an unwritable target fails at once. `commit` swaps them in: under an exclusive
+lock on the parent folder, with SIGINT and SIGTERM deferred (their handlers only note them until
+the swap is done, whichever thread the kernel hands them to), the old folder is renamed aside,
+the new one renamed into place, the other files renamed over theirs, and the old folder removed;
+a rename that fails puts the old folder back. A run that fails or is interrupted before then
+removes what it staged and leaves every target as it was; two runs into one folder leave one
+complete output, the last to commit. A target that holds files this toolkit did not write is
+refused rather than replaced, when the run starts and again at the swap.
 
 `write_atomically` writes one file the same way: to a temporary file beside it, then one rename.
 """
@@ -41,28 +44,37 @@ class OutputFolder:
     def __init__(self, target: Path | str, option: str = "--out"):
         self.target = Path(target)
         self.option = option
+        if self.target.name in ("", ".", ".."):
+            raise InvalidInputError(f"{option} {target}: give a folder by its own name")
         if self.target.exists() and not self.target.is_dir():
             raise InvalidInputError(f"{option} {self.target} is a file; give a folder")
-        if self.target.is_dir():
-            foreign = [
-                entry.name
-                for entry in self.target.iterdir()
-                if not any(fnmatch.fnmatch(entry.name, own) for own in OWN_FILES)
-            ]
-            if foreign:
-                raise InvalidInputError(
-                    f"{option} {self.target} holds files this toolkit did not write "
-                    f"({', '.join(sorted(foreign)[:3])}); give a new or empty folder, or an "
-                    "earlier output folder"
-                )
+        self._check_own()
+        self.others: list[tuple[Path, Path]] = []  # (staged, final) files outside the folder
         try:
             self.target.parent.mkdir(parents=True, exist_ok=True)
             self.staging = Path(
                 tempfile.mkdtemp(dir=self.target.parent, prefix=f".{self.target.name}.partial-")
             )
+            (self.staging / MARKER).write_text("written by redundancy\n")
         except OSError as error:
+            self.discard()
             raise _unwritable(self.target, error, option) from None
-        (self.staging / MARKER).write_text("written by redundancy\n")
+
+    def _check_own(self) -> None:
+        """Refuse a target that holds files this toolkit did not write."""
+        if not self.target.is_dir():
+            return
+        foreign = [
+            entry.name
+            for entry in self.target.iterdir()
+            if not any(fnmatch.fnmatch(entry.name, own) for own in OWN_FILES)
+        ]
+        if foreign:
+            raise InvalidInputError(
+                f"{self.option} {self.target} holds files this toolkit did not write "
+                f"({', '.join(sorted(foreign)[:3])}); give a new or empty folder, or an earlier "
+                "output folder"
+            )
 
     def __truediv__(self, name: str) -> Path:
         """Where the file ``name`` of the output set is written."""
@@ -72,32 +84,65 @@ class OutputFolder:
         """Where a staged file will be once committed."""
         return self.target / path.relative_to(self.staging)
 
+    def beside(self, path: Path, option: str) -> Path:
+        """Where to write the output file ``path`` kept outside the folder (e.g. ``--json``): a
+        temporary file beside it, renamed over it at `commit`."""
+        if path.is_dir() or path.name in ("", ".", ".."):
+            raise InvalidInputError(f"{option} {path} is a folder; give a file path")
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            handle, staged = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
+            os.close(handle)
+        except OSError as error:
+            raise _unwritable(path, error, option) from None
+        self.others.append((Path(staged), path))
+        return Path(staged)
+
     def commit(self) -> None:
-        """Swap the staged set in for the target, in one step for anyone who looks."""
-        self.staging.chmod(0o777 & ~_umask())  # mkdtemp makes it private; give a folder's mode
-        with _held_signals(), _locked(self.target.parent):
-            aside = None
-            if self.target.exists():
-                aside = Path(
-                    tempfile.mkdtemp(dir=self.target.parent, prefix=f".{self.target.name}.old-")
-                )
-                os.replace(self.target, aside / "output")
-            os.replace(self.staging, self.target)
-            if aside is not None:
-                shutil.rmtree(aside)
+        """Swap the staged set in for the targets, in one step for anyone who looks."""
+        mode = 0o777 & ~_umask()
+        self.staging.chmod(mode)  # mkdtemp makes it private; give a folder's mode
+        for staged, _ in self.others:
+            staged.chmod(mode & 0o666)
+        with _deferred_signals(), _locked(self.target.parent):
+            self._check_own()  # a user may have saved files there while the run computed
+            aside = Path(
+                tempfile.mkdtemp(dir=self.target.parent, prefix=f".{self.target.name}.old-")
+            )
+            kept = aside / "output"
+            try:
+                if self.target.exists():
+                    os.replace(self.target, kept)
+                try:
+                    os.replace(self.staging, self.target)
+                except OSError:
+                    if kept.exists():
+                        os.replace(kept, self.target)
+                    raise
+                for staged, final in self.others:
+                    os.replace(staged, final)
+            finally:
+                shutil.rmtree(aside, ignore_errors=True)
 
     def discard(self) -> None:
-        """Remove the staging folder; the target is untouched."""
-        shutil.rmtree(self.staging, ignore_errors=True)
+        """Remove what was staged; the targets are untouched."""
+        if hasattr(self, "staging"):
+            shutil.rmtree(self.staging, ignore_errors=True)
+        for staged, _ in getattr(self, "others", []):
+            staged.unlink(missing_ok=True)
 
     def __enter__(self) -> OutputFolder:
         return self
 
     def __exit__(self, kind, value, traceback) -> None:
-        if kind is None:
-            self.commit()
-        else:
+        if kind is not None:
             self.discard()
+            return
+        try:
+            self.commit()
+        except BaseException:
+            self.discard()
+            raise
 
 
 def _umask() -> int:
@@ -107,14 +152,25 @@ def _umask() -> int:
 
 
 @contextlib.contextmanager
-def _held_signals() -> Iterator[None]:
-    """SIGINT and SIGTERM wait until the block ends (then act as they would have)."""
-    held = {signal.SIGINT, signal.SIGTERM}
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+def _deferred_signals() -> Iterator[None]:
+    """SIGINT and SIGTERM only noted during the block, then handled as they would have been.
+
+    Python runs signal handlers in the main thread, whichever thread the kernel delivered the
+    signal to, so swapping the handlers (rather than masking one thread) covers them all."""
+    noted: list[int] = []
+    numbers = (signal.SIGINT, signal.SIGTERM)
+    previous = {n: signal.signal(n, lambda number, frame: noted.append(number)) for n in numbers}
     try:
         yield
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+        for number, handler in previous.items():
+            signal.signal(number, handler)
+        for noted_number in noted:
+            handler = previous[signal.Signals(noted_number)]
+            if callable(handler):
+                handler(noted_number, None)
+            elif handler == signal.SIG_DFL:
+                signal.raise_signal(noted_number)
 
 
 @contextlib.contextmanager

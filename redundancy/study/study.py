@@ -69,7 +69,8 @@ class Study:
     bounds: dict[str, tuple[GlobalOptimum | None, ...]]
     runs: tuple[StrategyRun, ...]
     energy_bounds: dict[str, dict[str, EnergyOptimum]] | None = None  # segment → supply → bound
-    bound_failures: dict[str, str] | None = None  # "objective/segment" → why it has no bound
+    bound_failures: dict[str, str] | None = None  # "objective/segment", or "energy bound
+    # LS/segment", → why it has no bound
 
     def search(self, objective: str, segment: str) -> SearchResult:
         return self.searches[objective][self._segment(segment)]
@@ -115,6 +116,7 @@ class Study:
             ],
             "comparison": [self._run_report(run) for run in self.runs],
             **({} if self.energy_bounds is None else {"energy_bounds": self._energy_report()}),
+            "bound_failures": self.bound_failures or {},
         }
 
     def above_energy_bound(self, run: StrategyRun) -> dict[str, float]:
@@ -297,6 +299,10 @@ def run_study(
     method = method or ("fast" if len(held) == 1 else "sweep")
     if method not in METHODS:
         raise InvalidInputError(f"unknown method {method!r}; methods: {', '.join(METHODS)}")
+    if energy_bound or circuit:
+        machine = robot.circuit()  # says how to declare one before any work
+    if energy_bound and len(held) != 1:
+        raise InvalidInputError(f"the energy bound holds one actuator; the task holds {held}")
     segments = cycle.segments
     total = len(segments) * (len(BASELINES) + 3 * len(objectives))
     bar = tqdm(total=total, unit="task", desc="study", disable=not progress, mininterval=0.5)
@@ -359,17 +365,15 @@ def run_study(
                 bar.update()
     energy_bounds = None
     if energy_bound:
-        machine = robot.circuit()
-        if len(held) != 1:
-            raise InvalidInputError(f"the energy bound holds one actuator; the task holds {held}")
-        supplies = (machine.load_sensing, machine.constant_pressure)
-        energy_bounds = {
-            segment.name: {
-                supply.name: energy_optimum(robot, segment, supply, held[0], checked)
-                for supply in supplies
-            }
-            for segment in tqdm(segments, desc="energy bounds", disable=not progress)
-        }
+        energy_bounds = {}
+        for segment in tqdm(segments, desc="energy bounds", disable=not progress):
+            found = {}
+            for supply in (machine.load_sensing, machine.constant_pressure):
+                try:
+                    found[supply.name] = energy_optimum(robot, segment, supply, held[0], checked)
+                except (InvalidInputError, UnreachableError) as error:
+                    failures[f"energy bound {supply.name}/{segment.name}"] = str(error)
+            energy_bounds[segment.name] = found
     return Study(
         robot,
         cycle,

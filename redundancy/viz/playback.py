@@ -23,6 +23,8 @@ import math
 import os
 import subprocess
 import sys
+import tempfile
+import threading
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -40,6 +42,7 @@ from redundancy.resolution.limits import Limits
 from redundancy.study.output import write_atomically
 from redundancy.study.study import Study
 
+STARTUP = 30.0  # s: the meshcat server must have said where it listens by then
 FRAME_RATE = 30.0  # frames per second of playback; the motion is sampled at most this often
 FIELD_OF_VIEW = 30.0  # degrees, vertical
 ASPECT = 4 / 3  # width / height the camera distance is fitted for
@@ -421,29 +424,38 @@ def served() -> Iterator:
     stopped, and its ports freed, however the block ends."""
     meshcat = _meshcat()
     command = [sys.executable, "-u", "-m", "redundancy.viz.server", str(os.getpid())]
-    server = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        line = ""
-        while not line.startswith("zmq_url=") and server.poll() is None:
-            line = server.stdout.readline().strip()  # type: ignore[union-attr]
-        if not line.startswith("zmq_url="):
-            reason = server.stderr.read().strip().splitlines()  # type: ignore[union-attr]
-            raise RedundancyError(
-                f"the meshcat server did not start: {reason[-1] if reason else 'no reason given'}"
-            )
-        with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints its address; we say it
-            vis = meshcat.Visualizer(zmq_url=line[len("zmq_url=") :])
+    # the server's chatter (a line per connection) goes to a file never read, not a pipe
+    with tempfile.TemporaryFile() as log:
+        server = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=log, text=True)
+        stalled = threading.Timer(STARTUP, server.kill)  # a server that never says where it is
+        stalled.start()
         try:
-            yield vis
+            line = ""
+            while not line.startswith("zmq_url=") and server.poll() is None:
+                line = server.stdout.readline().strip()  # type: ignore[union-attr]
+            stalled.cancel()
+            if not line.startswith("zmq_url="):
+                log.seek(0)
+                said = log.read().decode(errors="replace").strip().splitlines()
+                reason = said[-1] if said else "no reason given"
+                raise RedundancyError(f"the meshcat server did not start: {reason}")
+            # its stdout is not read again: drain it, so that the server never blocks on a pipe
+            drain = server.stdout.read  # type: ignore[union-attr]
+            threading.Thread(target=drain, daemon=True).start()
+            with contextlib.redirect_stdout(io.StringIO()):  # meshcat prints its address; we do
+                vis = meshcat.Visualizer(zmq_url=line[len("zmq_url=") :])
+            try:
+                yield vis
+            finally:
+                vis.window.zmq_socket.close(linger=0)
         finally:
-            vis.window.zmq_socket.close(linger=0)
-    finally:
-        server.terminate()
-        try:
-            server.communicate(timeout=5)
-        except subprocess.TimeoutExpired:
-            server.kill()
-            server.communicate()
+            stalled.cancel()
+            server.terminate()
+            try:
+                server.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                server.kill()
+                server.wait()
 
 
 def play(
