@@ -84,6 +84,12 @@ def test_unwritable_paths_fail_before_any_computing(tmp_path):
     assert run.returncode == 2 and "--html" in run.stderr and run.stderr.count("\n") == 1
 
 
+def _foreground() -> None:
+    """In the child: SIGINT as a foreground job has it, even where this test runs as a
+    background job (which ignores SIGINT, and so, rightly, would its children)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _staged_files(parent: Path) -> int:
     return sum(
         len(list(folder.iterdir())) for folder in parent.glob(".out.partial-*") if folder.is_dir()
@@ -102,7 +108,13 @@ def test_an_interrupted_write_leaves_the_earlier_output_byte_identical(
     and figures): the earlier folder stays byte-identical, nothing temporary remains."""
     folder, contents = earlier
     command = [sys.executable, "-m", "redundancy.cli", *STUDY, "--out", str(folder)]
-    run = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    run = subprocess.Popen(
+        command,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=_foreground,
+    )
     deadline = time.monotonic() + 60
     while _staged_files(folder.parent) < staged and run.poll() is None:
         assert time.monotonic() < deadline
@@ -143,10 +155,14 @@ def test_signals_during_the_swap_wait_for_its_end():
     """A Ctrl-C that arrives inside the swap is handled after it, as the Ctrl-C it was."""
     from redundancy.study.output import _deferred_signals
 
-    with pytest.raises(KeyboardInterrupt), _deferred_signals():
-        os.kill(os.getpid(), signal.SIGINT)
-        time.sleep(0.05)
-        finished = True  # not interrupted inside the block
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)  # as in the foreground
+    try:
+        with pytest.raises(KeyboardInterrupt), _deferred_signals():
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)
+            finished = True  # not interrupted inside the block
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert finished
 
 
