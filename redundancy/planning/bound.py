@@ -344,19 +344,17 @@ def global_optimum(
         r, grid, nodes, q = solve(intervals, np.linspace(0.0, segment.duration, len(r)), r, q)
         solutions.append(grid)
     times = np.linspace(0.0, segment.duration, len(r))
-    optimum = Trajectory(
+    optimum = Trajectory.single(
         robot,
         segment,
         objective.resolver,
-        times[None],
-        q[None],
-        nodes.space.x[None],
-        nodes.x_dot[None],
-        nodes.space.y[None],
-        np.zeros(1, dtype=bool),
+        times,
+        q,
+        nodes.space.x,
+        nodes.x_dot,
+        nodes.space.y,
         limits.names,
-        np.zeros(1, dtype=bool),
         objective,
-        nodes.measure[None],
+        nodes.measure,
     )
     return GlobalOptimum(segment, objective, held, optimum, float(r[0]), tuple(solutions))

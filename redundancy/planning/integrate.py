@@ -111,6 +111,39 @@ class Trajectory:
     allowance: float = 0.0
     circuit: bool = False
 
+    @classmethod
+    def single(
+        cls,
+        robot: Robot,
+        segment: Segment,
+        resolver: Resolver,
+        t: np.ndarray,
+        q: np.ndarray,
+        x: np.ndarray,
+        x_dot: np.ndarray,
+        y: np.ndarray,
+        checked: tuple[str, ...],
+        objective: Objective | None = None,
+        measure: np.ndarray | None = None,
+    ) -> Trajectory:
+        """One motion that ran to its end, from its samples t (T,), q, x, ẋ (T, n), y (T, m)
+        and, for ``objective``, its ``measure`` (T,)."""
+        return cls(
+            robot,
+            segment,
+            resolver,
+            t[None],
+            q[None],
+            x[None],
+            x_dot[None],
+            y[None],
+            np.zeros(1, dtype=bool),
+            checked,
+            np.zeros(1, dtype=bool),
+            objective,
+            None if measure is None else measure[None],
+        )
+
     def __len__(self) -> int:
         return len(self.q)
 

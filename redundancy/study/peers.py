@@ -269,19 +269,9 @@ class PinkResolver(Resolver):
             if i + 1 < len(t):
                 q[i + 1] = q[i] + v[i] * dt
         space = evaluate(robot, q)
-        return Trajectory(
-            robot,
-            segment,
-            self,
-            t[None],
-            q[None],
-            space.x[None],
-            (space.A @ v[..., None])[..., 0][None],
-            space.y[None],
-            np.zeros(1, dtype=bool),
-            tuple(robot.actuators.names if checked is None else checked),
-            np.zeros(1, dtype=bool),
-        )
+        x_dot = (space.A @ v[..., None])[..., 0]
+        checked = tuple(robot.actuators.names if checked is None else checked)
+        return Trajectory.single(robot, segment, self, t, q, space.x, x_dot, space.y, checked)
 
 
 def pink_run(
