@@ -55,7 +55,7 @@ from redundancy.planning.ik import (
 )
 from redundancy.planning.tasks import Segment
 from redundancy.resolution.limits import TOLERANCE, Limits, hydraulic_values
-from redundancy.resolution.state import evaluate, singular
+from redundancy.resolution.state import evaluate, regularised
 
 GRIDS = (50, 100)  # intervals N of the successive grids
 EXACT = 81  # held strokes per node where the configuration is solved for, over the stroke
@@ -146,12 +146,9 @@ class Tables:
         self.values = np.linspace(actuator.lower, actuator.upper, EXACT)
         q, found = _nodes(robot, segment, row, self.values, t)
         flat = q.reshape(-1, robot.n)
-        space = evaluate(robot, flat)
-        usable = found.ravel() & ~singular(space.A)
-        usable &= Limits.joints(robot).margin(flat) >= -TOLERANCE
-        forces = np.zeros_like(space.x)
-        if usable.any():
-            forces[usable] = evaluate(robot, flat[usable]).N_H
+        space, bad = regularised(evaluate(robot, flat))
+        usable = found.ravel() & ~bad & (Limits.joints(robot).margin(flat) >= -TOLERANCE)
+        forces = np.where(usable[:, None], space.N_H, 0.0)  # A⁻ᵀ G at rest
         shape = (len(t), EXACT, robot.n)
         self.x, self.forces = space.x.reshape(shape), forces.reshape(shape)
         self.usable = usable.reshape(shape[:2])

@@ -40,7 +40,7 @@ from redundancy.resolution.laws import Resolver
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
 from redundancy.resolution.limits import Limits, Violation, hydraulic_values
 from redundancy.resolution.objectives import Objective, integral, kinetic, velocity_norm
-from redundancy.resolution.state import ActuatorSpace, evaluate, singular
+from redundancy.resolution.state import ActuatorSpace, evaluate, regularised
 
 TIME_STEP = 0.01  # s
 GAIN = 20.0  # K, 1/s, of the fixed-step method
@@ -367,11 +367,7 @@ class Law:
 
     def __call__(self, t: np.ndarray, q: np.ndarray) -> Rates:
         """At times t (k,) and configurations q (k, n)."""
-        space = evaluate(self.robot, q)
-        bad = singular(space.A) | ~np.all(np.isfinite(q), axis=1)
-        if bad.any():
-            eye = np.eye(self.robot.n)
-            space = replace(space, A=np.where(bad[:, None, None], eye, space.A))
+        space, bad = regularised(evaluate(self.robot, q))
         segment = self.segment
         y_dot = np.broadcast_to(segment.velocity, space.y.shape)
         if self.gain:

@@ -17,7 +17,7 @@ torque arm vanishes (its line passes through the joint); `actuator_space` then r
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
@@ -150,6 +150,17 @@ class ActuatorSpace:
     def joint_velocities(self, x_dot: np.ndarray) -> np.ndarray:
         """q̇ = A⁻¹ ẋ (Eq. 11) for actuator velocities ẋ (k, n)."""
         return solve(self.A, x_dot[..., None])[..., 0]
+
+
+def regularised(space: ActuatorSpace) -> tuple[ActuatorSpace, np.ndarray]:
+    """``space`` with A replaced by I where it is singular or the state is not finite, so that
+    every derived quantity is defined on the whole batch, and where that was, (k,) bool. What is
+    derived there is meaningless: callers freeze or exclude those states."""
+    bad = singular(space.A) | ~np.all(np.isfinite(space.q), axis=1)
+    if bad.any():
+        eye = np.eye(space.A.shape[-1])
+        space = replace(space, A=np.where(bad[:, None, None], eye, space.A))
+    return space, bad
 
 
 def evaluate(robot: Robot, q: np.ndarray, v: np.ndarray | None = None) -> ActuatorSpace:
