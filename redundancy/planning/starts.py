@@ -367,7 +367,7 @@ def evaluate_starts(
         circuit=circuit,
     )
     scores = trajectory.score(objective)
-    margins = trajectory.margins
+    margins, within = trajectory.margins, trajectory.within_limits
     samples = []
     for i, row in enumerate(rows):
         start = tuple(float(v) for v in starts.values[i])
@@ -377,7 +377,7 @@ def evaluate_starts(
             )
             continue
         margin = float(min(margins[row], starts.joint_margins[i]))
-        feasible = margin >= -LIMIT_TOLERANCE and bool(trajectory.within_limits[row])
+        feasible = margin >= -LIMIT_TOLERANCE and bool(within[row])
         violations = tuple(trajectory.violations(row))
         samples.append(
             Sample(

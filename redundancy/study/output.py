@@ -87,16 +87,9 @@ class OutputFolder:
     def beside(self, path: Path, option: str) -> Path:
         """Where to write the output file ``path`` kept outside the folder (e.g. ``--json``): a
         temporary file beside it, renamed over it at `commit`."""
-        if path.is_dir() or path.name in ("", ".", ".."):
-            raise InvalidInputError(f"{option} {path} is a folder; give a file path")
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            handle, staged = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-            os.close(handle)
-        except OSError as error:
-            raise _unwritable(path, error, option) from None
-        self.others.append((Path(staged), path))
-        return Path(staged)
+        staged = _temporary_beside(path, option)
+        self.others.append((staged, path))
+        return staged
 
     def commit(self) -> None:
         """Swap the staged set in for the targets, in one step for anyone who looks."""
@@ -184,18 +177,25 @@ def _locked(folder: Path) -> Iterator[None]:
         os.close(descriptor)
 
 
+def _temporary_beside(path: Path, option: str) -> Path:
+    """A new empty temporary file beside the file ``path`` (its folder is created); one line
+    naming the option where ``path`` is a folder or cannot be written."""
+    if path.is_dir() or path.name in ("", ".", ".."):
+        raise InvalidInputError(f"{option} {path} is a folder; give a file path")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
+        os.close(handle)
+    except OSError as error:
+        raise _unwritable(path, error, option) from None
+    return Path(temporary)
+
+
 def writable(path: Path | str, option: str) -> Path:
     """``path`` after checking that a file can be written beside it (its folder is created);
     one line naming the option otherwise."""
     path = Path(path)
-    if path.is_dir():
-        raise InvalidInputError(f"{option} {path} is a folder; give a file path")
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=path.parent, prefix=f".{path.name}."):
-            pass
-    except OSError as error:
-        raise _unwritable(path, error, option) from None
+    _temporary_beside(path, option).unlink()
     return path
 
 
