@@ -23,20 +23,7 @@ def main() -> None:
         study = run_study(robot, cycle, progress=False, bound=False, energy_bound=energy_bound)
         costs.append(time.perf_counter() - start)
     bounds = costs[1] - costs[0]
-    header = (
-        f"{'segment':<8}{'strategy':<36}{'LS kJ':>7}{'LS +%':>7}{'CP kJ':>7}{'CP +%':>7}"
-        f"{'Q_P L/min':>10}{'p_L bar':>8}{'t_min s':>8}  circuit"
-    )
-    print(header)
-    print("-" * len(header))
-    for run in study.runs:
-        h, above = run.summary()["hydraulics"], study.above_energy_bound(run)
-        print(
-            f"{run.segment:<8}{run.strategy:<36}{h['ls_energy_kj']:>7.2f}{above['LS']:>7.1f}"
-            f"{h['cp_energy_kj']:>7.2f}{above['CP']:>7.1f}{h['peak_pump_flow_l_min']:>10.1f}"
-            f"{h['max_load_pressure_bar']:>8.1f}{h['shortest_duration_s']:>8.2f}  "
-            + ("held" if h["within_limits"] else "; ".join(h["violations"]))
-        )
+    print(study.hydraulic_table())
     print()
     print(f"{'segment':<8}{'supply':<8}{'bound kJ':>9}  grids: energy kJ")
     for segment, found in (study.energy_bounds or {}).items():

@@ -194,7 +194,7 @@ class Study:
         """The comparison as a fixed-width text table, then the bounds."""
         start = "start " + ",".join(self.held)
         width = max(10, len(start) + 1, 8 * len(self.held) + 1)
-        names = max(8, *(len(s.name) + 2 for s in self.cycle.segments))
+        names = self._segment_width()
         header = (
             f"{'segment':<{names}}{'strategy':<36}{start:>{width}}"
             f"{'peak ẋᵀẋ':>12}{'peak ẋᵀM_Hẋ':>13}  limits"
@@ -231,12 +231,14 @@ class Study:
                     + ("" if failure is None else f"{'-':>12}{'-':>8}  no bound: {failure}")
                 )
         if self.robot.hydraulics is not None:
-            lines += ["", *self._hydraulic_table(names)]
+            lines += ["", self.hydraulic_table()]
         return "\n".join(lines)
 
-    def _hydraulic_table(self, names: int) -> list[str]:
-        """The hydraulic comparison: peak pump flow, highest load pressure, pump energies and,
-        with energy bounds, per cent above them."""
+    def hydraulic_table(self) -> str:
+        """The hydraulic comparison as a fixed-width text table: peak pump flow, highest load
+        pressure, pump energies, shortest duration and, with energy bounds, per cent above
+        them, then the bounds."""
+        names = self._segment_width()
         header = (
             f"{'segment':<{names}}{'strategy':<36}{'Q_P L/min':>10}{'p_L bar':>9}"
             f"{'LS kJ':>8}{'CP kJ':>8}{'LS +%':>7}{'CP +%':>7}{'t_min s':>8}  circuit"
@@ -266,7 +268,11 @@ class Study:
                     )
                     + f"{'':>22}  {state}, change {100 * (bound.change or 0):.2f} %"
                 )
-        return lines
+        return "\n".join(lines)
+
+    def _segment_width(self) -> int:
+        """The width of the tables' segment column."""
+        return max(8, *(len(s.name) + 2 for s in self.cycle.segments))
 
 
 def run_study(
