@@ -77,26 +77,37 @@ def pump_flow(space: ActuatorSpace, x_dot: np.ndarray) -> np.ndarray:
     return space.robot.circuit().flow_rates(x_dot) / LITRES_PER_MINUTE
 
 
-def ls_power(space: ActuatorSpace, x_dot: np.ndarray) -> np.ndarray:
-    """Pump power p_P Q_P (k,) under load sensing, kW (its integral in kJ)."""
-    circuit = space.robot.circuit()
-    return circuit.flows(x_dot, space.F_H).power(circuit.load_sensing) / KILOJOULE
+def pump_power(supply: str) -> Callable[[ActuatorSpace, np.ndarray], np.ndarray]:
+    """The measure p_P Q_P (k,) in kW (its integral in kJ) under the circuit's ``supply``,
+    "load_sensing" or "constant_pressure", with the forces F_H of the states."""
 
+    def power(space: ActuatorSpace, x_dot: np.ndarray) -> np.ndarray:
+        circuit = space.robot.circuit()
+        return circuit.flows(x_dot, space.F_H).power(getattr(circuit, supply)) / KILOJOULE
 
-def cp_power(space: ActuatorSpace, x_dot: np.ndarray) -> np.ndarray:
-    """Pump power p_S Q_P (k,) under constant pressure, kW (its integral in kJ)."""
-    circuit = space.robot.circuit()
-    return circuit.flows(x_dot, space.F_H).power(circuit.constant_pressure) / KILOJOULE
+    return power
 
 
 VELOCITY = Objective("velocity", MinVelocityNorm(), velocity_norm, "ẋᵀẋ", "m²/s²")
 ENERGY = Objective("energy", MinKineticEnergy(), kinetic, "ẋᵀ M_H ẋ", "J")
 FLOW = Objective("flow", MinFlow(), pump_flow, "pump flow Q_P", "L/min")
 LS_ENERGY = Objective(
-    "ls_energy", MinFlow(), ls_power, "LS pump power", "kW", "integral", dynamic=True
+    "ls_energy",
+    MinFlow(),
+    pump_power("load_sensing"),
+    "LS pump power",
+    "kW",
+    "integral",
+    dynamic=True,
 )
 CP_ENERGY = Objective(
-    "cp_energy", MinFlow(), cp_power, "CP pump power", "kW", "integral", dynamic=True
+    "cp_energy",
+    MinFlow(),
+    pump_power("constant_pressure"),
+    "CP pump power",
+    "kW",
+    "integral",
+    dynamic=True,
 )
 OBJECTIVES = {o.name: o for o in (VELOCITY, ENERGY, FLOW, LS_ENERGY, CP_ENERGY)}
 
