@@ -36,7 +36,13 @@ from redundancy.planning.bound import GlobalOptimum, global_optimum
 from redundancy.planning.energy_bound import EnergyOptimum, energy_optimum
 from redundancy.planning.ik import configuration_at, inverse_kinematics
 from redundancy.planning.integrate import Trajectory, simulate
-from redundancy.planning.starts import Sample, SearchResult, default_start, improved_start
+from redundancy.planning.starts import (
+    Sample,
+    SearchResult,
+    default_start,
+    improved_start,
+    improved_starts,
+)
 from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.planning.time_scaling import Retimed, shortest_duration
 from redundancy.resolution.laws import (
@@ -109,6 +115,7 @@ __all__ = [
     "energy_optimum",
     "global_optimum",
     "improved_start",
+    "improved_starts",
     "inverse_kinematics",
     "load_robot",
     "run_study",

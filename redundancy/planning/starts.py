@@ -282,7 +282,8 @@ class Configurations:
 
     def __init__(self, robot: Robot, segment: Segment, held: str):
         point = segment.start
-        self.robot, self.point = robot, point
+        self.robot, self.point, self.held = robot, point, held
+        self._reach: dict[float, Starts] = {}
         self.row = held_indices(robot, [held])[0]
         self.joints = Limits.joints(robot)
         scan = sweep_values(robot, held, REACH_GRID)
@@ -299,6 +300,25 @@ class Configurations:
             )
         values = scan[order[:1]] if len(anchor.q) == 1 else scan
         self.known = (values[found], anchor.q[found])
+
+    def reach(self, tolerance: float) -> Starts:
+        """`REACH_GRID` starts over the stroke with the ends of the reachable ones located to
+        ``tolerance`` by bisection of the joint margin: no integration, so one scan serves
+        every objective's search (kept per tolerance)."""
+        if tolerance not in self._reach:
+            reach = self.at(sweep_values(self.robot, self.held, REACH_GRID))
+            for _ in range(ROUNDS):
+                values = reach.values[:, 0]
+                probes = new_probes(
+                    bracket_probes(values, reach.joint_margins, reach.reachable, tolerance),
+                    values,
+                    tolerance,
+                )
+                if not probes.size:
+                    break
+                reach = _merged(reach, self.at(probes))
+            self._reach[tolerance] = reach
+        return self._reach[tolerance]
 
     def at(self, values: np.ndarray) -> Starts:
         """Starts at held ``values`` (k,)."""
@@ -426,6 +446,26 @@ def improved_start(
     With ``circuit`` a start must also keep the robot's hydraulic circuit within its limits
     (load pressures, pump flow, cylinder speeds): the fast search then bisects where those bind.
     """
+    (search,) = improved_starts(
+        robot, segment, (objective,), held, samples, checked, method, tolerance, circuit
+    )
+    return search
+
+
+def improved_starts(
+    robot: Robot,
+    segment: Segment,
+    objectives: Sequence[Objective],
+    held: str | Sequence[str] = "x3",
+    samples: int = 100,
+    checked: tuple[str, ...] | None = None,
+    method: str | None = None,
+    tolerance: float | None = None,
+    circuit: bool = False,
+) -> tuple[SearchResult, ...]:
+    """`improved_start` for each of ``objectives`` on one segment, in order. The start
+    configurations do not depend on the objective, so the searches share them: the fast
+    search's reachable scan is done once."""
     held = _held(held)
     held_indices(robot, held)
     if not isinstance(samples, int | np.integer) or not 1 <= samples <= MAX_SAMPLES:
@@ -435,42 +475,40 @@ def improved_start(
     method = method or ("fast" if len(held) == 1 else "sweep")
     if method not in METHODS:
         raise InvalidInputError(f"unknown method {method!r}; methods: {', '.join(METHODS)}")
-    if method == "fast":
-        if len(held) != 1:
+    if len(held) > 1:
+        if method == "fast":
             raise InvalidInputError(
                 f"the fast search holds one actuator; {list(held)} are {len(held)}: use "
                 "method='sweep'"
             )
-        return _fast(robot, segment, objective, held[0], checked, tolerance, circuit)
-    if len(held) == 1:
-        configurations = Configurations(robot, segment, held[0])
-        # one sample is the default start: mid-stroke, or the reachable value nearest it
-        values = default_start(robot, segment, held)[0] if samples == 1 else None
-        starts = configurations.at(
-            sweep_values(robot, held[0], samples) if values is None else values
+        return tuple(
+            _compass(robot, segment, objective, held, samples, checked, circuit)
+            for objective in objectives
         )
-        return evaluate_starts(robot, segment, objective, held, starts, checked, circuit=circuit)
-    return _compass(robot, segment, objective, held, samples, checked, circuit)
-
-
-def _fast(robot, segment, objective, held, checked, tolerance, circuit) -> SearchResult:
-    """The fast search for one held actuator (see the module docstring)."""
-    scan = sweep_values(robot, held, REACH_GRID)
-    tolerance = END_TOLERANCE * (scan[-1] - scan[0]) if tolerance is None else tolerance
-    if not tolerance > 0:
-        raise InvalidInputError(f"tolerance must be > 0; got {tolerance}")
+    if method == "fast":
+        scan = sweep_values(robot, held[0], REACH_GRID)
+        tolerance = END_TOLERANCE * (scan[-1] - scan[0]) if tolerance is None else tolerance
+        if not tolerance > 0:
+            raise InvalidInputError(f"tolerance must be > 0; got {tolerance}")
     Limits.strokes(robot, checked)  # names checked before any work
-    configurations = Configurations(robot, segment, held)
-    reach = configurations.at(scan)
-    for _ in range(ROUNDS):  # the ends of the reachable starts: no integration needed
-        values = reach.values[:, 0]
-        inside = reach.reachable
-        probes = new_probes(
-            bracket_probes(values, reach.joint_margins, inside, tolerance), values, tolerance
+    configurations = Configurations(robot, segment, held[0])
+    if method == "fast":
+        return tuple(
+            _fast(robot, segment, objective, held[0], checked, tolerance, circuit, configurations)
+            for objective in objectives
         )
-        if not probes.size:
-            break
-        reach = _merged(reach, configurations.at(probes))
+    # one sample is the default start: mid-stroke, or the reachable value nearest it
+    values = default_start(robot, segment, held)[0] if samples == 1 else None
+    starts = configurations.at(sweep_values(robot, held[0], samples) if values is None else values)
+    return tuple(
+        evaluate_starts(robot, segment, objective, held, starts, checked, circuit=circuit)
+        for objective in objectives
+    )
+
+
+def _fast(robot, segment, objective, held, checked, tolerance, circuit, configurations):
+    """The fast search for one held actuator (see the module docstring)."""
+    reach = configurations.reach(tolerance)
     reachable = reach.values[reach.reachable, 0]
     if not reachable.size:
         raise UnreachableError(
@@ -580,16 +618,20 @@ def default_start(robot: Robot, segment: Segment, held: str | Sequence[str] = "x
         candidates = box[:, 0] + (box[:, 1] - box[:, 0]) * unit
     middle = box.mean(axis=1)
     distance = np.linalg.norm((candidates - middle) / (box[:, 1] - box[:, 0]), axis=1)
-    order = np.argsort(distance, kind="stable")
-    ik = inverse_kinematics(robot, segment.start, held, candidates[order])
-    if not ik.reached.any():
-        raise UnreachableError(
-            f"{robot.name} cannot reach the start {segment.start.tolist()} of segment "
-            f"{segment.name} with {', '.join(held)} anywhere in their strokes; the closest "
-            f"configuration misses it by {ik.miss.min():.4g} m"
-        )
-    first = int(np.argmax(ik.reached))
-    return candidates[order][first], ik.q[first]
+    ordered = candidates[np.argsort(distance, kind="stable")]
+    tried, miss = 0, np.inf
+    while tried < len(ordered):  # nearest first, in batches doubling in size: 1, 2, 4, ...
+        batch = ordered[tried : 2 * tried + 1]
+        ik = inverse_kinematics(robot, segment.start, held, batch)
+        if ik.reached.any():
+            first = int(np.argmax(ik.reached))
+            return batch[first], ik.q[first]
+        tried, miss = tried + len(batch), min(miss, float(ik.miss.min()))
+    raise UnreachableError(
+        f"{robot.name} cannot reach the start {segment.start.tolist()} of segment "
+        f"{segment.name} with {', '.join(held)} anywhere in their strokes; the closest "
+        f"configuration misses it by {miss:.4g} m"
+    )
 
 
 def scalar_or_list(values):

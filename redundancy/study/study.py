@@ -35,7 +35,7 @@ from redundancy.planning.starts import (
     SearchResult,
     default_start,
     held_actuators,
-    improved_start,
+    improved_starts,
     scalar_or_list,
 )
 from redundancy.planning.tasks import WorkCycle
@@ -328,25 +328,18 @@ def run_study(
                     )
                 )
                 bar.update()
-            for objective in objectives:
-                bar.set_description(f"{segment.name}: improved, {objective.name}")
-                sweep = improved_start(
-                    robot,
-                    segment,
-                    objective,
-                    held,
-                    samples,
-                    checked,
-                    method="sweep",
-                    circuit=circuit,
+            bar.set_description(f"{segment.name}: improved starts")
+            found_sweeps = improved_starts(
+                robot, segment, objectives, held, samples, checked, "sweep", circuit=circuit
+            )
+            bar.update(len(objectives))
+            found = found_sweeps
+            if method == "fast":
+                found = improved_starts(
+                    robot, segment, objectives, held, checked=checked, circuit=circuit
                 )
-                bar.update()
-                search = sweep
-                if method == "fast":
-                    search = improved_start(
-                        robot, segment, objective, held, checked=checked, circuit=circuit
-                    )
-                bar.update()
+            bar.update(len(objectives))
+            for objective, sweep, search in zip(objectives, found_sweeps, found):
                 searches[objective.name].append(search)
                 sweeps[objective.name].append(sweep)
                 best, optimum = search.best, None
