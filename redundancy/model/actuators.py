@@ -225,7 +225,8 @@ class LinearCylinder(VectorisedMap):
         self.rod = (rod[0], np.asarray(rod[1], dtype=float))
 
     def bind(self, model: pin.Model) -> None:
-        """Resolve the links and add a Pinocchio frame at each attachment point."""
+        """Resolve the links and add a Pinocchio frame at each attachment point (a frame this
+        actuator added to ``model`` before is moved to the point now declared)."""
         super().bind(model)
         links = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
         self.frames = []
@@ -245,7 +246,11 @@ class LinearCylinder(VectorisedMap):
                 placement,
                 pin.FrameType.OP_FRAME,
             )
-            self.frames.append(model.addFrame(frame, False))
+            if model.existFrame(frame.name):
+                self.frames.append(model.getFrameId(frame.name))
+                model.frames[self.frames[-1]] = frame
+            else:
+                self.frames.append(model.addFrame(frame, False))
 
     @staticmethod
     def _geometry(maps, kinematics: Kinematics):
