@@ -9,6 +9,7 @@ together or not at all (`redundancy.study.output`).
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import signal
 import sys
@@ -33,8 +34,11 @@ from redundancy.planning.starts import (
 from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.resolution.objectives import OBJECTIVES, Objective, objective
 from redundancy.resolution.state import actuator_space
-from redundancy.study.output import OutputFolder, writable
+from redundancy.study.families import read_family
+from redundancy.study.maps import CONNECT_TIMEOUT, connect, design_map, summary
+from redundancy.study.output import OutputFolder, writable, write_atomically
 from redundancy.study.study import run_study, write_report
+from redundancy.viz.map_figures import write_map_figures
 from redundancy.viz.playback import export_html, play, task_points, write_playbacks
 from redundancy.viz.plots import write_figures
 
@@ -199,6 +203,45 @@ def _play_command(args: argparse.Namespace) -> None:
     play(motion, points, lambda url: print(f"{heading}: open {url} (Ctrl-C stops)", flush=True))
 
 
+def _map_command(args: argparse.Namespace) -> None:
+    import shutil
+
+    family = read_family(args.family)
+    target = Path(args.out or Path("maps") / Path(args.family).stem)
+    with OutputFolder(target) as out:  # committed only if everything below succeeds
+        store = target.parent / f".{target.name}.chunks"  # finished chunks, kept for a rerun
+        client = None if args.scheduler is None else connect(args.scheduler, args.timeout)
+        try:
+            table = design_map(family, client, args.workers, store, progress=not args.quiet)
+        finally:
+            if client is not None:
+                client.close()
+        line = summary(table, family)
+        print(line)
+        write_atomically(out / "map.parquet", table.to_parquet)
+        write_atomically(
+            out / "summary.json",
+            lambda path: path.write_text(
+                json.dumps({"summary": line, "problems": len(family), "rows": len(table)}) + "\n"
+            ),
+        )
+        figures = [out.final(p) for p in write_map_figures(table, family, out.staging)]
+    shutil.rmtree(store, ignore_errors=True)
+    print(f"map: {out.target / 'map.parquet'} ({len(table)} rows)")
+    print(f"figures: {', '.join(str(p) for p in figures)}")
+
+
+def _workers(text: str) -> int:
+    """A worker count: a whole number ≥ 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if not 1 <= value <= 4096:
+        raise argparse.ArgumentTypeError(f"{text!r} must be a whole number of workers, 1 to 4096")
+    return value
+
+
 def _robots_command(args: argparse.Namespace) -> None:
     for name in bundled_robots():
         robot = load_robot(name)
@@ -277,6 +320,26 @@ def parser() -> argparse.ArgumentParser:
         "--html", metavar="FILE", help="write a self-contained page instead of serving one"
     )
     play.set_defaults(run=_play_command)
+    design = commands.add_parser(
+        "map", help="a design map: a family of planning problems solved on Dask, to Parquet"
+    )
+    design.add_argument("family", help="map file (TOML; schema in the README)")
+    where = design.add_mutually_exclusive_group()
+    where.add_argument(
+        "--workers", type=_workers, help="local worker processes (default: the core count)"
+    )
+    where.add_argument(
+        "--scheduler", metavar="ADDRESS", help="run on a Dask cluster, e.g. tcp://HOST:8786"
+    )
+    design.add_argument(
+        "--timeout",
+        type=float,
+        default=CONNECT_TIMEOUT,
+        help=f"seconds the scheduler has to answer (default {CONNECT_TIMEOUT:g})",
+    )
+    design.add_argument("--out", help="output folder (default: maps/<map file name>)")
+    design.add_argument("--quiet", action="store_true", help="no progress bar")
+    design.set_defaults(run=_map_command)
     return main
 
 

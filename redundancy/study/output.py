@@ -29,7 +29,14 @@ from pathlib import Path
 from redundancy.errors import InvalidInputError
 
 MARKER = ".redundancy-output"  # names the folder as one this toolkit wrote
-OWN_FILES = ("report.json", "*.png", "*.html", MARKER)  # what an output folder may hold
+OWN_FILES = (
+    "report.json",
+    "map.parquet",
+    "summary.json",
+    "*.png",
+    "*.html",
+    MARKER,
+)  # what an output folder may hold
 
 
 def _unwritable(path: Path, error: OSError, option: str) -> InvalidInputError:

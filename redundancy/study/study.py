@@ -333,13 +333,13 @@ def run_study(
                 robot, segment, objectives, held, samples, checked, "sweep", circuit=circuit
             )
             bar.update(len(objectives))
-            found = found_sweeps
+            searched = found_sweeps
             if method == "fast":
-                found = improved_starts(
+                searched = improved_starts(
                     robot, segment, objectives, held, checked=checked, circuit=circuit
                 )
             bar.update(len(objectives))
-            for objective, sweep, search in zip(objectives, found_sweeps, found):
+            for objective, sweep, search in zip(objectives, found_sweeps, searched):
                 searches[objective.name].append(search)
                 sweeps[objective.name].append(sweep)
                 best, optimum = search.best, None

@@ -1,0 +1,364 @@
+"""Design maps: a family of planning problems (`redundancy.study.families`) solved on Dask, one
+row per problem and objective.
+
+Each problem is solved on its own, the same way wherever it runs: the improved start by the
+fast search for every objective at once (`improved_starts`: one reachable scan serves them
+all), and the default start (`default_start`) evaluated by the same integration, so that
+
+    gain % = 100 (peak at the default start − best peak) / peak at the default start.
+
+Rows therefore do not depend on how problems are grouped into chunks, nor on which worker
+solves them: a map with 1 or N workers gives identical rows.
+
+Problems are grouped in chunks of the family's ``chunk`` problems; each chunk is one Dask task.
+On a local `distributed.LocalCluster` of worker processes by default, or on the caller's
+`distributed.Client`. With a ``store`` folder, each finished chunk is written there at once as
+its own Parquet file (written to a temporary name, then renamed), beside ``family.json`` naming
+the family's fingerprint; a map run again with the same family keeps those chunks and solves
+only the others. A store that holds another family's chunks is emptied first.
+
+Columns: ``problem``, ``segment``, ``start_<axis>``, ``end_<axis>``, the design parameters the
+grid varies (``payload`` kg, ``speed`` m/s, ``attachment`` m, ``bore`` m), ``objective``,
+``unit``, ``reachable``, ``feasible``, per held actuator ``low_<a>``/``high_<a>`` (the feasible
+range) and ``best_<a>``, ``peak``, ``default_<a>``, ``default_peak``, ``default_feasible``,
+``gain_pct``; with the family's ``bound``, ``bound_peak`` and ``gap_pct``; with ``energy``, the
+best motion's ``ls_energy_kj``, ``cp_energy_kj`` and ``peak_flow_lpm``; and ``reason``, why a
+problem has no feasible start.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import json
+import logging
+import os
+import shutil
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+
+from redundancy.errors import InvalidInputError, RedundancyError
+from redundancy.model.hydraulics import KILOJOULE, LITRES_PER_MINUTE
+from redundancy.planning.bound import global_optimum
+from redundancy.planning.starts import Starts, default_start, evaluate_starts, improved_starts
+from redundancy.resolution.limits import Limits
+from redundancy.resolution.objectives import OBJECTIVES
+from redundancy.study.families import Design, MapFamily, read_family
+from redundancy.study.output import write_atomically
+
+CONNECT_TIMEOUT = 10.0  # s a scheduler has to answer
+FAMILY_FILE = "family.json"
+
+
+def solve_chunk(family: MapFamily, chunk: int) -> list[dict]:
+    """The rows of chunk number ``chunk`` of ``family`` (problem-major, objectives in order)."""
+    rows = []
+    for index, segment, design in family.problems(chunk):
+        rows.extend(solve_problem(family, index, segment, design))
+    return rows
+
+
+def solve_problem(family: MapFamily, index: int, segment, design: Design) -> list[dict]:
+    """One row per objective for problem ``index``: ``segment`` on ``design``."""
+    robot = family.robot_for(design)
+    segment = family.segment_for(segment, design)
+    objectives = [OBJECTIVES[name] for name in family.objectives]
+    problem: dict = {"problem": index, "segment": segment.name}
+    for axis, start, end in zip(robot.task_axes, segment.start, segment.end):
+        problem[f"start_{axis}"], problem[f"end_{axis}"] = float(start), float(end)
+    for key, _ in family.grid:
+        problem[key] = getattr(design, key)
+    empty = {"reachable": False, "feasible": False, "peak": None, "default_peak": None}
+    try:
+        searches = improved_starts(robot, segment, objectives, family.held)
+        values, q = default_start(robot, segment, family.held)
+    except RedundancyError as error:
+        return [
+            {**problem, "objective": o.name, "unit": o.unit, **empty, "reason": str(error)}
+            for o in objectives
+        ]
+    margin = Limits.joints(robot).margin(q[None])
+    start = Starts(values[None], q[None], margin, np.zeros(1))
+    rows = []
+    for objective, search in zip(objectives, searches):
+        row = {**problem, "objective": objective.name, "unit": objective.unit}
+        fallback = evaluate_starts(robot, segment, objective, family.held, start).samples[0]
+        best, box = search.best, search.feasible_box
+        row.update(reachable=True, feasible=best is not None)
+        for a, name in enumerate(family.held):
+            row[f"low_{name}"] = None if box is None else float(box[a, 0])
+            row[f"high_{name}"] = None if box is None else float(box[a, 1])
+            row[f"best_{name}"] = None if best is None else best.values[a]
+            row[f"default_{name}"] = float(values[a])
+        row.update(
+            peak=None if best is None else best.peak,
+            default_peak=fallback.peak,
+            default_feasible=fallback.feasible,
+            gain_pct=_gain(best.peak if best else None, fallback.peak),
+            reason=None if best else _why_none(search),
+        )
+        if family.bound:
+            row.update(_bound(family, robot, segment, objective, search))
+        if family.energy:
+            row.update(_energy(search))
+        rows.append(row)
+    return rows
+
+
+def _gain(best: float | None, default: float | None) -> float | None:
+    if best is None or default is None or not default > 0:
+        return None
+    return 100 * (default - best) / default
+
+
+def _why_none(search) -> str:
+    closest = search.closest_violation
+    reasons = {s.reason for s in search.samples if s.reason}
+    return str(closest) if closest is not None else "; ".join(sorted(reasons)[:2])
+
+
+def _bound(family, robot, segment, objective, search) -> dict:
+    """The min-max bound and the improved start's gap to it, where both exist (one held
+    actuator, a peak objective)."""
+    row: dict = {"bound_peak": None, "gap_pct": None}
+    best = search.best
+    if best is None or len(family.held) != 1 or objective.reduction != "peak":
+        return row
+    try:
+        optimum = global_optimum(robot, segment, objective, family.held[0], search=search)
+    except RedundancyError:
+        return row
+    row["bound_peak"] = optimum.bound
+    row["gap_pct"] = 100 * (best.peak - optimum.bound) / optimum.bound
+    return row
+
+
+def _energy(search) -> dict:
+    """Pump energy under load sensing and constant pressure (kJ) and the peak pump flow
+    (L/min) of the best start's motion."""
+    if search.best is None:
+        return {"ls_energy_kj": None, "cp_energy_kj": None, "peak_flow_lpm": None}
+    motion = search.motion()
+    circuit = motion.robot.circuit()
+    return {
+        "ls_energy_kj": float(motion.energy(circuit.load_sensing)[0] / KILOJOULE),
+        "cp_energy_kj": float(motion.energy(circuit.constant_pressure)[0] / KILOJOULE),
+        "peak_flow_lpm": float(motion.flows.pump_flow[0].max() / LITRES_PER_MINUTE),
+    }
+
+
+@contextlib.contextmanager
+def _store(folder: Path, family: MapFamily) -> Iterator[set[int]]:
+    """The store of finished chunks in ``folder``, locked for this run; yields the numbers of
+    the chunks already there for ``family`` (the store is emptied if it held another's)."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        descriptor = os.open(folder, os.O_RDONLY)
+    except OSError as error:
+        raise InvalidInputError(
+            f"cannot write the map's chunks to {folder} ({error.strerror})"
+        ) from None
+    try:
+        try:
+            fcntl.flock(descriptor, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise InvalidInputError(
+                f"another map is writing to {folder}; wait for it, or give another --out"
+            ) from None
+        marker = folder / FAMILY_FILE
+        same = marker.is_file() and json.loads(marker.read_text()).get("fingerprint") == (
+            family.fingerprint
+        )
+        if not same:
+            for entry in folder.iterdir():
+                entry.unlink() if entry.is_file() else shutil.rmtree(entry)
+            record = {
+                "fingerprint": family.fingerprint,
+                "name": family.name,
+                "chunks": family.chunks,
+            }
+            write_atomically(marker, lambda p: p.write_text(json.dumps(record)))
+        yield {
+            int(f.stem.split("-")[1])
+            for f in folder.glob("chunk-*.parquet")
+            if f.stem[6:].isdigit()
+        }
+    finally:
+        os.close(descriptor)
+
+
+def chunk_path(folder: Path, chunk: int) -> Path:
+    return folder / f"chunk-{chunk:06d}.parquet"
+
+
+def columns(family: MapFamily, task_axes: str) -> dict[str, str]:
+    """The map's columns and their types, in order (see the module docstring)."""
+    typed = {"problem": "int64", "segment": "string"}
+    for axis in task_axes:
+        typed |= {f"start_{axis}": "float64", f"end_{axis}": "float64"}
+    typed |= {key: "float64" for key, _ in family.grid}
+    typed |= {"objective": "string", "unit": "string", "reachable": "bool", "feasible": "bool"}
+    for name in family.held:
+        typed |= {f"low_{name}": "float64", f"high_{name}": "float64", f"best_{name}": "float64"}
+    typed["peak"] = "float64"
+    typed |= {f"default_{name}": "float64" for name in family.held}
+    typed |= {"default_peak": "float64", "default_feasible": "boolean", "gain_pct": "float64"}
+    if family.bound:
+        typed |= {"bound_peak": "float64", "gap_pct": "float64"}
+    if family.energy:
+        typed |= {"ls_energy_kj": "float64", "cp_energy_kj": "float64", "peak_flow_lpm": "float64"}
+    typed["reason"] = "string"
+    return typed
+
+
+def _frame(rows: list[dict], typed: dict[str, str]):
+    """``rows`` as a DataFrame with the map's columns and types (None → missing)."""
+    import pandas as pd
+
+    frame = pd.DataFrame.from_records(rows).reindex(columns=list(typed))
+    return frame.astype(typed)
+
+
+def connect(scheduler: str, timeout: float = CONNECT_TIMEOUT):
+    """A `distributed.Client` on the scheduler at ``scheduler`` (e.g. tcp://10.0.0.5:8786), or
+    one line if it does not answer within ``timeout`` s."""
+    from distributed import Client
+
+    try:
+        return Client(scheduler, timeout=timeout, set_as_default=False)
+    except (OSError, TimeoutError, ValueError, TypeError) as error:
+        raise InvalidInputError(
+            f"--scheduler {scheduler}: no Dask scheduler answered within {timeout:g} s "
+            f"({type(error).__name__}); start one with `dask scheduler` and give its address, "
+            "e.g. tcp://HOST:8786"
+        ) from None
+
+
+def design_map(
+    family: MapFamily | Path | str,
+    client=None,
+    workers: int | None = None,
+    store: Path | str | None = None,
+    progress: bool = False,
+):
+    """Solve every problem of ``family`` (a `MapFamily` or a map file) and return the rows as a
+    pandas DataFrame, in problem order.
+
+    Runs on ``client`` if given, else on a local cluster of ``workers`` worker processes (one
+    thread each; default: the core count). With ``store``, finished chunks are kept there and
+    a rerun solves only the missing ones (see the module docstring)."""
+    import pandas as pd
+    from tqdm import tqdm
+
+    if not isinstance(family, MapFamily):
+        family = read_family(family)
+    if workers is not None and (
+        isinstance(workers, bool) or not isinstance(workers, int) or not workers >= 1
+    ):
+        raise InvalidInputError(f"workers must be a whole number ≥ 1; got {workers!r}")
+    with contextlib.ExitStack() as stack:
+        done: set[int] = set()
+        folder = None if store is None else Path(store)
+        if folder is not None:
+            done = stack.enter_context(_store(folder, family))
+        typed = columns(family, family.robot_for(Design()).task_axes)
+        frames: dict[int, pd.DataFrame] = {
+            c: pd.read_parquet(chunk_path(folder, c)).astype(typed) for c in sorted(done) if folder
+        }
+        pending = [c for c in range(family.chunks) if c not in done]
+        bar = stack.enter_context(
+            tqdm(
+                total=len(family),
+                initial=sum(len(family.problems(c)) for c in done),
+                unit="problem",
+                desc=family.name,
+                disable=not progress,
+                mininterval=0.5,
+            )
+        )
+        if pending:
+            if client is None:
+                client = stack.enter_context(_local_client(workers))
+            from distributed import as_completed
+
+            futures = {
+                client.submit(solve_chunk, family, c, pure=False, key=f"chunk-{c}"): c
+                for c in pending
+            }
+            for future in as_completed(futures, loop=client.loop):
+                chunk = futures[future]
+                frame = _frame(future.result(), typed)
+                if folder is not None:
+                    write_atomically(chunk_path(folder, chunk), frame.to_parquet)
+                frames[chunk] = frame
+                bar.update(frame["problem"].nunique())
+        table = pd.concat([frames[c] for c in sorted(frames)], ignore_index=True)
+    if not table["reachable"].any():
+        raise InvalidInputError(
+            f"map {family.name!r}: none of its {len(family)} problems is reachable, e.g. "
+            f"{table['reason'].iloc[0]}"
+        )
+    return table
+
+
+@contextlib.contextmanager
+def _local_client(workers: int | None):
+    from distributed import Client, LocalCluster
+
+    count = workers or os.cpu_count() or 1
+    with (
+        LocalCluster(
+            n_workers=count,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address="127.0.0.1:0",  # a free port: two maps can run at once
+            silence_logs=logging.CRITICAL,  # a worker's restarts are not the user's business
+        ) as cluster,
+        Client(cluster, set_as_default=False) as client,
+    ):
+        yield client
+
+
+def axes_of(table, family: MapFamily) -> list[str]:
+    """The columns a map varies over, in the family's order: the workspace grid's start
+    coordinates (those that take more than one value), or the segment, then the design grid's
+    parameters."""
+    starts = [c for c in table.columns if c.startswith("start_") and table[c].nunique() > 1]
+    where = starts if family.segments[0].name.startswith("start ") else ["segment"]
+    return where + [key for key, values in family.grid if len(values) > 1]
+
+
+def summary(table, family: MapFamily) -> str:
+    """One line: for a design grid, the design whose problems are all feasible with the least
+    mean best peak of the first objective over the segments; otherwise, where the improved
+    start gains most over the default start."""
+    first = table[table["objective"] == family.objectives[0]]
+    unit = first["unit"].iloc[0]
+    counts = f"{int(first['feasible'].sum())} of {len(first)} problems feasible"
+    designs = [key for key, values in family.grid if len(values) > 1]
+    if designs:
+        grouped = first.groupby(designs, sort=True)
+        everywhere = grouped["feasible"].all()
+        mean_peak = grouped["peak"].mean()[everywhere]
+        if mean_peak.empty:
+            return f"{family.name}: no design keeps every stroke on every segment ({counts})"
+        best = mean_peak.idxmin()
+        values = best if isinstance(best, tuple) else (best,)
+        words = ", ".join(f"{key} = {value:g}" for key, value in zip(designs, values))
+        return (
+            f"{family.name}: best design {words}: mean best {family.objectives[0]} peak "
+            f"{mean_peak[best]:.4g} {unit} over {first['segment'].nunique()} segments ({counts})"
+        )
+    gains = first.dropna(subset=["gain_pct"])
+    if gains.empty:
+        return f"{family.name}: no problem has both a best and a default start ({counts})"
+    row = gains.loc[gains["gain_pct"].idxmax()]
+    starts = [c for c in table.columns if c.startswith("start_")]
+    where = ", ".join(f"{c[6:]} = {row[c]:.3g}" for c in starts)
+    return (
+        f"{family.name}: the improved start gains most, {row['gain_pct']:.1f} % on the "
+        f"{family.objectives[0]} peak, on segment {row['segment']} ({where} m); "
+        f"median gain {gains['gain_pct'].median():.1f} % ({counts})"
+    )

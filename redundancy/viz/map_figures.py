@@ -1,0 +1,67 @@
+"""Heatmaps of a design map (`redundancy.study.maps`): per objective, the improved start's gain
+over the default start (%), the best held value and the share of feasible problems, over the
+map's first two axes (workspace start coordinates, or segments and design parameters). Where
+the map varies more than two, each cell is the mean over the others, as its title says.
+
+Figures read the table; they compute nothing of their own.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+from pathlib import Path
+
+from redundancy.study.families import MapFamily
+from redundancy.study.maps import axes_of
+from redundancy.study.output import write_atomically
+from redundancy.viz.plots import _pyplot
+
+PANELS = (("gain_pct", "gain over the default start, %"), ("feasible", "feasible share"))
+
+
+def map_figure(table, family: MapFamily, objective: str):
+    """Three heatmaps side by side for ``objective``: gain %, best held value, feasible."""
+    plt = _pyplot()
+    rows = table[table["objective"] == objective].copy()
+    rows["feasible"] = rows["feasible"].astype(float)
+    axes_names = axes_of(rows, family) or ["segment"]
+    x, y = axes_names[0], (axes_names[1] if len(axes_names) > 1 else None)
+    held = family.held[0]
+    panels = (PANELS[0], (f"best_{held}", f"best initial {held}"), PANELS[1])
+    figure, panes = plt.subplots(1, 3, figsize=(15, 4.6), constrained_layout=True)
+    for pane, (column, label) in zip(panes, panels):
+        grid = (
+            rows.pivot_table(index=y, columns=x, values=column, aggfunc="mean", dropna=False)
+            if y
+            else rows.groupby(x)[column].mean().to_frame().T
+        )
+        image = pane.imshow(
+            grid.to_numpy(dtype=float), origin="lower", aspect="auto", cmap="viridis"
+        )
+        pane.set_xticks(range(grid.shape[1]), [_tick(v) for v in grid.columns], rotation=45)
+        pane.set_yticks(range(grid.shape[0]), [_tick(v) for v in grid.index])
+        pane.set_xlabel(x)
+        pane.set_ylabel(y or "")
+        pane.set_title(label)
+        figure.colorbar(image, ax=pane)
+    rest = axes_names[2:]
+    suffix = f" (mean over {', '.join(rest)})" if rest else ""
+    figure.suptitle(f"{family.name}: {objective} objective{suffix}; blank: no value")
+    return figure
+
+
+def _tick(value) -> str:
+    return f"{value:.3g}" if isinstance(value, float) else str(value)
+
+
+def write_map_figures(table, family: MapFamily, folder: Path) -> list[Path]:
+    """Write one heatmap figure per objective into ``folder``; return their paths."""
+    plt = _pyplot()
+    paths = []
+    for objective in family.objectives:
+        figure = map_figure(table, family, objective)
+        path = folder / f"map_{objective}.png"
+        write_atomically(path, partial(figure.savefig, dpi=100, format="png"))
+        plt.close(figure)
+        paths.append(path)
+    return paths

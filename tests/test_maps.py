@@ -1,0 +1,332 @@
+"""Design maps on Dask: a real scheduler and workers, resumable Parquet chunks, the paper's
+findings reproduced, families read with one-line errors."""
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pinocchio as pin
+import pytest
+from commands import run_cli
+
+from redundancy import WorkCycle, actuator_space, load_robot
+from redundancy.errors import InvalidInputError
+from redundancy.study.families import Design, read_family
+from redundancy.study.maps import design_map, summary
+from redundancy.study.study import run_study
+
+BIN = Path(sys.executable).parent
+
+WORKSPACE = """
+name = "workspace"
+objectives = ["velocity"]
+chunk = {chunk}
+[workspace]
+length = 1.0
+direction = [-1.0, 0.0]
+[workspace.grid]
+x = [1.5, 4.0, {nx}]
+z = [-1.0, 2.0, 3]
+"""
+
+
+def write(folder: Path, name: str, text: str) -> Path:
+    path = folder / name
+    path.write_text(text)
+    return path
+
+
+@pytest.fixture(scope="module")
+def client():
+    from distributed import Client, LocalCluster
+
+    with (
+        LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address="127.0.0.1:0") as cluster,
+        Client(cluster, set_as_default=False) as connected,
+    ):
+        yield connected
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_a_map_on_a_dask_cluster_by_address_equals_the_local_run_with_one_worker(tmp_path):
+    family = write(tmp_path, "ws.toml", WORKSPACE.format(chunk=2, nx=3))
+    address = f"tcp://127.0.0.1:{free_port()}"
+    started = [
+        subprocess.Popen(
+            [
+                BIN / "dask",
+                "scheduler",
+                "--host",
+                "127.0.0.1",
+                "--port",
+                address.rsplit(":")[-1],
+                "--no-dashboard",
+            ],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
+    ]
+    try:
+        for _ in range(2):
+            started.append(
+                subprocess.Popen(
+                    [
+                        BIN / "dask",
+                        "worker",
+                        address,
+                        "--nworkers",
+                        "1",
+                        "--nthreads",
+                        "1",
+                        "--host",
+                        "127.0.0.1",
+                        "--no-dashboard",
+                    ],
+                    stdout=subprocess.DEVNULL,
+                    stderr=subprocess.DEVNULL,
+                    cwd=tmp_path,
+                )
+            )
+        from distributed import Client
+
+        with Client(address, timeout=30, set_as_default=False) as probe:
+            probe.wait_for_workers(2, timeout=60)
+            assert len(probe.scheduler_info()["workers"]) == 2
+        remote = run_cli("map", str(family), "--scheduler", address, "--out", str(tmp_path / "r"))
+        assert remote.returncode == 0, remote.stderr
+    finally:
+        for process in started:
+            process.terminate()
+        for process in started:
+            try:
+                process.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                process.kill()
+                process.wait()
+    assert all(p.poll() is not None for p in started)
+    local = run_cli("map", str(family), "--workers", "1", "--out", str(tmp_path / "l"), "--quiet")
+    assert local.returncode == 0, local.stderr
+    rows = pd.read_parquet(tmp_path / "r" / "map.parquet")
+    pd.testing.assert_frame_equal(rows, pd.read_parquet(tmp_path / "l" / "map.parquet"))
+    assert len(rows) == 9 and rows["reachable"].any() and rows["feasible"].any()
+    assert (tmp_path / "r" / "map_velocity.png").stat().st_size > 10_000
+    assert not (tmp_path / ".r.chunks").exists()  # the chunks go once the map is in place
+
+
+def test_rows_do_not_depend_on_chunks_or_workers(tmp_path, client):
+    one = design_map(write(tmp_path, "a.toml", WORKSPACE.format(chunk=1, nx=2)), workers=1)
+    many = design_map(write(tmp_path, "b.toml", WORKSPACE.format(chunk=4, nx=2)), client)
+    pd.testing.assert_frame_equal(one, many)
+
+
+def test_an_interrupted_map_keeps_its_finished_chunks_and_solves_only_the_rest(tmp_path):
+    family = write(tmp_path, "ws.toml", WORKSPACE.format(chunk=1, nx=8))
+    store = tmp_path / ".out.chunks"
+    process = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "redundancy.cli",
+            "map",
+            str(family),
+            "--workers",
+            "1",
+            "--out",
+            str(tmp_path / "out"),
+            "--quiet",
+        ],
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    deadline = time.monotonic() + 120
+    while len(list(store.glob("chunk-*.parquet"))) < 3 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    os.killpg(process.pid, signal.SIGTERM)
+    _, stderr = process.communicate(timeout=60)
+    assert process.returncode == 143, stderr
+    assert stderr.strip().splitlines()[-1] == "redundancy: terminated"
+    assert not (tmp_path / "out").exists()
+    kept = {p.name: p.stat() for p in store.glob("chunk-*.parquet")}
+    assert 3 <= len(kept) < 24, "the run must be cut short after its first chunks"
+
+    rerun = run_cli("map", str(family), "--workers", "1", "--out", str(tmp_path / "out"))
+    assert rerun.returncode == 0, rerun.stderr
+    assert not store.exists()
+    # the kept chunks were read, not solved again: the progress bar starts at their count
+    assert f"{len(kept)}/24" in rerun.stderr
+    straight = run_cli("map", str(family), "--workers", "1", "--out", str(tmp_path / "fresh"))
+    assert straight.returncode == 0, straight.stderr
+    pd.testing.assert_frame_equal(
+        pd.read_parquet(tmp_path / "out" / "map.parquet"),
+        pd.read_parquet(tmp_path / "fresh" / "map.parquet"),
+    )
+
+
+def test_a_rerun_reads_each_kept_chunk_file_untouched(tmp_path, client):
+    """Chunks already in the store are kept as they are (same inode and time stamp); a store
+    of another family is emptied first."""
+    family = read_family(write(tmp_path, "ws.toml", WORKSPACE.format(chunk=2, nx=2)))
+    store = tmp_path / "store"
+    first = design_map(family, client, store=store)
+    files = sorted(store.glob("chunk-*.parquet"))
+    assert len(files) == family.chunks == 3
+    files[-1].unlink()  # as if the run had been cut short before its last chunk
+    before = {f.name: (f.stat().st_ino, f.stat().st_mtime_ns) for f in files[:-1]}
+    again = design_map(family, client, store=store)
+    pd.testing.assert_frame_equal(first, again)
+    assert {f.name: (f.stat().st_ino, f.stat().st_mtime_ns) for f in files[:-1]} == before
+    other = read_family(write(tmp_path, "other.toml", WORKSPACE.format(chunk=3, nx=2)))
+    design_map(other, client, store=store)
+    assert sorted(p.name for p in store.glob("chunk-*.parquet")) == [
+        "chunk-000000.parquet",
+        "chunk-000001.parquet",
+    ]
+
+
+def test_a_map_of_the_paper_segments_reproduces_the_study(tmp_path, crane, client):
+    cycle = WorkCycle.from_toml(crane.task_file, dimension=crane.m)
+    study = run_study(crane, cycle, samples=2, bound=False, progress=False)
+    rows = design_map(write(tmp_path, "paper.toml", "chunk = 2\n[task]\n"), client)
+    assert len(rows) == 6
+    for row in rows.itertuples():
+        search = study.search(row.objective, row.segment)
+        assert row.reachable
+        if search.best is None:
+            assert not row.feasible and np.isnan(row.peak) and row.reason
+            continue
+        assert row.feasible
+        assert row.best_x3 == pytest.approx(search.best.value, rel=1e-12)
+        assert row.peak == pytest.approx(search.best.peak, rel=1e-12)
+        low, high = search.feasible_range
+        assert (row.low_x3, row.high_x3) == pytest.approx((low, high), rel=1e-12)
+        default = [r for r in study.runs if r.segment == row.segment and "default" in r.strategy]
+        assert row.default_x3 == pytest.approx(default[0].start[0], rel=1e-12)
+    velocity = rows[rows["objective"] == "velocity"].set_index("segment")
+    gains = 100 * (velocity["default_peak"] - velocity["peak"]) / velocity["default_peak"]
+    np.testing.assert_allclose(velocity["gain_pct"], gains, rtol=1e-12)
+    assert (velocity["gain_pct"] > 0).all()  # the paper's finding: the improved start is better
+
+
+def test_a_design_grid_moves_the_payload_the_speed_and_a_cylinder_attachment(tmp_path, client):
+    robot = load_robot("hiab031")
+    base = robot.actuators["x1"].base[1]
+    moved = [float(base[0]), float(base[0]) + 0.05]
+    family = read_family(
+        write(
+            tmp_path,
+            "design.toml",
+            f"""objectives = ["velocity"]
+[task]
+segments = ["1-2"]
+[grid]
+payload = [0, 400]
+speed = {{from = 0.25, to = 0.5, count = 2}}
+attachment = {{actuator = "x1", end = "base", axis = "x", values = {moved}}}
+""",
+        )
+    )
+    assert len(family) == 8
+    q = np.array([1.7, 1.0, 0.5])
+    shifted = family.robot_for(Design(payload=400.0, attachment=moved[1]))
+    assert shifted.payload == 400.0
+    # x1 = |p_rod − p_base| with the base point moved 5 cm along its link's x axis
+    link, point = robot.actuators["x1"].base
+    pin.framesForwardKinematics(robot.model, robot.data, q)
+    base_world = robot.data.oMf[robot.model.getFrameId(link)] * np.array(
+        [moved[1], point[1], point[2]]
+    )
+    rod_world = robot.data.oMf[robot.actuators["x1"].frames[1]].translation
+    expected = np.linalg.norm(rod_world - base_world)
+    assert actuator_space(shifted, q).x[0, 0] == pytest.approx(expected, rel=1e-12)
+    assert actuator_space(robot, q).x[0, 0] != pytest.approx(expected, rel=1e-6)
+
+    rows = design_map(family, client)
+    assert rows[["payload", "speed", "attachment"]].drop_duplicates().shape[0] == 8
+    # the energy objective is absent, so the payload leaves the velocity peak unchanged
+    by_payload = rows.pivot_table(index=["speed", "attachment"], columns="payload", values="peak")
+    np.testing.assert_allclose(by_payload[0.0], by_payload[400.0], rtol=1e-9)
+    # ẋ scales with the task speed, so the peak of ẋᵀẋ with its square
+    by_speed = rows.pivot_table(index=["payload", "attachment"], columns="speed", values="peak")
+    np.testing.assert_allclose(by_speed[0.5] / by_speed[0.25], 4.0, rtol=2e-3)
+    line = summary(rows, family)
+    designs = rows.groupby(["payload", "speed", "attachment"])
+    best = designs["peak"].mean()[designs["feasible"].all()].idxmin()
+    assert f"payload = {best[0]:g}, speed = {best[1]:g}, attachment = {best[2]:g}" in line
+
+
+def test_a_bore_grid_changes_the_cylinder_area(tmp_path):
+    family = read_family(
+        write(
+            tmp_path,
+            "bore.toml",
+            '[task]\n[grid]\nbore = {actuator = "x2", values = [0.06, 0.09]}\n',
+        )
+    )
+    wide = family.robot_for(Design(bore=0.09)).circuit()
+    i = wide.names.index("x2")
+    assert wide.cylinders[i].bore == 0.09
+    assert load_robot("hiab031").circuit().cylinders[i].bore != 0.09
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        (WORKSPACE.format(chunk=1, nx=0), "count 0 must be a whole number ≥ 1"),
+        ("[task]\n[grid]\npayload = []\n", "gives no values"),
+        ("[task]\n[grid]\nspeed = {from = 0.1, to = 0.5, count = 0}\n", "count = 0"),
+        ('objectives = ["fast"]\n[task]\n', "objective 'fast' unknown; objectives: velocity"),
+        ("[task]\n[workspace]\n", "give the segments by one table"),
+        ('[task]\n[grid]\nattachment = {actuator = "x9", values = [0.1]}\n', "no actuator 'x9'"),
+        ("[task]\n[grid]\nwidth = [1]\n", "unknown parameters ['width']"),
+        ("chunk = 0\n[task]\n", "chunk = 0 must be a whole number"),
+        ("robot = 3\n[task]\n", "robot = 3 must be a string"),
+    ],
+)
+def test_a_bad_family_gets_one_line(tmp_path, text, expected):
+    with pytest.raises(InvalidInputError) as raised:
+        read_family(write(tmp_path, "bad.toml", text))
+    assert expected in str(raised.value)
+    assert "\n" not in str(raised.value)
+
+
+def test_bad_map_runs_get_one_line_and_exit_2(tmp_path):
+    nowhere = write(
+        tmp_path, "far.toml", WORKSPACE.format(chunk=2, nx=2).replace("[1.5, 4.0", "[40.0, 50.0")
+    )
+    result = run_cli("map", str(nowhere), "--workers", "1", "--out", str(tmp_path / "far"))
+    assert result.returncode == 2
+    assert (
+        result.stderr.strip()
+        .splitlines()[-1]
+        .startswith("redundancy: error: map 'workspace': none of its 6 problems is reachable")
+    )
+    assert not (tmp_path / "far").exists()
+
+    family = write(tmp_path, "ws.toml", WORKSPACE.format(chunk=2, nx=2))
+    silent = f"tcp://127.0.0.1:{free_port()}"
+    began = time.monotonic()
+    result = run_cli("map", str(family), "--scheduler", silent, "--timeout", "2")
+    assert result.returncode == 2 and time.monotonic() - began < 30
+    assert result.stderr.strip() == (
+        f"redundancy: error: --scheduler {silent}: no Dask scheduler answered within 2 s "
+        "(OSError); start one with `dask scheduler` and give its address, e.g. tcp://HOST:8786"
+    )
+
+    blocker = write(tmp_path, "file", "")
+    began = time.monotonic()
+    result = run_cli("map", str(family), "--out", str(blocker / "maps"))
+    assert result.returncode == 2 and time.monotonic() - began < 30
+    assert result.stderr.strip().startswith(f"redundancy: error: --out {blocker / 'maps'}")
+    assert len(result.stderr.strip().splitlines()) == 1
