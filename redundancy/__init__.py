@@ -63,6 +63,8 @@ from redundancy.resolution.objectives import (
     Objective,
 )
 from redundancy.resolution.state import ActuatorSpace, actuator_space
+from redundancy.study.families import MapFamily, read_family
+from redundancy.study.maps import design_map
 from redundancy.study.study import Study, run_study
 
 __all__ = [
@@ -87,6 +89,7 @@ __all__ = [
     "Limits",
     "LinearCylinder",
     "LoadSensing",
+    "MapFamily",
     "MinFlow",
     "MinKineticEnergy",
     "MinVelocityNorm",
@@ -112,12 +115,14 @@ __all__ = [
     "bundled_robots",
     "configuration_at",
     "default_start",
+    "design_map",
     "energy_optimum",
     "global_optimum",
     "improved_start",
     "improved_starts",
     "inverse_kinematics",
     "load_robot",
+    "read_family",
     "run_study",
     "shortest_duration",
     "simulate",

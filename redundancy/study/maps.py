@@ -280,7 +280,7 @@ def design_map(
         )
         if pending:
             if client is None:
-                client = stack.enter_context(_local_client(workers))
+                client = stack.enter_context(local_client(workers))
             from distributed import as_completed
 
             futures = {
@@ -304,7 +304,9 @@ def design_map(
 
 
 @contextlib.contextmanager
-def _local_client(workers: int | None):
+def local_client(workers: int | None):
+    """A `distributed.Client` on a local cluster of ``workers`` worker processes (default: the
+    core count), one thread each, closed with the block."""
     from distributed import Client, LocalCluster
 
     count = workers or os.cpu_count() or 1
