@@ -84,16 +84,35 @@ def _describe_command(args: argparse.Namespace) -> None:
     print(describe(load_robot(args.robot, payload=args.payload, hydraulics=args.hydraulics)))
 
 
-def sample_count(text: str) -> int:
-    """A count of starts: a whole number within [1, `MAX_SAMPLES`]."""
+def whole_number(upper: int):
+    """An argument type: a whole number within [1, ``upper``]."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = 0
+        if not 1 <= value <= upper:
+            raise argparse.ArgumentTypeError(
+                f"{text!r} must be a whole number within [1, {upper:,}]"
+            )
+        return value
+
+    return parse
+
+
+sample_count = whole_number(MAX_SAMPLES)  # starts of one sweep
+worker_count = whole_number(4096)  # local Dask workers
+
+
+def seconds(text: str) -> float:
+    """A time limit: a finite number of seconds within (0, 3600]."""
     try:
-        value = int(text)
+        value = float(text)
     except ValueError:
-        value = 0
-    if not 1 <= value <= MAX_SAMPLES:
-        raise argparse.ArgumentTypeError(
-            f"{text!r} must be a whole number within [1, {MAX_SAMPLES:,}]"
-        )
+        value = math.nan
+    if not 0 < value <= 3600:
+        raise argparse.ArgumentTypeError(f"{text!r} must be seconds within (0, 3600]")
     return value
 
 
@@ -231,17 +250,6 @@ def _map_command(args: argparse.Namespace) -> None:
     print(f"figures: {', '.join(str(p) for p in figures)}")
 
 
-def _workers(text: str) -> int:
-    """A worker count: a whole number ≥ 1."""
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if not 1 <= value <= 4096:
-        raise argparse.ArgumentTypeError(f"{text!r} must be a whole number of workers, 1 to 4096")
-    return value
-
-
 def _robots_command(args: argparse.Namespace) -> None:
     for name in bundled_robots():
         robot = load_robot(name)
@@ -326,14 +334,14 @@ def parser() -> argparse.ArgumentParser:
     design.add_argument("family", help="map file (TOML; schema in the README)")
     where = design.add_mutually_exclusive_group()
     where.add_argument(
-        "--workers", type=_workers, help="local worker processes (default: the core count)"
+        "--workers", type=worker_count, help="local worker processes (default: the core count)"
     )
     where.add_argument(
         "--scheduler", metavar="ADDRESS", help="run on a Dask cluster, e.g. tcp://HOST:8786"
     )
     design.add_argument(
         "--timeout",
-        type=float,
+        type=seconds,
         default=CONNECT_TIMEOUT,
         help=f"seconds the scheduler has to answer (default {CONNECT_TIMEOUT:g})",
     )

@@ -361,6 +361,68 @@ CASES = [
         {"h.toml": HYDRAULICS.replace("rod = 45.0", "rod = 90.0")},
         "0 ≤ rod < bore",
     ),
+    # design maps: argument errors and families that fail before any worker starts
+    *[
+        (f"map --workers {v}", ["map", "m.toml", "--workers", v], {}, "must be a whole number")
+        for v in ("0", "2.5", "x", "5000")
+    ],
+    *[
+        (f"map --timeout {v}", ["map", "m.toml", "--timeout", v], {}, "must be seconds")
+        for v in ("0", "nan", "inf", "x", "1e9")
+    ],
+    ("map missing family", ["map", "none.toml"], {}, "cannot read map file none.toml"),
+    ("map binary family", ["map", "m.toml"], {"m.toml": b"\x00\xff"}, "not UTF-8"),
+    *[
+        (f"map {name}", ["map", "m.toml"], {"m.toml": text}, fragment)
+        for name, text, fragment in [
+            ("no segments", "name = 'x'\n", "give the segments by one table"),
+            ("objectives string", 'objectives = "velocity"\n[task]\n', "must be a list of"),
+            ("held unknown", 'held = ["x9"]\n[task]\n', "unknown actuators ['x9']"),
+            (
+                "workspace axis",
+                "[workspace]\nlength = 1\ndirection = [1, 0]\n[workspace.grid]\nx = 2\ny = 2\n",
+                "task axes: x, z",
+            ),
+            (
+                "workspace direction",
+                "[workspace]\nlength = 1\ndirection = [0, 0]\n[workspace.grid]\nx = 2\nz = 2\n",
+                "must be nonzero",
+            ),
+            ("length", "[workspace]\nlength = -1\n", "length = -1 must be within"),
+            ("task segment", '[task]\nsegments = ["9-9"]\n', "no segment '9-9'"),
+            ("grid speed", "[task]\n[grid]\nspeed = [0.5, 20]\n", "must be within [1e-06, 10]"),
+            (
+                "grid attachment end",
+                '[task]\n[grid]\nattachment = {actuator = "x1", '
+                'end = "top", axis = "x", values = [0.1]}\n',
+                "ends: base, rod",
+            ),
+            (
+                "grid attachment kind",
+                '[task]\n[grid]\nattachment = {actuator = "x3", '
+                'end = "base", axis = "x", values = [0.1]}\n',
+                "not a LinearCylinder",
+            ),
+            (
+                "grid bore below rod",
+                '[task]\n[grid]\nbore = {actuator = "x1", values = [0.01]}\n',
+                "must all exceed the rod",
+            ),
+            ("energy flag", "energy = 1\n[task]\n", "energy = 1 must be true or false"),
+            (
+                "too many problems",
+                "[task]\n[grid]\npayload = {from = 0, to = 1, count = "
+                "100000}\nspeed = {from = 0.1, to = 1, count = 100000}\n",
+                "split a larger",
+            ),
+        ]
+    ],
+    (
+        "map out is a file",
+        ["map", "m.toml", "--out", "f"],
+        {"m.toml": "[task]\n", "f": ""},
+        "--out f is a file",
+    ),
 ]
 
 

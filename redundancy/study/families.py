@@ -65,6 +65,7 @@ from redundancy.model.values import (
     read_toml,
     text,
 )
+from redundancy.planning.ik import held_indices
 from redundancy.planning.starts import held_actuators
 from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.resolution.objectives import OBJECTIVES
@@ -365,6 +366,7 @@ def read_family(path: Path | str) -> MapFamily:
         segments, cycle = _task_segments(robot, data["task"], folder, where)
         cycle = WorkCycle(cycle.name, cycle.segments, held or cycle.held)
     held = held_actuators(robot, cycle)
+    held_indices(robot, held)  # names checked before any work
     chunk = data.get("chunk", 8)
     if isinstance(chunk, bool) or not isinstance(chunk, int) or not 1 <= chunk <= MAX_CHUNK:
         raise InvalidInputError(
