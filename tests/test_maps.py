@@ -15,7 +15,7 @@ import pinocchio as pin
 import pytest
 from commands import run_cli
 
-from redundancy import WorkCycle, actuator_space, load_robot
+from redundancy import VELOCITY, WorkCycle, actuator_space, improved_start, load_robot
 from redundancy.errors import InvalidInputError
 from redundancy.study.families import Design, read_family
 from redundancy.study.maps import design_map, summary
@@ -330,3 +330,30 @@ def test_bad_map_runs_get_one_line_and_exit_2(tmp_path):
     assert result.returncode == 2 and time.monotonic() - began < 30
     assert result.stderr.strip().startswith(f"redundancy: error: --out {blocker / 'maps'}")
     assert len(result.stderr.strip().splitlines()) == 1
+
+
+def test_bound_and_energy_columns_agree_with_the_searches_they_come_from(tmp_path, crane, client):
+    """The bound is never above the improved start's peak; the energy figures are those of
+    the best start's motion under each supply."""
+    rows = design_map(
+        write(
+            tmp_path,
+            "e.toml",
+            'objectives = ["velocity"]\nbound = true\nenergy = true\n'
+            '[task]\nsegments = ["1-2", "3-1"]\n',
+        ),
+        client,
+    )
+    cycle = WorkCycle.from_toml(crane.task_file, dimension=crane.m)
+    circuit = crane.circuit()
+    for row in rows.itertuples():
+        assert row.feasible
+        assert row.bound_peak <= row.peak * (1 + 1e-9)
+        assert row.gap_pct == pytest.approx(100 * (row.peak - row.bound_peak) / row.bound_peak)
+        motion = improved_start(crane, cycle[row.segment], VELOCITY).motion()
+        ls, cp = (
+            motion.energy(s)[0] / 1e3 for s in (circuit.load_sensing, circuit.constant_pressure)
+        )
+        assert (row.ls_energy_kj, row.cp_energy_kj) == pytest.approx((ls, cp), rel=1e-9)
+        assert row.peak_flow_lpm == pytest.approx(motion.flows.pump_flow[0].max() * 60e3, rel=1e-9)
+        assert row.ls_energy_kj < row.cp_energy_kj  # the LS pump meets the load, CP its setting
