@@ -22,7 +22,7 @@ from redundancy.errors import InvalidInputError, RedundancyError
 from redundancy.model.loading import bundled_robots, load_robot
 from redundancy.model.robot import Robot
 from redundancy.model.values import MAX_PAYLOAD
-from redundancy.planning.ik import configuration_at
+from redundancy.planning.ik import check_path, configuration_at
 from redundancy.planning.integrate import Trajectory, simulate
 from redundancy.planning.starts import (
     MAX_SAMPLES,
@@ -211,6 +211,7 @@ def _play_command(args: argparse.Namespace) -> None:
     cycle = _load_task(robot, args.task)
     segment = cycle[args.segment] if args.segment else cycle.segments[0]
     chosen = objective(args.objective)
+    check_path(robot, segment)
     motion, start = _play_motion(robot, cycle, segment, chosen, args)
     points = task_points(cycle)
     if html is not None:

@@ -361,6 +361,20 @@ CASES = [
         {"h.toml": HYDRAULICS.replace("rod = 45.0", "rod = 90.0")},
         "0 ≤ rod < bore",
     ),
+    # paths out of reach: refused before any simulation, naming the point and the miss
+    *[
+        (
+            f"{command} path {name}",
+            [command, "--task", "t.toml"],
+            {"t.toml": f'speed = 0.5\nsegments = ["a-b"]\n[points]\na = {a}\nb = {b}\n'},
+            f"cannot follow segment a-b: its point {point}",
+        )
+        for command in ("study", "play")
+        for name, a, b, point in [
+            ("end 100 m away", [3.5, -0.5], [100.0, -0.5], "[9.53125, -0.5]"),
+            ("middle", [0.0, -1.0], [2.0, 3.0], "[0.625, 0.25] (t = 2.8 s)"),
+        ]
+    ],
     # design maps: argument errors and families that fail before any worker starts
     *[
         (f"map --workers {v}", ["map", "m.toml", "--workers", v], {}, "must be a whole number")

@@ -1,11 +1,20 @@
 """Inverse kinematics with held actuators: round trips, branch choice, and unreachable points."""
 
+import re
+
 import numpy as np
 import pytest
 from hiab031_closed_form import tool
 
-from redundancy import InvalidInputError, UnreachableError, actuator_space
-from redundancy.planning.ik import configuration_at, inverse_kinematics
+from redundancy import (
+    InvalidInputError,
+    Segment,
+    UnreachableError,
+    WorkCycle,
+    actuator_space,
+    load_robot,
+)
+from redundancy.planning.ik import check_path, configuration_at, inverse_kinematics
 
 
 def test_round_trip_reaches_the_point_with_the_held_actuator_at_its_value(crane):
@@ -39,3 +48,24 @@ def test_holding_the_wrong_number_of_actuators_is_refused(crane):
         configuration_at(crane, [2.0, 1.0], {"x2": 1.0, "x3": 0.5})
     with pytest.raises(InvalidInputError, match="unknown actuators"):
         configuration_at(crane, [2.0, 1.0], {"x4": 1.0})
+
+
+@pytest.mark.filterwarnings("ignore:joints without an actuator declaration")
+@pytest.mark.parametrize("name", ["hiab031", "hiab031_slewing", "panda"])
+def test_check_path_accepts_every_bundled_task(name):
+    robot = load_robot(name)
+    for segment in WorkCycle.from_toml(robot.task_file, dimension=robot.m).segments:
+        check_path(robot, segment)
+
+
+def test_check_path_refuses_a_segment_that_leaves_the_workspace_between_reachable_ends(crane):
+    start, end = np.array([0.0, -1.0]), np.array([2.0, 3.0])
+    for point in (start, end):  # both ends are reached, by a configuration inside the limits
+        check_path(crane, Segment("end", point, point + 1e-3, 0.5))
+    with pytest.raises(UnreachableError) as refused:
+        check_path(crane, Segment("a-b", start, end, 0.5))
+    numbers = [float(v) for v in re.findall(r"-?\d+\.?\d*", str(refused.value).split("[")[1])[:2]]
+    on_segment = start + (end - start) * ((np.array(numbers) - start) @ (end - start)) / (
+        (end - start) @ (end - start)
+    )
+    assert np.allclose(numbers, on_segment)  # the point named lies on the segment

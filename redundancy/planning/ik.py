@@ -21,6 +21,7 @@ import numpy as np
 
 from redundancy.errors import InvalidInputError, UnreachableError
 from redundancy.model.robot import Robot
+from redundancy.planning.tasks import Segment
 from redundancy.resolution.state import evaluate
 
 TOLERANCE = 1e-12  # m (and m or rad for held actuators): a residual this small has converged
@@ -211,3 +212,36 @@ def _closest_miss(robot: Robot, point: np.ndarray, held: dict[str, float], q0: n
         for start in [q0, *_seeds(robot, 8)]
     ]
     return min(float(np.linalg.norm(fit.fun[: robot.m])) for fit in fits)
+
+
+PATH_POINTS = 17  # points of a segment whose reach `check_path` checks
+PATH_TOLERANCE = 1e-4  # m: a path missed by less is left to the motion's own limits
+
+
+def check_path(robot: Robot, segment: Segment, seeds: int = 8) -> None:
+    """Refuse, before any simulation, a segment some point of which no configuration inside
+    the joint limits reaches: `UnreachableError` naming the point, its time and the distance
+    it is missed by. The held actuators are free here.
+
+    ``PATH_POINTS`` points y_d(t) from start to end are solved in order, each by projected
+    Gauss-Newton on y(q) = y_d from every configuration found for the point before (from
+    ``seeds`` spread over the joint box for the first, and again wherever continuation
+    misses), so a reachable path is followed through its workspace and only a point that every
+    seed misses by more than `PATH_TOLERANCE` is refused."""
+    times = np.linspace(0.0, segment.duration, PATH_POINTS)
+    fresh = _seeds(robot, seeds)
+    q = fresh
+    for t, point in zip(times, segment.position(times)):
+        q, miss = newton(
+            robot, q, [], np.broadcast_to(point, q.shape[:1] + point.shape), ITERATIONS, True
+        )
+        if not miss.min() < FOUND:
+            target = np.broadcast_to(point, (len(fresh), robot.m))
+            q, miss = newton(robot, fresh, [], target, ITERATIONS, True)
+        if not miss.min() < PATH_TOLERANCE:
+            raise UnreachableError(
+                f"{robot.name} cannot follow segment {segment.name}: its point "
+                f"{np.round(point, 6).tolist()} (t = {t:.3g} s) is out of reach inside the joint "
+                f"limits, missed by {miss.min():.4g} m"
+            )
+        q = q[miss < FOUND] if np.any(miss < FOUND) else q

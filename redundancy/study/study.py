@@ -30,6 +30,7 @@ from redundancy.model.hydraulics import KILOJOULE
 from redundancy.model.robot import Robot
 from redundancy.planning.bound import GlobalOptimum, global_optimum
 from redundancy.planning.energy_bound import EnergyOptimum, energy_optimum
+from redundancy.planning.ik import check_path
 from redundancy.planning.starts import (
     METHODS,
     SearchResult,
@@ -310,6 +311,8 @@ def run_study(
     if energy_bound and len(held) != 1:
         raise InvalidInputError(f"the energy bound holds one actuator; the task holds {held}")
     segments = cycle.segments
+    for segment in segments:  # a path out of reach is refused before any simulation
+        check_path(robot, segment)
     total = len(segments) * (len(BASELINES) + 3 * len(objectives))
     bar = tqdm(total=total, unit="task", desc="study", disable=not progress, mininterval=0.5)
     searches: dict[str, list[SearchResult]] = {o.name: [] for o in objectives}
