@@ -5,7 +5,9 @@ such as ``--json``, via `beside`) in fresh hidden places beside their targets, c
 computing, so an unwritable target fails at once. `commit` swaps them in: under an exclusive
 lock on the parent folder, with SIGINT and SIGTERM deferred (their handlers only note them until
 the swap is done, whichever thread the kernel hands them to), the old folder is renamed aside,
-the new one renamed into place, the other files renamed over theirs, and the old folder removed;
+the new one renamed into place, the other files renamed over theirs, and the old folder removed
+(every staged file is flushed to the disk first, and the folders after, so a power cut never
+leaves an empty file in place of a written one);
 a rename that fails puts the old folder back. A run that fails or is interrupted before then
 removes what it staged and leaves every target as it was; two runs into one folder leave one
 complete output, the last to commit. A target that holds files this toolkit did not write is
@@ -104,6 +106,8 @@ class OutputFolder:
         self.staging.chmod(mode)  # mkdtemp makes it private; give a folder's mode
         for staged, _ in self.others:
             staged.chmod(mode & 0o666)
+        for path in [*self.staging.rglob("*"), self.staging, *(s for s, _ in self.others)]:
+            _sync(path)
         with _deferred_signals(), _locked(self.target.parent):
             self._check_own()  # a user may have saved files there while the run computed
             aside = Path(
@@ -121,6 +125,8 @@ class OutputFolder:
                     raise
                 for staged, final in self.others:
                     os.replace(staged, final)
+                for folder in {self.target.parent, *(final.parent for _, final in self.others)}:
+                    _sync(folder)
             finally:
                 shutil.rmtree(aside, ignore_errors=True)
 
@@ -145,8 +151,24 @@ class OutputFolder:
             raise
 
 
+def _sync(path: Path) -> None:
+    """Flush ``path`` (a file, or a folder's entries) to the disk, so that a rename made after
+    it never exposes an empty or partial file after a power cut."""
+    descriptor = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(descriptor)
+    finally:
+        os.close(descriptor)
+
+
 def _umask() -> int:
-    mask = os.umask(0)
+    """The process's umask, read where the system shows it (setting it to read it would
+    change it for an instant under every other thread)."""
+    with contextlib.suppress(OSError, ValueError):
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("Umask:"):
+                return int(line.split()[1], 8)
+    mask = os.umask(0o022)
     os.umask(mask)
     return mask
 
@@ -217,7 +239,9 @@ def write_atomically(path: Path, write: Callable[[Path], object]) -> None:
     try:
         write(Path(temporary))
         os.chmod(temporary, 0o666 & ~_umask())  # mkstemp makes it private; give a file's mode
+        _sync(Path(temporary))
         os.replace(temporary, path)
+        _sync(path.parent)
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
         raise
