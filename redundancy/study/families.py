@@ -71,7 +71,8 @@ from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.resolution.objectives import OBJECTIVES
 
 PARAMETERS = ("payload", "speed", "attachment", "bore")  # the design grid's keys, in order
-MAX_PROBLEMS = 10_000_000  # problems of one family: beyond that, split the family
+MAX_PROBLEMS = 2_000_000  # problems of one family: its table, held in memory at about 200 bytes
+# per row and objective, stays under 1 GB with two objectives; split a larger family
 MAX_CHUNK = 10_000
 ENDS = ("base", "rod")
 WORKSPACE_SAMPLES = 4096  # joint-space samples spanning the reachable workspace's extent
