@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 
 from redundancy.study.families import read_family
-from redundancy.study.maps import local_client, design_map, solve_chunk
+from redundancy.study.maps import design_map, local_client, solve_chunk
 
 FAMILY = """
 name = "paper-like segments"

@@ -9,6 +9,7 @@ together or not at all (`redundancy.study.output`).
 from __future__ import annotations
 
 import argparse
+import ipaddress
 import json
 import math
 import signal
@@ -41,6 +42,7 @@ from redundancy.study.study import run_study, write_report
 from redundancy.viz.map_figures import write_map_figures
 from redundancy.viz.playback import export_html, play, task_points, write_playbacks
 from redundancy.viz.plots import write_figures
+from redundancy.viz.server import LOCALHOST
 
 
 def _add_robot_options(parser: argparse.ArgumentParser) -> None:
@@ -103,6 +105,17 @@ def whole_number(upper: int):
 
 sample_count = whole_number(MAX_SAMPLES)  # starts of one sweep
 worker_count = whole_number(4096)  # local Dask workers
+
+
+def listen_address(text: str) -> str:
+    """An IP address to serve a page on."""
+    try:
+        return str(ipaddress.ip_address(text))
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} must be an IP address of this machine, e.g. 127.0.0.1 (the default) or "
+            "0.0.0.0 (every interface)"
+        ) from None
 
 
 def seconds(text: str) -> float:
@@ -220,7 +233,12 @@ def _play_command(args: argparse.Namespace) -> None:
     heading = f"segment {segment.name}, {chosen.name} objective, {start}"
     # Ctrl-C and termination both stop the loop (`main` catches them, even where a shell started
     # the command with SIGINT ignored), and play's clean-up takes the meshcat server down with it.
-    play(motion, points, lambda url: print(f"{heading}: open {url} (Ctrl-C stops)", flush=True))
+    play(
+        motion,
+        points,
+        lambda url: print(f"{heading}: open {url} (Ctrl-C stops)", flush=True),
+        args.listen,
+    )
 
 
 def _map_command(args: argparse.Namespace) -> None:
@@ -327,6 +345,14 @@ def parser() -> argparse.ArgumentParser:
     play.add_argument("--samples", type=sample_count, default=100, help="starts searched by --best")
     play.add_argument(
         "--html", metavar="FILE", help="write a self-contained page instead of serving one"
+    )
+    play.add_argument(
+        "--listen",
+        metavar="ADDRESS",
+        type=listen_address,
+        default=LOCALHOST,
+        help="serve the page on ADDRESS (default 127.0.0.1, this machine only; 0.0.0.0 opens it "
+        "to every network this machine is on)",
     )
     play.set_defaults(run=_play_command)
     design = commands.add_parser(

@@ -336,3 +336,32 @@ def test_live_playback_answers_on_localhost_and_leaves_nothing_behind(stop):
     state = Path(f"/proc/{servers[0]}/stat")
     assert not state.exists() or state.read_text().rsplit(")", 1)[1].split()[0] == "Z"
     assert not ports & listening_ports()
+
+
+@pytest.mark.skipif(not Path("/proc/net/tcp").exists(), reason="reads processes from /proc")
+def test_live_playback_opens_to_the_network_only_when_asked():
+    """With ``--listen 0.0.0.0`` the page is served on every interface; meshcat's ZeroMQ
+    socket stays on 127.0.0.1."""
+    run = subprocess.Popen(
+        [sys.executable, "-m", "redundancy.cli", "play", *START, "--listen", "0.0.0.0"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    watchdog = threading.Timer(60, run.kill)
+    watchdog.start()
+    try:
+        line = run.stdout.readline()
+        address = re.search(r"http://0\.0\.0\.0:(\d+)/static/", line)
+        assert address, line + run.stderr.read()
+        (server,) = children(run.pid)
+        bound: set[str] = set()
+        listening_ports(server, bound)
+        assert bound == {"0.0.0.0", "127.0.0.1"}
+        page = f"http://127.0.0.1:{address.group(1)}/static/"
+        with urllib.request.urlopen(page, timeout=10) as response:
+            assert response.status == 200
+    finally:
+        watchdog.cancel()
+        run.terminate()
+        run.communicate(timeout=30)

@@ -41,6 +41,7 @@ from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.limits import Limits
 from redundancy.study.output import write_atomically
 from redundancy.study.study import Study
+from redundancy.viz.server import LOCALHOST
 
 STARTUP = 30.0  # s: the meshcat server must have said where it listens by then
 FRAME_RATE = 30.0  # frames per second of playback; the motion is sampled at most this often
@@ -418,12 +419,12 @@ def _best_motions(study: Study) -> dict[str, list[tuple[str, Trajectory]]]:
 
 
 @contextlib.contextmanager
-def served() -> Iterator:
-    """A meshcat visualizer whose server (`redundancy.viz.server`: 127.0.0.1 only, ended with
-    this process however it ends) runs for the duration of the block; the server process is
-    stopped, and its ports freed, however the block ends."""
+def served(address: str = LOCALHOST) -> Iterator:
+    """A meshcat visualizer whose server (`redundancy.viz.server`: its page on ``address``,
+    127.0.0.1 unless asked, ended with this process however it ends) runs for the duration of
+    the block; the server process is stopped, and its ports freed, however the block ends."""
     meshcat = _meshcat()
-    command = [sys.executable, "-u", "-m", "redundancy.viz.server", str(os.getpid())]
+    command = [sys.executable, "-u", "-m", "redundancy.viz.server", str(os.getpid()), address]
     # the server's chatter (a line per connection) goes to a file never read, not a pipe
     with tempfile.TemporaryFile() as log:
         server = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=log, text=True)
@@ -462,14 +463,17 @@ def play(
     motion: Trajectory,
     points: np.ndarray | None = None,
     announce: Callable[[str], None] = print,
+    address: str = LOCALHOST,
 ) -> None:
-    """Serve the playback of ``motion`` on localhost and loop it in real time until interrupted
-    (KeyboardInterrupt, which propagates); ``announce`` is given the page's address once the
-    scene is drawn. The server stops when this returns or raises."""
-    with served() as vis:
+    """Serve the playback of ``motion`` on ``address`` (this machine only by default) and loop
+    it in real time until interrupted (KeyboardInterrupt, which propagates); ``announce`` is
+    given the page's address once the scene is drawn. The server stops when this returns or
+    raises."""
+    with served(address) as vis:
         playback = Playback(motion, points)
         playback.draw(vis)
-        announce(vis.url())
+        url = vis.url()
+        announce(url if address == LOCALHOST else url.replace(LOCALHOST, address, 1))
         while True:
             start = time.monotonic()
             for i in playback.samples:

@@ -5,6 +5,9 @@ session after its parent dies. Run as ``python -m redundancy.viz.server``, this 
 server (`meshcat.servers.zmqserver`) with its web and ZeroMQ sockets bound to 127.0.0.1, and, on
 Linux, a parent-death signal: the kernel sends it SIGTERM when the process that started it ends,
 however it ends (SIGKILL included). It prints meshcat's ``zmq_url=`` and ``web_url=`` lines.
+
+``python -m redundancy.viz.server PARENT_PID [ADDRESS]``: the web page is served on ADDRESS
+(default 127.0.0.1) when asked for deliberately; the ZeroMQ socket stays on 127.0.0.1.
 """
 
 from __future__ import annotations
@@ -28,15 +31,16 @@ def die_with_parent(parent: int) -> None:
 
 def main() -> None:
     die_with_parent(int(sys.argv[1]))
+    web = sys.argv[2] if len(sys.argv) > 2 else LOCALHOST
     import tornado.web
     from meshcat.servers import zmqserver
 
     listen = tornado.web.Application.listen
 
-    def local(self, port, address=None, **options):
-        return listen(self, port, LOCALHOST, **options)
+    def bound(self, port, address=None, **options):
+        return listen(self, port, web, **options)
 
-    tornado.web.Application.listen = local  # type: ignore[method-assign]
+    tornado.web.Application.listen = bound  # type: ignore[method-assign]
     sys.argv = sys.argv[:1]
     zmqserver.main()
 
