@@ -293,6 +293,19 @@ def listening_ports(pid=None, addresses=None):
     return ports
 
 
+def launched_play(*options):
+    """``redundancy play`` serving the test motion, and a watchdog that kills it after 60 s."""
+    run = subprocess.Popen(
+        [sys.executable, "-m", "redundancy.cli", "play", *START, *options],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    watchdog = threading.Timer(60, run.kill)
+    watchdog.start()
+    return run, watchdog
+
+
 @pytest.mark.skipif(not Path("/proc/net/tcp").exists(), reason="reads processes from /proc")
 @pytest.mark.parametrize(
     "stop", [signal.SIGINT, signal.SIGTERM, signal.SIGKILL], ids=["ctrl-c", "terminate", "kill"]
@@ -300,14 +313,7 @@ def listening_ports(pid=None, addresses=None):
 def test_live_playback_answers_on_localhost_and_leaves_nothing_behind(stop):
     """The page answers on 127.0.0.1, and only there; however play ends, even by SIGKILL, its
     server is gone and its ports are free within 2 s (the test kills only its own process)."""
-    run = subprocess.Popen(
-        [sys.executable, "-m", "redundancy.cli", "play", *START],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    watchdog = threading.Timer(60, run.kill)
-    watchdog.start()
+    run, watchdog = launched_play()
     try:
         line = run.stdout.readline()
         address = re.search(r"http://127\.0\.0\.1:(\d+)/static/", line)
@@ -342,14 +348,7 @@ def test_live_playback_answers_on_localhost_and_leaves_nothing_behind(stop):
 def test_live_playback_opens_to_the_network_only_when_asked():
     """With ``--listen 0.0.0.0`` the page is served on every interface; meshcat's ZeroMQ
     socket stays on 127.0.0.1."""
-    run = subprocess.Popen(
-        [sys.executable, "-m", "redundancy.cli", "play", *START, "--listen", "0.0.0.0"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    watchdog = threading.Timer(60, run.kill)
-    watchdog.start()
+    run, watchdog = launched_play("--listen", "0.0.0.0")
     try:
         line = run.stdout.readline()
         address = re.search(r"http://0\.0\.0\.0:(\d+)/static/", line)
