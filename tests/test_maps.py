@@ -266,18 +266,28 @@ attachment = {{actuator = "x1", end = "base", axis = "x", values = {moved}}}
     assert f"payload = {best[0]:g}, speed = {best[1]:g}, attachment = {best[2]:g}" in line
 
 
-def test_a_bore_grid_changes_the_cylinder_area(tmp_path):
+def test_with_circuit_limits_a_heavier_payload_needs_a_wider_lift_cylinder(tmp_path, client):
+    """A bore grid moves the cylinder's area, so its load pressure p = F / A: with the
+    circuit's limits counted, 1,500 kg passes the 210 bar relief in a narrow x1 and not in a
+    wide one, while 100 kg stays under it in every bore."""
     family = read_family(
         write(
             tmp_path,
             "bore.toml",
-            '[task]\n[grid]\nbore = {actuator = "x2", values = [0.06, 0.09]}\n',
+            'objectives = ["velocity"]\ncircuit = true\n[task]\nsegments = ["1-2"]\n[grid]\n'
+            'payload = [100, 1500]\nbore = {actuator = "x1", values = [0.05, 0.08, 0.12]}\n',
         )
     )
-    wide = family.robot_for(Design(bore=0.09)).circuit()
-    i = wide.names.index("x2")
-    assert wide.cylinders[i].bore == 0.09
-    assert load_robot("hiab031").circuit().cylinders[i].bore != 0.09
+    wide = family.robot_for(Design(bore=0.12)).circuit()
+    assert wide.cylinders[wide.names.index("x1")].bore == 0.12
+    rows = design_map(family, client).set_index(["payload", "bore"])
+    assert rows.loc[100.0, "feasible"].all()
+    heavy = rows.loc[1500.0]
+    assert list(heavy["feasible"]) == [False, False, True]
+    for reason in heavy["reason"].iloc[:2]:
+        assert reason.startswith("x1 load pressure") and "past its upper limit" in reason
+    excess = [float(r.split("pressure ")[1].split(" bar")[0]) for r in heavy["reason"].iloc[:2]]
+    assert excess[0] > excess[1]  # the narrower bore, the higher the pressure
 
 
 @pytest.mark.parametrize(

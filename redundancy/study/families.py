@@ -38,6 +38,8 @@ The rest of the file::
     chunk = 8                   # problems per chunk of work (default 8)
     bound = false               # also the min-max bound and the improved start's gap to it
     energy = false              # also pump energy and peak flow of the best motions (hydraulics)
+    circuit = false             # the circuit's limits (pressures, pump flow, speeds) count like
+                                # strokes, so that bores and supplies change what is feasible
 """
 
 from __future__ import annotations
@@ -106,6 +108,7 @@ class MapFamily:
     chunk: int = 8
     bound: bool = False
     energy: bool = False
+    circuit: bool = False
 
     def __len__(self) -> int:
         return len(self.segments) * int(np.prod([len(v) for _, v in self.grid]))
@@ -327,6 +330,7 @@ def read_family(path: Path | str) -> MapFamily:
         "chunk",
         "bound",
         "energy",
+        "circuit",
         "workspace",
         "task",
         "grid",
@@ -351,11 +355,11 @@ def read_family(path: Path | str) -> MapFamily:
     if not objectives:
         raise InvalidInputError(f"{where}: objectives = [] names none; give at least one")
     flags = {}
-    for key in ("bound", "energy"):
+    for key in ("bound", "energy", "circuit"):
         flags[key] = data.get(key, False)
         if not isinstance(flags[key], bool):
             raise InvalidInputError(f"{where}: {key} = {flags[key]!r} must be true or false")
-    if flags["energy"]:
+    if flags["energy"] or flags["circuit"]:
         robot.circuit()  # says how to declare one
     if ("workspace" in data) == ("task" in data):
         raise InvalidInputError(f"{where}: give the segments by one table, [workspace] or [task]")
@@ -387,6 +391,7 @@ def read_family(path: Path | str) -> MapFamily:
         chunk,
         flags["bound"],
         flags["energy"],
+        flags["circuit"],
     )
     if not 1 <= len(family) <= MAX_PROBLEMS:
         raise InvalidInputError(

@@ -39,7 +39,12 @@ from pathlib import Path
 
 import numpy as np
 
-from redundancy.errors import InvalidInputError, RedundancyError
+from redundancy.errors import (
+    InvalidInputError,
+    RedundancyError,
+    SingularConfigurationError,
+    UnreachableError,
+)
 from redundancy.model.hydraulics import KILOJOULE, LITRES_PER_MINUTE
 from redundancy.planning.bound import global_optimum
 from redundancy.planning.starts import Starts, default_start, evaluate_starts, improved_starts
@@ -72,9 +77,9 @@ def solve_problem(family: MapFamily, index: int, segment, design: Design) -> lis
         problem[key] = getattr(design, key)
     empty = {"reachable": False, "feasible": False, "peak": None, "default_peak": None}
     try:
-        searches = improved_starts(robot, segment, objectives, family.held)
+        searches = improved_starts(robot, segment, objectives, family.held, circuit=family.circuit)
         values, q = default_start(robot, segment, family.held)
-    except RedundancyError as error:
+    except (UnreachableError, SingularConfigurationError) as error:  # a finding, not a fault
         return [
             {**problem, "objective": o.name, "unit": o.unit, **empty, "reason": str(error)}
             for o in objectives
@@ -84,7 +89,9 @@ def solve_problem(family: MapFamily, index: int, segment, design: Design) -> lis
     rows = []
     for objective, search in zip(objectives, searches):
         row = {**problem, "objective": objective.name, "unit": objective.unit}
-        fallback = evaluate_starts(robot, segment, objective, family.held, start).samples[0]
+        fallback = evaluate_starts(
+            robot, segment, objective, family.held, start, circuit=family.circuit
+        ).samples[0]
         best, box = search.best, search.feasible_box
         row.update(reachable=True, feasible=best is not None)
         for a, name in enumerate(family.held):
