@@ -30,6 +30,7 @@ from redundancy.model.hydraulics import (
     Supply,
 )
 from redundancy.model.kinematics import Kinematics
+from redundancy.model.linkage import LinkageCylinder
 from redundancy.model.loading import bundled_robots, load_robot
 from redundancy.model.robot import Robot
 from redundancy.planning.bound import GlobalOptimum, global_optimum
@@ -88,6 +89,7 @@ __all__ = [
     "Kinematics",
     "Limits",
     "LinearCylinder",
+    "LinkageCylinder",
     "LoadSensing",
     "MapFamily",
     "MinFlow",

@@ -35,7 +35,7 @@ def crane_variant(tmp_path, old, new):
 
 @pytest.mark.filterwarnings("ignore:joints without an actuator declaration")
 def test_every_bundled_robot_loads_and_its_files_exist():
-    assert bundled_robots() == ["hiab031", "hiab031_slewing", "panda"]
+    assert bundled_robots() == ["excavator", "hiab031", "hiab031_slewing", "panda"]
     for name in bundled_robots():
         robot = load_robot(name)
         folder = bundled_root() / name
@@ -211,5 +211,5 @@ def test_bundled_robots_load_after_a_plain_install_elsewhere(tmp_path):
     assert run.returncode == 0, run.stderr
     installed = [line.split() for line in run.stdout.splitlines()]
     assert [row[0] for row in installed] == bundled_robots()
-    assert installed[0] == ["hiab031", "3", "2", "True"]
+    assert ["hiab031", "3", "2", "True"] in installed
     assert all(row[3] == "True" for row in installed)

@@ -122,7 +122,7 @@ def test_study_command_writes_the_report_and_the_five_figures(tmp_path):
     [
         (["--samples", "0"], "must be a whole number within [1, 10,000]"),
         (["--objective", "speed"], "invalid choice: 'speed'"),
-        (["--robot", "hiab32"], "unknown robot 'hiab32'; bundled robots: hiab031"),
+        (["--robot", "hiab32"], "unknown robot 'hiab32'; bundled robots: excavator, hiab031"),
         (["--check", "x1,x9"], "unknown actuators ['x9']"),
     ],
 )

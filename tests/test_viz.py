@@ -23,7 +23,7 @@ import zmq
 from PIL import Image
 from sampling import random_configurations
 
-from redundancy import actuator_space
+from redundancy import actuator_space, load_robot
 from redundancy.cli import main
 from redundancy.planning.ik import configuration_at
 from redundancy.planning.integrate import simulate
@@ -92,6 +92,50 @@ def test_drawn_cylinder_length_equals_the_actuator_value(crane, motion):
             far_rod = poses[rod][:3, 3] + poses[rod][:3, 1] * heights[rod] / 2
             assert np.linalg.norm(far_rod - far_barrel) == pytest.approx(xi[row], abs=1e-12)
             assert np.allclose(poses[barrel][:3, 1], poses[rod][:3, 1], atol=1e-12)
+
+
+def test_drawn_bucket_linkage_closes_at_its_declared_pins():
+    """The excavator's bucket drive: the cylinder spans x_bucket, the rocker turns about its
+    pivot on the stick, the coupler ends at its pin on the bucket, and rocker, coupler and rod
+    meet at one pin, at every shown configuration."""
+    excavator = load_robot("excavator")
+    segment = WorkCycle.from_toml(excavator.task_file, dimension=excavator.m)["1-2"]
+    q = configuration_at(excavator, segment.start, {"bucket": 1.3})
+    playback, vis, recording = recorded(simulate(excavator, VELOCITY.resolver, segment, q[None]))
+    linkage = excavator.actuators["bucket"]
+    heights = {
+        c["path"]: c["object"]["geometries"][0]["height"]
+        for c in decoded(recording.commands)
+        if c["type"] == "set_object" and re.search("/(cylinders|linkages)/", c["path"])
+    }
+    bars = [f"/meshcat/playback/linkages/bucket/{bar}" for bar in ("rocker", "coupler")]
+    assert [heights[b] for b in bars] == pytest.approx([linkage.rocker[2], linkage.coupler[2]])
+    model, data = excavator.model, excavator.model.createData()
+    for qi in random_configurations(excavator, 10, seed=43):
+        sent = len(recording.commands)
+        playback.show(vis, qi)
+        poses = {
+            c["path"]: np.array(c["matrix"]).reshape(4, 4).T
+            for c in decoded(recording.commands[sent:])
+            if c["type"] == "set_transform"
+        }
+
+        def ends(path, poses=poses):
+            centre, axis = poses[path][:3, 3], poses[path][:3, 1] * heights[path] / 2
+            return centre - axis, centre + axis
+
+        barrel, rod = (cylinder_path("bucket", part) for part in ("barrel", "rod"))
+        base, pin_joint = ends(barrel)[0], ends(rod)[1]
+        x = actuator_space(excavator, qi).x[0, excavator.actuators.names.index("bucket")]
+        assert np.linalg.norm(pin_joint - base) == pytest.approx(x, abs=1e-12)
+        pin.framesForwardKinematics(model, data, qi)
+        pivot, coupler_pin = (
+            data.oMf[model.getFrameId(link)].act(point)
+            for link, point in (linkage.rocker[:2], linkage.coupler[:2])
+        )
+        rocker, coupler = (ends(path) for path in bars)
+        np.testing.assert_allclose(rocker, [pivot, pin_joint], atol=1e-12)
+        np.testing.assert_allclose(coupler, [pin_joint, coupler_pin], atol=1e-12)
 
 
 def test_a_cylinder_turns_red_at_its_stroke_limit_and_back(crane, motion):

@@ -110,6 +110,71 @@ def prismatic(model: pin.Model, joint: str) -> bool:
     return "Prismatic" in kind or kind.startswith("JointModelP")
 
 
+def attach_frame(model: pin.Model, owner: str, end: str, link: str, point: np.ndarray) -> int:
+    """Add to ``model`` a frame named ``<owner>/<end>`` at ``point`` (3,) m in ``link``'s frame,
+    or move it there if the model has it already (an actuator bound again, e.g. redesigned),
+    and return its id; `RobotDescriptionError` names the links if ``link`` is not one."""
+    links = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
+    if link not in links:
+        raise RobotDescriptionError(
+            f"actuator {owner!r} is attached to link {link!r}, which does not "
+            f"exist; links: {', '.join(links)}"
+        )
+    parent_id = model.getFrameId(link, pin.FrameType.BODY)
+    parent = model.frames[parent_id]
+    placement = parent.placement * pin.SE3(np.eye(3), np.asarray(point, dtype=float))
+    frame = pin.Frame(
+        f"{owner}/{end}", parent.parentJoint, parent_id, placement, pin.FrameType.OP_FRAME
+    )
+    if model.existFrame(frame.name):  # bound before: the point moves to where it is declared now
+        frame_id = model.getFrameId(frame.name)
+        model.frames[frame_id] = frame
+        return frame_id
+    return model.addFrame(frame, False)
+
+
+def declared_point(what: str, attributes: dict) -> tuple[str, list[float]]:
+    """A point on a link from a declaration's ``link`` and ``xyz`` attributes (three numbers,
+    m); ``what`` names the element in the one-line error."""
+    text = attributes.get("xyz", "")
+    try:
+        point = [float(c) for c in text.split()]
+    except ValueError:
+        point = []
+    if "link" not in attributes or len(point) != 3 or not np.all(np.isfinite(point)):
+        raise RobotDescriptionError(
+            f"{what} needs link=... and xyz= three finite numbers (m); "
+            f"got link={attributes.get('link')!r} xyz={text!r}"
+        )
+    return attributes["link"], point
+
+
+def span(d: np.ndarray, maps: list[ActuatorMap]) -> tuple[np.ndarray, np.ndarray]:
+    """Lengths x = |d| (k, c) and unit vectors u = d/x (k, c, 3) of the spans d (k, c, 3)
+    between the two ends of c cylinders; zero lengths raise, naming the ``maps``."""
+    length = np.sqrt((d * d).sum(2))
+    if length.size and length.min() < 1e-12:
+        names = [m.name for m, short in zip(maps, np.any(length < 1e-12, axis=0)) if short]
+        raise SingularConfigurationError(
+            f"cylinders {names} have zero length: their attachment points coincide"
+        )
+    return length, d / length[..., None]
+
+
+def span_row(u: np.ndarray, jacobian: np.ndarray) -> np.ndarray:
+    """The rows of A, ∂x/∂q = uᵀ ∂d/∂q (k, c, n), from u (k, c, 3) and ∂d/∂q (k, c, 3, n)."""
+    return (u[:, :, None, :] @ jacobian)[:, :, 0]
+
+
+def span_rate_row(
+    u: np.ndarray, length: np.ndarray, velocity: np.ndarray, jacobian: np.ndarray, rate: np.ndarray
+) -> np.ndarray:
+    """The rows of Ȧ (k, c, n): u̇ᵀ ∂d/∂q + uᵀ d(∂d/∂q)/dt, u̇ = (I − u uᵀ) ḋ / x, from u, the
+    lengths x (k, c), ḋ (k, c, 3), ∂d/∂q and its rate (k, c, 3, n)."""
+    u_dot = (velocity - u * (u * velocity).sum(2)[..., None]) / length[..., None]
+    return (u_dot[:, :, None, :] @ jacobian + u[:, :, None, :] @ rate)[:, :, 0]
+
+
 class VectorisedMap(ActuatorMap):
     """A kind that evaluates all its maps at once: it implements the group methods, and the
     single-map methods follow from them."""
@@ -228,29 +293,10 @@ class LinearCylinder(VectorisedMap):
         """Resolve the links and add a Pinocchio frame at each attachment point (a frame this
         actuator added to ``model`` before is moved to the point now declared)."""
         super().bind(model)
-        links = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
-        self.frames = []
-        for end, (link, point) in zip(("base", "rod"), (self.base, self.rod)):
-            if link not in links:
-                raise RobotDescriptionError(
-                    f"actuator {self.name!r} is attached to link {link!r}, which does not "
-                    f"exist; links: {', '.join(links)}"
-                )
-            parent_id = model.getFrameId(link, pin.FrameType.BODY)
-            parent = model.frames[parent_id]
-            placement = parent.placement * pin.SE3(np.eye(3), point)
-            frame = pin.Frame(
-                f"{self.name}/{end}",
-                parent.parentJoint,
-                parent_id,
-                placement,
-                pin.FrameType.OP_FRAME,
-            )
-            if model.existFrame(frame.name):
-                self.frames.append(model.getFrameId(frame.name))
-                model.frames[self.frames[-1]] = frame
-            else:
-                self.frames.append(model.addFrame(frame, False))
+        self.frames = [
+            attach_frame(model, self.name, end, link, point)
+            for end, (link, point) in zip(("base", "rod"), (self.base, self.rod))
+        ]
 
     @staticmethod
     def _geometry(maps, kinematics: Kinematics):
@@ -258,34 +304,34 @@ class LinearCylinder(VectorisedMap):
         base = [kinematics.slots[m.frames[0]] for m in maps]
         rod = [kinematics.slots[m.frames[1]] for m in maps]
         positions = kinematics.positions
-        d = positions.take(rod, 1) - positions.take(base, 1)
-        length = np.sqrt((d * d).sum(2))
-        if length.size and length.min() < 1e-12:
-            names = [m.name for m, short in zip(maps, np.any(length < 1e-12, axis=0)) if short]
-            raise SingularConfigurationError(
-                f"cylinders {names} have zero length: their attachment points coincide"
-            )
-        return base, rod, d / length[..., None], length
+        length, u = span(positions.take(rod, 1) - positions.take(base, 1), maps)
+        return base, rod, u, length
 
     @staticmethod
     def _relative(points: np.ndarray, base: list[int], rod: list[int]) -> np.ndarray:
         """The rod end's quantity minus the base end's, for per-frame ``points`` (k, F, ...)."""
         return points.take(rod, 1) - points.take(base, 1)
 
+    def ends(self, kinematics: Kinematics) -> tuple[np.ndarray, np.ndarray]:
+        """The base and rod points (k, 3), world, in m."""
+        base, rod = (kinematics.point(f).position for f in self.frames)
+        return base, rod
+
     @classmethod
     def evaluate_group(cls, maps, kinematics):
         base, rod, u, length = cls._geometry(maps, kinematics)
-        relative = cls._relative(kinematics.jacobians, base, rod)
-        return length, (u[:, :, None, :] @ relative)[:, :, 0]
+        return length, span_row(u, cls._relative(kinematics.jacobians, base, rod))
 
     @classmethod
     def rate_group(cls, maps, kinematics):
         base, rod, u, length = cls._geometry(maps, kinematics)
-        relative = cls._relative(kinematics.velocities, base, rod)
-        u_dot = (relative - u * (u * relative).sum(2)[..., None]) / length[..., None]
-        jacobian = cls._relative(kinematics.jacobians, base, rod)
-        rate = cls._relative(kinematics.jacobian_rates, base, rod)
-        return (u_dot[:, :, None, :] @ jacobian + u[:, :, None, :] @ rate)[:, :, 0]
+        return span_rate_row(
+            u,
+            length,
+            cls._relative(kinematics.velocities, base, rod),
+            cls._relative(kinematics.jacobians, base, rod),
+            cls._relative(kinematics.jacobian_rates, base, rod),
+        )
 
     @classmethod
     def from_transmission(cls, name, joint, lower, upper, data):
@@ -295,20 +341,11 @@ class LinearCylinder(VectorisedMap):
                 f"cylinder {name!r} needs two <attachment link=... xyz=...> elements "
                 f"(base, then rod); it has {len(ends)}"
             )
-        points = []
-        for end, attributes in zip(("base", "rod"), ends):
-            text = attributes.get("xyz", "")
-            try:
-                point = [float(c) for c in text.split()]
-            except ValueError:
-                point = []
-            if "link" not in attributes or len(point) != 3 or not np.all(np.isfinite(point)):
-                raise RobotDescriptionError(
-                    f"cylinder {name!r}: its {end} <attachment> needs link=... and xyz= three "
-                    f"finite numbers (m); got link={attributes.get('link')!r} xyz={text!r}"
-                )
-            points.append((attributes["link"], point))
-        return cls(name, joint, lower, upper, base=points[0], rod=points[1])
+        base, rod = (
+            declared_point(f"cylinder {name!r}: its {end} <attachment>", attributes)
+            for end, attributes in zip(("base", "rod"), ends)
+        )
+        return cls(name, joint, lower, upper, base=base, rod=rod)
 
     def transmission_data(self) -> dict[str, list[dict]]:
         return {

@@ -14,7 +14,9 @@ lxml. Schema::
       <attachment link="boom1" xyz="..."/>          <!-- base point, then its rod point -->
     </transmission>
 
-``Prismatic`` takes ``<offset value="..."/>`` (x = q + offset); ``Identity`` nothing more. A kind
+``Prismatic`` takes ``<offset value="..."/>`` (x = q + offset); ``Identity`` nothing more;
+``LinkageCylinder`` (`redundancy.model.linkage`) its ``PARAMETERS``: ``<base link xyz>``,
+``<rocker link xyz length>``, ``<coupler link xyz length>`` and ``<branch value>``. A kind
 of your own takes whatever children its ``from_transmission`` reads. Transmissions of other types
 (e.g. ROS ``transmission_interface/SimpleTransmission``) are left alone. A ``<cylinder>`` in the
 ``<actuator>`` gives the cylinder's hydraulic data, as a ``[hydraulics.cylinders.<name>]`` table
@@ -28,6 +30,11 @@ from lxml import etree
 from redundancy.errors import RobotDescriptionError
 from redundancy.model.actuators import ActuatorMap
 from redundancy.model.hydraulics import CYLINDER_KEYS
+from redundancy.model.linkage import LinkageCylinder
+
+# The kinds are found by class name among ActuatorMap's subclasses: the bundled ones beyond
+# actuators.py are defined by importing their modules.
+BUNDLED_KINDS = (LinkageCylinder,)
 
 PREFIX = "redundancy/"
 _COMMON = {"type", "joint", "actuator"}

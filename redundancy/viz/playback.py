@@ -1,9 +1,10 @@
 """Playback of a motion in meshcat: live in a browser, or as one self-contained HTML page.
 
 What is drawn: the links (Pinocchio's meshcat visualizer, from the URDF's visual geometry);
-every `LinearCylinder` as a barrel from its base point and a rod ending at its rod point, red
-while its length is at or past a stroke limit; the desired path, the path the tool traced, and
-the task points. The camera looks at the task plane (for the crane, world x–z, from −y).
+every `LinearCylinder` and `LinkageCylinder` as a barrel from its base point and a rod ending at
+its rod point, red while its length is at or past a stroke limit; each linkage's rocker and
+coupler as bars between their pins; the desired path, the path the tool traced, and the task
+points. The camera looks at the task plane (for the crane, world x–z, from −y).
 
 `play` serves the scene from a meshcat server on localhost and loops the motion in real time
 until interrupted; the server stops with it. `export_html` needs no server: a stand-in for
@@ -35,6 +36,7 @@ import numpy as np
 
 from redundancy.errors import InvalidInputError, RedundancyError, RobotDescriptionError
 from redundancy.model.actuators import LinearCylinder
+from redundancy.model.linkage import LinkageCylinder
 from redundancy.model.robot import AXES
 from redundancy.planning.integrate import Trajectory
 from redundancy.planning.tasks import WorkCycle
@@ -54,6 +56,7 @@ PARTS = ("barrel", "rod")
 COLOURS = {
     "barrel": 0x46505A,
     "rod": 0xD2D2D2,
+    "bar": 0x8C8C8C,
     "limit": 0xD62728,
     "desired": 0x2CA02C,
     "traced": 0x1F4FB4,
@@ -110,13 +113,13 @@ def task_points(cycle: WorkCycle) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Cylinder:
-    """How one `LinearCylinder` is drawn: a barrel of length ``part`` (m) from the base point
-    and a rod of the same length ending at the rod point. The drawing spans the base point to
-    the rod point, so its length is the actuator value x_i (Eq. 9); ``part`` is the closed
-    length, so the rod stays inside the barrel over any stroke shorter than that, as a real
-    cylinder's is."""
+    """How one `LinearCylinder` or `LinkageCylinder` is drawn: a barrel of length ``part`` (m)
+    from the base point and a rod of the same length ending at the rod point. The drawing spans
+    the base point to the rod point, so its length is the actuator value x_i (Eq. 9); ``part``
+    is the closed length, so the rod stays inside the barrel over any stroke shorter than that,
+    as a real cylinder's is."""
 
-    actuator: LinearCylinder
+    actuator: LinearCylinder | LinkageCylinder
     part: float
 
     @property
@@ -175,11 +178,18 @@ class Playback:
         self.points = world(np.atleast_2d(np.asarray(marked, dtype=float)))
         self.cylinders = []
         for actuator in robot.actuators:
-            if isinstance(actuator, LinearCylinder):
-                base, rod = (kinematics.point(f).position for f in actuator.frames)
+            if isinstance(actuator, LinearCylinder | LinkageCylinder):
+                base, rod = actuator.ends(kinematics)
                 shortest = float(np.linalg.norm(rod - base, axis=1).min())
                 closed = actuator.lower if 0 < actuator.lower < np.inf else shortest
                 self.cylinders.append(Cylinder(actuator, min(closed, shortest)))
+        # Each linkage's rocker and coupler: (actuator, bar name, length in m).
+        self.bars = [
+            (actuator, bar, float(np.linalg.norm(b[0] - a[0])))
+            for actuator in robot.actuators
+            if isinstance(actuator, LinkageCylinder)
+            for bar, (a, b) in actuator.bars(kinematics).items()
+        ]
         self._fit_camera(np.concatenate([self._frame_origins(), self.traced, self.points]))
         self._links: Any = None  # Pinocchio's meshcat visualizer, once drawn
         self._shown: dict[str, bool] = {}
@@ -252,6 +262,10 @@ class Playback:
                 material = mg.MeshLambertMaterial(color=COLOURS[part])
                 geometry = mg.Cylinder(cylinder.part, radius * cylinder.part)
                 root[f"cylinders/{cylinder.name}/{part}"].set_object(geometry, material)
+        for actuator, bar, length in self.bars:
+            material = mg.MeshLambertMaterial(color=COLOURS["bar"])
+            geometry = mg.Cylinder(length, 0.08 * length)
+            root[f"linkages/{actuator.name}/{bar}"].set_object(geometry, material)
 
         size = self.size
         start, end = self.desired
@@ -285,9 +299,12 @@ class Playback:
         self._links.viewer = target
         self._links.display(q)
         kinematics = self.robot.kinematics(q[None])
+        for actuator, bar, _ in self.bars:
+            a, b = actuator.bars(kinematics)[bar]
+            target[f"linkages/{actuator.name}/{bar}"].set_transform(_between(a, b)[0])
         limited = []
         for cylinder in self.cylinders:
-            base, rod = (kinematics.point(f).position for f in cylinder.actuator.frames)
+            base, rod = cylinder.actuator.ends(kinematics)
             for part, pose in zip(PARTS, cylinder.poses(base, rod)):
                 target[f"cylinders/{cylinder.name}/{part}"].set_transform(pose[0])
             limited.append(cylinder.at_limit(np.linalg.norm(rod - base, axis=1))[0])
