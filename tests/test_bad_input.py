@@ -139,7 +139,7 @@ CASES = [
             ("[inf, 0]", "must be finite"),
             ('"3.5, -0.5"', "must be a list of numbers"),
             ("[true, 0]", "must be a list of numbers"),
-            ("[100.0, -0.5]", "cannot reach"),
+            ("[100.0, -0.5]", "cannot follow segment 1-2: its point [100.0, -0.5] (t = 0 s)"),
         )
     ],
     (
@@ -318,7 +318,7 @@ CASES = [
         "unreachable end",
         ["study", "--task", "t.toml"],
         {"t.toml": TASK.replace("2 = [1.0, -0.5]", "2 = [100.0, -0.5]")},
-        "cannot reach",
+        "cannot follow segment 1-2: its point [9.53125, -0.5] (t = 12.1 s)",
     ),
     # hydraulics files
     (

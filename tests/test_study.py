@@ -144,7 +144,7 @@ def test_an_unreachable_segment_point_fails_cleanly_and_keeps_the_old_report(tmp
     report.write_text('{"previous": true}\n')
     run = run_cli("study", "--task", str(task), "--out", str(out), "--quiet")
     assert run.returncode == 2
-    assert "cannot reach the start [9.0, 9.0] of segment 1-2" in run.stderr
+    assert "cannot follow segment 1-2: its point [9.0, 9.0] (t = 0 s)" in run.stderr
     assert "Traceback" not in run.stderr
     assert report.read_text() == '{"previous": true}\n'
     assert sorted(p.name for p in tmp_path.iterdir()) == ["far.toml", "out"]
