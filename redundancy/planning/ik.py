@@ -99,7 +99,8 @@ def _seeds(robot: Robot, count: int) -> np.ndarray:
     from scipy.stats import qmc
 
     unit = qmc.Halton(d=robot.n, scramble=True, seed=7).random(count)
-    return robot.lower + (robot.upper - robot.lower) * (0.05 + 0.9 * unit)
+    lower, upper = robot.span
+    return lower + (upper - lower) * (0.05 + 0.9 * unit)
 
 
 def _point(robot: Robot, point) -> np.ndarray:
@@ -131,8 +132,8 @@ def inverse_kinematics(
     error = error.reshape(k, seeds)
     per_seed = q.reshape(k, seeds, robot.n)
     converged = error < FOUND
-    middle = (robot.lower + robot.upper) / 2
-    distance = np.linalg.norm((per_seed - middle) / (robot.upper - robot.lower), axis=2)
+    lower, upper = robot.span
+    distance = np.linalg.norm((per_seed - (lower + upper) / 2) / (upper - lower), axis=2)
     choice = np.argmin(np.where(converged, distance, 1e6 + error), axis=1)
     picked = np.arange(k)
     reached = np.any(converged, axis=1)
