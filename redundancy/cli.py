@@ -31,6 +31,7 @@ from redundancy.planning.starts import (
     improved_start,
 )
 from redundancy.planning.tasks import Segment, WorkCycle
+from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import OBJECTIVES, Objective, objective
 from redundancy.resolution.state import actuator_space
 from redundancy.study.output import OutputFolder, writable
@@ -53,26 +54,42 @@ def _add_robot_options(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _span(lower: float, upper: float, unit: str) -> str:
+    """A range [lower, upper] in the SI ``unit`` ("m" or "rad") as messages show it (mm,
+    degrees); an infinite end as ∞."""
+    ends = [amount(v, unit) if np.isfinite(v) else ("-∞" if v < 0 else "∞") for v in (lower, upper)]
+    return f"[{ends[0]}, {ends[1]}]"
+
+
 def describe(robot: Robot) -> str:
-    """A summary of a robot: joints, actuators and strokes, mass, M_H at mid-range."""
+    """A summary of a robot: joints, actuators and strokes (mm, degrees), mass, M_H at
+    mid-range (where the robot has masses)."""
     lines = [f"{robot.name}: n = {robot.n} joints, task = tool {robot.task_axes} (m = {robot.m})"]
     lines.append("joints:")
-    for name, lo, hi in zip(robot.joint_names, robot.lower, robot.upper):
-        lines.append(f"  {name:<20} [{lo: .4f}, {hi: .4f}]")
+    for name, lo, hi, rotary in zip(
+        robot.joint_names, robot.lower, robot.upper, robot.rotary_joints
+    ):
+        lines.append(f"  {name:<20} {_span(lo, hi, 'rad' if rotary else 'm')}")
     lines.append("actuators:")
     for actuator in robot.actuators:
+        stroke = _span(actuator.lower, actuator.upper, "rad" if actuator.rotary else "m")
         lines.append(
             f"  {actuator.name:<8} {type(actuator).__name__:<15} on {actuator.joint:<18} "
-            f"stroke [{actuator.lower:.3f}, {actuator.upper:.3f}]"
+            f"stroke {stroke}"
         )
-    masses = [inertia.mass for inertia in robot.model.inertias]
-    lines.append(f"mass: {sum(masses):.1f} kg, of which payload {robot.payload:.1f} kg")
-    q = (robot.lower + robot.upper) / 2
+    lower, upper = robot.span
+    q = (lower + upper) / 2
     space = actuator_space(robot, q)
+    if robot.kinematic_only:
+        lines.append(f"mass: none on links {', '.join(robot.massless_links)} (kinematic only)")
+    else:
+        masses = [inertia.mass for inertia in robot.model.inertias]
+        lines.append(f"mass: {sum(masses):.1f} kg, of which payload {robot.payload:.1f} kg")
     with np.printoptions(precision=4, suppress=True):
         lines.append(f"at mid-range q = {q}: x = {space.x[0]}, y = {space.y[0]}")
-        lines.append(f"M_H (kg) =\n{space.M_H[0]}")
-        lines.append(f"F_H holding still (N) = {space.forces(np.zeros_like(space.x))[0]}")
+        if not robot.kinematic_only:
+            lines.append(f"M_H (kg) =\n{space.M_H[0]}")
+            lines.append(f"F_H holding still (N) = {space.forces(np.zeros_like(space.x))[0]}")
     return "\n".join(lines)
 
 

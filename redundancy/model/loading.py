@@ -304,7 +304,8 @@ def _tool(model: pin.Model, description: dict, where: str) -> str:
     point on a link, added to ``model`` as the frame "tool point"; by default the last link."""
     bodies = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
     if "tool" in description:
-        link, xyz = Point("tool", "the tool point").read(description["tool"], f"{where} tool")
+        value = description["tool"]
+        link, xyz = Point("tool", "the tool point").read(value, f"{where} tool = {value!r}")
         if link not in bodies:
             raise RobotDescriptionError(
                 f"{where} tool.link = {link!r} is not a link of the URDF; links: {bodies}"
@@ -485,7 +486,7 @@ def load_robot(
         tuple(missing_meshes),
     )
     _bound_by_strokes(loaded, [j for j in continuous if j not in locked])
-    if loaded.massless_links:
+    if loaded.kinematic_only:
         warnings.warn(
             f"{source}: links without inertia: {', '.join(loaded.massless_links)}; the robot "
             "is kinematic only (the velocity objective, playback and check work; anything "

@@ -176,9 +176,14 @@ class Robot:
         batch, single = _as_batch("q", q, self.n)
         return _answer(self.mass_matrices(batch), single)
 
+    @property
+    def kinematic_only(self) -> bool:
+        """Whether some links have no mass (`massless_links`), so that M(q) is undefined."""
+        return bool(self.massless_links)
+
     def require_masses(self, what: str) -> None:
         """Refuse ``what`` (e.g. "M(q)") on a kinematic-only robot, naming its massless links."""
-        if self.massless_links:
+        if self.kinematic_only:
             raise InvalidInputError(
                 f"{self.name} is kinematic only: links {', '.join(self.massless_links)} have no "
                 f"<inertial> in {self.urdf.name}, and {what} needs masses; give them <inertial> "

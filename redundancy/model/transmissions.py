@@ -36,6 +36,7 @@ TOML).
 from __future__ import annotations
 
 import math
+import re
 from typing import Any
 
 from lxml import etree
@@ -273,7 +274,8 @@ def write_actuator_tables(actuators: list[ActuatorMap]) -> str:
     ``robot.toml`` beside an untouched URDF."""
     blocks = []
     for name, table in actuator_tables(actuators).items():
-        lines = [f"[actuators.{_toml(name)}]"]
+        key = name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else _toml(name)
+        lines = [f"[actuators.{key}]"]
         lines += [f"{key} = {_toml(value)}" for key, value in table.items()]
         blocks.append("\n".join(lines) + "\n")
     return "\n".join(blocks)

@@ -10,8 +10,9 @@ For each segment and objective:
   (`redundancy.planning.bound`), and the improved start's gap to it, in per cent.
 
 For each segment the comparison holds, with both peaks and whether every limit held:
-- the unweighted and the M_H-weighted pseudoinverse from the default start (the held actuator at
-  mid-stroke, or the reachable value nearest it: `default_start`);
+- the unweighted and (where the robot has masses) the M_H-weighted pseudoinverse from the
+  default start (the held actuator at mid-stroke, or the reachable value nearest it:
+  `default_start`);
 - gradient projection with actuator-limit avoidance from the same start (the paper's baseline);
 - the improved method for each objective;
 - with a hydraulic circuit, each motion's peak pump flow, highest load pressure and pump energy
@@ -204,9 +205,10 @@ class Study:
             row = run.summary()
             held = "held" if row["within_limits"] else "VIOLATED"
             values = ",".join(f"{v:.3f}" for v in run.start)
+            kinetic = "-" if row["peak_kinetic"] is None else f"{row['peak_kinetic']:.3f}"
             lines.append(
                 f"{run.segment:<{names}}{run.strategy:<36}{values:>{width}}"
-                f"{row['peak_velocity_norm']:>12.5f}{row['peak_kinetic']:>13.3f}  {held}"
+                f"{row['peak_velocity_norm']:>12.5f}{kinetic:>13}  {held}"
             )
         lines += [
             "",
@@ -310,7 +312,11 @@ def run_study(
     if energy_bound and len(held) != 1:
         raise InvalidInputError(f"the energy bound holds one actuator; the task holds {held}")
     segments = cycle.segments
-    total = len(segments) * (len(BASELINES) + 3 * len(objectives))
+    # the M_H-weighted law needs masses: a kinematic-only robot is compared without it
+    baselines = [
+        (n, r) for n, r in BASELINES if not (robot.kinematic_only and r is ENERGY.resolver)
+    ]
+    total = len(segments) * (len(baselines) + 3 * len(objectives))
     bar = tqdm(total=total, unit="task", desc="study", disable=not progress, mininterval=0.5)
     searches: dict[str, list[SearchResult]] = {o.name: [] for o in objectives}
     sweeps: dict[str, list[SearchResult]] = {o.name: [] for o in objectives}
@@ -320,7 +326,7 @@ def run_study(
     with bar:
         for segment in segments:
             start = default_start(robot, segment, held)
-            for name, resolver in BASELINES:
+            for name, resolver in baselines:
                 bar.set_description(f"{segment.name}: {name}")
                 runs.append(
                     fixed_start_run(
