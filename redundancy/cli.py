@@ -31,9 +31,9 @@ from redundancy.planning.starts import (
     improved_start,
 )
 from redundancy.planning.tasks import Segment, WorkCycle
-from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import OBJECTIVES, Objective, objective
 from redundancy.resolution.state import actuator_space
+from redundancy.study.check import check, span
 from redundancy.study.output import OutputFolder, writable
 from redundancy.study.study import run_study, write_report
 from redundancy.viz.playback import export_html, play, task_points, write_playbacks
@@ -54,13 +54,6 @@ def _add_robot_options(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def _span(lower: float, upper: float, unit: str) -> str:
-    """A range [lower, upper] in the SI ``unit`` ("m" or "rad") as messages show it (mm,
-    degrees); an infinite end as ∞."""
-    ends = [amount(v, unit) if np.isfinite(v) else ("-∞" if v < 0 else "∞") for v in (lower, upper)]
-    return f"[{ends[0]}, {ends[1]}]"
-
-
 def describe(robot: Robot) -> str:
     """A summary of a robot: joints, actuators and strokes (mm, degrees), mass, M_H at
     mid-range (where the robot has masses)."""
@@ -69,10 +62,10 @@ def describe(robot: Robot) -> str:
     for name, lo, hi, rotary in zip(
         robot.joint_names, robot.lower, robot.upper, robot.rotary_joints
     ):
-        lines.append(f"  {name:<20} {_span(lo, hi, 'rad' if rotary else 'm')}")
+        lines.append(f"  {name:<20} {span(lo, hi, 'rad' if rotary else 'm')}")
     lines.append("actuators:")
     for actuator in robot.actuators:
-        stroke = _span(actuator.lower, actuator.upper, "rad" if actuator.rotary else "m")
+        stroke = span(actuator.lower, actuator.upper, "rad" if actuator.rotary else "m")
         lines.append(
             f"  {actuator.name:<8} {type(actuator).__name__:<15} on {actuator.joint:<18} "
             f"stroke {stroke}"
@@ -216,6 +209,18 @@ def _play_command(args: argparse.Namespace) -> None:
     play(motion, points, lambda url: print(f"{heading}: open {url} (Ctrl-C stops)", flush=True))
 
 
+def _check_command(args: argparse.Namespace) -> int:
+    """The one-screen check of a robot (and its task); status 2 where something blocks a
+    study."""
+    robot = load_robot(args.robot, payload=args.payload, hydraulics=args.hydraulics)
+    cycle = None
+    if args.task is not None or robot.task_file is not None:
+        cycle = _load_task(robot, args.task)
+    found = check(robot, cycle)
+    print(found.report())
+    return 2 if found.blocking() else 0
+
+
 def _robots_command(args: argparse.Namespace) -> None:
     for name in bundled_robots():
         robot = load_robot(name)
@@ -233,6 +238,12 @@ def parser() -> argparse.ArgumentParser:
     _add_robot_options(describe_parser)
     describe_parser.set_defaults(run=_describe_command)
     commands.add_parser("robots", help="list the bundled robots").set_defaults(run=_robots_command)
+    check_parser = commands.add_parser(
+        "check", help="check a new robot for a study: strokes, singular A, masses, meshes, task"
+    )
+    _add_robot_options(check_parser)
+    check_parser.add_argument("--task", help="task file (TOML); default: the robot's own, if any")
+    check_parser.set_defaults(run=_check_command)
     study = commands.add_parser(
         "study", help="the paper's study: improved initial configurations and strategies compared"
     )
@@ -327,13 +338,13 @@ def main(argv: list[str] | None = None) -> int:
         numbers.append(signal.SIGINT)
     previous = {n: signal.signal(n, _interrupt) for n in numbers}
     try:
-        args.run(args)
+        status = args.run(args)  # a command may end with a status of its own (check: 2)
     except BaseException as error:
         return _ending(error)
     finally:
         for number, handler in previous.items():
             signal.signal(number, handler)
-    return 0
+    return status or 0
 
 
 def _ending(error: BaseException) -> int:

@@ -29,6 +29,7 @@ from redundancy.planning.ik import configuration_at
 from redundancy.planning.integrate import simulate
 from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.objectives import VELOCITY
+from redundancy.study.check import check
 from redundancy.viz.playback import Playback, Recording
 
 FIXTURES = Path(__file__).parent / "fixtures" / "intake"
@@ -424,3 +425,47 @@ def test_a_broken_xacro_is_one_line(tmp_path, capsys):
     status, errors = run(["describe", "--robot", str(toml)], capsys)
     assert status == 2 and len(errors) == 1, errors
     assert "arm.urdf.xacro: xacro cannot expand it" in errors[0] and "boom_lenght" in errors[0]
+
+
+# -- redundancy check ------------------------------------------------------------------------
+
+
+def test_check_passes_a_clean_robot(capsys):
+    status, errors = run(["check", "--robot", str(FIXTURES / "continuous" / "robot.toml")], capsys)
+    assert status == 0, errors
+
+
+def test_check_flags_a_stroke_the_joint_range_cannot_reach(tmp_path, capsys):
+    """The telescope's x3 = q + 0.2 m over q in [0, 1] m reaches [200, 1200] mm: a stroke of
+    [1500, 2000] mm blocks a study; one of [100, 1100] mm is a mismatch that does not."""
+    toml = sidecar(tmp_path, replace=[("stroke = [0.2, 1.1]", "stroke = [1.5, 2.0]")])
+    status = main(["check", "--robot", str(toml)])
+    out = capsys.readouterr().out
+    assert status == 2
+    assert "reaches [200 mm, 1200 mm], stroke [1500 mm, 2000 mm]: UNREACHABLE" in out
+    assert "x3: no value of its stroke is reached over telescope_joint's range" in out
+    toml.write_text(toml.read_text().replace("stroke = [1.5, 2.0]", "stroke = [0.1, 1.1]"))
+    assert main(["check", "--robot", str(toml)]) == 0
+    assert (
+        "stroke [100 mm, 1100 mm]: MISMATCH: a stroke end is not reached" in capsys.readouterr().out
+    )
+
+
+def test_check_finds_where_a_cylinder_line_passes_through_its_joint_axis(tmp_path):
+    """With a stroke admitting every length, the boom joint turns a full turn, and x1's line
+    passes through the boom's axis where the base point, the axis and the rod point are in
+    line: the boom angle turns the rod point (0.9, −0.2) m onto the base point's direction
+    (0.5, −0.6) m from the axis, or its opposite; x1 is then |b| − |r| or |b| + |r|."""
+    toml = sidecar(tmp_path, replace=[("stroke = [0.3, 1.3]", "stroke = [0.1, 3.0]")])
+    robot = quietly(toml)
+    found = check(robot)
+    x1 = found.actuators[0]
+    base, rod = np.array([0.5, -0.6]), np.array([0.9, -0.2])
+    aligned = np.arctan2(base[1], base[0]) - np.arctan2(rod[1], rod[0])
+    angles = np.sort(np.angle(np.exp(1j * np.array([aligned, aligned + np.pi]))))
+    order = np.argsort(x1.singular)
+    np.testing.assert_allclose(np.array(x1.singular)[order], angles, atol=1e-4)
+    b, r = np.linalg.norm(base), np.linalg.norm(rod)
+    lengths = {round(v, 4) for v in x1.singular_x}
+    assert lengths == {round(b + r, 4), round(abs(b - r), 4)}
+    assert any("x1: A is singular at boom_joint" in line for line in found.blocking())
