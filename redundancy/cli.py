@@ -31,6 +31,7 @@ from redundancy.planning.starts import (
     improved_start,
 )
 from redundancy.planning.tasks import Segment, WorkCycle
+from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import OBJECTIVES, Objective, objective
 from redundancy.resolution.state import actuator_space
 from redundancy.study.check import check, span
@@ -169,23 +170,56 @@ def _play_motion(
         motion = search.motion()  # the best; says so when no start keeps the limits
         values = search.best.values  # type: ignore[union-attr]
         return motion, f"best of {search.simulations} starts, {_held(held, values)}"
+    given = args.start
+    option = "--start"
     if args.x3init is not None:
         if len(held) != 1:
             raise InvalidInputError(
-                f"--x3init sets one held actuator; task {cycle.name!r} holds {list(held)}"
+                f"--x3init sets one held actuator; task {cycle.name!r} holds {list(held)}: "
+                f"give each with --start {','.join(f'{h}=V' for h in held)}"
             )
-        stroke = robot.actuators[held[0]]
-        if not stroke.lower <= args.x3init <= stroke.upper:
+        given, option = {held[0]: args.x3init}, "--x3init"
+    if given is not None:
+        if set(given) != set(held):
             raise InvalidInputError(
-                f"--x3init {args.x3init:g} is outside the stroke of {held[0]}, "
-                f"[{stroke.lower:g}, {stroke.upper:g}] m"
+                f"--start sets {', '.join(given)}; task {cycle.name!r} holds {list(held)}: "
+                f"give each, --start {','.join(f'{h}=V' for h in held)} (m, rad)"
             )
-        q = configuration_at(robot, segment.start, {held[0]: args.x3init})
-        label = _held(held, [args.x3init])
+        for name, value in given.items():
+            stroke = robot.actuators[name]
+            unit = "rad" if stroke.rotary else "m"
+            if not stroke.lower <= value <= stroke.upper:
+                shown = f"{name}={value:g}" if option == "--start" else f"{value:g}"
+                raise InvalidInputError(
+                    f"{option} {shown} is outside the stroke of {name}: "
+                    f"{amount(value, unit) if np.isfinite(value) else value}, stroke "
+                    f"{span(stroke.lower, stroke.upper, unit)}"
+                )
+        values = [given[h] for h in held]
+        q = configuration_at(robot, segment.start, dict(zip(held, values)))
+        label = _held(held, values)
     else:
         values, q = default_start(robot, segment, held)
         label = f"default start, {_held(held, values)}"
     return simulate(robot, chosen.resolver, segment, q[None]), label
+
+
+def start_values(text: str) -> dict[str, float]:
+    """``NAME=V[,NAME=V]``: held actuators' start values (m, or rad for a rotary actuator)."""
+    found: dict[str, float] = {}
+    for item in text.split(","):
+        name, equals, value = item.partition("=")
+        try:
+            number = float(value)
+        except ValueError:
+            number = math.nan
+        if not equals or not name.strip() or not math.isfinite(number) or name in found:
+            raise argparse.ArgumentTypeError(
+                f"{text!r} must be NAME=V[,NAME=V] with distinct actuator names and finite "
+                "values (m, rad for a rotary actuator), e.g. x3=0.6"
+            )
+        found[name.strip()] = number
+    return found
 
 
 def _held(names, values) -> str:
@@ -296,6 +330,12 @@ def parser() -> argparse.ArgumentParser:
         type=float,
         metavar="V",
         help="start with the held actuator (the crane's x3) at V, m (default: mid-stroke)",
+    )
+    start.add_argument(
+        "--start",
+        type=start_values,
+        metavar="NAME=V[,NAME=V]",
+        help="start with each held actuator at its value, m (rad for a rotary one)",
     )
     start.add_argument(
         "--best", action="store_true", help="start from the improved initial configuration"

@@ -15,7 +15,7 @@ from lxml import etree
 from sampling import random_configurations
 
 from redundancy import ActuatorMap, RobotDescriptionError, actuator_space, load_robot
-from redundancy.cli import main
+from redundancy.cli import _play_motion, main, parser
 from redundancy.model.loading import bundled_root
 from redundancy.model.parameters import Choice, Number
 from redundancy.model.transmissions import (
@@ -469,3 +469,37 @@ def test_check_finds_where_a_cylinder_line_passes_through_its_joint_axis(tmp_pat
     lengths = {round(v, 4) for v in x1.singular_x}
     assert lengths == {round(b + r, 4), round(abs(b - r), 4)}
     assert any("x1: A is singular at boom_joint" in line for line in found.blocking())
+
+
+# -- play --start ----------------------------------------------------------------------------
+
+
+def test_play_starts_from_the_held_values_given_for_two_held_actuators(tmp_path, capsys):
+    """The crane with a one-dimensional task holds two actuators (r = 2): --start sets both,
+    and the motion starts with each at its value."""
+    (tmp_path / "robot.toml").write_text(
+        f'urdf = "{CRANE_URDF}"\ntool_frame = "tool"\ntask_axes = "x"\ntask = "task.toml"\n'
+    )
+    (tmp_path / "task.toml").write_text(
+        'name = "reach"\nspeed = 0.5\nsegments = ["1-2"]\nheld = ["x2", "x3"]\n'
+        "[points]\n1 = [2.5]\n2 = [2.0]\n"
+    )
+    robot = quietly(tmp_path / "robot.toml")
+    cycle = WorkCycle.from_toml(robot.task_file, dimension=1)
+    argv = ["play", "--robot", str(tmp_path / "robot.toml"), "--start", "x2=1.1,x3=0.5"]
+    args = parser().parse_args([*argv, "--html", str(tmp_path / "p.html")])
+    motion, label = _play_motion(robot, cycle, cycle.segments[0], VELOCITY, args)
+    np.testing.assert_allclose(motion.x[0, 0, 1:], [1.1, 0.5], atol=1e-9)
+    assert label == "x2 = 1.1, x3 = 0.5"
+    assert main([*argv, "--html", str(tmp_path / "p.html")]) == 0
+    capsys.readouterr()
+    status, errors = run([*argv[:-1], "x3=0.5", "--html", str(tmp_path / "p.html")], capsys)
+    assert status == 2 and errors == [
+        "redundancy: error: --start sets x3; task 'reach' holds ['x2', 'x3']: give each, "
+        "--start x2=V,x3=V (m, rad)"
+    ]
+    status, errors = run([*argv[:-1], "x2=2,x3=0.5", "--html", str(tmp_path / "p.html")], capsys)
+    assert status == 2 and errors == [
+        "redundancy: error: --start x2=2 is outside the stroke of x2: 2000 mm, stroke [830 mm, "
+        "1375 mm]"
+    ]
