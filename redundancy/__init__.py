@@ -31,6 +31,7 @@ from redundancy.model.hydraulics import (
 )
 from redundancy.model.kinematics import Kinematics
 from redundancy.model.loading import bundled_robots, load_robot
+from redundancy.model.parameters import Choice, Number, Point
 from redundancy.model.robot import Robot
 from redundancy.planning.bound import GlobalOptimum, global_optimum
 from redundancy.planning.energy_bound import EnergyOptimum, energy_optimum
@@ -57,6 +58,7 @@ from redundancy.resolution.objectives import (
     Objective,
 )
 from redundancy.resolution.state import ActuatorSpace, actuator_space
+from redundancy.study.check import Check, check
 from redundancy.study.study import Study, run_study
 
 __all__ = [
@@ -68,6 +70,8 @@ __all__ = [
     "ActuatorMap",
     "ActuatorSet",
     "ActuatorSpace",
+    "Check",
+    "Choice",
     "Circuit",
     "ConstantPressure",
     "Cylinder",
@@ -84,7 +88,9 @@ __all__ = [
     "MinFlow",
     "MinKineticEnergy",
     "MinVelocityNorm",
+    "Number",
     "Objective",
+    "Point",
     "Prismatic",
     "RedundancyError",
     "Resolver",
@@ -104,6 +110,7 @@ __all__ = [
     "WorkCycle",
     "actuator_space",
     "bundled_robots",
+    "check",
     "configuration_at",
     "default_start",
     "energy_optimum",

@@ -503,3 +503,24 @@ def test_play_starts_from_the_held_values_given_for_two_held_actuators(tmp_path,
         "redundancy: error: --start x2=2 is outside the stroke of x2: 2000 mm, stroke [830 mm, "
         "1375 mm]"
     ]
+
+
+def test_an_actuator_on_a_mimic_joint_names_the_joints_that_take_one(tmp_path, capsys):
+    toml = sidecar(tmp_path, "mimic")
+    toml.write_text(
+        toml.read_text() + '\n[actuators.b]\nkind = "Identity"\njoint = "bucket_joint"\n'
+    )
+    status, errors = run(["describe", "--robot", str(toml)], capsys)
+    assert status == 2 and errors == [
+        "redundancy: error: actuator 'b' drives joint 'bucket_joint', which mimics another "
+        "joint; declare the actuator on the joint it follows; joints: boom_joint, stick_joint, "
+        "telescope_joint"
+    ]
+
+
+def test_describe_says_a_robot_without_inertias_is_kinematic_only(capsys):
+    status = main(["describe", "--robot", str(FIXTURES / "massless" / "robot.toml")])
+    out = capsys.readouterr().out
+    assert status == 0
+    assert "mass: none on links boom, stick, telescope (kinematic only)" in out
+    assert "M_H" not in out

@@ -223,13 +223,14 @@ def _locked_values(value: object, where: str) -> dict[str, float | None]:
     return dict.fromkeys(names({"locked_joints": value}, "locked_joints", where, "joints fixed"))
 
 
-def _lock(model: pin.Model, locked: dict[str, float | None], source: str) -> pin.Model:
-    """``model`` with the ``locked`` joints fixed at their values (neutral where None)."""
+def _lock(model: pin.Model, locked: dict[str, float | None], where: str, source: str) -> pin.Model:
+    """``model`` (of the URDF ``source``) with the ``locked`` joints (from ``where``) fixed at
+    their values (neutral where None)."""
     joints = list(model.names)[1:]
     unknown = [j for j in locked if j not in joints]
     if unknown:
         raise RobotDescriptionError(
-            f"{source}: locked joints {unknown} are not joints of the URDF; joints: {joints}"
+            f"{where}: locked joints {unknown} are not joints of {source}; joints: {joints}"
         )
     q = pin.neutral(model)
     for name, value in locked.items():
@@ -240,7 +241,7 @@ def _lock(model: pin.Model, locked: dict[str, float | None], source: str) -> pin
         upper = model.upperPositionLimit[joint.idx_q]
         if joint.nq != 1 or not lower <= value <= upper:
             raise RobotDescriptionError(
-                f"{source}: locked_joints {name} = {value:g} must be within the joint's range "
+                f"{where}: locked_joints {name} = {value:g} must be within the joint's range "
                 f"[{lower:g}, {upper:g}] (rad or m), on a joint of one coordinate"
             )
         q[joint.idx_q] = value
@@ -421,7 +422,7 @@ def load_robot(
             f"{', '.join(missing_meshes)}",
             stacklevel=2,
         )
-    model = _lock(_build_model(root, source), locked, source)
+    model = _lock(_build_model(root, source), locked, where, source)
     _check_joints(model, source)
     for joint in continuous:
         if joint not in locked:  # unbounded, unless its actuator's stroke bounds it (below)

@@ -41,6 +41,7 @@ from redundancy.planning.starts import (
 )
 from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.laws import GradientProjection, Resolver
+from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import ENERGY, VELOCITY, Objective
 from redundancy.study.output import write_atomically
 from redundancy.study.peers import StrategyRun, fixed_start_run
@@ -192,9 +193,11 @@ class Study:
         }
 
     def table(self) -> str:
-        """The comparison as a fixed-width text table, then the bounds."""
+        """The comparison as a fixed-width text table (held starts in mm, or degrees for a
+        rotary actuator), then the bounds."""
         start = "start " + ",".join(self.held)
-        width = max(10, len(start) + 1, 8 * len(self.held) + 1)
+        width = max(10, len(start) + 1, 11 * len(self.held) + 1)
+        units = ["rad" if self.robot.actuators[h].rotary else "m" for h in self.held]
         names = self._segment_width()
         header = (
             f"{'segment':<{names}}{'strategy':<36}{start:>{width}}"
@@ -204,7 +207,7 @@ class Study:
         for run in self.runs:
             row = run.summary()
             held = "held" if row["within_limits"] else "VIOLATED"
-            values = ",".join(f"{v:.3f}" for v in run.start)
+            values = ",".join(amount(v, unit) for v, unit in zip(run.start, units))
             kinetic = "-" if row["peak_kinetic"] is None else f"{row['peak_kinetic']:.3f}"
             lines.append(
                 f"{run.segment:<{names}}{run.strategy:<36}{values:>{width}}"
