@@ -524,3 +524,16 @@ def test_describe_says_a_robot_without_inertias_is_kinematic_only(capsys):
     assert status == 0
     assert "mass: none on links boom, stick, telescope (kinematic only)" in out
     assert "M_H" not in out
+
+
+def test_a_mimic_joint_following_a_locked_joint_is_locked_where_it_follows(tmp_path):
+    toml = sidecar(
+        tmp_path,
+        "mimic",
+        replace=[('task_axes = "xz"', 'task_axes = "xz"\nlocked_joints = {stick_joint = -1.4}')],
+    )
+    locked = quietly(toml)
+    assert locked.joint_names == ["boom_joint", "telescope_joint"]
+    q = np.array([[0.3, 0.5], [0.8, 0.1]])
+    expected = [arm_tool([b, -1.4, t], lambda stick: -0.5 * stick + 0.2) for b, t in q]
+    np.testing.assert_allclose(locked.fk(q), expected, atol=1e-12)

@@ -134,12 +134,16 @@ def _urdf_text(path: Path) -> str:
 FREE = ("floating", "planar")  # URDF joint types of a base that moves freely
 
 
-def _intake(text: str, source: str, locked: list[str]) -> tuple[etree._Element, list[str]]:
+def _intake(
+    text: str, source: str, locked: dict[str, float | None]
+) -> tuple[etree._Element, list[str]]:
     """The URDF's XML root, made ready for Pinocchio, and the continuous joints.
 
     A continuous joint becomes a revolute one (one coordinate, the angle in rad, instead of
     Pinocchio's (cos, sin) pair); its range is made unbounded once the model is built. A
-    floating or planar joint is refused unless it is locked, with the fix in the message."""
+    floating or planar joint is refused unless it is locked, with the fix in the message. A
+    mimic joint following a locked joint is locked too, at multiplier · value + offset (added
+    to ``locked``)."""
     try:
         root = etree.fromstring(text.encode())
     except etree.XMLSyntaxError as error:
@@ -153,6 +157,18 @@ def _intake(text: str, source: str, locked: list[str]) -> tuple[etree._Element, 
                 f'models machines on a fixed base: add locked_joints = ["{name}"] to '
                 f'robot.toml (the base stays at the joint\'s origin) or make it type="fixed"'
             )
+        mimic = joint.find("mimic")
+        if mimic is not None and mimic.get("joint") in locked and name not in locked:
+            texts = (mimic.get("multiplier", "1"), mimic.get("offset", "0"))
+            try:
+                multiplier, offset = (float(t) for t in texts)
+            except ValueError:
+                raise RobotDescriptionError(
+                    f"{source}: joint {name!r}: <mimic multiplier={texts[0]!r} "
+                    f"offset={texts[1]!r}> must be numbers"
+                ) from None
+            joint.remove(mimic)
+            locked[name] = multiplier * (locked[mimic.get("joint")] or 0.0) + offset
         if kind == "continuous":
             joint.set("type", "revolute")
             limit = joint.find("limit")
@@ -414,7 +430,7 @@ def load_robot(
         raise RobotDescriptionError(f"{where}: urdf = {reference!r}: no such file {urdf_path}")
     source = urdf_path.name
     locked = _locked_values(description.get("locked_joints", []), where)
-    root, continuous = _intake(_urdf_text(urdf_path), source, list(locked))
+    root, continuous = _intake(_urdf_text(urdf_path), source, locked)
     missing_meshes = _resolve_meshes(root, urdf_path.parent)
     if missing_meshes:
         warnings.warn(

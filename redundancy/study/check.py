@@ -28,7 +28,8 @@ from redundancy.resolution.limits import Limits, amount
 from redundancy.resolution.state import evaluate
 
 SWEEP = 1441  # joint values per sweep: a quarter degree over a full turn
-HELD_SAMPLES = 9  # held values per held actuator tried for each task point
+HELD_SAMPLES = 9  # held values tried for each task point, with one held actuator
+HELD_BUDGET = 81  # held value combinations tried for each task point, with several
 MISMATCH = 1e-3  # m or rad: a stroke end this far beyond the values reached is a mismatch
 
 
@@ -184,9 +185,11 @@ def _sweep(robot: Robot, column: int, row: int) -> tuple[tuple, tuple, tuple]:
 
 def _reached(robot: Robot, cycle: WorkCycle) -> tuple[np.ndarray, tuple[bool, ...]]:
     """The task's points (P, m) and whether each is reached inside the joint ranges with every
-    stroke kept, for one of `HELD_SAMPLES` values per held actuator over its stroke."""
+    stroke kept, for one of a grid of held values over their strokes: `HELD_SAMPLES` values
+    with one held actuator, at most `HELD_BUDGET` combinations with several."""
     held = held_actuators(robot, cycle)
-    grids = [np.linspace(lower, upper, HELD_SAMPLES) for lower, upper in stroke_box(robot, held)]
+    count = min(HELD_SAMPLES, max(2, int(HELD_BUDGET ** (1 / len(held)) + 1e-9)))
+    grids = [np.linspace(lower, upper, count) for lower, upper in stroke_box(robot, held)]
     values = np.array(list(itertools.product(*grids)))
     strokes = Limits.strokes(robot)
     points = np.unique([p for s in cycle.segments for p in (s.start, s.end)], axis=0)
