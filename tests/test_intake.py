@@ -537,3 +537,21 @@ def test_a_mimic_joint_following_a_locked_joint_is_locked_where_it_follows(tmp_p
     q = np.array([[0.3, 0.5], [0.8, 0.1]])
     expected = [arm_tool([b, -1.4, t], lambda stick: -0.5 * stick + 0.2) for b, t in q]
     np.testing.assert_allclose(locked.fk(q), expected, atol=1e-12)
+
+
+def test_a_task_as_large_as_the_robot_is_refused_in_one_line(tmp_path, capsys):
+    """A bare URDF's task is the tool's whole position: m = n = 3 for the arm, nothing to
+    resolve; check blocks and the study refuses, each saying how to choose the task axes."""
+    task = tmp_path / "t.toml"
+    task.write_text(
+        'name = "t"\nspeed = 0.5\nsegments = ["1-2"]\n'
+        "[points]\n1 = [2.8, 0, -0.2]\n2 = [2.8, 0, 1.2]\n"
+    )
+    urdf = str(FIXTURES / "continuous" / "arm.urdf")
+    assert main(["check", "--robot", urdf, "--task", str(task)]) == 2
+    assert "no redundancy to resolve" in capsys.readouterr().out
+    status, errors = run(
+        ["study", "--robot", urdf, "--task", str(task), "--quiet", "--out", str(tmp_path / "o")],
+        capsys,
+    )
+    assert status == 2 and len(errors) == 1 and "give fewer task_axes" in errors[0], errors

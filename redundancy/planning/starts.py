@@ -228,6 +228,12 @@ def _held(held: str | Sequence[str]) -> tuple[str, ...]:
 
 def held_actuators(robot: Robot, cycle: WorkCycle) -> tuple[str, ...]:
     """The actuators a search holds on ``cycle``: the task's ``held``, or the last n − m."""
+    if robot.n <= robot.m:
+        raise InvalidInputError(
+            f"{robot.name} has n = {robot.n} joints for a task of m = {robot.m} coordinates "
+            f"(tool {robot.task_axes}): no redundancy to resolve; give fewer task_axes in its "
+            'robot.toml (e.g. "xz" for a planar task)'
+        )
     return cycle.held or tuple(robot.actuators.names[robot.m :])
 
 

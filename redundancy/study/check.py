@@ -55,10 +55,11 @@ class ActuatorCheck:
 
     @property
     def mismatch(self) -> bool:
-        """A stroke end lies beyond the values reached (by more than `MISMATCH`)."""
-        return (
-            self.stroke[0] < self.reached[0] - MISMATCH
-            or self.stroke[1] > self.reached[1] + MISMATCH
+        """A finite stroke end lies beyond the values reached (by more than `MISMATCH`)."""
+        lower, upper = self.stroke
+        return bool(
+            (np.isfinite(lower) and lower < self.reached[0] - MISMATCH)
+            or (np.isfinite(upper) and upper > self.reached[1] + MISMATCH)
         )
 
     @property
@@ -79,7 +80,13 @@ class Check:
 
     def blocking(self) -> list[str]:
         """What stops a study, one line each (empty when the robot is ready)."""
+        robot = self.robot
         found = []
+        if robot.n <= robot.m:
+            found.append(
+                f"n = {robot.n} joints for a task of m = {robot.m} (tool {robot.task_axes}): no "
+                "redundancy to resolve"
+            )
         for a in self.actuators:
             if a.unreachable:
                 found.append(f"{a.name}: no value of its stroke is reached over {a.joint}'s range")
@@ -219,5 +226,8 @@ def check(robot: Robot, cycle: WorkCycle | None = None) -> Check:
                 singular_x,
             )
         )
-    points, reached_points = (None, ()) if cycle is None else _reached(robot, cycle)
+    points: np.ndarray | None = None
+    reached_points: tuple[bool, ...] = ()
+    if cycle is not None and robot.n > robot.m:  # with no redundancy, the one blocking line
+        points, reached_points = _reached(robot, cycle)
     return Check(robot, tuple(actuators), points, reached_points)
