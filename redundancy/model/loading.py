@@ -111,13 +111,14 @@ def _urdf_path(folder: Path, reference: str) -> Path:
     raise RobotDescriptionError(f"{reference}: no such file in the package {distribution!r}")
 
 
-def _urdf_text(path: Path) -> str:
-    """The URDF text of ``path``; a ``.xacro`` file is expanded by the xacro package."""
+def _urdf_text(path: Path) -> bytes:
+    """The URDF document of ``path`` (its encoding is the XML's to declare); a ``.xacro`` file
+    is expanded by the xacro package."""
     if path.suffix != ".xacro":
         try:
-            return path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as error:
-            raise RobotDescriptionError(f"{path}: not readable: {error}") from None
+            return path.read_bytes()
+        except OSError as error:
+            raise RobotDescriptionError(f"{path}: not readable: {error.strerror}") from None
     import xacro
 
     try:
@@ -128,14 +129,14 @@ def _urdf_text(path: Path) -> str:
         raise RobotDescriptionError(
             f"{path}: xacro cannot expand it: {type(error).__name__}: {reason}"
         ) from error
-    return document.toxml()
+    return document.toxml().encode()
 
 
 FREE = ("floating", "planar")  # URDF joint types of a base that moves freely
 
 
 def _intake(
-    text: str, source: str, locked: dict[str, float | None]
+    document: bytes, source: str, locked: dict[str, float | None]
 ) -> tuple[etree._Element, list[str]]:
     """The URDF's XML root, made ready for Pinocchio, and the continuous joints.
 
@@ -145,7 +146,7 @@ def _intake(
     mimic joint following a locked joint is locked too, at multiplier · value + offset (added
     to ``locked``)."""
     try:
-        root = etree.fromstring(text.encode())
+        root = etree.fromstring(document)
     except etree.XMLSyntaxError as error:
         raise RobotDescriptionError(f"{source}: not readable XML: {error}") from None
     continuous = []
@@ -180,7 +181,7 @@ def _intake(
     return root, continuous
 
 
-def package_dirs(folder: Path) -> list[Path]:
+def _package_dirs(folder: Path) -> list[Path]:
     """Where a mesh named ``package://<package>/...`` is looked for: ``<package>`` in the
     URDF's folder or one of its ancestors."""
     return [folder.resolve(), *folder.resolve().parents]
@@ -191,7 +192,7 @@ def _mesh_path(filename: str, folder: Path) -> Path | None:
     to the URDF's folder), or None where no such file exists."""
     if filename.startswith("package://"):
         inner = filename[len("package://") :]
-        candidates = [directory / inner for directory in package_dirs(folder)]
+        candidates = [directory / inner for directory in _package_dirs(folder)]
     else:
         candidates = [folder / filename.removeprefix("file://")]
     return next((c.resolve() for c in candidates if c.is_file()), None)
@@ -360,41 +361,55 @@ def _actuators(
     return [a for a in declared if a.joint not in locked]
 
 
-TURN_SAMPLES = 3601  # angles over a turn where a continuous joint's stroke range is sought
+STEP = np.radians(0.25)  # rad: the grid a continuous joint's stroke range is first sought on
+BISECTIONS = 40  # halvings of a grid step that locate each end of the range (to 1e-14 rad)
+
+
+def _stroke_arc(robot: Robot, column: int, row: int) -> tuple[float, float] | None:
+    """The angles of joint ``column`` (rad) over which actuator ``row`` stays inside its
+    stroke, the other joints at zero: sought on a grid over two turns either way, each end then
+    located by bisection; of several arcs (a cylinder on either side of the joint axis), the
+    one nearest the URDF's zero angle. None where the stroke admits no angle, or every one."""
+    actuator = robot.actuators.maps[row]
+    rest = np.clip(0.0, robot.lower, robot.upper)
+
+    def inside(theta: np.ndarray) -> np.ndarray:
+        q = np.repeat(rest[None], len(theta), axis=0)
+        q[:, column] = theta
+        x = robot.actuators.evaluate(robot.kinematics(q))[0][:, row]
+        return (x >= actuator.lower) & (x <= actuator.upper)
+
+    angles = np.arange(-2 * np.pi, 2 * np.pi + STEP / 2, STEP)
+    kept = inside(angles)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], kept.astype(int), [0]])))
+    arcs = [(a, b - 1) for a, b in zip(edges[::2], edges[1::2])]
+    if not arcs or kept.all():
+        return None
+    first, last = min(arcs, key=lambda arc: max(angles[arc[0]], -angles[arc[1]], 0.0))
+    ends = []
+    for end, outward in ((first, -1), (last, 1)):
+        good, bad = angles[end], angles[end] + outward * STEP
+        for _ in range(BISECTIONS):
+            middle = (good + bad) / 2
+            good, bad = (middle, bad) if inside(np.array([middle]))[0] else (good, middle)
+        ends.append(float(good))
+    return ends[0], ends[1]
 
 
 def _bound_by_strokes(robot: Robot, continuous: list[str]) -> None:
-    """Give each ``continuous`` joint whose actuator has a finite stroke the range of angles,
-    within a turn, over which the actuator stays inside its stroke, the other joints at zero
-    (exact where the actuator spans that joint alone, as a cylinder between the links on either
-    side of it does). Where the stroke admits several arcs (a cylinder on either side of the
-    joint axis), the arc nearest the URDF's zero angle is the machine's; where it admits none,
-    the joint stays unbounded (and `redundancy check` says so)."""
-    angles = np.linspace(-np.pi, np.pi, TURN_SAMPLES)
+    """Give each ``continuous`` joint whose actuator has a finite stroke the arc over which the
+    actuator stays inside it (`_stroke_arc`: exact where the actuator spans that joint alone,
+    as a cylinder between the links on either side of it does); where there is none, the
+    joint stays unbounded (and `redundancy check` says so)."""
     for joint in continuous:
         column = robot.joint_names.index(joint)
         row = next(i for i, a in enumerate(robot.actuators) if a.index == column)
-        actuator = robot.actuators.maps[row]
-        if not np.isfinite(actuator.lower) and not np.isfinite(actuator.upper):
-            continue
-        q = np.repeat(np.clip(0.0, robot.lower, robot.upper)[None], len(angles), axis=0)
-        q[:, column] = angles
-        x = robot.actuators.evaluate(robot.kinematics(q))[0][:, row]
-        inside = np.concatenate([[False], (x >= actuator.lower) & (x <= actuator.upper), [False]])
-        edges = np.flatnonzero(np.diff(inside.astype(int)))
-        arcs = list(zip(edges[::2], edges[1::2] - 1))
-        if not arcs:
-            continue
-        nearest = min(
-            arcs,
-            key=lambda arc: (
-                0.0
-                if angles[arc[0]] <= 0 <= angles[arc[1]]
-                else min(abs(angles[arc[0]]), abs(angles[arc[1]]))
-            ),
-        )
-        robot.model.lowerPositionLimit[column] = angles[nearest[0]]
-        robot.model.upperPositionLimit[column] = angles[nearest[1]]
+        stroke = robot.actuators.maps[row]
+        arc = None
+        if np.isfinite(stroke.lower) or np.isfinite(stroke.upper):
+            arc = _stroke_arc(robot, column, row)
+        if arc is not None:
+            robot.model.lowerPositionLimit[column], robot.model.upperPositionLimit[column] = arc
 
 
 def load_robot(
