@@ -21,6 +21,7 @@ import numpy as np
 
 from redundancy.errors import InvalidInputError, UnreachableError
 from redundancy.model.robot import Robot
+from redundancy.resolution.limits import amount
 from redundancy.resolution.state import evaluate
 
 TOLERANCE = 1e-12  # m (and m or rad for held actuators): a residual this small has converged
@@ -179,15 +180,19 @@ def continue_held(
 def configuration_at(robot: Robot, point: np.ndarray, held: dict[str, float]) -> np.ndarray:
     """The configuration (n,) reaching ``point`` with actuators held at ``held`` {name: value}.
 
-    Raises `UnreachableError` with the distance by which the point is missed.
+    Raises `UnreachableError` with the distance by which the point is missed (in mm, the held
+    values in mm or degrees).
     """
     solution = inverse_kinematics(robot, point, list(held), np.array([list(held.values())]))
     if not solution.reached[0]:
         miss = _closest_miss(robot, np.asarray(point, dtype=float), held, solution.q[0])
+        values = ", ".join(
+            f"{k} = {amount(v, 'rad' if robot.actuators[k].rotary else 'm')}"
+            for k, v in held.items()
+        )
         raise UnreachableError(
-            f"{robot.name} cannot reach task point {np.asarray(point).tolist()} with "
-            f"{', '.join(f'{k} = {v:g}' for k, v in held.items())} inside its joint limits: "
-            f"the closest configuration misses it by {miss:.4g} m"
+            f"{robot.name} cannot reach task point {np.asarray(point).tolist()} with {values} "
+            f"inside its joint limits: the closest configuration misses it by {amount(miss, 'm')}"
         )
     return solution.q[0]
 
