@@ -32,6 +32,7 @@ from redundancy.model.hydraulics import (
 from redundancy.model.kinematics import Kinematics
 from redundancy.model.linkage import LinkageCylinder
 from redundancy.model.loading import bundled_robots, load_robot
+from redundancy.model.parameters import Choice, Number, Point
 from redundancy.model.robot import Robot
 from redundancy.planning.bound import GlobalOptimum, global_optimum
 from redundancy.planning.energy_bound import EnergyOptimum, energy_optimum
@@ -64,6 +65,7 @@ from redundancy.resolution.objectives import (
     Objective,
 )
 from redundancy.resolution.state import ActuatorSpace, actuator_space
+from redundancy.study.check import Check, check
 from redundancy.study.families import MapFamily, read_family
 from redundancy.study.maps import design_map
 from redundancy.study.study import Study, run_study
@@ -77,6 +79,8 @@ __all__ = [
     "ActuatorMap",
     "ActuatorSet",
     "ActuatorSpace",
+    "Check",
+    "Choice",
     "Circuit",
     "ConstantPressure",
     "Cylinder",
@@ -95,7 +99,9 @@ __all__ = [
     "MinFlow",
     "MinKineticEnergy",
     "MinVelocityNorm",
+    "Number",
     "Objective",
+    "Point",
     "Prismatic",
     "RedundancyError",
     "Resolver",
@@ -115,6 +121,7 @@ __all__ = [
     "WorkCycle",
     "actuator_space",
     "bundled_robots",
+    "check",
     "configuration_at",
     "default_start",
     "design_map",

@@ -33,8 +33,10 @@ from redundancy.planning.starts import (
     improved_start,
 )
 from redundancy.planning.tasks import Segment, WorkCycle
+from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import OBJECTIVES, Objective, objective
 from redundancy.resolution.state import actuator_space
+from redundancy.study.check import check, span
 from redundancy.study.families import read_family
 from redundancy.study.maps import CONNECT_TIMEOUT, connect, design_map, summary
 from redundancy.study.output import OutputFolder, writable, write_atomically
@@ -60,25 +62,34 @@ def _add_robot_options(parser: argparse.ArgumentParser) -> None:
 
 
 def describe(robot: Robot) -> str:
-    """A summary of a robot: joints, actuators and strokes, mass, M_H at mid-range."""
+    """A summary of a robot: joints, actuators and strokes (mm, degrees), mass, M_H at
+    mid-range (where the robot has masses)."""
     lines = [f"{robot.name}: n = {robot.n} joints, task = tool {robot.task_axes} (m = {robot.m})"]
     lines.append("joints:")
-    for name, lo, hi in zip(robot.joint_names, robot.lower, robot.upper):
-        lines.append(f"  {name:<20} [{lo: .4f}, {hi: .4f}]")
+    for name, lo, hi, rotary in zip(
+        robot.joint_names, robot.lower, robot.upper, robot.rotary_joints
+    ):
+        lines.append(f"  {name:<20} {span(lo, hi, 'rad' if rotary else 'm')}")
     lines.append("actuators:")
     for actuator in robot.actuators:
+        stroke = span(actuator.lower, actuator.upper, "rad" if actuator.rotary else "m")
         lines.append(
             f"  {actuator.name:<8} {type(actuator).__name__:<15} on {actuator.joint:<18} "
-            f"stroke [{actuator.lower:.3f}, {actuator.upper:.3f}]"
+            f"stroke {stroke}"
         )
-    masses = [inertia.mass for inertia in robot.model.inertias]
-    lines.append(f"mass: {sum(masses):.1f} kg, of which payload {robot.payload:.1f} kg")
-    q = (robot.lower + robot.upper) / 2
+    lower, upper = robot.span
+    q = (lower + upper) / 2
     space = actuator_space(robot, q)
+    if robot.kinematic_only:
+        lines.append(f"mass: none on links {', '.join(robot.massless_links)} (kinematic only)")
+    else:
+        masses = [inertia.mass for inertia in robot.model.inertias]
+        lines.append(f"mass: {sum(masses):.1f} kg, of which payload {robot.payload:.1f} kg")
     with np.printoptions(precision=4, suppress=True):
         lines.append(f"at mid-range q = {q}: x = {space.x[0]}, y = {space.y[0]}")
-        lines.append(f"M_H (kg) =\n{space.M_H[0]}")
-        lines.append(f"F_H holding still (N) = {space.forces(np.zeros_like(space.x))[0]}")
+        if not robot.kinematic_only:
+            lines.append(f"M_H (kg) =\n{space.M_H[0]}")
+            lines.append(f"F_H holding still (N) = {space.forces(np.zeros_like(space.x))[0]}")
     return "\n".join(lines)
 
 
@@ -195,23 +206,56 @@ def _play_motion(
         motion = search.motion()  # the best; says so when no start keeps the limits
         values = search.best.values  # type: ignore[union-attr]
         return motion, f"best of {search.simulations} starts, {_held(held, values)}"
+    given = args.start
+    option = "--start"
     if args.x3init is not None:
         if len(held) != 1:
             raise InvalidInputError(
-                f"--x3init sets one held actuator; task {cycle.name!r} holds {list(held)}"
+                f"--x3init sets one held actuator; task {cycle.name!r} holds {list(held)}: "
+                f"give each with --start {','.join(f'{h}=V' for h in held)}"
             )
-        stroke = robot.actuators[held[0]]
-        if not stroke.lower <= args.x3init <= stroke.upper:
+        given, option = {held[0]: args.x3init}, "--x3init"
+    if given is not None:
+        if set(given) != set(held):
             raise InvalidInputError(
-                f"--x3init {args.x3init:g} is outside the stroke of {held[0]}, "
-                f"[{stroke.lower:g}, {stroke.upper:g}] m"
+                f"--start sets {', '.join(given)}; task {cycle.name!r} holds {list(held)}: "
+                f"give each, --start {','.join(f'{h}=V' for h in held)} (m, rad)"
             )
-        q = configuration_at(robot, segment.start, {held[0]: args.x3init})
-        label = _held(held, [args.x3init])
+        for name, value in given.items():
+            stroke = robot.actuators[name]
+            unit = "rad" if stroke.rotary else "m"
+            if not stroke.lower <= value <= stroke.upper:
+                shown = f"{name}={value:g}" if option == "--start" else f"{value:g}"
+                raise InvalidInputError(
+                    f"{option} {shown} is outside the stroke of {name}: "
+                    f"{amount(value, unit) if np.isfinite(value) else value}, stroke "
+                    f"{span(stroke.lower, stroke.upper, unit)}"
+                )
+        values = [given[h] for h in held]
+        q = configuration_at(robot, segment.start, dict(zip(held, values)))
+        label = _held(held, values)
     else:
         values, q = default_start(robot, segment, held)
         label = f"default start, {_held(held, values)}"
     return simulate(robot, chosen.resolver, segment, q[None]), label
+
+
+def start_values(text: str) -> dict[str, float]:
+    """``NAME=V[,NAME=V]``: held actuators' start values (m, or rad for a rotary actuator)."""
+    found: dict[str, float] = {}
+    for item in text.split(","):
+        name, equals, value = item.partition("=")
+        try:
+            number = float(value)
+        except ValueError:
+            number = math.nan
+        if not equals or not name.strip() or not math.isfinite(number) or name in found:
+            raise argparse.ArgumentTypeError(
+                f"{text!r} must be NAME=V[,NAME=V] with distinct actuator names and finite "
+                "values (m, rad for a rotary actuator), e.g. x3=0.6"
+            )
+        found[name.strip()] = number
+    return found
 
 
 def _held(names, values) -> str:
@@ -269,6 +313,18 @@ def _map_command(args: argparse.Namespace) -> None:
     print(f"figures: {', '.join(str(p) for p in figures)}")
 
 
+def _check_command(args: argparse.Namespace) -> int:
+    """The one-screen check of a robot (and its task); status 2 where something blocks a
+    study."""
+    robot = load_robot(args.robot, payload=args.payload, hydraulics=args.hydraulics)
+    cycle = None
+    if args.task is not None or robot.task_file is not None:
+        cycle = _load_task(robot, args.task)
+    found = check(robot, cycle)
+    print(found.report())
+    return 2 if found.blocking() else 0
+
+
 def _robots_command(args: argparse.Namespace) -> None:
     for name in bundled_robots():
         robot = load_robot(name)
@@ -286,6 +342,12 @@ def parser() -> argparse.ArgumentParser:
     _add_robot_options(describe_parser)
     describe_parser.set_defaults(run=_describe_command)
     commands.add_parser("robots", help="list the bundled robots").set_defaults(run=_robots_command)
+    check_parser = commands.add_parser(
+        "check", help="check a new robot for a study: strokes, singular A, masses, meshes, task"
+    )
+    _add_robot_options(check_parser)
+    check_parser.add_argument("--task", help="task file (TOML); default: the robot's own, if any")
+    check_parser.set_defaults(run=_check_command)
     study = commands.add_parser(
         "study", help="the paper's study: improved initial configurations and strategies compared"
     )
@@ -338,6 +400,12 @@ def parser() -> argparse.ArgumentParser:
         type=float,
         metavar="V",
         help="start with the held actuator (the crane's x3) at V, m (default: mid-stroke)",
+    )
+    start.add_argument(
+        "--start",
+        type=start_values,
+        metavar="NAME=V[,NAME=V]",
+        help="start with each held actuator at its value, m (rad for a rotary one)",
     )
     start.add_argument(
         "--best", action="store_true", help="start from the improved initial configuration"
@@ -408,13 +476,13 @@ def main(argv: list[str] | None = None) -> int:
         numbers.append(signal.SIGINT)
     previous = {n: signal.signal(n, _interrupt) for n in numbers}
     try:
-        args.run(args)
+        status = args.run(args)  # a command may end with a status of its own (check: 2)
     except BaseException as error:
         return _ending(error)
     finally:
         for number, handler in previous.items():
             signal.signal(number, handler)
-    return 0
+    return status or 0
 
 
 def _ending(error: BaseException) -> int:

@@ -224,7 +224,7 @@ CASES = [
             f"attachment xyz {v}",
             ["describe", "--robot", "b.urdf"],
             {"b.urdf": re.sub(r'(<attachment link="column" xyz=")[^"]*', rf"\g<1>{v}", URDF)},
-            f"xyz={v!r}",
+            f'<attachment link="column" xyz="{v}"/> must be',
         )
         for v in ("1 2", "a b c", "1 2 3 4", "", "nan 0 0", "1,2,3")
     ],
@@ -238,14 +238,14 @@ CASES = [
         "one attachment",
         ["describe", "--robot", "b.urdf"],
         {"b.urdf": re.sub(r'\s*<attachment link="column"[^>]*/>', "", URDF, count=1)},
-        "needs two <attachment",
+        "missing <attachment> for rod",
     ),
     *[
         (
             f"offset {v}",
             ["describe", "--robot", "b.urdf"],
             {"b.urdf": re.sub(r'<offset value="[^"]*"/>', f"<offset {v}/>", URDF)},
-            "<offset value=...> must be a finite number",
+            f"<offset{' ' + v if v else ''}/> must be a finite number",
         )
         for v in ("", 'value=""', 'value="abc"', 'value="nan"', 'value="inf"')
     ],
@@ -257,16 +257,16 @@ CASES = [
             message,
         )
         for v, message in (
-            ('lower="abc"', "lower='abc' is not a number"),
-            ('lower="2.0"', "stroke lower 2.0 must be below upper"),
-            ('lower="nan"', "stroke lower nan must be below upper"),
+            ('lower="abc"', '<stroke lower="abc" upper="1.375"/> must be [lower, upper]'),
+            ('lower="2.0"', '<stroke lower="2.0" upper="1.375"/> must be [lower, upper]'),
+            ('lower="nan"', '<stroke lower="nan" upper="1.375"/> must be [lower, upper]'),
         )
     ],
     (
         "unknown kind",
         ["describe", "--robot", "b.urdf"],
         {"b.urdf": URDF.replace("redundancy/LinearCylinder", "redundancy/Nope", 1)},
-        "unknown type redundancy/Nope",
+        "'redundancy/Nope' is not an actuator kind; kinds: ",
     ),
     (
         "missing joint",
@@ -312,7 +312,7 @@ CASES = [
             "m.urdf": re.sub(r"<inertial>.*?</inertial>", "", URDF, flags=re.S),
             "m.toml": _description(urdf='"m.urdf"', payload="0"),
         },
-        "massless links: boom1, boom2, telescope",
+        "kinematic only: links boom1, boom2, telescope",
     ),
     (
         "unreachable end",

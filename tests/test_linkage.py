@@ -9,7 +9,7 @@ from test_derivatives import central_difference, columns
 
 from redundancy import RobotDescriptionError, SingularConfigurationError, actuator_space, load_robot
 from redundancy.model.linkage import LinkageCylinder
-from redundancy.model.transmissions import read_transmissions, write_transmissions
+from redundancy.model.transmissions import actuator_tables, read_transmissions, write_transmissions
 
 # A slewing arm carrying a stick whose tip joint turns a bucket through a four-bar. The slew's
 # axis is oblique to the linkage's, so the linkage's plane turns every way, and the cylinder's
@@ -183,18 +183,22 @@ def test_the_declaration_is_written_and_read_back(tmp_path):
     linkage, copy = (
         next(m for m in maps if isinstance(m, LinkageCylinder)) for maps in (declared, again)
     )
-    assert copy.transmission_data() == linkage.transmission_data()
+    assert actuator_tables([copy]) == actuator_tables([linkage])
     assert (copy.branch, copy.rocker[2], copy.coupler[0]) == (-1, ROCKER[2], "bucket")
 
 
 @pytest.mark.parametrize(
     ("old", "new", "said"),
     [
-        ('<branch value="1"/>', '<branch value="2"/>', "<branch value=...> must be 1 or -1"),
-        ('length="0.5"', 'length="-0.5"', "its <rocker> needs length= a positive number"),
-        ('<branch value="1"/>', "", "needs one <branch value=...>; it has 0"),
+        (
+            '<branch value="1"/>',
+            '<branch value="2"/>',
+            'branch <branch value="2"/> must be one of 1, -1',
+        ),
+        ('length="0.5"', 'length="-0.5"', "rocker <rocker link="),
+        ('<branch value="1"/>', "", "missing <branch> for branch"),
         ('<coupler link="bucket"', '<coupler link="bucke"', "attached to link 'bucke'"),
-        ('<base link="stick" xyz="0.6', '<base link="stick" xyz="nan', "its <base> needs link="),
+        ('<base link="stick" xyz="0.6', '<base link="stick" xyz="nan', "base <base link="),
     ],
 )
 def test_a_bad_declaration_is_one_line_naming_it(tmp_path, old, new, said):

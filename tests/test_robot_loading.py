@@ -19,6 +19,7 @@ from redundancy import (
     load_robot,
 )
 from redundancy.model.loading import bundled_root
+from redundancy.model.parameters import Number
 from redundancy.model.transmissions import write_transmissions
 
 CRANE_URDF = bundled_root() / "hiab031" / "hiab031.urdf"
@@ -144,6 +145,8 @@ def test_actuator_map_written_from_python_loads_back(tmp_path, crane):
 class GearedMotor(ActuatorMap):
     """A user's own kind: a rotary motor through a gear, x = ratio * q."""
 
+    parameters = (Number("ratio", "motor turns per joint turn"),)
+
     def __init__(self, name, joint, lower=-np.inf, upper=np.inf, ratio=1.0):
         super().__init__(name, joint, lower, upper)
         self.ratio = ratio
@@ -155,13 +158,6 @@ class GearedMotor(ActuatorMap):
 
     def rate(self, kinematics):
         return np.zeros_like(kinematics.q)
-
-    @classmethod
-    def from_transmission(cls, name, joint, lower, upper, data):
-        return cls(name, joint, lower, upper, float(data["gear"][0]["ratio"]))
-
-    def transmission_data(self):
-        return {"gear": [{"ratio": str(self.ratio)}]}
 
 
 def test_a_users_own_actuator_kind_plugs_in_through_the_urdf(tmp_path, crane):

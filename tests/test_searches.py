@@ -21,6 +21,7 @@ from redundancy import (
     load_robot,
 )
 from redundancy.model.loading import bundled_root
+from redundancy.model.parameters import Number
 from redundancy.model.transmissions import write_transmissions
 from redundancy.planning.ik import inverse_kinematics
 from redundancy.planning.integrate import simulate, stroke_extremes
@@ -147,6 +148,8 @@ class GearedCylinder(ActuatorMap):
     """A user's own kind, written here: the telescope through a 2:1 gear, x = 2 (q + offset).
     Only `evaluate` and `rate`: the group methods come from the base class."""
 
+    parameters = (Number("offset", "x / 2 − q, m", 0.0),)
+
     def __init__(self, name, joint, lower=-np.inf, upper=np.inf, offset=0.0):
         super().__init__(name, joint, lower, upper)
         self.offset = offset
@@ -158,13 +161,6 @@ class GearedCylinder(ActuatorMap):
 
     def rate(self, kinematics):
         return np.zeros_like(kinematics.q)
-
-    @classmethod
-    def from_transmission(cls, name, joint, lower, upper, data):
-        return cls(name, joint, lower, upper, float(data["offset"][0]["value"]))
-
-    def transmission_data(self):
-        return {"offset": [{"value": repr(self.offset)}]}
 
 
 def test_a_users_own_actuator_kind_runs_through_every_path(tmp_path, crane, cycle):

@@ -1,8 +1,9 @@
 """Actuator maps: joint space → hydraulic coordinates, x = h2(q) (Eq. 9), A = ∂x/∂q (Eq. 11).
 
 Each actuator coordinate x_i is one `ActuatorMap`. A kind of your own is a subclass: implement
-`evaluate` and `rate`, and, to declare it in a URDF, `from_transmission` and `transmission_data`
-(see `redundancy.model.transmissions`). Subclasses are found by class name; there is no registry.
+`evaluate` and `rate`, and list its parameters once in `ActuatorMap.parameters`; it can then be
+declared both in ``robot.toml`` and in a URDF (`redundancy.model.transmissions`). Subclasses are
+found by class name; there is no registry.
 
 Maps are declarations (names of joints and links); `ActuatorSet.bind` resolves them against a
 Pinocchio model, on copies, so one declaration can serve several robots.
@@ -19,6 +20,13 @@ import pinocchio as pin
 
 from redundancy.errors import RobotDescriptionError, SingularConfigurationError
 from redundancy.model.kinematics import Kinematics
+from redundancy.model.parameters import Number, Parameter, Point
+
+
+def driven_joints(model: pin.Model) -> list[str]:
+    """The joints of ``model`` with a degree of freedom, in order; mimic joints, which follow
+    another joint, are not among them."""
+    return [name for name, joint in zip(model.names[1:], model.joints[1:]) if joint.nv > 0]
 
 
 class ActuatorMap(ABC):
@@ -26,9 +34,29 @@ class ActuatorMap(ABC):
 
     ``joint`` names the joint the actuator drives; the set orders actuators like their joints.
     ``rotary`` says whether x_i is an angle (rad) rather than a length (m).
+
+    A kind declares its own parameters once, in ``parameters`` (`redundancy.model.parameters`:
+    `Number`, `Point`, `Choice`); each is a keyword of the kind's constructor and an attribute
+    of the same name on its instances. That one list reads and writes both declaration forms,
+    an ``[actuators.<name>]`` table of ``robot.toml`` and a URDF ``<transmission>``. A kind of
+    your own::
+
+        class GearedMotor(ActuatorMap):
+            parameters = (Number("ratio", "motor turns per joint turn"),)
+
+            def __init__(self, name, joint, lower=-np.inf, upper=np.inf, ratio=1.0):
+                super().__init__(name, joint, lower, upper)
+                self.ratio = ratio
+
+            def evaluate(self, kinematics): ...
+            def rate(self, kinematics): ...
+
+    is declared as ``[actuators.slew] kind = "GearedMotor", joint = "...", ratio = 50`` or as
+    ``<transmission name="slew"><type>redundancy/GearedMotor</type>...<ratio value="50"/>``.
     """
 
     rotary = False
+    parameters: tuple[Parameter, ...] = ()
 
     def __init__(self, name: str, joint: str, lower: float = -np.inf, upper: float = np.inf):
         if not lower < upper:
@@ -62,7 +90,12 @@ class ActuatorMap(ABC):
 
     def bind(self, model: pin.Model) -> None:
         """Resolve names against ``model``; raise `RobotDescriptionError` naming the valid ones."""
-        joints = list(model.names)[1:]
+        joints = driven_joints(model)
+        if self.joint in model.names and self.joint not in joints:
+            raise RobotDescriptionError(
+                f"actuator {self.name!r} drives joint {self.joint!r}, which mimics another "
+                f"joint; declare the actuator on the joint it follows; joints: {', '.join(joints)}"
+            )
         if self.joint not in joints:
             raise RobotDescriptionError(
                 f"actuator {self.name!r} drives joint {self.joint!r}, which does not exist; "
@@ -91,17 +124,9 @@ class ActuatorMap(ABC):
         """Rows of Ȧ (k, c, n) of c maps of this kind; kinds may vectorise it."""
         return np.stack([m.rate(kinematics) for m in maps], axis=1)
 
-    @classmethod
-    def from_transmission(
-        cls, name: str, joint: str, lower: float, upper: float, data: dict[str, list[dict]]
-    ) -> ActuatorMap:
-        """Build from a ``<transmission>``: ``data`` maps each extra child tag to its elements'
-        attribute dicts, in order. Kinds with parameters override this."""
-        return cls(name, joint, lower, upper)
-
-    def transmission_data(self) -> dict[str, list[dict]]:
-        """The extra ``<transmission>`` children, the inverse of `from_transmission`."""
-        return {}
+    def declared(self) -> dict[str, object]:
+        """The values of the kind's `parameters`, by name."""
+        return {parameter.name: getattr(self, parameter.name) for parameter in self.parameters}
 
 
 def prismatic(model: pin.Model, joint: str) -> bool:
@@ -131,22 +156,6 @@ def attach_frame(model: pin.Model, owner: str, end: str, link: str, point: np.nd
         model.frames[frame_id] = frame
         return frame_id
     return model.addFrame(frame, False)
-
-
-def declared_point(what: str, attributes: dict) -> tuple[str, list[float]]:
-    """A point on a link from a declaration's ``link`` and ``xyz`` attributes (three numbers,
-    m); ``what`` names the element in the one-line error."""
-    text = attributes.get("xyz", "")
-    try:
-        point = [float(c) for c in text.split()]
-    except ValueError:
-        point = []
-    if "link" not in attributes or len(point) != 3 or not np.all(np.isfinite(point)):
-        raise RobotDescriptionError(
-            f"{what} needs link=... and xyz= three finite numbers (m); "
-            f"got link={attributes.get('link')!r} xyz={text!r}"
-        )
-    return attributes["link"], point
 
 
 def span(d: np.ndarray, maps: list[ActuatorMap]) -> tuple[np.ndarray, np.ndarray]:
@@ -230,6 +239,8 @@ class Prismatic(Identity):
     The crane's telescope: x3 = d3 − L2 + L3 (Eq. 9), offset = L3 − L2.
     """
 
+    parameters = (Number("offset", "x − q, m", 0.0),)
+
     def __init__(
         self, name: str, joint: str, lower: float = -np.inf, upper: float = np.inf, offset=0.0
     ):
@@ -245,26 +256,6 @@ class Prismatic(Identity):
                 "use Identity or LinearCylinder for a revolute joint"
             )
 
-    @classmethod
-    def from_transmission(cls, name, joint, lower, upper, data):
-        offsets = data.get("offset", [])
-        if len(offsets) > 1:
-            raise RobotDescriptionError(f"prismatic {name!r}: one <offset value=...> at most")
-        text = offsets[0].get("value", "") if offsets else "0"
-        try:
-            offset = float(text)
-        except ValueError:
-            offset = np.nan
-        if not np.isfinite(offset):
-            raise RobotDescriptionError(
-                f"prismatic {name!r}: <offset value=...> must be a finite number (m); got "
-                f"value={text!r}"
-            )
-        return cls(name, joint, lower, upper, offset)
-
-    def transmission_data(self) -> dict[str, list[dict]]:
-        return {"offset": [{"value": repr(self.offset)}]}
-
 
 class LinearCylinder(VectorisedMap):
     """A cylinder between a point on one link and a point on another: x_i = |p_rod − p_base|.
@@ -275,6 +266,11 @@ class LinearCylinder(VectorisedMap):
     arm a_i = L_i1 L_i2 sin q_i / x_i (Eq. 14) on the diagonal of A. Points are (3,) in m, given
     in the link frames.
     """
+
+    parameters = (
+        Point("base", "the cylinder's base point", tag="attachment"),
+        Point("rod", "the cylinder's rod point", tag="attachment"),
+    )
 
     def __init__(
         self,
@@ -333,28 +329,6 @@ class LinearCylinder(VectorisedMap):
             cls._relative(kinematics.jacobian_rates, base, rod),
         )
 
-    @classmethod
-    def from_transmission(cls, name, joint, lower, upper, data):
-        ends = data.get("attachment", [])
-        if len(ends) != 2:
-            raise RobotDescriptionError(
-                f"cylinder {name!r} needs two <attachment link=... xyz=...> elements "
-                f"(base, then rod); it has {len(ends)}"
-            )
-        base, rod = (
-            declared_point(f"cylinder {name!r}: its {end} <attachment>", attributes)
-            for end, attributes in zip(("base", "rod"), ends)
-        )
-        return cls(name, joint, lower, upper, base=base, rod=rod)
-
-    def transmission_data(self) -> dict[str, list[dict]]:
-        return {
-            "attachment": [
-                {"link": link, "xyz": " ".join(repr(float(c)) for c in point)}
-                for link, point in (self.base, self.rod)
-            ]
-        }
-
 
 class ActuatorSet:
     """The robot's actuators, one per joint, ordered like the joints: x (k, n), A (k, n, n)."""
@@ -370,7 +344,7 @@ class ActuatorSet:
         Joints no map drives get an `Identity` actuator named after the joint, with the joint
         limits as stroke, and a warning names them.
         """
-        joints = list(model.names)[1:]
+        joints = driven_joints(model)
         bound: dict[str, ActuatorMap] = {}
         for declared in maps:
             actuator = copy.copy(declared)

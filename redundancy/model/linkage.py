@@ -30,8 +30,6 @@ Pinocchio pass, `redundancy.model.kinematics`); x and its rows of A and Ȧ then 
 
 from __future__ import annotations
 
-from typing import ClassVar
-
 import numpy as np
 import pinocchio as pin
 
@@ -39,15 +37,13 @@ from redundancy.errors import RobotDescriptionError, SingularConfigurationError
 from redundancy.model.actuators import (
     VectorisedMap,
     attach_frame,
-    declared_point,
     prismatic,
     span,
     span_rate_row,
     span_row,
 )
 from redundancy.model.kinematics import WORLD, Kinematics
-
-Point = tuple[str, np.ndarray | list[float]]
+from redundancy.model.parameters import Arm, Number, Point
 
 
 class LinkageCylinder(VectorisedMap):
@@ -58,14 +54,16 @@ class LinkageCylinder(VectorisedMap):
     branch. The math is the module's docstring.
     """
 
-    # The kind's own parameters: each declaration element (a <transmission> child, or a key of
-    # an actuator table) and its attributes, in the order the constructor takes them.
-    PARAMETERS: ClassVar[dict[str, tuple[str, ...]]] = {
-        "base": ("link", "xyz"),
-        "rocker": ("link", "xyz", "length"),
-        "coupler": ("link", "xyz", "length"),
-        "branch": ("value",),
-    }
+    parameters = (
+        Point("base", "the cylinder's base point, on the carrying link"),
+        Arm("rocker", "the rocker's pivot on the carrying link, and its length to the rod's pin"),
+        Arm("coupler", "the coupler's pin on the driven link, and its length to the rod's pin"),
+        Number(
+            "branch",
+            "the assembly branch: the side of the line pivot → pin where rocker and coupler meet",
+            allowed=(1, -1),
+        ),
+    )
     BRANCHES = (1, -1)
 
     def __init__(
@@ -74,10 +72,10 @@ class LinkageCylinder(VectorisedMap):
         joint: str,
         lower: float,
         upper: float,
-        base: Point,
+        base: tuple[str, np.ndarray | list[float]],
         rocker: tuple[str, np.ndarray | list[float], float],
         coupler: tuple[str, np.ndarray | list[float], float],
-        branch: int = 1,
+        branch: float = 1,
     ):
         super().__init__(name, joint, lower, upper)
         if branch not in self.BRANCHES:
@@ -212,46 +210,3 @@ class LinkageCylinder(VectorisedMap):
         """The rocker (R to P) and the coupler (P to C), each as its two ends (k, 3), in m."""
         _, _, pivot, pin_, _, P = self._loop([self], kinematics)
         return {"rocker": (pivot[:, 0], P[:, 0]), "coupler": (P[:, 0], pin_[:, 0])}
-
-    @classmethod
-    def from_transmission(cls, name, joint, lower, upper, data):
-        values = {}
-        for tag, attributes in cls.PARAMETERS.items():
-            given = data.get(tag, [])
-            if len(given) != 1:
-                raise RobotDescriptionError(
-                    f"linkage {name!r} needs one <{tag} {' '.join(a + '=...' for a in attributes)}>"
-                    f"; it has {len(given)}"
-                )
-            values[tag] = given[0]
-        parts = {}
-        for part in ("rocker", "coupler"):
-            text = values[part].get("length", "")
-            try:
-                length = float(text)
-            except ValueError:
-                length = np.nan
-            if not (np.isfinite(length) and length > 0):
-                raise RobotDescriptionError(
-                    f"linkage {name!r}: its <{part}> needs length= a positive number (m); "
-                    f"got length={text!r}"
-                )
-            parts[part] = (*declared_point(f"linkage {name!r}: its <{part}>", values[part]), length)
-        branch = values["branch"].get("value", "")
-        if branch.strip().lstrip("+") not in ("1", "-1"):
-            raise RobotDescriptionError(
-                f"linkage {name!r}: <branch value=...> must be 1 or -1; got value={branch!r}"
-            )
-        base = declared_point(f"linkage {name!r}: its <base>", values["base"])
-        return cls(name, joint, lower, upper, base, parts["rocker"], parts["coupler"], int(branch))
-
-    def transmission_data(self) -> dict[str, list[dict]]:
-        def point(link: str, xyz: np.ndarray) -> dict[str, str]:
-            return {"link": link, "xyz": " ".join(repr(float(c)) for c in xyz)}
-
-        return {
-            "base": [point(*self.base)],
-            "rocker": [{**point(*self.rocker[:2]), "length": repr(self.rocker[2])}],
-            "coupler": [{**point(*self.coupler[:2]), "length": repr(self.coupler[2])}],
-            "branch": [{"value": str(self.branch)}],
-        }

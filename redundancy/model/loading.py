@@ -8,6 +8,7 @@ from __future__ import annotations
 import contextlib
 import importlib.metadata
 import importlib.resources
+import math
 import os
 import sys
 import tempfile
@@ -20,10 +21,15 @@ import pinocchio as pin
 from lxml import etree
 
 from redundancy.errors import InvalidInputError, RobotDescriptionError
-from redundancy.model.actuators import ActuatorSet
+from redundancy.model.actuators import ActuatorSet, driven_joints
 from redundancy.model.hydraulics import circuit_from_table, read_hydraulics_file
+from redundancy.model.parameters import Point
 from redundancy.model.robot import AXES, Robot
-from redundancy.model.transmissions import read_cylinders, read_transmissions
+from redundancy.model.transmissions import (
+    read_actuator_tables,
+    read_cylinders,
+    read_transmissions,
+)
 from redundancy.model.values import MAX_PAYLOAD, names, number, read_toml, text
 
 
@@ -39,31 +45,47 @@ def bundled_robots() -> list[str]:
 
 def _read_description(path: Path) -> dict:
     description = read_toml(path, "robot description")
-    missing = [key for key in ("urdf", "tool_frame", "task_axes") if key not in description]
+    given = {*description, *(["tool_frame"] if "tool" in description else [])}
+    missing = [key for key in ("urdf", "tool_frame", "task_axes") if key not in given]
     if missing:
-        raise RobotDescriptionError(f"{path}: missing keys {missing}")
+        raise RobotDescriptionError(
+            f"{path}: missing keys {missing} (the tool: tool_frame = a link, or tool = "
+            "{link = ..., xyz = [...]})"
+        )
     return description
+
+
+URDF_SUFFIXES = (".urdf", ".xacro")
+
+
+def _file_name(path: Path) -> str:
+    """A robot's name from its URDF or xacro file: the file's name without those suffixes."""
+    name = path.name
+    while Path(name).suffix in URDF_SUFFIXES:
+        name = Path(name).stem
+    return name or path.name
 
 
 def _describe(robot: str | Path) -> tuple[str, Path, dict, str]:
     """Name, folder, description (robot.toml contents) and where the description came from, of
-    a bundled name or a file path."""
+    a bundled name or a file path. A robot loaded from a path is named after its folder (a
+    ``robot.toml``) or its file (a URDF or xacro)."""
     if not isinstance(robot, str | Path):
         raise InvalidInputError(f"robot must be a name or a path; got {robot!r}")
     path = Path(robot)
-    if path.suffix == ".urdf":
+    if path.suffix in URDF_SUFFIXES:
         if not path.is_file():
             raise RobotDescriptionError(f"no URDF file at {path}")
-        return path.stem, path.parent, {"urdf": path.name}, str(path)
+        return _file_name(path), path.parent, {"urdf": path.name}, str(path)
     if path.suffix == ".toml":
         if not path.is_file():
             raise RobotDescriptionError(f"no robot description at {path}")
-        return path.parent.name, path.parent, _read_description(path), str(path)
+        return path.resolve().parent.name, path.parent, _read_description(path), str(path)
     names = bundled_robots()
     if str(robot) not in names:
         raise RobotDescriptionError(
             f"unknown robot {str(robot)!r}; bundled robots: {', '.join(names)}; "
-            "or give the path of a .urdf or robot.toml file"
+            "or give the path of a .urdf, .xacro or robot.toml file"
         )
     folder = bundled_root() / str(robot)
     source = folder / "robot.toml"
@@ -89,55 +111,185 @@ def _urdf_path(folder: Path, reference: str) -> Path:
     raise RobotDescriptionError(f"{reference}: no such file in the package {distribution!r}")
 
 
-def _build_model(urdf_path: Path, locked: list[str]) -> tuple[pin.Model, etree._Element]:
-    """The Pinocchio model of a URDF, with the ``locked`` joints fixed at their neutral value,
-    and the URDF's XML root."""
+def _urdf_text(path: Path) -> bytes:
+    """The URDF document of ``path`` (its encoding is the XML's to declare); a ``.xacro`` file
+    is expanded by the xacro package."""
+    if path.suffix != ".xacro":
+        try:
+            return path.read_bytes()
+        except OSError as error:
+            raise RobotDescriptionError(f"{path}: not readable: {error.strerror}") from None
+    import xacro
+
     try:
-        tree = etree.parse(str(urdf_path))
-    except (OSError, etree.XMLSyntaxError) as error:
-        raise RobotDescriptionError(f"{urdf_path}: not readable XML: {error}") from error
+        with contextlib.redirect_stdout(sys.stderr), _captured_stderr():
+            document = xacro.process_file(str(path))
+    except Exception as error:  # xacro raises its own and its parsers' errors
+        reason = str(error).strip().splitlines()[0] if str(error).strip() else ""
+        raise RobotDescriptionError(
+            f"{path}: xacro cannot expand it: {type(error).__name__}: {reason}"
+        ) from error
+    return document.toxml().encode()
+
+
+FREE = ("floating", "planar")  # URDF joint types of a base that moves freely
+
+
+def _intake(
+    document: bytes, source: str, locked: dict[str, float | None]
+) -> tuple[etree._Element, list[str]]:
+    """The URDF's XML root, made ready for Pinocchio, and the continuous joints.
+
+    A continuous joint becomes a revolute one (one coordinate, the angle in rad, instead of
+    Pinocchio's (cos, sin) pair); its range is made unbounded once the model is built. A
+    floating or planar joint is refused unless it is locked, with the fix in the message. A
+    mimic joint following a locked joint is locked too, at multiplier · value + offset (added
+    to ``locked``)."""
+    try:
+        root = etree.fromstring(document)
+    except etree.XMLSyntaxError as error:
+        raise RobotDescriptionError(f"{source}: not readable XML: {error}") from None
+    continuous = []
+    for joint in root.findall("joint"):
+        kind, name = joint.get("type"), joint.get("name")
+        if kind in FREE and name not in locked:
+            raise RobotDescriptionError(
+                f"{source}: joint {name!r} is {kind}, a base that moves freely; the toolkit "
+                f'models machines on a fixed base: add locked_joints = ["{name}"] to '
+                f'robot.toml (the base stays at the joint\'s origin) or make it type="fixed"'
+            )
+        mimic = joint.find("mimic")
+        if mimic is not None and mimic.get("joint") in locked and name not in locked:
+            texts = (mimic.get("multiplier", "1"), mimic.get("offset", "0"))
+            try:
+                multiplier, offset = (float(t) for t in texts)
+            except ValueError:
+                raise RobotDescriptionError(
+                    f"{source}: joint {name!r}: <mimic multiplier={texts[0]!r} "
+                    f"offset={texts[1]!r}> must be numbers"
+                ) from None
+            joint.remove(mimic)
+            locked[name] = multiplier * (locked[mimic.get("joint")] or 0.0) + offset
+        if kind == "continuous":
+            joint.set("type", "revolute")
+            limit = joint.find("limit")
+            if limit is None:
+                limit = etree.SubElement(joint, "limit", effort="0", velocity="0")
+            limit.set("lower", repr(-math.pi))
+            limit.set("upper", repr(math.pi))
+            continuous.append(name)
+    return root, continuous
+
+
+def _package_dirs(folder: Path) -> list[Path]:
+    """Where a mesh named ``package://<package>/...`` is looked for: ``<package>`` in the
+    URDF's folder or one of its ancestors."""
+    return [folder.resolve(), *folder.resolve().parents]
+
+
+def _mesh_path(filename: str, folder: Path) -> Path | None:
+    """The file a URDF mesh reference names (``package://``, ``file://``, absolute or relative
+    to the URDF's folder), or None where no such file exists."""
+    if filename.startswith("package://"):
+        inner = filename[len("package://") :]
+        candidates = [directory / inner for directory in _package_dirs(folder)]
+    else:
+        candidates = [folder / filename.removeprefix("file://")]
+    return next((c.resolve() for c in candidates if c.is_file()), None)
+
+
+def _resolve_meshes(root: etree._Element, folder: Path) -> list[str]:
+    """Point every visual mesh of the URDF at its file, by absolute path, so that the text
+    describes the robot on its own; return the references no file answers."""
+    missing = []
+    for mesh in root.findall("link/visual/geometry/mesh"):
+        filename = mesh.get("filename", "")
+        found = _mesh_path(filename, folder)
+        if found is None:
+            missing.append(filename)
+        else:
+            mesh.set("filename", str(found))
+    return list(dict.fromkeys(missing))
+
+
+def _build_model(root: etree._Element, source: str) -> pin.Model:
+    """The Pinocchio model of the URDF ``root``, mimic joints honoured."""
+    text = etree.tostring(root, encoding="unicode")
     failure: Exception | None = None
     with _captured_stderr() as said:
         try:
-            model = pin.buildModelFromUrdf(str(urdf_path))
+            model = pin.buildModelFromXML(text, mimic=True)
         except (ValueError, RuntimeError) as error:
             failure = error
     if failure is not None:
         reason = next((line for line in said() if line.strip()), str(failure).splitlines()[0])
         raise RobotDescriptionError(
-            f"{urdf_path}: not a valid URDF: {reason.strip().removeprefix('Error:').strip()}"
+            f"{source}: not a valid URDF: {reason.strip().removeprefix('Error:').strip()}"
         ) from None
+    return model
+
+
+def _locked_values(value: object, where: str) -> dict[str, float | None]:
+    """``locked_joints``: a list of joints fixed at their neutral value (None here), or a table
+    {joint = value} of joints fixed at the value (rad or m)."""
+    if isinstance(value, dict):
+        return {
+            name: number(value, name, f"{where} locked_joints", "rad or m, within its range")
+            for name in value
+        }
+    return dict.fromkeys(names({"locked_joints": value}, "locked_joints", where, "joints fixed"))
+
+
+def _lock(model: pin.Model, locked: dict[str, float | None], where: str, source: str) -> pin.Model:
+    """``model`` (of the URDF ``source``) with the ``locked`` joints (from ``where``) fixed at
+    their values (neutral where None)."""
     joints = list(model.names)[1:]
     unknown = [j for j in locked if j not in joints]
     if unknown:
         raise RobotDescriptionError(
-            f"locked joints {unknown} are not joints of {urdf_path.name}; joints: {joints}"
+            f"{where}: locked joints {unknown} are not joints of {source}; joints: {joints}"
         )
-    if locked:
-        ids = [model.getJointId(j) for j in locked]
-        model = pin.buildReducedModel(model, ids, pin.neutral(model))
+    q = pin.neutral(model)
+    for name, value in locked.items():
+        joint = model.joints[model.getJointId(name)]
+        if value is None:
+            continue
+        lower = model.lowerPositionLimit[joint.idx_q]
+        upper = model.upperPositionLimit[joint.idx_q]
+        if joint.nq != 1 or not lower <= value <= upper:
+            raise RobotDescriptionError(
+                f"{where}: locked_joints {name} = {value:g} must be within the joint's range "
+                f"[{lower:g}, {upper:g}] (rad or m), on a joint of one coordinate"
+            )
+        q[joint.idx_q] = value
+    if not locked:
+        return model
+    return pin.buildReducedModel(model, [model.getJointId(j) for j in locked], q)
+
+
+def _check_joints(model: pin.Model, source: str) -> None:
     odd = [
-        name
+        f"{name} ({joint.shortname()})"
         for name, joint in zip(model.names[1:], model.joints[1:])
-        if joint.nq != 1 or joint.nv != 1
+        if joint.nv > 0 and (joint.nq != 1 or joint.nv != 1)
     ]
     if odd:
         raise RobotDescriptionError(
-            f"{urdf_path}: joints {odd} are not revolute or prismatic; the toolkit handles "
-            "one-degree-of-freedom joints only (lock the others with locked_joints)"
+            f"{source}: joints {odd} have more than one coordinate; the toolkit handles "
+            "revolute, continuous, prismatic and mimic joints: lock the others with "
+            "locked_joints in robot.toml"
         )
     inverted = [
         f"{name} [{lower:g}, {upper:g}]"
         for name, lower, upper in zip(
-            model.names[1:], model.lowerPositionLimit, model.upperPositionLimit
+            driven_joints(model), model.lowerPositionLimit, model.upperPositionLimit
         )
         if not lower <= upper
     ]
     if inverted:
         raise RobotDescriptionError(
-            f"{urdf_path}: joint limits must have lower ≤ upper; inverted: {', '.join(inverted)}"
+            f"{source}: joint limits must have lower ≤ upper; inverted: {', '.join(inverted)}"
         )
-    return model, tree.getroot()
 
 
 @contextlib.contextmanager
@@ -165,35 +317,149 @@ def _add_payload(model: pin.Model, frame: str, payload: float) -> None:
     model.inertias[tool.parentJoint] = model.inertias[tool.parentJoint] + point_mass
 
 
+def _tool(model: pin.Model, description: dict, where: str) -> str:
+    """The tool frame: ``tool_frame``, a link, or ``tool = {link = "...", xyz = [...]}``, a
+    point on a link, added to ``model`` as the frame "tool point"; by default the last link."""
+    bodies = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
+    if "tool" in description:
+        value = description["tool"]
+        link, xyz = Point("tool", "the tool point").read(value, f"{where} tool = {value!r}")
+        if link not in bodies:
+            raise RobotDescriptionError(
+                f"{where} tool.link = {link!r} is not a link of the URDF; links: {bodies}"
+            )
+        parent_id = model.getFrameId(link, pin.FrameType.BODY)
+        parent = model.frames[parent_id]
+        placement = parent.placement * pin.SE3(np.eye(3), xyz)
+        frame = pin.Frame(
+            TOOL_POINT, parent.parentJoint, parent_id, placement, pin.FrameType.OP_FRAME
+        )
+        model.addFrame(frame, False)
+        return TOOL_POINT
+    tool_frame = text(description, "tool_frame", where, "the tool's link", bodies[-1])
+    if tool_frame not in bodies:
+        raise RobotDescriptionError(
+            f"{where}: tool frame {tool_frame!r} is not a link of the URDF; links: {bodies}"
+        )
+    return tool_frame
+
+
+TOOL_POINT = "tool point"  # the frame of a tool given as a point on a link
+
+
+def _actuators(
+    root: etree._Element, description: dict, source: str, where: str, locked: list[str]
+) -> list:
+    """The declared actuators, from the URDF's transmissions and robot.toml's tables, less
+    those on locked joints (dropped with a warning)."""
+    declared = read_transmissions(root, source)
+    if "actuators" in description:
+        declared += read_actuator_tables(description["actuators"], where)
+    dropped = [a.name for a in declared if a.joint in locked]
+    if dropped:
+        warnings.warn(f"actuators on locked joints are dropped: {', '.join(dropped)}", stacklevel=3)
+    return [a for a in declared if a.joint not in locked]
+
+
+STEP = np.radians(0.25)  # rad: the grid a continuous joint's stroke range is first sought on
+BISECTIONS = 40  # halvings of a grid step that locate each end of the range (to 1e-14 rad)
+
+
+def _stroke_arc(robot: Robot, column: int, row: int) -> tuple[float, float] | None:
+    """The angles of joint ``column`` (rad) over which actuator ``row`` stays inside its
+    stroke, the other joints at zero: sought on a grid over two turns either way, each end then
+    located by bisection; of several arcs (a cylinder on either side of the joint axis), the
+    one nearest the URDF's zero angle. None where the stroke admits no angle, or every one."""
+    actuator = robot.actuators.maps[row]
+    rest = np.clip(0.0, robot.lower, robot.upper)
+
+    def inside(theta: np.ndarray) -> np.ndarray:
+        q = np.repeat(rest[None], len(theta), axis=0)
+        q[:, column] = theta
+        x = robot.actuators.evaluate(robot.kinematics(q))[0][:, row]
+        return (x >= actuator.lower) & (x <= actuator.upper)
+
+    angles = np.arange(-2 * np.pi, 2 * np.pi + STEP / 2, STEP)
+    kept = inside(angles)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], kept.astype(int), [0]])))
+    arcs = [(a, b - 1) for a, b in zip(edges[::2], edges[1::2])]
+    if not arcs or kept.all():
+        return None
+    first, last = min(arcs, key=lambda arc: max(angles[arc[0]], -angles[arc[1]], 0.0))
+    ends = []
+    for end, outward in ((first, -1), (last, 1)):
+        good, bad = angles[end], angles[end] + outward * STEP
+        for _ in range(BISECTIONS):
+            middle = (good + bad) / 2
+            good, bad = (middle, bad) if inside(np.array([middle]))[0] else (good, middle)
+        ends.append(float(good))
+    return ends[0], ends[1]
+
+
+def _bound_by_strokes(robot: Robot, continuous: list[str]) -> None:
+    """Give each ``continuous`` joint whose actuator has a finite stroke the arc over which the
+    actuator stays inside it (`_stroke_arc`: exact where the actuator spans that joint alone,
+    as a cylinder between the links on either side of it does); where there is none, the
+    joint stays unbounded (and `redundancy check` says so)."""
+    for joint in continuous:
+        column = robot.joint_names.index(joint)
+        row = next(i for i, a in enumerate(robot.actuators) if a.index == column)
+        stroke = robot.actuators.maps[row]
+        arc = None
+        if np.isfinite(stroke.lower) or np.isfinite(stroke.upper):
+            arc = _stroke_arc(robot, column, row)
+        if arc is not None:
+            robot.model.lowerPositionLimit[column], robot.model.upperPositionLimit[column] = arc
+
+
 def load_robot(
     robot: str | Path,
     payload: float | None = None,
     task_axes: str | None = None,
     hydraulics: str | Path | None = None,
 ) -> Robot:
-    """Load a bundled robot by name, or a robot from a ``robot.toml`` or ``.urdf`` path.
+    """Load a bundled robot by name, or a robot from a ``robot.toml``, ``.urdf`` or ``.xacro``
+    path.
 
-    A ``robot.toml`` names the URDF (``urdf``: a path beside it, or
-    ``package://<distribution>/<path>``), the tool frame (``tool_frame``), the task axes
-    (``task_axes``: world components of the tool position, e.g. "xz"), and optionally joints to
-    lock at their neutral value (``locked_joints``), a default payload in kg (``payload``) and
-    the robot's task file (``task``, see `redundancy.planning.tasks`). A bare URDF takes its last
-    link as the tool and the full position "xyz" as the task. ``payload`` (kg, ≥ 0) is a point
-    mass at the tool frame, None taking the description's default, or 0; ``task_axes``
-    overrides the description's. The hydraulic circuit comes from the ``[hydraulics]`` table of
-    the TOML file ``hydraulics`` if given, else from the description's (schema in the README).
+    A ``robot.toml`` names the URDF (``urdf``: a URDF or xacro file beside it, or
+    ``package://<distribution>/<path>``), the tool (``tool_frame``, a link, or ``tool = {link
+    = "...", xyz = [...]}``, a point on a link in m), the task axes (``task_axes``: world
+    components of the tool position, e.g. "xz"), and optionally the actuators
+    (``[actuators.<name>]`` tables, `redundancy.model.transmissions`), joints to lock
+    (``locked_joints``: a list, at their neutral value, or a table {joint = value}, rad or m),
+    a default payload in kg (``payload``) and the robot's task file (``task``, see
+    `redundancy.planning.tasks`). A bare URDF or xacro takes its last link as the tool and the
+    full position "xyz" as the task. ``payload`` (kg, ≥ 0) is a point mass at the tool frame,
+    None taking the description's default, or 0; ``task_axes`` overrides the description's. The
+    hydraulic circuit comes from the ``[hydraulics]`` table of the TOML file ``hydraulics`` if
+    given, else from the description's (schema in the README).
+
+    What the URDF lacks is said, not fatal: meshes no file answers are named in one warning
+    (the playback then draws the links as rods between joint origins), and links without
+    inertia in another (the robot is kinematic only: anything needing masses refuses).
     """
     name, folder, description, where = _describe(robot)
     reference = text(description, "urdf", where, "the URDF, beside this file or package://")
     urdf_path = _urdf_path(folder, reference)
-    locked = names(description, "locked_joints", where, "joints fixed at their neutral value")
-    model, root = _build_model(urdf_path, list(locked))
-    bodies = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
-    tool_frame = text(description, "tool_frame", where, "the tool's link", bodies[-1])
-    if tool_frame not in bodies:
-        raise RobotDescriptionError(
-            f"tool frame {tool_frame!r} is not a link of {urdf_path.name}; links: {bodies}"
+    if not urdf_path.is_file():
+        raise RobotDescriptionError(f"{where}: urdf = {reference!r}: no such file {urdf_path}")
+    source = urdf_path.name
+    locked = _locked_values(description.get("locked_joints", []), where)
+    root, continuous = _intake(_urdf_text(urdf_path), source, locked)
+    missing_meshes = _resolve_meshes(root, urdf_path.parent)
+    if missing_meshes:
+        warnings.warn(
+            f"{source}: meshes not found, the playback draws rods instead: "
+            f"{', '.join(missing_meshes)}",
+            stacklevel=2,
         )
+    model = _lock(_build_model(root, source), locked, where, source)
+    _check_joints(model, source)
+    for joint in continuous:
+        if joint not in locked:  # unbounded, unless its actuator's stroke bounds it (below)
+            index = model.joints[model.getJointId(joint)].idx_q
+            model.lowerPositionLimit[index], model.upperPositionLimit[index] = -np.inf, np.inf
+    tool_frame = _tool(model, description, where)
     if task_axes is None:
         task_axes = text(description, "task_axes", where, "world axes of the task", AXES)
     if (
@@ -214,7 +480,8 @@ def load_robot(
         )
     if payload > 0:
         _add_payload(model, tool_frame, payload)
-    actuators = ActuatorSet.bind(read_transmissions(root, urdf_path.name), model)
+    maps = _actuators(root, description, source, where, list(locked))
+    actuators = ActuatorSet.bind(maps, model)
     task = (
         text(description, "task", where, "the robot's task file", None)
         if "task" in description
@@ -222,23 +489,40 @@ def load_robot(
     )
     task_file = None if task is None else folder / task
     actuator_names, rotary = actuators.names, actuators.rotary.tolist()
-    declared = read_cylinders(root, urdf_path.name)
-    table, source = None, ""
+    declared = read_cylinders(root, source)
+    table, origin = None, ""
     if hydraulics is not None:
-        table, source = read_hydraulics_file(Path(hydraulics)), str(hydraulics)
+        table, origin = read_hydraulics_file(Path(hydraulics)), str(hydraulics)
     elif "hydraulics" in description:
-        table, source = description["hydraulics"], where
+        table, origin = description["hydraulics"], where
     elif declared:
         warnings.warn(
-            f"{urdf_path.name} declares cylinders {sorted(declared)} but no [hydraulics] table "
+            f"{source} declares cylinders {sorted(declared)} but no [hydraulics] table "
             "gives the machine's supply; hydraulics are off",
             stacklevel=2,
         )
     circuit = None
     if table is not None:
-        circuit = circuit_from_table(
-            table, source, actuator_names, rotary, declared, urdf_path.name
-        )
-    return Robot(
-        name, model, tool_frame, task_axes, actuators, payload, urdf_path, task_file, circuit
+        circuit = circuit_from_table(table, origin, actuator_names, rotary, declared, source)
+    loaded = Robot(
+        name,
+        model,
+        tool_frame,
+        task_axes,
+        actuators,
+        payload,
+        urdf_path,
+        task_file,
+        circuit,
+        etree.tostring(root, encoding="unicode"),
+        tuple(missing_meshes),
     )
+    _bound_by_strokes(loaded, [j for j in continuous if j not in locked])
+    if loaded.kinematic_only:
+        warnings.warn(
+            f"{source}: links without inertia: {', '.join(loaded.massless_links)}; the robot "
+            "is kinematic only (the velocity objective, playback and check work; anything "
+            "needing masses refuses)",
+            stacklevel=2,
+        )
+    return loaded

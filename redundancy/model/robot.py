@@ -18,7 +18,7 @@ import numpy as np
 import pinocchio as pin
 
 from redundancy.errors import InvalidInputError
-from redundancy.model.actuators import ActuatorSet, prismatic
+from redundancy.model.actuators import ActuatorSet, driven_joints, prismatic
 from redundancy.model.hydraulics import Circuit
 from redundancy.model.kinematics import Kinematics, PointMotion, track
 
@@ -45,7 +45,9 @@ class Robot:
     hydraulic circuit where one is declared (`redundancy.model.hydraulics`).
 
     The task y is the tool position's world components ``task_axes`` (m of them); n joints; one
-    actuator per joint (``actuators``), so that A = ∂x/∂q is square.
+    actuator per joint (``actuators``), so that A = ∂x/∂q is square. ``description`` is the
+    URDF text the model was built from (a xacro expanded, meshes by absolute path), and
+    ``missing_meshes`` the mesh references no file answers.
     """
 
     def __init__(
@@ -59,6 +61,8 @@ class Robot:
         urdf: Path,
         task_file: Path | None = None,
         hydraulics: Circuit | None = None,
+        description: str = "",
+        missing_meshes: tuple[str, ...] = (),
     ) -> None:
         self.name = name
         self.model = model
@@ -70,6 +74,8 @@ class Robot:
         self.task_axes = task_axes
         self.actuators = actuators
         self.hydraulics = hydraulics
+        self.description = description
+        self.missing_meshes = missing_meshes
         self._tool = model.getFrameId(tool_frame)
         self._task_rows = [AXES.index(a) for a in task_axes]
         tracked = [self._tool] + [f for a in actuators for f in a.frames]
@@ -101,7 +107,8 @@ class Robot:
 
     @cached_property
     def joint_names(self) -> list[str]:
-        return list(self.model.names)[1:]
+        """The joints with a degree of freedom, in the order of q (mimic joints follow them)."""
+        return driven_joints(self.model)
 
     @cached_property
     def rotary_joints(self) -> np.ndarray:
@@ -117,6 +124,14 @@ class Robot:
     def upper(self) -> np.ndarray:
         """Upper joint limits (n,), rad or m."""
         return self.model.upperPositionLimit
+
+    @property
+    def span(self) -> tuple[np.ndarray, np.ndarray]:
+        """A finite box of joint values, lower and upper (n,) each: the joint limits, and a full
+        turn [−π, π] rad for an unbounded (continuous) joint. Searches seed configurations in
+        it."""
+        lower = np.where(np.isfinite(self.lower), self.lower, -np.pi)
+        return lower, np.where(np.isfinite(self.upper), self.upper, np.pi)
 
     def configuration(self, q: np.ndarray | list[float], name: str = "q") -> np.ndarray:
         """``q`` as a checked (k, n) array: right shape, finite."""
@@ -161,8 +176,23 @@ class Robot:
         batch, single = _as_batch("q", q, self.n)
         return _answer(self.mass_matrices(batch), single)
 
+    @property
+    def kinematic_only(self) -> bool:
+        """Whether some links have no mass (`massless_links`), so that M(q) is undefined."""
+        return bool(self.massless_links)
+
+    def require_masses(self, what: str) -> None:
+        """Refuse ``what`` (e.g. "M(q)") on a kinematic-only robot, naming its massless links."""
+        if self.kinematic_only:
+            raise InvalidInputError(
+                f"{self.name} is kinematic only: links {', '.join(self.massless_links)} have no "
+                f"<inertial> in {self.urdf.name}, and {what} needs masses; give them <inertial> "
+                "elements, or use what needs none (the velocity objective, play, check)"
+            )
+
     def mass_matrices(self, q: np.ndarray) -> np.ndarray:
         """M(q) (k, n, n) for configurations q (k, n) already checked (`configuration`)."""
+        self.require_masses("M(q) and the dynamics (M_H, N_H, F_H, the energy objective)")
         out = np.empty((len(q), self.n, self.n))
         for i, qi in enumerate(q):
             out[i] = pin.crba(self.model, self.data, qi)  # the upper triangle is M's
@@ -189,6 +219,7 @@ class Robot:
 
     def nonlinear(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """N(q, v) = V(q, v) + G(q) (Eq. 20), (n,) or (k, n), in N·m or N."""
+        self.require_masses("N(q, v)")
         qb, single = _as_batch("q", q, self.n)
         vb, _ = _as_batch("v", v, self.n)
         out = np.array([pin.nonLinearEffects(self.model, self.data, a, b) for a, b in zip(qb, vb)])
@@ -196,12 +227,14 @@ class Robot:
 
     def gravity(self, q: np.ndarray | list[float]) -> np.ndarray:
         """Gravity torques G(q) (Eq. 18), (n,) or (k, n)."""
+        self.require_masses("G(q)")
         qb, single = _as_batch("q", q, self.n)
         out = np.array([pin.computeGeneralizedGravity(self.model, self.data, a) for a in qb])
         return _answer(out, single)
 
     def inverse_dynamics(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
         """τ = M(q) a + V(q, v) + G(q) (Eq. 18) by RNEA, (n,) or (k, n)."""
+        self.require_masses("inverse dynamics")
         qb, single = _as_batch("q", q, self.n)
         vb, _ = _as_batch("v", v, self.n)
         ab, _ = _as_batch("a", a, self.n)

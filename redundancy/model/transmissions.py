@@ -1,29 +1,44 @@
-"""Actuator declarations in URDF ``<transmission>`` elements: reading and writing.
+"""Actuator declarations, read and written in both forms with one schema.
 
-URDF parsers (urdfdom under Pinocchio, yourdfpy) drop transmissions, so they are read here with
-lxml. Schema::
+An actuator is declared beside an untouched URDF, as an ``[actuators.<name>]`` table of
+``robot.toml``::
 
-    <transmission name="x1">                        <!-- the actuator's name -->
-      <type>redundancy/LinearCylinder</type>        <!-- redundancy/<ActuatorMap subclass> -->
-      <joint name="boom1_joint"/>                   <!-- the joint it drives -->
+    [actuators.x1]
+    kind = "LinearCylinder"                  # an ActuatorMap subclass, by class name
+    joint = "boom1_joint"                    # the joint it drives
+    stroke = [0.830, 1.375]                  # m (rad for a rotary drive); default unbounded
+    base = {link = "column", xyz = [0.383, 0, -0.964]}   # the kind's own parameters
+    rod = {link = "boom1", xyz = [0.370, 0, -0.069]}
+
+or, equivalently, as a ``<transmission>`` element of the URDF (URDF parsers, urdfdom under
+Pinocchio and yourdfpy alike, drop transmissions, so they are read here with lxml)::
+
+    <transmission name="x1">
+      <type>redundancy/LinearCylinder</type>
+      <joint name="boom1_joint"/>
       <actuator name="x1">
-        <stroke lower="0.830" upper="1.375"/>       <!-- stroke limits, m (rad for rotary) -->
+        <stroke lower="0.830" upper="1.375"/>
         <cylinder bore="80" rod="45" max_speed="0.25" max_acceleration="1.0"/>
-      </actuator>                                   <!-- optional hydraulic data: mm, m/s, m/s² -->
-      <attachment link="column" xyz="..."/>         <!-- kind-specific children: a cylinder's -->
-      <attachment link="boom1" xyz="..."/>          <!-- base point, then its rod point -->
+      </actuator>
+      <attachment link="column" xyz="0.383 0 -0.964"/>
+      <attachment link="boom1" xyz="0.370 0 -0.069"/>
     </transmission>
 
-``Prismatic`` takes ``<offset value="..."/>`` (x = q + offset); ``Identity`` nothing more;
-``LinkageCylinder`` (`redundancy.model.linkage`) its ``PARAMETERS``: ``<base link xyz>``,
-``<rocker link xyz length>``, ``<coupler link xyz length>`` and ``<branch value>``. A kind
-of your own takes whatever children its ``from_transmission`` reads. Transmissions of other types
-(e.g. ROS ``transmission_interface/SimpleTransmission``) are left alone. A ``<cylinder>`` in the
-``<actuator>`` gives the cylinder's hydraulic data, as a ``[hydraulics.cylinders.<name>]`` table
-of ``robot.toml`` does (`redundancy.model.hydraulics`; the machine's supply stays in the TOML).
+The kind's own parameters are those it lists in ``parameters``
+(`redundancy.model.parameters`): ``Prismatic`` takes ``offset`` (x = q + offset), ``Identity``
+nothing more, ``LinkageCylinder`` (`redundancy.model.linkage`) ``base``, ``rocker`` and
+``coupler`` (a point and, for the last two, a length) and ``branch``. Transmissions of other
+types (e.g. ROS ``transmission_interface/SimpleTransmission``) are left alone. A ``<cylinder>`` in
+the ``<actuator>`` gives the cylinder's hydraulic data, as a ``[hydraulics.cylinders.<name>]``
+table of ``robot.toml`` does (`redundancy.model.hydraulics`; the machine's supply stays in the
+TOML).
 """
 
 from __future__ import annotations
+
+import math
+import re
+from typing import Any
 
 from lxml import etree
 
@@ -31,59 +46,158 @@ from redundancy.errors import RobotDescriptionError
 from redundancy.model.actuators import ActuatorMap
 from redundancy.model.hydraulics import CYLINDER_KEYS
 from redundancy.model.linkage import LinkageCylinder
+from redundancy.model.parameters import REQUIRED, number_or_text
 
 # The kinds are found by class name among ActuatorMap's subclasses: the bundled ones beyond
 # actuators.py are defined by importing their modules.
 BUNDLED_KINDS = (LinkageCylinder,)
 
 PREFIX = "redundancy/"
-_COMMON = {"type", "joint", "actuator"}
+_COMMON = ("type", "joint", "actuator")  # a transmission's children that are not parameters
+_KEYS = ("kind", "joint", "stroke")  # an actuator table's keys that are not parameters
 
 
-def _number(source: str, name: str, element: etree._Element, key: str, default: float) -> float:
-    text = element.get(key)
-    if text is None:
-        return default
-    try:
-        return float(text)
-    except ValueError as error:
-        raise RobotDescriptionError(
-            f"{source}: transmission {name!r}: {key}={text!r} is not a number"
-        ) from error
-
-
-def _read_one(element: etree._Element, source: str) -> ActuatorMap:
-    name = element.get("name")
-    kind_name = (element.findtext("type") or "").strip()[len(PREFIX) :]
+def _kind(kind_name: object, where: str, prefix: str = "") -> type[ActuatorMap]:
+    """The kind a declaration names (after ``prefix``), or one line listing the kinds."""
     kinds = ActuatorMap.kinds()
-    if kind_name not in kinds:
+    bare = kind_name[len(prefix) :] if isinstance(kind_name, str) else kind_name
+    if not isinstance(kind_name, str) or not kind_name.startswith(prefix) or bare not in kinds:
         raise RobotDescriptionError(
-            f"{source}: transmission {name!r} has unknown type {PREFIX}{kind_name}; "
-            f"known: {', '.join(PREFIX + k for k in sorted(kinds))}"
+            f"{where} = {kind_name!r} is not an actuator kind; kinds: "
+            f"{', '.join(prefix + k for k in sorted(kinds))}"
         )
+    return kinds[bare]  # type: ignore[index]
+
+
+def _stroke(value: object, where: str) -> tuple[float, float]:
+    """Stroke limits [lower, upper], numbers (infinite ones too) with lower < upper."""
+    if (
+        isinstance(value, list)
+        and len(value) == 2
+        and all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
+        and value[0] < value[1]
+    ):
+        return float(value[0]), float(value[1])
+    raise RobotDescriptionError(
+        f"{where} must be [lower, upper], numbers with lower < upper (m, rad for a rotary drive)"
+    )
+
+
+def _declare(
+    kind: type[ActuatorMap],
+    name: str,
+    joint: str,
+    stroke: tuple[float, float],
+    given: dict[str, tuple[object, str]],
+) -> ActuatorMap:
+    """An actuator of ``kind`` from its parameters' declared values: ``given`` maps a
+    parameter's name to its value in the TOML shape (None where it is absent) and a text
+    naming the file, the actuator and the value as written (or, where absent, saying so)."""
+    values: dict[str, Any] = {}
+    for parameter in kind.parameters:
+        value, where = given[parameter.name]
+        if value is not None:
+            values[parameter.name] = parameter.read(value, where)
+        elif parameter.default is REQUIRED:
+            raise RobotDescriptionError(f"{where} ({parameter.meaning})")
+        else:
+            values[parameter.name] = parameter.default
+    return kind(name, joint, stroke[0], stroke[1], **values)
+
+
+def read_actuator_tables(tables: object, source: str) -> list[ActuatorMap]:
+    """The actuators of ``robot.toml``'s ``[actuators.<name>]`` tables (``tables``: the
+    ``actuators`` table); ``source`` names the file in errors."""
+    if not isinstance(tables, dict):
+        raise RobotDescriptionError(
+            f"{source}: actuators = {tables!r} must be tables [actuators.<name>]"
+        )
+    maps = []
+    for name, table in tables.items():
+        where = f"{source}: [actuators.{name}]"
+        if not isinstance(table, dict):
+            raise RobotDescriptionError(f"{where} = {table!r} must be a table")
+        kind = _kind(table.get("kind"), f"{where} kind")
+        keys = [*_KEYS, *(p.name for p in kind.parameters)]
+        unknown = sorted(set(table) - set(keys))
+        if unknown:
+            raise RobotDescriptionError(
+                f"{where}: unknown keys {unknown}; keys of {kind.__name__}: {', '.join(keys)}"
+            )
+        joint = table.get("joint")
+        if not isinstance(joint, str):
+            raise RobotDescriptionError(f"{where} joint = {joint!r} must be a joint's name")
+        stroke = table.get("stroke", [-math.inf, math.inf])
+        limits = _stroke(stroke, f"{where} stroke = {stroke!r}")
+        given = {
+            p.name: (
+                table.get(p.name),
+                f"{where} {p.name} = {table[p.name]!r}"
+                if p.name in table
+                else f"{where}: missing key {p.name}",
+            )
+            for p in kind.parameters
+        }
+        maps.append(_declare(kind, name, joint, limits, given))
+    return maps
+
+
+def _redundancy_transmissions(root: etree._Element) -> list[etree._Element]:
+    return [
+        element
+        for element in root.findall("transmission")
+        if (element.findtext("type") or "").strip().startswith(PREFIX)
+    ]
+
+
+def _read_transmission(element: etree._Element, source: str) -> ActuatorMap:
+    name = element.get("name")
+    where = f"{source}: <transmission name={name!r}>"
+    kind = _kind((element.findtext("type") or "").strip(), f"{where} <type>", PREFIX)
     joints = element.findall("joint")
     if not name or len(joints) != 1 or not joints[0].get("name"):
         raise RobotDescriptionError(
-            f"{source}: transmission {name!r} needs a name and exactly one <joint name=...>; "
-            f"it has {len(joints)} joint elements"
+            f"{where} needs a name and exactly one <joint name=...>; it has {len(joints)} "
+            "joint elements"
         )
     stroke = element.find("actuator/stroke")
-    lower = upper = None
+    limits: tuple[float, float] = (-math.inf, math.inf)
     if stroke is not None:
-        lower = _number(source, name, stroke, "lower", float("-inf"))
-        upper = _number(source, name, stroke, "upper", float("inf"))
-    data: dict[str, list[dict]] = {}
+        texts = (stroke.get("lower", "-inf"), stroke.get("upper", "inf"))
+        written = etree.tostring(stroke, encoding="unicode", with_tail=False)
+        limits = _stroke([number_or_text(t) for t in texts], f"{where} {written}")
+    children: dict[str, list[etree._Element]] = {}
     for child in element:
         if isinstance(child.tag, str) and child.tag not in _COMMON:
-            data.setdefault(child.tag, []).append(dict(child.attrib))
-    actuator = kinds[kind_name].from_transmission(
-        name,
-        joints[0].get("name"),
-        float("-inf") if lower is None else lower,
-        float("inf") if upper is None else upper,
-        data,
-    )
-    return actuator
+            children.setdefault(child.tag, []).append(child)
+    tags = [p.element for p in kind.parameters]
+    for tag, found in children.items():
+        if tags.count(tag) < len(found):
+            expected = [p.name for p in kind.parameters if p.element == tag]
+            raise RobotDescriptionError(
+                f"{where}: {len(found)} <{tag}> elements; {kind.__name__} takes "
+                + (f"{len(expected)} ({', '.join(expected)})" if expected else "none")
+                + f"; its elements: {', '.join(f'<{t}>' for t in dict.fromkeys(tags)) or 'none'}"
+            )
+    given = {}
+    for parameter in kind.parameters:
+        found = children.get(parameter.element, [])
+        taken = [p.name for p in kind.parameters if p.element == parameter.element].index(
+            parameter.name
+        )
+        if taken < len(found):
+            written = etree.tostring(found[taken], encoding="unicode", with_tail=False)
+            value = parameter.from_attributes(dict(found[taken].attrib))
+            given[parameter.name] = (value, f"{where} {parameter.name} {written}")
+        else:
+            missing = f"{where}: missing <{parameter.element}> for {parameter.name}"
+            given[parameter.name] = (None, missing)
+    return _declare(kind, name, joints[0].get("name"), limits, given)
+
+
+def read_transmissions(root: etree._Element, source: str) -> list[ActuatorMap]:
+    """The actuator maps declared in a URDF's root element; ``source`` names it in errors."""
+    return [_read_transmission(element, source) for element in _redundancy_transmissions(root)]
 
 
 def read_cylinders(root: etree._Element, source: str) -> dict[str, dict[str, float]]:
@@ -91,48 +205,83 @@ def read_cylinders(root: etree._Element, source: str) -> dict[str, dict[str, flo
     actuator name: each ``<actuator><cylinder .../></actuator>`` element's attributes as numbers
     (`CYLINDER_KEYS`; missing ones are left for `circuit_from_table` to name)."""
     found = {}
-    for element in root.findall("transmission"):
-        if not (element.findtext("type") or "").strip().startswith(PREFIX):
-            continue
+    for element in _redundancy_transmissions(root):
         name = element.get("name") or ""
         for cylinder in element.findall("actuator/cylinder"):
+            where = f"{source}: <transmission name={name!r}> <cylinder>"
             extra = sorted(set(cylinder.attrib) - set(CYLINDER_KEYS))
             if extra:
                 raise RobotDescriptionError(
-                    f"{source}: transmission {name!r}: <cylinder> has unknown attributes "
-                    f"{extra}; attributes: {', '.join(CYLINDER_KEYS)}"
+                    f"{where} has unknown attributes {extra}; attributes: "
+                    f"{', '.join(CYLINDER_KEYS)}"
                 )
-            found[name] = {
-                key: _number(source, name, cylinder, key, float("nan"))
-                for key in CYLINDER_KEYS
-                if key in cylinder.attrib
-            }
+            values = {}
+            for key in CYLINDER_KEYS:
+                if key in cylinder.attrib:
+                    try:
+                        values[key] = float(cylinder.get(key))
+                    except ValueError:
+                        raise RobotDescriptionError(
+                            f"{where} {key}={cylinder.get(key)!r} is not a number"
+                        ) from None
+            found[name] = values
     return found
-
-
-def read_transmissions(root: etree._Element, source: str) -> list[ActuatorMap]:
-    """The actuator maps declared in a URDF's root element; ``source`` names it in errors."""
-    return [
-        _read_one(element, source)
-        for element in root.findall("transmission")
-        if (element.findtext("type") or "").strip().startswith(PREFIX)
-    ]
 
 
 def write_transmissions(urdf: str, actuators: list[ActuatorMap]) -> str:
     """``urdf`` text with its redundancy transmissions replaced by declarations of ``actuators``."""
     root = etree.fromstring(urdf.encode())
-    for element in root.findall("transmission"):
-        if (element.findtext("type") or "").strip().startswith(PREFIX):
-            root.remove(element)
+    for element in _redundancy_transmissions(root):
+        root.remove(element)
     for actuator in actuators:
         element = etree.SubElement(root, "transmission", name=actuator.name)
         etree.SubElement(element, "type").text = PREFIX + type(actuator).__name__
         etree.SubElement(element, "joint", name=actuator.joint)
         declared = etree.SubElement(element, "actuator", name=actuator.name)
         etree.SubElement(declared, "stroke", lower=repr(actuator.lower), upper=repr(actuator.upper))
-        for tag, items in actuator.transmission_data().items():
-            for attributes in items:
-                etree.SubElement(element, tag, **attributes)
+        for parameter in type(actuator).parameters:
+            value = getattr(actuator, parameter.name)
+            etree.SubElement(element, parameter.element, **parameter.attributes(value))
     etree.indent(root, space="  ")
     return etree.tostring(root, encoding="unicode", xml_declaration=False) + "\n"
+
+
+def actuator_tables(actuators: list[ActuatorMap]) -> dict[str, dict[str, object]]:
+    """The ``[actuators.<name>]`` tables declaring ``actuators``, the inverse of
+    `read_actuator_tables`."""
+    tables: dict[str, dict[str, object]] = {}
+    for actuator in actuators:
+        table: dict[str, object] = {
+            "kind": type(actuator).__name__,
+            "joint": actuator.joint,
+            "stroke": [actuator.lower, actuator.upper],
+        }
+        for parameter in type(actuator).parameters:
+            table[parameter.name] = parameter.table(getattr(actuator, parameter.name))
+        tables[actuator.name] = table
+    return tables
+
+
+def _toml(value: object) -> str:
+    """A value of an actuator table (text, number, list, inline table) in TOML."""
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, float):
+        return repr(value) if math.isfinite(value) else ("inf" if value > 0 else "-inf")
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k} = {_toml(v)}" for k, v in value.items()) + "}"
+    return repr(value)
+
+
+def write_actuator_tables(actuators: list[ActuatorMap]) -> str:
+    """TOML text of the ``[actuators.<name>]`` tables declaring ``actuators``, to put in a
+    ``robot.toml`` beside an untouched URDF."""
+    blocks = []
+    for name, table in actuator_tables(actuators).items():
+        key = name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else _toml(name)
+        lines = [f"[actuators.{key}]"]
+        lines += [f"{key} = {_toml(value)}" for key, value in table.items()]
+        blocks.append("\n".join(lines) + "\n")
+    return "\n".join(blocks)

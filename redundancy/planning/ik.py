@@ -22,6 +22,7 @@ import numpy as np
 from redundancy.errors import InvalidInputError, UnreachableError
 from redundancy.model.robot import Robot
 from redundancy.planning.tasks import Segment
+from redundancy.resolution.limits import amount
 from redundancy.resolution.state import evaluate
 
 TOLERANCE = 1e-12  # m (and m or rad for held actuators): a residual this small has converged
@@ -100,7 +101,8 @@ def _seeds(robot: Robot, count: int) -> np.ndarray:
     from scipy.stats import qmc
 
     unit = qmc.Halton(d=robot.n, scramble=True, seed=7).random(count)
-    return robot.lower + (robot.upper - robot.lower) * (0.05 + 0.9 * unit)
+    lower, upper = robot.span
+    return lower + (upper - lower) * (0.05 + 0.9 * unit)
 
 
 def _point(robot: Robot, point) -> np.ndarray:
@@ -132,8 +134,8 @@ def inverse_kinematics(
     error = error.reshape(k, seeds)
     per_seed = q.reshape(k, seeds, robot.n)
     converged = error < FOUND
-    middle = (robot.lower + robot.upper) / 2
-    distance = np.linalg.norm((per_seed - middle) / (robot.upper - robot.lower), axis=2)
+    lower, upper = robot.span
+    distance = np.linalg.norm((per_seed - (lower + upper) / 2) / (upper - lower), axis=2)
     choice = np.argmin(np.where(converged, distance, 1e6 + error), axis=1)
     picked = np.arange(k)
     reached = np.any(converged, axis=1)
@@ -179,15 +181,19 @@ def continue_held(
 def configuration_at(robot: Robot, point: np.ndarray, held: dict[str, float]) -> np.ndarray:
     """The configuration (n,) reaching ``point`` with actuators held at ``held`` {name: value}.
 
-    Raises `UnreachableError` with the distance by which the point is missed.
+    Raises `UnreachableError` with the distance by which the point is missed (in mm, the held
+    values in mm or degrees).
     """
     solution = inverse_kinematics(robot, point, list(held), np.array([list(held.values())]))
     if not solution.reached[0]:
         miss = _closest_miss(robot, np.asarray(point, dtype=float), held, solution.q[0])
+        values = ", ".join(
+            f"{k} = {amount(v, 'rad' if robot.actuators[k].rotary else 'm')}"
+            for k, v in held.items()
+        )
         raise UnreachableError(
-            f"{robot.name} cannot reach task point {np.asarray(point).tolist()} with "
-            f"{', '.join(f'{k} = {v:g}' for k, v in held.items())} inside its joint limits: "
-            f"the closest configuration misses it by {miss:.4g} m"
+            f"{robot.name} cannot reach task point {np.asarray(point).tolist()} with {values} "
+            f"inside its joint limits: the closest configuration misses it by {amount(miss, 'm')}"
         )
     return solution.q[0]
 
@@ -242,6 +248,6 @@ def check_path(robot: Robot, segment: Segment, seeds: int = 8) -> None:
             raise UnreachableError(
                 f"{robot.name} cannot follow segment {segment.name}: its point "
                 f"{np.round(point, 6).tolist()} (t = {t:.3g} s) is out of reach inside the joint "
-                f"limits, missed by {miss.min():.4g} m"
+                f"limits, missed by {amount(miss.min(), 'm')}"
             )
         q = q[miss < FOUND] if np.any(miss < FOUND) else q

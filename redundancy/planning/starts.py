@@ -228,6 +228,12 @@ def _held(held: str | Sequence[str]) -> tuple[str, ...]:
 
 def held_actuators(robot: Robot, cycle: WorkCycle) -> tuple[str, ...]:
     """The actuators a search holds on ``cycle``: the task's ``held``, or the last n − m."""
+    if robot.n <= robot.m:
+        raise InvalidInputError(
+            f"{robot.name} has n = {robot.n} joints for a task of m = {robot.m} coordinates "
+            f"(tool {robot.task_axes}): no redundancy to resolve; give fewer task_axes in its "
+            'robot.toml (e.g. "xz" for a planar task)'
+        )
     return cycle.held or tuple(robot.actuators.names[robot.m :])
 
 
@@ -269,7 +275,7 @@ class Starts:
     def reason(self, i: int) -> str:
         """Why start i is unreachable."""
         if self.miss[i] > 0:
-            return f"start unreachable (misses by {self.miss[i]:.3g} m)"
+            return f"start unreachable (misses by {amount(self.miss[i], 'm')})"
         if not np.isfinite(self.joint_margins[i]):
             return "start unreachable (no configuration reaches it)"
         outside = -self.joint_margins[i]
@@ -296,7 +302,7 @@ class Configurations:
             raise UnreachableError(
                 f"{robot.name} cannot reach the start {point.tolist()} of segment "
                 f"{segment.name} with {held} anywhere in its stroke inside its joint limits; the "
-                f"closest configuration misses it by {anchor.miss.min():.4g} m"
+                f"closest configuration misses it by {amount(anchor.miss.min(), 'm')}"
             )
         values = scan[order[:1]] if len(anchor.q) == 1 else scan
         self.known = (values[found], anchor.q[found])
@@ -372,7 +378,11 @@ def evaluate_starts(
             f"{robot.name} cannot reach the start {segment.start.tolist()} of segment "
             f"{segment.name} from any of the {len(starts.values)} sampled values of "
             f"{', '.join(held)}"
-            + (f"; the closest configuration misses it by {miss.min():.4g} m" if miss.size else "")
+            + (
+                f"; the closest configuration misses it by {amount(miss.min(), 'm')}"
+                if miss.size
+                else ""
+            )
         )
     trajectory = simulate(
         robot,
@@ -630,7 +640,7 @@ def default_start(robot: Robot, segment: Segment, held: str | Sequence[str] = "x
     raise UnreachableError(
         f"{robot.name} cannot reach the start {segment.start.tolist()} of segment "
         f"{segment.name} with {', '.join(held)} anywhere in their strokes; the closest "
-        f"configuration misses it by {miss:.4g} m"
+        f"configuration misses it by {amount(miss, 'm')}"
     )
 
 

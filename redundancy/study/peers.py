@@ -62,7 +62,9 @@ class StrategyRun:
             "strategy": self.strategy,
             "start_value": scalar_or_list(self.start),
             "peak_velocity_norm": float(motion.peak_velocity_norm[0]),
-            "peak_kinetic": float(motion.peak_kinetic[0]),
+            "peak_kinetic": (  # undefined on a kinematic-only robot
+                None if motion.robot.kinematic_only else float(motion.peak_kinetic[0])
+            ),
             "within_limits": bool(motion.within_limits[0]),
             "max_tracking_error": float(motion.max_tracking_error[0]),
             "violations": [str(v) for v in motion.violations(0)],

@@ -10,8 +10,9 @@ For each segment and objective:
   (`redundancy.planning.bound`), and the improved start's gap to it, in per cent.
 
 For each segment the comparison holds, with both peaks and whether every limit held:
-- the unweighted and the M_H-weighted pseudoinverse from the default start (the held actuator at
-  mid-stroke, or the reachable value nearest it: `default_start`);
+- the unweighted and (where the robot has masses) the M_H-weighted pseudoinverse from the
+  default start (the held actuator at mid-stroke, or the reachable value nearest it:
+  `default_start`);
 - gradient projection with actuator-limit avoidance from the same start (the paper's baseline);
 - the improved method for each objective;
 - with a hydraulic circuit, each motion's peak pump flow, highest load pressure and pump energy
@@ -41,6 +42,7 @@ from redundancy.planning.starts import (
 )
 from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.laws import GradientProjection, Resolver
+from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import ENERGY, VELOCITY, Objective
 from redundancy.study.output import write_atomically
 from redundancy.study.peers import StrategyRun, fixed_start_run
@@ -192,9 +194,11 @@ class Study:
         }
 
     def table(self) -> str:
-        """The comparison as a fixed-width text table, then the bounds."""
+        """The comparison as a fixed-width text table (held starts in mm, or degrees for a
+        rotary actuator), then the bounds."""
         start = "start " + ",".join(self.held)
-        width = max(10, len(start) + 1, 8 * len(self.held) + 1)
+        width = max(10, len(start) + 1, 11 * len(self.held) + 1)
+        units = ["rad" if self.robot.actuators[h].rotary else "m" for h in self.held]
         names = self._segment_width()
         header = (
             f"{'segment':<{names}}{'strategy':<36}{start:>{width}}"
@@ -204,10 +208,11 @@ class Study:
         for run in self.runs:
             row = run.summary()
             held = "held" if row["within_limits"] else "VIOLATED"
-            values = ",".join(f"{v:.3f}" for v in run.start)
+            values = ",".join(amount(v, unit) for v, unit in zip(run.start, units))
+            kinetic = "-" if row["peak_kinetic"] is None else f"{row['peak_kinetic']:.3f}"
             lines.append(
                 f"{run.segment:<{names}}{run.strategy:<36}{values:>{width}}"
-                f"{row['peak_velocity_norm']:>12.5f}{row['peak_kinetic']:>13.3f}  {held}"
+                f"{row['peak_velocity_norm']:>12.5f}{kinetic:>13}  {held}"
             )
         lines += [
             "",
@@ -313,7 +318,11 @@ def run_study(
     segments = cycle.segments
     for segment in segments:  # a path out of reach is refused before any simulation
         check_path(robot, segment)
-    total = len(segments) * (len(BASELINES) + 3 * len(objectives))
+    # the M_H-weighted law needs masses: a kinematic-only robot is compared without it
+    baselines = [
+        (n, r) for n, r in BASELINES if not (robot.kinematic_only and r is ENERGY.resolver)
+    ]
+    total = len(segments) * (len(baselines) + 3 * len(objectives))
     bar = tqdm(total=total, unit="task", desc="study", disable=not progress, mininterval=0.5)
     searches: dict[str, list[SearchResult]] = {o.name: [] for o in objectives}
     sweeps: dict[str, list[SearchResult]] = {o.name: [] for o in objectives}
@@ -323,7 +332,7 @@ def run_study(
     with bar:
         for segment in segments:
             start = default_start(robot, segment, held)
-            for name, resolver in BASELINES:
+            for name, resolver in baselines:
                 bar.set_description(f"{segment.name}: {name}")
                 runs.append(
                     fixed_start_run(

@@ -1,10 +1,11 @@
 """Playback of a motion in meshcat: live in a browser, or as one self-contained HTML page.
 
-What is drawn: the links (Pinocchio's meshcat visualizer, from the URDF's visual geometry);
-every `LinearCylinder` and `LinkageCylinder` as a barrel from its base point and a rod ending at
-its rod point, red while its length is at or past a stroke limit; each linkage's rocker and
-coupler as bars between their pins; the desired path, the path the tool traced, and the task
-points. The camera looks at the task plane (for the crane, world x–z, from −y).
+What is drawn: the links (Pinocchio's meshcat visualizer, from the URDF's visual geometry, or,
+where the URDF has no visual geometry or names meshes no file answers, `Rods` between the joint
+origins); every `LinearCylinder` and `LinkageCylinder` as a barrel from its base point and a rod
+ending at its rod point, red while its length is at or past a stroke limit; each linkage's
+rocker and coupler as bars between their pins; the desired path, the path the tool traced, and
+the task points. The camera looks at the task plane (for the crane, world x–z, from −y).
 
 `play` serves the scene from a meshcat server on localhost and loops the motion in real time
 until interrupted; the server stops with it. `export_html` needs no server: a stand-in for
@@ -143,6 +144,69 @@ class Cylinder:
         return stroke.margin(length[:, None]) <= LIMIT_MARGIN
 
 
+def _links(robot, root, size: float):
+    """The drawing of the links under the node ``root``: Pinocchio's meshcat visualizer of the
+    URDF's visual geometry, or `Rods` where it has none or some of its meshes are missing. Both
+    pose the links with ``display(q)`` on the node their ``viewer`` attribute names."""
+    import pinocchio as pin
+    from lxml import etree
+    from pinocchio.visualize import MeshcatVisualizer
+
+    description = etree.fromstring(robot.description.encode())
+    if robot.missing_meshes or description.find("link/visual") is None:
+        return Rods(robot, root, size)
+    try:  # the description names every mesh by its absolute path
+        visuals = pin.buildGeomFromUrdfString(
+            robot.model, robot.description, pin.GeometryType.VISUAL
+        )
+    except (ValueError, RuntimeError) as error:
+        raise RobotDescriptionError(
+            f"{robot.urdf}: cannot load its visual geometry: {error}"
+        ) from error
+    links = MeshcatVisualizer(robot.model, None, visuals)
+    links.initViewer(viewer=root)
+    links.loadViewerModel(rootNodeName="links")
+    return links
+
+
+class Rods:
+    """The links drawn without their meshes: a rod from each joint's origin to its parent
+    joint's (or the world's) origin, and one from the tool's joint to the tool point, of radius
+    1% of the scene's ``size`` (m). Like Pinocchio's visualizer, `display` poses them on the
+    node ``viewer``."""
+
+    COLOUR = 0xE8A33D
+
+    def __init__(self, robot, viewer, size: float) -> None:
+        model = robot.model
+        self.model, self.data, self.viewer = model, model.createData(), viewer
+        self.pairs = [(int(model.parents[j]), j) for j in range(1, model.njoints)]
+        self.tool = model.getFrameId(robot.tool_frame)
+        self.tool_joint = model.frames[self.tool].parentJoint
+        mg = _meshcat().geometry
+        material = mg.MeshLambertMaterial(color=self.COLOUR)
+        for i in range(len(self.pairs) + 1):
+            viewer[f"links/rods/{i}"].set_object(mg.Cylinder(1.0, 0.01 * size), material)
+
+    def display(self, q: np.ndarray) -> None:
+        """Pose the rods at configuration ``q`` (n,)."""
+        import pinocchio as pin
+
+        pin.forwardKinematics(self.model, self.data, q)
+        pin.updateFramePlacements(self.model, self.data)
+        origins = [placement.translation for placement in self.data.oMi]
+        starts = [origins[parent] for parent, _ in self.pairs] + [origins[self.tool_joint]]
+        ends = [origins[child] for _, child in self.pairs] + [self.data.oMf[self.tool].translation]
+        a, b = np.array(starts), np.array(ends)
+        length = np.linalg.norm(b - a, axis=1)
+        short = length < 1e-9  # a rod of no length: drawn as a point, not a degenerate frame
+        b[short] = a[short] + [0.0, 0.0, 1e-9]
+        poses = _between(a, b)
+        poses[:, :3, 1] *= np.maximum(length, 1e-9)[:, None]  # the unit rod stretched to length
+        for i, pose in enumerate(poses):
+            self.viewer[f"links/rods/{i}"].set_transform(pose)
+
+
 class Playback:
     """The drawing of one motion (a `Trajectory` of one) and its poses over time.
 
@@ -226,8 +290,6 @@ class Playback:
         """Put the scene into the meshcat visualizer ``vis`` and show the motion's first pose."""
         meshcat = _meshcat()
         mg = meshcat.geometry
-        import pinocchio as pin
-        from pinocchio.visualize import MeshcatVisualizer
 
         for node in ("/Grid", "/Axes"):
             vis[node].set_property("visible", False)
@@ -241,21 +303,7 @@ class Playback:
         root = vis[ROOT]
         root.set_transform(_translation(-self.centre))
 
-        robot = self.robot
-        path = robot.urdf
-        # A mesh named package://<package>/... lies in <package> in one of the URDF's ancestors.
-        ancestors = [str(folder) for folder in path.parents]
-        try:
-            visuals = pin.buildGeomFromUrdf(
-                robot.model, str(path), pin.GeometryType.VISUAL, package_dirs=ancestors
-            )
-        except (ValueError, RuntimeError) as error:
-            raise RobotDescriptionError(
-                f"{path}: cannot load its visual geometry: {error}"
-            ) from error
-        self._links = MeshcatVisualizer(robot.model, None, visuals)
-        self._links.initViewer(viewer=root)
-        self._links.loadViewerModel(rootNodeName="links")
+        self._links = _links(self.robot, root, self.size)
 
         for cylinder in self.cylinders:
             for part, radius in zip(PARTS, (0.06, 0.035)):

@@ -1,0 +1,233 @@
+"""A new machine checked before it is studied: one screen saying what would stop a study.
+
+For each actuator, its joint is swept over the joint's range (the other joints at mid-range):
+- the actuator's values over that sweep against its declared stroke: a stroke no value reaches
+  blocks a study; a stroke end beyond the values reached is a mismatch to fix in the
+  declaration;
+- where det A changes sign or vanishes along the sweep, A = ∂x/∂q (Eq. 11) is singular: for a
+  cylinder on a revolute joint, its line passes through the joint axis (the torque arm of
+  Eq. 14 vanishes). Inside the stroke this blocks a study: J_H = J A⁻¹ is undefined there.
+
+And for the machine: masses (a kinematic-only robot studies the velocity objective only),
+meshes (missing ones are drawn as rods), and whether each task point is reached inside the
+joint ranges with every stroke kept, for some value of the held actuators.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+
+from redundancy.model.robot import Robot
+from redundancy.planning.ik import inverse_kinematics
+from redundancy.planning.starts import held_actuators, stroke_box
+from redundancy.planning.tasks import WorkCycle
+from redundancy.resolution.limits import Limits, amount
+from redundancy.resolution.state import evaluate
+
+SWEEP = 1441  # joint values per sweep: a quarter degree over a full turn
+HELD_SAMPLES = 9  # held values tried for each task point, with one held actuator
+HELD_BUDGET = 81  # held value combinations tried for each task point, with several
+MISMATCH = 1e-3  # m or rad: a stroke end this far beyond the values reached is a mismatch
+
+
+@dataclass(frozen=True)
+class ActuatorCheck:
+    """One actuator over its joint's range: the ``reached`` values [min, max] of x_i against
+    its ``stroke``, and the joint values (its joint's unit) where A is ``singular``, with x_i
+    there (``singular_x``)."""
+
+    name: str
+    joint: str
+    rotary: bool
+    joint_rotary: bool
+    stroke: tuple[float, float]
+    reached: tuple[float, float]
+    singular: tuple[float, ...]
+    singular_x: tuple[float, ...]
+
+    @property
+    def unreachable(self) -> bool:
+        """No value of the stroke is reached over the joint's range."""
+        return self.reached[1] < self.stroke[0] or self.reached[0] > self.stroke[1]
+
+    @property
+    def mismatch(self) -> bool:
+        """A finite stroke end lies beyond the values reached (by more than `MISMATCH`)."""
+        lower, upper = self.stroke
+        return bool(
+            (np.isfinite(lower) and lower < self.reached[0] - MISMATCH)
+            or (np.isfinite(upper) and upper > self.reached[1] + MISMATCH)
+        )
+
+    @property
+    def singular_in_stroke(self) -> list[int]:
+        """Which of the singular configurations lie inside the stroke."""
+        return [i for i, x in enumerate(self.singular_x) if self.stroke[0] <= x <= self.stroke[1]]
+
+
+@dataclass(frozen=True)
+class Check:
+    """The checks of one robot and, where a task is given, of its points: ``points`` (P, m)
+    and whether each is ``reached`` with every stroke kept."""
+
+    robot: Robot
+    actuators: tuple[ActuatorCheck, ...]
+    points: np.ndarray | None
+    reached: tuple[bool, ...]
+
+    def blocking(self) -> list[str]:
+        """What stops a study, one line each (empty when the robot is ready)."""
+        robot = self.robot
+        found = []
+        if robot.n <= robot.m:
+            found.append(
+                f"n = {robot.n} joints for a task of m = {robot.m} (tool {robot.task_axes}): no "
+                "redundancy to resolve"
+            )
+        for a in self.actuators:
+            if a.unreachable:
+                found.append(f"{a.name}: no value of its stroke is reached over {a.joint}'s range")
+            found += [
+                f"{a.name}: A is singular at {a.joint} = {self._joint(a, a.singular[i])}"
+                for i in a.singular_in_stroke
+            ]
+        if self.points is not None:
+            found += [
+                f"task point {p.tolist()} is not reached inside the joint ranges and strokes"
+                for p, ok in zip(self.points, self.reached)
+                if not ok
+            ]
+        return found
+
+    @staticmethod
+    def _joint(a: ActuatorCheck, value: float) -> str:
+        return amount(value, "rad" if a.joint_rotary else "m")
+
+    def report(self) -> str:
+        """The one-screen report: lengths in mm, angles in degrees."""
+        robot = self.robot
+        lines = [f"{robot.name}: n = {robot.n}, m = {robot.m} (task {robot.task_axes})", "joints:"]
+        for name, lo, hi, rotary in zip(
+            robot.joint_names, robot.lower, robot.upper, robot.rotary_joints
+        ):
+            lines.append(f"  {name:<20} {span(lo, hi, 'rad' if rotary else 'm')}")
+        lines.append("actuators (values over the joint's range against the stroke):")
+        for a in self.actuators:
+            unit = "rad" if a.rotary else "m"
+            verdict = (
+                "UNREACHABLE"
+                if a.unreachable
+                else ("MISMATCH: a stroke end is not reached" if a.mismatch else "ok")
+            )
+            lines.append(
+                f"  {a.name:<8} on {a.joint:<18} reaches {span(*a.reached, unit)}, "
+                f"stroke {span(*a.stroke, unit)}: {verdict}"
+            )
+            for value, x in zip(a.singular, a.singular_x):
+                inside = a.stroke[0] <= x <= a.stroke[1]
+                lines.append(
+                    f"    A singular at {a.joint} = {self._joint(a, value)} ({a.name} = "
+                    f"{amount(x, unit)}, {'inside' if inside else 'outside'} the stroke): its "
+                    "line passes through the joint axis"
+                )
+        if robot.kinematic_only:
+            lines.append(
+                f"masses: none on {', '.join(robot.massless_links)} (kinematic only: the "
+                "velocity objective, play and check work; the energy objective refuses)"
+            )
+        else:
+            total = sum(inertia.mass for inertia in robot.model.inertias)
+            lines.append(f"masses: on every link, {total:.1f} kg in all")
+        lines.append(
+            "meshes: "
+            + (
+                f"not found: {', '.join(robot.missing_meshes)} (drawn as rods)"
+                if robot.missing_meshes
+                else "every mesh found"
+            )
+        )
+        if self.points is not None:
+            lines.append("task points:")
+            lines += [
+                f"  {p.tolist()}: {'reached' if ok else 'NOT reached'}"
+                for p, ok in zip(self.points, self.reached)
+            ]
+        problems = self.blocking()
+        lines.append(
+            "ready for a study"
+            if not problems
+            else f"{len(problems)} problems block a study: " + "; ".join(problems)
+        )
+        return "\n".join(lines)
+
+
+def span(lower: float, upper: float, unit: str) -> str:
+    """A range [lower, upper] in the SI ``unit`` ("m" or "rad") as messages show it (mm,
+    degrees); an infinite end as ∞."""
+    ends = [amount(v, unit) if np.isfinite(v) else ("-∞" if v < 0 else "∞") for v in (lower, upper)]
+    return f"[{ends[0]}, {ends[1]}]"
+
+
+def _sweep(robot: Robot, column: int, row: int) -> tuple[tuple, tuple, tuple]:
+    """Actuator ``row`` over joint ``column``'s range: its values' [min, max], and the joint
+    values where det A vanishes or changes sign, with the actuator's value there."""
+    lower, upper = robot.span
+    q = np.repeat(((lower + upper) / 2)[None], SWEEP, axis=0)
+    q[:, column] = np.linspace(lower[column], upper[column], SWEEP)
+    space = evaluate(robot, q)
+    x = space.x[:, row]
+    det = np.linalg.det(space.A)
+    scale = np.abs(det).max()
+    crossings = np.flatnonzero((np.sign(det[:-1]) * np.sign(det[1:]) < 0) | (det[:-1] == 0))
+    singular, singular_x = [], []
+    for i in crossings:
+        weight = 0.0 if det[i] == 0 or scale == 0 else det[i] / (det[i] - det[i + 1])
+        singular.append(float(q[i, column] + weight * (q[i + 1, column] - q[i, column])))
+        singular_x.append(float(x[i] + weight * (x[i + 1] - x[i])))
+    return (float(x.min()), float(x.max())), tuple(singular), tuple(singular_x)
+
+
+def _reached(robot: Robot, cycle: WorkCycle) -> tuple[np.ndarray, tuple[bool, ...]]:
+    """The task's points (P, m) and whether each is reached inside the joint ranges with every
+    stroke kept, for one of a grid of held values over their strokes: `HELD_SAMPLES` values
+    with one held actuator, at most `HELD_BUDGET` combinations with several."""
+    held = held_actuators(robot, cycle)
+    count = min(HELD_SAMPLES, max(2, int(HELD_BUDGET ** (1 / len(held)) + 1e-9)))
+    grids = [np.linspace(lower, upper, count) for lower, upper in stroke_box(robot, held)]
+    values = np.array(list(itertools.product(*grids)))
+    strokes = Limits.strokes(robot)
+    points = np.unique([p for s in cycle.segments for p in (s.start, s.end)], axis=0)
+    reached = []
+    for point in points:
+        found = inverse_kinematics(robot, point, held, values)
+        kept = strokes.margin(evaluate(robot, found.q).x) >= 0
+        reached.append(bool(np.any(found.reached & kept)))
+    return points, tuple(reached)
+
+
+def check(robot: Robot, cycle: WorkCycle | None = None) -> Check:
+    """Check ``robot`` (and the points of ``cycle``, where given) for a study."""
+    actuators = []
+    for row, actuator in enumerate(robot.actuators):
+        column = actuator.index
+        reached, singular, singular_x = _sweep(robot, column, row)
+        actuators.append(
+            ActuatorCheck(
+                actuator.name,
+                actuator.joint,
+                bool(actuator.rotary),
+                bool(robot.rotary_joints[column]),
+                (actuator.lower, actuator.upper),
+                reached,
+                singular,
+                singular_x,
+            )
+        )
+    points: np.ndarray | None = None
+    reached_points: tuple[bool, ...] = ()
+    if cycle is not None and robot.n > robot.m:  # with no redundancy, the one blocking line
+        points, reached_points = _reached(robot, cycle)
+    return Check(robot, tuple(actuators), points, reached_points)

@@ -1,0 +1,555 @@
+"""Real machines as they come: untouched URDFs with their actuators declared beside them, and
+what such URDFs hold (continuous and mimic joints, xacro, missing meshes and inertias, floating
+roots, locked joints, tool points), each loaded and run through the study and the playback."""
+
+import re
+import tomllib
+import warnings
+from pathlib import Path
+
+import meshcat
+import numpy as np
+import pytest
+import umsgpack
+from lxml import etree
+from sampling import random_configurations
+
+from redundancy import ActuatorMap, RobotDescriptionError, actuator_space, load_robot
+from redundancy.cli import _play_motion, main, parser
+from redundancy.model.loading import bundled_root
+from redundancy.model.parameters import Choice, Number
+from redundancy.model.transmissions import (
+    actuator_tables,
+    read_actuator_tables,
+    read_transmissions,
+    write_actuator_tables,
+    write_transmissions,
+)
+from redundancy.planning.ik import configuration_at
+from redundancy.planning.integrate import simulate
+from redundancy.planning.tasks import WorkCycle
+from redundancy.resolution.objectives import VELOCITY
+from redundancy.study.check import check
+from redundancy.viz.playback import Playback, Recording
+
+FIXTURES = Path(__file__).parent / "fixtures" / "intake"
+KINDS = ("continuous", "mimic", "meshes", "massless", "xacro")
+CRANE_URDF = bundled_root() / "hiab031" / "hiab031.urdf"
+
+
+def quietly(path, **options):
+    """``load_robot`` with the warnings it gives, for the tests that do not check them."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return load_robot(path, **options)
+
+
+def run(argv, capsys):
+    """``redundancy ARGV`` in this process: the exit status and stderr's lines, notes aside."""
+    try:
+        status = main(argv)
+    except SystemExit as exit:
+        status = exit.code
+    lines = capsys.readouterr().err.strip().splitlines()
+    return status, [line for line in lines if not line.startswith("redundancy: note:")]
+
+
+def sidecar(tmp_path, kind="continuous", replace=()):
+    """A copy of a fixture robot's folder in ``tmp_path`` with its robot.toml edited by the
+    ``replace`` pairs (old, new), and the path of that robot.toml."""
+    folder = tmp_path / kind
+    folder.mkdir()
+    for file in (FIXTURES / kind).iterdir():
+        (folder / file.name).write_bytes(file.read_bytes())
+    (tmp_path / "task.toml").write_bytes((FIXTURES / "task.toml").read_bytes())
+    text = (folder / "robot.toml").read_text()
+    for old, new in replace:
+        assert old in text, old
+        text = text.replace(old, new)
+    (folder / "robot.toml").write_text(text)
+    return folder / "robot.toml"
+
+
+# -- one schema, two forms ----------------------------------------------------------------
+
+
+def test_actuator_tables_and_transmissions_convert_into_each_other(tmp_path, crane):
+    """The crane's <transmission>s written as [actuators.*] tables beside the same URDF without
+    them load to the same actuators (x and A equal at random states), and written back as
+    <transmission>s give the original declarations."""
+    declared = read_transmissions(etree.parse(str(CRANE_URDF)).getroot(), "crane")
+    bare = write_transmissions(CRANE_URDF.read_text(), [])
+    (tmp_path / "crane.urdf").write_text(bare)
+    tables = write_actuator_tables(declared)
+    (tmp_path / "robot.toml").write_text(
+        'urdf = "crane.urdf"\ntool_frame = "tool"\ntask_axes = "xz"\n\n' + tables
+    )
+    beside = load_robot(tmp_path / "robot.toml")
+    q = random_configurations(crane, 20, seed=3)
+    ours, theirs = actuator_space(beside, q), actuator_space(crane, q)
+    np.testing.assert_array_equal(ours.x, theirs.x)
+    np.testing.assert_array_equal(ours.A, theirs.A)
+    assert write_transmissions(bare, beside.actuators.maps) == write_transmissions(bare, declared)
+    assert tomllib.loads(tables)["actuators"] == actuator_tables(declared)
+    assert "[actuators.x1]" in tables and 'base = {link = "column", xyz = [' in tables
+
+
+class Winch(ActuatorMap):
+    """A user's own kind, declared once: a rope drum on a joint, x = radius · q + slack, drawn
+    in or paid out (``sense``)."""
+
+    parameters = (
+        Number("radius", "drum radius, m"),
+        Number("slack", "rope length at q = 0, m", 0.0),
+        Choice("sense", "which way the rope runs", "in", choices=("in", "out")),
+    )
+
+    def __init__(self, name, joint, lower=-np.inf, upper=np.inf, radius=1.0, slack=0.0, sense="in"):
+        super().__init__(name, joint, lower, upper)
+        self.radius, self.slack, self.sense = radius, slack, sense
+
+    def evaluate(self, kinematics):
+        sign = 1.0 if self.sense == "in" else -1.0
+        row = np.zeros_like(kinematics.q)
+        row[:, self.index] = sign * self.radius
+        return sign * self.radius * kinematics.q[:, self.index] + self.slack, row
+
+    def rate(self, kinematics):
+        return np.zeros_like(kinematics.q)
+
+
+def test_a_users_own_kind_is_declared_in_either_form_from_one_list_of_parameters(tmp_path):
+    toml = sidecar(
+        tmp_path,
+        replace=[
+            (
+                'kind = "Prismatic"\njoint = "telescope_joint"\nstroke = [0.2, 1.1]\noffset = 0.2',
+                "",
+            ),
+            ("[actuators.x3]", ""),
+        ],
+    )
+    text = toml.read_text().replace("# telescope cylinder", "")
+    text += '\n[actuators.rope]\nkind = "Winch"\njoint = "telescope_joint"\nradius = 0.25\n'
+    text += 'sense = "out"\nstroke = [-1.0, 1.0]\n'
+    toml.write_text(text)
+    robot = quietly(toml)
+    rope = robot.actuators["rope"]
+    assert (rope.radius, rope.slack, rope.sense) == (0.25, 0.0, "out")
+    assert actuator_space(robot, (robot.lower + robot.upper) / 2).A[0, 2, 2] == -0.25
+    urdf = write_transmissions((toml.parent / "arm.urdf").read_text(), [rope])
+    assert '<radius value="0.25"/>' in urdf and '<sense value="out"/>' in urdf
+    again = read_transmissions(etree.fromstring(urdf.encode()), "arm")
+    assert again[0].declared() == rope.declared()
+    tables = read_actuator_tables({"rope": {"kind": "Winch", "joint": "j", "radius": 2}}, "f")
+    assert tables[0].declared() == {"radius": 2.0, "slack": 0.0, "sense": "in"}
+
+
+# -- what real URDFs hold -----------------------------------------------------------------
+
+
+def test_a_continuous_joint_is_one_coordinate_bounded_where_its_cylinder_keeps_its_stroke():
+    robot = quietly(FIXTURES / "continuous" / "robot.toml")
+    assert (robot.model.nq, robot.model.nv, robot.name) == (3, 3, "continuous")
+    for joint, actuator in ((0, "x1"), (1, "x2")):
+        stroke = robot.actuators[actuator]
+        q = np.tile((robot.lower + robot.upper) / 2, (2, 1))
+        q[:, joint] = robot.lower[joint], robot.upper[joint]
+        x = np.sort(actuator_space(robot, q).x[:, joint])
+        np.testing.assert_allclose(x, [stroke.lower, stroke.upper], atol=1e-12)
+
+
+def arm_tool(q, bucket=None):
+    """The test arm's tool in the x-z plane, by hand: boom joint at z = 1 m, boom 2 m, the
+    telescope's joint 0.7 m along the stick, the tool 0.8 m beyond it (on the mimic arm, a
+    0.3 m bucket whose angle mimics the stick's, −0.5 q_stick + 0.2)."""
+    boom, stick, telescope = q
+
+    def along(angle):
+        return np.array([np.cos(angle), np.sin(angle)])
+
+    tool = np.array([0.0, 1.0]) + 2.0 * along(boom) + (0.7 + telescope + 0.8) * along(boom + stick)
+    if bucket is not None:
+        tool += 0.3 * along(boom + stick + bucket(stick))
+    return tool
+
+
+def test_a_mimic_joint_moves_with_the_joint_it_follows():
+    robot = quietly(FIXTURES / "mimic" / "robot.toml")
+    assert robot.n == 3 and robot.joint_names == ["boom_joint", "stick_joint", "telescope_joint"]
+    q = random_configurations(robot, 10, seed=5)
+    expected = [arm_tool(qi, lambda stick: -0.5 * stick + 0.2) for qi in q]
+    np.testing.assert_allclose(robot.fk(q), expected, atol=1e-12)
+    h = 1e-6  # the task Jacobian against central differences, the mimic's column included
+    for qi in q[:3]:
+        numeric = np.stack(
+            [(robot.fk(qi + h * e) - robot.fk(qi - h * e)) / (2 * h) for e in np.eye(3)], axis=1
+        )
+        np.testing.assert_allclose(robot.jacobian(qi), numeric, atol=1e-8)
+
+
+def test_a_tool_point_on_a_link_and_the_xacro_arm_are_the_arm_itself():
+    """The xacro arm (a macro, a property) expands to the continuous one: same joints, tool,
+    masses; and the tool point is where the hand-written chain puts it."""
+    plain = quietly(FIXTURES / "continuous" / "robot.toml")
+    expanded = quietly(FIXTURES / "xacro" / "robot.toml")
+    assert expanded.name == "xacro" and expanded.joint_names == plain.joint_names
+    q = random_configurations(plain, 10, seed=8)
+    np.testing.assert_allclose(plain.fk(q), [arm_tool(qi) for qi in q], atol=1e-12)
+    np.testing.assert_allclose(expanded.fk(q), plain.fk(q), atol=1e-12)
+    np.testing.assert_allclose(expanded.mass(q), plain.mass(q), atol=1e-9)
+
+
+def test_locked_joints_hold_their_chosen_values_and_drop_their_actuators(tmp_path):
+    toml = sidecar(
+        tmp_path,
+        replace=[('task_axes = "xz"', 'task_axes = "xz"\nlocked_joints = {stick_joint = -1.4}')],
+    )
+    with pytest.warns(UserWarning, match="actuators on locked joints are dropped: x2"):
+        locked = load_robot(toml)
+    assert locked.joint_names == ["boom_joint", "telescope_joint"]
+    assert locked.actuators.names == ["x1", "x3"]
+    q = np.array([[0.3, 0.5], [0.8, 0.1]])
+    np.testing.assert_allclose(locked.fk(q), [arm_tool([b, -1.4, t]) for b, t in q], atol=1e-12)
+    toml.write_text(toml.read_text().replace("{stick_joint = -1.4}", '["telescope_joint"]'))
+    neutral = quietly(toml)
+    np.testing.assert_allclose(neutral.fk([0.3, -1.0]), arm_tool([0.3, -1.0, 0.0]), atol=1e-12)
+
+
+def test_missing_meshes_are_named_once_and_drawn_as_rods_between_joint_origins():
+    with pytest.warns(UserWarning) as said:
+        robot = load_robot(FIXTURES / "meshes" / "robot.toml")
+    meshes = [str(w.message) for w in said if "meshes not found" in str(w.message)]
+    assert len(meshes) == 1
+    assert "package://arm_description/meshes/boom.stl, meshes/stick.dae" in meshes[0]
+    cycle = WorkCycle.from_toml(robot.task_file, dimension=robot.m)
+    segment = cycle.segments[0]
+    motion = simulate(
+        robot, VELOCITY.resolver, segment, configuration_at(robot, segment.start, {"x3": 0.6})[None]
+    )
+    recording = Recording()
+    vis = meshcat.Visualizer(window=recording)
+    playback = Playback(motion)
+    playback.draw(vis)
+    commands = [umsgpack.unpackb(c) for c in recording.commands]
+    poses = {
+        c["path"].rsplit("/", 1)[-1]: np.array(c["matrix"], dtype=float).reshape(4, 4).T
+        for c in commands
+        if c["type"] == "set_transform" and "/links/rods/" in c["path"]
+    }
+    # rods from the world origin to the boom joint, boom to stick, stick to telescope, and the
+    # telescope's joint to the tool: each unit rod (local y from −1/2 to 1/2) spans its ends
+    q = motion.q[0, 0]
+    boom, stick, telescope = q
+    joints = [
+        np.array([0.0, 0.0, 0.0]),
+        np.array([0.0, 0.0, 1.0]),
+        np.array([2 * np.cos(boom), 0.0, 1 + 2 * np.sin(boom)]),
+    ]
+    joints.append(
+        joints[2] + (0.7 + telescope) * np.array([np.cos(boom + stick), 0, np.sin(boom + stick)])
+    )
+    tool = arm_tool(q)
+    ends = [
+        (joints[0], joints[1]),
+        (joints[1], joints[2]),
+        (joints[2], joints[3]),
+        (joints[3], np.array([tool[0], 0.0, tool[1]])),
+    ]
+    assert sorted(poses) == ["0", "1", "2", "3"]
+    for i, (a, b) in enumerate(ends):  # world coordinates, below the scene's root node
+        T = poses[str(i)]
+        np.testing.assert_allclose(T[:3, :3] @ [0, -0.5, 0] + T[:3, 3], a, atol=1e-9)
+        np.testing.assert_allclose(T[:3, :3] @ [0, 0.5, 0] + T[:3, 3], b, atol=1e-9)
+
+
+def test_a_robot_without_inertias_is_kinematic_only(capsys):
+    robot = quietly(FIXTURES / "massless" / "robot.toml")
+    assert robot.kinematic_only and robot.massless_links == ["boom", "stick", "telescope"]
+    status, errors = run(
+        [
+            "study",
+            "--robot",
+            str(FIXTURES / "massless" / "robot.toml"),
+            "--objective",
+            "energy",
+            "--quiet",
+            "--out",
+            "/nonexistent/x",
+        ],
+        capsys,
+    )
+    assert status == 2 and len(errors) == 1, errors
+    assert (
+        "kinematic only: links boom, stick, telescope have no <inertial> in arm.urdf" in errors[0]
+    )
+
+
+def test_a_floating_root_is_refused_with_the_fix_and_loads_once_locked(tmp_path):
+    text = (FIXTURES / "continuous" / "arm.urdf").read_text()
+    text = text.replace(
+        '<robot name="arm">',
+        '<robot name="arm">\n  <link name="world"/>\n  <joint name="free" type="floating">'
+        '<parent link="world"/><child link="base"/></joint>',
+    )
+    toml = sidecar(tmp_path)
+    (toml.parent / "arm.urdf").write_text(text)
+    with pytest.raises(
+        RobotDescriptionError, match=r"joint 'free' is floating.*locked_joints = \[\"free\"\]"
+    ):
+        quietly(toml)
+    toml.write_text(
+        toml.read_text().replace('task_axes = "xz"', 'task_axes = "xz"\nlocked_joints = ["free"]')
+    )
+    robot = quietly(toml)
+    q = random_configurations(robot, 5, seed=2)
+    np.testing.assert_allclose(robot.fk(q), [arm_tool(qi) for qi in q], atol=1e-12)
+
+
+def test_a_robot_loaded_from_a_path_is_named_after_its_folder_or_file(tmp_path, monkeypatch):
+    monkeypatch.chdir(FIXTURES / "xacro")
+    assert quietly(Path("robot.toml")).name == "xacro"
+    assert quietly(Path("arm.urdf.xacro")).name == "arm"
+
+
+# -- every fixture through the study and the playback ------------------------------------
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_each_fixture_runs_the_velocity_study_and_the_playback(kind, tmp_path, capsys):
+    robot = str(FIXTURES / kind / "robot.toml")
+    out = tmp_path / "out"
+    status, errors = run(
+        [
+            "study",
+            "--robot",
+            robot,
+            "--objective",
+            "velocity",
+            "--samples",
+            "10",
+            "--quiet",
+            "--out",
+            str(out),
+        ],
+        capsys,
+    )
+    assert status == 0, errors
+    assert (out / "report.json").is_file() and (out / "playback_velocity_1-2.html").is_file()
+    page = tmp_path / "play.html"
+    status, errors = run(["play", "--robot", robot, "--html", str(page)], capsys)
+    assert status == 0, errors
+    assert page.stat().st_size > 100_000
+
+
+# -- bad input: one line naming the file, the key or element, the value and the choices ----
+
+
+BAD = [
+    (
+        'kind = "Prismatic"',
+        'kind = "Telescope"',
+        "[actuators.x3] kind = 'Telescope' is not an actuator kind; kinds: ",
+    ),
+    (
+        "xyz = [0.5, 0.0, 0.4]}",
+        "xyz = [0.5, 0.4]}",
+        "[actuators.x1] base = {'link': 'base', 'xyz': [0.5, 0.4]} must be {link = ",
+    ),
+    (
+        "stroke = [0.3, 1.3]",
+        "stroke = [1.3, 0.3]",
+        "[actuators.x1] stroke = [1.3, 0.3] must be [lower, upper]",
+    ),
+    (
+        "offset = 0.2",
+        "offset = 0.2\nbore = 80",
+        "[actuators.x3]: unknown keys ['bore']; keys of Prismatic: kind, joint, stroke, offset",
+    ),
+    (
+        "offset = 0.2",
+        'offset = "a"',
+        "[actuators.x3] offset = 'a' must be a finite number (x − q, m)",
+    ),
+    (
+        'joint = "stick_joint"',
+        'joint = "stik"',
+        "joint 'stik', which does not exist; joints: boom_joint, stick_joint, telescope_joint",
+    ),
+    (
+        'rod = {link = "boom", xyz = [0.9, 0.0, -0.2]}\n',
+        "",
+        "[actuators.x1]: missing key rod (the cylinder's rod point)",
+    ),
+    (
+        'task_axes = "xz"',
+        'task_axes = "xz"\nlocked_joints = {stick_joint = 9.0}',
+        "locked_joints stick_joint = 9 must be within the joint's range",
+    ),
+    (
+        'task_axes = "xz"',
+        'task_axes = "xz"\nlocked_joints = {stick_joint = "a"}',
+        "locked_joints: stick_joint = 'a' must be a finite number",
+    ),
+    (
+        'tool = {link = "telescope", xyz = [0.8, 0.0, 0.0]}',
+        'tool = {link = "nope", xyz = [0.8, 0.0, 0.0]}',
+        "tool.link = 'nope' is not a link of the URDF; links:",
+    ),
+    (
+        'tool = {link = "telescope", xyz = [0.8, 0.0, 0.0]}',
+        'tool = {link = "telescope"}',
+        "tool = {'link': 'telescope'} must be {link = ",
+    ),
+    ('urdf = "arm.urdf"', 'urdf = "arm.urdf.xacro"', "urdf = 'arm.urdf.xacro': no such file"),
+]
+
+
+@pytest.mark.parametrize(("old", "new", "fragment"), BAD, ids=[b[2][:30] for b in BAD])
+def test_a_bad_sidecar_is_one_line(tmp_path, capsys, old, new, fragment):
+    toml = sidecar(tmp_path, replace=[(old, new)])
+    status, errors = run(["describe", "--robot", str(toml)], capsys)
+    assert status == 2 and len(errors) == 1, errors
+    assert str(toml) in errors[0] or "arm.urdf" in errors[0] or "actuator" in errors[0], errors[0]
+    assert fragment in errors[0], errors[0]
+
+
+def test_a_broken_xacro_is_one_line(tmp_path, capsys):
+    toml = sidecar(tmp_path, "xacro")
+    xacro = toml.parent / "arm.urdf.xacro"
+    xacro.write_text(
+        re.sub(r'length="\$\{boom_length\}"', 'length="${boom_lenght}"', xacro.read_text())
+    )
+    status, errors = run(["describe", "--robot", str(toml)], capsys)
+    assert status == 2 and len(errors) == 1, errors
+    assert "arm.urdf.xacro: xacro cannot expand it" in errors[0] and "boom_lenght" in errors[0]
+
+
+# -- redundancy check ------------------------------------------------------------------------
+
+
+def test_check_passes_a_clean_robot(capsys):
+    status, errors = run(["check", "--robot", str(FIXTURES / "continuous" / "robot.toml")], capsys)
+    assert status == 0, errors
+
+
+def test_check_flags_a_stroke_the_joint_range_cannot_reach(tmp_path, capsys):
+    """The telescope's x3 = q + 0.2 m over q in [0, 1] m reaches [200, 1200] mm: a stroke of
+    [1500, 2000] mm blocks a study; one of [100, 1100] mm is a mismatch that does not."""
+    toml = sidecar(tmp_path, replace=[("stroke = [0.2, 1.1]", "stroke = [1.5, 2.0]")])
+    status = main(["check", "--robot", str(toml)])
+    out = capsys.readouterr().out
+    assert status == 2
+    assert "reaches [200 mm, 1200 mm], stroke [1500 mm, 2000 mm]: UNREACHABLE" in out
+    assert "x3: no value of its stroke is reached over telescope_joint's range" in out
+    toml.write_text(toml.read_text().replace("stroke = [1.5, 2.0]", "stroke = [0.1, 1.1]"))
+    assert main(["check", "--robot", str(toml)]) == 0
+    assert (
+        "stroke [100 mm, 1100 mm]: MISMATCH: a stroke end is not reached" in capsys.readouterr().out
+    )
+
+
+def test_check_finds_where_a_cylinder_line_passes_through_its_joint_axis(tmp_path):
+    """With a stroke admitting every length, the boom joint turns a full turn, and x1's line
+    passes through the boom's axis where the base point, the axis and the rod point are in
+    line: the boom angle turns the rod point (0.9, −0.2) m onto the base point's direction
+    (0.5, −0.6) m from the axis, or its opposite; x1 is then |b| − |r| or |b| + |r|."""
+    toml = sidecar(tmp_path, replace=[("stroke = [0.3, 1.3]", "stroke = [0.1, 3.0]")])
+    robot = quietly(toml)
+    found = check(robot)
+    x1 = found.actuators[0]
+    base, rod = np.array([0.5, -0.6]), np.array([0.9, -0.2])
+    aligned = np.arctan2(base[1], base[0]) - np.arctan2(rod[1], rod[0])
+    angles = np.sort(np.angle(np.exp(1j * np.array([aligned, aligned + np.pi]))))
+    order = np.argsort(x1.singular)
+    np.testing.assert_allclose(np.array(x1.singular)[order], angles, atol=1e-4)
+    b, r = np.linalg.norm(base), np.linalg.norm(rod)
+    lengths = {round(v, 4) for v in x1.singular_x}
+    assert lengths == {round(b + r, 4), round(abs(b - r), 4)}
+    assert any("x1: A is singular at boom_joint" in line for line in found.blocking())
+
+
+# -- play --start ----------------------------------------------------------------------------
+
+
+def test_play_starts_from_the_held_values_given_for_two_held_actuators(tmp_path, capsys):
+    """The crane with a one-dimensional task holds two actuators (r = 2): --start sets both,
+    and the motion starts with each at its value."""
+    (tmp_path / "robot.toml").write_text(
+        f'urdf = "{CRANE_URDF}"\ntool_frame = "tool"\ntask_axes = "x"\ntask = "task.toml"\n'
+    )
+    (tmp_path / "task.toml").write_text(
+        'name = "reach"\nspeed = 0.5\nsegments = ["1-2"]\nheld = ["x2", "x3"]\n'
+        "[points]\n1 = [2.5]\n2 = [2.0]\n"
+    )
+    robot = quietly(tmp_path / "robot.toml")
+    cycle = WorkCycle.from_toml(robot.task_file, dimension=1)
+    argv = ["play", "--robot", str(tmp_path / "robot.toml"), "--start", "x2=1.1,x3=0.5"]
+    args = parser().parse_args([*argv, "--html", str(tmp_path / "p.html")])
+    motion, label = _play_motion(robot, cycle, cycle.segments[0], VELOCITY, args)
+    np.testing.assert_allclose(motion.x[0, 0, 1:], [1.1, 0.5], atol=1e-9)
+    assert label == "x2 = 1.1, x3 = 0.5"
+    assert main([*argv, "--html", str(tmp_path / "p.html")]) == 0
+    capsys.readouterr()
+    status, errors = run([*argv[:-1], "x3=0.5", "--html", str(tmp_path / "p.html")], capsys)
+    assert status == 2 and errors == [
+        "redundancy: error: --start sets x3; task 'reach' holds ['x2', 'x3']: give each, "
+        "--start x2=V,x3=V (m, rad)"
+    ]
+    status, errors = run([*argv[:-1], "x2=2,x3=0.5", "--html", str(tmp_path / "p.html")], capsys)
+    assert status == 2 and errors == [
+        "redundancy: error: --start x2=2 is outside the stroke of x2: 2000 mm, stroke [830 mm, "
+        "1375 mm]"
+    ]
+
+
+def test_an_actuator_on_a_mimic_joint_names_the_joints_that_take_one(tmp_path, capsys):
+    toml = sidecar(tmp_path, "mimic")
+    toml.write_text(
+        toml.read_text() + '\n[actuators.b]\nkind = "Identity"\njoint = "bucket_joint"\n'
+    )
+    status, errors = run(["describe", "--robot", str(toml)], capsys)
+    assert status == 2 and errors == [
+        "redundancy: error: actuator 'b' drives joint 'bucket_joint', which mimics another "
+        "joint; declare the actuator on the joint it follows; joints: boom_joint, stick_joint, "
+        "telescope_joint"
+    ]
+
+
+def test_describe_says_a_robot_without_inertias_is_kinematic_only(capsys):
+    status = main(["describe", "--robot", str(FIXTURES / "massless" / "robot.toml")])
+    out = capsys.readouterr().out
+    assert status == 0
+    assert "mass: none on links boom, stick, telescope (kinematic only)" in out
+    assert "M_H" not in out
+
+
+def test_a_mimic_joint_following_a_locked_joint_is_locked_where_it_follows(tmp_path):
+    toml = sidecar(
+        tmp_path,
+        "mimic",
+        replace=[('task_axes = "xz"', 'task_axes = "xz"\nlocked_joints = {stick_joint = -1.4}')],
+    )
+    locked = quietly(toml)
+    assert locked.joint_names == ["boom_joint", "telescope_joint"]
+    q = np.array([[0.3, 0.5], [0.8, 0.1]])
+    expected = [arm_tool([b, -1.4, t], lambda stick: -0.5 * stick + 0.2) for b, t in q]
+    np.testing.assert_allclose(locked.fk(q), expected, atol=1e-12)
+
+
+def test_a_task_as_large_as_the_robot_is_refused_in_one_line(tmp_path, capsys):
+    """A bare URDF's task is the tool's whole position: m = n = 3 for the arm, nothing to
+    resolve; check blocks and the study refuses, each saying how to choose the task axes."""
+    task = tmp_path / "t.toml"
+    task.write_text(
+        'name = "t"\nspeed = 0.5\nsegments = ["1-2"]\n'
+        "[points]\n1 = [2.8, 0, -0.2]\n2 = [2.8, 0, 1.2]\n"
+    )
+    urdf = str(FIXTURES / "continuous" / "arm.urdf")
+    assert main(["check", "--robot", urdf, "--task", str(task)]) == 2
+    assert "no redundancy to resolve" in capsys.readouterr().out
+    status, errors = run(
+        ["study", "--robot", urdf, "--task", str(task), "--quiet", "--out", str(tmp_path / "o")],
+        capsys,
+    )
+    assert status == 2 and len(errors) == 1 and "give fewer task_axes" in errors[0], errors
