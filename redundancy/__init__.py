@@ -32,12 +32,27 @@ from redundancy.model.hydraulics import (
 from redundancy.model.kinematics import Kinematics
 from redundancy.model.loading import bundled_robots, load_robot
 from redundancy.model.robot import Robot
+from redundancy.planning.angles import ToolAngleRobot, with_tool_angle
 from redundancy.planning.bound import GlobalOptimum, global_optimum
+from redundancy.planning.cycles import (
+    CycleMotion,
+    CyclePlan,
+    CycleSearch,
+    PeriodicOptimum,
+    Repetition,
+    ReturnMap,
+    improved_cycle_start,
+    periodic_optimum,
+    plan_cycle,
+    repeat,
+    return_map,
+    simulate_cycle,
+)
 from redundancy.planning.energy_bound import EnergyOptimum, energy_optimum
 from redundancy.planning.ik import configuration_at, inverse_kinematics
 from redundancy.planning.integrate import Trajectory, simulate
 from redundancy.planning.starts import Sample, SearchResult, default_start, improved_start
-from redundancy.planning.tasks import Segment, WorkCycle
+from redundancy.planning.tasks import Arc, Line, Polyline, Segment, WorkCycle
 from redundancy.planning.time_scaling import Retimed, shortest_duration
 from redundancy.resolution.laws import (
     GradientProjection,
@@ -57,6 +72,7 @@ from redundancy.resolution.objectives import (
     Objective,
 )
 from redundancy.resolution.state import ActuatorSpace, actuator_space
+from redundancy.study.cycles import CycleStudy, run_cycle
 from redundancy.study.study import Study, run_study
 
 __all__ = [
@@ -68,8 +84,13 @@ __all__ = [
     "ActuatorMap",
     "ActuatorSet",
     "ActuatorSpace",
+    "Arc",
     "Circuit",
     "ConstantPressure",
+    "CycleMotion",
+    "CyclePlan",
+    "CycleSearch",
+    "CycleStudy",
     "Cylinder",
     "EnergyOptimum",
     "Flows",
@@ -79,16 +100,21 @@ __all__ = [
     "InvalidInputError",
     "Kinematics",
     "Limits",
+    "Line",
     "LinearCylinder",
     "LoadSensing",
     "MinFlow",
     "MinKineticEnergy",
     "MinVelocityNorm",
     "Objective",
+    "PeriodicOptimum",
+    "Polyline",
     "Prismatic",
     "RedundancyError",
+    "Repetition",
     "Resolver",
     "Retimed",
+    "ReturnMap",
     "Robot",
     "RobotDescriptionError",
     "Sample",
@@ -98,6 +124,7 @@ __all__ = [
     "Step",
     "Study",
     "Supply",
+    "ToolAngleRobot",
     "Trajectory",
     "UnreachableError",
     "Violation",
@@ -108,10 +135,18 @@ __all__ = [
     "default_start",
     "energy_optimum",
     "global_optimum",
+    "improved_cycle_start",
     "improved_start",
     "inverse_kinematics",
     "load_robot",
+    "periodic_optimum",
+    "plan_cycle",
+    "repeat",
+    "return_map",
+    "run_cycle",
     "run_study",
     "shortest_duration",
     "simulate",
+    "simulate_cycle",
+    "with_tool_angle",
 ]

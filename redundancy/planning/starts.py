@@ -80,24 +80,15 @@ class Sample:
         return self.values[0]
 
 
-@dataclass(frozen=True)
-class SearchResult:
-    """Every sample of a search along one segment, and the motions of the reachable ones.
+class Samples:
+    """What a search's samples say, for any search that holds ``held`` and has ``samples`` and
+    ``rows`` (a sample's row among the integrated motions, −1 when unreachable): along one
+    segment (`SearchResult`) or over a whole work cycle
+    (`redundancy.planning.cycles.CycleSearch`)."""
 
-    ``trajectory`` holds one motion per reachable sample (sparse samples); ``rows[i]`` is
-    sample i's row there (−1 when unreachable). ``method`` is the search that chose the
-    samples, ``rounds`` the batches it integrated.
-    """
-
-    robot: Robot = field(repr=False)
-    segment: Segment
-    objective: Objective
     held: tuple[str, ...]
     samples: tuple[Sample, ...]
-    trajectory: Trajectory = field(repr=False)
     rows: np.ndarray
-    method: str = "sweep"
-    rounds: int = 1
 
     @property
     def values(self) -> np.ndarray:
@@ -143,6 +134,26 @@ class SearchResult:
         """When nothing is feasible: the smallest worst-excess among the reachable samples."""
         worst = [max(s.violations, key=lambda v: v.excess) for s in self.samples if s.violations]
         return min(worst, key=lambda v: v.excess) if worst else None
+
+
+@dataclass(frozen=True)
+class SearchResult(Samples):
+    """Every sample of a search along one segment, and the motions of the reachable ones.
+
+    ``trajectory`` holds one motion per reachable sample (sparse samples); ``rows[i]`` is
+    sample i's row there (−1 when unreachable). ``method`` is the search that chose the
+    samples, ``rounds`` the batches it integrated.
+    """
+
+    robot: Robot = field(repr=False)
+    segment: Segment
+    objective: Objective
+    held: tuple[str, ...]
+    samples: tuple[Sample, ...]
+    trajectory: Trajectory = field(repr=False)
+    rows: np.ndarray
+    method: str = "sweep"
+    rounds: int = 1
 
     def motion(self, sample: Sample | None = None, time_step: float = TIME_STEP) -> Trajectory:
         """The motion from ``sample`` (default the best), integrated and sampled on the grid of
@@ -441,7 +452,24 @@ def improved_start(
                 f"the fast search holds one actuator; {list(held)} are {len(held)}: use "
                 "method='sweep'"
             )
-        return _fast(robot, segment, objective, held[0], checked, tolerance, circuit)
+        return fast_search(
+            robot,
+            segment,
+            held[0],
+            tolerance,
+            lambda starts, stop_past: evaluate_starts(
+                robot,
+                segment,
+                objective,
+                (held[0],),
+                starts,
+                checked,
+                stop_past=stop_past,
+                method="fast",
+                circuit=circuit,
+            ),
+            checked,
+        )
     if len(held) == 1:
         configurations = Configurations(robot, segment, held[0])
         # one sample is the default start: mid-stroke, or the reachable value nearest it
@@ -453,8 +481,10 @@ def improved_start(
     return _compass(robot, segment, objective, held, samples, checked, circuit)
 
 
-def _fast(robot, segment, objective, held, checked, tolerance, circuit) -> SearchResult:
-    """The fast search for one held actuator (see the module docstring)."""
+def fast_search(robot, segment, held, tolerance, evaluate, checked=None):
+    """The fast search for one held actuator (see the module docstring) from the start of
+    ``segment``: ``evaluate(starts, stop_past)`` integrates `Starts` (along the segment, or a
+    whole work cycle) and returns a search of their samples that can be ``extended``."""
     scan = sweep_values(robot, held, REACH_GRID)
     tolerance = END_TOLERANCE * (scan[-1] - scan[0]) if tolerance is None else tolerance
     if not tolerance > 0:
@@ -478,17 +508,7 @@ def _fast(robot, segment, objective, held, checked, tolerance, circuit) -> Searc
             f"{segment.name} inside its joint limits with {held} anywhere in its stroke"
         )
     grid = configurations.at(np.linspace(reachable.min(), reachable.max(), GRID))
-    search = evaluate_starts(
-        robot,
-        segment,
-        objective,
-        (held,),
-        grid,
-        checked,
-        stop_past=True,
-        method="fast",
-        circuit=circuit,
-    )
+    search = evaluate(grid, True)
     for _ in range(ROUNDS):
         order = np.argsort(search.values[:, 0], kind="stable")
         ordered = [search.samples[i] for i in order]
@@ -502,18 +522,7 @@ def _fast(robot, segment, objective, held, checked, tolerance, circuit) -> Searc
         if not probes.size:
             break
         starts = configurations.at(probes)
-        search = search.extended(
-            evaluate_starts(
-                robot,
-                segment,
-                objective,
-                (held,),
-                starts,
-                checked,
-                method="fast",
-                circuit=circuit,
-            )
-        )
+        search = search.extended(evaluate(starts, False))
     return search
 
 
