@@ -217,11 +217,16 @@ class CycleMotion:
                 measures.append(piece.measure[i, first:count])
         first_piece = self.pieces[0]
         measure = np.concatenate(measures) if len(measures) == len(self.pieces) else None
+        t, q, x, x_dot, y = (np.concatenate(parts[name]) for name in ("t", "q", "x", "x_dot", "y"))
         return Trajectory.single(
             self.robot,
             self.cycle.chain(),  # type: ignore[arg-type]
             first_piece.resolver,
-            *(np.concatenate(parts[name]) for name in ("t", "q", "x", "x_dot", "y")),
+            t,
+            q,
+            x,
+            x_dot,
+            y,
             first_piece.checked,
             first_piece.objective,
             measure,
@@ -435,6 +440,16 @@ def improved_cycle_start(
     ik = inverse_kinematics(robot, first.start, held, values)
     margins = np.where(ik.reached, 0.0, -np.inf)
     return evaluate(Starts(values, ik.q, margins, np.where(ik.reached, 0.0, ik.miss)), False)
+
+
+def _one_held(robot: Robot, cycle: WorkCycle, held: str | None) -> str:
+    """The one held actuator (``held``, or the task's), or `InvalidInputError`."""
+    found = _held(robot, cycle, held)
+    if len(found) != 1:
+        raise InvalidInputError(
+            f"this holds one actuator; {robot.name} on {cycle.name!r} holds {list(found)}"
+        )
+    return found[0]
 
 
 def _held(robot: Robot, cycle: WorkCycle, held) -> tuple[str, ...]:
@@ -876,7 +891,7 @@ def return_map(
     """P sampled at ``values`` of the held actuator (default ``count`` evenly over the reachable
     part of its stroke at the cycle's start), all integrated as one batch."""
     cycle.check_continuous(closed=True)
-    (name,) = _held(robot, cycle, None if held is None else (held,))
+    name = _one_held(robot, cycle, held)
     first = cycle.segments[0]
     configurations = Configurations(robot, first, name)
     if values is None:
@@ -991,13 +1006,13 @@ class CycleTranscription(Transcription):
         self.cache = None
         self.scale = 1.0
         self.smoothness = smoothness
-        rows = []  # second differences of the held strokes inside each segment, per s²
+        second = []  # second differences of the held strokes inside each segment, per s²
         for owner, h in zip(owners, steps):
             for j in range(1, len(owner) - 1):
-                row = np.zeros(unknowns)
-                np.add.at(row, owner[j - 1 : j + 2], np.array([1.0, -2.0, 1.0]) / h**2)
-                rows.append(row)
-        self.S = np.array(rows)
+                difference = np.zeros(unknowns)
+                np.add.at(difference, owner[j - 1 : j + 2], np.array([1.0, -2.0, 1.0]) / h**2)
+                second.append(difference)
+        self.S = np.array(second)
 
     def cost(self, z):
         """The bound's cost plus ε mean r̈² / s₀ (ε = ``smoothness``, r̈ the second differences
@@ -1094,7 +1109,7 @@ def periodic_optimum(
     motion of ``guess`` (e.g. the free improved cycle) with its drift taken out linearly in
     time; ``grids`` are interval counts over the whole cycle, each solved from the last."""
     cycle.check_continuous(closed=True)
-    (name,) = _held(robot, cycle, None if held is None else (held,))
+    name = _one_held(robot, cycle, held)
     if objective.reduction != "peak":
         raise InvalidInputError(
             f"the periodic optimum minimises a peak; objective {objective.name!r} reduces its "

@@ -355,7 +355,7 @@ class Profile:
         t = np.asarray(t, dtype=float)
         if self.kind == "constant":
             return self.speed * t, np.full(t.shape, self.speed)
-        a, ramp, peak, end = self.acceleration, self.ramp, self.peak, self.duration
+        a, ramp, peak, end = float(self.acceleration or 0.0), self.ramp, self.peak, self.duration
         t = np.clip(t, 0.0, end)
         rising, falling = t < ramp, t > end - ramp
         s = np.where(
@@ -388,7 +388,7 @@ class Segment:
     start: np.ndarray
     end: np.ndarray
     speed: float
-    shape: Shape | None = field(default=None, repr=False)
+    shape: Shape = field(default=None, repr=False)  # type: ignore[assignment]  # None: a line
     profile: str = "constant"
     acceleration: float | None = None
 
@@ -427,7 +427,7 @@ class Segment:
 
     @cached_property
     def timing(self) -> Profile:
-        return Profile(self.profile, self.speed, self.shape.length, self.acceleration)  # type: ignore[union-attr]
+        return Profile(self.profile, self.speed, self.shape.length, self.acceleration)
 
     @property
     def length(self) -> float:
@@ -788,7 +788,7 @@ def read_polyline(path: Path | str, dimension: int | None, tool_angle: bool = Fa
         line = text_lines[number_ - 1] if number_ <= len(text_lines) else ""
         if not cells or not "".join(cells).strip() or line.lstrip().startswith("#"):
             continue
-        values = []
+        values: list[float | None] = []
         for cell in cells:
             try:
                 values.append(float(cell))

@@ -198,7 +198,11 @@ class CycleStudy:
             "none" if s.best is None else _values(held, s.best.values, names=False)
             for s in plan.segments
         ]
-        peaks = [s.best.peak for s in plan.segments if s.best is not None]
+        peaks = [
+            float(s.best.peak)
+            for s in plan.segments
+            if s.best is not None and s.best.peak is not None
+        ]
         lines.append(
             f"per-segment plan: best starts {' / '.join(starts)}"
             + (f", peak {label} {max(peaks):.5g} {unit}" if peaks else "")

@@ -399,7 +399,8 @@ def run_study(
                 except (InvalidInputError, UnreachableError) as error:
                     failures[f"energy bound {supply.name}/{segment.name}"] = str(error)
             energy_bounds[segment.name] = found
-    cycle_study, skipped = None, "not asked for (cycles = 0)"
+    cycle_study: CycleStudy | None = None
+    skipped: str | None = "not asked for (cycles = 0)"
     if cycles:
         try:
             cycle.check_continuous(closed=True)

@@ -188,9 +188,9 @@ def cycle_figure(study: CycleStudy, title: str):
     if offsets is None:
         offsets = study.cycle.chain().offsets
     styles = {"free": "-", "periodic": "--"}
-    colours = {}
-    for name, motion in study.firsts.items():
-        whole = motion.whole(0)
+    colours: dict[str, str] = {}
+    for name, run in study.firsts.items():
+        whole = run.whole(0)
         t = whole.t[0]
         for row, actuator in enumerate(actuators):
             held = actuator.name in study.held
@@ -279,33 +279,45 @@ def drift_figure(study: CycleStudy, title: str):
 
 
 def return_map_figure(mapped: ReturnMap, title: str):
-    """The return map P of the held actuator at the cycle's start against the diagonal: its
-    fixed points are the limit cycles (filled where stable); samples whose cycle passes a
-    stroke are hollow."""
+    """The return map P of the held actuator at the cycle's start: above, P(v) against the
+    diagonal; below, the drift per cycle P(v) − v. The fixed points are the limit cycles
+    (filled where stable, |P'| < 1); samples whose cycle passes a stroke are hollow."""
     plt = _pyplot()
-    figure, axes = plt.subplots(figsize=(6, 5.5))
+    figure, (top, bottom) = plt.subplots(2, 1, figsize=(6.5, 7), sharex=True)
     v, p = mapped.values, mapped.following
-    axes.plot(v, p, "-", color="C0", lw=1, label="P(v): value one cycle later")
-    axes.plot(v[mapped.within], p[mapped.within], "o", ms=4, color="C0", label="keeps the strokes")
     outside = ~mapped.within & np.isfinite(p)
-    axes.plot(v[outside], p[outside], "o", ms=4, mfc="none", color="C0", label="passes a stroke")
-    axes.plot(v, v, "k--", lw=0.8, label="P(v) = v")
-    for value, slope in mapped.fixed_points:
-        stable = abs(slope) < 1
+    for axes, values, label in ((top, p, "P(v): one cycle later"), (bottom, p - v, "P(v) − v")):
+        axes.plot(v, values, "-", color="C0", lw=1, label=label)
         axes.plot(
-            value,
-            value,
-            "*",
-            ms=12,
-            color="C3",
-            mfc="C3" if stable else "none",
-            label=f"limit cycle {value:.4g} (P' = {slope:.2f})",
+            v[mapped.within],
+            values[mapped.within],
+            "o",
+            ms=4,
+            color="C0",
+            label="keeps the strokes",
         )
-    axes.set_xlabel(f"{mapped.held} at the cycle's start")
-    axes.set_ylabel(f"{mapped.held} one cycle later")
-    axes.set_title(title)
-    axes.grid(alpha=0.3)
-    axes.legend(fontsize=8)
+        axes.plot(
+            v[outside], values[outside], "o", ms=4, mfc="none", color="C0", label="passes a stroke"
+        )
+        for value, slope in mapped.fixed_points:
+            stable = abs(slope) < 1
+            axes.plot(
+                value,
+                value if axes is top else 0.0,
+                "*",
+                ms=12,
+                color="C3",
+                mfc="C3" if stable else "none",
+                label=f"limit cycle {value:.4g} (P' = {slope:.2f})",
+            )
+        axes.grid(alpha=0.3)
+        axes.legend(fontsize=8)
+    top.plot(v, v, "k--", lw=0.8)
+    bottom.axhline(0.0, color="k", ls="--", lw=0.8)
+    top.set_ylabel(f"{mapped.held} one cycle later")
+    bottom.set_ylabel("drift per cycle")
+    bottom.set_xlabel(f"{mapped.held} at the cycle's start")
+    top.set_title(title)
     figure.tight_layout()
     return figure
 
