@@ -701,6 +701,7 @@ class Repetition:
     y: np.ndarray
     circuit: bool = False
     gain: float = GAIN
+    tolerance: float = REPEAT_TOLERANCE
 
     def motion(self, number: int = 1, time_step: float = TIME_STEP) -> CycleMotion:
         """Cycle ``number`` (1-based) integrated again on the grid of ``time_step``."""
@@ -717,7 +718,7 @@ class Repetition:
             run.pieces[0].objective,
             circuit=self.circuit,
             gain=self.gain,
-            tolerance=REPEAT_TOLERANCE,
+            tolerance=self.tolerance,
         )
 
     @property
@@ -836,7 +837,17 @@ def repeat(
     x = np.array([m.pieces[0].x[0, 0] for m in motions] + [motions[-1].pieces[-1].x[0, -1]])
     y = np.array([m.pieces[0].y[0, 0] for m in motions] + [motions[-1].pieces[-1].y[0, -1]])
     return Repetition(
-        robot, cycle, strategy, held, _laws(cycle, laws), tuple(motions), x, y, circuit, gain
+        robot,
+        cycle,
+        strategy,
+        held,
+        _laws(cycle, laws),
+        tuple(motions),
+        x,
+        y,
+        circuit,
+        gain,
+        tolerance,
     )
 
 
@@ -854,6 +865,11 @@ class ReturnMap:
 
     @property
     def fixed_points(self) -> list[tuple[float, float]]:
+        """(v*, P'(v*)) where P(v) − v changes sign between two samples (linear in between)."""
+        return [(root, slope) for root, slope, _ in self._fixed()]
+
+    def _fixed(self) -> list[tuple[float, float, bool]]:
+        """The fixed points, each with whether both samples around it keep the strokes."""
         found = []
         v, p = self.values, self.following
         g = p - v
@@ -864,8 +880,21 @@ class ReturnMap:
                 continue
             root = v[i] - g[i] * (v[i + 1] - v[i]) / (g[i + 1] - g[i])
             slope = (p[i + 1] - p[i]) / (v[i + 1] - v[i])
-            found.append((float(root), float(slope)))
+            kept = bool(self.within[i] and self.within[i + 1])
+            found.append((float(root), float(slope), kept))
         return found
+
+    def describe(self) -> str:
+        """The limit cycles in words."""
+        found = self._fixed()
+        if not found:
+            return "no fixed point over the reachable stroke"
+        return "; ".join(
+            f"limit cycle at {v:.5g} (P' = {s:.3g}, {'stable' if abs(s) < 1 else 'unstable'}"
+            + ("" if kept else ", its cycle passes a stroke")
+            + ")"
+            for v, s, kept in found
+        )
 
     def report(self) -> dict:
         return {
@@ -874,7 +903,8 @@ class ReturnMap:
             "next": [None if not np.isfinite(p) else float(p) for p in self.following],
             "within_limits": self.within.tolist(),
             "fixed_points": [
-                {"value": v, "slope": s, "stable": abs(s) < 1} for v, s in self.fixed_points
+                {"value": v, "slope": s, "stable": abs(s) < 1, "keeps_the_strokes": kept}
+                for v, s, kept in self._fixed()
             ],
         }
 

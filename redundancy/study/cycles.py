@@ -243,18 +243,8 @@ class CycleStudy:
                     )
             lines.append("drift-free against the free improved cycle: " + "; ".join(parts))
         if self.map is not None:
-            points = self.map.fixed_points
             lines.append(
-                f"return map of {self.map.held} at the cycle's start: "
-                + (
-                    "; ".join(
-                        f"limit cycle at {v:.5g} (P' = {s:.3g}, "
-                        f"{'stable' if abs(s) < 1 else 'unstable'})"
-                        for v, s in points
-                    )
-                    if points
-                    else "no fixed point over the reachable stroke"
-                )
+                f"return map of {self.map.held} at the cycle's start: {self.map.describe()}"
             )
         for name, reason in self.failures.items():
             lines.append(f"{name}: {reason}")
@@ -346,13 +336,11 @@ def run_cycle(
             bar.update()
         if "periodic" in chosen:
             bar.set_description("cycle: periodic optimum")
-            guess = (
-                free_motion
-                or firsts.get("free")
-                or repeat(
+            guess = free_motion if free_motion is not None else firsts.get("free")
+            if guess is None:
+                guess = repeat(
                     robot, cycle, objective.resolver, start_q, 1, "free", held, checked
                 ).motion(1)
-            )
             try:
                 if len(held) != 1:
                     raise InvalidInputError(

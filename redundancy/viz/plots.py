@@ -184,9 +184,7 @@ def cycle_figure(study: CycleStudy, title: str):
     plt = _pyplot()
     figure, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True)
     actuators = study.robot.actuators
-    offsets = study.plan.motion.offsets if study.plan.motion is not None else None
-    if offsets is None:
-        offsets = study.cycle.chain().offsets
+    offsets = study.cycle.chain().offsets
     styles = {"free": "-", "periodic": "--"}
     colours: dict[str, str] = {}
     for name, run in study.firsts.items():
