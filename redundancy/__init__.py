@@ -34,7 +34,22 @@ from redundancy.model.linkage import LinkageCylinder
 from redundancy.model.loading import bundled_robots, load_robot
 from redundancy.model.parameters import Choice, Number, Point
 from redundancy.model.robot import Robot
+from redundancy.planning.angles import ToolAngleRobot, with_tool_angle
 from redundancy.planning.bound import GlobalOptimum, global_optimum
+from redundancy.planning.cycles import (
+    CycleMotion,
+    CyclePlan,
+    CycleSearch,
+    PeriodicOptimum,
+    Repetition,
+    ReturnMap,
+    improved_cycle_start,
+    periodic_optimum,
+    plan_cycle,
+    repeat,
+    return_map,
+    simulate_cycle,
+)
 from redundancy.planning.energy_bound import EnergyOptimum, energy_optimum
 from redundancy.planning.ik import configuration_at, inverse_kinematics
 from redundancy.planning.integrate import Trajectory, simulate
@@ -45,7 +60,7 @@ from redundancy.planning.starts import (
     improved_start,
     improved_starts,
 )
-from redundancy.planning.tasks import Segment, WorkCycle
+from redundancy.planning.tasks import Arc, Line, Polyline, Segment, WorkCycle
 from redundancy.planning.time_scaling import Retimed, shortest_duration
 from redundancy.resolution.laws import (
     GradientProjection,
@@ -66,6 +81,7 @@ from redundancy.resolution.objectives import (
 )
 from redundancy.resolution.state import ActuatorSpace, actuator_space
 from redundancy.study.check import Check, check
+from redundancy.study.cycles import CycleStudy, run_cycle
 from redundancy.study.families import MapFamily, read_family
 from redundancy.study.maps import design_map
 from redundancy.study.study import Study, run_study
@@ -79,10 +95,15 @@ __all__ = [
     "ActuatorMap",
     "ActuatorSet",
     "ActuatorSpace",
+    "Arc",
     "Check",
     "Choice",
     "Circuit",
     "ConstantPressure",
+    "CycleMotion",
+    "CyclePlan",
+    "CycleSearch",
+    "CycleStudy",
     "Cylinder",
     "EnergyOptimum",
     "Flows",
@@ -92,6 +113,7 @@ __all__ = [
     "InvalidInputError",
     "Kinematics",
     "Limits",
+    "Line",
     "LinearCylinder",
     "LinkageCylinder",
     "LoadSensing",
@@ -101,11 +123,15 @@ __all__ = [
     "MinVelocityNorm",
     "Number",
     "Objective",
+    "PeriodicOptimum",
     "Point",
+    "Polyline",
     "Prismatic",
     "RedundancyError",
+    "Repetition",
     "Resolver",
     "Retimed",
+    "ReturnMap",
     "Robot",
     "RobotDescriptionError",
     "Sample",
@@ -115,6 +141,7 @@ __all__ = [
     "Step",
     "Study",
     "Supply",
+    "ToolAngleRobot",
     "Trajectory",
     "UnreachableError",
     "Violation",
@@ -127,12 +154,20 @@ __all__ = [
     "design_map",
     "energy_optimum",
     "global_optimum",
+    "improved_cycle_start",
     "improved_start",
     "improved_starts",
     "inverse_kinematics",
     "load_robot",
+    "periodic_optimum",
+    "plan_cycle",
     "read_family",
+    "repeat",
+    "return_map",
+    "run_cycle",
     "run_study",
     "shortest_duration",
     "simulate",
+    "simulate_cycle",
+    "with_tool_angle",
 ]

@@ -23,6 +23,8 @@ from redundancy.errors import InvalidInputError, RedundancyError
 from redundancy.model.loading import bundled_robots, load_robot
 from redundancy.model.robot import Robot
 from redundancy.model.values import MAX_PAYLOAD
+from redundancy.planning.angles import task_robot
+from redundancy.planning.cycles import CYCLES
 from redundancy.planning.ik import check_path, configuration_at
 from redundancy.planning.integrate import Trajectory, simulate
 from redundancy.planning.starts import (
@@ -37,13 +39,20 @@ from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import OBJECTIVES, Objective, objective
 from redundancy.resolution.state import actuator_space
 from redundancy.study.check import check, span
+from redundancy.study.cycles import CHOICES, run_cycle, write_cycle_report
 from redundancy.study.families import read_family
 from redundancy.study.maps import CONNECT_TIMEOUT, connect, design_map, summary
 from redundancy.study.output import OutputFolder, writable, write_atomically
-from redundancy.study.study import run_study, write_report
+from redundancy.study.study import STUDY_CYCLES, run_study, write_report
 from redundancy.viz.map_figures import write_map_figures
-from redundancy.viz.playback import export_html, play, task_points, write_playbacks
-from redundancy.viz.plots import write_figures
+from redundancy.viz.playback import (
+    export_html,
+    play,
+    task_points,
+    write_cycle_playbacks,
+    write_playbacks,
+)
+from redundancy.viz.plots import write_cycle_figures, write_figures
 from redundancy.viz.server import LOCALHOST
 
 
@@ -159,12 +168,37 @@ class OneLineParser(argparse.ArgumentParser):
         sys.exit(2)
 
 
-def _load_task(robot: Robot, path: str | None) -> WorkCycle:
+def cycle_count(text: str) -> int:
+    """A number of cycles: a whole number within [0, 10,000] (0: none)."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if not 0 <= value <= 10_000:
+        raise argparse.ArgumentTypeError(f"{text!r} must be a whole number within [0, 10,000]")
+    return value
+
+
+def speed_value(text: str) -> float:
+    """A speed: a finite number > 0 (m/s or rad/s)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not 0 < value < math.inf:
+        raise argparse.ArgumentTypeError(f"{text!r} must be a speed > 0 (m/s or rad/s)")
+    return value
+
+
+def _load_task(robot: Robot, path: str | None) -> tuple[Robot, WorkCycle]:
+    """The task file's work cycle and the robot it is read on (with the tool's angle as a task
+    coordinate where the task asks for it)."""
     if path is None:
         if robot.task_file is None:
             raise InvalidInputError(f"{robot.name} ships no task; give one with --task FILE")
         path = str(robot.task_file)
-    return WorkCycle.from_toml(path, dimension=robot.m)
+    cycle = WorkCycle.from_toml(path, dimension=robot.m)
+    return task_robot(robot, cycle), cycle
 
 
 def _study_command(args: argparse.Namespace) -> None:
@@ -173,7 +207,7 @@ def _study_command(args: argparse.Namespace) -> None:
         if args.json is not None:
             report = out.beside(Path(args.json), "--json")
         robot = load_robot(args.robot, payload=args.payload, hydraulics=args.hydraulics)
-        cycle = _load_task(robot, args.task)
+        robot, cycle = _load_task(robot, args.task)
         chosen = ("velocity", "energy") if args.objective == "both" else (args.objective,)
         checked = None if args.check is None else tuple(args.check.split(","))
         study = run_study(
@@ -186,6 +220,7 @@ def _study_command(args: argparse.Namespace) -> None:
             progress=not args.quiet,
             energy_bound=args.energy_bound,
             circuit=args.circuit_limits,
+            cycles=args.cycles,
         )
         print(study.table())
         write_report(study, report)
@@ -265,7 +300,7 @@ def _held(names, values) -> str:
 def _play_command(args: argparse.Namespace) -> None:
     html = None if args.html is None else writable(args.html, "--html")
     robot = load_robot(args.robot, payload=args.payload, hydraulics=args.hydraulics)
-    cycle = _load_task(robot, args.task)
+    robot, cycle = _load_task(robot, args.task)
     segment = cycle[args.segment] if args.segment else cycle.segments[0]
     chosen = objective(args.objective)
     check_path(robot, segment)
@@ -319,10 +354,40 @@ def _check_command(args: argparse.Namespace) -> int:
     robot = load_robot(args.robot, payload=args.payload, hydraulics=args.hydraulics)
     cycle = None
     if args.task is not None or robot.task_file is not None:
-        cycle = _load_task(robot, args.task)
+        robot, cycle = _load_task(robot, args.task)
     found = check(robot, cycle)
     print(found.report())
     return 2 if found.blocking() else 0
+
+
+def _cycle_command(args: argparse.Namespace) -> None:
+    with OutputFolder(args.out) as out:  # committed only if everything below succeeds
+        report = out / "report.json"
+        if args.json is not None:
+            report = out.beside(Path(args.json), "--json")
+        robot = load_robot(args.robot, payload=args.payload, hydraulics=args.hydraulics)
+        robot, cycle = _load_task(robot, args.task)
+        checked = None if args.check is None else tuple(args.check.split(","))
+        study = run_cycle(
+            robot,
+            cycle,
+            objective(args.objective),
+            args.cycles,
+            args.strategy,
+            samples=args.samples,
+            checked=checked,
+            method=args.method,
+            circuit=args.circuit_limits,
+            speed=args.gap_speed,
+            progress=not args.quiet,
+        )
+        print(study.table())
+        write_cycle_report(study, report)
+        figures = [out.final(p) for p in write_cycle_figures(study, out.staging)]
+        playbacks = [out.final(p) for p in write_cycle_playbacks(study, out.staging)]
+    print(f"report: {args.json or out.target / 'report.json'}")
+    print(f"figures: {', '.join(str(p) for p in figures)}")
+    print(f"playbacks: {', '.join(str(p) for p in playbacks)}")
 
 
 def _robots_command(args: argparse.Namespace) -> None:
@@ -380,6 +445,13 @@ def parser() -> argparse.ArgumentParser:
         "--circuit-limits",
         action="store_true",
         help="the hydraulic circuit's limits (pressure, pump flow, speeds) count like strokes",
+    )
+    study.add_argument(
+        "--cycles",
+        type=cycle_count,
+        default=STUDY_CYCLES,
+        help=f"the cycle section repeats the task this many times (default {STUDY_CYCLES}; 0: no "
+        "cycle section)",
     )
     study.add_argument("--out", default="results", help="output folder (figures, report)")
     study.add_argument("--json", help="report path (default: OUT/report.json)")
@@ -443,6 +515,51 @@ def parser() -> argparse.ArgumentParser:
     design.add_argument("--out", help="output folder (default: maps/<map file name>)")
     design.add_argument("--quiet", action="store_true", help="no progress bar")
     design.set_defaults(run=_map_command)
+    cycle = commands.add_parser(
+        "cycle", help="the work cycle as a machine runs it: whole-cycle plan, repetition, drift"
+    )
+    _add_robot_options(cycle)
+    cycle.add_argument("--task", help="task file (TOML); default: the robot's own")
+    cycle.add_argument(
+        "--cycles",
+        type=cycle_count,
+        default=CYCLES,
+        help=f"cycles run one after another (default {CYCLES})",
+    )
+    cycle.add_argument(
+        "--strategy",
+        choices=CHOICES,
+        default="both",
+        help="free: the objective's law from the whole-cycle improved start; periodic: the "
+        "drift-free periodic optimum; both (default)",
+    )
+    cycle.add_argument(
+        "--objective", choices=list(OBJECTIVES), default="velocity", help="what to minimise"
+    )
+    cycle.add_argument("--samples", type=sample_count, default=100, help="starts per sweep")
+    cycle.add_argument(
+        "--method", choices=METHODS, default=None, help="the improved starts' search"
+    )
+    cycle.add_argument(
+        "--check", help="comma-separated actuators whose limits count (default: all)"
+    )
+    cycle.add_argument(
+        "--circuit-limits",
+        action="store_true",
+        help="the hydraulic circuit's limits (pressure, pump flow, speeds) count like strokes",
+    )
+    cycle.add_argument(
+        "--gap-speed",
+        type=speed_value,
+        default=None,
+        metavar="V",
+        help="the held actuator's speed in the corners' self-motions, m/s or rad/s (default: "
+        "its cylinder's maximum, else 0.1)",
+    )
+    cycle.add_argument("--out", default="cycle_results", help="output folder")
+    cycle.add_argument("--json", help="report path (default: OUT/report.json)")
+    cycle.add_argument("--quiet", action="store_true", help="no progress bar")
+    cycle.set_defaults(run=_cycle_command)
     return main
 
 

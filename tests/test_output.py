@@ -15,7 +15,7 @@ from commands import run_cli
 from redundancy.errors import InvalidInputError
 from redundancy.study.output import MARKER, OutputFolder, writable
 
-STUDY = ("study", "--objective", "velocity", "--samples", "3", "--quiet")
+STUDY = ("study", "--objective", "velocity", "--cycles", "0", "--samples", "3", "--quiet")
 
 
 def _contents(folder: Path) -> dict[str, str]:

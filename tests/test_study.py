@@ -18,7 +18,7 @@ SEGMENTS = ["1-2", "2-3", "3-1"]
 @pytest.fixture(scope="module")
 def study(crane):
     cycle = WorkCycle.from_toml(crane.task_file, dimension=crane.m)
-    return run_study(crane, cycle, samples=40, progress=False)
+    return run_study(crane, cycle, samples=40, progress=False, cycles=2)
 
 
 def width(search):
@@ -99,9 +99,12 @@ def test_a_segment_without_a_feasible_start_is_reported_not_raised(study):
 
 def test_study_command_writes_the_report_and_the_five_figures(tmp_path):
     out = tmp_path / "out"
-    run = run_cli("study", "--samples", "5", "--out", str(out), "--quiet")
+    run = run_cli("study", "--samples", "5", "--cycles", "2", "--out", str(out), "--quiet")
     assert run.returncode == 0, run.stderr
     report = json.loads((out / "report.json").read_text())
+    assert report["cycle"]["cycles"] == 2 and len(report["cycle"]["per_segment"]["corners"]) == 3
+    for name in ("cycle_strokes.png", "cycle_drift.png", "playback_cycle_periodic.html"):
+        assert (out / name).is_file()
     assert report["robot"] == "hiab031"
     assert [s["objective"] for s in report["studies"]] == ["velocity", "energy"]
     for entry in report["studies"]:
@@ -161,3 +164,26 @@ def test_written_files_get_the_mode_the_umask_gives(tmp_path):
     assert path.read_text() == "done\n"
     assert stat.S_IMODE(path.stat().st_mode) == 0o644
     assert [p.name for p in tmp_path.iterdir()] == ["report.txt"]
+
+
+def test_the_report_has_a_cycle_section(study):
+    """The paper's three segments form one closed cycle: the study runs it as a machine does."""
+    section = json.loads(json.dumps(study.report(), allow_nan=False))["cycle"]
+    assert section["objective"] == "velocity" and section["cycles"] == 2
+    assert section["whole_cycle"]["best"]["value"] < 0.86  # far below 1-2's own best, 1.09
+    corners = section["per_segment"]["corners"]
+    assert [(c["after"], c["before"]) for c in corners] == [
+        ("1-2", "2-3"),
+        ("2-3", "3-1"),
+        ("3-1", "1-2"),
+    ]
+    assert all(c["time_s"] > 0 for c in corners)
+    assert set(section["strategies"]) == {"free", "periodic"}
+    assert "work cycle 'paper work cycle'" in study.table()
+
+
+def test_a_task_that_is_no_cycle_has_no_cycle_section(crane):
+    cycle = WorkCycle.from_toml(crane.task_file, dimension=crane.m)
+    open_task = WorkCycle(cycle.name, cycle.segments[:1], cycle.held)
+    study = run_study(crane, open_task, samples=5, bound=False, progress=False)
+    assert "does not return to its start" in study.report()["cycle"]["skipped"]

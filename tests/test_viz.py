@@ -215,7 +215,7 @@ def test_study_writes_a_playback_per_segment_for_the_best_start(tmp_path, capsys
     )
     out = tmp_path / "out"
     args = ["study", "--task", str(task), "--objective", "velocity", "--samples", "3"]
-    args += ["--method", "sweep"]
+    args += ["--method", "sweep", "--cycles", "0"]
     assert main([*args, "--out", str(out), "--quiet"]) == 0
     segments = json.loads((out / "report.json").read_text())["studies"][0]["segments"]
     best = [s["name"] for s in segments if s["best"] is not None]

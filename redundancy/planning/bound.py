@@ -146,7 +146,8 @@ class Transcription:
         self.t = np.linspace(0.0, segment.duration, intervals + 1)
         self.D = differentiation(intervals, self.t[1])
         self.points = segment.position(self.t)
-        self.y_dot = np.broadcast_to(segment.velocity, (intervals + 1, robot.m))
+        self.y_dot = segment.velocity_at(self.t)
+        self.owner = np.arange(intervals + 1)  # the unknown r_i each node's held stroke is
         self.q = np.array(guess, dtype=float)
         self.lower = limits.lower + LIMIT_MARGIN
         self.upper = limits.upper - LIMIT_MARGIN
@@ -154,8 +155,15 @@ class Transcription:
         self.cache: tuple[bytes, Nodes] | None = None
         self.scale = 1.0
 
+    @property
+    def incidence(self) -> np.ndarray:
+        """(nodes, unknowns): 1 where a node's held stroke is that unknown."""
+        return np.eye(self.D.shape[1])[self.owner]
+
     def configurations(self, r: np.ndarray) -> np.ndarray:
-        """q at every node for the held strokes r (N + 1,), Newton-continued from the last."""
+        """q at every node for the held strokes r (one per unknown), Newton-continued from the
+        last."""
+        r = r[self.owner]
         target = np.concatenate([self.points, r[:, None]], axis=1)
         q, residual = newton(self.robot, self.q, [self.row], target, CONTINUATION_ITERATIONS)
         if np.any(residual > FOUND):
@@ -194,7 +202,8 @@ class Transcription:
         step = DIFFERENCE_STEP * dq  # through q_j at fixed ṙ_j: a central difference
         ahead, behind = self.motion(q + step, r_dot)[-1], self.motion(q - step, r_dot)[-1]
         own = (ahead - behind) / (2 * DIFFERENCE_STEP)
-        nodes = Nodes(measure, rate[:, None] * self.D + np.diag(own), space, x_dot, dx)
+        gradient = rate[:, None] * self.D + own[:, None] * self.incidence
+        nodes = Nodes(measure, gradient, space, x_dot, dx)
         self.cache = (key, nodes)
         return nodes
 
@@ -218,20 +227,20 @@ class Transcription:
 
     def jacobian(self, z):
         nodes = self.evaluate(z)
-        count = len(nodes.measure)
+        count, unknowns = nodes.gradient.shape
         peak = np.concatenate([-nodes.gradient, np.ones((count, 1))], axis=1) / self.scale
         d_strokes = nodes.dx[:, self.columns]
         c = d_strokes.shape[1]
-        lower = np.zeros((count, c, count + 1))
-        j = np.arange(count)
-        lower[j, :, j] = d_strokes / self.span
-        lower = lower.reshape(count * c, count + 1)
+        lower = np.zeros((count, c, unknowns + 1))
+        lower[np.arange(count), :, self.owner] = d_strokes / self.span
+        lower = lower.reshape(count * c, unknowns + 1)
         return np.concatenate([peak, lower, -lower])
 
 
 class Nodes(NamedTuple):
     """The transcription at one iterate: the measure at each node (N + 1,), its gradient with
-    respect to r (N + 1, N + 1), the actuator space, ẋ (N + 1, n) and ∂x_j/∂r_j (N + 1, n)."""
+    respect to the unknowns r (N + 1, unknowns), the actuator space, ẋ (N + 1, n) and
+    ∂x_j/∂r_j (N + 1, n)."""
 
     measure: np.ndarray
     gradient: np.ndarray
@@ -240,7 +249,7 @@ class Nodes(NamedTuple):
     dx: np.ndarray
 
 
-def _solve(problem: Transcription, r0: np.ndarray, box: tuple, intervals: int):
+def solve_transcription(problem: Transcription, r0: np.ndarray, box: tuple, intervals: int):
     """SLSQP from r0: the grid's solution and the transcription at it."""
     measure = problem.evaluate(np.append(r0, 0.0)).measure
     problem.scale = float(measure.max())
@@ -319,7 +328,7 @@ def global_optimum(
         q = np.stack([np.interp(times, t, q[:, i]) for i in range(robot.n)], axis=1)
         bound = Limits.strokes(robot, others)
         problem = Transcription(robot, objective, segment, row, bound, intervals, q)
-        return (*_solve(problem, np.interp(times, t, r), box, intervals), problem.q)
+        return (*solve_transcription(problem, np.interp(times, t, r), box, intervals), problem.q)
 
     starts = inverse_kinematics(robot, segment.start, [held], np.array(initial)[:, None])
     if not starts.reached.any():

@@ -369,10 +369,10 @@ class Law:
         """At times t (k,) and configurations q (k, n)."""
         space, bad = regularised(evaluate(self.robot, q))
         segment = self.segment
-        y_dot = np.broadcast_to(segment.velocity, space.y.shape)
+        y_dot = segment.velocity_at(t)
         if self.gain:
             y_dot = y_dot + self.gain * (segment.position(t) - space.y)
-        x_dot = self.resolver.resolve(space, y_dot)
+        x_dot = self.resolver.resolve_at(space, y_dot, t)
         q_dot = space.joint_velocities(x_dot)
         bad |= ~np.all(np.isfinite(q_dot), axis=1)
         q_dot[bad], x_dot[bad] = 0.0, 0.0

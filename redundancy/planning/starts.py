@@ -80,24 +80,15 @@ class Sample:
         return self.values[0]
 
 
-@dataclass(frozen=True)
-class SearchResult:
-    """Every sample of a search along one segment, and the motions of the reachable ones.
+class Samples:
+    """What a search's samples say, for any search that holds ``held`` and has ``samples`` and
+    ``rows`` (a sample's row among the integrated motions, −1 when unreachable): along one
+    segment (`SearchResult`) or over a whole work cycle
+    (`redundancy.planning.cycles.CycleSearch`)."""
 
-    ``trajectory`` holds one motion per reachable sample (sparse samples); ``rows[i]`` is
-    sample i's row there (−1 when unreachable). ``method`` is the search that chose the
-    samples, ``rounds`` the batches it integrated.
-    """
-
-    robot: Robot = field(repr=False)
-    segment: Segment
-    objective: Objective
     held: tuple[str, ...]
     samples: tuple[Sample, ...]
-    trajectory: Trajectory = field(repr=False)
     rows: np.ndarray
-    method: str = "sweep"
-    rounds: int = 1
 
     @property
     def values(self) -> np.ndarray:
@@ -144,6 +135,26 @@ class SearchResult:
         worst = [max(s.violations, key=lambda v: v.excess) for s in self.samples if s.violations]
         return min(worst, key=lambda v: v.excess) if worst else None
 
+
+@dataclass(frozen=True)
+class SearchResult(Samples):
+    """Every sample of a search along one segment, and the motions of the reachable ones.
+
+    ``trajectory`` holds one motion per reachable sample (sparse samples); ``rows[i]`` is
+    sample i's row there (−1 when unreachable). ``method`` is the search that chose the
+    samples, ``rounds`` the batches it integrated.
+    """
+
+    robot: Robot = field(repr=False)
+    segment: Segment
+    objective: Objective
+    held: tuple[str, ...]
+    samples: tuple[Sample, ...]
+    trajectory: Trajectory = field(repr=False)
+    rows: np.ndarray
+    method: str = "sweep"
+    rounds: int = 1
+
     def motion(self, sample: Sample | None = None, time_step: float = TIME_STEP) -> Trajectory:
         """The motion from ``sample`` (default the best), integrated and sampled on the grid of
         ``time_step``: a trajectory of one."""
@@ -180,14 +191,14 @@ class SearchResult:
             self.objective,
             self.held,
             self.samples + other.samples,
-            _concatenated(self.trajectory, other.trajectory),
+            concatenated(self.trajectory, other.trajectory),
             rows,
             self.method,
             self.rounds + other.rounds,
         )
 
 
-def _concatenated(first: Trajectory, second: Trajectory) -> Trajectory:
+def concatenated(first: Trajectory, second: Trajectory) -> Trajectory:
     """Two batches of motions on one segment as one, padded to the longer by repetition."""
     length = max(first.t.shape[1], second.t.shape[1])
 
@@ -288,7 +299,7 @@ class Configurations:
 
     def __init__(self, robot: Robot, segment: Segment, held: str):
         point = segment.start
-        self.robot, self.point, self.held = robot, point, held
+        self.robot, self.point, self.held, self.segment = robot, point, held, segment
         self._reach: dict[float, Starts] = {}
         self.row = held_indices(robot, [held])[0]
         self.joints = Limits.joints(robot)
@@ -496,15 +507,26 @@ def improved_starts(
             for objective in objectives
         )
     if method == "fast":
-        scan = sweep_values(robot, held[0], REACH_GRID)
-        tolerance = END_TOLERANCE * (scan[-1] - scan[0]) if tolerance is None else tolerance
-        if not tolerance > 0:
-            raise InvalidInputError(f"tolerance must be > 0; got {tolerance}")
+        tolerance = end_tolerance(robot, held[0], tolerance)
     Limits.strokes(robot, checked)  # names checked before any work
     configurations = Configurations(robot, segment, held[0])
     if method == "fast":
         return tuple(
-            _fast(robot, segment, objective, held[0], checked, tolerance, circuit, configurations)
+            fast_search(
+                configurations,
+                tolerance,
+                lambda starts, stop_past, objective=objective: evaluate_starts(
+                    robot,
+                    segment,
+                    objective,
+                    held,
+                    starts,
+                    checked,
+                    stop_past=stop_past,
+                    method="fast",
+                    circuit=circuit,
+                ),
+            )
             for objective in objectives
         )
     # one sample is the default start: mid-stroke, or the reachable value nearest it
@@ -516,8 +538,24 @@ def improved_starts(
     )
 
 
-def _fast(robot, segment, objective, held, checked, tolerance, circuit, configurations):
-    """The fast search for one held actuator (see the module docstring)."""
+def end_tolerance(robot: Robot, held: str, tolerance: float | None) -> float:
+    """The tolerance (m or rad) to which the fast search locates the feasible ends:
+    ``tolerance``, or by default `END_TOLERANCE` of the held actuator's stroke."""
+    scan = sweep_values(robot, held, REACH_GRID)
+    tolerance = END_TOLERANCE * (scan[-1] - scan[0]) if tolerance is None else tolerance
+    if not tolerance > 0:
+        raise InvalidInputError(f"tolerance must be > 0; got {tolerance}")
+    return tolerance
+
+
+def fast_search(configurations: Configurations, tolerance: float | None, evaluate):
+    """The fast search for one held actuator (see the module docstring) over the start
+    ``configurations`` of a segment: ``evaluate(starts, stop_past)`` integrates `Starts` (along
+    the segment, or a whole work cycle) and returns a search of their samples that can be
+    ``extended``. The reachable scan is the configurations' own, shared by every search that
+    uses them."""
+    robot, segment, held = configurations.robot, configurations.segment, configurations.held
+    tolerance = end_tolerance(robot, held, tolerance)
     reach = configurations.reach(tolerance)
     reachable = reach.values[reach.reachable, 0]
     if not reachable.size:
@@ -526,17 +564,7 @@ def _fast(robot, segment, objective, held, checked, tolerance, circuit, configur
             f"{segment.name} inside its joint limits with {held} anywhere in its stroke"
         )
     grid = configurations.at(np.linspace(reachable.min(), reachable.max(), GRID))
-    search = evaluate_starts(
-        robot,
-        segment,
-        objective,
-        (held,),
-        grid,
-        checked,
-        stop_past=True,
-        method="fast",
-        circuit=circuit,
-    )
+    search = evaluate(grid, True)
     for _ in range(ROUNDS):
         order = np.argsort(search.values[:, 0], kind="stable")
         ordered = [search.samples[i] for i in order]
@@ -550,18 +578,7 @@ def _fast(robot, segment, objective, held, checked, tolerance, circuit, configur
         if not probes.size:
             break
         starts = configurations.at(probes)
-        search = search.extended(
-            evaluate_starts(
-                robot,
-                segment,
-                objective,
-                (held,),
-                starts,
-                checked,
-                method="fast",
-                circuit=circuit,
-            )
-        )
+        search = search.extended(evaluate(starts, False))
     return search
 
 

@@ -1,20 +1,57 @@
-"""Tasks: straight segments travelled at constant speed (Eqs. 33-34) and work cycles of them.
+"""Tasks: paths in task coordinates, how fast they are travelled, and work cycles of them.
 
-A task file (TOML) names its points in task coordinates and the segments between them::
+A segment is a path (its geometry) and a speed profile (its timing):
+
+- paths (`Line`, `Arc`, `Polyline`) are parametrised by the arc length s of the tool's position
+  over [0, length]. A straight line P→Q (Eq. 33), a circular arc (through a third point, or about
+  a centre; a closed circle is an arc about a centre that ends where it starts), or a polyline
+  through recorded points (a CSV file: an operator's path). Where the task has the tool's angle
+  as its last coordinate, the angle changes linearly with s from its value at the start to its
+  value at the end (a closed circle keeps it), and the speed is the tool position's.
+- speed profiles (`Profile`): "constant", the paper's (Eq. 34), ṡ = speed from t = 0, so ẏ jumps
+  at the corners of a cycle; or "trapezoidal", from rest to rest: ṡ rises at the maximum
+  ``acceleration`` to the ``speed``, cruises and falls again (a triangle where the path is too
+  short to reach the speed), so ẏ is continuous everywhere, zero at every corner.
+
+A work cycle is its segments travelled one after another; a cycle a machine repeats is
+continuous (each segment starts where the one before ends) and closed (the last ends where the
+first starts): `WorkCycle.check_continuous`.
+
+A task file (TOML), its whole schema::
 
     name = "paper work cycle"
-    speed = 0.5                       # m/s on every segment (at most 10)
-    segments = ["1-2", "2-3", "3-1"]  # "<from>-<to>" by point name
-    held = ["x3"]                     # actuators the improved search holds (optional)
+    speed = 0.5                 # m/s of the tool along every segment (at most 10); default 0.5
+    profile = "constant"        # or "trapezoidal"; default "constant"
+    acceleration = 1.0          # m/s², the trapezoidal profile's maximum (required with it)
+    tool_angle = false          # true: every point has one more coordinate, the tool's angle
+                                # about the task plane's normal, in degrees (a planar task only)
+    held = ["x3"]               # actuators the improved search holds (optional)
+    segments = [
+      "1-2",                                              # straight, "<from>-<to>"
+      { from = "2", to = "3", via = "4" },                # arc from 2 through 4 to 3
+      { from = "3", to = "1", centre = "c", direction = "ccw" },  # arc about c
+      { from = "1", to = "1", centre = "c", direction = "cw" },   # closed circle about c
+      { csv = "recorded.csv", name = "dig" },             # polyline, path beside this file
+    ]
     [points]
-    1 = [3.5, -0.5]                   # one value per task axis of the robot, m
-    2 = [1.0, -0.5]
-    3 = [2.25, 3.0]
+    1 = [3.5, -0.5]             # one value per task axis of the robot, m (and degrees)
+
+A table may also give its own ``name``, ``speed``, ``profile`` and ``acceleration``; names must
+be distinct (a line or arc is named "<from>-<to>" by default, a polyline after its file).
+``direction`` is "ccw" (from the first task axis towards the second) or "cw"; an arc about a
+centre needs a planar position (two task axes), and its ends at one distance from the centre.
+
+A CSV polyline holds one point per line, its cells separated by commas: one value per task
+coordinate (the angle in degrees). Blank lines and lines starting with "#" are skipped, and so
+is a first line of names (no cell a number). Consecutive points at one position are merged. A
+malformed file is one error naming its line.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import csv
+import math
+from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
 
@@ -23,15 +60,337 @@ import numpy as np
 from redundancy.errors import InvalidInputError
 from redundancy.model.values import MAX_SPEED, coordinates, names, number, read_toml, text
 
+PROFILES = ("constant", "trapezoidal")
+DIRECTIONS = ("ccw", "cw")
+MAX_ACCELERATION = 100.0  # m/s²: beyond any hydraulic manipulator's tool
+CLOSED = 1e-9  # m (or rad): ends this close count as one point
+ARC_MISMATCH = 1e-6  # relative: an arc's ends must lie this close to one circle about its centre
+OUTLINE = 64  # points per full turn when a curved path is drawn
+
+
+class Shape:
+    """Geometry of a segment in task coordinates (m of them; the last ``angles`` are angles),
+    parametrised by the arc length s ∈ [0, length] of the position (the first m − angles)."""
+
+    start: np.ndarray
+    end: np.ndarray
+    angles: int
+    kind: str = "path"
+
+    @property
+    def length(self) -> float:  # pragma: no cover - every path defines it
+        raise NotImplementedError
+
+    def point(self, s: np.ndarray) -> np.ndarray:  # pragma: no cover
+        """y(s), (..., m) for s (...,) in m."""
+        raise NotImplementedError
+
+    def tangent(self, s: np.ndarray) -> np.ndarray:  # pragma: no cover
+        """dy/ds (..., m): a unit vector in the position, and the angle's rate per metre."""
+        raise NotImplementedError
+
+    @property
+    def kinks(self) -> tuple[float, ...]:
+        """Arc lengths inside the path where its tangent jumps."""
+        return ()
+
+    def outline(self) -> np.ndarray:
+        """Points (P, m) that draw the path as straight pieces."""
+        count = 2 if self.kind == "line" else max(8, int(OUTLINE * self.turn) + 1)
+        return self.point(np.linspace(0.0, self.length, count))
+
+    @property
+    def turn(self) -> float:
+        """The fraction of a full turn the path sweeps (0 for straight paths)."""
+        return 0.0
+
+    def _angle(self, s: np.ndarray) -> np.ndarray:
+        """The angle coordinates at s (..., angles), linear in s between the ends."""
+        p = len(self.start) - self.angles
+        fraction = np.asarray(s, dtype=float)[..., None] / self.length
+        return self.start[p:] + fraction * (self.end[p:] - self.start[p:])
+
+    def _angle_rate(self, s: np.ndarray) -> np.ndarray:
+        p = len(self.start) - self.angles
+        rate = (self.end[p:] - self.start[p:]) / self.length
+        return np.broadcast_to(rate, (*np.shape(s), self.angles))
+
+
+def _position(y: np.ndarray, angles: int) -> np.ndarray:
+    return y[: len(y) - angles]
+
+
+@dataclass(frozen=True)
+class Line(Shape):
+    """The straight line from ``start`` to ``end`` (m,) (Eq. 33)."""
+
+    start: np.ndarray
+    end: np.ndarray
+    angles: int = 0
+    kind: str = field(default="line", init=False)
+
+    def __post_init__(self) -> None:
+        if not self.length > 0:
+            raise InvalidInputError(
+                "start and end coincide" + (" in position" if self.angles else "")
+            )
+
+    @cached_property
+    def length(self) -> float:
+        return float(np.linalg.norm(_position(self.end - self.start, self.angles)))
+
+    def point(self, s):
+        fraction = np.asarray(s, dtype=float)[..., None] / self.length
+        return self.start + fraction * (self.end - self.start)
+
+    def tangent(self, s):
+        return np.broadcast_to(
+            (self.end - self.start) / self.length, (*np.shape(s), len(self.start))
+        )
+
+
+@dataclass(frozen=True)
+class Arc(Shape):
+    """A circular arc: centre c (p,), orthonormal e1, e2 (p,) spanning its plane, ``radius`` R
+    and ``sweep`` θ > 0 (rad): the position c + R (cos φ e1 + sin φ e2), φ = s / R ∈ [0, θ],
+    from ``start`` to ``end`` (m,). Built by `Arc.through` or `Arc.about`."""
+
+    start: np.ndarray
+    end: np.ndarray
+    centre: np.ndarray
+    e1: np.ndarray
+    e2: np.ndarray
+    radius: float
+    sweep: float
+    angles: int = 0
+    kind: str = field(default="arc", init=False)
+
+    @property
+    def closed(self) -> bool:
+        return self.sweep >= 2 * math.pi - 1e-12
+
+    @property
+    def length(self) -> float:
+        return self.radius * self.sweep
+
+    @property
+    def turn(self) -> float:
+        return self.sweep / (2 * math.pi)
+
+    def point(self, s):
+        phi = np.asarray(s, dtype=float)[..., None] / self.radius
+        position = self.centre + self.radius * (np.cos(phi) * self.e1 + np.sin(phi) * self.e2)
+        return np.concatenate([position, self._angle(s)], axis=-1)
+
+    def tangent(self, s):
+        phi = np.asarray(s, dtype=float)[..., None] / self.radius
+        direction = -np.sin(phi) * self.e1 + np.cos(phi) * self.e2
+        return np.concatenate([direction, self._angle_rate(s)], axis=-1)
+
+    @classmethod
+    def through(cls, start, via, end, angles: int = 0) -> Arc:
+        """The arc from ``start`` through ``via`` to ``end`` (m,) each, in any dimension ≥ 2."""
+        a, b, c = (_position(np.asarray(v, dtype=float), angles) for v in (start, via, end))
+        u, v = b - a, c - a
+        uu, vv, uv = u @ u, v @ v, u @ v
+        determinant = uu * vv - uv * uv
+        if len(a) < 2 or determinant <= 1e-12 * max(uu * vv, 1e-300):
+            raise InvalidInputError("its three points lie on one line (or coincide)")
+        alpha = vv * (uu - uv) / (2 * determinant)
+        beta = uu * (vv - uv) / (2 * determinant)
+        centre = a + alpha * u + beta * v
+        radius = float(np.linalg.norm(a - centre))
+        e1 = (a - centre) / radius
+        side = (b - centre) - ((b - centre) @ e1) * e1
+        e2 = side / np.linalg.norm(side)  # the via point lies at an angle in (0, π] or beyond
+        sweep = _angle_of(c - centre, e1, e2)
+        if _angle_of(b - centre, e1, e2) > sweep:  # via beyond the end: go round the other way
+            e2 = -e2
+            sweep = _angle_of(c - centre, e1, e2)
+        return cls(
+            np.asarray(start, float), np.asarray(end, float), centre, e1, e2, radius, sweep, angles
+        )
+
+    @classmethod
+    def about(cls, start, end, centre, direction: str, angles: int = 0) -> Arc:
+        """The arc about ``centre`` (p,) from ``start`` to ``end`` (m,) in ``direction`` ("ccw":
+        from the first position axis towards the second; "cw"); a full circle where they meet.
+        The position must be planar (p = 2)."""
+        start, end = np.asarray(start, float), np.asarray(end, float)
+        a, c = _position(start, angles), _position(end, angles)
+        centre = np.asarray(centre, dtype=float)
+        if len(a) != 2:
+            raise InvalidInputError(
+                f"an arc about a centre needs a planar position (2 task axes); this task has "
+                f"{len(a)}: give a third point with via instead"
+            )
+        if direction not in DIRECTIONS:
+            raise InvalidInputError(
+                f"direction = {direction!r} must be one of {', '.join(DIRECTIONS)}"
+            )
+        radius = float(np.linalg.norm(a - centre))
+        if not radius > 0:
+            raise InvalidInputError("its start lies on its centre")
+        if abs(np.linalg.norm(c - centre) - radius) > ARC_MISMATCH * radius:
+            raise InvalidInputError(
+                f"its ends lie {radius:.6g} m and {np.linalg.norm(c - centre):.6g} m from the "
+                "centre; an arc's ends lie at one distance"
+            )
+        e1 = (a - centre) / radius
+        e2 = np.array([-e1[1], e1[0]]) * (1 if direction == "ccw" else -1)
+        sweep = _angle_of(c - centre, e1, e2)
+        if sweep < 1e-12 or np.linalg.norm(c - a) <= CLOSED:
+            sweep = 2 * math.pi
+            if np.any(np.abs(end - start) > CLOSED):
+                raise InvalidInputError("a closed circle ends where it starts, its angle too")
+        return cls(start, end, centre, e1, e2, radius, sweep, angles)
+
+
+def _angle_of(d: np.ndarray, e1: np.ndarray, e2: np.ndarray) -> float:
+    """The angle of d in the plane (e1, e2), in [0, 2π)."""
+    angle = math.atan2(float(d @ e2), float(d @ e1))
+    return angle + 2 * math.pi if angle < -1e-12 else max(angle, 0.0)
+
+
+@dataclass(frozen=True)
+class Polyline(Shape):
+    """Straight pieces through ``points`` (K, m), K ≥ 2, consecutive ones at distinct
+    positions."""
+
+    points: np.ndarray
+    angles: int = 0
+    kind: str = field(default="polyline", init=False)
+
+    def __post_init__(self) -> None:
+        if len(self.points) < 2:
+            raise InvalidInputError("a polyline needs at least two points")
+        if not np.all(np.diff(self.cumulative) > 0):
+            raise InvalidInputError("consecutive points of a polyline must differ in position")
+
+    @property
+    def start(self) -> np.ndarray:  # type: ignore[override]
+        return self.points[0]
+
+    @property
+    def end(self) -> np.ndarray:  # type: ignore[override]
+        return self.points[-1]
+
+    @cached_property
+    def cumulative(self) -> np.ndarray:
+        """Arc length at each point, (K,)."""
+        p = self.points.shape[1] - self.angles
+        legs = np.linalg.norm(np.diff(self.points[:, :p], axis=0), axis=1)
+        return np.concatenate([[0.0], np.cumsum(legs)])
+
+    @property
+    def length(self) -> float:
+        return float(self.cumulative[-1])
+
+    @property
+    def kinks(self) -> tuple[float, ...]:
+        return tuple(float(s) for s in self.cumulative[1:-1])
+
+    def _leg(self, s):
+        s = np.clip(np.asarray(s, dtype=float), 0.0, self.length)
+        leg = np.clip(
+            np.searchsorted(self.cumulative, s, side="right") - 1, 0, len(self.points) - 2
+        )
+        return s, leg
+
+    def point(self, s):
+        s, leg = self._leg(s)
+        a, b = self.points[leg], self.points[leg + 1]
+        span = (self.cumulative[leg + 1] - self.cumulative[leg])[..., None]
+        return a + (s - self.cumulative[leg])[..., None] / span * (b - a)
+
+    def tangent(self, s):
+        _, leg = self._leg(s)
+        span = (self.cumulative[leg + 1] - self.cumulative[leg])[..., None]
+        return (self.points[leg + 1] - self.points[leg]) / span
+
+    def outline(self) -> np.ndarray:
+        return self.points
+
+
+@dataclass(frozen=True)
+class Profile:
+    """How fast a path of ``length`` m is travelled: "constant" at ``speed`` m/s (Eq. 34), or
+    "trapezoidal" from rest to rest with at most ``acceleration`` m/s²."""
+
+    kind: str
+    speed: float
+    length: float
+    acceleration: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.kind not in PROFILES:
+            raise InvalidInputError(f"profile {self.kind!r} is not one of {', '.join(PROFILES)}")
+        if not self.speed > 0:
+            raise InvalidInputError("speed must be > 0 m/s")
+        if self.kind == "trapezoidal" and not (self.acceleration or 0) > 0:
+            raise InvalidInputError("a trapezoidal profile needs an acceleration > 0 m/s²")
+
+    @cached_property
+    def ramp(self) -> float:
+        """Duration of the acceleration (and of the deceleration), s; 0 at constant speed."""
+        if self.kind == "constant":
+            return 0.0
+        a = self.acceleration
+        return min(self.speed / a, math.sqrt(self.length / a))  # type: ignore[operator]
+
+    @cached_property
+    def peak(self) -> float:
+        """The highest speed reached, m/s."""
+        return self.speed if self.kind == "constant" else self.acceleration * self.ramp  # type: ignore[operator]
+
+    @cached_property
+    def duration(self) -> float:
+        if self.kind == "constant":
+            return self.length / self.speed
+        return 2 * self.ramp + (self.length - self.peak * self.ramp) / self.peak
+
+    def progress(self, t) -> tuple[np.ndarray, np.ndarray]:
+        """Arc length s and its rate ṡ at times t (...,) in s, both (...,); t is clipped to
+        [0, duration] (at rest outside for the trapezoidal profile)."""
+        t = np.asarray(t, dtype=float)
+        if self.kind == "constant":
+            return self.speed * t, np.full(t.shape, self.speed)
+        a, ramp, peak, end = float(self.acceleration or 0.0), self.ramp, self.peak, self.duration
+        t = np.clip(t, 0.0, end)
+        rising, falling = t < ramp, t > end - ramp
+        s = np.where(
+            rising,
+            0.5 * a * t**2,
+            np.where(
+                falling,
+                self.length - 0.5 * a * (end - t) ** 2,
+                0.5 * peak * ramp + peak * (t - ramp),
+            ),
+        )
+        rate = np.where(rising, a * t, np.where(falling, a * (end - t), peak))
+        return s, rate
+
+    def describe(self) -> dict:
+        return {
+            "profile": self.kind,
+            "speed": self.speed,
+            **({} if self.kind == "constant" else {"acceleration": self.acceleration}),
+        }
+
 
 @dataclass(frozen=True)
 class Segment:
-    """The straight line P→Q travelled uniformly at ``speed`` m/s; P, Q of shape (m,), in m."""
+    """A path from ``start`` to ``end`` (m,) travelled at ``speed`` m/s: by default the
+    straight line P→Q at constant speed (Eqs. 33-34); `Segment.along` builds any path and
+    profile."""
 
     name: str
     start: np.ndarray
     end: np.ndarray
     speed: float
+    shape: Shape = field(default=None, repr=False)  # type: ignore[assignment]  # None: a line
+    profile: str = "constant"
+    acceleration: float | None = None
 
     def __post_init__(self) -> None:
         if not np.all(np.isfinite(self.start)) or not np.all(np.isfinite(self.end)):
@@ -40,34 +399,147 @@ class Segment:
             raise InvalidInputError(f"segment {self.name}: start and end differ in dimension")
         if not self.speed > 0:
             raise InvalidInputError(f"segment {self.name}: speed must be > 0 m/s")
-        if not np.linalg.norm(self.end - self.start) > 0:
-            raise InvalidInputError(f"segment {self.name}: start and end coincide")
+        if self.shape is None:
+            try:
+                object.__setattr__(self, "shape", Line(self.start, self.end))
+            except InvalidInputError as error:
+                raise InvalidInputError(f"segment {self.name}: {error}") from None
+        elif np.any(np.abs(self.shape.start - self.start) > CLOSED) or np.any(
+            np.abs(self.shape.end - self.end) > CLOSED
+        ):
+            raise InvalidInputError(f"segment {self.name}: its path's ends are not its own")
+        try:
+            self.timing  # noqa: B018 - checks the profile
+        except InvalidInputError as error:
+            raise InvalidInputError(f"segment {self.name}: {error}") from None
+
+    @classmethod
+    def along(
+        cls,
+        name: str,
+        shape: Shape,
+        speed: float,
+        profile: str = "constant",
+        acceleration: float | None = None,
+    ) -> Segment:
+        """The segment ``name`` along ``shape`` at ``speed`` m/s with the speed ``profile``."""
+        return cls(name, shape.start, shape.end, speed, shape, profile, acceleration)
+
+    @cached_property
+    def timing(self) -> Profile:
+        return Profile(self.profile, self.speed, self.shape.length, self.acceleration)
+
+    @property
+    def length(self) -> float:
+        """Length of the tool position's path, m."""
+        return self.shape.length
 
     @cached_property
     def duration(self) -> float:
-        """t_f = |Q − P| / speed, in s."""
-        return float(np.linalg.norm(self.end - self.start) / self.speed)
+        """t_f, in s: |Q − P| / speed for a line at constant speed."""
+        return self.timing.duration
 
     @cached_property
     def velocity(self) -> np.ndarray:
-        """ẏ_d = (Q − P) / t_f (Eq. 34), constant, (m,) in m/s (read-only)."""
+        """ẏ_d = (Q − P) / t_f (Eq. 34), constant, (m,) in m/s (read-only): a straight segment
+        at constant speed only (others: `velocity_at`)."""
+        if self.shape.kind != "line" or self.profile != "constant":
+            raise InvalidInputError(
+                f"segment {self.name}'s velocity varies along it; use velocity_at(t)"
+            )
         velocity = (self.end - self.start) / self.duration
         velocity.setflags(write=False)
         return velocity
 
     def position(self, t: np.ndarray | float) -> np.ndarray:
-        """y_d(t) = Q + (1 − t/t_f)(P − Q) (Eq. 33), (..., m) for t (...,) in s."""
-        s = np.asarray(t, dtype=float)[..., None] / self.duration
-        return self.end + (1 - s) * (self.start - self.end)
+        """y_d(t) (..., m) for t (...,) in s (Eq. 33 on a line at constant speed)."""
+        s, _ = self.timing.progress(t)
+        return self.shape.point(s)
+
+    def velocity_at(self, t: np.ndarray | float) -> np.ndarray:
+        """ẏ_d(t) (..., m) in m/s (and rad/s) for t (...,) in s."""
+        s, rate = self.timing.progress(t)
+        return self.shape.tangent(s) * rate[..., None]
+
+    def outline(self) -> np.ndarray:
+        """Points (P, m) that draw the path as straight pieces."""
+        return self.shape.outline()
+
+    def describe(self) -> dict:
+        """The segment's path and timing as JSON-ready data."""
+        shape = self.shape
+        found: dict = {"path": shape.kind, "length_m": shape.length, "duration_s": self.duration}
+        if isinstance(shape, Arc):
+            found.update(
+                centre=shape.centre.tolist(),
+                radius_m=shape.radius,
+                sweep_deg=math.degrees(shape.sweep),
+            )
+        if isinstance(shape, Polyline):
+            found["points"] = len(shape.points)
+        return {**found, **self.timing.describe()}
+
+
+@dataclass(frozen=True)
+class Chain:
+    """Segments travelled one after another as one motion's path over time: ``position`` and
+    ``velocity_at`` (right-continuous at the corners) of the whole, from t = 0."""
+
+    name: str
+    segments: tuple[Segment, ...]
+
+    @property
+    def start(self) -> np.ndarray:
+        return self.segments[0].start
+
+    @property
+    def end(self) -> np.ndarray:
+        return self.segments[-1].end
+
+    @cached_property
+    def offsets(self) -> np.ndarray:
+        """The time each segment starts, (S + 1,) with the total duration last."""
+        return np.concatenate([[0.0], np.cumsum([s.duration for s in self.segments])])
+
+    @property
+    def duration(self) -> float:
+        return float(self.offsets[-1])
+
+    def _pieces(self, t):
+        t = np.asarray(t, dtype=float)
+        piece = np.clip(
+            np.searchsorted(self.offsets, t, side="right") - 1, 0, len(self.segments) - 1
+        )
+        return t, piece
+
+    def _each(self, t, method):
+        t, piece = self._pieces(t)
+        out = np.empty((*t.shape, len(self.start)))
+        for i, segment in enumerate(self.segments):
+            inside = piece == i
+            if inside.any():
+                out[inside] = getattr(segment, method)(t[inside] - self.offsets[i])
+        return out
+
+    def position(self, t):
+        return self._each(t, "position")
+
+    def velocity_at(self, t):
+        return self._each(t, "velocity_at")
+
+    def outline(self) -> np.ndarray:
+        return np.concatenate([s.outline() for s in self.segments])
 
 
 @dataclass(frozen=True)
 class WorkCycle:
-    """Segments travelled one after another, and the actuators a search holds."""
+    """Segments travelled one after another, the actuators a search holds, and whether the last
+    task coordinate is the tool's angle (rad)."""
 
     name: str
     segments: tuple[Segment, ...]
     held: tuple[str, ...] = ()
+    tool_angle: bool = False
 
     def __getitem__(self, name: str) -> Segment:
         for segment in self.segments:
@@ -76,30 +548,289 @@ class WorkCycle:
         names = ", ".join(s.name for s in self.segments)
         raise InvalidInputError(f"no segment {name!r} in {self.name!r}; segments: {names}")
 
+    @property
+    def duration(self) -> float:
+        """One pass through every segment, s."""
+        return sum(s.duration for s in self.segments)
+
+    @property
+    def closed(self) -> bool:
+        """Whether the last segment ends where the first starts."""
+        return bool(np.all(np.abs(self.segments[-1].end - self.segments[0].start) <= CLOSED))
+
+    def chain(self) -> Chain:
+        """The whole cycle as one path over time."""
+        return Chain(self.name, self.segments)
+
+    def check_continuous(self, closed: bool = True) -> None:
+        """`InvalidInputError` naming the first corner where a segment does not start where the
+        one before ends (and, with ``closed``, where the cycle does not return to its start)."""
+        pairs = list(zip(self.segments[:-1], self.segments[1:]))
+        if closed:
+            pairs.append((self.segments[-1], self.segments[0]))
+        for before, after in pairs:
+            if np.any(np.abs(after.start - before.end) > CLOSED):
+                what = "does not return to its start: " if after is self.segments[0] else ""
+                raise InvalidInputError(
+                    f"task {self.name!r} is not one continuous cycle; it {what}segment "
+                    f"{after.name} starts at {np.round(after.start, 6).tolist()} but "
+                    f"{before.name} ends at {np.round(before.end, 6).tolist()}"
+                )
+
+    @property
+    def angle_centre(self) -> float:
+        """The middle of the tool angles the cycle's ends ask for (rad; 0 without the angle):
+        the branch `redundancy.planning.angles` measures the angle on is centred there."""
+        if not self.tool_angle:
+            return 0.0
+        ends = np.array([p[-1] for s in self.segments for p in (s.start, s.end)])
+        return float(np.arctan2(np.sin(ends).mean(), np.cos(ends).mean()))
+
     @classmethod
     def from_toml(cls, path: Path | str, dimension: int | None = None) -> WorkCycle:
-        """Read a task file; ``dimension`` (the robot's m) checks every point's size."""
+        """Read a task file (schema in the module docstring); ``dimension`` (the robot's m, its
+        position axes) checks every point's size, one more with ``tool_angle``."""
         path = Path(path)
         data = read_toml(path, "task file")
         where = str(path)
+        known = {
+            "name",
+            "speed",
+            "profile",
+            "acceleration",
+            "tool_angle",
+            "held",
+            "segments",
+            "points",
+        }
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise InvalidInputError(
+                f"{path}: unknown keys {unknown}; a task file has {', '.join(sorted(known))}"
+            )
+        tool_angle = data.get("tool_angle", False)
+        if not isinstance(tool_angle, bool):
+            raise InvalidInputError(f"{path}: tool_angle = {tool_angle!r} must be true or false")
+        size = None if dimension is None else dimension + int(tool_angle)
         points = data.get("points")
-        if not isinstance(points, dict) or not points:
+        entries = data.get("segments", [])
+        only_csv = isinstance(entries, list) and all(
+            isinstance(e, dict) and "csv" in e for e in entries
+        )
+        if points is None and only_csv:
+            points = {}
+        elif not isinstance(points, dict) or not points:
             raise InvalidInputError(f"{path}: needs a [points] table of name = [coordinates]")
         found = {
-            name: coordinates(value, f"{where}: point {name}", dimension)
+            name: _in_radians(coordinates(value, f"{where}: point {name}", size), tool_angle)
             for name, value in points.items()
         }
-        speed = number(data, "speed", where, "m/s on every segment", 0.5, 0.0, MAX_SPEED)
-        segments = []
-        for label in names(data, "segments", where, "'<from>-<to>' by point name"):
-            ends = label.split("-")
-            if len(ends) != 2 or any(e not in found for e in ends):
-                raise InvalidInputError(
-                    f"{path}: segment {label!r} must be '<from>-<to>' with points among "
-                    f"{', '.join(found)}"
-                )
-            segments.append(Segment(label, found[ends[0]], found[ends[1]], speed))
+        defaults = _timing(data, where, None)
+        if not isinstance(entries, list) or not all(isinstance(e, str | dict) for e in entries):
+            raise InvalidInputError(
+                f"{where}: segments = {entries!r} must be a list of '<from>-<to>' names or "
+                'segment tables, e.g. segments = ["1-2", { from = "2", to = "3", via = "4" }]'
+            )
+        segments: list[Segment] = []
+        for i, entry in enumerate(entries):  # type: ignore[union-attr]
+            where_entry = f"{where}: segments[{i}]"
+            segments.append(_segment(entry, found, defaults, tool_angle, size, path, where_entry))
         if not segments:
             raise InvalidInputError(f"{path}: no segments")
+        seen: set[str] = set()
+        for segment in segments:
+            if segment.name in seen:
+                raise InvalidInputError(
+                    f"{path}: two segments are named {segment.name!r}; give one a name"
+                )
+            seen.add(segment.name)
         held = names(data, "held", where, "the actuators the improved search holds")
-        return cls(text(data, "name", where, "the task's name", path.stem), tuple(segments), held)
+        name = text(data, "name", where, "the task's name", path.stem)
+        return cls(name, tuple(segments), held, tool_angle)
+
+
+def _in_radians(point: np.ndarray, tool_angle: bool) -> np.ndarray:
+    if tool_angle:
+        point = point.copy()
+        point[-1] = math.radians(point[-1])
+    return point
+
+
+def _timing(table: dict, where: str, defaults: tuple | None) -> tuple:
+    """(speed, profile, acceleration) of a task file or of one segment's table."""
+    speed0, profile0, acceleration0 = defaults or (0.5, "constant", None)
+    speed = number(table, "speed", where, "m/s of the tool", speed0, 0.0, MAX_SPEED)
+    profile = text(table, "profile", where, " or ".join(PROFILES), profile0)
+    if profile not in PROFILES:
+        raise InvalidInputError(
+            f"{where}: profile = {profile!r} must be one of {', '.join(PROFILES)}"
+        )
+    acceleration = acceleration0
+    if "acceleration" in table:
+        acceleration = number(
+            table,
+            "acceleration",
+            where,
+            "m/s², the trapezoidal profile's maximum",
+            None,
+            0.0,
+            MAX_ACCELERATION,
+        )
+        if not acceleration > 0:  # type: ignore[operator]
+            raise InvalidInputError(f"{where}: acceleration = {acceleration!r} must be > 0 m/s²")
+    if profile == "trapezoidal" and acceleration is None:
+        raise InvalidInputError(
+            f"{where}: a trapezoidal profile needs acceleration (m/s², the tool's maximum)"
+        )
+    return speed, profile, acceleration
+
+
+SEGMENT_KEYS = (
+    "from",
+    "to",
+    "via",
+    "centre",
+    "center",
+    "direction",
+    "csv",
+    "name",
+    "speed",
+    "profile",
+    "acceleration",
+)
+
+
+def _segment(
+    entry,
+    points: dict,
+    defaults: tuple,
+    tool_angle: bool,
+    size: int | None,
+    path: Path,
+    where: str,
+) -> Segment:
+    """One entry of a task file's ``segments``: "<from>-<to>" or a table (module docstring)."""
+    angles = int(tool_angle)
+    known = ", ".join(points)
+
+    def point(name: object, key: str) -> np.ndarray:
+        if not isinstance(name, str) or name not in points:
+            raise InvalidInputError(f"{where}: {key} = {name!r} must name a point among {known}")
+        return points[name]
+
+    if isinstance(entry, str):
+        ends = entry.split("-")
+        if len(ends) != 2 or any(e not in points for e in ends):
+            raise InvalidInputError(
+                f"{path}: segment {entry!r} must be '<from>-<to>' with points among {known}"
+            )
+        entry = {"from": ends[0], "to": ends[1], "name": entry}
+    if not isinstance(entry, dict):
+        raise InvalidInputError(
+            f"{where} = {entry!r} must be '<from>-<to>' or a table such as "
+            '{ from = "1", to = "2", via = "3" }'
+        )
+    unknown = sorted(set(entry) - set(SEGMENT_KEYS))
+    if unknown:
+        raise InvalidInputError(
+            f"{where}: unknown keys {unknown}; a segment has {', '.join(SEGMENT_KEYS)}"
+        )
+    speed, profile, acceleration = _timing(entry, where, defaults)
+    centre = entry.get("centre", entry.get("center"))
+    if "csv" in entry:
+        clash = sorted({"from", "to", "via", "centre", "center", "direction"} & set(entry))
+        if clash:
+            raise InvalidInputError(f"{where}: a csv polyline takes no {', '.join(clash)}")
+        file = text(entry, "csv", where, "a CSV file of points, beside the task file")
+        dimension = size if size is not None or not points else len(next(iter(points.values())))
+        shape: Shape = read_polyline(path.parent / file, dimension, tool_angle)
+        name = text(entry, "name", where, "the segment's name", Path(file).stem)
+    else:
+        for key in ("from", "to"):
+            if key not in entry:
+                raise InvalidInputError(f"{where}: missing {key!r} (a point's name)")
+        start, end = point(entry["from"], "from"), point(entry["to"], "to")
+        name = text(entry, "name", where, "the segment's name", f"{entry['from']}-{entry['to']}")
+        try:
+            if "via" in entry and centre is not None:
+                raise InvalidInputError("give via or centre, not both")
+            if "via" in entry:
+                shape = Arc.through(start, point(entry["via"], "via"), end, angles)
+            elif centre is not None:
+                if "direction" not in entry:
+                    raise InvalidInputError('an arc about a centre needs direction = "ccw" or "cw"')
+                middle = point(centre, "centre")
+                shape = Arc.about(
+                    start, end, middle[: len(middle) - angles], entry["direction"], angles
+                )
+            else:
+                if "direction" in entry:
+                    raise InvalidInputError("direction belongs to an arc about a centre")
+                shape = Line(start, end, angles)
+        except InvalidInputError as error:
+            raise InvalidInputError(f"{where} ({name}): {error}") from None
+    return Segment.along(name, shape, speed, profile, acceleration)
+
+
+def read_polyline(path: Path | str, dimension: int | None, tool_angle: bool = False) -> Polyline:
+    """The polyline of a CSV file (module docstring): one point per line, ``dimension`` values
+    each where given (the last an angle in degrees with ``tool_angle``). Errors name the line."""
+    path = Path(path)
+    try:
+        text_lines = path.read_text(encoding="utf-8").splitlines()
+    except OSError as error:
+        raise InvalidInputError(f"cannot read polyline {path}: {error.strerror}") from None
+    except UnicodeDecodeError:
+        raise InvalidInputError(f"{path}: not a CSV file: not UTF-8 text") from None
+    rows: list[tuple[int, np.ndarray]] = []
+    header_allowed = True
+    for number_, cells in enumerate(csv.reader(text_lines), start=1):
+        line = text_lines[number_ - 1] if number_ <= len(text_lines) else ""
+        if not cells or not "".join(cells).strip() or line.lstrip().startswith("#"):
+            continue
+        values: list[float | None] = []
+        for cell in cells:
+            try:
+                values.append(float(cell))
+            except ValueError:
+                values.append(None)
+        if header_allowed and all(v is None for v in values):
+            header_allowed = False
+            continue
+        header_allowed = False
+        bad = next((c for c, v in enumerate(values, start=1) if v is None), None)
+        if bad is not None:
+            raise InvalidInputError(
+                f"{path} line {number_}: cell {bad} ({cells[bad - 1].strip()!r}) is not a number"
+            )
+        array = np.array(values, dtype=float)
+        if not np.all(np.isfinite(array)):
+            raise InvalidInputError(
+                f"{path} line {number_}: {cells[int(np.argmin(np.isfinite(array)))].strip()!r} "
+                "is not a finite number"
+            )
+        if dimension is not None and len(array) != dimension:
+            raise InvalidInputError(
+                f"{path} line {number_}: {len(array)} values; the task has {dimension} "
+                "coordinates per point"
+            )
+        if rows and len(array) != len(rows[0][1]):
+            raise InvalidInputError(
+                f"{path} line {number_}: {len(array)} values; line {rows[0][0]} has "
+                f"{len(rows[0][1])}"
+            )
+        rows.append((number_, _in_radians(array, tool_angle)))
+    if not rows:
+        raise InvalidInputError(f"{path}: no points; a polyline needs at least two")
+    angles = int(tool_angle)
+    kept = [rows[0]]
+    for line_number, point in rows[1:]:
+        gap = np.linalg.norm((point - kept[-1][1])[: len(point) - angles])
+        if gap > CLOSED:
+            kept.append((line_number, point))
+    if len(kept) < 2:
+        where = f"line {rows[0][0]}" if len(rows) == 1 else f"lines {rows[0][0]}-{rows[-1][0]}"
+        raise InvalidInputError(
+            f"{path}: one point ({where}); a polyline needs at least two distinct points"
+        )
+    return Polyline(np.array([p for _, p in kept]), angles)

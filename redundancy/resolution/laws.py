@@ -91,6 +91,12 @@ class Resolver:
         x_dot = (W_inv_J_T @ solve_gram(J_H @ W_inv_J_T, target[..., None]))[..., 0]
         return x_dot if z is None else x_dot + z
 
+    def resolve_at(self, space: ActuatorSpace, y_dot: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """`resolve` at times t (k,) in s along a segment: the integrators call this, so that a
+        law may follow a plan in time (`redundancy.planning.cycles.HeldReference`); the laws
+        here do not depend on time."""
+        return self.resolve(space, y_dot)
+
     def step(self, robot: Robot, q: np.ndarray, y_dot: np.ndarray) -> Step:
         """The law at one configuration q (n,) for the task velocity ẏ (m,) m/s: one control
         step, by the same code as `resolve` on a batch of one."""

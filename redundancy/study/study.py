@@ -18,6 +18,11 @@ For each segment the comparison holds, with both peaks and whether every limit h
 - with a hydraulic circuit, each motion's peak pump flow, highest load pressure and pump energy
   under load sensing and constant pressure, and, when asked for, how far each lies above the
   energy bound of each supply (`redundancy.planning.energy_bound`).
+
+Where the task is one continuous closed cycle, the study's cycle section runs it as a machine
+does, for the first objective (`redundancy.study.cycles`): the improved start over the whole
+cycle beside the per-segment plan and its corners' self-motions, the free and the drift-free
+strategies repeated, their drift and their price.
 """
 
 from __future__ import annotations
@@ -44,8 +49,12 @@ from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.laws import GradientProjection, Resolver
 from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import ENERGY, VELOCITY, Objective
+from redundancy.study.cycles import CycleStudy, run_cycle
 from redundancy.study.output import write_atomically
 from redundancy.study.peers import StrategyRun, fixed_start_run
+
+STUDY_CYCLES = 3  # the cycle section's repetitions: enough to show the drift; `redundancy cycle`
+# runs `redundancy.planning.cycles.CYCLES` (20), at about 0.3 s per cycle of the crane
 
 BASELINES: tuple[tuple[str, Resolver], ...] = (
     ("unweighted, default start", VELOCITY.resolver),
@@ -74,6 +83,8 @@ class Study:
     energy_bounds: dict[str, dict[str, EnergyOptimum]] | None = None  # segment → supply → bound
     bound_failures: dict[str, str] | None = None  # "objective/segment", or "energy bound
     # LS/segment", → why it has no bound
+    cycle_study: CycleStudy | None = None  # the cycle section (None: not run, see cycle_skipped)
+    cycle_skipped: str | None = None  # why the study has no cycle section
 
     def search(self, objective: str, segment: str) -> SearchResult:
         return self.searches[objective][self._segment(segment)]
@@ -120,6 +131,9 @@ class Study:
             "comparison": [self._run_report(run) for run in self.runs],
             **({} if self.energy_bounds is None else {"energy_bounds": self._energy_report()}),
             "bound_failures": self.bound_failures or {},
+            "cycle": self.cycle_study.report()
+            if self.cycle_study is not None
+            else {"skipped": self.cycle_skipped},
         }
 
     def above_energy_bound(self, run: StrategyRun) -> dict[str, float]:
@@ -238,6 +252,10 @@ class Study:
                 )
         if self.robot.hydraulics is not None:
             lines += ["", self.hydraulic_table()]
+        if self.cycle_study is not None:
+            lines += ["", self.cycle_study.table()]
+        elif self.cycle_skipped:
+            lines += ["", f"no cycle section: {self.cycle_skipped}"]
         return "\n".join(lines)
 
     def hydraulic_table(self) -> str:
@@ -292,6 +310,7 @@ def run_study(
     progress: bool = True,
     energy_bound: bool = False,
     circuit: bool = False,
+    cycles: int = STUDY_CYCLES,
 ) -> Study:
     """Run every objective's improved search, sweep and bound, and the comparison strategies,
     on every segment.
@@ -303,7 +322,9 @@ def run_study(
     ``energy_bound`` (one held actuator and a hydraulic circuit), each segment's energy bound
     under load sensing and constant pressure is computed too. With ``circuit`` the hydraulic
     circuit's limits count wherever strokes do (the searches' feasibility, every run's limits);
-    the min-max bound still keeps the strokes alone, so it stays a bound.
+    the min-max bound still keeps the strokes alone, so it stays a bound. With ``cycles`` > 0
+    and a continuous closed task, the cycle section repeats the cycle that many times for the
+    first objective (`run_cycle`); 0 leaves it out.
     """
     from tqdm import tqdm
 
@@ -385,6 +406,26 @@ def run_study(
                 except (InvalidInputError, UnreachableError) as error:
                     failures[f"energy bound {supply.name}/{segment.name}"] = str(error)
             energy_bounds[segment.name] = found
+    cycle_study: CycleStudy | None = None
+    skipped: str | None = "not asked for (cycles = 0)"
+    if cycles:
+        try:
+            cycle.check_continuous(closed=True)
+        except InvalidInputError as error:
+            skipped = str(error)
+        else:
+            cycle_study = run_cycle(
+                robot,
+                cycle,
+                objectives[0],
+                cycles,
+                samples=samples,
+                checked=checked,
+                method=method,
+                circuit=circuit,
+                progress=progress,
+            )
+            skipped = None
     return Study(
         robot,
         cycle,
@@ -399,6 +440,8 @@ def run_study(
         tuple(runs),
         energy_bounds,
         failures,
+        cycle_study,
+        skipped,
     )
 
 

@@ -14,14 +14,14 @@ from pathlib import Path
 from redundancy.study.families import MapFamily
 from redundancy.study.maps import axes_of
 from redundancy.study.output import write_atomically
-from redundancy.viz.plots import _pyplot
+from redundancy.viz.plots import pyplot
 
 PANELS = (("gain_pct", "gain over the default start, %"), ("feasible", "feasible share"))
 
 
 def map_figure(table, family: MapFamily, objective: str):
     """Three heatmaps side by side for ``objective``: gain %, best held value, feasible."""
-    plt = _pyplot()
+    plt = pyplot()
     rows = table[table["objective"] == objective].copy()
     rows["feasible"] = rows["feasible"].astype(float)
     axes_names = axes_of(rows, family) or ["segment"]
@@ -56,7 +56,7 @@ def _tick(value) -> str:
 
 def write_map_figures(table, family: MapFamily, folder: Path) -> list[Path]:
     """Write one heatmap figure per objective into ``folder``; return their paths."""
-    plt = _pyplot()
+    plt = pyplot()
     paths = []
     for objective in family.objectives:
         figure = map_figure(table, family, objective)

@@ -42,6 +42,7 @@ from redundancy.model.robot import AXES
 from redundancy.planning.integrate import Trajectory
 from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.limits import Limits
+from redundancy.study.cycles import CycleStudy
 from redundancy.study.output import write_atomically
 from redundancy.study.study import Study
 from redundancy.viz.server import LOCALHOST
@@ -232,12 +233,15 @@ class Playback:
         rows = [AXES.index(a) for a in robot.task_axes]
 
         def world(y: np.ndarray) -> np.ndarray:
-            """Task points (P, m) as world points (P, 3), off-plane components from the start."""
+            """Task points (P, m) as world points (P, 3), off-plane components from the start;
+            a tool angle (a task coordinate past the position's) is not drawn."""
             p = np.repeat(self.traced[:1], len(y), axis=0)
-            p[:, rows] = y
+            p[:, rows] = y[:, : len(rows)]
             return p
 
-        self.desired = world(np.array([segment.start, segment.end]))
+        outline = getattr(segment, "outline", None)
+        path = outline() if outline is not None else np.array([segment.start, segment.end])
+        self.desired = world(np.asarray(path, dtype=float))
         marked = np.array([segment.start, segment.end]) if points is None else points
         self.points = world(np.atleast_2d(np.asarray(marked, dtype=float)))
         self.cylinders = []
@@ -316,13 +320,14 @@ class Playback:
             root[f"linkages/{actuator.name}/{bar}"].set_object(geometry, material)
 
         size = self.size
-        start, end = self.desired
-        # A translucent band for the desired path, the traced path as dots along its middle.
-        band = mg.Cylinder(float(np.linalg.norm(end - start)), 0.008 * size)
-        root["desired"].set_object(
-            band, mg.MeshLambertMaterial(color=COLOURS["desired"], opacity=0.35)
-        )
-        root["desired"].set_transform(_between(start[None], end[None])[0])
+        # A translucent band for the desired path (a straight piece per stretch of it), the
+        # traced path as dots along its middle.
+        material = mg.MeshLambertMaterial(color=COLOURS["desired"], opacity=0.35)
+        pieces = [(a, b) for a, b in zip(self.desired[:-1], self.desired[1:]) if np.any(a != b)]
+        for i, (start, end) in enumerate(pieces):
+            node = root["desired"] if len(pieces) == 1 else root[f"desired/{i}"]
+            node.set_object(mg.Cylinder(float(np.linalg.norm(end - start)), 0.008 * size), material)
+            node.set_transform(_between(start[None], end[None])[0])
         colours = np.outer(_rgb(COLOURS["traced"]), np.ones(len(self.traced)))
         # meshcat's points take their colour from per-vertex colours only
         dots = mg.PointsGeometry(self.traced.T.astype(np.float32), colours.astype(np.float32))
@@ -446,7 +451,8 @@ def page(motion: Trajectory, points: np.ndarray | None = None) -> str:
     network; ``points`` as in `Playback`."""
     meshcat = _meshcat()
     segment = motion.segment
-    recording = Recording(f"{motion.robot.name}: segment {segment.name}")
+    what = "cycle" if hasattr(segment, "segments") else "segment"
+    recording = Recording(f"{motion.robot.name}: {what} {segment.name}")
     vis = meshcat.Visualizer(window=recording)
     playback = Playback(motion, points)
     playback.draw(vis)
@@ -464,14 +470,27 @@ def export_html(motion: Trajectory, path: Path | str, points: np.ndarray | None 
 
 def write_playbacks(study: Study, folder: Path) -> list[Path]:
     """One page per objective and segment, for the best start of its search, named
-    ``playback_<objective>_<segment>.html`` in ``folder``; return their paths."""
+    ``playback_<objective>_<segment>.html`` in ``folder``, and with a cycle section one per
+    strategy's whole cycle (`write_cycle_playbacks`); return their paths."""
     points = task_points(study.cycle)
     paths = []
     for name, runs in _best_motions(study).items():
         for segment, motion in runs:
             path = folder / f"playback_{name}_{segment}.html"
             paths.append(export_html(motion, path, points))
+    if study.cycle_study is not None:
+        paths += write_cycle_playbacks(study.cycle_study, folder)
     return paths
+
+
+def write_cycle_playbacks(study: CycleStudy, folder: Path) -> list[Path]:
+    """One page per strategy playing its whole first cycle, named
+    ``playback_cycle_<strategy>.html`` in ``folder``; return their paths."""
+    points = task_points(study.cycle)
+    return [
+        export_html(motion.whole(0), folder / f"playback_cycle_{name}.html", points)
+        for name, motion in study.firsts.items()
+    ]
 
 
 def _best_motions(study: Study) -> dict[str, list[tuple[str, Trajectory]]]:

@@ -1,5 +1,6 @@
-"""The study's figures (matplotlib): the paper's Figs. 4a-4c, 5a and 5b, and, with a hydraulic
-circuit, pump flow and pressures along the best motions.
+"""The study's figures (matplotlib): the paper's Figs. 4a-4c, 5a and 5b, with a hydraulic
+circuit pump flow and pressures along the best motions, and the work cycle's: strokes over the
+cycle, drift against cycle number, the return map.
 
 Figures read results; they compute nothing of their own.
 """
@@ -9,14 +10,18 @@ from __future__ import annotations
 from functools import partial
 from pathlib import Path
 
+import numpy as np
+
 from redundancy.model.hydraulics import BAR, LITRES_PER_MINUTE
+from redundancy.planning.cycles import ReturnMap
 from redundancy.planning.integrate import Trajectory
 from redundancy.planning.starts import SearchResult
+from redundancy.study.cycles import CycleStudy
 from redundancy.study.output import write_atomically
 from redundancy.study.study import Study
 
 
-def _pyplot():
+def pyplot():
     """matplotlib's pyplot on the file-only Agg backend, imported when first drawn."""
     import matplotlib
 
@@ -33,7 +38,7 @@ def peaks_figure(
     (each search's samples), feasible samples solid with their range shaded, the best start a
     star: ``chosen``'s, the search that chose it, by default the curve's own (Figs. 4a, 5a).
     With several held actuators, each sample is a point over the first of them."""
-    plt = _pyplot()
+    plt = pyplot()
     figure, axes = plt.subplots(figsize=(7, 4.5))
     style = "o-" if len(searches[0].held) == 1 else "o"
     for search, choice in zip(searches, chosen or searches):
@@ -69,7 +74,7 @@ def peaks_figure(
 def motion_figure(trajectory: Trajectory, title: str):
     """Actuator displacements and velocities along one motion (Figs. 4b, 4c, 5b), with the
     stroke limits dashed."""
-    plt = _pyplot()
+    plt = pyplot()
     figure, (top, bottom) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
     actuators = trajectory.robot.actuators
     t = trajectory.t[0]
@@ -85,7 +90,7 @@ def hydraulics_figure(trajectory: Trajectory, title: str):
     """Pump flow and pressures along one motion: Q_P with the pump's maximum dashed; each
     cylinder's load pressure and the load-sensing pump pressure, with the highest load pressure
     the supply serves dashed, overrunning stretches marked."""
-    plt = _pyplot()
+    plt = pyplot()
     circuit, flows = trajectory.robot.circuit(), trajectory.flows
     figure, (top, bottom) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
     t = trajectory.t[0]
@@ -133,9 +138,9 @@ def _start(held, values) -> str:
 def write_figures(study: Study, folder: Path, segment: str | None = None) -> list[Path]:
     """Write the paper's figures for the study into ``folder``; return their paths.
 
-    ``segment`` is the one shown in the motion figures (default: the cycle's first).
+    ``segment`` is the one shown in the motion figures (default: the cycle's first). With a
+    cycle section, the cycle's figures too (`cycle_figures`).
     """
-    plt = _pyplot()
     segment = segment or study.cycle.segments[0].name
     figures = {}
     numbers = {"velocity": "4", "energy": "5"}
@@ -166,6 +171,180 @@ def write_figures(study: Study, folder: Path, segment: str | None = None) -> lis
                 f"min {objective.label}, segment {segment}, non-optimal start "
                 f"{_start(study.held, other.values)}",
             )
+    if study.cycle_study is not None:
+        figures.update(cycle_figures(study.cycle_study))
+    return _write(figures, folder)
+
+
+def cycle_figure(study: CycleStudy, title: str):
+    """The held actuator and every stroke over one cycle: each strategy's first cycle (solid),
+    the per-segment plan's best motions (dotted, jumping at the corners by the self-motions it
+    leaves out), stroke limits dashed, corners as vertical lines; below, the actuator velocities
+    of the strategies."""
+    plt = pyplot()
+    figure, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True)
+    actuators = study.robot.actuators
+    offsets = study.cycle.chain().offsets
+    styles = {"free": "-", "periodic": "--"}
+    colours: dict[str, str] = {}
+    for name, run in study.firsts.items():
+        whole = run.whole(0)
+        t = whole.t[0]
+        for row, actuator in enumerate(actuators):
+            held = actuator.name in study.held
+            line = top.plot(
+                t,
+                whole.x[0, :, row],
+                styles.get(name, "-"),
+                lw=2.0 if held else 1.0,
+                color=colours.get(actuator.name),
+                label=f"{actuator.name}, {name}",
+            )[0]
+            colours.setdefault(actuator.name, line.get_color())
+            bottom.plot(
+                t,
+                whole.x_dot[0, :, row],
+                styles.get(name, "-"),
+                lw=1.0,
+                color=line.get_color(),
+                label=f"ẋ of {actuator.name}, {name}",
+            )
+    for offset, motion in zip(offsets, study.plan.segment_motions):
+        if motion is None:
+            continue
+        for row, actuator in enumerate(actuators):
+            top.plot(
+                motion.t[0] + offset,
+                motion.x[0, :, row],
+                ":",
+                lw=1.2,
+                color=colours.get(actuator.name),
+                label=f"{actuator.name}, per segment" if offset == offsets[0] else None,
+            )
+    for actuator in actuators:
+        for bound in (actuator.lower, actuator.upper):
+            if np.isfinite(bound):
+                top.axhline(bound, ls="--", lw=0.6, color=colours.get(actuator.name), alpha=0.5)
+    for axes in (top, bottom):
+        for corner in offsets[1:-1]:
+            axes.axvline(corner, color="k", lw=0.6, alpha=0.4)
+    return _over_time(figure, title, "stroke x (m or rad)", "velocity ẋ (m/s or rad/s)")
+
+
+def drift_figure(study: CycleStudy, title: str):
+    """Drift against cycle number: each actuator's |drift| per cycle for each strategy (log
+    scale, the closing threshold dotted); below, the held actuator at each cycle's start with
+    its stroke dashed."""
+    from redundancy.planning.cycles import SETTLED
+
+    plt = pyplot()
+    figure, (top, bottom) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
+    names = study.robot.actuators.names
+    markers = {"free": "o-", "periodic": "s--"}
+    for name, repetition in study.repetitions.items():
+        cycles = np.arange(1, repetition.cycles + 1)
+        drift = np.maximum(np.abs(repetition.drift), 1e-17)
+        for j, actuator in enumerate(names):
+            top.semilogy(
+                cycles,
+                drift[:, j],
+                markers.get(name, "o-"),
+                ms=3,
+                lw=1,
+                label=f"{actuator}, {name}",
+            )
+        held = repetition.held_values[:, 0]
+        bottom.plot(
+            np.arange(repetition.cycles + 1),
+            held,
+            markers.get(name, "o-"),
+            ms=3,
+            label=f"{study.held[0]} at the cycle's start, {name}",
+        )
+    top.axhline(SETTLED, ls=":", color="k", lw=0.8, label=f"closed: {SETTLED:g}")
+    stroke = study.robot.actuators[study.held[0]]
+    for bound in (stroke.lower, stroke.upper):
+        bottom.axhline(bound, ls="--", lw=0.8, color="k", alpha=0.6)
+    top.set_ylabel("|drift| per cycle (m or rad)")
+    bottom.set_ylabel(f"{study.held[0]} (m or rad)")
+    bottom.set_xlabel("cycle")
+    top.set_title(title)
+    for axes in (top, bottom):
+        axes.grid(alpha=0.3)
+        axes.legend(loc="best", fontsize=7)
+    figure.tight_layout()
+    return figure
+
+
+def return_map_figure(mapped: ReturnMap, title: str):
+    """The return map P of the held actuator at the cycle's start: above, P(v) against the
+    diagonal; below, the drift per cycle P(v) − v. The fixed points are the limit cycles
+    (filled where stable, |P'| < 1); samples whose cycle passes a stroke are hollow."""
+    plt = pyplot()
+    figure, (top, bottom) = plt.subplots(2, 1, figsize=(6.5, 7), sharex=True)
+    v, p = mapped.values, mapped.following
+    outside = ~mapped.within & np.isfinite(p)
+    for axes, values, label in ((top, p, "P(v): one cycle later"), (bottom, p - v, "P(v) − v")):
+        axes.plot(v, values, "-", color="C0", lw=1, label=label)
+        axes.plot(
+            v[mapped.within],
+            values[mapped.within],
+            "o",
+            ms=4,
+            color="C0",
+            label="keeps the strokes",
+        )
+        axes.plot(
+            v[outside], values[outside], "o", ms=4, mfc="none", color="C0", label="passes a stroke"
+        )
+        for value, slope in mapped.fixed_points:
+            stable = abs(slope) < 1
+            axes.plot(
+                value,
+                value if axes is top else 0.0,
+                "*",
+                ms=12,
+                color="C3",
+                mfc="C3" if stable else "none",
+                label=f"limit cycle {value:.4g} (P' = {slope:.2f})",
+            )
+        axes.grid(alpha=0.3)
+        axes.legend(fontsize=8)
+    top.plot(v, v, "k--", lw=0.8)
+    bottom.axhline(0.0, color="k", ls="--", lw=0.8)
+    top.set_ylabel(f"{mapped.held} one cycle later")
+    bottom.set_ylabel("drift per cycle")
+    bottom.set_xlabel(f"{mapped.held} at the cycle's start")
+    top.set_title(title)
+    figure.tight_layout()
+    return figure
+
+
+def cycle_figures(study: CycleStudy) -> dict:
+    """The cycle's figures by file name: strokes over the cycle, drift, return map."""
+    figures = {
+        "cycle_strokes.png": cycle_figure(
+            study, f"Strokes over the cycle {study.cycle.name!r}: strategies and per-segment plan"
+        )
+    }
+    if study.repetitions:
+        figures["cycle_drift.png"] = drift_figure(
+            study, f"Drift over {study.cycles} cycles, {study.objective.name} objective"
+        )
+    if study.map is not None:
+        figures["cycle_return_map.png"] = return_map_figure(
+            study.map, f"Return map of {study.map.held}: the free {study.objective.name} law"
+        )
+    return figures
+
+
+def write_cycle_figures(study: CycleStudy, folder: Path) -> list[Path]:
+    """Write the cycle's figures into ``folder``; return their paths."""
+    return _write(cycle_figures(study), folder)
+
+
+def _write(figures: dict, folder: Path) -> list[Path]:
+    plt = pyplot()
     paths = []
     for filename, figure in figures.items():
         path = folder / filename

@@ -1,0 +1,177 @@
+"""The tool's angle as a task coordinate: y = (tool position on the task axes, φ), m = 3 on a
+planar task.
+
+φ is the angle about the task plane's normal n = e_a × e_b (a, b the robot's two task axes, in
+their order) of a direction fixed in the tool, measured from axis a towards axis b: for
+``task_axes = "xz"`` from world x towards world z, for "xy" from x towards y. It is read from
+the one Pinocchio pass (`redundancy.model.kinematics`): a probe point one metre from the tool
+frame's origin along one of the tool frame's axes is tracked beside the tool, and with
+d = p_probe − p_tool,
+
+    φ = atan2(d_b, d_a),   ∂φ/∂q = (d_a ∂d_b/∂q − d_b ∂d_a/∂q) / ρ²,   ρ² = d_a² + d_b²,
+
+and its rate J̇_φ by the product rule on the tracked frames' J̇. The tool axis is the one of the
+tool frame's x, y, z most nearly in the task plane at mid-range (on a planar arm one lies in it
+at every configuration, and ρ = 1). The angle is measured on the branch (c − π, c + π] about a
+centre c (default 0; a work cycle's `WorkCycle.angle_centre`), so that a task's angles never
+wrap.
+
+A robot that knows nothing of angles gains one with `with_tool_angle`: a `ToolAngleRobot` is the
+same robot (same model, actuators, payload and hydraulics) whose task has the angle as its last
+coordinate; everything else in the toolkit (laws, integration, inverse kinematics, searches,
+bounds) reads its task through it and needs no change.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pinocchio as pin
+
+from redundancy.errors import InvalidInputError
+from redundancy.model.kinematics import Kinematics, PointMotion
+from redundancy.model.robot import AXES, Robot
+
+PROBE = "tool_angle_probe"  # the tracked frame one metre along the tool's chosen axis
+
+
+class ToolAngleRobot(Robot):
+    """``base`` with the tool's angle about the task plane's normal as its last task coordinate
+    (rad, on the branch about ``centre``); ``axis`` ("x", "y" or "z") the tool frame's axis whose
+    direction is measured (default: the one most nearly in the plane at mid-range)."""
+
+    tool_angle = True
+
+    def __init__(self, base: Robot, centre: float = 0.0, axis: str | None = None) -> None:
+        if len(base.task_axes) != 2:
+            raise InvalidInputError(
+                f"the tool's angle is a task coordinate on a planar task (two task axes); "
+                f"{base.name}'s task is {base.task_axes!r}"
+            )
+        if isinstance(base, ToolAngleRobot):
+            raise InvalidInputError(f"{base.name}'s task already has the tool's angle")
+        model = pin.Model(base.model)  # a copy: the base robot keeps its own frames
+        tool = model.getFrameId(base.tool_frame)
+        plane = [AXES.index(a) for a in base.task_axes]
+        normal = np.cross(np.eye(3)[plane[0]], np.eye(3)[plane[1]])
+        data = model.createData()
+        middle = (base.lower + base.upper) / 2
+        middle = np.where(np.isfinite(middle), middle, 0.0)
+        pin.framesForwardKinematics(model, data, middle)
+        rotation = data.oMf[tool].rotation
+        if axis is None:
+            column = int(np.argmin(np.abs(normal @ rotation)))
+        elif axis in AXES:
+            column = AXES.index(axis)
+        else:
+            raise InvalidInputError(f"tool axis {axis!r} must be one of x, y, z")
+        if abs(normal @ rotation[:, column]) > 1 - 1e-6:
+            raise InvalidInputError(
+                f"the tool's {AXES[column]} axis is the task plane's normal; measure another"
+            )
+        frame = model.frames[tool]
+        placement = frame.placement * pin.SE3(np.eye(3), np.eye(3)[column])
+        model.addFrame(pin.Frame(PROBE, frame.parentJoint, tool, placement, pin.FrameType.OP_FRAME))
+        super().__init__(
+            base.name,
+            model,
+            base.tool_frame,
+            base.task_axes,
+            base.actuators,
+            base.payload,
+            base.urdf,
+            base.task_file,
+            base.hydraulics,
+            base.description,
+            base.missing_meshes,
+        )
+        self.base = base
+        self.centre = float(centre)
+        self.tool_axis = AXES[column]
+        self._plane = plane
+        self._probe = model.getFrameId(PROBE)
+        self._tracked.append(self._probe)
+        self._slots[self._probe] = len(self._tracked) - 1
+
+    def __repr__(self) -> str:
+        return (
+            f"ToolAngleRobot({self.name!r}, n={self.n}, m={self.m}: {self.task_axes} + angle, "
+            f"payload={self.payload} kg)"
+        )
+
+    @property
+    def m(self) -> int:
+        return len(self.task_axes) + 1
+
+    @property
+    def task_labels(self) -> list[str]:
+        """The task coordinates' names."""
+        return [*self.task_axes, "angle"]
+
+    def _angle(self, kinematics: Kinematics):
+        """φ (k,), J_φ (k, n) and, with velocities, φ̇ (k,) and J̇_φ (k, n)."""
+        tool, probe = kinematics.point(self._tool), kinematics.point(self._probe)
+        a, b = self._plane
+        d = probe.position - tool.position
+        dJ = probe.jacobian - tool.jacobian
+        rho2 = d[:, a] ** 2 + d[:, b] ** 2
+        raw = np.arctan2(d[:, b], d[:, a])
+        angle = self.centre + np.mod(raw - self.centre + math.pi, 2 * math.pi) - math.pi
+        jacobian = (d[:, a, None] * dJ[:, b] - d[:, b, None] * dJ[:, a]) / rho2[:, None]
+        if probe.velocity is None or tool.velocity is None:
+            return angle, jacobian, None, None
+        dd = probe.velocity - tool.velocity
+        dJ_dot = probe.jacobian_rate - tool.jacobian_rate  # type: ignore[operator]
+        rate = (d[:, a] * dd[:, b] - d[:, b] * dd[:, a]) / rho2
+        jacobian_rate = (
+            dd[:, a, None] * dJ[:, b]
+            + d[:, a, None] * dJ_dot[:, b]
+            - dd[:, b, None] * dJ[:, a]
+            - d[:, b, None] * dJ_dot[:, a]
+        ) / rho2[:, None] - 2 * ((d[:, a] * dd[:, a] + d[:, b] * dd[:, b]) / rho2)[
+            :, None
+        ] * jacobian
+        return angle, jacobian, rate, jacobian_rate
+
+    def task_point(self, kinematics: Kinematics) -> tuple[np.ndarray, np.ndarray]:
+        y, J = super().task_point(kinematics)
+        angle, jacobian, _, _ = self._angle(kinematics)
+        return np.concatenate([y, angle[:, None]], axis=1), np.concatenate(
+            [J, jacobian[:, None]], axis=1
+        )
+
+    def task(self, kinematics: Kinematics) -> PointMotion:
+        motion = super().task(kinematics)
+        angle, jacobian, rate, jacobian_rate = self._angle(kinematics)
+        return PointMotion(
+            np.concatenate([motion.position, angle[:, None]], axis=1),
+            np.concatenate([motion.jacobian, jacobian[:, None]], axis=1),
+            None
+            if rate is None or motion.velocity is None
+            else np.concatenate([motion.velocity, rate[:, None]], axis=1),
+            None
+            if jacobian_rate is None or motion.jacobian_rate is None
+            else np.concatenate([motion.jacobian_rate, jacobian_rate[:, None]], axis=1),
+        )
+
+
+def with_tool_angle(robot: Robot, centre: float = 0.0, axis: str | None = None) -> Robot:
+    """``robot`` with the tool's angle as its last task coordinate (see the module docstring);
+    one already measuring it is returned with its branch moved to ``centre``."""
+    if isinstance(robot, ToolAngleRobot):
+        return ToolAngleRobot(robot.base, centre, axis or robot.tool_axis)
+    return ToolAngleRobot(robot, centre, axis)
+
+
+def task_robot(robot: Robot, cycle) -> Robot:
+    """The robot a work cycle's task is read on: with the tool's angle where the cycle asks for
+    it (branch centred on the cycle's angles), else ``robot`` itself."""
+    if getattr(cycle, "tool_angle", False):
+        return with_tool_angle(robot, cycle.angle_centre)
+    return robot
+
+
+def task_labels(robot: Robot) -> list[str]:
+    """The names of ``robot``'s task coordinates: its task axes, and "angle" where it has one."""
+    return list(getattr(robot, "task_labels", list(robot.task_axes)))

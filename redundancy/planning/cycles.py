@@ -1,0 +1,1213 @@
+"""Work cycles as a machine runs them: one continuous motion through every corner, again and
+again.
+
+The paper plans each segment on its own, from its own best start. A machine runs its cycle
+1 → 2 → 3 → 1 continuously: the end of one segment is the start of the next, and the end of
+the cycle the start of the next cycle. Here:
+
+- `simulate_cycle` integrates a law over a whole cycle, segment after segment, each from where
+  the one before ended (so q is continuous at every corner), for a batch of starts;
+  `CycleMotion` holds the per-segment motions and reads the cycle's margins, peaks, energies
+  and violations (in cycle time).
+- `improved_cycle_start`: the improved initial configuration over the whole cycle, the start
+  of the held actuators at the cycle's first point whose motion keeps every stroke over the
+  full cycle with the least peak (or integral) of the objective; by the fast search of
+  `redundancy.planning.starts` (one held actuator) or a sweep.
+- `plan_cycle` puts it beside the paper's per-segment plan, whose every corner would need a
+  self-motion (the task point held still) from where one segment's best motion ends to where
+  the next one's best start begins: `Corner` gives the Δ of every actuator, the held one's,
+  the time it takes at a stated speed, and whether the self-motion keeps the strokes.
+- `repeat` runs N cycles from one start, each from where the last ended: `Repetition` reports
+  every actuator's and the tool's drift per cycle, the first cycle that passes a stroke, and
+  whether the held actuator's sequence of values at the cycle's start settles to a limit cycle
+  (`Settling`); `return_map` samples the map P from that value to the next cycle's, whose
+  fixed points are the limit cycles (stable where |P'| < 1).
+
+Pseudoinverse control is in general not repeatable on a closed path (Roberts & Maciejewski, IJRR
+13(1), 1994): the self-motion is not integrable, so each cycle ends a little away from where it
+began. The drift-free strategy here is the periodic global optimum (`periodic_optimum`), not a
+null-space term steering the self-motion back. Why:
+
+- it closes exactly: the unknowns are the held actuators' strokes r(t) at the nodes of the
+  whole cycle with r(T) = r(0) one unknown, and the configuration at each node solves
+  y(q) = y_d(t), x_h(q) = r(t), so the motion is a function of the time in the cycle: every
+  cycle is the same motion, not one that converges to it. A null-space return term
+  z = −k ∇‖x − x*‖² only contracts towards a periodic motion (the drift falls by a factor per
+  cycle set by k and the cycle), so closing within 1e-6 from the first cycle needs a stiff k,
+  whose self-motion then costs velocity at every instant and raises the very peak the improved
+  method lowers;
+- it is the best drift-free motion, not one of many: the least peak over every periodic history
+  of the held actuators, every checked stroke kept at every node, the same problem as the
+  segment's bound (`redundancy.planning.bound`, whose transcription it reuses with the nodes of
+  all segments and the periodic unknown), so its price against the free improved cycle is a
+  measured optimum, and a free cycle whose start makes it periodic is inside its feasible set;
+- a machine runs it as a law in time (`HeldReference`): the held actuators follow the plan's
+  r(t) (feedforward ṙ and feedback gain `HELD_GAIN`), the others resolve the task exactly,
+  J_H ẋ = ẏ, so tracking stays closed-loop and the plan is computed once per cycle, offline.
+
+Its cost: seconds of planning (a transcription over the whole cycle, `benchmarks/cycles.py`)
+and a peak objective only (the periodic optimum minimises a peak, as the bound does).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from redundancy.errors import InvalidInputError, UnreachableError
+from redundancy.model.hydraulics import Supply
+from redundancy.model.robot import Robot
+from redundancy.planning.bound import (
+    CONVERGED,
+    GridSolution,
+    Transcription,
+    differentiation,
+    solve_transcription,
+)
+from redundancy.planning.ik import FOUND, continue_held, held_indices, inverse_kinematics
+from redundancy.planning.integrate import GAIN, TIME_STEP, TOLERANCE, Trajectory, simulate
+from redundancy.planning.starts import (
+    MAX_SAMPLES,
+    METHODS,
+    Configurations,
+    Sample,
+    Samples,
+    SearchResult,
+    Starts,
+    concatenated,
+    default_start,
+    fast_search,
+    held_actuators,
+    improved_start,
+    stroke_box,
+    sweep_values,
+)
+from redundancy.planning.tasks import WorkCycle
+from redundancy.resolution.laws import Resolver
+from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
+from redundancy.resolution.limits import Limits, Violation
+from redundancy.resolution.linalg import solve
+from redundancy.resolution.objectives import VELOCITY, Objective
+from redundancy.resolution.state import ActuatorSpace, evaluate
+
+CYCLES = 20  # repetitions by default
+SETTLED = 1e-6  # m (or rad): a cycle whose every actuator moves less than this is closed
+MAP_SAMPLES = 25  # starts the return map samples over the reachable held stroke
+GAP_SPEED = 0.1  # m/s (or rad/s): the held actuator's speed in a corner's self-motion, where
+# the robot's circuit gives no maximum speed for it
+SELF_MOTION_STEPS = 50  # held values the corners' self-motions are followed through
+REPEAT_TOLERANCE = 1e-7  # per adaptive step on q: repetitions integrate this finely, so that
+# the integrator's own error stays far below the drift measured (`SETTLED`)
+HELD_GAIN = 20.0  # 1/s: feedback of the held actuators onto the periodic plan's r(t)
+PERIODIC_GRIDS = (48, 96)  # intervals over the whole cycle of the periodic optimum's grids
+PERIODIC_MARGIN = 5e-4  # m (or rad): the periodic plan keeps the strokes this far inside at
+# its nodes, so that the motion a machine runs between them keeps them too
+MIN_INTERVALS = 4  # per segment, on every grid
+SMOOTHNESS = 1e-4  # s²: the periodic plan's tie-break on the mean squared held acceleration
+# r̈², beside the bound's on ṙ²: a plan a machine runs should be smooth where the peak does not
+# bind (on the crane it halves the rms of ẍ_h and moves the peak by 2e-4 of itself)
+
+Laws = Resolver | Sequence[Resolver]  # one law for every segment, or one per segment
+
+
+def _laws(cycle: WorkCycle, laws: Laws) -> tuple[Resolver, ...]:
+    if isinstance(laws, Resolver):
+        return (laws,) * len(cycle.segments)
+    laws = tuple(laws)
+    if len(laws) != len(cycle.segments):
+        raise InvalidInputError(
+            f"{len(laws)} laws for the {len(cycle.segments)} segments of {cycle.name!r}"
+        )
+    return laws
+
+
+@dataclass(frozen=True, eq=False)
+class CycleMotion:
+    """k motions over a whole work cycle: ``pieces``, one `Trajectory` (k motions) per segment,
+    each starting where the one before ended."""
+
+    cycle: WorkCycle
+    pieces: tuple[Trajectory, ...]
+
+    def __len__(self) -> int:
+        return len(self.pieces[0])
+
+    @property
+    def robot(self) -> Robot:
+        return self.pieces[0].robot
+
+    @property
+    def offsets(self) -> np.ndarray:
+        """Cycle time at which each segment starts, (S + 1,) with the cycle's duration last."""
+        return self.cycle.chain().offsets
+
+    @property
+    def start(self) -> np.ndarray:
+        """q at the start, (k, n)."""
+        return self.pieces[0].q[:, 0]
+
+    @property
+    def end(self) -> np.ndarray:
+        """q at the end of the cycle, (k, n)."""
+        return self.pieces[-1].q[:, -1]
+
+    @property
+    def failed(self) -> np.ndarray:
+        return np.any([p.failed for p in self.pieces], axis=0)
+
+    @property
+    def margins(self) -> np.ndarray:
+        """The least margin of the checked strokes over each whole motion (k,)."""
+        return np.min([p.margins for p in self.pieces], axis=0)
+
+    @property
+    def within_limits(self) -> np.ndarray:
+        return np.all([p.within_limits for p in self.pieces], axis=0)
+
+    def score(self, objective: Objective) -> np.ndarray:
+        """``objective`` over each whole motion (k,): the peak over every segment, or the sum
+        of the integrals."""
+        scores = np.array([p.score(objective) for p in self.pieces])
+        return scores.max(axis=0) if objective.reduction == "peak" else scores.sum(axis=0)
+
+    @property
+    def peak_velocity_norm(self) -> np.ndarray:
+        """max ẋᵀẋ over the cycle (k,), m²/s²."""
+        return np.max([p.peak_velocity_norm for p in self.pieces], axis=0)
+
+    @property
+    def max_tracking_error(self) -> np.ndarray:
+        """max |y − y_d| over the cycle (k,), m (and rad)."""
+        return np.max([p.max_tracking_error for p in self.pieces], axis=0)
+
+    def energy(self, supply: Supply | None = None) -> np.ndarray:
+        """Pump energy over the cycle (k,), J (`Trajectory.energy` of each segment, summed)."""
+        return np.sum([p.energy(supply) for p in self.pieces], axis=0)
+
+    def violations(self, i: int = 0) -> list[Violation]:
+        """Every limit motion ``i`` passes, its times in cycle time."""
+        found = []
+        for offset, piece in zip(self.offsets, self.pieces):
+            found += [
+                replace(v, start=v.start + offset, end=v.end + offset) for v in piece.violations(i)
+            ]
+        return found
+
+    def select(self, rows) -> CycleMotion:
+        return CycleMotion(self.cycle, tuple(p.select(rows) for p in self.pieces))
+
+    def whole(self, i: int = 0) -> Trajectory:
+        """Motion ``i`` as one `Trajectory` over the cycle's time (its segment the cycle's
+        `Chain`), each segment's first sample dropped after the first segment (it repeats the
+        corner the one before ended at): for figures and playback."""
+        parts: dict[str, list[np.ndarray]] = {k: [] for k in ("t", "q", "x", "x_dot", "y")}
+        measures = []
+        for number, (offset, piece) in enumerate(zip(self.offsets, self.pieces)):
+            times = piece.t[i]
+            count = int(np.searchsorted(times, times[-1])) + 1
+            first = 0 if number == 0 else 1
+            parts["t"].append(times[first:count] + offset)
+            for name in ("q", "x", "x_dot", "y"):
+                parts[name].append(getattr(piece, name)[i, first:count])
+            if piece.measure is not None:
+                measures.append(piece.measure[i, first:count])
+        first_piece = self.pieces[0]
+        measure = np.concatenate(measures) if len(measures) == len(self.pieces) else None
+        t, q, x, x_dot, y = (np.concatenate(parts[name]) for name in ("t", "q", "x", "x_dot", "y"))
+        return Trajectory.single(
+            self.robot,
+            self.cycle.chain(),  # type: ignore[arg-type]
+            first_piece.resolver,
+            t,
+            q,
+            x,
+            x_dot,
+            y,
+            first_piece.checked,
+            first_piece.objective,
+            measure,
+        )
+
+
+def simulate_cycle(
+    robot: Robot,
+    cycle: WorkCycle,
+    laws: Laws,
+    starts: np.ndarray,
+    time_step: float = TIME_STEP,
+    checked: tuple[str, ...] | None = None,
+    objective: Objective | None = None,
+    sparse: bool = False,
+    stop_past: bool = False,
+    circuit: bool = False,
+    gain: float | None = None,
+    tolerance: float = TOLERANCE,
+) -> CycleMotion:
+    """Integrate the cycle's segments one after another from every start (k, n), each segment
+    from where the one before ended, by ``laws`` (one `Resolver`, or one per segment); the
+    other options as `simulate`'s."""
+    laws = _laws(cycle, laws)
+    q = robot.configuration(starts, "starts")
+    pieces = []
+    for segment, law in zip(cycle.segments, laws):
+        motion = simulate(
+            robot,
+            law,
+            segment,
+            q,
+            time_step,
+            gain,
+            checked,
+            tolerance=tolerance,
+            objective=objective,
+            sparse=sparse,
+            stop_past=stop_past,
+            circuit=circuit,
+        )
+        pieces.append(motion)
+        q = motion.q[:, -1]
+    return CycleMotion(cycle, tuple(pieces))
+
+
+@dataclass(frozen=True, eq=False)
+class CycleSearch(Samples):
+    """Every sample of a search of the start over a whole cycle: ``motions`` holds one motion
+    per reachable sample (sparse samples), ``rows[i]`` sample i's row there (−1 when
+    unreachable). The reading of the samples (`feasible_range`, `best`, ...) is `Samples`'."""
+
+    robot: Robot = field(repr=False)
+    cycle: WorkCycle
+    objective: Objective
+    held: tuple[str, ...]
+    samples: tuple[Sample, ...]
+    motions: CycleMotion = field(repr=False)
+    rows: np.ndarray
+    method: str = "sweep"
+    rounds: int = 1
+    circuit: bool = False
+
+    def motion(self, sample: Sample | None = None, time_step: float = TIME_STEP) -> CycleMotion:
+        """The cycle from ``sample`` (default the best) on the grid of ``time_step``."""
+        sample = self.best if sample is None else sample
+        if sample is None:
+            raise InvalidInputError(
+                f"no start keeps every checked limit over the whole cycle {self.cycle.name!r} "
+                f"for the {self.objective.name} objective; closest: {self.closest_violation}"
+            )
+        row = int(self.rows[self.samples.index(sample)])
+        if row < 0:
+            raise InvalidInputError(f"the start {sample.values} of {self.held} is unreachable")
+        return simulate_cycle(
+            self.robot,
+            self.cycle,
+            self.objective.resolver,
+            self.motions.start[row : row + 1],
+            time_step,
+            self.motions.pieces[0].checked,
+            self.objective,
+            circuit=self.circuit,
+        )
+
+    def extended(self, other: CycleSearch) -> CycleSearch:
+        """This search with the samples of ``other`` appended."""
+        offset = len(self.motions)
+        rows = np.concatenate([self.rows, np.where(other.rows < 0, -1, other.rows + offset)])
+        pieces = tuple(
+            concatenated(a, b) for a, b in zip(self.motions.pieces, other.motions.pieces)
+        )
+        return replace(
+            self,
+            samples=self.samples + other.samples,
+            motions=CycleMotion(self.cycle, pieces),
+            rows=rows,
+            rounds=self.rounds + other.rounds,
+        )
+
+
+def evaluate_cycle_starts(
+    robot: Robot,
+    cycle: WorkCycle,
+    objective: Objective,
+    held: tuple[str, ...],
+    starts: Starts,
+    checked: tuple[str, ...] | None = None,
+    stop_past: bool = False,
+    method: str = "sweep",
+    circuit: bool = False,
+) -> CycleSearch:
+    """The whole cycle from each of ``starts`` (reachable ones integrated as one batch, sampled
+    sparsely): feasible where every checked stroke holds over the full cycle."""
+    reachable = np.flatnonzero(starts.reachable)
+    rows = np.full(len(starts.values), -1)
+    rows[reachable] = np.arange(reachable.size)
+    first = cycle.segments[0]
+    if not reachable.size:
+        raise UnreachableError(
+            f"{robot.name} cannot reach the start {first.start.tolist()} of cycle "
+            f"{cycle.name!r} from any of the {len(starts.values)} sampled values of "
+            f"{', '.join(held)}"
+        )
+    motions = simulate_cycle(
+        robot,
+        cycle,
+        objective.resolver,
+        starts.q[reachable],
+        checked=checked,
+        objective=objective,
+        sparse=True,
+        stop_past=stop_past,
+        circuit=circuit,
+    )
+    scores, margins, within = motions.score(objective), motions.margins, motions.within_limits
+    samples = []
+    for i, row in enumerate(rows):
+        values = tuple(float(v) for v in starts.values[i])
+        if row < 0:
+            samples.append(
+                Sample(values, None, False, starts.joint_margins[i], (), starts.reason(i))
+            )
+            continue
+        margin = float(min(margins[row], starts.joint_margins[i]))
+        feasible = margin >= -LIMIT_TOLERANCE and bool(within[row])
+        violations = tuple(motions.violations(row))
+        reason = None
+        if not feasible:
+            if motions.failed[row]:
+                reason = "singular actuator Jacobian"
+            elif any(p.stopped[row] for p in motions.pieces):
+                reason = "past a stroke limit, as its neighbours: stopped"
+            elif violations:
+                reason = str(max(violations, key=lambda v: v.excess))
+            else:
+                reason = "within the integration allowance of a stroke limit"
+        samples.append(Sample(values, float(scores[row]), feasible, margin, violations, reason))
+    return CycleSearch(
+        robot, cycle, objective, held, tuple(samples), motions, rows, method, circuit=circuit
+    )
+
+
+def improved_cycle_start(
+    robot: Robot,
+    cycle: WorkCycle,
+    objective: Objective = VELOCITY,
+    held: str | Sequence[str] | None = None,
+    samples: int = 100,
+    checked: tuple[str, ...] | None = None,
+    method: str | None = None,
+    circuit: bool = False,
+) -> CycleSearch:
+    """The improved initial configuration over the whole cycle: the start of the held actuators
+    (default the task's, `held_actuators`) at the cycle's first point whose continuous motion
+    through every segment keeps every checked stroke with the least peak (or integral) of
+    ``objective``. ``method`` "fast" (the default with one held actuator) or "sweep" (``samples``
+    values evenly over the stroke; with several held actuators ``samples`` Halton points over
+    their strokes)."""
+    cycle.check_continuous(closed=False)
+    held = _held(robot, cycle, held)
+    if not isinstance(samples, int | np.integer) or not 1 <= samples <= MAX_SAMPLES:
+        raise InvalidInputError(
+            f"samples must be a whole number within [1, {MAX_SAMPLES:,}]; got {samples!r}"
+        )
+    method = method or ("fast" if len(held) == 1 else "sweep")
+    if method not in METHODS:
+        raise InvalidInputError(f"unknown method {method!r}; methods: {', '.join(METHODS)}")
+    first = cycle.segments[0]
+
+    def evaluate(starts: Starts, stop_past: bool) -> CycleSearch:
+        return evaluate_cycle_starts(
+            robot, cycle, objective, held, starts, checked, stop_past, method, circuit
+        )
+
+    Limits.strokes(robot, checked)  # names checked before any work
+    if method == "fast":
+        if len(held) != 1:
+            raise InvalidInputError(
+                f"the fast search holds one actuator; {list(held)} are {len(held)}: use "
+                "method='sweep'"
+            )
+        return fast_search(Configurations(robot, first, held[0]), None, evaluate)
+    if len(held) == 1:
+        values = sweep_values(robot, held[0], samples)
+        return evaluate(Configurations(robot, first, held[0]).at(values), False)
+    from scipy.stats import qmc
+
+    box = stroke_box(robot, held)
+    values = box[:, 0] + (box[:, 1] - box[:, 0]) * qmc.Halton(len(held), seed=1).random(samples)
+    ik = inverse_kinematics(robot, first.start, held, values)
+    margins = np.where(ik.reached, 0.0, -np.inf)
+    return evaluate(Starts(values, ik.q, margins, np.where(ik.reached, 0.0, ik.miss)), False)
+
+
+def _one_held(robot: Robot, cycle: WorkCycle, held: str | None) -> str:
+    """The one held actuator (``held``, or the task's), or `InvalidInputError`."""
+    found = _held(robot, cycle, held)
+    if len(found) != 1:
+        raise InvalidInputError(
+            f"this holds one actuator; {robot.name} on {cycle.name!r} holds {list(found)}"
+        )
+    return found[0]
+
+
+def _held(robot: Robot, cycle: WorkCycle, held) -> tuple[str, ...]:
+    if held is None:
+        held = held_actuators(robot, cycle)
+    held = (held,) if isinstance(held, str) else tuple(held)
+    held_indices(robot, held)
+    return held
+
+
+@dataclass(frozen=True)
+class Corner:
+    """A corner of the per-segment plan: segment ``after`` ends at ``point`` where ``before``
+    starts. The plan's motion along ``after`` ends with the strokes ``end`` (n,); its best start
+    of ``before`` has ``start`` (n,). Between them the machine needs a self-motion, the tool held
+    at the point, moving the held actuators at ``speed`` (m/s or rad/s). ``within_limits``
+    says whether that self-motion keeps every checked stroke (None where not followed: several
+    held actuators), ``reason`` why a corner has no gap (a segment without a feasible start)."""
+
+    after: str
+    before: str
+    point: np.ndarray
+    names: tuple[str, ...]
+    held: tuple[str, ...]
+    end: np.ndarray | None
+    start: np.ndarray | None
+    speed: float
+    within_limits: bool | None = None
+    reason: str | None = None
+
+    @property
+    def delta(self) -> np.ndarray | None:
+        """Δx = start − end of every actuator (n,), or None."""
+        return None if self.start is None or self.end is None else self.start - self.end
+
+    @property
+    def held_delta(self) -> np.ndarray | None:
+        """Δ of the held actuators (r,), or None."""
+        delta = self.delta
+        return None if delta is None else delta[[self.names.index(h) for h in self.held]]
+
+    @property
+    def time(self) -> float | None:
+        """How long the self-motion takes with the held actuators at ``speed``, s, or None."""
+        delta = self.held_delta
+        return None if delta is None else float(np.abs(delta).max() / self.speed)
+
+    def report(self) -> dict:
+        delta = self.delta
+        return {
+            "after": self.after,
+            "before": self.before,
+            "point": self.point.tolist(),
+            "held_delta": None if delta is None else dict(zip(self.held, self.held_delta.tolist())),  # type: ignore[union-attr]
+            "delta": None if delta is None else dict(zip(self.names, delta.tolist())),
+            "speed": self.speed,
+            "time_s": self.time,
+            "self_motion_within_limits": self.within_limits,
+            "reason": self.reason,
+        }
+
+
+def gap_speed(robot: Robot, held: tuple[str, ...]) -> float:
+    """The held actuators' speed in a corner's self-motion: the slowest maximum speed of the
+    held cylinders in the robot's circuit, else `GAP_SPEED`."""
+    if robot.hydraulics is None:
+        return GAP_SPEED
+    circuit = robot.hydraulics
+    speeds = [
+        float(circuit.max_speeds[list(circuit.names).index(h)]) for h in held if h in circuit.names
+    ]
+    return min(speeds) if speeds else GAP_SPEED
+
+
+def _corner(
+    robot: Robot,
+    after: SearchResult,
+    motion: Trajectory | None,
+    before: SearchResult,
+    held: tuple[str, ...],
+    speed: float,
+    checked: tuple[str, ...] | None,
+) -> Corner:
+    names = tuple(robot.actuators.names)
+    point = after.segment.end
+    common = (after.segment.name, before.segment.name, point, names, held)
+    if motion is None or before.best is None:
+        missing = after.segment.name if motion is None else before.segment.name
+        return Corner(*common, None, None, speed, None, f"segment {missing} has no feasible start")
+    end_q = motion.q[0, -1]
+    start_row = int(before.rows[before.samples.index(before.best)])
+    start_q = before.trajectory.q[start_row, 0]
+    end_x, start_x = motion.x[0, -1], before.trajectory.x[start_row, 0]
+    within, reason = None, None
+    if len(held) == 1:
+        row = names.index(held[0])
+        path = np.linspace(end_x[row], start_x[row], SELF_MOTION_STEPS + 1)
+        q = np.empty((len(path), robot.n))
+        q[0] = end_q
+        for i in range(1, len(path)):  # followed step by step, so it stays on its branch
+            found, residual = continue_held(
+                robot, point, row, (path[i - 1 : i], q[i - 1 : i]), path[i : i + 1]
+            )
+            if residual[0] >= FOUND:
+                return Corner(
+                    *common,
+                    end_x,
+                    start_x,
+                    speed,
+                    False,
+                    f"the self-motion loses the task point at {held[0]} = {path[i]:.4g}",
+                )
+            q[i] = found[0]
+        margin = Limits.strokes(robot, checked).margin(evaluate(robot, q).x).min()
+        within = bool(margin >= -LIMIT_TOLERANCE)
+        if not np.allclose(q[-1], start_q, atol=1e-6):
+            within, reason = False, "the self-motion reaches another configuration (branch)"
+    return Corner(*common, end_x, start_x, speed, within, reason)
+
+
+@dataclass(frozen=True, eq=False)
+class CyclePlan:
+    """A cycle planned two ways: ``search``, the improved start over the whole cycle, and its
+    ``motion`` (None where no start keeps the strokes); and the paper's per-segment plan,
+    ``segments`` (each segment's own search) with their best ``segment_motions`` and the
+    ``corners`` their starts leave between them."""
+
+    robot: Robot = field(repr=False)
+    cycle: WorkCycle
+    objective: Objective
+    held: tuple[str, ...]
+    search: CycleSearch = field(repr=False)
+    motion: CycleMotion | None = field(repr=False)
+    segments: tuple[SearchResult, ...] = field(repr=False)
+    segment_motions: tuple[Trajectory | None, ...] = field(repr=False)
+    corners: tuple[Corner, ...]
+
+    @property
+    def gap_time(self) -> float | None:
+        """The corners' self-motions together, s (None where one has no gap)."""
+        times = [c.time for c in self.corners]
+        return None if any(t is None for t in times) else float(sum(times))  # type: ignore[arg-type]
+
+
+def plan_cycle(
+    robot: Robot,
+    cycle: WorkCycle,
+    objective: Objective = VELOCITY,
+    held: str | Sequence[str] | None = None,
+    samples: int = 100,
+    checked: tuple[str, ...] | None = None,
+    method: str | None = None,
+    circuit: bool = False,
+    speed: float | None = None,
+) -> CyclePlan:
+    """The whole-cycle improved start and, beside it, the per-segment plan with its corners'
+    self-motion gaps (the held actuators at ``speed``, default `gap_speed`)."""
+    cycle.check_continuous(closed=False)
+    held = _held(robot, cycle, held)
+    speed = gap_speed(robot, held) if speed is None else speed
+    if not speed > 0:
+        raise InvalidInputError(f"the self-motion's speed must be > 0; got {speed}")
+    search = improved_cycle_start(robot, cycle, objective, held, samples, checked, method, circuit)
+    motion = search.motion() if search.best is not None else None
+    searches = tuple(
+        improved_start(robot, s, objective, held, samples, checked, method, circuit=circuit)
+        for s in cycle.segments
+    )
+    motions = tuple(s.motion() if s.best is not None else None for s in searches)
+    pairs = list(range(len(searches) - 1)) + ([len(searches) - 1] if cycle.closed else [])
+    corners = tuple(
+        _corner(
+            robot,
+            searches[i],
+            motions[i],
+            searches[(i + 1) % len(searches)],
+            held,
+            speed,
+            checked,
+        )
+        for i in pairs
+    )
+    return CyclePlan(robot, cycle, objective, held, search, motion, searches, motions, corners)
+
+
+@dataclass(frozen=True)
+class Settling:
+    """Whether the held actuator's value at the cycle's start settles to a limit cycle.
+
+    ``settled_at``: the first cycle after which every actuator moved less than `SETTLED`; else
+    ``contraction``, the ratio of successive drifts of the held actuator over the last cycles
+    (|ρ| < 1: converging geometrically), ``limit`` the value it converges to (extrapolated) and
+    ``cycles_to_settle`` how many more cycles it needs; ``settles`` sums it up."""
+
+    settles: bool
+    settled_at: int | None
+    contraction: float | None
+    limit: float | None
+    cycles_to_settle: int | None
+
+    def __str__(self) -> str:
+        if self.settled_at is not None:
+            return f"closed (drift below {SETTLED:g}) from cycle {self.settled_at}"
+        if self.settles:
+            return (
+                f"converging to a limit cycle at {self.limit:.6g} (drift ratio "
+                f"{self.contraction:.3g} per cycle, closed in about {self.cycles_to_settle} "
+                "more cycles)"
+            )
+        if self.contraction is None:
+            return "no trend"
+        return f"not settling (drift ratio {self.contraction:.3g} per cycle)"
+
+
+def settling(values: np.ndarray, drift: np.ndarray) -> Settling:
+    """`Settling` from the held values at each cycle's start (N + 1,) and every actuator's drift
+    per cycle (N, n)."""
+    largest = np.abs(drift).max(axis=1)
+    closed = np.flatnonzero(largest <= SETTLED)
+    if closed.size and np.all(largest[closed[0] :] <= SETTLED):
+        return Settling(True, int(closed[0]) + 1, None, float(values[-1]), 0)
+    steps = np.diff(values)
+    if len(steps) < 3 or np.any(steps[-3:] == 0):
+        return Settling(False, None, None, None, None)
+    ratios = steps[-3:][1:] / steps[-3:][:-1]
+    rho = float(np.median(ratios))
+    consistent = np.all(np.abs(ratios - rho) <= 0.1 * max(abs(rho), 1e-3))
+    if not (abs(rho) < 1 and consistent):
+        return Settling(False, None, rho, None, None)
+    limit = float(values[-1] + steps[-1] * rho / (1 - rho))
+    more = math.ceil(math.log(SETTLED / abs(steps[-1])) / math.log(abs(rho))) if rho else 1
+    return Settling(True, None, rho, limit, max(more, 1))
+
+
+@dataclass(frozen=True, eq=False)
+class Repetition:
+    """N cycles run one after another from one start with one strategy (``strategy`` names
+    it) by ``laws``: ``motions`` one `CycleMotion` (of one) per cycle, sampled at the adaptive
+    steps; x (N + 1, n) the strokes and
+    y (N + 1, m) the tool at each cycle's start, the last row where the last cycle ended."""
+
+    robot: Robot = field(repr=False)
+    cycle: WorkCycle
+    strategy: str
+    held: tuple[str, ...]
+    laws: tuple[Resolver, ...] = field(repr=False)
+    motions: tuple[CycleMotion, ...] = field(repr=False)
+    x: np.ndarray
+    y: np.ndarray
+    circuit: bool = False
+    gain: float = GAIN
+    tolerance: float = REPEAT_TOLERANCE
+
+    def motion(self, number: int = 1, time_step: float = TIME_STEP) -> CycleMotion:
+        """Cycle ``number`` (1-based) integrated again on the grid of ``time_step``."""
+        if not 1 <= number <= self.cycles:
+            raise InvalidInputError(f"cycle {number} is not among 1-{self.cycles}")
+        run = self.motions[number - 1]
+        return simulate_cycle(
+            self.robot,
+            self.cycle,
+            self.laws,
+            run.start,
+            time_step,
+            run.pieces[0].checked,
+            run.pieces[0].objective,
+            circuit=self.circuit,
+            gain=self.gain,
+            tolerance=self.tolerance,
+        )
+
+    @property
+    def cycles(self) -> int:
+        return len(self.motions)
+
+    @property
+    def drift(self) -> np.ndarray:
+        """Each actuator's drift per cycle (N, n): stroke at its end − at its start, m or rad."""
+        return np.diff(self.x, axis=0)
+
+    @property
+    def tool_drift(self) -> np.ndarray:
+        """|y(end) − y(start)| of the tool per cycle (N,), m (and rad)."""
+        return np.linalg.norm(np.diff(self.y, axis=0), axis=1)
+
+    @property
+    def held_values(self) -> np.ndarray:
+        """The held actuators at each cycle's start (N + 1, r)."""
+        names = self.robot.actuators.names
+        return self.x[:, [names.index(h) for h in self.held]]
+
+    @property
+    def within(self) -> np.ndarray:
+        """Whether each cycle kept every checked limit (N,)."""
+        return np.array([bool(m.within_limits[0]) for m in self.motions])
+
+    @property
+    def first_violation(self) -> tuple[int, str] | None:
+        """The first cycle (1-based) that passes a limit, and the first limit it passes (its
+        times in that cycle's time)."""
+        for number, motion in enumerate(self.motions, start=1):
+            found = motion.violations(0)
+            if found:
+                return number, str(found[0])
+            if not motion.within_limits[0]:
+                return number, "the motion failed (singular actuator Jacobian)"
+        return None
+
+    @property
+    def settling(self) -> Settling:
+        return settling(self.held_values[:, 0], self.drift)
+
+    @property
+    def peak_velocity_norm(self) -> float:
+        """The highest ẋᵀẋ over every cycle, m²/s²."""
+        return float(max(m.peak_velocity_norm[0] for m in self.motions))
+
+    def score(self, objective: Objective) -> float:
+        """The first cycle's ``objective``."""
+        return float(self.motions[0].score(objective)[0])
+
+    def report(self) -> dict:
+        first = self.first_violation
+        drift = self.drift
+        return {
+            "strategy": self.strategy,
+            "cycles": self.cycles,
+            "held_values": self.held_values[:, 0].tolist()
+            if len(self.held) == 1
+            else self.held_values.tolist(),
+            "drift_per_cycle": {
+                name: drift[:, j].tolist() for j, name in enumerate(self.robot.actuators.names)
+            },
+            "largest_drift_per_cycle": np.abs(drift).max(axis=1).tolist(),
+            "tool_drift_per_cycle": self.tool_drift.tolist(),
+            "within_limits_per_cycle": self.within.tolist(),
+            "first_cycle_past_a_limit": None if first is None else first[0],
+            "first_violation": None if first is None else first[1],
+            "settling": str(self.settling),
+            "settles": self.settling.settles,
+            "limit_cycle_value": self.settling.limit,
+            "contraction": self.settling.contraction,
+        }
+
+
+def repeat(
+    robot: Robot,
+    cycle: WorkCycle,
+    laws: Laws,
+    start: np.ndarray,
+    cycles: int = CYCLES,
+    strategy: str = "free",
+    held: str | Sequence[str] | None = None,
+    checked: tuple[str, ...] | None = None,
+    circuit: bool = False,
+    objective: Objective | None = None,
+    tolerance: float = REPEAT_TOLERANCE,
+    gain: float = GAIN,
+) -> Repetition:
+    """Run ``cycles`` cycles with ``laws`` (one `Resolver`, or one per segment) from the
+    configuration ``start`` (n,), each from where the last ended, with closed-loop tracking of
+    the task (gain K, 1/s), adaptively to ``tolerance`` and sampled at the steps
+    (`Repetition.motion` gives a cycle on the grid)."""
+    cycle.check_continuous(closed=True)
+    held = _held(robot, cycle, held)
+    if not isinstance(cycles, int | np.integer) or not 1 <= cycles <= 10_000:
+        raise InvalidInputError(f"cycles must be a whole number within [1, 10,000]; got {cycles!r}")
+    q = robot.configuration(start, "start")
+    motions = []
+    for _ in range(cycles):
+        motion = simulate_cycle(
+            robot,
+            cycle,
+            laws,
+            q,
+            checked=checked,
+            objective=objective,
+            sparse=True,
+            circuit=circuit,
+            gain=gain,
+            tolerance=tolerance,
+        )
+        motions.append(motion)
+        q = motion.end
+    x = np.array([m.pieces[0].x[0, 0] for m in motions] + [motions[-1].pieces[-1].x[0, -1]])
+    y = np.array([m.pieces[0].y[0, 0] for m in motions] + [motions[-1].pieces[-1].y[0, -1]])
+    return Repetition(
+        robot,
+        cycle,
+        strategy,
+        held,
+        _laws(cycle, laws),
+        tuple(motions),
+        x,
+        y,
+        circuit,
+        gain,
+        tolerance,
+    )
+
+
+@dataclass(frozen=True)
+class ReturnMap:
+    """The map P from the held actuator's value at the cycle's start to its value there one
+    cycle later, sampled at ``values`` (k,): ``following`` (k,) (NaN where the start is out of
+    reach or the motion failed), ``within`` (k,) whether that cycle kept the strokes; its
+    ``fixed_points`` (v*, P'(v*)): the limit cycles, stable where |P'| < 1."""
+
+    held: str
+    values: np.ndarray
+    following: np.ndarray
+    within: np.ndarray
+
+    @property
+    def fixed_points(self) -> list[tuple[float, float]]:
+        """(v*, P'(v*)) where P(v) − v changes sign between two samples (linear in between)."""
+        return [(root, slope) for root, slope, _ in self._fixed()]
+
+    def _fixed(self) -> list[tuple[float, float, bool]]:
+        """The fixed points, each with whether both samples around it keep the strokes."""
+        found = []
+        v, p = self.values, self.following
+        g = p - v
+        for i in range(len(v) - 1):
+            if not (np.isfinite(g[i]) and np.isfinite(g[i + 1])) or g[i] * g[i + 1] > 0:
+                continue
+            if g[i] == g[i + 1]:
+                continue
+            root = v[i] - g[i] * (v[i + 1] - v[i]) / (g[i + 1] - g[i])
+            slope = (p[i + 1] - p[i]) / (v[i + 1] - v[i])
+            kept = bool(self.within[i] and self.within[i + 1])
+            found.append((float(root), float(slope), kept))
+        return found
+
+    def describe(self) -> str:
+        """The limit cycles in words."""
+        found = self._fixed()
+        if not found:
+            return "no fixed point over the reachable stroke"
+        return "; ".join(
+            f"limit cycle at {v:.5g} (P' = {s:.3g}, {'stable' if abs(s) < 1 else 'unstable'}"
+            + ("" if kept else ", its cycle passes a stroke")
+            + ")"
+            for v, s, kept in found
+        )
+
+    def report(self) -> dict:
+        return {
+            "held_actuator": self.held,
+            "values": self.values.tolist(),
+            "next": [None if not np.isfinite(p) else float(p) for p in self.following],
+            "within_limits": self.within.tolist(),
+            "fixed_points": [
+                {"value": v, "slope": s, "stable": abs(s) < 1, "keeps_the_strokes": kept}
+                for v, s, kept in self._fixed()
+            ],
+        }
+
+
+def return_map(
+    robot: Robot,
+    cycle: WorkCycle,
+    laws: Laws,
+    held: str | None = None,
+    values: np.ndarray | None = None,
+    checked: tuple[str, ...] | None = None,
+    count: int = MAP_SAMPLES,
+) -> ReturnMap:
+    """P sampled at ``values`` of the held actuator (default ``count`` evenly over the reachable
+    part of its stroke at the cycle's start), all integrated as one batch."""
+    cycle.check_continuous(closed=True)
+    name = _one_held(robot, cycle, held)
+    first = cycle.segments[0]
+    configurations = Configurations(robot, first, name)
+    if values is None:
+        scan = configurations.at(sweep_values(robot, name, 4 * count))
+        reachable = scan.values[scan.reachable, 0]
+        if not reachable.size:
+            raise UnreachableError(f"{robot.name} cannot reach the start of {cycle.name!r}")
+        values = np.linspace(reachable.min(), reachable.max(), count)
+    values = np.asarray(values, dtype=float)
+    starts = configurations.at(values)
+    ok = starts.reachable
+    following = np.full(len(values), np.nan)
+    within = np.zeros(len(values), dtype=bool)
+    if ok.any():
+        motions = simulate_cycle(
+            robot, cycle, laws, starts.q[ok], checked=checked, sparse=True, gain=GAIN
+        )
+        column = robot.actuators.names.index(name)
+        end = motions.pieces[-1].x[:, -1, column]
+        following[ok] = np.where(motions.failed, np.nan, end)
+        within[ok] = motions.within_limits
+    return ReturnMap(name, values, following, within)
+
+
+class HeldReference(Resolver):
+    """Runs a periodic plan: the held actuator follows the plan's r(t) along one segment (t in
+    s from the segment's start), ẋ_h = ṙ(t) + k (r(t) − x_h), and the others resolve the task,
+    J_H ẋ = ẏ: the one ẋ solving [J_H; e_h] ẋ = [ẏ; ẋ_h] (n equations with r = n − m = 1).
+    r(t) is the cubic spline through the plan's nodes (twice differentiable, so the integrator
+    steps over the nodes; ``periodic`` where one segment is the whole cycle)."""
+
+    name = "periodic plan (held actuator follows r(t))"
+
+    def __init__(
+        self, row: int, t: np.ndarray, r: np.ndarray, gain: float = HELD_GAIN, periodic=False
+    ):
+        self.row, self.gain = row, gain
+        self.reference = CubicSpline(t, r, bc_type="periodic" if periodic else "not-a-knot")
+        self.rate = self.reference.derivative()
+
+    def __repr__(self) -> str:
+        return f"HeldReference(row={self.row}, gain={self.gain})"
+
+    def resolve(self, space: ActuatorSpace, y_dot: np.ndarray) -> np.ndarray:
+        raise InvalidInputError("this law follows a plan in time; call resolve_at(space, ẏ, t)")
+
+    def resolve_at(self, space: ActuatorSpace, y_dot: np.ndarray, t: np.ndarray) -> np.ndarray:
+        t = np.broadcast_to(np.asarray(t, dtype=float), (len(space.x),))
+        held = self.rate(t) + self.gain * (self.reference(t) - space.x[:, self.row])
+        n = space.x.shape[1]
+        K = np.concatenate([space.J_H, np.eye(n)[self.row][None, None].repeat(len(t), 0)], 1)
+        rhs = np.concatenate([y_dot, held[:, None]], axis=1)
+        return solve(K, rhs[..., None])[..., 0]
+
+
+class CycleTranscription(Transcription):
+    """The bound's transcription (`redundancy.planning.bound.Transcription`) over a whole
+    cycle, periodic: nodes on every segment (``intervals`` (S,) each), a corner's two nodes
+    (end of one segment, start of the next) one unknown, and the cycle's last node the first's
+    unknown, so r(T) = r(0). Held rates are differences within each segment (one-sided at its
+    ends, so they may jump at a corner, as ẏ does at constant speed)."""
+
+    def __init__(
+        self,
+        robot: Robot,
+        objective: Objective,
+        cycle: WorkCycle,
+        row: int,
+        limits: Limits,
+        intervals: Sequence[int],
+        guess: np.ndarray,
+        margin: float = PERIODIC_MARGIN,
+        smoothness: float = SMOOTHNESS,
+    ):
+        self.robot, self.objective, self.row = robot, objective, row
+        self.columns = limits.columns
+        offsets = cycle.chain().offsets
+        unknowns = int(sum(intervals))
+        times, points, rates, owners, pieces, blocks, steps = [], [], [], [], [], [], []
+        first = 0
+        for i, (segment, count) in enumerate(zip(cycle.segments, intervals)):
+            local = np.linspace(0.0, segment.duration, count + 1)
+            owner = first + np.arange(count + 1)
+            if i == len(intervals) - 1:
+                owner[-1] = 0
+            times.append(local + offsets[i])
+            points.append(segment.position(local))
+            rates.append(segment.velocity_at(local))
+            owners.append(owner)
+            pieces.append(np.full(count + 1, i))
+            blocks.append(differentiation(count, local[1]))
+            steps.append(local[1])
+            first += count
+        self.t = np.concatenate(times)
+        self.local = np.concatenate(
+            [np.linspace(0.0, s.duration, c + 1) for s, c in zip(cycle.segments, intervals)]
+        )
+        self.points = np.concatenate(points)
+        self.y_dot = np.concatenate(rates)
+        self.owner = np.concatenate(owners)
+        self.piece = np.concatenate(pieces)
+        self.D = np.zeros((len(self.t), unknowns))
+        row0 = 0
+        for block, owner in zip(blocks, owners):
+            rows = row0 + np.arange(len(owner))
+            np.add.at(self.D, (rows[:, None], owner[None, :]), block)  # owners may repeat
+            row0 += len(owner)
+        self.q = np.array(guess, dtype=float)
+        self.lower = limits.lower + margin
+        self.upper = limits.upper - margin
+        self.span = np.maximum(self.upper - self.lower, 1e-12)
+        self.cache = None
+        self.scale = 1.0
+        self.smoothness = smoothness
+        second = []  # second differences of the held strokes inside each segment, per s²
+        for owner, h in zip(owners, steps):
+            for j in range(1, len(owner) - 1):
+                difference = np.zeros(unknowns)
+                np.add.at(difference, owner[j - 1 : j + 2], np.array([1.0, -2.0, 1.0]) / h**2)
+                second.append(difference)
+        self.S = np.array(second)
+
+    def cost(self, z):
+        """The bound's cost plus ε mean r̈² / s₀ (ε = ``smoothness``, r̈ the second differences
+        inside each segment), with its gradient."""
+        value, gradient = super().cost(z)
+        r_ddot = self.S @ z[:-1]
+        weight = self.smoothness / (len(r_ddot) * self.scale)
+        gradient = gradient.copy()
+        gradient[:-1] += 2 * weight * (self.S.T @ r_ddot)
+        return value + weight * (r_ddot @ r_ddot), gradient
+
+    def unknown_times(self) -> np.ndarray:
+        """The cycle time of each unknown (its first node), (U,)."""
+        times = np.empty(self.D.shape[1])
+        for j in range(len(self.owner) - 1, -1, -1):
+            times[self.owner[j]] = self.t[j]
+        return times
+
+
+def _split(cycle: WorkCycle, total: int) -> list[int]:
+    """``total`` intervals shared among the segments by duration, at least `MIN_INTERVALS`."""
+    durations = np.array([s.duration for s in cycle.segments])
+    return [max(MIN_INTERVALS, round(total * d / durations.sum())) for d in durations]
+
+
+@dataclass(frozen=True, eq=False)
+class PeriodicOptimum:
+    """The drift-free strategy (module docstring): the motion of least peak of ``objective``
+    over every periodic history of the held actuator over the whole cycle, on each of its
+    ``grids``. At the finest grid's nodes: cycle times t (N,), each node's ``piece`` (segment),
+    its segment time ``local``, q (N, n), the held strokes r (N,) and rates ṙ (N,), the
+    objective's ``measure`` (N,)."""
+
+    robot: Robot = field(repr=False)
+    cycle: WorkCycle
+    objective: Objective
+    held: str
+    t: np.ndarray
+    piece: np.ndarray
+    local: np.ndarray
+    q: np.ndarray
+    r: np.ndarray
+    r_dot: np.ndarray
+    measure: np.ndarray
+    grids: tuple[GridSolution, ...]
+
+    @property
+    def peak(self) -> float:
+        """The optimal peak on the finest grid."""
+        return self.grids[-1].peak
+
+    @property
+    def change(self) -> float | None:
+        """|peak on the finest grid − on the one before| / peak on the finest, or None."""
+        if len(self.grids) < 2:
+            return None
+        return abs(self.grids[-1].peak - self.grids[-2].peak) / self.grids[-1].peak
+
+    @property
+    def converged(self) -> bool:
+        """The finest grid's solve succeeded and refining last moved the peak by less than
+        `redundancy.planning.bound.CONVERGED`."""
+        change = self.change
+        return self.grids[-1].success and change is not None and change < CONVERGED
+
+    @property
+    def start(self) -> np.ndarray:
+        """The configuration at the cycle's start (n,)."""
+        return self.q[0]
+
+    def laws(self, gain: float = HELD_GAIN) -> tuple[HeldReference, ...]:
+        """One `HeldReference` per segment: the law a machine runs the plan by."""
+        row = self.robot.actuators.names.index(self.held)
+        laws = []
+        single = len(self.cycle.segments) == 1
+        for i in range(len(self.cycle.segments)):
+            nodes = self.piece == i
+            laws.append(HeldReference(row, self.local[nodes], self.r[nodes], gain, single))
+        return tuple(laws)
+
+
+def periodic_optimum(
+    robot: Robot,
+    cycle: WorkCycle,
+    guess: CycleMotion,
+    objective: Objective = VELOCITY,
+    held: str | None = None,
+    checked: tuple[str, ...] | None = None,
+    grids: tuple[int, ...] = PERIODIC_GRIDS,
+    margin: float = PERIODIC_MARGIN,
+    smoothness: float = SMOOTHNESS,
+) -> PeriodicOptimum:
+    """The periodic global optimum over the whole cycle (module docstring), from the first
+    motion of ``guess`` (e.g. the free improved cycle) with its drift taken out linearly in
+    time; ``grids`` are interval counts over the whole cycle, each solved from the last."""
+    cycle.check_continuous(closed=True)
+    name = _one_held(robot, cycle, held)
+    if objective.reduction != "peak":
+        raise InvalidInputError(
+            f"the periodic optimum minimises a peak; objective {objective.name!r} reduces its "
+            f"measure by {objective.reduction!r}"
+        )
+    if not grids or any(int(g) < 2 for g in grids) or list(grids) != sorted(grids):
+        raise InvalidInputError(f"grids must be increasing interval counts ≥ 2; got {grids}")
+    row = robot.actuators.names.index(name)
+    limits = Limits.strokes(robot, checked)
+    others = Limits.strokes(robot, [n for n in limits.names if n != name])
+    stroke = robot.actuators[name]
+    box = (stroke.lower + margin, stroke.upper - margin) if name in limits.names else (None, None)
+    whole = guess.whole(0)
+    period = cycle.duration
+    t0, r0 = whole.t[0], whole.x[0, :, row]
+    closed = r0 - (r0[-1] - r0[0]) * t0 / period  # the free motion with its drift taken out
+    q0 = whole.q[0]
+    solutions = []
+    nodes_t, nodes_q = t0, q0  # where the next grid's configurations are interpolated from
+    unknown_t, unknown_r = t0, closed  # and its held strokes (periodic in the cycle's time)
+    for intervals in grids:
+        split = _split(cycle, intervals)
+        times = np.concatenate(
+            [
+                np.linspace(0.0, s.duration, c + 1) + offset
+                for s, c, offset in zip(cycle.segments, split, cycle.chain().offsets)
+            ]
+        )
+        q = np.stack([np.interp(times, nodes_t, nodes_q[:, j]) for j in range(robot.n)], axis=1)
+        problem = CycleTranscription(
+            robot, objective, cycle, row, others, split, q, margin, smoothness
+        )
+        r = np.interp(problem.unknown_times(), unknown_t, unknown_r)
+        try:
+            r, grid, nodes = solve_transcription(problem, r, box, intervals)
+        except InvalidInputError as error:
+            raise InvalidInputError(f"the periodic optimum found no motion: {error}") from None
+        solutions.append(grid)
+        nodes_t, nodes_q = problem.t, problem.q
+        order = np.argsort(problem.unknown_times())
+        unknown_t = np.append(problem.unknown_times()[order], period)
+        unknown_r = np.append(r[order], r[0])
+    # the peak is taken at the nodes with central differences, blind to a held history that
+    # alternates node by node; the plan a machine runs is that history with the alternation
+    # filtered out ((1, 2, 1) / 4 inside each segment; the corners, where the held rate may
+    # jump, kept), its configurations solved afresh
+    smooth = (np.roll(r, 1) + 2 * r + np.roll(r, -1)) / 4
+    corners = problem.owner[np.flatnonzero(np.diff(problem.piece, prepend=-1))]
+    smooth[corners] = r[corners]
+    r_nodes = smooth[problem.owner]
+    r_dot = problem.D @ smooth
+    q = problem.configurations(smooth)
+    return PeriodicOptimum(
+        robot,
+        cycle,
+        objective,
+        name,
+        problem.t,
+        problem.piece,
+        problem.local,
+        q.copy(),
+        r_nodes,
+        r_dot,
+        nodes.measure,
+        tuple(solutions),
+    )
+
+
+def default_cycle_start(robot: Robot, cycle: WorkCycle, held=None) -> tuple[np.ndarray, np.ndarray]:
+    """The default start at the cycle's first point (`default_start`): (values (r,), q (n,))."""
+    return default_start(robot, cycle.segments[0], _held(robot, cycle, held))

@@ -1,0 +1,312 @@
+"""Work cycles as a machine runs them: continuous through the corners, the whole-cycle improved
+start beside the per-segment plan, repetition and drift, and the drift-free periodic strategy."""
+
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from commands import run_cli
+
+from redundancy import InvalidInputError, load_robot
+from redundancy.planning.angles import task_robot
+from redundancy.planning.cycles import (
+    SETTLED,
+    CycleTranscription,
+    evaluate_cycle_starts,
+    improved_cycle_start,
+    periodic_optimum,
+    plan_cycle,
+    repeat,
+    return_map,
+    settling,
+    simulate_cycle,
+)
+from redundancy.planning.starts import Configurations
+from redundancy.planning.tasks import Segment, WorkCycle
+from redundancy.resolution.limits import Limits
+from redundancy.resolution.objectives import VELOCITY
+from redundancy.resolution.state import evaluate
+from redundancy.study.cycles import run_cycle
+
+ARM = Path(__file__).parent / "data" / "planar4r"
+
+
+@pytest.fixture(scope="module")
+def circle():
+    """The planar 4R arm written for these tests on a closed circle with the tool's angle:
+    x, y and the angle, m = 3, n = 4, r = 1."""
+    base = load_robot(ARM / "robot.toml")
+    cycle = WorkCycle.from_toml(ARM / "task.toml", dimension=base.m)
+    robot = task_robot(base, cycle)
+    assert (robot.m, robot.n) == (3, 4)
+    return robot, cycle
+
+
+@pytest.fixture(scope="module")
+def arm_runs(circle):
+    """The free pseudoinverse and the drift-free periodic strategy, 20 cycles each."""
+    robot, cycle = circle
+    search = improved_cycle_start(robot, cycle, VELOCITY)
+    motion = search.motion()
+    free = repeat(robot, cycle, VELOCITY.resolver, motion.start[0], 20)
+    periodic = periodic_optimum(robot, cycle, motion)
+    closed = repeat(robot, cycle, periodic.laws(), periodic.start, 20, "periodic")
+    return search, motion, free, periodic, closed
+
+
+@pytest.fixture(scope="module")
+def paper_cycle(crane):
+    return WorkCycle.from_toml(crane.task_file, dimension=crane.m)
+
+
+@pytest.fixture(scope="module")
+def crane_study(crane, paper_cycle):
+    return run_cycle(crane, paper_cycle, VELOCITY, cycles=3)
+
+
+def test_the_free_pseudoinverse_drifts_on_the_closed_circle(arm_runs):
+    _, _, free, _, _ = arm_runs
+    largest = np.abs(free.drift).max(axis=1)
+    assert largest[0] > 1e-3  # far above the integrator's error
+    report = free.report()
+    assert len(report["largest_drift_per_cycle"]) == 20
+    assert report["largest_drift_per_cycle"][0] == pytest.approx(largest[0])
+    assert set(report["drift_per_cycle"]) == {"x1", "x2", "x3", "x4"}
+    assert max(report["tool_drift_per_cycle"]) < 1e-5  # the task closes; the self-motion not
+
+
+def test_the_drift_free_strategy_closes_every_cycle_within_1e_6(arm_runs):
+    _, _, _, periodic, closed = arm_runs
+    assert closed.cycles == 20
+    assert np.abs(closed.drift).max() <= 1e-6
+    assert closed.tool_drift.max() <= 1e-6
+    assert closed.within.all()
+    assert closed.settling.settles and closed.settling.settled_at == 1
+    assert periodic.converged
+    # the machine runs the plan: its first cycle's peak is the plan's to a per cent
+    assert closed.score(VELOCITY) == pytest.approx(periodic.peak, rel=0.01)
+
+
+def test_the_periodic_plan_is_periodic_and_keeps_the_strokes(arm_runs, circle):
+    robot, _ = circle
+    _, _, _, periodic, _ = arm_runs
+    assert periodic.r[0] == periodic.r[-1]
+    np.testing.assert_allclose(periodic.q[0], periodic.q[-1], atol=1e-9)
+    limits = Limits.strokes(robot)
+    assert limits.margin(evaluate(robot, periodic.q).x).min() > 0
+
+
+def test_the_drift_is_read_as_a_limit_cycle_or_not():
+    values = 1.0 + 0.5 ** np.arange(12) * 1e-2  # halving steps: converging
+    drift = np.diff(values)[:, None]
+    found = settling(values, drift)
+    assert found.settles and found.contraction == pytest.approx(0.5)
+    assert found.limit == pytest.approx(1.0, abs=1e-9)
+    growing = 1.0 + 1.5 ** np.arange(12) * 1e-3
+    assert not settling(growing, np.diff(growing)[:, None]).settles
+    still = np.full(5, 0.3)
+    assert settling(still, np.zeros((4, 1))).settled_at == 1
+    assert SETTLED == 1e-6
+
+
+def test_q_is_continuous_at_every_corner_of_the_cranes_cycle(crane, paper_cycle, crane_study):
+    motion = crane_study.plan.motion
+    for before, after in zip(motion.pieces[:-1], motion.pieces[1:]):
+        np.testing.assert_array_equal(before.q[0, -1], after.q[0, 0])
+    np.testing.assert_allclose(motion.pieces[-1].y[0, -1], motion.pieces[0].y[0, 0], atol=1e-4)
+
+
+def _tool_velocity(motion, row, sample):
+    space = evaluate(motion.robot, motion.q[0, sample][None])
+    return (space.J_H @ motion.x_dot[0, sample][:, None])[0, :, 0]
+
+
+def test_with_trapezoidal_profiles_the_tool_velocity_is_continuous_at_the_corners(
+    crane, paper_cycle
+):
+    jumps = {}
+    for profile in ("constant", "trapezoidal"):
+        segments = tuple(
+            replace(s, profile=profile, acceleration=0.5) for s in paper_cycle.segments
+        )
+        cycle = replace(paper_cycle, segments=segments)
+        start = Configurations(crane, segments[0], "x3").at(np.array([0.82])).q
+        motion = simulate_cycle(crane, cycle, VELOCITY.resolver, start, gain=20.0)
+        gaps = []
+        for before, after in zip(motion.pieces[:-1], motion.pieces[1:]):
+            np.testing.assert_array_equal(before.q[0, -1], after.q[0, 0])
+            gaps.append(np.linalg.norm(_tool_velocity(before, 0, -1) - _tool_velocity(after, 0, 0)))
+        jumps[profile] = max(gaps)
+    assert jumps["trapezoidal"] < 1e-9
+    assert jumps["constant"] > 0.3  # the paper's constant speed turns 0.5 m/s at a corner
+
+
+def test_the_whole_cycle_improved_start_keeps_every_stroke_over_the_full_cycle(
+    crane, paper_cycle, crane_study
+):
+    search = crane_study.plan.search
+    assert search.best is not None and search.best.feasible
+    lowest, highest = search.feasible_range
+    assert 0.78 < lowest < highest < 0.86  # far narrower than any one segment's
+    motion = search.motion()
+    assert motion.within_limits[0] and motion.margins[0] >= 0
+    assert not motion.violations(0)
+    assert motion.score(VELOCITY)[0] == pytest.approx(search.best.peak, rel=1e-3)
+    # segment 1-2's own best start, x3 = 1.09, passes a stroke later in the cycle
+    own = crane_study.plan.segments[0].best.values[0]
+    assert own == pytest.approx(1.09, abs=1e-3)
+    later = evaluate_cycle_starts(
+        crane,
+        paper_cycle,
+        VELOCITY,
+        ("x3",),
+        Configurations(crane, paper_cycle.segments[0], "x3").at(np.array([own])),
+    )
+    assert not later.samples[0].feasible and later.samples[0].violations
+
+
+def test_the_report_lists_the_corners_self_motion_gaps(crane_study):
+    report = json.loads(json.dumps(crane_study.report(), allow_nan=False))
+    corners = report["per_segment"]["corners"]
+    assert [(c["after"], c["before"]) for c in corners] == [
+        ("1-2", "2-3"),
+        ("2-3", "3-1"),
+        ("3-1", "1-2"),
+    ]
+    plan = crane_study.plan
+    names = [s.name for s in plan.cycle.segments]
+    for corner, entry in zip(plan.corners, corners):
+        end = plan.segment_motions[names.index(corner.after)]
+        before = plan.segments[names.index(corner.before)]
+        assert entry["held_delta"]["x3"] == pytest.approx(
+            before.best.values[0] - end.x[0, -1, 2], abs=1e-9
+        )
+        assert entry["speed"] == 0.25  # the telescope cylinder's maximum speed
+        assert entry["time_s"] == pytest.approx(abs(entry["held_delta"]["x3"]) / 0.25)
+        assert set(entry["delta"]) == {"x1", "x2", "x3"}
+    assert abs(corners[0]["held_delta"]["x3"]) > 0.1  # 1-2 ends far from 2-3's best start
+    assert report["per_segment"]["self_motion_time_s"] == pytest.approx(
+        sum(c["time_s"] for c in corners)
+    )
+    assert "1-2 → 2-3" in crane_study.table()
+
+
+def test_the_cranes_cycle_reports_drift_and_the_drift_free_price(crane_study):
+    report = crane_study.report()
+    free = report["strategies"]["free"]["repetition"]
+    periodic = report["strategies"]["periodic"]["repetition"]
+    assert max(free["largest_drift_per_cycle"]) > 1e-4
+    assert max(periodic["largest_drift_per_cycle"]) <= 1e-6
+    assert free["first_cycle_past_a_limit"] is None
+    price = report["periodic_versus_free_percent"]
+    assert set(price) == {"objective", "ls_energy_kj", "cp_energy_kj"}
+    for name in ("free", "periodic"):
+        strategy = report["strategies"][name]
+        assert strategy["within_limits"] and strategy["ls_energy_kj"] > 0
+    assert report["strategies"]["periodic"]["objective"] < report["strategies"]["free"]["objective"]
+
+
+def test_the_return_map_finds_the_free_cycles_limit_cycle(crane, paper_cycle, crane_study):
+    mapped = crane_study.map
+    ((value, slope),) = mapped.fixed_points
+    assert 0.80 < value < 0.86 and 0 < slope < 1  # stable
+    # the repetition converges towards it: each cycle's drift points at the fixed point
+    free = crane_study.repetitions["free"]
+    held = free.held_values[:, 0]
+    assert np.all(np.sign(np.diff(held)) == np.sign(value - held[:-1]))
+    again = return_map(crane, paper_cycle, VELOCITY.resolver, "x3", values=np.array([value]))
+    assert again.following[0] == pytest.approx(value, abs=2e-4)
+
+
+def test_a_stroke_passed_on_a_later_cycle_is_reported(circle, arm_runs):
+    _, _, free, _, _ = arm_runs
+    first = free.first_violation
+    if first is not None:  # the free arm wanders; where it passes a stroke, the cycle is named
+        number, what = first
+        assert 1 <= number <= 20 and "past its" in what
+        assert not free.within[number - 1] and free.within[: number - 1].all()
+
+
+def test_a_cycle_with_a_gap_is_refused(crane, paper_cycle):
+    broken = replace(
+        paper_cycle,
+        segments=(
+            paper_cycle.segments[0],
+            Segment("2-9", np.array([1.0, -0.5]), np.array([2.0, 2.0]), 0.5),
+            paper_cycle.segments[2],
+        ),
+    )
+    with pytest.raises(InvalidInputError, match="segment 3-1 starts at"):
+        plan_cycle(crane, broken)
+    open_cycle = replace(paper_cycle, segments=paper_cycle.segments[:2])
+    with pytest.raises(InvalidInputError, match="does not return to its start"):
+        repeat(crane, open_cycle, VELOCITY.resolver, np.zeros(3), 2)
+
+
+def test_the_periodic_transcription_ties_the_cycles_ends(crane, paper_cycle):
+    intervals = (4, 6, 6)
+    problem = CycleTranscription(
+        crane,
+        VELOCITY,
+        paper_cycle,
+        2,
+        Limits.strokes(crane, ["x1", "x2"]),
+        intervals,
+        np.zeros((19, 3)),
+    )
+    assert problem.D.shape == (19, 16)
+    assert problem.owner[0] == problem.owner[-1] == 0
+    assert problem.owner[4] == problem.owner[5] == 4  # a corner: one unknown, two nodes
+    np.testing.assert_allclose(problem.D @ np.ones(16), 0.0, atol=1e-12)  # constants: no rate
+    linear = problem.unknown_times()
+    rates = problem.D @ linear
+    np.testing.assert_allclose(rates[:-2], 1.0)  # exact for linear histories but at the wrap
+
+
+def test_the_cycle_command_writes_its_report_figures_and_playback(tmp_path):
+    out = tmp_path / "out"
+    run = run_cli(
+        "cycle",
+        "--robot",
+        str(ARM / "robot.toml"),
+        "--cycles",
+        "2",
+        "--out",
+        str(out),
+        "--quiet",
+    )
+    assert run.returncode == 0, run.stderr
+    report = json.loads((out / "report.json").read_text())
+    assert report["robot"] == "planar4r" and report["cycles"] == 2
+    assert report["segments"][0]["path"] == "arc"
+    assert set(report["strategies"]) == {"free", "periodic"}
+    names = sorted(p.name for p in out.iterdir() if not p.name.startswith("."))
+    assert names == [
+        "cycle_drift.png",
+        "cycle_return_map.png",
+        "cycle_strokes.png",
+        "playback_cycle_free.html",
+        "playback_cycle_periodic.html",
+        "report.json",
+    ]
+    page = (out / "playback_cycle_free.html").read_text()
+    assert "planar4r: cycle" in page
+    assert "work cycle" in run.stdout and "drift/cycle" in run.stdout
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--cycles", "-1"], "--cycles: '-1' must be a whole number within [0, 10,000]"),
+        (["--cycles", "0"], "cycles must be a whole number within [1, 10,000]"),
+        (["--strategy", "wander"], "invalid choice: 'wander'"),
+        (["--gap-speed", "0"], "--gap-speed: '0' must be a speed > 0"),
+    ],
+)
+def test_bad_cycle_options_exit_with_one_line(tmp_path, args, message):
+    run = run_cli("cycle", "--out", str(tmp_path / "out"), "--quiet", *args)
+    assert run.returncode == 2
+    assert message in run.stderr
+    assert run.stderr.strip().count("\n") == 0
