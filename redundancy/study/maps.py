@@ -34,6 +34,7 @@ import json
 import logging
 import os
 import shutil
+import uuid
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -57,12 +58,13 @@ CONNECT_TIMEOUT = 10.0  # s a scheduler has to answer
 FAMILY_FILE = "family.json"
 
 
-def solve_chunk(family: MapFamily, chunk: int) -> list[dict]:
-    """The rows of chunk number ``chunk`` of ``family`` (problem-major, objectives in order)."""
+def solve_chunk(family: MapFamily, chunk: int):
+    """The rows of chunk number ``chunk`` of ``family`` (problem-major, objectives in order),
+    as a DataFrame with the map's columns: built where the chunk is solved, on its worker."""
     rows = []
     for index, segment, design in family.problems(chunk):
         rows.extend(solve_problem(family, index, segment, design))
-    return rows
+    return _frame(rows, columns(family, family.robot_for(Design()).task_axes))
 
 
 def solve_problem(family: MapFamily, index: int, segment, design: Design) -> list[dict]:
@@ -290,13 +292,14 @@ def design_map(
                 client = stack.enter_context(local_client(workers))
             from distributed import as_completed
 
+            run = uuid.uuid4().hex[:8]  # keys of this run alone: a shared client may hold others
             futures = {
-                client.submit(solve_chunk, family, c, pure=False, key=f"chunk-{c}"): c
+                client.submit(solve_chunk, family, c, key=f"map-{run}-chunk-{c}"): c
                 for c in pending
             }
             for future in as_completed(futures, loop=client.loop):
                 chunk = futures[future]
-                frame = _frame(future.result(), typed)
+                frame = future.result()
                 if folder is not None:
                     write_atomically(chunk_path(folder, chunk), frame.to_parquet)
                 frames[chunk] = frame
