@@ -408,3 +408,42 @@ def test_live_playback_opens_to_the_network_only_when_asked():
         watchdog.cancel()
         run.terminate()
         run.communicate(timeout=30)
+
+
+def test_with_two_held_actuators_the_peak_figure_is_a_map_over_their_box(tmp_path):
+    """r = 2 (the crane's horizontal task, x2 and x3 held): Fig. 4a is one panel per segment
+    over the stroke box, every reachable sample where it was taken, coloured by its peak when
+    feasible, the feasible set's edge drawn, and the best start starred."""
+    from matplotlib.collections import PathCollection
+
+    from redundancy import WorkCycle, load_robot, run_study
+    from redundancy.viz.plots import peak_map_figure, write_figures
+
+    robot = load_robot("hiab031", task_axes="x")
+    task = tmp_path / "line.toml"
+    task.write_text('segments = ["a-b", "b-c"]\nheld = ["x2", "x3"]\n[points]\na = [3.0]\n'
+                    "b = [2.0]\nc = [2.8]\n")  # fmt: skip
+    cycle = WorkCycle.from_toml(task, dimension=1)
+    study = run_study(robot, cycle, (VELOCITY,), samples=24, bound=False, progress=False, cycles=0)
+    searches = study.searches["velocity"]
+    figure = peak_map_figure(study.sweeps["velocity"], "peak", searches)
+    panes = [a for a in figure.axes if a.get_label() != "<colorbar>"]
+    assert len(panes) == len(cycle.segments)
+    for pane, sweep, search in zip(panes, study.sweeps["velocity"], searches):
+        held = [robot.actuators[h] for h in ("x2", "x3")]
+        assert pane.get_xlim() == (held[0].lower, held[0].upper)
+        assert pane.get_ylim() == (held[1].lower, held[1].upper)
+        dots = [c for c in pane.collections if isinstance(c, PathCollection)]
+        feasible = [s for s in sweep.samples if s.feasible]
+        coloured = dots[0]
+        np.testing.assert_allclose(coloured.get_offsets(), [s.values for s in feasible])
+        np.testing.assert_allclose(coloured.get_array(), [s.peak for s in feasible])
+        reachable = [s for s in sweep.samples if s.peak is not None]
+        assert len(dots[1].get_offsets()) == len(reachable) - len(feasible)
+        if feasible and len(feasible) < len(reachable):
+            assert len(pane.collections) > 2  # the feasible set's edge
+        star = [line for line in pane.lines if line.get_marker() == "*"]
+        assert search.best is not None
+        np.testing.assert_allclose(np.ravel(star[0].get_xydata()), search.best.values)
+    paths = write_figures(study, tmp_path)
+    assert (tmp_path / "fig4a_peak_velocity.png") in paths

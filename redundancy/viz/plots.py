@@ -37,7 +37,8 @@ def peaks_figure(
     """Peak of the objective against the held actuator's start value, one curve per segment
     (each search's samples), feasible samples solid with their range shaded, the best start a
     star: ``chosen``'s, the search that chose it, by default the curve's own (Figs. 4a, 5a).
-    With several held actuators, each sample is a point over the first of them."""
+    With several held actuators, each sample is a point over the first of them (two held
+    actuators have `peak_map_figure`)."""
     plt = pyplot()
     figure, axes = plt.subplots(figsize=(7, 4.5))
     style = "o-" if len(searches[0].held) == 1 else "o"
@@ -67,6 +68,42 @@ def peaks_figure(
     axes.set_title(title)
     axes.grid(alpha=0.3)
     axes.legend(title="solid: feasible, ★ best")
+    figure.tight_layout()
+    return figure
+
+
+def peak_map_figure(
+    searches: tuple[SearchResult, ...], title: str, chosen: tuple[SearchResult, ...] | None = None
+):
+    """With two held actuators: per segment, the peak of the objective over the box of their
+    start values, at every reachable sample (colour), the feasible set outlined (the level ½
+    of the samples' feasibility, interpolated over their triangulation), feasible samples
+    filled and the others hollow, the best start a star (``chosen``'s, by default the
+    search's own)."""
+    plt = pyplot()
+    count = len(searches)
+    figure, panes = plt.subplots(1, count, figsize=(4.6 * count, 4.4), squeeze=False)
+    objective, held = searches[0].objective, searches[0].held
+    for pane, search, choice in zip(panes[0], searches, chosen or searches):
+        reachable = [s for s in search.samples if s.peak is not None]
+        x, y = (np.array([s.values[i] for s in reachable]) for i in (0, 1))
+        peak = np.array([s.peak for s in reachable])
+        feasible = np.array([s.feasible for s in reachable])
+        shown = pane.scatter(x[feasible], y[feasible], c=peak[feasible], s=14, cmap="viridis")
+        pane.scatter(x[~feasible], y[~feasible], s=14, facecolors="none", edgecolors="0.55", lw=0.6)
+        if feasible.any() and (~feasible).any() and len(reachable) >= 3:
+            pane.tricontour(x, y, feasible.astype(float), levels=[0.5], colors="crimson")
+        if choice.best is not None:
+            pane.plot(*choice.best.values, "*", ms=14, color="crimson")
+        box = [search.robot.actuators[h] for h in held]
+        pane.set_xlim(box[0].lower, box[0].upper)
+        pane.set_ylim(box[1].lower, box[1].upper)
+        pane.set_xlabel(f"initial {held[0]}")
+        pane.set_ylabel(f"initial {held[1]}")
+        pane.set_title(f"segment {search.segment.name}")
+        if feasible.any():
+            figure.colorbar(shown, ax=pane, label=f"peak {objective.label} ({objective.unit})")
+    figure.suptitle(f"{title}; red: the feasible set's edge, ★ best, hollow: not feasible")
     figure.tight_layout()
     return figure
 
@@ -147,9 +184,10 @@ def write_figures(study: Study, folder: Path, segment: str | None = None) -> lis
     for name, searches in study.searches.items():
         number = numbers.get(name, name)
         objective = searches[0].objective
-        figures[f"fig{number}a_peak_{name}.png"] = peaks_figure(
+        drawn = peaks_figure if len(study.held) == 1 else peak_map_figure
+        figures[f"fig{number}a_peak_{name}.png"] = drawn(
             study.sweeps[name],
-            f"Peak {objective.label} against the initial {study.held[0]}",
+            f"Peak {objective.label} against the initial {' and '.join(study.held)}",
             searches,
         )
         search = study.search(name, segment)
