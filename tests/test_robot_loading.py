@@ -209,3 +209,16 @@ def test_bundled_robots_load_after_a_plain_install_elsewhere(tmp_path):
     assert [row[0] for row in installed] == bundled_robots()
     assert ["hiab031", "3", "2", "True"] in installed
     assert all(row[3] == "True" for row in installed)
+
+
+def test_a_joint_named_like_the_tool_link_is_not_taken_for_it(tmp_path):
+    """URDFs often name a fixed joint after the link it carries; the tool is the link."""
+    text = CRANE_URDF.read_text().replace('<joint name="tool_mount"', '<joint name="tool"')
+    (tmp_path / "crane.urdf").write_text(text)
+    (tmp_path / "robot.toml").write_text(
+        'urdf = "crane.urdf"\ntool_frame = "tool"\ntask_axes = "xz"\npayload = 100.0\n'
+    )
+    renamed, crane = load_robot(tmp_path / "robot.toml"), load_robot("hiab031")
+    q = np.array([[1.7, 1.0, 0.5], [2.0, 0.6, 0.1]])
+    np.testing.assert_allclose(renamed.fk(q), crane.fk(q), atol=1e-12)
+    np.testing.assert_allclose(renamed.mass(q), crane.mass(q), atol=1e-9)

@@ -151,8 +151,8 @@ def attach_frame(model: pin.Model, owner: str, end: str, link: str, point: np.nd
     frame = pin.Frame(
         f"{owner}/{end}", parent.parentJoint, parent_id, placement, pin.FrameType.OP_FRAME
     )
-    if model.existFrame(frame.name):  # bound before: the point moves to where it is declared now
-        frame_id = model.getFrameId(frame.name)
+    if model.existFrame(frame.name, pin.FrameType.OP_FRAME):  # bound before: the point moves
+        frame_id = model.getFrameId(frame.name, pin.FrameType.OP_FRAME)  # to where it is declared
         model.frames[frame_id] = frame
         return frame_id
     return model.addFrame(frame, False)

@@ -24,7 +24,7 @@ from redundancy.errors import InvalidInputError, RobotDescriptionError
 from redundancy.model.actuators import ActuatorSet, driven_joints
 from redundancy.model.hydraulics import circuit_from_table, read_hydraulics_file
 from redundancy.model.parameters import Point
-from redundancy.model.robot import AXES, Robot
+from redundancy.model.robot import AXES, Robot, frame_id
 from redundancy.model.transmissions import (
     read_actuator_tables,
     read_cylinders,
@@ -312,7 +312,7 @@ def _captured_stderr() -> Iterator[Callable[[], list[str]]]:
 
 def _add_payload(model: pin.Model, frame: str, payload: float) -> None:
     """A point mass ``payload`` (kg) at the tool frame, carried by the tool's joint."""
-    tool = model.frames[model.getFrameId(frame)]
+    tool = model.frames[frame_id(model, frame)]
     point_mass = pin.Inertia(payload, tool.placement.translation, np.zeros((3, 3)))
     model.inertias[tool.parentJoint] = model.inertias[tool.parentJoint] + point_mass
 

@@ -25,6 +25,16 @@ from redundancy.model.kinematics import Kinematics, PointMotion, track
 AXES = "xyz"
 
 
+def frame_id(model: pin.Model, name: str) -> int:
+    """The frame of the link ``name``, or of the point of that name added to the model (an
+    actuator's attachment, the tool point): never a joint's frame, which a URDF may give the
+    same name as a link."""
+    for kind in (pin.FrameType.BODY, pin.FrameType.OP_FRAME):
+        if model.existFrame(name, kind):
+            return model.getFrameId(name, kind)
+    raise InvalidInputError(f"no link or point {name!r} in the model")
+
+
 def _as_batch(name: str, values: np.ndarray | list[float], n: int) -> tuple[np.ndarray, bool]:
     """``values`` as a (k, n) float array and whether it came as one (n,) vector."""
     array = np.asarray(values, dtype=float)
@@ -76,7 +86,7 @@ class Robot:
         self.hydraulics = hydraulics
         self.description = description
         self.missing_meshes = missing_meshes
-        self._tool = model.getFrameId(tool_frame)
+        self._tool = frame_id(model, tool_frame)
         self._task_rows = [AXES.index(a) for a in task_axes]
         tracked = [self._tool] + [f for a in actuators for f in a.frames]
         self._tracked = list(dict.fromkeys(tracked))

@@ -31,7 +31,7 @@ import pinocchio as pin
 
 from redundancy.errors import InvalidInputError
 from redundancy.model.kinematics import Kinematics, PointMotion
-from redundancy.model.robot import AXES, Robot
+from redundancy.model.robot import AXES, Robot, frame_id
 
 PROBE = "tool_angle_probe"  # the tracked frame one metre along the tool's chosen axis
 
@@ -52,7 +52,7 @@ class ToolAngleRobot(Robot):
         if isinstance(base, ToolAngleRobot):
             raise InvalidInputError(f"{base.name}'s task already has the tool's angle")
         model = pin.Model(base.model)  # a copy: the base robot keeps its own frames
-        tool = model.getFrameId(base.tool_frame)
+        tool = frame_id(model, base.tool_frame)
         plane = [AXES.index(a) for a in base.task_axes]
         normal = np.cross(np.eye(3)[plane[0]], np.eye(3)[plane[1]])
         data = model.createData()
@@ -90,7 +90,7 @@ class ToolAngleRobot(Robot):
         self.centre = float(centre)
         self.tool_axis = AXES[column]
         self._plane = plane
-        self._probe = model.getFrameId(PROBE)
+        self._probe = frame_id(model, PROBE)
         self._tracked.append(self._probe)
         self._slots[self._probe] = len(self._tracked) - 1
 

@@ -38,7 +38,7 @@ import numpy as np
 from redundancy.errors import InvalidInputError, RedundancyError, RobotDescriptionError
 from redundancy.model.actuators import LinearCylinder
 from redundancy.model.linkage import LinkageCylinder
-from redundancy.model.robot import AXES
+from redundancy.model.robot import AXES, frame_id
 from redundancy.planning.integrate import Trajectory
 from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.limits import Limits
@@ -182,7 +182,7 @@ class Rods:
         model = robot.model
         self.model, self.data, self.viewer = model, model.createData(), viewer
         self.pairs = [(int(model.parents[j]), j) for j in range(1, model.njoints)]
-        self.tool = model.getFrameId(robot.tool_frame)
+        self.tool = frame_id(model, robot.tool_frame)
         self.tool_joint = model.frames[self.tool].parentJoint
         mg = _meshcat().geometry
         material = mg.MeshLambertMaterial(color=self.COLOUR)
