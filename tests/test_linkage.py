@@ -210,3 +210,29 @@ def test_a_bad_declaration_is_one_line_naming_it(tmp_path, old, new, said):
         load_robot(path)
     assert said in str(error.value)
     assert "\n" not in str(error.value)
+
+
+def test_the_excavators_linkage_is_declared_as_well_beside_its_urdf(tmp_path):
+    """The bundled excavator's <transmission>s (two cylinders and the bucket's linkage) written
+    as [actuators.*] tables beside the same URDF without them give the same x, A and Ȧ."""
+    from redundancy.model.loading import bundled_root
+    from redundancy.model.transmissions import write_actuator_tables
+
+    folder = bundled_root() / "excavator"
+    urdf = (folder / "excavator.urdf").read_text()
+    declared = read_transmissions(etree.fromstring(urdf.encode()), "excavator.urdf")
+    tables = write_actuator_tables(declared)
+    assert 'rocker = {link = "stick", xyz = [' in tables and "branch = 1.0" in tables
+    (tmp_path / "excavator.urdf").write_text(write_transmissions(urdf, []))
+    (tmp_path / "robot.toml").write_text(
+        'urdf = "excavator.urdf"\ntool_frame = "tip"\ntask_axes = "xz"\n\n' + tables
+    )
+    beside, bundled = load_robot(tmp_path / "robot.toml"), load_robot("excavator")
+    assert isinstance(beside.actuators["bucket"], LinkageCylinder)
+    mid = (bundled.lower + bundled.upper) / 2
+    q = mid + 0.2 * (bundled.upper - bundled.lower) * np.array([[0.3, -0.5, 0.8], [-0.7, 0.4, 0.1]])
+    v = np.array([[0.1, -0.2, 0.3], [0.2, 0.1, -0.4]])
+    ours, theirs = actuator_space(beside, q, v), actuator_space(bundled, q, v)
+    np.testing.assert_array_equal(ours.x, theirs.x)
+    np.testing.assert_array_equal(ours.A, theirs.A)
+    np.testing.assert_array_equal(ours.A_dot, theirs.A_dot)
