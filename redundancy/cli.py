@@ -15,6 +15,7 @@ import math
 import signal
 import sys
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -106,25 +107,32 @@ def _describe_command(args: argparse.Namespace) -> None:
     print(describe(load_robot(args.robot, payload=args.payload, hydraulics=args.hydraulics)))
 
 
-def whole_number(upper: int):
-    """An argument type: a whole number within [1, ``upper``]."""
+def argument(convert: Callable[[str], float], accept: Callable[[float], bool], phrase: str):
+    """An argument type: the text ``convert``ed, where ``accept`` takes it; otherwise one line,
+    the text and ``phrase`` (what it must be)."""
 
-    def parse(text: str) -> int:
+    def parse(text: str):
         try:
-            value = int(text)
+            value = convert(text)
         except ValueError:
-            value = 0
-        if not 1 <= value <= upper:
-            raise argparse.ArgumentTypeError(
-                f"{text!r} must be a whole number within [1, {upper:,}]"
-            )
+            value = math.nan
+        if not accept(value):
+            raise argparse.ArgumentTypeError(f"{text!r} {phrase}")
         return value
 
     return parse
 
 
-sample_count = whole_number(MAX_SAMPLES)  # starts of one sweep
-worker_count = whole_number(4096)  # local Dask workers
+sample_count = argument(
+    int, lambda v: 1 <= v <= MAX_SAMPLES, f"must be a whole number within [1, {MAX_SAMPLES:,}]"
+)
+worker_count = argument(int, lambda v: 1 <= v <= 4096, "must be a whole number within [1, 4,096]")
+cycle_count = argument(int, lambda v: 0 <= v <= 10_000, "must be a whole number within [0, 10,000]")
+payload_mass = argument(
+    float, lambda v: 0 <= v <= MAX_PAYLOAD, f"must be a mass within [0, {MAX_PAYLOAD:g}] kg"
+)
+seconds = argument(float, lambda v: 0 < v <= 3600, "must be seconds within (0, 3600]")
+speed_value = argument(float, lambda v: 0 < v < math.inf, "must be a speed > 0 (m/s or rad/s)")
 
 
 def listen_address(text: str) -> str:
@@ -138,56 +146,12 @@ def listen_address(text: str) -> str:
         ) from None
 
 
-def seconds(text: str) -> float:
-    """A time limit: a finite number of seconds within (0, 3600]."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not 0 < value <= 3600:
-        raise argparse.ArgumentTypeError(f"{text!r} must be seconds within (0, 3600]")
-    return value
-
-
-def payload_mass(text: str) -> float:
-    """A payload: a finite mass within [0, `MAX_PAYLOAD`] kg."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not 0 <= value <= MAX_PAYLOAD:
-        raise argparse.ArgumentTypeError(f"{text!r} must be a mass within [0, {MAX_PAYLOAD:g}] kg")
-    return value
-
-
 class OneLineParser(argparse.ArgumentParser):
     """argparse that reports a bad argument in one line, without the usage block."""
 
     def error(self, message: str):  # type: ignore[override]
         print(f"{self.prog}: error: {message}; see {self.prog} --help", file=sys.stderr)
         sys.exit(2)
-
-
-def cycle_count(text: str) -> int:
-    """A number of cycles: a whole number within [0, 10,000] (0: none)."""
-    try:
-        value = int(text)
-    except ValueError:
-        value = -1
-    if not 0 <= value <= 10_000:
-        raise argparse.ArgumentTypeError(f"{text!r} must be a whole number within [0, 10,000]")
-    return value
-
-
-def speed_value(text: str) -> float:
-    """A speed: a finite number > 0 (m/s or rad/s)."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not 0 < value < math.inf:
-        raise argparse.ArgumentTypeError(f"{text!r} must be a speed > 0 (m/s or rad/s)")
-    return value
 
 
 def _load_task(robot: Robot, path: str | None) -> tuple[Robot, WorkCycle]:

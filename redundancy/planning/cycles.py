@@ -85,6 +85,7 @@ from redundancy.planning.starts import (
     improved_start,
     stroke_box,
     sweep_values,
+    verdicts,
 )
 from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.laws import Resolver
@@ -362,31 +363,27 @@ def evaluate_cycle_starts(
         stop_past=stop_past,
         circuit=circuit,
     )
-    scores, margins, within = motions.score(objective), motions.margins, motions.within_limits
-    samples = []
-    for i, row in enumerate(rows):
-        values = tuple(float(v) for v in starts.values[i])
-        if row < 0:
-            samples.append(
-                Sample(values, None, False, starts.joint_margins[i], (), starts.reason(i))
-            )
-            continue
-        margin = float(min(margins[row], starts.joint_margins[i]))
-        feasible = margin >= -LIMIT_TOLERANCE and bool(within[row])
-        violations = tuple(motions.violations(row))
-        reason = None
-        if not feasible:
-            if motions.failed[row]:
-                reason = "singular actuator Jacobian"
-            elif any(p.stopped[row] for p in motions.pieces):
-                reason = "past a stroke limit, as its neighbours: stopped"
-            elif violations:
-                reason = str(max(violations, key=lambda v: v.excess))
-            else:
-                reason = "within the integration allowance of a stroke limit"
-        samples.append(Sample(values, float(scores[row]), feasible, margin, violations, reason))
+
+    def reason(row: int, violations: tuple[Violation, ...]) -> str:
+        if motions.failed[row]:
+            return "singular actuator Jacobian"
+        if any(p.stopped[row] for p in motions.pieces):
+            return "past a stroke limit, as its neighbours: stopped"
+        if violations:
+            return str(max(violations, key=lambda v: v.excess))
+        return "within the integration allowance of a stroke limit"
+
+    samples = verdicts(
+        starts,
+        rows,
+        motions.score(objective),
+        motions.margins,
+        motions.within_limits,
+        motions.violations,
+        reason,
+    )
     return CycleSearch(
-        robot, cycle, objective, held, tuple(samples), motions, rows, method, circuit=circuit
+        robot, cycle, objective, held, samples, motions, rows, method, circuit=circuit
     )
 
 

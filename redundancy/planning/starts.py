@@ -31,7 +31,7 @@ All samples of a round are integrated as one batch, adaptively, sampled sparsely
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -407,8 +407,32 @@ def evaluate_starts(
         stop_past=stop_past,
         circuit=circuit,
     )
-    scores = trajectory.score(objective)
-    margins, within = trajectory.margins, trajectory.within_limits
+    samples = verdicts(
+        starts,
+        rows,
+        trajectory.score(objective),
+        trajectory.margins,
+        trajectory.within_limits,
+        trajectory.violations,
+        lambda row, violations: _reason(trajectory, row, violations),
+    )
+    return SearchResult(robot, segment, objective, held, samples, trajectory, rows, method)
+
+
+def verdicts(
+    starts: Starts,
+    rows: np.ndarray,
+    scores: np.ndarray,
+    margins: np.ndarray,
+    within: np.ndarray,
+    violations: Callable[[int], list[Violation]],
+    reason: Callable[[int, tuple[Violation, ...]], str],
+) -> tuple[Sample, ...]:
+    """Step v's verdict on each start: its motion's row in ``rows`` (−1: unreachable), the
+    motions' ``scores``, ``margins`` and whether they kept the circuit (``within``), their
+    ``violations(row)`` and, for a start that is not feasible, ``reason(row, violations)``.
+    A start is feasible where its margin μ (the motion's and the start's joint margin) is
+    ≥ −`LIMIT_TOLERANCE` and the motion kept every other checked limit."""
     samples = []
     for i, row in enumerate(rows):
         start = tuple(float(v) for v in starts.values[i])
@@ -419,18 +443,18 @@ def evaluate_starts(
             continue
         margin = float(min(margins[row], starts.joint_margins[i]))
         feasible = margin >= -LIMIT_TOLERANCE and bool(within[row])
-        violations = tuple(trajectory.violations(row))
+        found = tuple(violations(row))
         samples.append(
             Sample(
                 start,
                 float(scores[row]),
                 feasible,
                 margin,
-                violations,
-                None if feasible else _reason(trajectory, row, violations),
+                found,
+                None if feasible else reason(row, found),
             )
         )
-    return SearchResult(robot, segment, objective, held, tuple(samples), trajectory, rows, method)
+    return tuple(samples)
 
 
 def _reason(trajectory: Trajectory, row: int, violations: tuple[Violation, ...]) -> str:
