@@ -74,8 +74,33 @@ class GridSolution:
     violation: float
 
 
+class Refined:
+    """An optimum found on a sequence of ever finer ``grids``: its peak and its convergence."""
+
+    grids: tuple[GridSolution, ...]
+
+    @property
+    def peak(self) -> float:
+        """The optimal peak on the finest grid."""
+        return self.grids[-1].peak
+
+    @property
+    def change(self) -> float | None:
+        """|peak on the finest grid − peak on the one before| / peak on the finest, or None."""
+        if len(self.grids) < 2:
+            return None
+        return abs(self.grids[-1].peak - self.grids[-2].peak) / self.grids[-1].peak
+
+    @property
+    def converged(self) -> bool:
+        """The finest grid's solve succeeded and refining the grid last moved the optimum by
+        less than `CONVERGED`."""
+        change = self.change
+        return self.grids[-1].success and change is not None and change < CONVERGED
+
+
 @dataclass(frozen=True)
-class GlobalOptimum:
+class GlobalOptimum(Refined):
     """The optimised motion on the finest grid and every grid's solution.
 
     ``motion`` holds the nodes of the finest grid: q, x and y (= y_d to Newton's tolerance),
@@ -93,22 +118,8 @@ class GlobalOptimum:
 
     @property
     def bound(self) -> float:
-        """The optimal peak on the finest grid."""
-        return self.grids[-1].peak
-
-    @property
-    def change(self) -> float | None:
-        """|peak on the finest grid − peak on the one before| / peak on the finest, or None."""
-        if len(self.grids) < 2:
-            return None
-        return abs(self.grids[-1].peak - self.grids[-2].peak) / self.grids[-1].peak
-
-    @property
-    def converged(self) -> bool:
-        """The finest grid's solve succeeded and refining the grid last moved the optimum by
-        less than `CONVERGED`."""
-        change = self.change
-        return self.grids[-1].success and change is not None and change < CONVERGED
+        """The optimal peak on the finest grid: the bound on every start's peak."""
+        return self.peak
 
 
 def differentiation(intervals: int, h: float) -> np.ndarray:

@@ -62,8 +62,8 @@ from redundancy.errors import InvalidInputError, UnreachableError
 from redundancy.model.hydraulics import Supply
 from redundancy.model.robot import Robot
 from redundancy.planning.bound import (
-    CONVERGED,
     GridSolution,
+    Refined,
     Transcription,
     differentiation,
     solve_transcription,
@@ -1066,7 +1066,7 @@ def _split(cycle: WorkCycle, total: int) -> list[int]:
 
 
 @dataclass(frozen=True, eq=False)
-class PeriodicOptimum:
+class PeriodicOptimum(Refined):
     """The drift-free strategy (module docstring): the motion of least peak of ``objective``
     over every periodic history of the held actuator over the whole cycle, on each of its
     ``grids``. At the finest grid's nodes: cycle times t (N,), each node's ``piece`` (segment),
@@ -1085,25 +1085,6 @@ class PeriodicOptimum:
     r_dot: np.ndarray
     measure: np.ndarray
     grids: tuple[GridSolution, ...]
-
-    @property
-    def peak(self) -> float:
-        """The optimal peak on the finest grid."""
-        return self.grids[-1].peak
-
-    @property
-    def change(self) -> float | None:
-        """|peak on the finest grid − on the one before| / peak on the finest, or None."""
-        if len(self.grids) < 2:
-            return None
-        return abs(self.grids[-1].peak - self.grids[-2].peak) / self.grids[-1].peak
-
-    @property
-    def converged(self) -> bool:
-        """The finest grid's solve succeeded and refining last moved the peak by less than
-        `redundancy.planning.bound.CONVERGED`."""
-        change = self.change
-        return self.grids[-1].success and change is not None and change < CONVERGED
 
     @property
     def start(self) -> np.ndarray:
