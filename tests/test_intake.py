@@ -2,6 +2,7 @@
 what such URDFs hold (continuous and mimic joints, xacro, missing meshes and inertias, floating
 roots, locked joints, tool points), each loaded and run through the study and the playback."""
 
+import contextlib
 import re
 import tomllib
 import warnings
@@ -14,7 +15,14 @@ import umsgpack
 from lxml import etree
 from sampling import random_configurations
 
-from redundancy import ActuatorMap, RobotDescriptionError, actuator_space, load_robot
+from redundancy import (
+    ActuatorMap,
+    RedundancyError,
+    RobotDescriptionError,
+    actuator_space,
+    load_robot,
+    run_study,
+)
 from redundancy.cli import _play_motion, main, parser
 from redundancy.model.loading import bundled_root
 from redundancy.model.parameters import Choice, Number
@@ -553,3 +561,18 @@ def test_a_task_as_large_as_the_robot_is_refused_in_one_line(tmp_path, capsys):
         capsys,
     )
     assert status == 2 and len(errors) == 1 and "give fewer task_axes" in errors[0], errors
+
+
+def test_the_study_names_a_cylinder_whose_a_turns_singular_inside_its_stroke(tmp_path):
+    """Before any simulation, the study names the joint value and the length at which x1's line
+    passes through the boom's axis inside its stroke (J_H = J A⁻¹ is undefined there)."""
+    toml = sidecar(tmp_path, replace=[("stroke = [0.3, 1.3]", "stroke = [0.1, 3.0]")])
+    robot = quietly(toml)
+    expected = check(robot).actuators[0].singular_lines()
+    assert len(expected) == 2
+    assert all(line.startswith("x1: A is singular at boom_joint = ") for line in expected)
+    cycle = WorkCycle.from_toml(robot.task_file, dimension=robot.m)
+    # the study may then fail where a motion meets the singularity; it has said where it is
+    with pytest.warns(UserWarning) as said, contextlib.suppress(RedundancyError):
+        run_study(robot, cycle, (VELOCITY,), samples=4, bound=False, progress=False, cycles=0)
+    assert "; ".join(expected) in [str(w.message) for w in said]

@@ -67,6 +67,20 @@ class ActuatorCheck:
         """Which of the singular configurations lie inside the stroke."""
         return [i for i, x in enumerate(self.singular_x) if self.stroke[0] <= x <= self.stroke[1]]
 
+    def joint_value(self, value: float) -> str:
+        """A value of the actuator's joint, in mm or degrees."""
+        return amount(value, "rad" if self.joint_rotary else "m")
+
+    def singular_lines(self) -> list[str]:
+        """One line per singular configuration inside the stroke, naming the joint value and
+        the actuator's value there."""
+        unit = "rad" if self.rotary else "m"
+        return [
+            f"{self.name}: A is singular at {self.joint} = {self.joint_value(self.singular[i])} "
+            f"({self.name} = {amount(self.singular_x[i], unit)}, inside its stroke)"
+            for i in self.singular_in_stroke
+        ]
+
 
 @dataclass(frozen=True)
 class Check:
@@ -90,10 +104,7 @@ class Check:
         for a in self.actuators:
             if a.unreachable:
                 found.append(f"{a.name}: no value of its stroke is reached over {a.joint}'s range")
-            found += [
-                f"{a.name}: A is singular at {a.joint} = {self._joint(a, a.singular[i])}"
-                for i in a.singular_in_stroke
-            ]
+            found += a.singular_lines()
         if self.points is not None:
             found += [
                 f"task point {p.tolist()} is not reached inside the joint ranges and strokes"
@@ -101,10 +112,6 @@ class Check:
                 if not ok
             ]
         return found
-
-    @staticmethod
-    def _joint(a: ActuatorCheck, value: float) -> str:
-        return amount(value, "rad" if a.joint_rotary else "m")
 
     def report(self) -> str:
         """The one-screen report: lengths in mm, angles in degrees."""
@@ -129,7 +136,7 @@ class Check:
             for value, x in zip(a.singular, a.singular_x):
                 inside = a.stroke[0] <= x <= a.stroke[1]
                 lines.append(
-                    f"    A singular at {a.joint} = {self._joint(a, value)} ({a.name} = "
+                    f"    A singular at {a.joint} = {a.joint_value(value)} ({a.name} = "
                     f"{amount(x, unit)}, {'inside' if inside else 'outside'} the stroke): its "
                     "line passes through the joint axis"
                 )

@@ -28,6 +28,7 @@ strategies repeated, their drift and their price.
 from __future__ import annotations
 
 import json
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -49,6 +50,7 @@ from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.laws import GradientProjection, Resolver
 from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import ENERGY, VELOCITY, Objective
+from redundancy.study.check import check
 from redundancy.study.cycles import CycleStudy, run_cycle
 from redundancy.study.output import write_atomically
 from redundancy.study.peers import StrategyRun, fixed_start_run
@@ -339,6 +341,9 @@ def run_study(
     segments = cycle.segments
     for segment in segments:  # a path out of reach is refused before any simulation
         check_path(robot, segment)
+    singular = [line for a in check(robot).actuators for line in a.singular_lines()]
+    if singular:  # J_H = J A⁻¹ is undefined there: motions through it fail, and say so
+        warnings.warn("; ".join(singular), stacklevel=2)
     # the M_H-weighted law needs masses: a kinematic-only robot is compared without it
     baselines = [
         (n, r) for n, r in BASELINES if not (robot.kinematic_only and r is ENERGY.resolver)
