@@ -155,14 +155,13 @@ class MapFamily:
 
 
 def _robot_files(robot: str, hydraulics: str | None) -> list[Path]:
-    """The files a robot is read from: its description, its URDF, its hydraulics file."""
-    if robot in bundled_robots() and not Path(robot).exists():
-        return []  # bundled: fixed by the installed version
+    """The files a robot is read from, bundled or not: its description, its URDF, its task and
+    its hydraulics file."""
     loaded = load_robot(robot, hydraulics=hydraulics)
-    files = [Path(robot), loaded.urdf]
-    return [f for f in dict.fromkeys(files) if f.is_file()] + (
-        [Path(hydraulics)] if hydraulics else []
-    )
+    given = Path(robot)
+    description = given if given.is_file() else loaded.urdf.parent / "robot.toml"
+    files = [description, loaded.urdf, loaded.task_file, hydraulics]
+    return [Path(f) for f in dict.fromkeys(files) if f is not None and Path(f).is_file()]
 
 
 @lru_cache(maxsize=16)
