@@ -71,8 +71,6 @@ from redundancy.planning.bound import (
 from redundancy.planning.ik import FOUND, continue_held, held_indices, inverse_kinematics
 from redundancy.planning.integrate import GAIN, TIME_STEP, TOLERANCE, Trajectory, simulate
 from redundancy.planning.starts import (
-    MAX_SAMPLES,
-    METHODS,
     Configurations,
     Sample,
     Samples,
@@ -83,6 +81,7 @@ from redundancy.planning.starts import (
     fast_search,
     held_actuators,
     improved_start,
+    search_method,
     stroke_box,
     sweep_values,
     verdicts,
@@ -405,13 +404,7 @@ def improved_cycle_start(
     their strokes)."""
     cycle.check_continuous(closed=False)
     held = _held(robot, cycle, held)
-    if not isinstance(samples, int | np.integer) or not 1 <= samples <= MAX_SAMPLES:
-        raise InvalidInputError(
-            f"samples must be a whole number within [1, {MAX_SAMPLES:,}]; got {samples!r}"
-        )
-    method = method or ("fast" if len(held) == 1 else "sweep")
-    if method not in METHODS:
-        raise InvalidInputError(f"unknown method {method!r}; methods: {', '.join(METHODS)}")
+    method = search_method(held, samples, method)
     first = cycle.segments[0]
 
     def evaluate(starts: Starts, stop_past: bool) -> CycleSearch:
@@ -421,11 +414,6 @@ def improved_cycle_start(
 
     Limits.strokes(robot, checked)  # names checked before any work
     if method == "fast":
-        if len(held) != 1:
-            raise InvalidInputError(
-                f"the fast search holds one actuator; {list(held)} are {len(held)}: use "
-                "method='sweep'"
-            )
         return fast_search(Configurations(robot, first, held[0]), None, evaluate)
     if len(held) == 1:
         values = sweep_values(robot, held[0], samples)

@@ -513,19 +513,8 @@ def improved_starts(
     search's reachable scan is done once."""
     held = _held(held)
     held_indices(robot, held)
-    if not isinstance(samples, int | np.integer) or not 1 <= samples <= MAX_SAMPLES:
-        raise InvalidInputError(
-            f"samples must be a whole number within [1, {MAX_SAMPLES:,}]; got {samples!r}"
-        )
-    method = method or ("fast" if len(held) == 1 else "sweep")
-    if method not in METHODS:
-        raise InvalidInputError(f"unknown method {method!r}; methods: {', '.join(METHODS)}")
+    method = search_method(held, samples, method)
     if len(held) > 1:
-        if method == "fast":
-            raise InvalidInputError(
-                f"the fast search holds one actuator; {list(held)} are {len(held)}: use "
-                "method='sweep'"
-            )
         return tuple(
             _compass(robot, segment, objective, held, samples, checked, circuit)
             for objective in objectives
@@ -560,6 +549,23 @@ def improved_starts(
         evaluate_starts(robot, segment, objective, held, starts, checked, circuit=circuit)
         for objective in objectives
     )
+
+
+def search_method(held: tuple[str, ...], samples: int, method: str | None) -> str:
+    """The search for ``held``: ``method``, or by default "fast" for one held actuator and
+    "sweep" for several; one line where it or the ``samples`` count is not valid."""
+    if not isinstance(samples, int | np.integer) or not 1 <= samples <= MAX_SAMPLES:
+        raise InvalidInputError(
+            f"samples must be a whole number within [1, {MAX_SAMPLES:,}]; got {samples!r}"
+        )
+    method = method or ("fast" if len(held) == 1 else "sweep")
+    if method not in METHODS:
+        raise InvalidInputError(f"unknown method {method!r}; methods: {', '.join(METHODS)}")
+    if method == "fast" and len(held) != 1:
+        raise InvalidInputError(
+            f"the fast search holds one actuator; {list(held)} are {len(held)}: use method='sweep'"
+        )
+    return method
 
 
 def end_tolerance(robot: Robot, held: str, tolerance: float | None) -> float:

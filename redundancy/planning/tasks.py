@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import csv
 import math
+from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -68,7 +69,7 @@ ARC_MISMATCH = 1e-6  # relative: an arc's ends must lie this close to one circle
 OUTLINE = 64  # points per full turn when a curved path is drawn
 
 
-class Shape:
+class Shape(ABC):
     """Geometry of a segment in task coordinates (m of them; the last ``angles`` are angles),
     parametrised by the arc length s ∈ [0, length] of the position (the first m − angles)."""
 
@@ -78,16 +79,17 @@ class Shape:
     kind: str = "path"
 
     @property
-    def length(self) -> float:  # pragma: no cover - every path defines it
-        raise NotImplementedError
+    @abstractmethod
+    def length(self) -> float:
+        """The position's arc length, m."""
 
-    def point(self, s: np.ndarray) -> np.ndarray:  # pragma: no cover
+    @abstractmethod
+    def point(self, s: np.ndarray) -> np.ndarray:
         """y(s), (..., m) for s (...,) in m."""
-        raise NotImplementedError
 
-    def tangent(self, s: np.ndarray) -> np.ndarray:  # pragma: no cover
+    @abstractmethod
+    def tangent(self, s: np.ndarray) -> np.ndarray:
         """dy/ds (..., m): a unit vector in the position, and the angle's rate per metre."""
-        raise NotImplementedError
 
     @property
     def kinks(self) -> tuple[float, ...]:
