@@ -54,6 +54,7 @@ class LinkageCylinder(VectorisedMap):
     branch. The math is the module's docstring.
     """
 
+    BRANCHES = (1, -1)
     parameters = (
         Point("base", "the cylinder's base point, on the carrying link"),
         Arm("rocker", "the rocker's pivot on the carrying link, and its length to the rod's pin"),
@@ -61,10 +62,9 @@ class LinkageCylinder(VectorisedMap):
         Number(
             "branch",
             "the assembly branch: the side of the line pivot → pin where rocker and coupler meet",
-            allowed=(1, -1),
+            allowed=BRANCHES,
         ),
     )
-    BRANCHES = (1, -1)
 
     def __init__(
         self,

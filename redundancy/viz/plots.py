@@ -147,13 +147,13 @@ def hydraulics_figure(trajectory: Trajectory, title: str):
     return _over_time(figure, title, "flow (L/min)", "pressure (bar); × overrunning")
 
 
-def _over_time(figure, title: str, upper: str, lower: str):
-    """Label a figure of two plots over time t (s), sharing the time axis: titles, grids and
-    legends."""
+def _over_time(figure, title: str, upper: str, lower: str, along: str = "t (s)"):
+    """Label a figure of two plots sharing their horizontal axis (by default time t, s):
+    titles, grids and legends."""
     top, bottom = figure.axes
     top.set_ylabel(upper)
     bottom.set_ylabel(lower)
-    bottom.set_xlabel("t (s)")
+    bottom.set_xlabel(along)
     top.set_title(title)
     for axes in (top, bottom):
         axes.grid(alpha=0.3)
@@ -303,15 +303,9 @@ def drift_figure(study: CycleStudy, title: str):
     stroke = study.robot.actuators[study.held[0]]
     for bound in (stroke.lower, stroke.upper):
         bottom.axhline(bound, ls="--", lw=0.8, color="k", alpha=0.6)
-    top.set_ylabel("|drift| per cycle (m or rad)")
-    bottom.set_ylabel(f"{study.held[0]} (m or rad)")
-    bottom.set_xlabel("cycle")
-    top.set_title(title)
-    for axes in (top, bottom):
-        axes.grid(alpha=0.3)
-        axes.legend(loc="best", fontsize=7)
-    figure.tight_layout()
-    return figure
+    return _over_time(
+        figure, title, "|drift| per cycle (m or rad)", f"{study.held[0]} (m or rad)", "cycle"
+    )
 
 
 def return_map_figure(mapped: ReturnMap, title: str):
