@@ -71,23 +71,22 @@ def track(
     jacobian, placement = pin.getFrameJacobian, pin.updateFramePlacement
     rate = pin.getFrameJacobianTimeVariation
     k, count = len(q), len(frames)
-    # Pinocchio's results are written straight into preallocated arrays: the translation
-    # updateFramePlacement hands back is a view into data, valid until the next state
-    jacobians = np.empty((k, count, 6, model.nv))
-    positions = np.empty((k, count, 3))
-    rates = None if v is None else np.empty((k, count, 6, model.nv))
+    # Pinocchio's answers (copies, never views into data) are gathered in lists and stacked
+    # once: cheaper than writing each into an array.
+    jacobians, positions, rates = [], [], []
     for i in range(k):
-        if v is None or rates is None:
+        if v is None:
             pin.computeJointJacobians(model, data, q[i])
         else:
             pin.computeJointJacobiansTimeVariation(model, data, q[i], v[i])
-            for slot, frame in enumerate(frames):
-                rates[i, slot] = rate(model, data, frame, WORLD)
-        for slot, frame in enumerate(frames):
-            jacobians[i, slot] = jacobian(model, data, frame, WORLD)
-            positions[i, slot] = placement(model, data, frame).translation
-    linear = jacobians[:, :, :3]
-    if v is None or rates is None:
-        return Kinematics(q, None, positions, linear, None, None, slots)
+            rates += [rate(model, data, frame, WORLD) for frame in frames]
+        jacobians += [jacobian(model, data, frame, WORLD) for frame in frames]
+        positions += [placement(model, data, frame).translation for frame in frames]
+    shape = (k, count, 6, model.nv)
+    linear = np.array(jacobians).reshape(shape)[:, :, :3]
+    position = np.array(positions).reshape(k, count, 3)
+    if v is None:
+        return Kinematics(q, None, position, linear, None, None, slots)
     velocities = (linear @ v[:, None, :, None])[..., 0]
-    return Kinematics(q, v, positions, linear, velocities, rates[:, :, :3], slots)
+    rates_linear = np.array(rates).reshape(shape)[:, :, :3]
+    return Kinematics(q, v, position, linear, velocities, rates_linear, slots)
