@@ -334,8 +334,12 @@ class ActuatorSet:
     """The robot's actuators, one per joint, ordered like the joints: x (k, n), A (k, n, n)."""
 
     def __init__(self, maps: list[ActuatorMap]):
+        """``maps`` bound to the robot's model (`bind`)."""
         self.maps = maps
+        self.frames = tuple(dict.fromkeys(f for a in maps for f in a.frames))
+        """The Pinocchio frames the actuators are evaluated from, in order, each once."""
         self._grouped = self._groups()
+        self._parts: dict[tuple[int, ...], ActuatorSet] = {}
 
     @classmethod
     def bind(cls, maps: list[ActuatorMap], model: pin.Model) -> ActuatorSet:
@@ -390,6 +394,14 @@ class ActuatorSet:
     @property
     def names(self) -> list[str]:
         return [a.name for a in self.maps]
+
+    def part(self, rows: list[int]) -> ActuatorSet:
+        """The actuators at ``rows``, in that order, as a set of their own (kept, so that its
+        frames are looked up once): what evaluates only the actuators a computation reads."""
+        key = tuple(rows)
+        if key not in self._parts:
+            self._parts[key] = ActuatorSet([self.maps[r] for r in rows])
+        return self._parts[key]
 
     @property
     def lower(self) -> np.ndarray:

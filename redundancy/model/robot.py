@@ -88,9 +88,8 @@ class Robot:
         self.missing_meshes = missing_meshes
         self._tool = frame_id(model, tool_frame)
         self._task_rows = [AXES.index(a) for a in task_axes]
-        tracked = [self._tool] + [f for a in actuators for f in a.frames]
-        self._tracked = list(dict.fromkeys(tracked))
-        self._slots = {frame: i for i, frame in enumerate(self._tracked)}
+        self._task_frames = [self._tool]  # the frames the task is read from
+        self._tracking: dict[tuple[int, ...], tuple[list[int], dict[int, int]]] = {}
         self._lower_triangle = np.tril_indices(model.nv, -1)
 
     def __repr__(self) -> str:
@@ -147,9 +146,18 @@ class Robot:
         """``q`` as a checked (k, n) array: right shape, finite."""
         return _as_batch(name, q, self.n)[0]
 
-    def kinematics(self, q: np.ndarray, v: np.ndarray | None = None) -> Kinematics:
-        """Pinocchio's kinematics of the tracked frames at the states (q, v), each (k, n)."""
-        return track(self.model, self.data, self._tracked, self._slots, q, v)
+    def kinematics(
+        self, q: np.ndarray, v: np.ndarray | None = None, actuators: ActuatorSet | None = None
+    ) -> Kinematics:
+        """Pinocchio's kinematics at the states (q, v), each (k, n), of the frames the task and
+        ``actuators`` (default: all the robot's; a `ActuatorSet.part` for fewer) are read from:
+        the fewer the frames, the cheaper the pass."""
+        key = (self.actuators if actuators is None else actuators).frames
+        if key not in self._tracking:
+            frames = list(dict.fromkeys([*self._task_frames, *key]))
+            self._tracking[key] = frames, {f: i for i, f in enumerate(frames)}
+        frames, slots = self._tracking[key]
+        return track(self.model, self.data, frames, slots, q, v)
 
     def tool(self, kinematics: Kinematics) -> PointMotion:
         """Motion of the tool point, all three world components."""

@@ -91,8 +91,7 @@ class ToolAngleRobot(Robot):
         self.tool_axis = AXES[column]
         self._plane = plane
         self._probe = frame_id(model, PROBE)
-        self._tracked.append(self._probe)
-        self._slots[self._probe] = len(self._tracked) - 1
+        self._task_frames.append(self._probe)
 
     def __repr__(self) -> str:
         return (

@@ -23,7 +23,6 @@ from redundancy.errors import InvalidInputError, UnreachableError
 from redundancy.model.robot import Robot
 from redundancy.planning.tasks import Segment
 from redundancy.resolution.limits import amount
-from redundancy.resolution.state import evaluate
 
 TOLERANCE = 1e-12  # m (and m or rad for held actuators): a residual this small has converged
 FOUND = 1e3 * TOLERANCE  # a residual below this has found a configuration
@@ -57,10 +56,13 @@ def held_indices(robot: Robot, held: list[str] | tuple[str, ...]) -> list[int]:
 
 
 def _residual(robot: Robot, q: np.ndarray, rows: list[int], target: np.ndarray):
-    """[y(q); x_h(q)] − target (k, n) and its Jacobian [J; A_h] (k, n, n)."""
-    space = evaluate(robot, q)
-    residual = np.concatenate([space.y, space.x[:, rows]], axis=1) - target
-    return residual, np.concatenate([space.J, space.A[:, rows]], axis=1)
+    """[y(q); x_h(q)] − target (k, n) and its Jacobian [J; A_h] (k, n, n), from the frames of
+    the task and the held actuators only."""
+    held = robot.actuators.part(rows)
+    kinematics = robot.kinematics(q, actuators=held)
+    x, A = held.evaluate(kinematics)
+    y, J = robot.task_point(kinematics)
+    return np.concatenate([y, x], axis=1) - target, np.concatenate([J, A], axis=1)
 
 
 def newton(
