@@ -1,7 +1,8 @@
 """What a design map costs, in one run: problems per second per core on the crane's paper-like
-segments, solved in-process and on a local Dask cluster of 1 and 2 workers; the scaling
-efficiency from 1 to 2 workers; Dask's cost per chunk; and from these an estimate for 10⁶
-problems on a 64-core cluster.
+segments, solved in-process and on a local Dask cluster of 1 and 2 workers (in chunks of one
+segment, and with 2 workers also in one chunk each); the scaling efficiency from 1 to 2
+workers; Dask's cost per chunk; and from these an estimate for 10⁶ problems on a 64-core
+cluster.
 
 A problem is one segment with one objective (one row of the map). The family: every 2.5 m
 horizontal segment (the length of the paper's 1-2) starting on a 6 × 5 grid over the crane's
@@ -45,6 +46,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as folder:
         whole = family(Path(folder), 1000)
         singles = family(Path(folder), 1)
+        halves = family(Path(folder), (len(whole) + 1) // 2)
         rows = 2 * len(whole)
         solve_chunk(whole, 0)  # warm: the robot is loaded once per process
         serial = min(timed(lambda: solve_chunk(whole, 0)) for _ in range(2))
@@ -60,6 +62,14 @@ def main() -> None:
                 f"Dask, {workers} worker(s), chunks of 1 segment: {walls[workers]:.2f} s, "
                 f"{rate:.1f} problems/s per core"
             )
+            if workers == 2:
+                with local_client(workers) as client:
+                    design_map(halves, client)
+                    wall = min(timed(lambda: design_map(halves, client)) for _ in range(2))
+                print(
+                    f"Dask, 2 workers, one chunk each ({halves.chunks} chunks): {wall:.2f} s, "
+                    f"{rows / wall / 2:.1f} problems/s per core"
+                )
         efficiency = walls[1] / (2 * walls[2])
         print(f"scaling efficiency 1 → 2 workers: {100 * efficiency:.0f} %")
         per_chunk = (walls[1] - serial) / singles.chunks
