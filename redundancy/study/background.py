@@ -1,0 +1,83 @@
+"""A computation run in a second process while this one goes on: the main job keeps both cores
+of a machine busy.
+
+`Background(function, *args)` forks a process that calls ``function(*args)`` and sends back its
+result, or the exception it raised, through a pipe; `result()` waits for it and returns it, or
+raises that exception here. Leaving the ``with`` block stops the process if its result was never
+collected (an error or Ctrl-C in this process), so no computation outlives the command. The child
+ignores Ctrl-C, which the terminal sends to both: this process decides; stopped, it ends at
+once, whatever handlers it inherited. The child writes no file, so nothing it leaves can be
+half-written.
+
+Where processes cannot be forked (it needs the POSIX ``fork`` start method), the function runs
+in this process, at once.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import signal
+from collections.abc import Callable
+from multiprocessing.connection import Connection
+from typing import Any
+
+
+def _run(sender: Connection, function: Callable[..., Any], args: tuple) -> None:
+    """In the child: call ``function(*args)`` and send ("result", value) or ("error", e)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # `Background.stop`: end quietly, at once
+    try:
+        outcome: tuple[str, Any] = ("result", function(*args))
+    except Exception as error:  # sent to the parent, which raises it there
+        outcome = ("error", error)
+    sender.send(outcome)
+    sender.close()
+
+
+class Background:
+    """``function(*args)`` computed in a forked process (see the module docstring)."""
+
+    def __init__(self, function: Callable[..., Any], *args: Any) -> None:
+        self._outcome: tuple[str, Any] | None = None
+        self._process = None
+        if "fork" not in multiprocessing.get_all_start_methods():
+            try:
+                self._outcome = ("result", function(*args))
+            except Exception as error:
+                self._outcome = ("error", error)
+            return
+        context = multiprocessing.get_context("fork")
+        self._receiver, sender = context.Pipe(duplex=False)
+        self._process = context.Process(target=_run, args=(sender, function, args), daemon=True)
+        self._process.start()
+        sender.close()
+
+    def result(self) -> Any:
+        """The function's value, once it is computed; the exception it raised is raised here."""
+        if self._outcome is None and self._process is not None:
+            try:
+                self._outcome = self._receiver.recv()
+            except EOFError:  # the child died without answering (killed, out of memory)
+                self._process.join()
+                raise RuntimeError(
+                    "the background computation ended without a result "
+                    f"(exit code {self._process.exitcode})"
+                ) from None
+            self._process.join()
+        assert self._outcome is not None
+        kind, value = self._outcome
+        if kind == "error":
+            raise value
+        return value
+
+    def stop(self) -> None:
+        """Stop the process if it is still computing."""
+        if self._process is not None and self._process.is_alive():
+            self._process.terminate()
+            self._process.join()
+
+    def __enter__(self) -> Background:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.stop()

@@ -1,0 +1,103 @@
+"""A computation in a second process (`redundancy.study.background`): its value or its error
+comes back, and no process outlives what started it, whether it is collected, abandoned,
+killed, or the study that started it is interrupted."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from redundancy.errors import InvalidInputError
+from redundancy.study.background import Background
+
+
+def _gone(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    return Path(f"/proc/{pid}/stat").read_text().split()[2] == "Z"  # ended, not yet reaped
+
+
+def _refuse(value):
+    raise InvalidInputError(f"value {value!r} is refused")
+
+
+def _note_pid_then_sleep(path: Path) -> None:
+    path.write_text(str(os.getpid()))
+    time.sleep(60)
+
+
+def test_the_value_is_computed_in_another_process():
+    with Background(os.getpid) as pending:
+        assert pending.result() != os.getpid()
+        assert pending.result() == pending.result()  # collected once, kept
+
+
+def test_an_error_in_the_child_is_raised_here_as_itself():
+    with Background(_refuse, 3.5) as pending, pytest.raises(InvalidInputError) as raised:
+        pending.result()
+    assert str(raised.value) == "value 3.5 is refused"
+
+
+def test_a_child_that_dies_without_an_answer_is_reported():
+    with Background(os._exit, 3) as pending, pytest.raises(RuntimeError) as raised:
+        pending.result()
+    assert str(raised.value) == "the background computation ended without a result (exit code 3)"
+
+
+def test_leaving_the_block_uncollected_stops_the_child(tmp_path):
+    note = tmp_path / "pid"
+    start = time.monotonic()
+    with Background(_note_pid_then_sleep, note):
+        while not note.exists() or not note.read_text():
+            time.sleep(0.01)
+        pid = int(note.read_text())
+        assert not _gone(pid)
+    assert _gone(pid) and time.monotonic() - start < 10  # stopped, not waited for
+
+
+def _children(pid: int) -> list[int]:
+    found = subprocess.run(["pgrep", "-P", str(pid)], capture_output=True, text=True).stdout
+    return [int(line) for line in found.split()]
+
+
+def _foreground() -> None:
+    """In the child: SIGINT as a foreground job has it, even where this test runs as a
+    background job (which ignores SIGINT, and so, rightly, would its children)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    os.setpgrp()
+
+
+@pytest.mark.parametrize(
+    ("stop", "status", "word"),
+    [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated")],
+    ids=["ctrl-c", "terminate"],
+)
+def test_a_study_stopped_while_both_processes_compute_leaves_none(tmp_path, stop, status, word):
+    """Stopped while the cycle section computes in its own process (Ctrl-C reaches the whole
+    process group, as a terminal sends it; SIGTERM the command alone): one line, the exit
+    status, no process left, nothing written."""
+    out = tmp_path / "out"
+    command = [sys.executable, "-m", "redundancy.cli", "study", "--quiet", "--out", str(out)]
+    run = subprocess.Popen(
+        command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=_foreground
+    )
+    deadline = time.monotonic() + 60
+    while not (children := _children(run.pid)) and run.poll() is None:
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+    assert run.poll() is None, run.stderr.read()
+    time.sleep(0.5)  # both at work
+    if stop == signal.SIGINT:
+        os.killpg(run.pid, stop)
+    else:
+        run.send_signal(stop)
+    _, errors = run.communicate(timeout=30)
+    assert run.returncode == status and errors == f"redundancy: {word}\n"
+    assert all(_gone(child) for child in children)
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
