@@ -19,6 +19,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from redundancy.errors import InvalidInputError, RedundancyError
 from redundancy.model.loading import bundled_robots, load_robot
@@ -557,7 +558,10 @@ def main(argv: list[str] | None = None) -> int:
         numbers.append(signal.SIGINT)
     previous = {n: signal.signal(n, _interrupt) for n in numbers}
     try:
-        status = args.run(args)  # a command may end with a status of its own (check: 2)
+        # the toolkit's matrices are stacks of n × n with n ≤ 7: BLAS threads never speed
+        # them up, and their spinning takes the core the study's second process needs
+        with threadpool_limits(limits=1, user_api="blas"):
+            status = args.run(args)  # a command may end with a status of its own (check: 2)
     except BaseException as error:
         return _ending(error)
     finally:
