@@ -6,6 +6,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -36,6 +37,22 @@ def test_the_value_is_computed_in_another_process():
     with Background(os.getpid) as pending:
         assert pending.result() != os.getpid()
         assert pending.result() == pending.result()  # collected once, kept
+
+
+def test_beside_other_threads_the_value_is_computed_here():
+    """A fork would copy locks held by threads it does not copy: with another thread running,
+    the computation stays in this process, and answers the same way."""
+    release = threading.Event()
+    other = threading.Thread(target=release.wait)
+    other.start()
+    try:
+        with Background(os.getpid) as pending:
+            assert pending.result() == os.getpid()
+        with Background(_refuse, 1) as pending, pytest.raises(InvalidInputError):
+            pending.result()
+    finally:
+        release.set()
+        other.join()
 
 
 def test_an_error_in_the_child_is_raised_here_as_itself():

@@ -9,14 +9,17 @@ ignores Ctrl-C, which the terminal sends to both: this process decides; stopped,
 once, whatever handlers it inherited. The child writes no file, so nothing it leaves can be
 half-written.
 
-Where processes cannot be forked (it needs the POSIX ``fork`` start method), the function runs
-in this process, at once.
+Where a fork would not be safe, the function runs in this process, at once: where the POSIX
+``fork`` start method is missing, and where this process runs other threads (a notebook's
+kernel, a Dask worker), since a forked child inherits the locks those threads hold but not the
+threads that would release them.
 """
 
 from __future__ import annotations
 
 import multiprocessing
 import signal
+import threading
 from collections.abc import Callable
 from multiprocessing.connection import Connection
 from typing import Any
@@ -40,7 +43,8 @@ class Background:
     def __init__(self, function: Callable[..., Any], *args: Any) -> None:
         self._outcome: tuple[str, Any] | None = None
         self._process = None
-        if "fork" not in multiprocessing.get_all_start_methods():
+        forkable = "fork" in multiprocessing.get_all_start_methods()
+        if not forkable or threading.active_count() > 1:
             try:
                 self._outcome = ("result", function(*args))
             except Exception as error:
