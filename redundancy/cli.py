@@ -16,6 +16,8 @@ import signal
 import sys
 import warnings
 from collections.abc import Callable
+from dataclasses import replace
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -40,12 +42,13 @@ from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import OBJECTIVES, Objective, objective
 from redundancy.resolution.state import actuator_space
+from redundancy.study.background import Background
 from redundancy.study.check import check, span
 from redundancy.study.cycles import CHOICES, run_cycle, write_cycle_report
 from redundancy.study.families import read_family
 from redundancy.study.maps import CONNECT_TIMEOUT, connect, design_map, summary
 from redundancy.study.output import OutputFolder, writable, write_atomically
-from redundancy.study.study import STUDY_CYCLES, run_study, write_report
+from redundancy.study.study import STUDY_CYCLES, cycle_section, run_study, write_report
 from redundancy.viz.map_figures import write_map_figures
 from redundancy.viz.playback import (
     export_html,
@@ -167,6 +170,8 @@ def _load_task(robot: Robot, path: str | None) -> tuple[Robot, WorkCycle]:
 
 
 def _study_command(args: argparse.Namespace) -> None:
+    from tqdm import tqdm
+
     with OutputFolder(args.out) as out:  # committed only if everything below succeeds
         report = out / "report.json"
         if args.json is not None:
@@ -174,26 +179,47 @@ def _study_command(args: argparse.Namespace) -> None:
         robot = load_robot(args.robot, payload=args.payload, hydraulics=args.hydraulics)
         robot, cycle = _load_task(robot, args.task)
         chosen = ("velocity", "energy") if args.objective == "both" else (args.objective,)
+        objectives = tuple(objective(name) for name in chosen)
         checked = None if args.check is None else tuple(args.check.split(","))
-        study = run_study(
-            robot,
-            cycle,
-            tuple(objective(name) for name in chosen),
-            samples=args.samples,
-            checked=checked,
-            method=args.method,
-            progress=not args.quiet,
-            energy_bound=args.energy_bound,
-            circuit=args.circuit_limits,
-            cycles=args.cycles,
+        options = dict(
+            samples=args.samples, checked=checked, method=args.method, circuit=args.circuit_limits
         )
+        section = partial(
+            _cycle_section, robot, cycle, objectives[0], args.cycles, options, out.staging
+        )
+        # the cycle section and its outputs are computed in a second process meanwhile
+        with Background(section) as pending:
+            study = run_study(
+                robot,
+                cycle,
+                objectives,
+                **options,
+                progress=not args.quiet,
+                energy_bound=args.energy_bound,
+                cycles=0,
+            )
+            figures = write_figures(study, out.staging)
+            playbacks = write_playbacks(study, out.staging)
+            with tqdm(total=1, desc="cycle section", disable=args.quiet) as waiting:
+                cycle_study, skipped, cycle_figures, cycle_playbacks = pending.result()
+                waiting.update()
+        study = replace(study, cycle_study=cycle_study, cycle_skipped=skipped)
         print(study.table())
         write_report(study, report)
-        figures = [out.final(p) for p in write_figures(study, out.staging)]
-        playbacks = [out.final(p) for p in write_playbacks(study, out.staging)]
+        figures = [out.final(p) for p in figures + cycle_figures]
+        playbacks = [out.final(p) for p in playbacks + cycle_playbacks]
     print(f"report: {args.json or out.target / 'report.json'}")
     print(f"figures: {', '.join(str(p) for p in figures)}")
     print(f"playbacks: {', '.join(str(p) for p in playbacks)}")
+
+
+def _cycle_section(robot, cycle, chosen, cycles, options, folder):
+    """The study's cycle section (`cycle_section`) and its figures and playbacks, written into
+    ``folder``: (cycle study or None, why none, figure paths, playback paths)."""
+    found, skipped = cycle_section(robot, cycle, chosen, cycles, **options)
+    if found is None:
+        return None, skipped, [], []
+    return found, None, write_cycle_figures(found, folder), write_cycle_playbacks(found, folder)
 
 
 def _play_motion(

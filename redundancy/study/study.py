@@ -29,9 +29,7 @@ from __future__ import annotations
 
 import json
 import warnings
-from contextlib import nullcontext
 from dataclasses import dataclass
-from functools import partial
 from pathlib import Path
 
 from redundancy.errors import InvalidInputError, UnreachableError
@@ -52,7 +50,6 @@ from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.laws import GradientProjection, Resolver
 from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import ENERGY, VELOCITY, Objective
-from redundancy.study.background import Background
 from redundancy.study.check import check
 from redundancy.study.cycles import CycleStudy, run_cycle
 from redundancy.study.output import write_atomically
@@ -351,97 +348,72 @@ def run_study(
     baselines = [
         (n, r) for n, r in BASELINES if not (robot.kinematic_only and r is ENERGY.resolver)
     ]
-    skipped: str | None = "not asked for (cycles = 0)"
-    if cycles:
-        try:
-            cycle.check_continuous(closed=True)
-        except InvalidInputError as error:
-            skipped = str(error)
-        else:
-            skipped = None
-    # the cycle section is computed in a second process while this one studies the segments
-    cycle_section = partial(
-        run_cycle,
-        robot,
-        cycle,
-        objectives[0],
-        cycles,
-        samples=samples,
-        checked=checked,
-        method=method,
-        circuit=circuit,
-    )
-    with Background(cycle_section) if skipped is None else nullcontext() as pending:
-        total = len(segments) * (len(baselines) + 3 * len(objectives))
-        bar = tqdm(total=total, unit="task", desc="study", disable=not progress, mininterval=0.5)
-        searches: dict[str, list[SearchResult]] = {o.name: [] for o in objectives}
-        sweeps: dict[str, list[SearchResult]] = {o.name: [] for o in objectives}
-        bounds: dict[str, list[GlobalOptimum | None]] = {o.name: [] for o in objectives}
-        failures: dict[str, str] = {}  # a bound that failed does not stop the study
-        runs: list[StrategyRun] = []
-        with bar:
-            for segment in segments:
-                start = default_start(robot, segment, held)
-                for name, resolver in baselines:
-                    bar.set_description(f"{segment.name}: {name}")
-                    runs.append(
-                        fixed_start_run(
-                            robot, resolver, name, segment, held, start, checked, circuit=circuit
-                        )
+    total = len(segments) * (len(baselines) + 3 * len(objectives))
+    bar = tqdm(total=total, unit="task", desc="study", disable=not progress, mininterval=0.5)
+    searches: dict[str, list[SearchResult]] = {o.name: [] for o in objectives}
+    sweeps: dict[str, list[SearchResult]] = {o.name: [] for o in objectives}
+    bounds: dict[str, list[GlobalOptimum | None]] = {o.name: [] for o in objectives}
+    failures: dict[str, str] = {}  # a bound that failed does not stop the study
+    runs: list[StrategyRun] = []
+    with bar:
+        for segment in segments:
+            start = default_start(robot, segment, held)
+            for name, resolver in baselines:
+                bar.set_description(f"{segment.name}: {name}")
+                runs.append(
+                    fixed_start_run(
+                        robot, resolver, name, segment, held, start, checked, circuit=circuit
                     )
-                    bar.update()
-                bar.set_description(f"{segment.name}: improved starts")
-                found_sweeps = improved_starts(
-                    robot, segment, objectives, held, samples, checked, "sweep", circuit=circuit
                 )
-                bar.update(len(objectives))
-                searched = found_sweeps
-                if method == "fast":
-                    searched = improved_starts(
-                        robot, segment, objectives, held, checked=checked, circuit=circuit
+                bar.update()
+            bar.set_description(f"{segment.name}: improved starts")
+            found_sweeps = improved_starts(
+                robot, segment, objectives, held, samples, checked, "sweep", circuit=circuit
+            )
+            bar.update(len(objectives))
+            searched = found_sweeps
+            if method == "fast":
+                searched = improved_starts(
+                    robot, segment, objectives, held, checked=checked, circuit=circuit
+                )
+            bar.update(len(objectives))
+            for objective, sweep, search in zip(objectives, found_sweeps, searched):
+                searches[objective.name].append(search)
+                sweeps[objective.name].append(sweep)
+                best, optimum = search.best, None
+                if best is not None:
+                    runs.append(
+                        StrategyRun(
+                            segment.name,
+                            f"improved, {objective.name} objective",
+                            best.values,
+                            search.motion(best),
+                        )
                     )
-                bar.update(len(objectives))
-                for objective, sweep, search in zip(objectives, found_sweeps, searched):
-                    searches[objective.name].append(search)
-                    sweeps[objective.name].append(sweep)
-                    best, optimum = search.best, None
-                    if best is not None:
-                        runs.append(
-                            StrategyRun(
-                                segment.name,
-                                f"improved, {objective.name} objective",
-                                best.values,
-                                search.motion(best),
+                    if bound and len(held) == 1 and objective.reduction == "peak":
+                        bar.set_description(f"{segment.name}: bound, {objective.name}")
+                        try:
+                            optimum = global_optimum(
+                                robot, segment, objective, held[0], checked, search=search
                             )
-                        )
-                        if bound and len(held) == 1 and objective.reduction == "peak":
-                            bar.set_description(f"{segment.name}: bound, {objective.name}")
-                            try:
-                                optimum = global_optimum(
-                                    robot, segment, objective, held[0], checked, search=search
-                                )
-                            except (InvalidInputError, UnreachableError) as error:
-                                failures[f"{objective.name}/{segment.name}"] = str(error)
-                    bounds[objective.name].append(optimum)
-                    bar.update()
-        energy_bounds = None
-        if energy_bound:
-            energy_bounds = {}
-            for segment in tqdm(segments, desc="energy bounds", disable=not progress):
-                found = {}
-                for supply in (machine.load_sensing, machine.constant_pressure):
-                    try:
-                        found[supply.name] = energy_optimum(
-                            robot, segment, supply, held[0], checked
-                        )
-                    except (InvalidInputError, UnreachableError) as error:
-                        failures[f"energy bound {supply.name}/{segment.name}"] = str(error)
-                energy_bounds[segment.name] = found
-        cycle_study: CycleStudy | None = None
-        if pending is not None:
-            with tqdm(total=1, desc="cycle section", disable=not progress) as waiting:
-                cycle_study = pending.result()
-                waiting.update()
+                        except (InvalidInputError, UnreachableError) as error:
+                            failures[f"{objective.name}/{segment.name}"] = str(error)
+                bounds[objective.name].append(optimum)
+                bar.update()
+    energy_bounds = None
+    if energy_bound:
+        energy_bounds = {}
+        for segment in tqdm(segments, desc="energy bounds", disable=not progress):
+            found = {}
+            for supply in (machine.load_sensing, machine.constant_pressure):
+                try:
+                    found[supply.name] = energy_optimum(robot, segment, supply, held[0], checked)
+                except (InvalidInputError, UnreachableError) as error:
+                    failures[f"energy bound {supply.name}/{segment.name}"] = str(error)
+            energy_bounds[segment.name] = found
+    cycle_study, skipped = cycle_section(
+        robot, cycle, objectives[0], cycles, samples, checked, method, circuit, progress
+    )
     return Study(
         robot,
         cycle,
@@ -459,6 +431,40 @@ def run_study(
         cycle_study,
         skipped,
     )
+
+
+def cycle_section(
+    robot: Robot,
+    cycle: WorkCycle,
+    objective: Objective,
+    cycles: int = STUDY_CYCLES,
+    samples: int = 100,
+    checked: tuple[str, ...] | None = None,
+    method: str | None = None,
+    circuit: bool = False,
+    progress: bool = False,
+) -> tuple[CycleStudy | None, str | None]:
+    """The study's cycle section: `run_cycle` for ``objective``, repeating the cycle ``cycles``
+    times, where the task is one continuous closed cycle. Returns the cycle study, or None and
+    why there is none (``cycles`` = 0, or the task does not close)."""
+    if not cycles:
+        return None, "not asked for (cycles = 0)"
+    try:
+        cycle.check_continuous(closed=True)
+    except InvalidInputError as error:
+        return None, str(error)
+    found = run_cycle(
+        robot,
+        cycle,
+        objective,
+        cycles,
+        samples=samples,
+        checked=checked,
+        method=method,
+        circuit=circuit,
+        progress=progress,
+    )
+    return found, None
 
 
 def write_report(study: Study, path: Path) -> None:
