@@ -8,9 +8,15 @@ the objective is found by direct transcription:
 - unknowns: r_j = x_h(t_j) at N + 1 nodes t_j = j h, h = t_f / N, and the peak s;
 - at each node the configuration q_j solves y(q_j) = y_d(t_j), x_h(q_j) = r_j (Eqs. 6, 10) by
   Newton's method from the previous iterate: the task is tracked exactly at every node;
-- the held rates ṙ = D r (second-order differences) fix the velocities: K_j q̇_j = [ẏ_d; ṙ_j]
-  with K = [J; A_h] (Eqs. 7, 11) and ẋ_j = A_j q̇_j, so that J_H ẋ_j = ẏ_d (Eq. 16); node j
-  takes the objective's measure of its state and ẋ_j (ẋᵀẋ, ẋᵀ M_H ẋ, or a user's own);
+- the held rates ṙ = D r (second-order backward differences, `backward_differentiation`)
+  fix the velocities: K_j q̇_j = [ẏ_d; ṙ_j] with K = [J; A_h] (Eqs. 7, 11) and ẋ_j = A_j q̇_j,
+  so that J_H ẋ_j = ẏ_d (Eq. 16); node j takes the objective's measure of its state and ẋ_j
+  (ẋᵀẋ, ẋᵀ M_H ẋ, or a user's own). Central differences would not do: they give node j a rate
+  without its own stroke r_j, so a history alternating node by node, r_j + (−1)ʲ c, has the
+  rates of r_j alone, and the solver would place every node's configuration freely at rates
+  no motion through those strokes has (a "bound" whose history, refined, peaks several times
+  higher). Backward differences see every stroke they difference: only a constant has no
+  rate;
 - minimise s, with a tie-break `SMOOTHING` on mean ṙ², subject to s ≥ the measure and
   lower ≤ x(q_j) ≤ upper for every checked actuator at every node (the held one through the
   bounds on r).
@@ -57,6 +63,8 @@ LIMIT_MARGIN = 1e-6  # m: the strokes are kept this far inside their limits, so 
 SMOOTHING = 1e-4  # weight of mean ṙ² (m²/s², like ẋᵀẋ) beside the peak: picks one optimum
 # where many share the peak, and moves the peak by less than this fraction
 DIFFERENCE_STEP = 1e-6  # m (and m/s): step of the central differences through q and ṙ
+UNREACHED = 1e3  # the measure at a node Newton's method does not reach, in starting peaks: a
+# trial step of the solver into strokes the task cannot be tracked with is a step it backs out of
 
 
 @dataclass(frozen=True)
@@ -122,9 +130,23 @@ class GlobalOptimum(Refined):
         return self.peak
 
 
+def backward_differentiation(intervals: int, h: float) -> np.ndarray:
+    """The (N + 1, N + 1) matrix D with ṙ ≈ D r on a uniform grid of step h, second order:
+    ṙ_j ≈ (3 r_j − 4 r_(j−1) + r_(j−2)) / 2h from node 2 on, the same stencil forward at nodes 0
+    and 1. Its symbol (1 − e^(−iθ))(3 − e^(−iθ)) / 2h vanishes at θ = 0 alone: no history but a
+    constant has zero rates (the alternation included, at rate 4c/h)."""
+    D = np.zeros((intervals + 1, intervals + 1))
+    later = np.arange(2, intervals + 1)
+    D[later, later - 2], D[later, later - 1], D[later, later] = 0.5, -2.0, 1.5
+    D[0, :3] = D[1, 1:4] = [-1.5, 2.0, -0.5]
+    return D / h
+
+
 def differentiation(intervals: int, h: float) -> np.ndarray:
     """The (N + 1, N + 1) matrix D with ṙ ≈ D r on a uniform grid of step h: central
-    differences inside, second-order one-sided ones at both ends."""
+    differences inside, second-order one-sided ones at both ends. Blind to a history that
+    alternates node by node (see the module docstring): the periodic transcription
+    (`redundancy.planning.cycles`) that differences with it filters that alternation out."""
     D = np.zeros((intervals + 1, intervals + 1))
     inside = np.arange(1, intervals)
     D[inside, inside - 1], D[inside, inside + 1] = -0.5, 0.5
@@ -155,7 +177,7 @@ class Transcription:
         self.robot, self.objective, self.row = robot, objective, row
         self.columns = limits.columns
         self.t = np.linspace(0.0, segment.duration, intervals + 1)
-        self.D = differentiation(intervals, self.t[1])
+        self.D = backward_differentiation(intervals, self.t[1])
         self.points = segment.position(self.t)
         self.y_dot = segment.velocity_at(self.t)
         self.owner = np.arange(intervals + 1)  # the unknown r_i each node's held stroke is
@@ -171,18 +193,29 @@ class Transcription:
         """(nodes, unknowns): 1 where a node's held stroke is that unknown."""
         return np.eye(self.D.shape[1])[self.owner]
 
-    def configurations(self, r: np.ndarray) -> np.ndarray:
+    def reach(self, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """q at every node for the held strokes r (one per unknown), Newton-continued from the
-        last."""
-        r = r[self.owner]
-        target = np.concatenate([self.points, r[:, None]], axis=1)
+        last configurations that reached every node, and which nodes it did not reach."""
+        target = np.concatenate([self.points, r[self.owner, None]], axis=1)
         q, residual = newton(self.robot, self.q, [self.row], target, CONTINUATION_ITERATIONS)
-        if np.any(residual > FOUND):
-            raise InvalidInputError(
-                f"no configuration reaches the task at t = {self.t[residual > FOUND][0]:.3f} s "
-                f"with the held stroke {r[residual > FOUND][0]:.4f}"
-            )
-        self.q = q
+        missed = residual > FOUND
+        if not missed.any():
+            self.q = q
+        return q, missed
+
+    def unreached(self, r: np.ndarray, missed: np.ndarray) -> InvalidInputError:
+        """The error for held strokes r whose ``missed`` nodes no configuration reaches."""
+        first = int(np.flatnonzero(missed)[0])
+        return InvalidInputError(
+            f"no configuration reaches the task at t = {self.t[first]:.3f} s "
+            f"with the held stroke {r[self.owner[first]]:.4f}"
+        )
+
+    def configurations(self, r: np.ndarray) -> np.ndarray:
+        """q at every node for the held strokes r, or an error where a node is not reached."""
+        q, missed = self.reach(r)
+        if missed.any():
+            raise self.unreached(r, missed)
         return q
 
     def motion(self, q: np.ndarray, r_dot: np.ndarray):
@@ -200,8 +233,9 @@ class Transcription:
         if self.cache is not None and self.cache[0] == key:
             return self.cache[1]
         r_dot = self.D @ z[:-1]
-        q = self.configurations(z[:-1])
+        q, missed = self.reach(z[:-1])
         space, K, x_dot, measure = self.motion(q, r_dot)
+        measure = np.where(missed, UNREACHED * self.scale, measure)
         unit = np.zeros((len(q), self.robot.n, 1))
         unit[:, -1] = 1.0
         dq = np.linalg.solve(K, unit)[..., 0]  # ∂q_j/∂r_j = K⁻¹ e, and ∂q̇_j/∂ṙ_j
@@ -214,7 +248,7 @@ class Transcription:
         ahead, behind = self.motion(q + step, r_dot)[-1], self.motion(q - step, r_dot)[-1]
         own = (ahead - behind) / (2 * DIFFERENCE_STEP)
         gradient = rate[:, None] * self.D + own[:, None] * self.incidence
-        nodes = Nodes(measure, gradient, space, x_dot, dx)
+        nodes = Nodes(measure, gradient, space, x_dot, dx, missed)
         self.cache = (key, nodes)
         return nodes
 
@@ -250,19 +284,25 @@ class Transcription:
 
 class Nodes(NamedTuple):
     """The transcription at one iterate: the measure at each node (N + 1,), its gradient with
-    respect to the unknowns r (N + 1, unknowns), the actuator space, ẋ (N + 1, n) and
-    ∂x_j/∂r_j (N + 1, n)."""
+    respect to the unknowns r (N + 1, unknowns), the actuator space, ẋ (N + 1, n),
+    ∂x_j/∂r_j (N + 1, n) and the nodes Newton's method did not reach (N + 1,), whose measure
+    is `UNREACHED` starting peaks."""
 
     measure: np.ndarray
     gradient: np.ndarray
     space: ActuatorSpace
     x_dot: np.ndarray
     dx: np.ndarray
+    missed: np.ndarray
 
 
 def solve_transcription(problem: Transcription, r0: np.ndarray, box: tuple, intervals: int):
-    """SLSQP from r0: the grid's solution and the transcription at it."""
-    measure = problem.evaluate(np.append(r0, 0.0)).measure
+    """SLSQP from r0: the grid's solution and the transcription at it. Both r0 and the solution
+    must reach the task at every node; the solver's trial steps need not."""
+    start = problem.evaluate(np.append(r0, 0.0))
+    if start.missed.any():
+        raise problem.unreached(r0, start.missed)
+    measure = start.measure
     problem.scale = float(measure.max())
     z = np.append(r0, measure.max())
     bounds = [box] * len(r0) + [(0.0, None)]
@@ -277,6 +317,8 @@ def solve_transcription(problem: Transcription, r0: np.ndarray, box: tuple, inte
     )
     z = solution.x
     nodes = problem.evaluate(z)
+    if nodes.missed.any():
+        raise problem.unreached(z[:-1], nodes.missed)
     grid = GridSolution(
         intervals,
         float(nodes.measure.max()),
@@ -310,8 +352,8 @@ def global_optimum(
     peak objective (its reduction "peak").
     """
     row = held_indices(robot, [held])[0]
-    if not grids or any(int(g) < 2 for g in grids) or list(grids) != sorted(grids):
-        raise InvalidInputError(f"grids must be increasing interval counts ≥ 2; got {grids}")
+    if not grids or any(int(g) < 3 for g in grids) or list(grids) != sorted(grids):
+        raise InvalidInputError(f"grids must be increasing interval counts ≥ 3; got {grids}")
     if objective.reduction != "peak":
         raise InvalidInputError(
             f"the bound minimises a peak; objective {objective.name!r} reduces its measure by "
