@@ -18,23 +18,30 @@ threads that would release them.
 from __future__ import annotations
 
 import multiprocessing
+import os
 import signal
 import threading
 from collections.abc import Callable
 from multiprocessing.connection import Connection
 from typing import Any
 
+STOPPING = {signal.SIGINT, signal.SIGTERM}
+
 
 def _run(sender: Connection, function: Callable[..., Any], args: tuple) -> None:
-    """In the child: call ``function(*args)`` and send ("result", value) or ("error", e)."""
+    """In the child: call ``function(*args)``, send ("result", value) or ("error", e), and end
+    at once (`os._exit`: no clean-up inherited from the parent runs, no buffered output of the
+    parent's is written twice). It starts with `STOPPING` blocked (see `Background`)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides
     signal.signal(signal.SIGTERM, signal.SIG_DFL)  # `Background.stop`: end quietly, at once
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, STOPPING)
     try:
         outcome: tuple[str, Any] = ("result", function(*args))
     except Exception as error:  # sent to the parent, which raises it there
         outcome = ("error", error)
     sender.send(outcome)
     sender.close()
+    os._exit(0)
 
 
 class Background:
@@ -53,8 +60,19 @@ class Background:
         context = multiprocessing.get_context("fork")
         self._receiver, sender = context.Pipe(duplex=False)
         self._process = context.Process(target=_run, args=(sender, function, args), daemon=True)
-        self._process.start()
-        sender.close()
+        # a Ctrl-C at the fork would reach a child still running this process's handlers: it
+        # waits, blocked, for the child's own, and is handled here once the child is started
+        # (should it stop this constructor, the child is stopped; at the latest, as a daemon,
+        # when this process exits)
+        blocked = signal.pthread_sigmask(signal.SIG_BLOCK, STOPPING)
+        try:
+            self._process.start()
+            sender.close()
+            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
+        except BaseException:
+            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
+            self.stop()
+            raise
 
     def result(self) -> Any:
         """The function's value, once it is computed; the exception it raised is raised here."""
