@@ -4,6 +4,9 @@
 # or a port range are kept on one worker by `xdist_group` marks (`--dist loadgroup`).
 # `-n 0` runs it in one process; `-p no:xdist` without the plugin.
 source "$(dirname "$0")/env.sh"
+# One BLAS thread a process: the matrices are small, and OpenBLAS's idle threads spinning beside
+# the other worker and the processes the tests start cost a third of the suite's CPU time.
+export OPENBLAS_NUM_THREADS=${OPENBLAS_NUM_THREADS:-1} OMP_NUM_THREADS=${OMP_NUM_THREADS:-1}
 parallel=(-n "${TEST_WORKERS:-auto}" --dist loadgroup)
 previous=
 for arg in "$@"; do

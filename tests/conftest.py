@@ -5,9 +5,14 @@ from pathlib import Path
 
 import pytest
 
-from redundancy import load_robot
-from redundancy.planning.tasks import WorkCycle
-from redundancy.study.study import run_study
+# One BLAS thread a process (and so in the processes the tests start), as scripts/test.sh sets:
+# the matrices are small, and idle OpenBLAS threads spin beside the other workers.
+for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):
+    os.environ.setdefault(_name, "1")
+
+from redundancy import load_robot  # noqa: E402  (numpy reads the thread count on import)
+from redundancy.planning.tasks import WorkCycle  # noqa: E402
+from redundancy.study.study import run_study  # noqa: E402
 
 # -- on every core: scripts/test.sh runs the suite under pytest-xdist, `--dist loadgroup` ------
 #
