@@ -28,7 +28,6 @@ from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.resolution.limits import Limits
 from redundancy.resolution.objectives import VELOCITY
 from redundancy.resolution.state import evaluate
-from redundancy.study.cycles import run_cycle
 
 ARM = Path(__file__).parent / "data" / "planar4r"
 
@@ -57,13 +56,10 @@ def arm_runs(circle):
 
 
 @pytest.fixture(scope="module")
-def paper_cycle(crane):
-    return WorkCycle.from_toml(crane.task_file, dimension=crane.m)
-
-
-@pytest.fixture(scope="module")
-def crane_study(crane, paper_cycle):
-    return run_cycle(crane, paper_cycle, VELOCITY, cycles=3)
+def crane_study(paper_study):
+    """The crane's cycle study, 3 cycles: the paper study's cycle section (conftest), which is
+    `run_cycle(crane, paper_cycle, VELOCITY, cycles=3)`."""
+    return paper_study.cycle_study
 
 
 def test_the_free_pseudoinverse_drifts_on_the_closed_circle(arm_runs):

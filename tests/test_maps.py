@@ -106,9 +106,11 @@ def test_a_map_on_a_dask_cluster_by_address_equals_the_local_run_with_one_worker
         remote = run_cli("map", str(family), "--scheduler", address, "--out", str(tmp_path / "r"))
         assert remote.returncode == 0, remote.stderr
     finally:
-        for process in started:
+        # the workers before the scheduler: a worker whose scheduler has gone first tries to
+        # reach it again for seconds before it ends
+        for process in started[::-1]:
             process.terminate()
-        for process in started:
+        for process in started[::-1]:
             try:
                 process.wait(timeout=20)
             except subprocess.TimeoutExpired:

@@ -16,9 +16,9 @@ SEGMENTS = ["1-2", "2-3", "3-1"]
 
 
 @pytest.fixture(scope="module")
-def study(crane):
-    cycle = WorkCycle.from_toml(crane.task_file, dimension=crane.m)
-    return run_study(crane, cycle, samples=40, progress=False, cycles=2)
+def study(paper_study):
+    """40 samples a sweep, a 3-cycle cycle section (conftest: test_cycles shares it)."""
+    return paper_study
 
 
 def width(search):
@@ -169,7 +169,7 @@ def test_written_files_get_the_mode_the_umask_gives(tmp_path):
 def test_the_report_has_a_cycle_section(study):
     """The paper's three segments form one closed cycle: the study runs it as a machine does."""
     section = json.loads(json.dumps(study.report(), allow_nan=False))["cycle"]
-    assert section["objective"] == "velocity" and section["cycles"] == 2
+    assert section["objective"] == "velocity" and section["cycles"] == 3
     assert section["whole_cycle"]["best"]["value"] < 0.86  # far below 1-2's own best, 1.09
     corners = section["per_segment"]["corners"]
     assert [(c["after"], c["before"]) for c in corners] == [
