@@ -226,6 +226,29 @@ def test_the_animation_keys_each_frame_as_the_scene_shows_it(crane, motion):
                 assert track["keys"][frame]["value"] == pytest.approx(expected, abs=1e-15)
 
 
+def test_a_recorded_page_holds_the_bytes_meshcats_encoder_gives(motion):
+    """Every command of a drawn and animated scene (typed arrays of the traced path
+    included) is encoded byte for byte as meshcat's own encoder encodes it."""
+    playback, vis, recording = recorded(motion)
+    lowered = []
+    kept = recording.send
+
+    def send(command):
+        lowered.append(command.lower())
+        kept(command)
+
+    recording.send = send
+    playback.draw(vis)
+    vis.set_animation(playback.animation(vis), play=True, repetitions=1)
+    sent = recording.commands[-len(lowered) :]
+    assert [c["type"] for c in lowered].count("set_animation") == 1
+    traced = next(c for c in lowered if c["path"].endswith("/traced"))
+    assert isinstance(
+        traced["object"]["geometries"][0]["data"]["attributes"]["position"]["array"], umsgpack.Ext
+    )
+    assert sent == [umsgpack.packb(c) for c in lowered]
+
+
 def page_commands(page):
     """The commands a page replays, decoded."""
     listing = re.search(r"for \(const command of \[(.*?)\]\)", page, re.DOTALL).group(1)

@@ -466,16 +466,17 @@ class Poses:
 class Recording:
     """A stand-in for meshcat's viewer window that keeps every command instead of sending it
     to a server; ``get_scene`` (behind `meshcat.Visualizer.static_html`) writes them into a
-    self-contained page. ``commands`` holds each command msgpack-encoded, in order."""
+    self-contained page. ``commands`` holds each command msgpack-encoded, in order: the bytes
+    meshcat's own encoder (umsgpack, pure Python) gives, by msgpack's compiled one."""
 
     def __init__(self, title: str = "redundancy playback") -> None:
         self.title = title
         self.commands: list[bytes] = []
 
     def send(self, command) -> None:
-        import umsgpack
+        import msgpack
 
-        self.commands.append(umsgpack.packb(command.lower()))
+        self.commands.append(msgpack.packb(command.lower(), default=_extension))
 
     def get_scene(self) -> str:
         viewer = Path(_meshcat().__file__).parent / "viewer" / "dist" / "main.min.js"
@@ -485,6 +486,16 @@ class Recording:
         return PAGE.format(
             title=html.escape(self.title), viewer=viewer.read_text(), commands=commands
         )
+
+
+def _extension(value):
+    """meshcat's typed arrays (umsgpack extension values) as msgpack's extension values."""
+    import msgpack
+    import umsgpack
+
+    if isinstance(value, umsgpack.Ext):
+        return msgpack.ExtType(value.type, value.data)
+    raise TypeError(f"cannot encode {type(value).__name__} for meshcat")
 
 
 PAGE = """<!DOCTYPE html>
