@@ -558,10 +558,10 @@ def write_playbacks(study: Study, folder: Path) -> list[Path]:
     strategy's whole cycle (`write_cycle_playbacks`); return their paths."""
     points = task_points(study.cycle)
     paths = []
-    for name, runs in _best_motions(study).items():
-        for segment, motion in runs:
+    for name in study.searches:
+        for segment, run in study.improved_runs(name).items():
             path = folder / f"playback_{name}_{segment}.html"
-            paths.append(export_html(motion, path, points))
+            paths.append(export_html(run.trajectory, path, points))
     if study.cycle_study is not None:
         paths += write_cycle_playbacks(study.cycle_study, folder)
     return paths
@@ -575,15 +575,6 @@ def write_cycle_playbacks(study: CycleStudy, folder: Path) -> list[Path]:
         export_html(motion.whole(0), folder / f"playback_cycle_{name}.html", points)
         for name, motion in study.firsts.items()
     ]
-
-
-def _best_motions(study: Study) -> dict[str, list[tuple[str, Trajectory]]]:
-    """Each objective's improved motions, by segment, as the study ran them."""
-    found: dict[str, list[tuple[str, Trajectory]]] = {}
-    for name in study.searches:
-        strategy = f"improved, {name} objective"
-        found[name] = [(r.segment, r.trajectory) for r in study.runs if r.strategy == strategy]
-    return found
 
 
 @contextlib.contextmanager
