@@ -14,6 +14,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from threadpoolctl import threadpool_limits
+
 from redundancy import load_robot
 from redundancy.planning.angles import task_robot
 from redundancy.planning.tasks import WorkCycle
@@ -87,4 +89,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    with threadpool_limits(limits=1, user_api="blas"):  # as the command runs
+        main()
