@@ -1,5 +1,5 @@
 """The study's output stage against its share of the command's time, in one run: the
-command's imports, the drawing libraries' imports (paid once by a study), the study's figures
+command's imports, the drawing libraries' imports (paid in each of its two processes), the figures
 and playback pages written from a study computed once, and the whole command.
 
 Run: python benchmarks/output.py [--repeat N]
