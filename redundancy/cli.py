@@ -200,6 +200,8 @@ def _study_command(args: argparse.Namespace) -> None:
             )
             figures = write_figures(study, out.staging)
             playbacks = write_playbacks(study, out.staging)
+            for run in study.runs:  # each run's figures for the table and report, kept by the
+                run.summary()  # run: computed while the cycle section still runs, not after
             with tqdm(total=1, desc="cycle section", disable=args.quiet) as waiting:
                 cycle_study, skipped, cycle_figures, cycle_playbacks = pending.result()
                 waiting.update()

@@ -31,11 +31,14 @@ from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.objectives import VELOCITY
 from redundancy.viz.playback import (
     BACKGROUND,
+    COLOURS,
     FIELD_OF_VIEW,
     FRAME_RATE,
+    LIMIT_MARGIN,
     Playback,
     Recording,
     export_html,
+    quaternions,
 )
 
 START = ["--robot", "hiab031", "--segment", "1-2", "--objective", "velocity", "--x3init", "1.0"]
@@ -161,6 +164,89 @@ def test_a_cylinder_turns_red_at_its_stroke_limit_and_back(crane, motion):
     back = colours(middle)
     assert set(back) == {cylinder_path("x1", "barrel"), cylinder_path("x1", "rod")}
     assert red not in back.values()
+
+
+def rotations(count, seed):
+    """Random rotations (k, 4, 4) by uniform unit quaternions, half of them turned by nearly
+    or exactly 180° (w within 1e-9 of 0, or 0), where the quaternion's sign is a choice."""
+    rng = np.random.default_rng(seed)
+    q = rng.normal(size=(count, 4))
+    q[: count // 4, 3] = rng.uniform(-1e-9, 1e-9, count // 4)
+    q[count // 4 : count // 2, 3] = 0.0
+    x, y, z, w = (q / np.linalg.norm(q, axis=1, keepdims=True)).T
+    T = np.tile(np.eye(4), (count, 1, 1))
+    T[:, :3, :3] = np.stack(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    ).transpose(2, 0, 1)
+    T[:, :3, 3] = rng.normal(size=(count, 3))
+    return T
+
+
+def test_batch_quaternions_are_meshcats_one_matrix_at_a_time():
+    """For rotations of every angle, 180° ones included, and for the scaled transforms
+    Pinocchio's visualizer sends for scaled meshes, the batch gives meshcat's quaternion."""
+    T = rotations(400, seed=47)
+    T = np.concatenate([T, T[:50] @ np.diag([0.5, 2.0, 1.5, 1.0]), np.eye(4)[None]])
+    theirs = np.array([meshcat.animation.js_quaternion(matrix) for matrix in T])
+    assert np.abs(theirs[100:200, 3]).max() < 1e-9  # the 180° rotations are there
+    np.testing.assert_allclose(quaternions(T), theirs, rtol=0, atol=1e-12)
+
+
+def test_the_animation_keys_each_frame_as_the_scene_shows_it(crane, motion):
+    """At every shown sample, each animated node's position and quaternion are those of the
+    transform `show` sends for that configuration, and each cylinder part's colour is red
+    exactly where its length is within the margin of a stroke limit."""
+    playback, vis, recording = recorded(motion)
+    clips = {a["path"]: a["clip"] for a in playback.animation(vis).lower()}
+    x = actuator_space(crane, playback.q[playback.samples]).x
+    names = crane.actuators.names
+    for frame in range(0, len(playback.samples), 7):
+        sent = len(recording.commands)
+        playback.show(vis, playback.q[playback.samples[frame]])
+        poses = [c for c in decoded(recording.commands[sent:]) if c["type"] == "set_transform"]
+        assert len(poses) == 8  # 4 links, 2 cylinders of 2 parts
+        for command in poses:
+            T = np.array(command["matrix"]).reshape(4, 4).T
+            keys = {t["name"]: t["keys"][frame]["value"] for t in clips[command["path"]]["tracks"]}
+            np.testing.assert_allclose(keys[".position"], T[:3, 3], rtol=0, atol=1e-12)
+            quaternion = meshcat.animation.js_quaternion(T)
+            np.testing.assert_allclose(keys[".quaternion"], quaternion, rtol=0, atol=1e-12)
+        for name in ("x1", "x2"):
+            actuator, value = crane.actuators[name], x[frame, names.index(name)]
+            red = min(value - actuator.lower, actuator.upper - value) <= LIMIT_MARGIN
+            for part in ("barrel", "rod"):
+                track = clips[cylinder_path(name, part) + "/<object>"]["tracks"][0]
+                colour = COLOURS["limit" if red else part]
+                expected = [((colour >> shift) & 0xFF) / 255 for shift in (16, 8, 0)]
+                assert track["name"] == ".material.color"
+                assert track["keys"][frame]["value"] == pytest.approx(expected, abs=1e-15)
+
+
+def test_a_recorded_page_holds_the_bytes_meshcats_encoder_gives(motion):
+    """Every command of a drawn and animated scene (typed arrays of the traced path
+    included) is encoded byte for byte as meshcat's own encoder encodes it."""
+    playback, vis, recording = recorded(motion)
+    lowered = []
+    kept = recording.send
+
+    def send(command):
+        lowered.append(command.lower())
+        kept(command)
+
+    recording.send = send
+    playback.draw(vis)
+    vis.set_animation(playback.animation(vis), play=True, repetitions=1)
+    sent = recording.commands[-len(lowered) :]
+    assert [c["type"] for c in lowered].count("set_animation") == 1
+    traced = next(c for c in lowered if c["path"].endswith("/traced"))
+    assert isinstance(
+        traced["object"]["geometries"][0]["data"]["attributes"]["position"]["array"], umsgpack.Ext
+    )
+    assert sent == [umsgpack.packb(c) for c in lowered]
 
 
 def page_commands(page):

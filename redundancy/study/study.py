@@ -97,6 +97,12 @@ class Study:
     def bound(self, objective: str, segment: str) -> GlobalOptimum | None:
         return self.bounds[objective][self._segment(segment)]
 
+    def improved_runs(self, objective: str) -> dict[str, StrategyRun]:
+        """The objective's improved runs (from its search's best start) by segment, where a
+        start is feasible, as the study ran them."""
+        strategy = improved_strategy(objective)
+        return {r.segment: r for r in self.runs if r.strategy == strategy}
+
     def _segment(self, name: str) -> int:
         names = [s.name for s in self.cycle.segments]
         if name not in names:
@@ -301,6 +307,11 @@ class Study:
         return max(8, *(len(s.name) + 2 for s in self.cycle.segments))
 
 
+def improved_strategy(objective: str) -> str:
+    """The strategy name of an objective's runs from its improved start."""
+    return f"improved, {objective} objective"
+
+
 def run_study(
     robot: Robot,
     cycle: WorkCycle,
@@ -385,7 +396,7 @@ def run_study(
                     runs.append(
                         StrategyRun(
                             segment.name,
-                            f"improved, {objective.name} objective",
+                            improved_strategy(objective.name),
                             best.values,
                             search.motion(best),
                         )

@@ -107,6 +107,39 @@ def _translation(p: np.ndarray) -> np.ndarray:
     return T
 
 
+def quaternions(transforms: np.ndarray) -> np.ndarray:
+    """The rotations of transforms (k, 4, 4) as quaternions (k, 4), [x, y, z, w] with w ≥ 0:
+    meshcat's `quaternion_from_matrix` (and `js_quaternion`'s order) for a whole batch at once.
+    Its method (Bar-Itzhack's) takes the eigenvector of the largest eigenvalue of the symmetric
+
+        K = ⅓ [[r00 − r11 − r22, r01 + r10,       r02 + r20,       r21 − r12      ],
+               [r01 + r10,       r11 − r00 − r22, r12 + r21,       r02 − r20      ],
+               [r02 + r20,       r12 + r21,       r22 − r00 − r11, r10 − r01      ],
+               [r21 − r12,       r02 − r20,       r10 − r01,       r00 + r11 + r22]],
+
+    the quaternion of the rotation nearest the upper-left block R, even where R is not
+    orthonormal (a scaled mesh's transform); K is built as meshcat builds it (its lower
+    triangle, the one `eigh` reads)."""
+    R = transforms[:, :3, :3]
+    r00, r01, r02 = R[:, 0, 0], R[:, 0, 1], R[:, 0, 2]
+    r10, r11, r12 = R[:, 1, 0], R[:, 1, 1], R[:, 1, 2]
+    r20, r21, r22 = R[:, 2, 0], R[:, 2, 1], R[:, 2, 2]
+    K = np.zeros((len(R), 4, 4))
+    K[:, 0, 0] = r00 - r11 - r22
+    K[:, 1, 0], K[:, 1, 1] = r01 + r10, r11 - r00 - r22
+    K[:, 2, 0], K[:, 2, 1], K[:, 2, 2] = r02 + r20, r12 + r21, r22 - r00 - r11
+    K[:, 3, 0], K[:, 3, 1], K[:, 3, 2], K[:, 3, 3] = (
+        r21 - r12,
+        r02 - r20,
+        r10 - r01,
+        r00 + r11 + r22,
+    )
+    K /= 3.0
+    w, V = np.linalg.eigh(K)
+    q = V[np.arange(len(R)), :, np.argmax(w, axis=1)]  # K's rows are x, y, z, w
+    return np.where(q[:, 3:] < 0.0, -q, q)
+
+
 def task_points(cycle: WorkCycle) -> np.ndarray:
     """The distinct ends of a work cycle's segments, (P, m) in m."""
     ends = [p for s in cycle.segments for p in (s.start, s.end)]
@@ -341,68 +374,109 @@ class Playback:
         self._shown = {}
         self.show(vis, self.q[0])
 
-    def _place(self, target, q: np.ndarray) -> np.ndarray:
-        """Pose links and cylinders at ``q`` (n,) on ``target`` (the scene's root node of a
-        visualizer, or of an animation frame); return which cylinders are at or past a stroke
-        limit, (C,) bool."""
+    def placements(self, q: np.ndarray) -> tuple[dict[str, np.ndarray], np.ndarray]:
+        """The poses of the drawn links, linkage bars and cylinders at the configurations
+        ``q`` (k, n): their transforms (k, 4, 4) by node path below the scene's root, in the
+        order the scene first poses them, and which cylinders are at or past a stroke limit,
+        (k, C) bool. One kinematics pass serves the whole batch."""
         if self._links is None:
             raise InvalidInputError("draw the playback into a visualizer first")
-        # Pinocchio's visualizer poses the links on its viewer's nodes; an animation frame in
-        # its place records those poses as keys.
-        self._links.viewer = target
-        self._links.display(q)
-        kinematics = self.robot.kinematics(q[None])
+        # Pinocchio's visualizer poses the links on its viewer's nodes, one configuration at a
+        # time; a stand-in in its place keeps those poses.
+        poses = Poses()
+        self._links.viewer = poses
+        for qi in q:
+            self._links.display(qi)
+        placed = {path: np.array(kept) for path, kept in poses.kept.items()}
+        kinematics = self.robot.kinematics(q)
         for actuator, bar, _ in self.bars:
             a, b = actuator.bars(kinematics)[bar]
-            target[f"linkages/{actuator.name}/{bar}"].set_transform(_between(a, b)[0])
-        limited = []
-        for cylinder in self.cylinders:
+            placed[f"linkages/{actuator.name}/{bar}"] = _between(a, b)
+        limited = np.empty((len(q), len(self.cylinders)), dtype=bool)
+        for column, cylinder in enumerate(self.cylinders):
             base, rod = cylinder.actuator.ends(kinematics)
             for part, pose in zip(PARTS, cylinder.poses(base, rod)):
-                target[f"cylinders/{cylinder.name}/{part}"].set_transform(pose[0])
-            limited.append(cylinder.at_limit(np.linalg.norm(rod - base, axis=1))[0])
-        return np.array(limited, dtype=bool)
+                placed[f"cylinders/{cylinder.name}/{part}"] = pose
+            limited[:, column] = cylinder.at_limit(np.linalg.norm(rod - base, axis=1))
+        return placed, limited
 
     def show(self, vis, q: np.ndarray) -> None:
         """Pose the drawn scene at configuration ``q`` (n,) in the visualizer ``vis``, turning
         each cylinder red while it is at or past a stroke limit."""
-        limited = self._place(vis[ROOT], q)
-        for cylinder, red in zip(self.cylinders, limited):
+        placed, limited = self.placements(q[None])
+        root = vis[ROOT]
+        for path, poses in placed.items():
+            root[path].set_transform(poses[0])
+        for cylinder, red in zip(self.cylinders, limited[0]):
             if self._shown.get(cylinder.name) == red:
                 continue  # a server keeps every property sent, so send only changes
             self._shown[cylinder.name] = bool(red)
             for part in PARTS:
                 colour = _rgb(COLOURS["limit" if red else part])
-                vis[ROOT][f"cylinders/{cylinder.name}/{part}"].set_property("color", [*colour, 1])
+                root[f"cylinders/{cylinder.name}/{part}"].set_property("color", [*colour, 1])
 
     def animation(self, vis):
-        """The motion as a `meshcat.animation.Animation` for ``vis``, one key per shown
-        sample at its time t (s)."""
-        animation = _meshcat().animation.Animation(default_framerate=FRAME_RATE)
-        for i in self.samples:
-            with animation.at_frame(vis, self.t[i] * FRAME_RATE) as frame:
-                limited = self._place(frame[ROOT], self.q[i])
-                for cylinder, red in zip(self.cylinders, limited):
-                    for part in PARTS:
-                        node = frame[f"{ROOT}/cylinders/{cylinder.name}/{part}/<object>"]
-                        colour = _rgb(COLOURS["limit" if red else part])
-                        node.set_property("material.color", "color", colour)
-        return animation
+        """The motion as a `meshcat.animation.Animation` for ``vis``, keyed at every shown
+        sample's time t (s), frame t·`FRAME_RATE`: each drawn node's position and quaternion,
+        and each cylinder part's colour."""
+        animation = _meshcat().animation
+        frames = (self.t[self.samples] * FRAME_RATE).tolist()
+        placed, limited = self.placements(self.q[self.samples])
+        root = vis[ROOT]
+
+        def clip(path: str, *tracks: tuple[str, str, list]) -> tuple[Any, Any]:
+            """The node ``path``'s clip of tracks (property, type, values at the frames)."""
+            keyed = {
+                name: animation.AnimationTrack(name, kind, frames, v) for name, kind, v in tracks
+            }
+            return root[path].path, animation.AnimationClip(keyed, fps=FRAME_RATE)
+
+        clips = [
+            clip(
+                path,
+                ("position", "vector3", poses[:, :3, 3].tolist()),
+                ("quaternion", "quaternion", quaternions(poses).tolist()),
+            )
+            for path, poses in placed.items()
+        ]
+        for column, cylinder in enumerate(self.cylinders):
+            for part in PARTS:
+                red = limited[:, column, None]
+                colours = np.where(red, _rgb(COLOURS["limit"]), _rgb(COLOURS[part])).tolist()
+                path = f"cylinders/{cylinder.name}/{part}/<object>"
+                clips.append(clip(path, ("material.color", "color", colours)))
+        return animation.Animation(dict(clips), default_framerate=FRAME_RATE)
+
+
+class Poses:
+    """A stand-in for a meshcat node that keeps the transforms set on the nodes below it:
+    ``kept`` maps each node's path (below this one) to its transforms (4, 4), in order."""
+
+    def __init__(self, kept: dict[str, list[np.ndarray]] | None = None, path: str = "") -> None:
+        self.kept = {} if kept is None else kept
+        self.path = path
+
+    def __getitem__(self, name: str) -> Poses:
+        return Poses(self.kept, f"{self.path}/{name}" if self.path else name)
+
+    def set_transform(self, matrix: np.ndarray) -> None:
+        self.kept.setdefault(self.path, []).append(matrix)
 
 
 class Recording:
     """A stand-in for meshcat's viewer window that keeps every command instead of sending it
     to a server; ``get_scene`` (behind `meshcat.Visualizer.static_html`) writes them into a
-    self-contained page. ``commands`` holds each command msgpack-encoded, in order."""
+    self-contained page. ``commands`` holds each command msgpack-encoded, in order: the bytes
+    meshcat's own encoder (umsgpack, pure Python) gives, by msgpack's compiled one."""
 
     def __init__(self, title: str = "redundancy playback") -> None:
         self.title = title
         self.commands: list[bytes] = []
 
     def send(self, command) -> None:
-        import umsgpack
+        import msgpack
 
-        self.commands.append(umsgpack.packb(command.lower()))
+        self.commands.append(msgpack.packb(command.lower(), default=_extension))
 
     def get_scene(self) -> str:
         viewer = Path(_meshcat().__file__).parent / "viewer" / "dist" / "main.min.js"
@@ -412,6 +486,16 @@ class Recording:
         return PAGE.format(
             title=html.escape(self.title), viewer=viewer.read_text(), commands=commands
         )
+
+
+def _extension(value):
+    """meshcat's typed arrays (umsgpack extension values) as msgpack's extension values."""
+    import msgpack
+    import umsgpack
+
+    if isinstance(value, umsgpack.Ext):
+        return msgpack.ExtType(value.type, value.data)
+    raise TypeError(f"cannot encode {type(value).__name__} for meshcat")
 
 
 PAGE = """<!DOCTYPE html>
@@ -474,10 +558,10 @@ def write_playbacks(study: Study, folder: Path) -> list[Path]:
     strategy's whole cycle (`write_cycle_playbacks`); return their paths."""
     points = task_points(study.cycle)
     paths = []
-    for name, runs in _best_motions(study).items():
-        for segment, motion in runs:
+    for name in study.searches:
+        for segment, run in study.improved_runs(name).items():
             path = folder / f"playback_{name}_{segment}.html"
-            paths.append(export_html(motion, path, points))
+            paths.append(export_html(run.trajectory, path, points))
     if study.cycle_study is not None:
         paths += write_cycle_playbacks(study.cycle_study, folder)
     return paths
@@ -491,15 +575,6 @@ def write_cycle_playbacks(study: CycleStudy, folder: Path) -> list[Path]:
         export_html(motion.whole(0), folder / f"playback_cycle_{name}.html", points)
         for name, motion in study.firsts.items()
     ]
-
-
-def _best_motions(study: Study) -> dict[str, list[tuple[str, Trajectory]]]:
-    """Each objective's improved motions, by segment, as the study ran them."""
-    found: dict[str, list[tuple[str, Trajectory]]] = {}
-    for name in study.searches:
-        strategy = f"improved, {name} objective"
-        found[name] = [(r.segment, r.trajectory) for r in study.runs if r.strategy == strategy]
-    return found
 
 
 @contextlib.contextmanager

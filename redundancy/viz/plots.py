@@ -7,7 +7,6 @@ Figures read results; they compute nothing of their own.
 
 from __future__ import annotations
 
-from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +18,8 @@ from redundancy.planning.starts import SearchResult
 from redundancy.study.cycles import CycleStudy
 from redundancy.study.output import write_atomically
 from redundancy.study.study import Study
+
+DPI = 110  # dots per inch of the written figures
 
 
 def pyplot():
@@ -192,7 +193,7 @@ def write_figures(study: Study, folder: Path, segment: str | None = None) -> lis
         )
         search = study.search(name, segment)
         if search.best is not None:
-            best = search.motion()
+            best = study.improved_runs(name)[segment].trajectory  # as the study ran it
             start = _start(study.held, search.best.values)
             figures[f"fig{number}b_best_{name}_{segment}.png"] = motion_figure(
                 best, f"min {objective.label}, segment {segment}, optimal start {start}"
@@ -376,11 +377,14 @@ def write_cycle_figures(study: CycleStudy, folder: Path) -> list[Path]:
 
 
 def _write(figures: dict, folder: Path) -> list[Path]:
+    """Write each figure as a PNG at `DPI` through its Agg canvas: `savefig` would draw it once
+    more, to redo the layout its `tight_layout` already fixed; the files are the same."""
     plt = pyplot()
     paths = []
     for filename, figure in figures.items():
         path = folder / filename
-        write_atomically(path, partial(figure.savefig, dpi=110, format="png"))
+        figure.set_dpi(DPI)
+        write_atomically(path, figure.canvas.print_png)
         plt.close(figure)
         paths.append(path)
     return paths
