@@ -10,9 +10,16 @@ import pytest
 for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):
     os.environ.setdefault(_name, "1")
 
+from tqdm import tqdm  # noqa: E402
+
 from redundancy import load_robot  # noqa: E402  (numpy reads the thread count on import)
 from redundancy.planning.tasks import WorkCycle  # noqa: E402
 from redundancy.study.study import run_study  # noqa: E402
+
+# No progress-bar monitor thread outlives a test: a process running other threads computes a
+# `Background` computation in place instead of forking, and tests/test_background.py checks the
+# fork itself
+tqdm.monitor_interval = 0
 
 # -- on every core: scripts/test.sh runs the suite under pytest-xdist, `--dist loadgroup` ------
 #
