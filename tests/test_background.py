@@ -2,12 +2,14 @@
 comes back, and no process outlives what started it, whether it is collected, abandoned,
 killed, or the study that started it is interrupted."""
 
+import multiprocessing
 import os
 import signal
 import subprocess
 import sys
 import threading
 import time
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import pytest
@@ -33,10 +35,25 @@ def _note_pid_then_sleep(path: Path) -> None:
     time.sleep(60)
 
 
-def test_the_value_is_computed_in_another_process():
+def _in_a_new_interpreter(case, *args) -> None:
+    """``case(*args)`` run in a new interpreter, whose only thread is its main one. A test
+    process may run threads that earlier tests left (a Dask client's), and beside them a
+    `Background` computes in place: the fork these tests check would not happen, and a child's
+    ``os._exit`` would end the test process itself."""
+    spawn = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(1, mp_context=spawn) as interpreter:
+        assert interpreter.submit(threading.active_count).result() == 1
+        interpreter.submit(case, *args).result()
+
+
+def _computed_in_another_process():
     with Background(os.getpid) as pending:
         assert pending.result() != os.getpid()
         assert pending.result() == pending.result()  # collected once, kept
+
+
+def test_the_value_is_computed_in_another_process():
+    _in_a_new_interpreter(_computed_in_another_process)
 
 
 def test_beside_other_threads_the_value_is_computed_here():
@@ -55,27 +72,38 @@ def test_beside_other_threads_the_value_is_computed_here():
         other.join()
 
 
-def test_an_error_in_the_child_is_raised_here_as_itself():
+def _error_raised_as_itself():
     with Background(_refuse, 3.5) as pending, pytest.raises(InvalidInputError) as raised:
         pending.result()
     assert str(raised.value) == "value 3.5 is refused"
 
 
-def test_a_child_that_dies_without_an_answer_is_reported():
+def test_an_error_in_the_child_is_raised_here_as_itself():
+    _in_a_new_interpreter(_error_raised_as_itself)
+
+
+def _death_reported():
     with Background(os._exit, 3) as pending, pytest.raises(RuntimeError) as raised:
         pending.result()
     assert str(raised.value) == "the background computation ended without a result (exit code 3)"
 
 
-def test_leaving_the_block_uncollected_stops_the_child(tmp_path):
-    note = tmp_path / "pid"
+def test_a_child_that_dies_without_an_answer_is_reported():
+    _in_a_new_interpreter(_death_reported)
+
+
+def _uncollected_child_stopped(note: Path):
     start = time.monotonic()
     with Background(_note_pid_then_sleep, note):
         while not note.exists() or not note.read_text():
             time.sleep(0.01)
         pid = int(note.read_text())
-        assert not _gone(pid)
+        assert pid != os.getpid() and not _gone(pid)
     assert _gone(pid) and time.monotonic() - start < 10  # stopped, not waited for
+
+
+def test_leaving_the_block_uncollected_stops_the_child(tmp_path):
+    _in_a_new_interpreter(_uncollected_child_stopped, tmp_path / "pid")
 
 
 def _children(pid: int) -> list[int]:
