@@ -85,6 +85,25 @@ def test_improved_start_beats_the_default_start_on_every_segment(study):
         assert improved.peak_velocity_norm[0] <= plain.peak_velocity_norm[0]
 
 
+def test_the_report_gives_each_best_start_its_motions_peak_and_gap_to_the_bound(study):
+    """The best start's peak is its improved run's, the motion on the 10 ms grid; the bound is
+    never above it (the gap ≥ 0, up to the bound solver's tolerance)."""
+    gaps = 0
+    for entry in study.report()["studies"]:
+        name, key = entry["objective"], {"velocity": "peak_velocity_norm", "energy": "peak_kinetic"}
+        runs = study.improved_runs(name)
+        for segment in entry["segments"]:
+            if segment["best"] is None:
+                continue
+            run = runs[segment["name"]].summary()
+            assert segment["best"]["peak"] == pytest.approx(run[key[name]], rel=1e-12)
+            if segment["bound"] is not None:
+                gap = 100 * (segment["best"]["peak"] / segment["bound"]["peak"] - 1)
+                assert segment["gap_percent"] == pytest.approx(gap, rel=1e-12) and gap > -1e-4
+                gaps += 1
+    assert gaps == 4  # both objectives on 1-2, velocity on 2-3 and 3-1 (energy has no start)
+
+
 def test_a_segment_without_a_feasible_start_is_reported_not_raised(study):
     search = study.search("energy", "2-3")
     assert search.best is None and search.feasible_range is None

@@ -598,12 +598,12 @@ def plan_cycle(
     if not speed > 0:
         raise InvalidInputError(f"the self-motion's speed must be > 0; got {speed}")
     search = improved_cycle_start(robot, cycle, objective, held, samples, checked, method, circuit)
-    motion = search.motion() if search.best is not None else None
+    motion = search.best_motion if search.best is not None else None
     searches = tuple(
         improved_start(robot, s, objective, held, samples, checked, method, circuit=circuit)
         for s in cycle.segments
     )
-    motions = tuple(s.motion() if s.best is not None else None for s in searches)
+    motions = tuple(s.best_motion if s.best is not None else None for s in searches)
     pairs = list(range(len(searches) - 1)) + ([len(searches) - 1] if cycle.closed else [])
     corners = tuple(
         _corner(

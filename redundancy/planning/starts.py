@@ -27,12 +27,17 @@ Methods:
 
 All samples of a round are integrated as one batch, adaptively, sampled sparsely (see
 `redundancy.planning.integrate`); `SearchResult.motion` integrates one start on the grid.
+The samples rank the starts; the figure a search reports for its best start,
+`SearchResult.best_peak`, is taken over that start's motion on the grid: a motion's peak can
+fall between its sparse samples (1 % above them on the slewing crane's lift-swing).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Any
 
 import numpy as np
 
@@ -84,11 +89,14 @@ class Samples:
     """What a search's samples say, for any search that holds ``held`` and has ``samples`` and
     ``rows`` (a sample's row among the integrated motions, −1 when unreachable): along one
     segment (`SearchResult`) or over a whole work cycle
-    (`redundancy.planning.cycles.CycleSearch`)."""
+    (`redundancy.planning.cycles.CycleSearch`), of ``objective``, whose ``motion(sample)``
+    integrates a sample's motion on the grid."""
 
     held: tuple[str, ...]
     samples: tuple[Sample, ...]
     rows: np.ndarray
+    objective: Objective
+    motion: Callable[..., Any]
 
     @property
     def values(self) -> np.ndarray:
@@ -128,6 +136,20 @@ class Samples:
         """The feasible sample with the lowest objective (step v), or None."""
         feasible = self.feasible
         return min(feasible, key=lambda s: s.peak) if feasible else None  # type: ignore[arg-type,return-value]
+
+    @cached_property
+    def best_motion(self) -> Any:
+        """The best start's motion on the `TIME_STEP` grid (the search's ``motion()``: a
+        `Trajectory` or a `redundancy.planning.cycles.CycleMotion`), integrated once."""
+        return self.motion()
+
+    @property
+    def best_peak(self) -> float | None:
+        """The objective (peak or integral) over `best_motion`, or None without a best start:
+        the best start's figure, where ``best.peak`` is the search's estimate at its samples."""
+        if self.best is None:
+            return None
+        return float(self.best_motion.score(self.objective)[0])
 
     @property
     def closest_violation(self) -> Violation | None:

@@ -129,7 +129,7 @@ class CycleStudy:
                 else (box[0] if len(box) == 1 else box).tolist(),
                 "best": None
                 if best is None
-                else {"value": scalar_or_list(best.values), "peak": best.peak},
+                else {"value": scalar_or_list(best.values), "peak": search.best_peak},
                 "closest_violation": None if closest is None else str(closest),
                 "simulations": search.simulations,
             },
@@ -139,7 +139,7 @@ class CycleStudy:
                         "name": s.segment.name,
                         "best": None
                         if s.best is None
-                        else {"value": scalar_or_list(s.best.values), "peak": s.best.peak},
+                        else {"value": scalar_or_list(s.best.values), "peak": s.best_peak},
                     }
                     for s in plan.segments
                 ],
@@ -191,18 +191,14 @@ class CycleStudy:
             span = ", ".join(f"[{lo:.4g}, {hi:.4g}]" for lo, hi in box)  # type: ignore[union-attr]
             lines.append(
                 f"whole-cycle improved start: {_values(held, search.best.values)} "
-                f"(feasible {span}), peak {label} {search.best.peak:.5g} {unit} "
+                f"(feasible {span}), peak {label} {search.best_peak:.5g} {unit} "
                 f"({search.simulations} motions)"
             )
         starts = [
             "none" if s.best is None else _values(held, s.best.values, names=False)
             for s in plan.segments
         ]
-        peaks = [
-            float(s.best.peak)
-            for s in plan.segments
-            if s.best is not None and s.best.peak is not None
-        ]
+        peaks = [s.best_peak for s in plan.segments if s.best_peak is not None]
         lines.append(
             f"per-segment plan: best starts {' / '.join(starts)}"
             + (f", peak {label} {max(peaks):.5g} {unit}" if peaks else "")

@@ -131,16 +131,16 @@ def _why_none(search) -> str:
 def _bound(family, robot, segment, objective, search) -> dict:
     """The min-max bound and the improved start's gap to it, where both exist (one held
     actuator, a peak objective)."""
-    row: dict = {"bound_peak": None, "gap_pct": None}
-    best = search.best
-    if best is None or len(family.held) != 1 or objective.reduction != "peak":
+    row: dict = {"bound_peak": None, "motion_peak": None, "gap_pct": None}
+    if search.best is None or len(family.held) != 1 or objective.reduction != "peak":
         return row
     try:
         optimum = global_optimum(robot, segment, objective, family.held[0], search=search)
     except RedundancyError:
         return row
-    row["bound_peak"] = optimum.bound
-    row["gap_pct"] = 100 * (best.peak - optimum.bound) / optimum.bound
+    peak = search.best_peak
+    row.update(bound_peak=optimum.bound, motion_peak=peak)
+    row["gap_pct"] = 100 * (peak - optimum.bound) / optimum.bound
     return row
 
 
@@ -149,7 +149,7 @@ def _energy(search) -> dict:
     (L/min) of the best start's motion."""
     if search.best is None:
         return {"ls_energy_kj": None, "cp_energy_kj": None, "peak_flow_lpm": None}
-    motion = search.motion()
+    motion = search.best_motion
     circuit = motion.robot.circuit()
     return {
         "ls_energy_kj": float(motion.energy(circuit.load_sensing)[0] / KILOJOULE),
@@ -215,7 +215,7 @@ def columns(family: MapFamily, task_axes: str) -> dict[str, str]:
     typed |= {f"default_{name}": "float64" for name in family.held}
     typed |= {"default_peak": "float64", "default_feasible": "boolean", "gain_pct": "float64"}
     if family.bound:
-        typed |= {"bound_peak": "float64", "gap_pct": "float64"}
+        typed |= {"bound_peak": "float64", "motion_peak": "float64", "gap_pct": "float64"}
     if family.energy:
         typed |= {"ls_energy_kj": "float64", "cp_energy_kj": "float64", "peak_flow_lpm": "float64"}
     typed["reason"] = "string"

@@ -111,10 +111,10 @@ class Study:
 
     def gap(self, objective: str, segment: str) -> float | None:
         """(improved peak − bound) / bound, in per cent, or None."""
-        best, bound = self.search(objective, segment).best, self.bound(objective, segment)
-        if best is None or bound is None:
+        search, bound = self.search(objective, segment), self.bound(objective, segment)
+        if search.best is None or bound is None:
             return None
-        return 100 * (best.peak - bound.bound) / bound.bound  # type: ignore[operator]
+        return 100 * (search.best_peak - bound.bound) / bound.bound  # type: ignore[operator]
 
     def report(self) -> dict:
         """The study as JSON-ready data."""
@@ -191,7 +191,7 @@ class Study:
             "feasible_range": None if box is None else (box[0] if len(box) == 1 else box).tolist(),
             "best": None
             if best is None
-            else {"value": scalar_or_list(best.values), "peak": best.peak},
+            else {"value": scalar_or_list(best.values), "peak": search.best_peak},
             "closest_violation": None if closest is None else str(closest),
             "bound": None
             if bound is None
@@ -254,7 +254,7 @@ class Study:
                     continue
                 failure = (self.bound_failures or {}).get(f"{name}/{segment}")
                 lines.append(
-                    f"{segment:<{names}}{name:<10}{search.best.peak:>12.5g}"
+                    f"{segment:<{names}}{name:<10}{search.best_peak:>12.5g}"
                     + ("" if bound is None else f"{bound.bound:>12.5g}{gap:>8.2f}")
                     + ("" if failure is None else f"{'-':>12}{'-':>8}  no bound: {failure}")
                 )
@@ -398,7 +398,7 @@ def run_study(
                             segment.name,
                             improved_strategy(objective.name),
                             best.values,
-                            search.motion(best),
+                            search.best_motion,
                         )
                     )
                     if bound and len(held) == 1 and objective.reduction == "peak":
