@@ -21,9 +21,10 @@ Columns: ``problem``, ``segment``, ``start_<axis>``, ``end_<axis>``, the design 
 grid varies (``payload`` kg, ``speed`` m/s, ``attachment`` m, ``bore`` m), ``objective``,
 ``unit``, ``reachable``, ``feasible``, per held actuator ``low_<a>``/``high_<a>`` (the feasible
 range) and ``best_<a>``, ``peak``, ``default_<a>``, ``default_peak``, ``default_feasible``,
-``gain_pct``; with the family's ``bound``, ``bound_peak`` and ``gap_pct``; with ``energy``, the
-best motion's ``ls_energy_kj``, ``cp_energy_kj`` and ``peak_flow_lpm``; and ``reason``, why a
-problem has no feasible start.
+``gain_pct``; with the family's ``bound``, ``bound_peak``, ``motion_peak`` (the best start's
+motion's peak on the 10 ms grid, where ``peak`` is the search's estimate at its samples) and
+``gap_pct`` against it; with ``energy``, the best motion's ``ls_energy_kj``, ``cp_energy_kj``
+and ``peak_flow_lpm``; and ``reason``, why a problem has no feasible start.
 """
 
 from __future__ import annotations
