@@ -1,8 +1,9 @@
 """What a design map costs, in one run: problems per second per core on the crane's paper-like
 segments, solved in-process and on a local Dask cluster of 1 and 2 workers (in chunks of one
 segment, and with 2 workers also in one chunk each); the scaling efficiency from 1 to 2
-workers; Dask's cost per chunk; and from these an estimate for 10⁶ problems on a 64-core
-cluster.
+workers, beside the machine's own (two processes solving the family at once, without Dask:
+what the cores give when both work); Dask's cost per chunk; and from these an estimate for 10⁶
+problems on a 64-core cluster.
 
 A problem is one segment with one objective (one row of the map). The family: every 2.5 m
 horizontal segment (the length of the paper's 1-2) starting on a 6 × 5 grid over the crane's
@@ -11,6 +12,7 @@ workspace, with the velocity and the energy objective: 60 problems.
 Run: python benchmarks/maps.py
 """
 
+import multiprocessing
 import tempfile
 import time
 from pathlib import Path
@@ -42,6 +44,27 @@ def timed(function) -> float:
     return time.perf_counter() - start
 
 
+def solve_beside(family, ready, seconds) -> None:
+    """In one of two processes: once warm and the other one too, solve ``family`` in one chunk
+    and put the seconds it took."""
+    solve_chunk(family, 0)
+    ready.wait()
+    seconds.put(timed(lambda: solve_chunk(family, 0)))
+
+
+def both_at_once(family) -> float:
+    """Seconds for two processes to solve ``family`` each, at once, without Dask."""
+    context = multiprocessing.get_context("spawn")
+    ready, seconds = context.Barrier(2), context.Queue()
+    pair = [context.Process(target=solve_beside, args=(family, ready, seconds)) for _ in "ab"]
+    for process in pair:
+        process.start()
+    wall = max(seconds.get(timeout=600) for _ in pair)
+    for process in pair:
+        process.join()
+    return wall
+
+
 def main() -> None:
     with tempfile.TemporaryDirectory() as folder:
         whole = family(Path(folder), 1000)
@@ -70,8 +93,12 @@ def main() -> None:
                     f"Dask, 2 workers, one chunk each ({halves.chunks} chunks): {wall:.2f} s, "
                     f"{rows / wall / 2:.1f} problems/s per core"
                 )
+        both = both_at_once(whole)
         efficiency = walls[1] / (2 * walls[2])
-        print(f"scaling efficiency 1 → 2 workers: {100 * efficiency:.0f} %")
+        print(
+            f"scaling efficiency 1 → 2 workers: {100 * efficiency:.0f} % (the machine's own, "
+            f"two processes solving at once without Dask: {100 * serial / both:.0f} %)"
+        )
         per_chunk = (walls[1] - serial) / singles.chunks
         print(f"Dask's cost per chunk (1 worker, against in-process): {1e3 * per_chunk:.1f} ms")
         problems, cores, chunk = 1e6, 64, 64
