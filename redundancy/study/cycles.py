@@ -198,7 +198,7 @@ class CycleStudy:
             "none" if s.best is None else _values(held, s.best.values, names=False)
             for s in plan.segments
         ]
-        peaks = [s.best_peak for s in plan.segments if s.best_peak is not None]
+        peaks = [peak for s in plan.segments if (peak := s.best_peak) is not None]
         lines.append(
             f"per-segment plan: best starts {' / '.join(starts)}"
             + (f", peak {label} {max(peaks):.5g} {unit}" if peaks else "")

@@ -97,12 +97,6 @@ class Study:
     def bound(self, objective: str, segment: str) -> GlobalOptimum | None:
         return self.bounds[objective][self._segment(segment)]
 
-    def improved_runs(self, objective: str) -> dict[str, StrategyRun]:
-        """The objective's improved runs (from its search's best start) by segment, where a
-        start is feasible, as the study ran them."""
-        strategy = improved_strategy(objective)
-        return {r.segment: r for r in self.runs if r.strategy == strategy}
-
     def _segment(self, name: str) -> int:
         names = [s.name for s in self.cycle.segments]
         if name not in names:
@@ -111,10 +105,10 @@ class Study:
 
     def gap(self, objective: str, segment: str) -> float | None:
         """(improved peak − bound) / bound, in per cent, or None."""
-        search, bound = self.search(objective, segment), self.bound(objective, segment)
-        if search.best is None or bound is None:
+        peak, bound = self.search(objective, segment).best_peak, self.bound(objective, segment)
+        if peak is None or bound is None:
             return None
-        return 100 * (search.best_peak - bound.bound) / bound.bound  # type: ignore[operator]
+        return 100 * (peak - bound.bound) / bound.bound
 
     def report(self) -> dict:
         """The study as JSON-ready data."""
@@ -307,11 +301,6 @@ class Study:
         return max(8, *(len(s.name) + 2 for s in self.cycle.segments))
 
 
-def improved_strategy(objective: str) -> str:
-    """The strategy name of an objective's runs from its improved start."""
-    return f"improved, {objective} objective"
-
-
 def run_study(
     robot: Robot,
     cycle: WorkCycle,
@@ -396,7 +385,7 @@ def run_study(
                     runs.append(
                         StrategyRun(
                             segment.name,
-                            improved_strategy(objective.name),
+                            f"improved, {objective.name} objective",
                             best.values,
                             search.best_motion,
                         )

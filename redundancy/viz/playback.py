@@ -558,10 +558,11 @@ def write_playbacks(study: Study, folder: Path) -> list[Path]:
     strategy's whole cycle (`write_cycle_playbacks`); return their paths."""
     points = task_points(study.cycle)
     paths = []
-    for name in study.searches:
-        for segment, run in study.improved_runs(name).items():
-            path = folder / f"playback_{name}_{segment}.html"
-            paths.append(export_html(run.trajectory, path, points))
+    for name, searches in study.searches.items():
+        for search in searches:
+            if search.best is not None:  # its motion as the study ran it
+                path = folder / f"playback_{name}_{search.segment.name}.html"
+                paths.append(export_html(search.best_motion, path, points))
     if study.cycle_study is not None:
         paths += write_cycle_playbacks(study.cycle_study, folder)
     return paths

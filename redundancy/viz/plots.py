@@ -193,7 +193,7 @@ def write_figures(study: Study, folder: Path, segment: str | None = None) -> lis
         )
         search = study.search(name, segment)
         if search.best is not None:
-            best = study.improved_runs(name)[segment].trajectory  # as the study ran it
+            best = search.best_motion  # as the study ran it
             start = _start(study.held, search.best.values)
             figures[f"fig{number}b_best_{name}_{segment}.png"] = motion_figure(
                 best, f"min {objective.label}, segment {segment}, optimal start {start}"
