@@ -86,7 +86,7 @@ def newton(
         active, residual, jacobian = active[moving], residual[moving], jacobian[moving]
         if not active.size:
             break
-        jacobian_t = np.swapaxes(jacobian, 1, 2)
+        jacobian_t = jacobian.mT
         step = np.linalg.solve(jacobian_t @ jacobian + eye, jacobian_t @ residual[..., None])
         updated = q[active] - step[..., 0]
         if bounded:

@@ -374,8 +374,9 @@ class Law:
             y_dot = y_dot + self.gain * (segment.position(t) - space.y)
         x_dot = self.resolver.resolve_at(space, y_dot, t)
         q_dot = space.joint_velocities(x_dot)
-        bad |= ~np.all(np.isfinite(q_dot), axis=1)
-        q_dot[bad], x_dot[bad] = 0.0, 0.0
+        bad |= ~np.isfinite(q_dot).all(axis=1)
+        if bad.any():
+            q_dot[bad], x_dot[bad] = 0.0, 0.0
         measure = None if self.objective is None else self.objective.measure(space, x_dot)
         return Rates(q_dot, x_dot, space.x, space.y, measure, bad)
 

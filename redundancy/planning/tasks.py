@@ -115,7 +115,7 @@ class Shape(ABC):
     def _angle_rate(self, s: np.ndarray) -> np.ndarray:
         p = len(self.start) - self.angles
         rate = (self.end[p:] - self.start[p:]) / self.length
-        return np.broadcast_to(rate, (*np.shape(s), self.angles))
+        return np.zeros((*np.shape(s), self.angles)) + rate
 
 
 def _position(y: np.ndarray, angles: int) -> np.ndarray:
@@ -146,9 +146,12 @@ class Line(Shape):
         return self.start + fraction * (self.end - self.start)
 
     def tangent(self, s):
-        return np.broadcast_to(
-            (self.end - self.start) / self.length, (*np.shape(s), len(self.start))
-        )
+        return np.zeros((*np.shape(s), len(self.start))) + self.direction
+
+    @cached_property
+    def direction(self) -> np.ndarray:
+        """(Q − P) / |Q − P|, the constant tangent (m,)."""
+        return (self.end - self.start) / self.length
 
 
 @dataclass(frozen=True)

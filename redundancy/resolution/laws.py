@@ -83,7 +83,7 @@ class Resolver:
         """ẋ (k, n) for task velocities ẏ (k, m) at the states of ``space``:
         ẋ = J_W⁺ (ẏ − J_H z) + z, the module docstring's law."""
         J_H = space.J_H
-        J_H_T = np.swapaxes(J_H, 1, 2)
+        J_H_T = J_H.mT
         W = self.weight(space)
         W_inv_J_T = J_H_T if W is None else solve(W, J_H_T)
         z = self.null_space(space)

@@ -44,12 +44,12 @@ def singular(A: np.ndarray, tolerance: float = SINGULAR_TOLERANCE) -> np.ndarray
     """
     n = A.shape[-1]
     with np.errstate(all="ignore"):  # overflow and NaN fall through to the singular values
-        settled = np.linalg.det(A) ** 2 > tolerance**2 * (A * A).sum(axis=(1, 2)) ** n
-    found = np.zeros(len(A), dtype=bool)
+        settled = np.linalg.det(A) ** 2 > tolerance**2 * np.einsum("kij,kij->k", A, A) ** n
     if settled.all():
-        return found
+        return ~settled
+    found = np.zeros(len(A), dtype=bool)
     rows = np.flatnonzero(~settled)
-    finite = np.all(np.isfinite(A[rows]), axis=(1, 2))
+    finite = np.isfinite(A[rows]).all(axis=(1, 2))
     found[rows] = ~finite
     found[rows[finite]] = invertibility(A[rows[finite]]) < tolerance
     return found
@@ -104,7 +104,7 @@ class ActuatorSpace:
     @cached_property
     def J_H(self) -> np.ndarray:
         """J_H = J A⁻¹ (Eqs. 16, 25), (k, m, n)."""
-        return np.swapaxes(solve(np.swapaxes(self.A, 1, 2), np.swapaxes(self.J, 1, 2)), 1, 2)
+        return solve(self.A.mT, self.J.mT).mT
 
     @cached_property
     def M(self) -> np.ndarray:
@@ -114,10 +114,9 @@ class ActuatorSpace:
     @cached_property
     def M_H(self) -> np.ndarray:
         """M_H = A⁻ᵀ M A⁻¹ (Eq. 22), symmetric positive definite."""
-        A_T = np.swapaxes(self.A, 1, 2)
-        half = solve(A_T, self.M)  # A⁻ᵀ M
-        M_H = solve(A_T, np.swapaxes(half, 1, 2))  # A⁻ᵀ (A⁻ᵀ M)ᵀ = A⁻ᵀ M A⁻¹
-        return (M_H + np.swapaxes(M_H, 1, 2)) / 2
+        A_T = self.A.mT
+        M_H = solve(A_T, solve(A_T, self.M).mT)  # A⁻ᵀ (A⁻ᵀ M)ᵀ = A⁻ᵀ M A⁻¹
+        return (M_H + M_H.mT) / 2
 
     @cached_property
     def N_H(self) -> np.ndarray:
@@ -126,7 +125,7 @@ class ActuatorSpace:
         N = self.robot.nonlinear(self.q, v)
         a_dot_v = (self.A_dot @ v[..., None])[..., 0]
         return (
-            solve(np.swapaxes(self.A, 1, 2), N[..., None])[..., 0]
+            solve(self.A.mT, N[..., None])[..., 0]
             - (self.M_H @ a_dot_v[..., None])[..., 0]
         )
 
@@ -156,7 +155,7 @@ def regularised(space: ActuatorSpace) -> tuple[ActuatorSpace, np.ndarray]:
     """``space`` with A replaced by I where it is singular or the state is not finite, so that
     every derived quantity is defined on the whole batch, and where that was, (k,) bool. What is
     derived there is meaningless: callers freeze or exclude those states."""
-    bad = singular(space.A) | ~np.all(np.isfinite(space.q), axis=1)
+    bad = singular(space.A) | ~np.isfinite(space.q).all(axis=1)
     if bad.any():
         eye = np.eye(space.A.shape[-1])
         space = replace(space, A=np.where(bad[:, None, None], eye, space.A))
