@@ -53,15 +53,18 @@ METHODS = ("adaptive", "rk4")
 # step, whose rates are the next step's first stage), the error weights (5th − 4th order) and
 # the dense output: the weights at θ of a step are P · (θ, θ², θ³, θ⁴) (Shampine, 1986).
 NODES = (1 / 5, 3 / 10, 4 / 5, 8 / 9, 1.0, 1.0)
-STAGES = (
-    (1 / 5,),
-    (3 / 40, 9 / 40),
-    (44 / 45, -56 / 15, 32 / 9),
-    (19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729),
-    (9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656),
-    (35 / 384, 0.0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84),
+STAGES = tuple(
+    np.array(row)
+    for row in (
+        (1 / 5,),
+        (3 / 40, 9 / 40),
+        (44 / 45, -56 / 15, 32 / 9),
+        (19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729),
+        (9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656),
+        (35 / 384, 0.0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84),
+    )
 )
-ERROR = (71 / 57600, 0.0, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40)
+ERROR = np.array([71 / 57600, 0, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40])
 DENSE = np.array(
     [
         [1, -8048581381 / 2820520608, 8663915743 / 2820520608, -12715105075 / 11282082432],
@@ -485,8 +488,10 @@ def _runge_kutta(law: Law, starts: np.ndarray, t: np.ndarray):
     return times, q, x, x_dot, y, measure, failed.copy(), np.zeros(k, dtype=bool)
 
 
-def _combine(weights, stages):
-    return sum(w * stage for w, stage in zip(weights, stages) if w)
+def _combine(weights: np.ndarray, slopes: np.ndarray) -> np.ndarray:
+    """Σ_s w_s K_s (k, n) of the first len(w) stage slopes K (S, k, n): one product."""
+    count = len(weights)
+    return (weights @ slopes[:count].reshape(count, -1)).reshape(slopes.shape[1:])
 
 
 def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
@@ -508,17 +513,18 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
         if not rows.size:
             break
         step = np.minimum(h[rows], duration - t[rows])[:, None]
-        stages = [f[rows]]
-        for node, weights in zip(NODES, STAGES):
-            end = law(t[rows] + node * step[:, 0], q[rows] + step * _combine(weights, stages))
-            stages.append(end.q_dot)
+        slopes = np.empty((len(STAGES) + 1, *q[rows].shape))
+        slopes[0] = f[rows]
+        for stage, (node, weights) in enumerate(zip(NODES, STAGES), 1):
+            end = law(t[rows] + node * step[:, 0], q[rows] + step * _combine(weights, slopes))
+            slopes[stage] = end.q_dot
             failed[rows[end.bad]] = True
-        q_new = q[rows] + step * _combine(STAGES[-1], stages)
+        q_new = q[rows] + step * _combine(STAGES[-1], slopes)
         scale = tolerance * (1 + np.maximum(np.abs(q[rows]), np.abs(q_new)))
-        error = np.sqrt(np.mean((step * _combine(ERROR, stages) / scale) ** 2, axis=1))
+        error = np.sqrt(np.mean((step * _combine(ERROR, slopes) / scale) ** 2, axis=1))
         accept = (error <= 1) & ~failed[rows]
         done = rows[accept]
-        kept = [stage[accept] for stage in stages]
+        kept = slopes[:, accept]
         if sparse:
             ends = _select(end, accept)
             evaluated.append((done, t[done] + step[accept, 0], q_new[accept], ends))
@@ -527,7 +533,7 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
         else:
             pending.append(_dense(grid, t[done], step[accept, 0], q[done], kept, done))
         t[done] += step[accept, 0]
-        q[done], f[done] = q_new[accept], stages[-1][accept]
+        q[done], f[done] = q_new[accept], slopes[-1, accept]
         growth = np.clip(0.9 * np.maximum(error, 1e-10) ** -0.2, 0.2, 10.0)
         h[rows] = step[:, 0] * np.where(accept, growth, np.minimum(growth, 1.0))
         failed[rows[h[rows] < 1e-9 * duration]] = True
@@ -540,7 +546,7 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
     return _assemble(k, evaluated, failed, stopped, None if sparse else grid)
 
 
-def _dense(grid, t0, h, q0, stages, rows):
+def _dense(grid, t0, h, q0, slopes, rows):
     """The dense output at the grid times in (t0, t0 + h] of each accepted step: rows, times
     and configurations of those samples."""
     first = np.searchsorted(grid, t0, side="right")
@@ -551,7 +557,7 @@ def _dense(grid, t0, h, q0, stages, rows):
     times = grid[index]
     theta = (times - t0[owner]) / h[owner]
     weights = np.stack([theta, theta**2, theta**3, theta**4], axis=1) @ DENSE.T  # (p, 7)
-    slopes = np.stack(stages, axis=1)[owner]  # (p, 7, n)
+    slopes = slopes.transpose(1, 0, 2)[owner]  # (p, 7, n)
     q = q0[owner] + h[owner, None] * np.einsum("ps,psn->pn", weights, slopes)
     return rows[owner], times, q
 
