@@ -7,6 +7,7 @@ Figures read results; they compute nothing of their own.
 
 from __future__ import annotations
 
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +21,7 @@ from redundancy.study.output import write_atomically
 from redundancy.study.study import Study
 
 DPI = 110  # dots per inch of the written figures
+PNG_COMPRESSION = 1  # zlib level of the written figures: the fastest
 
 
 def pyplot():
@@ -378,13 +380,16 @@ def write_cycle_figures(study: CycleStudy, folder: Path) -> list[Path]:
 
 def _write(figures: dict, folder: Path) -> list[Path]:
     """Write each figure as a PNG at `DPI` through its Agg canvas: `savefig` would draw it once
-    more, to redo the layout its `tight_layout` already fixed; the files are the same."""
+    more, to redo the layout its `tight_layout` already fixed; the files are the same. At zlib's
+    fastest level (`PNG_COMPRESSION`) a figure is written in two thirds of the time PIL's
+    default level takes, into a file about a quarter larger."""
     plt = pyplot()
     paths = []
     for filename, figure in figures.items():
         path = folder / filename
         figure.set_dpi(DPI)
-        write_atomically(path, figure.canvas.print_png)
+        write = partial(figure.canvas.print_png, pil_kwargs={"compress_level": PNG_COMPRESSION})
+        write_atomically(path, write)
         plt.close(figure)
         paths.append(path)
     return paths
