@@ -124,10 +124,7 @@ class ActuatorSpace:
         v = np.zeros_like(self.q) if self.v is None else self.v
         N = self.robot.nonlinear(self.q, v)
         a_dot_v = (self.A_dot @ v[..., None])[..., 0]
-        return (
-            solve(self.A.mT, N[..., None])[..., 0]
-            - (self.M_H @ a_dot_v[..., None])[..., 0]
-        )
+        return solve(self.A.mT, N[..., None])[..., 0] - (self.M_H @ a_dot_v[..., None])[..., 0]
 
     @cached_property
     def F_H(self) -> np.ndarray:
