@@ -513,7 +513,7 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
         if not rows.size:
             break
         step = np.minimum(h[rows], duration - t[rows])[:, None]
-        slopes = np.empty((len(STAGES) + 1, *q[rows].shape))
+        slopes = np.empty((len(STAGES) + 1, len(rows), q.shape[1]))  # the stages' q̇
         slopes[0] = f[rows]
         for stage, (node, weights) in enumerate(zip(NODES, STAGES), 1):
             end = law(t[rows] + node * step[:, 0], q[rows] + step * _combine(weights, slopes))
