@@ -87,6 +87,41 @@ def test_dense_output_lies_on_the_grid_and_matches_the_law(crane, cycle):
     )
 
 
+def test_sparse_motions_on_the_grid_are_the_motions_integrated_on_the_grid(crane, cycle):
+    """A batch integrated sparsely, then sampled on the grid from its steps, equals the batch
+    integrated on the grid (same steps, same dense output), every motion of it and each one
+    selected alone; with closed-loop tracking too, whose law the steps carry: at every sample
+    J_H ẋ = ẏ_d + K (y_d − y) (Eq. 16), and q follows the fixed-step method."""
+    segment = cycle["3-1"]
+    values = np.array([[0.3], [0.6], [0.75], [0.9]])
+    starts = inverse_kinematics(crane, segment.start, ["x3"], values).q
+    for gain in (0.0, 20.0):
+        sparse = simulate(crane, VELOCITY.resolver, segment, starts, gain=gain, sparse=True)
+        grid = simulate(crane, VELOCITY.resolver, segment, starts, 0.02, gain=gain)
+        assert sparse.t.shape[1] != grid.t.shape[1]
+        for rows in (slice(None), [2], [3, 0]):
+            again = (sparse if rows == slice(None) else sparse.select(rows)).on_grid(0.02)
+            assert not again.sparse and again.allowance == 0.0
+            for name in ("t", "q", "x", "x_dot", "y"):
+                np.testing.assert_allclose(
+                    getattr(again, name), getattr(grid, name)[rows], rtol=0, atol=1e-12
+                )
+            np.testing.assert_array_equal(again.within_limits, grid.within_limits[rows])
+        t, (count, T, n) = grid.t[0], grid.q.shape
+        space = actuator_space(crane, grid.q.reshape(count * T, n))
+        wanted = segment.velocity_at(t) + gain * (segment.position(t) - grid.y)
+        np.testing.assert_allclose(
+            np.einsum("kij,kj->ki", space.J_H, grid.x_dot.reshape(count * T, n)),
+            wanted.reshape(count * T, -1),
+            atol=1e-12,
+        )
+        reference = simulate(crane, VELOCITY.resolver, segment, starts, 0.02, gain, method="rk4")
+        allowance = integrate.ALLOWANCE * integrate.TOLERANCE
+        np.testing.assert_allclose(grid.q, reference.q, rtol=0, atol=allowance)
+    with pytest.raises(InvalidInputError, match="adaptively integrated"):
+        simulate(crane, VELOCITY.resolver, segment, starts, method="rk4").on_grid()
+
+
 @pytest.mark.parametrize("name", SEGMENTS)
 def test_fast_search_and_uniform_sweep_agree(crane, cycle, searches, name):
     """Same feasible range within one sample spacing; same best peak within 0.5% of the best a

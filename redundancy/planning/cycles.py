@@ -198,7 +198,12 @@ class CycleMotion:
         return found
 
     def select(self, rows) -> CycleMotion:
+        """The motions ``rows`` (distinct indices) alone."""
         return CycleMotion(self.cycle, tuple(p.select(rows) for p in self.pieces))
+
+    def on_grid(self, time_step: float = TIME_STEP) -> CycleMotion:
+        """Every segment's motions on the grid of ``time_step`` (`Trajectory.on_grid`)."""
+        return CycleMotion(self.cycle, tuple(p.on_grid(time_step) for p in self.pieces))
 
     def whole(self, i: int = 0) -> Trajectory:
         """Motion ``i`` as one `Trajectory` over the cycle's time (its segment the cycle's
@@ -301,13 +306,16 @@ class CycleSearch(Samples):
         row = int(self.rows[self.samples.index(sample)])
         if row < 0:
             raise InvalidInputError(f"the start {sample.values} of {self.held} is unreachable")
+        motion = self.motions.select(row)
+        if not any(piece.stopped[0] for piece in motion.pieces):
+            return motion.on_grid(time_step)
         return simulate_cycle(
             self.robot,
             self.cycle,
             self.objective.resolver,
-            self.motions.start[row : row + 1],
+            motion.start,
             time_step,
-            self.motions.pieces[0].checked,
+            motion.pieces[0].checked,
             self.objective,
             circuit=self.circuit,
         )
@@ -689,22 +697,10 @@ class Repetition:
     tolerance: float = REPEAT_TOLERANCE
 
     def motion(self, number: int = 1, time_step: float = TIME_STEP) -> CycleMotion:
-        """Cycle ``number`` (1-based) integrated again on the grid of ``time_step``."""
+        """Cycle ``number`` (1-based) on the grid of ``time_step``, read from its steps."""
         if not 1 <= number <= self.cycles:
             raise InvalidInputError(f"cycle {number} is not among 1-{self.cycles}")
-        run = self.motions[number - 1]
-        return simulate_cycle(
-            self.robot,
-            self.cycle,
-            self.laws,
-            run.start,
-            time_step,
-            run.pieces[0].checked,
-            run.pieces[0].objective,
-            circuit=self.circuit,
-            gain=self.gain,
-            tolerance=self.tolerance,
-        )
+        return self.motions[number - 1].on_grid(time_step)
 
     @property
     def cycles(self) -> int:

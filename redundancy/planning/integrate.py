@@ -16,7 +16,9 @@ Two methods, one result type (`Trajectory`):
   follow the cubic Hermite interpolant through x and ẋ, so that a limit passed between samples
   still counts. Such a motion's strokes count `ALLOWANCE` × ``tolerance`` closer to their limits
   (the start itself is exact), so that a start found feasible from sparse samples is feasible
-  on the grid too.
+  on the grid too. The accepted steps are kept (`Steps`: each step's start, size and stage
+  slopes), so a motion sampled sparsely is sampled on a grid later from the same steps
+  (`Trajectory.on_grid`): one batched evaluation of the law, no integration again.
 - "rk4": the classical Runge-Kutta method on the uniform grid of ``time_step``, closed loop with
   K = `GAIN` by default (the paper's fixed-step simulation).
 
@@ -113,6 +115,7 @@ class Trajectory:
     sparse: bool = False
     allowance: float = 0.0
     circuit: bool = False
+    steps: Steps | None = field(default=None, repr=False)
 
     @classmethod
     def single(
@@ -151,7 +154,7 @@ class Trajectory:
         return len(self.q)
 
     def select(self, rows) -> Trajectory:
-        """The motions ``rows`` alone."""
+        """The motions ``rows`` (distinct indices) alone."""
         rows = np.atleast_1d(rows)
         return replace(
             self,
@@ -163,6 +166,21 @@ class Trajectory:
             failed=self.failed[rows],
             stopped=self.stopped[rows],
             measure=None if self.measure is None else self.measure[rows],
+            steps=None if self.steps is None else self.steps.select(rows, len(self)),
+        )
+
+    def on_grid(self, time_step: float = TIME_STEP) -> Trajectory:
+        """These motions sampled on the uniform grid of ``time_step`` by the dense output of the
+        steps they were integrated with, as `simulate` samples them without ``sparse``: no
+        integration again. A motion a search stopped stays where it was stopped."""
+        if self.steps is None:
+            raise InvalidInputError("only adaptively integrated motions can be sampled again")
+        grid = time_grid(self.segment, time_step)
+        t, q, x, x_dot, y, measure, _, _ = on_grid(
+            self.steps, self.q[:, 0], grid, self.failed, self.stopped
+        )
+        return replace(
+            self, t=t, q=q, x=x, x_dot=x_dot, y=y, measure=measure, sparse=False, allowance=0.0
         )
 
     @cached_property
@@ -428,13 +446,16 @@ def simulate(
         robot, resolver, segment, gain, None if objective and objective.dynamic else objective
     )
     grid = time_grid(segment, time_step)
+    steps = None
     if method == "rk4":
         samples = _runge_kutta(law, starts, grid)
         sparse, allowance = False, 0.0
     else:
         allowance = ALLOWANCE * tolerance if sparse else 0.0
         bounds = (limits, allowance) if stop_past else None
-        samples = _dormand_prince(law, starts, segment.duration, tolerance, grid, sparse, bounds)
+        samples, steps = _dormand_prince(
+            law, starts, segment.duration, tolerance, grid, sparse, bounds
+        )
     t, q, x, x_dot, y, measure, failed, stopped = samples
     return Trajectory(
         robot,
@@ -453,6 +474,7 @@ def simulate(
         sparse,
         allowance,
         circuit,
+        steps,
     )
 
 
@@ -498,12 +520,14 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
     """Dormand-Prince 5(4) with error control, every start with its own step size (see the
     module docstring); samples on ``grid`` (T,) or, ``sparse``, at the steps and midpoints.
     ``bounds`` = (limits, allowance) stops motions that with both neighbours passed them."""
-    k = len(starts)
+    k, n = starts.shape
     first = law(np.zeros(k), starts)
     t, q, f, failed = np.zeros(k), starts.copy(), first.q_dot.copy(), first.bad.copy()
     past, stopped = np.zeros(k, dtype=bool), np.zeros(k, dtype=bool)
     evaluated = [(np.arange(k), np.zeros(k), starts, first)]  # samples whose rates are known
     pending = []  # (rows, times, q) of samples still to evaluate
+    # the accepted steps: rows, t0, h, q0 and the stage slopes (p, 7, n)
+    accepted = [(np.zeros(0, int), np.zeros(0), np.zeros(0), np.zeros((0, n)), np.zeros((0, 7, n)))]
     scale = tolerance * (1 + np.abs(q))
     size = np.sqrt(np.mean((q / scale) ** 2, axis=1))
     speed = np.sqrt(np.mean((f / scale) ** 2, axis=1))
@@ -525,13 +549,12 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
         accept = (error <= 1) & ~failed[rows]
         done = rows[accept]
         kept = slopes[:, accept]
+        accepted.append((done, t[done], step[accept, 0], q[done], kept.transpose(1, 0, 2)))
         if sparse:
             ends = _select(end, accept)
             evaluated.append((done, t[done] + step[accept, 0], q_new[accept], ends))
             middle = q[done] + step[accept] * _combine(MIDDLE, kept)
             pending.append((done, t[done] + step[accept, 0] / 2, middle))
-        else:
-            pending.append(_dense(grid, t[done], step[accept, 0], q[done], kept, done))
         t[done] += step[accept, 0]
         q[done], f[done] = q_new[accept], slopes[-1, accept]
         growth = np.clip(0.9 * np.maximum(error, 1e-10) ** -0.2, 0.2, 10.0)
@@ -541,25 +564,84 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
             limits, allowance = bounds
             past[done] |= limits.margin(end.x[accept]) < -allowance
             stopped = past & np.append(True, past[:-1]) & np.append(past[1:], True)
+    steps = Steps.gathered(law, accepted)
+    if not sparse:
+        return on_grid(steps, starts, grid, failed, stopped), steps
     rows, times, configurations = (np.concatenate(part) for part in zip(*pending))
     evaluated.append((rows, times, configurations, law(times, configurations)))
-    return _assemble(k, evaluated, failed, stopped, None if sparse else grid)
+    return _assemble(k, evaluated, failed, stopped, None), steps
 
 
-def _dense(grid, t0, h, q0, slopes, rows):
-    """The dense output at the grid times in (t0, t0 + h] of each accepted step: rows, times
-    and configurations of those samples."""
-    first = np.searchsorted(grid, t0, side="right")
-    last = np.searchsorted(grid, t0 + h * (1 + 1e-12), side="right")
-    counts = last - first
-    owner = np.repeat(np.arange(len(rows)), counts)
-    index = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts) + first[owner]
-    times = grid[index]
-    theta = (times - t0[owner]) / h[owner]
-    weights = np.stack([theta, theta**2, theta**3, theta**4], axis=1) @ DENSE.T  # (p, 7)
-    slopes = slopes.transpose(1, 0, 2)[owner]  # (p, 7, n)
-    q = q0[owner] + h[owner, None] * np.einsum("ps,psn->pn", weights, slopes)
-    return rows[owner], times, q
+@dataclass(frozen=True, eq=False)
+class Steps:
+    """The accepted steps of an adaptive integration of ``law``: step i of motion rows[i]
+    went from t0[i] (s) and q0[i] (n,) over h[i] (s) with the stage slopes[i] (7, n), which
+    give q anywhere within it by the dense output. Motions sampled sparsely are sampled on a
+    grid from them without integrating again (`Trajectory.on_grid`)."""
+
+    law: Law
+    rows: np.ndarray
+    t0: np.ndarray
+    h: np.ndarray
+    q0: np.ndarray
+    slopes: np.ndarray
+
+    @classmethod
+    def gathered(cls, law: Law, parts: list[tuple[np.ndarray, ...]]) -> Steps:
+        """The steps of ``parts``, each (rows, t0, h, q0, slopes), as one record."""
+        rows, t0, h, q0, slopes = (np.concatenate(part) for part in zip(*parts))
+        return cls(law, rows, t0, h, q0, slopes)
+
+    def select(self, rows: np.ndarray, count: int) -> Steps:
+        """The steps of the motions ``rows`` (distinct indices among ``count``), numbered in
+        that order."""
+        number = np.full(count, -1)
+        number[rows] = np.arange(len(rows))
+        kept = number[self.rows] >= 0
+        return Steps(
+            self.law,
+            number[self.rows[kept]],
+            self.t0[kept],
+            self.h[kept],
+            self.q0[kept],
+            self.slopes[kept],
+        )
+
+    def joined(self, other: Steps, offset: int) -> Steps:
+        """These steps and ``other``'s, whose motions are numbered from ``offset`` on."""
+        return Steps.gathered(
+            self.law,
+            [
+                (self.rows, self.t0, self.h, self.q0, self.slopes),
+                (other.rows + offset, other.t0, other.h, other.q0, other.slopes),
+            ],
+        )
+
+    def dense(self, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The dense output at the times of ``grid`` (T,) in (t0, t0 + h] of each step: the
+        rows, times and configurations of those samples."""
+        first = np.searchsorted(grid, self.t0, side="right")
+        last = np.searchsorted(grid, self.t0 + self.h * (1 + 1e-12), side="right")
+        counts = last - first
+        owner = np.repeat(np.arange(len(self.rows)), counts)
+        start = np.repeat(np.cumsum(counts) - counts, counts)
+        times = grid[np.arange(counts.sum()) - start + first[owner]]
+        h = self.h[owner]
+        theta = (times - self.t0[owner]) / h
+        weights = np.stack([theta, theta**2, theta**3, theta**4], axis=1) @ DENSE.T  # (p, 7)
+        q = self.q0[owner] + h[:, None] * np.einsum("ps,psn->pn", weights, self.slopes[owner])
+        return self.rows[owner], times, q
+
+
+def on_grid(steps: Steps, starts: np.ndarray, grid: np.ndarray, failed, stopped):
+    """The samples on ``grid`` (T,) of the motions from ``starts`` (k, n) that took ``steps``
+    (those ``failed`` or ``stopped`` stay where they ended): the law at the starts and at the
+    dense output, evaluated as one batch."""
+    k = len(starts)
+    rows, times, q = steps.dense(grid)
+    rows, times = np.concatenate([np.arange(k), rows]), np.concatenate([np.zeros(k), times])
+    q = np.concatenate([starts, q])
+    return _assemble(k, [(rows, times, q, steps.law(times, q))], failed, stopped, grid)
 
 
 def _select(rates: Rates, mask: np.ndarray) -> Rates:

@@ -26,10 +26,11 @@ Methods:
   down to stroke / 1000.
 
 All samples of a round are integrated as one batch, adaptively, sampled sparsely (see
-`redundancy.planning.integrate`); `SearchResult.motion` integrates one start on the grid.
-The samples rank the starts; the figure a search reports for its best start,
-`SearchResult.best_peak`, is taken over that start's motion on the grid: a motion's peak can
-fall between its sparse samples (1 % above them on the slewing crane's lift-swing).
+`redundancy.planning.integrate`); `SearchResult.motion` samples one start's motion on the
+grid from the steps the search took. The samples rank the starts; the figure a search reports
+for its best start, `SearchResult.best_peak`, is taken over that start's motion on the grid: a
+motion's peak can fall between its sparse samples (1 % above them on the slewing crane's
+lift-swing).
 """
 
 from __future__ import annotations
@@ -90,7 +91,7 @@ class Samples:
     ``rows`` (a sample's row among the integrated motions, −1 when unreachable): along one
     segment (`SearchResult`) or over a whole work cycle
     (`redundancy.planning.cycles.CycleSearch`), of ``objective``, whose ``motion(sample)``
-    integrates a sample's motion on the grid."""
+    gives a sample's motion on the grid."""
 
     held: tuple[str, ...]
     samples: tuple[Sample, ...]
@@ -140,7 +141,7 @@ class Samples:
     @cached_property
     def best_motion(self) -> Any:
         """The best start's motion on the `TIME_STEP` grid (the search's ``motion()``: a
-        `Trajectory` or a `redundancy.planning.cycles.CycleMotion`), integrated once."""
+        `Trajectory` or a `redundancy.planning.cycles.CycleMotion`), sampled once."""
         return self.motion()
 
     @property
@@ -178,8 +179,9 @@ class SearchResult(Samples):
     rounds: int = 1
 
     def motion(self, sample: Sample | None = None, time_step: float = TIME_STEP) -> Trajectory:
-        """The motion from ``sample`` (default the best), integrated and sampled on the grid of
-        ``time_step``: a trajectory of one."""
+        """The motion from ``sample`` (default the best) sampled on the grid of ``time_step``:
+        a trajectory of one, read from the steps the search integrated it with (integrated to
+        the end where the search stopped it)."""
         sample = self.best if sample is None else sample
         if sample is None:
             raise InvalidInputError(
@@ -191,16 +193,18 @@ class SearchResult(Samples):
         row = int(self.rows[self.samples.index(sample)])
         if row < 0:
             raise InvalidInputError(f"the start {sample.values} of {self.held} is unreachable")
-        start = self.trajectory.q[row, :1]
+        motion = self.trajectory.select(row)
+        if not motion.stopped[0]:
+            return motion.on_grid(time_step)
         return simulate(
             self.robot,
             self.objective.resolver,
             self.segment,
-            start,
+            motion.q[:, 0],
             time_step,
-            checked=self.trajectory.checked,
+            checked=motion.checked,
             objective=self.objective,
-            circuit=self.trajectory.circuit,
+            circuit=motion.circuit,
         )
 
     def extended(self, other: SearchResult) -> SearchResult:
@@ -252,6 +256,9 @@ def concatenated(first: Trajectory, second: Trajectory) -> Trajectory:
         first.sparse,
         first.allowance,
         first.circuit,
+        None
+        if first.steps is None or second.steps is None
+        else first.steps.joined(second.steps, len(first)),
     )
 
 
