@@ -547,16 +547,13 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
         scale = tolerance * (1 + np.maximum(np.abs(q[rows]), np.abs(q_new)))
         error = np.sqrt(np.mean((step * _combine(ERROR, slopes) / scale) ** 2, axis=1))
         accept = (error <= 1) & ~failed[rows]
-        done = rows[accept]
-        kept = slopes[:, accept]
-        accepted.append((done, t[done], step[accept, 0], q[done], kept.transpose(1, 0, 2)))
+        done, kept = rows[accept], slopes[:, accept]
+        t0, h0, q0, q1 = t[done], step[accept, 0], q[done], q_new[accept]
+        accepted.append((done, t0, h0, q0, kept.transpose(1, 0, 2)))
         if sparse:
-            ends = _select(end, accept)
-            evaluated.append((done, t[done] + step[accept, 0], q_new[accept], ends))
-            middle = q[done] + step[accept] * _combine(MIDDLE, kept)
-            pending.append((done, t[done] + step[accept, 0] / 2, middle))
-        t[done] += step[accept, 0]
-        q[done], f[done] = q_new[accept], slopes[-1, accept]
+            evaluated.append((done, t0 + h0, q1, _select(end, accept)))
+            pending.append((done, t0 + h0 / 2, q0 + h0[:, None] * _combine(MIDDLE, kept)))
+        t[done], q[done], f[done] = t0 + h0, q1, kept[-1]
         growth = np.clip(0.9 * np.maximum(error, 1e-10) ** -0.2, 0.2, 10.0)
         h[rows] = step[:, 0] * np.where(accept, growth, np.minimum(growth, 1.0))
         failed[rows[h[rows] < 1e-9 * duration]] = True
