@@ -19,7 +19,12 @@ the objective is found by direct transcription:
   rate;
 - minimise s, with a tie-break `SMOOTHING` on mean ṙ², subject to s ≥ the measure and
   lower ≤ x(q_j) ≤ upper for every checked actuator at every node (the held one through the
-  bounds on r).
+  bounds on r). The unknown is the peak against the starting history's, σ = s / s₀, and the
+  tie-break counts ṙ² against that history's peak ẋᵀẋ, so that the problem is the same
+  whatever the objective's unit (ẋᵀẋ in m²/s², ẋᵀ M_H ẋ in J). With s itself the unknown and
+  the tie-break against s₀, the solver's path depended on the unit, and for a measure of
+  hundreds of joules the tie-break fell below its tolerance: the optimum's history zigzagged
+  node by node where the peak does not bind, and stopped at local optima far above others.
 
 Gradients: ∂q_j/∂r_j = K_j⁻¹ e and ∂x_j/∂r_j = A_j ∂q_j/∂r_j; the measure's derivative through
 ṙ_j is a central difference along ∂ẋ_j/∂ṙ_j = A_j K_j⁻¹ e (exact for a quadratic measure), and
@@ -54,14 +59,15 @@ from redundancy.resolution.objectives import VELOCITY, Objective
 from redundancy.resolution.state import ActuatorSpace, evaluate
 
 GRIDS = (24, 48)  # intervals of the successive grids
-CANDIDATES = 3  # starts over the feasible range the first grid is also solved from
+CANDIDATES = 3  # starts over the reachable range the first grid is also solved from
 CONVERGED = 0.005  # a last refinement that moves the optimum by less than this has converged
 ITERATIONS = 400  # SLSQP iterations per grid, at most
 FUNCTION_TOLERANCE = 1e-7  # SLSQP's ftol on the scaled peak
 LIMIT_MARGIN = 1e-6  # m: the strokes are kept this far inside their limits, so that solver
 # round-off never puts a node outside them
-SMOOTHING = 1e-4  # weight of mean ṙ² (m²/s², like ẋᵀẋ) beside the peak: picks one optimum
-# where many share the peak, and moves the peak by less than this fraction
+SMOOTHING = 1e-4  # weight of mean ṙ² against the peak ẋᵀẋ, beside the peak against its own
+# start: picks one optimum where many share the peak, and moves the peak by less than this
+# fraction
 DIFFERENCE_STEP = 1e-6  # m (and m/s): step of the central differences through q and ṙ
 UNREACHED = 1e3  # the measure at a node Newton's method does not reach, in starting peaks: a
 # trial step of the solver into strokes the task cannot be tracked with is a step it backs out of
@@ -157,7 +163,8 @@ def differentiation(intervals: int, h: float) -> np.ndarray:
 
 class Transcription:
     """The problem on one grid of ``intervals`` along ``segment``: the constraints and their
-    Jacobian with respect to z = (r_0 … r_N, s), for SLSQP.
+    Jacobian with respect to z = (r_0 … r_N, σ), σ = s / s₀ the peak against the starting
+    history's, for SLSQP.
 
     ``objective`` gives the measure, ``row`` is the held actuator, ``limits`` the other checked
     actuators' strokes, ``guess`` (N + 1, n) the configurations Newton's method starts from at
@@ -186,7 +193,9 @@ class Transcription:
         self.upper = limits.upper - LIMIT_MARGIN
         self.span = self.upper - self.lower  # strokes enter the constraints as fractions of it
         self.cache: tuple[bytes, Nodes] | None = None
-        self.scale = 1.0
+        self.scale = 1.0  # s₀: the starting history's peak, in the objective's unit
+        self.speed = 1.0  # its peak ẋᵀẋ, m²/s² (rad²/s² for rotary actuators)
+        self.tie_break = True  # whether the cost has the tie-break, or is the peak alone
 
     @property
     def incidence(self) -> np.ndarray:
@@ -228,7 +237,7 @@ class Transcription:
         return space, K, x_dot, self.objective.measure(space, x_dot)
 
     def evaluate(self, z: np.ndarray) -> Nodes:
-        """The transcription at z = (r, s), computed once per iterate."""
+        """The transcription at z = (r, σ), computed once per iterate."""
         key = z.tobytes()
         if self.cache is not None and self.cache[0] == key:
             return self.cache[1]
@@ -253,18 +262,19 @@ class Transcription:
         return nodes
 
     def cost(self, z):
-        """(s + ε mean ṙ²) / s₀ and its gradient: the peak, with a tie-break (ε = `SMOOTHING`)
-        for the smoothest held history where many share the least peak."""
+        """σ + ε mean ṙ² / (ẋᵀẋ)₀ and its gradient: the peak σ = s / s₀, with a tie-break
+        (ε = `SMOOTHING`) for the smoothest held history where many share the least peak."""
         r_dot = self.D @ z[:-1]
-        gradient = np.append(2 * SMOOTHING * (self.D.T @ r_dot) / len(r_dot), 1.0) / self.scale
-        return (z[-1] + SMOOTHING * np.mean(r_dot**2)) / self.scale, gradient
+        weight = SMOOTHING / (len(r_dot) * self.speed) if self.tie_break else 0.0
+        gradient = np.append(2 * weight * (self.D.T @ r_dot), 1.0)
+        return z[-1] + weight * (r_dot @ r_dot), gradient
 
     def constraints(self, z):
         nodes = self.evaluate(z)
         strokes = nodes.space.x[:, self.columns]
         return np.concatenate(
             [
-                (z[-1] - nodes.measure) / self.scale,
+                z[-1] - nodes.measure / self.scale,
                 ((strokes - self.lower) / self.span).ravel(),
                 ((self.upper - strokes) / self.span).ravel(),
             ]
@@ -273,7 +283,7 @@ class Transcription:
     def jacobian(self, z):
         nodes = self.evaluate(z)
         count, unknowns = nodes.gradient.shape
-        peak = np.concatenate([-nodes.gradient, np.ones((count, 1))], axis=1) / self.scale
+        peak = np.concatenate([-nodes.gradient / self.scale, np.ones((count, 1))], axis=1)
         d_strokes = nodes.dx[:, self.columns]
         c = d_strokes.shape[1]
         lower = np.zeros((count, c, unknowns + 1))
@@ -296,26 +306,35 @@ class Nodes(NamedTuple):
     missed: np.ndarray
 
 
-def solve_transcription(problem: Transcription, r0: np.ndarray, box: tuple, intervals: int):
+def solve_transcription(
+    problem: Transcription, r0: np.ndarray, box: tuple, intervals: int, polish: bool = False
+):
     """SLSQP from r0: the grid's solution and the transcription at it. Both r0 and the solution
-    must reach the task at every node; the solver's trial steps need not."""
+    must reach the task at every node; the solver's trial steps need not. With ``polish`` the
+    solution is solved again for the peak alone, from there: where the tie-break traded a hair
+    of a binding peak for smoothness (1e-9 of it), the peak is the least, and the history stays
+    where the peak does not bind (nothing pulls it there)."""
     start = problem.evaluate(np.append(r0, 0.0))
     if start.missed.any():
         raise problem.unreached(r0, start.missed)
     measure = start.measure
     problem.scale = float(measure.max())
-    z = np.append(r0, measure.max())
+    problem.speed = float(np.einsum("ji,ji->j", start.x_dot, start.x_dot).max())
+    z = np.append(r0, 1.0)  # σ = s / s₀
     bounds = [box] * len(r0) + [(0.0, None)]
-    solution = minimize(
-        problem.cost,
-        z,
-        jac=True,
-        method="SLSQP",
-        bounds=bounds,
-        constraints=[{"type": "ineq", "fun": problem.constraints, "jac": problem.jacobian}],
-        options={"maxiter": ITERATIONS, "ftol": FUNCTION_TOLERANCE},
-    )
-    z = solution.x
+    iterations = 0
+    for tie_break in (True, False) if polish else (True,):
+        problem.tie_break = tie_break
+        solution = minimize(
+            problem.cost,
+            z,
+            jac=True,
+            method="SLSQP",
+            bounds=bounds,
+            constraints=[{"type": "ineq", "fun": problem.constraints, "jac": problem.jacobian}],
+            options={"maxiter": ITERATIONS, "ftol": FUNCTION_TOLERANCE},
+        )
+        z, iterations = solution.x, iterations + solution.nit
     nodes = problem.evaluate(z)
     if nodes.missed.any():
         raise problem.unreached(z[:-1], nodes.missed)
@@ -323,7 +342,7 @@ def solve_transcription(problem: Transcription, r0: np.ndarray, box: tuple, inte
         intervals,
         float(nodes.measure.max()),
         bool(solution.success),
-        int(solution.nit),
+        int(iterations),
         str(solution.message),
         float(max(0.0, -problem.constraints(z).min())),
     )
@@ -345,8 +364,9 @@ def global_optimum(
 
     The problem is not convex: the first grid is solved from the law's motion from each
     ``initial`` start (held strokes at t = 0, m; by default the best start of the improved
-    method's ``search``, by default the fast search, and `CANDIDATES` starts evenly over its
-    feasible range), and the least
+    method's ``search``, by default the fast search, and `CANDIDATES` starts evenly over the
+    starts it reached, feasible or not: a history is free to leave the law's feasible starts,
+    and the excavator's least kinetic-energy scrape starts outside them), and the least
     optimum is refined through the later grids, each started from the previous one.
     ``checked`` names the actuators whose strokes bind (default all). The objective must be a
     peak objective (its reduction "peak").
@@ -368,8 +388,8 @@ def global_optimum(
                 f"no start on segment {segment.name} keeps every checked stroke for the "
                 f"{objective.name} objective; the global optimum starts from feasible motions"
             )
-        lowest, highest = search.feasible_range  # type: ignore[misc]
-        spread = np.linspace(lowest, highest, CANDIDATES).tolist()
+        reachable = [sample.values[0] for sample in search.samples if sample.peak is not None]
+        spread = np.linspace(min(reachable), max(reachable), CANDIDATES).tolist()
         initial = tuple(dict.fromkeys([search.best.value, *spread]))  # distinct, best first
     others = [name for name in limits.names if name != held]
     stroke = robot.actuators[held]
@@ -381,7 +401,8 @@ def global_optimum(
         q = np.stack([np.interp(times, t, q[:, i]) for i in range(robot.n)], axis=1)
         bound = Limits.strokes(robot, others)
         problem = Transcription(robot, objective, segment, row, bound, intervals, q)
-        return (*solve_transcription(problem, np.interp(times, t, r), box, intervals), problem.q)
+        solved = solve_transcription(problem, np.interp(times, t, r), box, intervals, polish=True)
+        return (*solved, problem.q)
 
     starts = inverse_kinematics(robot, segment.start, [held], np.array(initial)[:, None])
     if not starts.reached.any():

@@ -1015,7 +1015,8 @@ class CycleTranscription(Transcription):
         self.upper = limits.upper - margin
         self.span = np.maximum(self.upper - self.lower, 1e-12)
         self.cache = None
-        self.scale = 1.0
+        self.scale = self.speed = 1.0
+        self.tie_break = True
         self.smoothness = smoothness
         second = []  # second differences of the held strokes inside each segment, per s²
         for owner, h in zip(owners, steps):
@@ -1026,11 +1027,11 @@ class CycleTranscription(Transcription):
         self.S = np.array(second)
 
     def cost(self, z):
-        """The bound's cost plus ε mean r̈² / s₀ (ε = ``smoothness``, r̈ the second differences
-        inside each segment), with its gradient."""
+        """The bound's cost plus ε mean r̈² / (ẋᵀẋ)₀ (ε = ``smoothness``, r̈ the second
+        differences inside each segment), with its gradient."""
         value, gradient = super().cost(z)
         r_ddot = self.S @ z[:-1]
-        weight = self.smoothness / (len(r_ddot) * self.scale)
+        weight = self.smoothness / (len(r_ddot) * self.speed)
         gradient = gradient.copy()
         gradient[:-1] += 2 * weight * (self.S.T @ r_ddot)
         return value + weight * (r_ddot @ r_ddot), gradient
