@@ -14,7 +14,7 @@ from redundancy import (
     actuator_space,
     load_robot,
 )
-from redundancy.planning.ik import check_path, configuration_at, inverse_kinematics
+from redundancy.planning.ik import _seeds, check_path, configuration_at, inverse_kinematics
 
 
 def test_round_trip_reaches_the_point_with_the_held_actuator_at_its_value(crane):
@@ -71,3 +71,22 @@ def test_check_path_refuses_a_segment_that_leaves_the_workspace_between_reachabl
         (end - start) @ (end - start)
     )
     assert np.allclose(numbers, on_segment)  # the point named lies on the segment
+
+
+@pytest.mark.parametrize("name", ["hiab031", "hiab031_slewing"])
+def test_ik_seeds_are_roberts_sequence_inside_the_joint_box(name):
+    """Every seed 5 % inside the box; the ratio φ solves φ^(n+1) = φ + 1 and steps joint j by
+    φ^(−j); each joint's seeds are then a Kronecker sequence, whose gaps around the circle take
+    at most three lengths (the three-gap theorem): evenly spread, with no cluster."""
+    robot = load_robot(name)
+    lower, upper = robot.span
+    unit = (_seeds(robot, 100) - lower) / (upper - lower)
+    assert unit.min() >= 0.05 - 1e-12 and unit.max() <= 0.95 + 1e-12
+    u = (unit - 0.05) / 0.9
+    alpha = np.mod(u[1] - u[0], 1.0)
+    phi = 1 / alpha[0]
+    assert phi ** (robot.n + 1) == pytest.approx(phi + 1, rel=1e-12)
+    np.testing.assert_allclose(alpha, phi ** -np.arange(1.0, robot.n + 1), rtol=1e-12)
+    for column in np.sort(u, axis=0).T:
+        gaps = np.diff(np.append(column, column[0] + 1))
+        assert len(np.unique(np.round(gaps, 9))) <= 3
