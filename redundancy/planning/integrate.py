@@ -518,8 +518,9 @@ def _combine(weights: np.ndarray, slopes: np.ndarray) -> np.ndarray:
 
 def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
     """Dormand-Prince 5(4) with error control, every start with its own step size (see the
-    module docstring); samples on ``grid`` (T,) or, ``sparse``, at the steps and midpoints.
-    ``bounds`` = (limits, allowance) stops motions that with both neighbours passed them."""
+    module docstring); samples on ``grid`` (T,) or, ``sparse``, at the steps and midpoints,
+    and the accepted `Steps`. ``bounds`` = (limits, allowance) stops motions that with both
+    neighbours passed them."""
     k, n = starts.shape
     first = law(np.zeros(k), starts)
     t, q, f, failed = np.zeros(k), starts.copy(), first.q_dot.copy(), first.bad.copy()
