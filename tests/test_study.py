@@ -1,5 +1,6 @@
 """The paper's study on the bundled crane, checked against the paper's findings (section 3)."""
 
+import dataclasses
 import json
 import os
 import stat
@@ -206,3 +207,24 @@ def test_a_task_that_is_no_cycle_has_no_cycle_section(crane):
     open_task = WorkCycle(cycle.name, cycle.segments[:1], cycle.held)
     study = run_study(crane, open_task, samples=5, bound=False, progress=False)
     assert "does not return to its start" in study.report()["cycle"]["skipped"]
+
+
+def test_the_table_flags_a_bound_that_has_not_converged(study):
+    """A bound whose last refinement moved it by 2 % (more than 0.5 %) is flagged on its row of
+    the gap table with that change; the converged ones are not."""
+    optimum = study.bounds["velocity"][1]
+    assert optimum.converged
+    coarse, fine = optimum.grids
+    moved = dataclasses.replace(coarse, peak=fine.peak * 1.02)
+    unconverged = dataclasses.replace(optimum, grids=(moved, fine))
+    velocity = list(study.bounds["velocity"])
+    velocity[1] = unconverged
+    bounds = dict(study.bounds, velocity=tuple(velocity))
+    rows = [
+        line
+        for line in dataclasses.replace(study, bounds=bounds).table().splitlines()
+        if line.startswith(("1-2 ", "2-3 ", "3-1 ")) and "velocity " in line[:20]
+    ]
+    flagged = [row for row in rows if "NOT converged" in row]
+    assert len(rows) == 3 and len(flagged) == 1
+    assert flagged[0].startswith("2-3") and flagged[0].endswith("NOT converged, change 2.00 %")

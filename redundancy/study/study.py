@@ -250,6 +250,7 @@ class Study:
                 lines.append(
                     f"{segment:<{names}}{name:<10}{search.best_peak:>12.5g}"
                     + ("" if bound is None else f"{bound.bound:>12.5g}{gap:>8.2f}")
+                    + ("" if bound is None or bound.converged else f"  {convergence(bound)}")
                     + ("" if failure is None else f"{'-':>12}{'-':>8}  no bound: {failure}")
                 )
         if self.robot.hydraulics is not None:
@@ -284,7 +285,6 @@ class Study:
             )
         for segment, bounds in (self.energy_bounds or {}).items():
             for supply, bound in bounds.items():
-                state = "converged" if bound.converged else "NOT converged"
                 lines.append(
                     f"{segment:<{names}}{f'energy bound, {supply}':<36}{'':>19}"
                     + (
@@ -292,13 +292,20 @@ class Study:
                         if supply == "LS"
                         else f"{'':>8}{bound.energy / KILOJOULE:>8.2f}"
                     )
-                    + f"{'':>22}  {state}, change {100 * (bound.change or 0):.2f} %"
+                    + f"{'':>22}  {convergence(bound)}"
                 )
         return "\n".join(lines)
 
     def _segment_width(self) -> int:
         """The width of the tables' segment column."""
         return max(8, *(len(s.name) + 2 for s in self.cycle.segments))
+
+
+def convergence(bound: GlobalOptimum | EnergyOptimum) -> str:
+    """A bound's convergence in words: whether it converged, and how much the last refinement
+    of its grid moved it."""
+    change = "-" if bound.change is None else f"{100 * bound.change:.2f} %"
+    return f"{'converged' if bound.converged else 'NOT converged'}, change {change}"
 
 
 def run_study(
