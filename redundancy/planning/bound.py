@@ -59,6 +59,8 @@ from redundancy.resolution.objectives import VELOCITY, Objective
 from redundancy.resolution.state import ActuatorSpace, evaluate
 
 GRIDS = (24, 48)  # intervals of the successive grids
+MAX_INTERVALS = 192  # by default, grids twice as fine follow GRIDS until the optimum converges,
+# up to this many intervals
 CANDIDATES = 3  # starts over the reachable range the first grid is also solved from
 CONVERGED = 0.005  # a last refinement that moves the optimum by less than this has converged
 ITERATIONS = 400  # SLSQP iterations per grid, at most
@@ -111,6 +113,13 @@ class Refined:
         less than `CONVERGED`."""
         change = self.change
         return self.grids[-1].success and change is not None and change < CONVERGED
+
+
+@dataclass(frozen=True)
+class Grids(Refined):
+    """Grid solutions alone, judged for their convergence."""
+
+    grids: tuple[GridSolution, ...]
 
 
 @dataclass(frozen=True)
@@ -355,12 +364,14 @@ def global_optimum(
     objective: Objective = VELOCITY,
     held: str = "x3",
     checked: tuple[str, ...] | None = None,
-    grids: tuple[int, ...] = GRIDS,
+    grids: tuple[int, ...] | None = None,
     initial: tuple[float, ...] | None = None,
     search: SearchResult | None = None,
 ) -> GlobalOptimum:
     """The motion along ``segment`` of least peak of ``objective`` over every history of the
-    held actuator (see the module docstring), on each of ``grids`` (intervals) in turn.
+    held actuator (see the module docstring), on each of ``grids`` (intervals) in turn; by
+    default `GRIDS`, then grids twice as fine while the last refinement still moves the optimum
+    by `CONVERGED` or more, up to `MAX_INTERVALS`.
 
     The problem is not convex: the first grid is solved from the law's motion from each
     ``initial`` start (held strokes at t = 0, m; by default the best start of the improved
@@ -372,6 +383,8 @@ def global_optimum(
     peak objective (its reduction "peak").
     """
     row = held_indices(robot, [held])[0]
+    refine = grids is None
+    grids = GRIDS if grids is None else tuple(grids)
     if not grids or any(int(g) < 3 for g in grids) or list(grids) != sorted(grids):
         raise InvalidInputError(f"grids must be increasing interval counts ≥ 3; got {grids}")
     if objective.reduction != "peak":
@@ -423,9 +436,13 @@ def global_optimum(
         raise InvalidInputError(f"the bound found no optimum; {'; '.join(failures)}")
     r, grid, nodes, q = min(candidates, key=lambda c: c[1].peak)
     solutions = [grid]
-    for intervals in grids[1:]:
+    finer = list(grids[1:])
+    while finer:
+        intervals = finer.pop(0)
         r, grid, nodes, q = solve(intervals, np.linspace(0.0, segment.duration, len(r)), r, q)
         solutions.append(grid)
+        if refine and not finer and not Grids(tuple(solutions)).converged:
+            finer = [2 * intervals] if 2 * intervals <= MAX_INTERVALS else []
     times = np.linspace(0.0, segment.duration, len(r))
     optimum = Trajectory.single(
         robot,
