@@ -223,7 +223,7 @@ def test_the_table_flags_a_bound_that_has_not_converged(study):
     rows = [
         line
         for line in dataclasses.replace(study, bounds=bounds).table().splitlines()
-        if line.startswith(("1-2 ", "2-3 ", "3-1 ")) and "velocity " in line[:20]
+        if line.split()[:2] in (["1-2", "velocity"], ["2-3", "velocity"], ["3-1", "velocity"])
     ]
     flagged = [row for row in rows if "NOT converged" in row]
     assert len(rows) == 3 and len(flagged) == 1
