@@ -53,7 +53,7 @@ from redundancy.resolution.limits import Limits, Violation, amount
 from redundancy.resolution.objectives import Objective
 
 METHODS = ("fast", "sweep")
-MAX_SAMPLES = 10_000  # starts of one sweep, integrated as one batch: about 40 MB per 1,000
+MAX_SAMPLES = 10_000  # starts of one sweep, integrated as one batch: about 47 MB per 1,000
 GRID = 12  # integrated starts of the fast search's first round, evenly over the reachable ones
 REACH_GRID = 24  # starts whose reachability the fast search checks first, over the stroke
 END_TOLERANCE = 5e-4  # of the held stroke: the fast search locates the feasible ends to this,
