@@ -83,7 +83,6 @@ DENSE = np.array(
         [0, 40617522 / 29380423, -110615467 / 29380423, 69997945 / 29380423],
     ]
 )
-MIDDLE = DENSE @ [0.5, 0.25, 0.125, 0.0625]  # the dense output's weights at θ = 1/2
 
 
 @dataclass(frozen=True, eq=False)
@@ -526,7 +525,6 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
     t, q, f, failed = np.zeros(k), starts.copy(), first.q_dot.copy(), first.bad.copy()
     past, stopped = np.zeros(k, dtype=bool), np.zeros(k, dtype=bool)
     evaluated = [(np.arange(k), np.zeros(k), starts, first)]  # samples whose rates are known
-    pending = []  # (rows, times, q) of samples still to evaluate
     # the accepted steps: rows, t0, h, q0 and the stage slopes (p, 7, n)
     accepted = [(np.zeros(0, int), np.zeros(0), np.zeros(0), np.zeros((0, n)), np.zeros((0, 7, n)))]
     scale = tolerance * (1 + np.abs(q))
@@ -553,7 +551,6 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
         accepted.append((done, t0, h0, q0, kept.transpose(1, 0, 2)))
         if sparse:
             evaluated.append((done, t0 + h0, q1, _select(end, accept)))
-            pending.append((done, t0 + h0 / 2, q0 + h0[:, None] * _combine(MIDDLE, kept)))
         t[done], q[done], f[done] = t0 + h0, q1, kept[-1]
         growth = np.clip(0.9 * np.maximum(error, 1e-10) ** -0.2, 0.2, 10.0)
         h[rows] = step[:, 0] * np.where(accept, growth, np.minimum(growth, 1.0))
@@ -565,7 +562,7 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
     steps = Steps.gathered(law, accepted)
     if not sparse:
         return on_grid(steps, starts, grid, failed, stopped), steps
-    rows, times, configurations = (np.concatenate(part) for part in zip(*pending))
+    rows, times, configurations = steps.midpoints()
     evaluated.append((rows, times, configurations, law(times, configurations)))
     return _assemble(k, evaluated, failed, stopped, None), steps
 
@@ -624,11 +621,18 @@ class Steps:
         owner = np.repeat(np.arange(len(self.rows)), counts)
         start = np.repeat(np.cumsum(counts) - counts, counts)
         times = grid[np.arange(counts.sum()) - start + first[owner]]
-        h = self.h[owner]
-        theta = (times - self.t0[owner]) / h
+        return self.rows[owner], times, self._at(owner, (times - self.t0[owner]) / self.h[owner])
+
+    def midpoints(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The dense output at the middle of each step: rows, times and configurations."""
+        every = np.arange(len(self.rows))
+        return self.rows, self.t0 + self.h / 2, self._at(every, np.full(len(every), 0.5))
+
+    def _at(self, owner: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        """q at the fractions ``theta`` (p,) of the steps ``owner`` (p,): q0 + h Σ_s b_s(θ) K_s."""
         weights = np.stack([theta, theta**2, theta**3, theta**4], axis=1) @ DENSE.T  # (p, 7)
-        q = self.q0[owner] + h[:, None] * np.einsum("ps,psn->pn", weights, self.slopes[owner])
-        return self.rows[owner], times, q
+        increment = np.einsum("ps,psn->pn", weights, self.slopes[owner])
+        return self.q0[owner] + self.h[owner, None] * increment
 
 
 def on_grid(steps: Steps, starts: np.ndarray, grid: np.ndarray, failed, stopped):
