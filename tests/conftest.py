@@ -37,21 +37,21 @@ SHARED = {
     ("test_hydraulics.py", "motions"): "hydraulic baselines and bounds",
     ("test_hydraulics.py", "bounds"): "hydraulic baselines and bounds",
     ("test_global_optimum.py", "optima"): "global optima",
+    ("test_global_optimum.py", "bundled_optima"): "bundled robots' optima",
     ("test_output.py", "earlier"): "earlier output",
     ("test_maps.py", "client"): "dask client",
 }
 # Units that take longest go first (CPU seconds in a 2-worker run, 2026-11-23), so that no
 # worker is left with a long one at the end.
 LONGEST_FIRST = [
+    "dask client",  # 13
     "hydraulic baselines and bounds",  # 22
     "tests/test_readme.py::test_a_readme_block_runs_and_prints_what_it_promises[block2]",  # 16
-    "tests/test_maps.py::test_an_interrupted_map_keeps_its_finished_chunks_and_solves_only_the_rest",
     "earlier output",  # 15
-    "tests/test_maps.py::test_a_map_on_a_dask_cluster_by_address_equals_the_local_run_with_one_worker",
-    "dask client",  # 13
     "tests/test_study.py::test_study_command_writes_the_report_and_the_five_figures",  # 11
     "planar arm cycles",  # 10
     "paper study",  # 9
+    "bundled robots' optima",  # 9
     "tests/test_output.py::test_two_runs_into_one_folder_leave_one_complete_output",  # 9
     "live playback",  # 8 (most of it waiting)
     "global optima",  # 6

@@ -59,7 +59,7 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-def test_a_map_on_a_dask_cluster_by_address_equals_the_local_run_with_one_worker(tmp_path):
+def test_a_map_on_a_dask_cluster_by_address_equals_the_local_run(tmp_path, client):
     family = write(tmp_path, "ws.toml", WORKSPACE.format(chunk=2, nx=3))
     address = f"tcp://127.0.0.1:{free_port()}"
     started = [
@@ -117,10 +117,8 @@ def test_a_map_on_a_dask_cluster_by_address_equals_the_local_run_with_one_worker
                 process.kill()
                 process.wait()
     assert all(p.poll() is not None for p in started)
-    local = run_cli("map", str(family), "--workers", "1", "--out", str(tmp_path / "l"), "--quiet")
-    assert local.returncode == 0, local.stderr
     rows = pd.read_parquet(tmp_path / "r" / "map.parquet")
-    pd.testing.assert_frame_equal(rows, pd.read_parquet(tmp_path / "l" / "map.parquet"))
+    pd.testing.assert_frame_equal(rows, design_map(family, client))
     assert len(rows) == 9 and rows["reachable"].any() and rows["feasible"].any()
     assert (tmp_path / "r" / "map_velocity.png").stat().st_size > 10_000
     assert not (tmp_path / ".r.chunks").exists()  # the chunks go once the map is in place
@@ -132,7 +130,7 @@ def test_rows_do_not_depend_on_chunks_or_workers(tmp_path, client):
     pd.testing.assert_frame_equal(one, many)
 
 
-def test_an_interrupted_map_keeps_its_finished_chunks_and_solves_only_the_rest(tmp_path):
+def test_an_interrupted_map_keeps_its_finished_chunks_and_solves_only_the_rest(tmp_path, client):
     family = write(tmp_path, "ws.toml", WORKSPACE.format(chunk=1, nx=8))
     store = tmp_path / ".out.chunks"
     process = subprocess.Popen(
@@ -168,11 +166,9 @@ def test_an_interrupted_map_keeps_its_finished_chunks_and_solves_only_the_rest(t
     assert not store.exists()
     # the kept chunks were read, not solved again: the progress bar starts at their count
     assert f"{len(kept)}/24" in rerun.stderr
-    straight = run_cli("map", str(family), "--workers", "1", "--out", str(tmp_path / "fresh"))
-    assert straight.returncode == 0, straight.stderr
+    # the same rows as a map solved in one go
     pd.testing.assert_frame_equal(
-        pd.read_parquet(tmp_path / "out" / "map.parquet"),
-        pd.read_parquet(tmp_path / "fresh" / "map.parquet"),
+        pd.read_parquet(tmp_path / "out" / "map.parquet"), design_map(family, client)
     )
 
 
