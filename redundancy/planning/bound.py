@@ -52,6 +52,7 @@ from redundancy.planning.ik import (
     newton,
 )
 from redundancy.planning.integrate import Trajectory, simulate
+from redundancy.planning.refinement import Refined
 from redundancy.planning.starts import SearchResult, improved_start
 from redundancy.planning.tasks import Segment
 from redundancy.resolution.limits import Limits
@@ -62,7 +63,6 @@ GRIDS = (24, 48)  # intervals of the successive grids
 MAX_INTERVALS = 192  # by default, grids twice as fine follow GRIDS until the optimum converges,
 # up to this many intervals
 CANDIDATES = 3  # starts over the reachable range the first grid is also solved from
-CONVERGED = 0.005  # a last refinement that moves the optimum by less than this has converged
 ITERATIONS = 400  # SLSQP iterations per grid, at most
 FUNCTION_TOLERANCE = 1e-7  # SLSQP's ftol on the scaled peak
 LIMIT_MARGIN = 1e-6  # m: the strokes are kept this far inside their limits, so that solver
@@ -89,30 +89,10 @@ class GridSolution:
     message: str
     violation: float
 
-
-class Refined:
-    """An optimum found on a sequence of ever finer ``grids``: its peak and its convergence."""
-
-    grids: tuple[GridSolution, ...]
-
     @property
-    def peak(self) -> float:
-        """The optimal peak on the finest grid."""
-        return self.grids[-1].peak
-
-    @property
-    def change(self) -> float | None:
-        """|peak on the finest grid − peak on the one before| / peak on the finest, or None."""
-        if len(self.grids) < 2:
-            return None
-        return abs(self.grids[-1].peak - self.grids[-2].peak) / self.grids[-1].peak
-
-    @property
-    def converged(self) -> bool:
-        """The finest grid's solve succeeded and refining the grid last moved the optimum by
-        less than `CONVERGED`."""
-        change = self.change
-        return self.grids[-1].success and change is not None and change < CONVERGED
+    def optimum(self) -> float:
+        """The optimal peak: what `Refined` judges the grid's convergence by."""
+        return self.peak
 
 
 @dataclass(frozen=True)
@@ -142,7 +122,7 @@ class GlobalOptimum(Refined):
     @property
     def bound(self) -> float:
         """The optimal peak on the finest grid: the bound on every start's peak."""
-        return self.peak
+        return self.optimum
 
 
 def backward_differentiation(intervals: int, h: float) -> np.ndarray:
@@ -371,7 +351,7 @@ def global_optimum(
     """The motion along ``segment`` of least peak of ``objective`` over every history of the
     held actuator (see the module docstring), on each of ``grids`` (intervals) in turn; by
     default `GRIDS`, then grids twice as fine while the last refinement still moves the optimum
-    by `CONVERGED` or more, up to `MAX_INTERVALS`.
+    by `redundancy.planning.refinement.CONVERGED` or more, up to `MAX_INTERVALS`.
 
     The problem is not convex: the first grid is solved from the law's motion from each
     ``initial`` start (held strokes at t = 0, m; by default the best start of the improved

@@ -63,13 +63,13 @@ from redundancy.model.hydraulics import Supply
 from redundancy.model.robot import Robot
 from redundancy.planning.bound import (
     GridSolution,
-    Refined,
     Transcription,
     differentiation,
     solve_transcription,
 )
 from redundancy.planning.ik import FOUND, continue_held, held_indices, inverse_kinematics
 from redundancy.planning.integrate import GAIN, TIME_STEP, TOLERANCE, Trajectory, simulate
+from redundancy.planning.refinement import Refined
 from redundancy.planning.starts import (
     Configurations,
     Sample,
@@ -1070,6 +1070,11 @@ class PeriodicOptimum(Refined):
     r_dot: np.ndarray
     measure: np.ndarray
     grids: tuple[GridSolution, ...]
+
+    @property
+    def peak(self) -> float:
+        """The plan's peak of ``objective``: the optimum on the finest grid."""
+        return self.optimum
 
     @property
     def start(self) -> np.ndarray:

@@ -53,6 +53,7 @@ from redundancy.planning.ik import (
     inverse_kinematics,
     newton,
 )
+from redundancy.planning.refinement import Refined
 from redundancy.planning.tasks import Segment
 from redundancy.resolution.limits import TOLERANCE, Limits, hydraulic_values
 from redundancy.resolution.state import evaluate, regularised
@@ -63,7 +64,6 @@ SPANNING = 161  # held values per node of the first pass, over the whole stroke
 VALUES = 121  # held values per node of every later pass, over a narrowing band
 PASSES = 10  # passes per grid, each on a narrower band around the last pass's path
 NARROWING = 0.35  # each band's half-width is this fraction of the one before
-CONVERGED = 0.005  # a last refinement that moves the energy by less than this has converged
 
 
 @dataclass(frozen=True)
@@ -73,10 +73,16 @@ class EnergyGrid:
     intervals: int
     values: int
     energy: float
+    success = True  # dynamic programming has no solver to fail: a grid without a path raises
+
+    @property
+    def optimum(self) -> float:
+        """The least energy: what `Refined` judges the grid's convergence by."""
+        return self.energy
 
 
 @dataclass(frozen=True)
-class EnergyOptimum:
+class EnergyOptimum(Refined):
     """The motion of least pump energy under ``supply`` on the finest grid: node times t
     (N + 1,) s and held strokes r (N + 1,) m, its ``energy`` (J), and every grid's least
     energy."""
@@ -91,19 +97,7 @@ class EnergyOptimum:
     @property
     def energy(self) -> float:
         """The least pump energy on the finest grid, J."""
-        return self.grids[-1].energy
-
-    @property
-    def change(self) -> float | None:
-        """|energy on the finest grid − on the one before| / energy on the finest, or None."""
-        if len(self.grids) < 2 or self.grids[-1].energy == 0:
-            return None
-        return abs(self.grids[-1].energy - self.grids[-2].energy) / self.grids[-1].energy
-
-    @property
-    def converged(self) -> bool:
-        """Refining the grid last moved the energy by less than `CONVERGED`."""
-        return self.change is not None and self.change < CONVERGED
+        return self.optimum
 
 
 def _nodes(robot: Robot, segment: Segment, row: int, values: np.ndarray, t: np.ndarray):
