@@ -71,8 +71,8 @@ CASES = [
     ("x3init nan", ["play", "--x3init", "nan", "--html", "p.html"], {}, "--x3init nan is outside"),
     ("segment unknown", ["play", "--segment", "9-9", "--html", "p.html"], {}, "no segment '9-9'"),
     ("out is a file", ["study", "--out", "plain"], {"plain": ""}, "--out plain is a file"),
-    ("json is a folder", ["study", "--json", "."], {}, "--json . is a folder"),
-    ("html below a file", ["play", "--html", "plain/p.html"], {"plain": ""}, "cannot write"),
+    ("json is a folder", ["study", "--json", "sub"], {"sub/x": ""}, "--json sub is a folder"),
+    ("html below a file", ["play", "--html", "plain/p.html"], {"plain": ""}, "not a folder"),
     ("out of other files", ["study", "--out", "mine"], {"mine/notes.txt": "x"}, "did not write"),
     # task files
     ("task missing", ["study", "--task", "none.toml"], {}, "cannot read task file none.toml"),

@@ -56,6 +56,10 @@ def test_a_failed_run_leaves_the_old_folder_and_no_staging(tmp_path):
         raise RuntimeError("the figures failed")
     assert _contents(target) == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+    with pytest.raises(RuntimeError), OutputFolder(tmp_path / "new" / "deep" / "out") as out:
+        out.beside(tmp_path / "other" / "report.json", "--json").write_text("new")
+        raise RuntimeError("the figures failed")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]  # the folders made, gone
 
 
 def test_a_folder_of_other_files_is_refused_not_replaced(tmp_path):
@@ -65,7 +69,7 @@ def test_a_folder_of_other_files_is_refused_not_replaced(tmp_path):
     (tmp_path / "file").write_text("")
     with pytest.raises(InvalidInputError, match=r"--out .*file is a file; give a folder"):
         OutputFolder(tmp_path / "file")
-    with pytest.raises(InvalidInputError, match=r"--json .*cannot write there"):
+    with pytest.raises(InvalidInputError, match=r"--json .*file is a file, not a folder"):
         writable(tmp_path / "file" / "report.json", "--json")
     assert (tmp_path / "thesis.tex").read_text() == "mine"
 
@@ -78,10 +82,47 @@ def test_unwritable_paths_fail_before_any_computing(tmp_path):
         start = time.monotonic()
         run = run_cli("study", option, str(path))
         assert run.returncode == 2 and "Traceback" not in run.stderr
-        assert run.stderr.count("\n") == 1 and f"{option} {path}: cannot write there" in run.stderr
+        assert run.stderr.count("\n") == 1
+        assert f"{option} {path}: {blocker} is a file, not a folder" in run.stderr
         assert time.monotonic() - start < 3.0  # no study was run
     run = run_cli("play", "--html", str(blocker / "page.html" / "x"))
     assert run.returncode == 2 and "--html" in run.stderr and run.stderr.count("\n") == 1
+
+
+def test_devices_and_pipes_are_refused_and_links_followed(tmp_path):
+    """A rename would replace a device or a pipe: refused. A link stays a link, and the file or
+    folder it names (even one still to be made) is written."""
+    pipe = tmp_path / "pipe"
+    os.mkfifo(pipe)
+    with pytest.raises(InvalidInputError, match=r"--json .*pipe is not a regular file"):
+        writable(pipe, "--json")
+    with pytest.raises(InvalidInputError, match=r"--json .*null is not a regular file"):
+        OutputFolder(tmp_path / "out").beside(Path(os.devnull), "--json")
+    assert pipe.is_fifo() and Path(os.devnull).is_char_device()
+    (tmp_path / "folder").symlink_to("made-later")
+    (tmp_path / "report").symlink_to("kept.json")
+    with OutputFolder(tmp_path / "folder") as out:
+        (out / "report.json").write_text("1")
+        out.beside(tmp_path / "report", "--json").write_text("2")
+    assert (tmp_path / "folder").is_symlink() and (tmp_path / "report").is_symlink()
+    assert (tmp_path / "made-later" / "report.json").read_text() == "1"
+    assert (tmp_path / "kept.json").read_text() == "2"
+
+
+@pytest.mark.parametrize(
+    ("json", "out"),
+    [("out", "out"), ("out/report.json", "out"), ("x", "x/out")],
+    ids=["same", "inside", "holds"],
+)
+def test_a_report_overlapping_the_output_folder_is_refused_before_any_computing(
+    tmp_path, json, out
+):
+    start = time.monotonic()
+    run = run_cli(*STUDY, "--out", out, "--json", json, cwd=tmp_path)
+    assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
+    assert f"--json {json} overlaps --out {out}" in run.stderr
+    assert time.monotonic() - start < 3.0  # no study was run
+    assert list(tmp_path.iterdir()) == []
 
 
 def _foreground() -> None:

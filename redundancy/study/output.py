@@ -9,9 +9,11 @@ the new one renamed into place, the other files renamed over theirs, and the old
 (every staged file is flushed to the disk first, and the folders after, so a power cut never
 leaves an empty file in place of a written one);
 a rename that fails puts the old folder back. A run that fails or is interrupted before then
-removes what it staged and leaves every target as it was; two runs into one folder leave one
-complete output, the last to commit. A target that holds files this toolkit did not write is
-refused rather than replaced, when the run starts and again at the swap.
+removes what it staged, and the folders it made for it, and leaves every target as it was; two
+runs into one folder leave one complete output, the last to commit. A target that holds files
+this toolkit did not write is refused rather than replaced, when the run starts and again at the
+swap; so are a file target that is a device or a pipe, and a file that overlaps the folder. A
+target that is a symbolic link stays one: what it names is written.
 
 `write_atomically` writes one file the same way: to a temporary file beside it, then one rename.
 """
@@ -21,6 +23,7 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import fnmatch
+import itertools
 import os
 import shutil
 import signal
@@ -46,12 +49,35 @@ def _unwritable(path: Path, error: OSError, option: str) -> InvalidInputError:
     return InvalidInputError(f"{option} {path}: cannot write there ({reason})")
 
 
+def _followed(path: Path) -> Path:
+    """``path``, or the path it links to where it is a symbolic link (dangling or not): the
+    link stays, and what it names is written."""
+    return Path(os.path.realpath(path)) if path.is_symlink() else path
+
+
+def _make_parent(path: Path, option: str) -> list[Path]:
+    """Create ``path``'s folder, and return the folders that made, outermost first; one line
+    naming the option where a file stands in its way."""
+    missing = list(itertools.takewhile(lambda p: not p.exists(), path.parents))
+    blocking = path.parents[len(missing)] if len(missing) < len(path.parents) else None
+    if blocking is not None and not blocking.is_dir():
+        raise InvalidInputError(f"{option} {path}: {blocking} is a file, not a folder")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return missing[::-1]
+
+
+def _overlapping(a: Path, b: Path) -> bool:
+    """Whether ``a`` and ``b`` are the same path or one lies inside the other."""
+    a, b = Path(os.path.abspath(a)), Path(os.path.abspath(b))
+    return a == b or a in b.parents or b in a.parents
+
+
 class OutputFolder:
     """The output set of one run, staged beside ``target`` until `commit` (see the module
     docstring); ``option`` names where the target came from, for messages."""
 
     def __init__(self, target: Path | str, option: str = "--out"):
-        self.target = Path(target)
+        self.target = _followed(Path(target))
         self.option = option
         if self.target.name in ("", ".", ".."):
             raise InvalidInputError(f"{option} {target}: give a folder by its own name")
@@ -59,8 +85,9 @@ class OutputFolder:
             raise InvalidInputError(f"{option} {self.target} is a file; give a folder")
         self._check_own()
         self.others: list[tuple[Path, Path]] = []  # (staged, final) files outside the folder
+        self.created: list[Path] = []  # the folders made to hold the target, outermost first
         try:
-            self.target.parent.mkdir(parents=True, exist_ok=True)
+            self.created = _make_parent(self.target, option)
             self.staging = Path(
                 tempfile.mkdtemp(dir=self.target.parent, prefix=f".{self.target.name}.partial-")
             )
@@ -95,9 +122,17 @@ class OutputFolder:
 
     def beside(self, path: Path, option: str) -> Path:
         """Where to write the output file ``path`` kept outside the folder (e.g. ``--json``): a
-        temporary file beside it, renamed over it at `commit`."""
-        staged = _temporary_beside(path, option)
+        temporary file beside it, renamed over it at `commit`. ``path`` may not be the folder,
+        lie inside it or hold it."""
+        path = _followed(path)
+        if _overlapping(path, self.target):
+            raise InvalidInputError(
+                f"{option} {path} overlaps {self.option} {self.target}; give a file outside "
+                f"that folder (it holds its own report.json)"
+            )
+        staged, created = _temporary_beside(path, option)
         self.others.append((staged, path))
+        self.created += created
         return staged
 
     def commit(self) -> None:
@@ -131,11 +166,15 @@ class OutputFolder:
                 shutil.rmtree(aside, ignore_errors=True)
 
     def discard(self) -> None:
-        """Remove what was staged; the targets are untouched."""
+        """Remove what was staged, and the folders made for it where they are empty again; the
+        targets are untouched."""
         if hasattr(self, "staging"):
             shutil.rmtree(self.staging, ignore_errors=True)
         for staged, _ in getattr(self, "others", []):
             staged.unlink(missing_ok=True)
+        for folder in reversed(getattr(self, "created", [])):
+            with contextlib.suppress(OSError):
+                folder.rmdir()
 
     def __enter__(self) -> OutputFolder:
         return self
@@ -206,25 +245,36 @@ def _locked(folder: Path) -> Iterator[None]:
         os.close(descriptor)
 
 
-def _temporary_beside(path: Path, option: str) -> Path:
-    """A new empty temporary file beside the file ``path`` (its folder is created); one line
-    naming the option where ``path`` is a folder or cannot be written."""
+def _check_file(path: Path, option: str) -> None:
+    """One line naming the option where ``path`` is a folder, or anything else but a regular
+    file (a device or a pipe, which the rename of a written file would replace)."""
     if path.is_dir() or path.name in ("", ".", ".."):
         raise InvalidInputError(f"{option} {path} is a folder; give a file path")
+    if path.exists() and not path.is_file():
+        raise InvalidInputError(
+            f"{option} {path} is not a regular file (a device, pipe or socket); give a file path"
+        )
+
+
+def _temporary_beside(path: Path, option: str) -> tuple[Path, list[Path]]:
+    """A new empty temporary file beside the file ``path``, and the folders made to hold it
+    (`_make_parent`); one line naming the option where ``path`` cannot be written (or is no
+    file, `_check_file`)."""
+    _check_file(path, option)
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
+        created = _make_parent(path, option)
         handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
         os.close(handle)
     except OSError as error:
         raise _unwritable(path, error, option) from None
-    return Path(temporary)
+    return Path(temporary), created
 
 
 def writable(path: Path | str, option: str) -> Path:
-    """``path`` after checking that a file can be written beside it (its folder is created);
-    one line naming the option otherwise."""
-    path = Path(path)
-    _temporary_beside(path, option).unlink()
+    """``path`` (where it links to, for a link) after checking that a file can be written
+    beside it (its folder is created); one line naming the option otherwise."""
+    path = _followed(Path(path))
+    _temporary_beside(path, option)[0].unlink()
     return path
 
 
