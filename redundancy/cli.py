@@ -12,6 +12,7 @@ import argparse
 import ipaddress
 import json
 import math
+import os
 import signal
 import sys
 import warnings
@@ -573,6 +574,36 @@ def _interrupt(number, frame) -> None:
     raise Terminated if number == signal.SIGTERM else KeyboardInterrupt
 
 
+class _Output:
+    """Standard output that turns into /dev/null once its reader has gone (``redundancy
+    robots | head -1``): a closed pipe never stops a run half-way or ends it with an error."""
+
+    def __init__(self, stream):
+        self.stream = stream
+
+    def write(self, text: str) -> int:
+        try:
+            return self.stream.write(text)
+        except BrokenPipeError:
+            self._discard()
+            return len(text)
+
+    def flush(self) -> None:
+        try:
+            self.stream.flush()
+        except BrokenPipeError:
+            self._discard()
+
+    def _discard(self) -> None:
+        """What is written from now on, and what is still buffered, goes to /dev/null."""
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, self.stream.fileno())
+        os.close(null)
+
+    def __getattr__(self, name: str):
+        return getattr(self.stream, name)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; exit status 0, 2 for a user's error (one line), 130 / 143 when
     interrupted / terminated, 1 for an internal error (one line with the exception's type)."""
@@ -585,14 +616,17 @@ def main(argv: list[str] | None = None) -> int:
     if args.run is _play_command or signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:
         numbers.append(signal.SIGINT)
     previous = {n: signal.signal(n, _interrupt) for n in numbers}
+    stdout, sys.stdout = sys.stdout, _Output(sys.stdout)
     try:
         # the toolkit's matrices are stacks of n × n with n ≤ 7: BLAS threads never speed
         # them up, and their spinning takes the core the study's second process needs
         with threadpool_limits(limits=1, user_api="blas"):
             status = args.run(args)  # a command may end with a status of its own (check: 2)
+        sys.stdout.flush()
     except BaseException as error:
         return _ending(error)
     finally:
+        sys.stdout = stdout
         for number, handler in previous.items():
             signal.signal(number, handler)
     return status or 0

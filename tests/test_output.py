@@ -125,6 +125,24 @@ def test_a_report_overlapping_the_output_folder_is_refused_before_any_computing(
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_reader_that_goes_away_stops_nothing(tmp_path):
+    """stdout piped into a reader that has gone (``| head -1``): the run still ends well, its
+    output written, and says nothing about the pipe."""
+    for command in (["robots"], [*STUDY, "--out", str(tmp_path / "out")]):
+        read, write = os.pipe()
+        os.close(read)  # the reader is gone before the first line
+        process = subprocess.run(
+            [sys.executable, "-m", "redundancy.cli", *command],
+            stdout=write,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        os.close(write)
+        said = [line for line in process.stderr.splitlines() if "redundancy: note:" not in line]
+        assert process.returncode == 0 and said == [], process.stderr
+    assert json.loads((tmp_path / "out" / "report.json").read_text())["studies"]
+
+
 def _foreground() -> None:
     """In the child: SIGINT as a foreground job has it, even where this test runs as a
     background job (which ignores SIGINT, and so, rightly, would its children)."""
