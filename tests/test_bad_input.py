@@ -87,6 +87,20 @@ CASES = [
         )
         for v in ('"heavy"', "true", "[1]", "-1", "11", "1e300", "nan", "inf")
     ],
+    *[
+        (
+            f"task slow {speed} {acceleration}",
+            ["study", "--task", "t.toml"],
+            {"t.toml": TASK.replace("speed = 0.5", f"speed = {speed}{acceleration}")},
+            "a segment may take at most 600 s: give a higher speed",
+        )
+        for speed, acceleration in [
+            ("1e-6", ""),
+            ("1e-300", ""),
+            ("0.5", '\nprofile = "trapezoidal"\nacceleration = 1e-6'),
+            ("0.5", '\nprofile = "trapezoidal"\nacceleration = 1e-300'),
+        ]
+    ],
     (
         "task speed zero",
         ["study", "--task", "t.toml"],

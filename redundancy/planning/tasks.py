@@ -65,6 +65,8 @@ PROFILES = ("constant", "trapezoidal")
 DIRECTIONS = ("ccw", "cw")
 MAX_ACCELERATION = 100.0  # m/s²: beyond any hydraulic manipulator's tool
 CLOSED = 1e-9  # m (or rad): ends this close count as one point
+MAX_DURATION = 600.0  # s a segment may take: a work cycle's moves take seconds to a minute, and
+# a motion on the 10 ms grid holds 60,000 samples at this
 ARC_MISMATCH = 1e-6  # relative: an arc's ends must lie this close to one circle about its centre
 OUTLINE = 64  # points per full turn when a curved path is drawn
 
@@ -334,6 +336,15 @@ class Profile:
             raise InvalidInputError("speed must be > 0 m/s")
         if self.kind == "trapezoidal" and not (self.acceleration or 0) > 0:
             raise InvalidInputError("a trapezoidal profile needs an acceleration > 0 m/s²")
+        if not self.duration <= MAX_DURATION:
+            pace = f"speed {self.speed:g} m/s" + (
+                f" and acceleration {self.acceleration:g} m/s²" if self.ramp else ""
+            )
+            raise InvalidInputError(
+                f"at {pace} its path of {self.length:.4g} m takes {self.duration:.3g} s; a "
+                f"segment may take at most {MAX_DURATION:g} s: give a higher "
+                + ("speed or acceleration" if self.ramp else "speed")
+            )
 
     @cached_property
     def ramp(self) -> float:
