@@ -1,6 +1,7 @@
 """The hydraulic circuit: hand calculations, the power balance, the energy chain, the objectives
 and the energy bound on the paper's crane."""
 
+import dataclasses
 import json
 import math
 import re
@@ -12,17 +13,24 @@ from commands import run_cli
 from sampling import random_configurations
 
 from redundancy import load_robot
-from redundancy.errors import InvalidInputError, RobotDescriptionError, UnreachableError
+from redundancy.errors import (
+    InvalidInputError,
+    RedundancyError,
+    RobotDescriptionError,
+    UnreachableError,
+)
 from redundancy.model.hydraulics import BAR, LITRES_PER_MINUTE, circuit_from_table
 from redundancy.planning.energy_bound import EXACT, Tables, _nodes, energy_optimum
-from redundancy.planning.integrate import simulate
+from redundancy.planning.integrate import MIN_INTERVALS, simulate
 from redundancy.planning.starts import default_start, improved_start
-from redundancy.planning.tasks import WorkCycle
+from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.planning.time_scaling import shortest_duration
 from redundancy.resolution.laws import MinFlow
 from redundancy.resolution.limits import Limits
 from redundancy.resolution.objectives import CP_ENERGY, ENERGY, FLOW, LS_ENERGY, VELOCITY
 from redundancy.resolution.state import actuator_space
+from redundancy.study import peers
+from redundancy.study.peers import fixed_start_run
 from redundancy.study.study import BASELINES, run_study
 
 
@@ -433,3 +441,27 @@ def test_each_supply_bounds_the_load_pressures_it_can_serve(crane):
     for supply, most in ((circuit.load_sensing, 190e5), (circuit.constant_pressure, 180e5)):
         limits = Limits.hydraulic(crane, supply)
         np.testing.assert_allclose(limits.upper[:3], most)
+
+
+def test_a_segment_shorter_than_a_time_step_gets_every_figure(crane, monkeypatch):
+    """A 0.1 mm move (0.2 ms) is sampled on `MIN_INTERVALS` intervals: ẍ, the forces, the flows
+    and the fastest timing of its path are all defined. Where TOPP-RA finds no timing, the
+    figure is None and the table shows '-'."""
+    short = Segment("short", np.array([3.5, -0.5]), np.array([3.5, -0.4999]), 0.5)
+    for name, resolver in BASELINES:
+        run = fixed_start_run(crane, resolver, name, short)
+        assert run.trajectory.t.shape == (1, MIN_INTERVALS + 1)
+        assert run.trajectory.max_tracking_error[0] < 1e-12
+        figures = run.summary()["hydraulics"]
+        assert 0 < figures["shortest_duration_s"] < 1.0 and np.isfinite(figures["ls_energy_kj"])
+    monkeypatch.setattr(peers, "shortest_duration", _no_timing)
+    untimed = fixed_start_run(crane, BASELINES[0][1], BASELINES[0][0], short)
+    assert untimed.summary()["hydraulics"]["shortest_duration_s"] is None
+    cycle = WorkCycle("short", (short,))
+    study = run_study(crane, cycle, (VELOCITY,), 3, bound=False, progress=False, cycles=0)
+    study = dataclasses.replace(study, runs=(untimed,))
+    assert study.hydraulic_table().splitlines()[-1].split()[-2] == "-"
+
+
+def _no_timing(motion):
+    raise RedundancyError("TOPP-RA found no timing")

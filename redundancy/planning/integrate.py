@@ -45,6 +45,7 @@ from redundancy.resolution.objectives import Objective, integral, kinetic, veloc
 from redundancy.resolution.state import ActuatorSpace, evaluate, regularised
 
 TIME_STEP = 0.01  # s
+MIN_INTERVALS = 10  # of a motion's grid, however short its segment
 GAIN = 20.0  # K, 1/s, of the fixed-step method
 TOLERANCE = 1e-6  # relative and absolute error per adaptive step on q (rad, m)
 ALLOWANCE = 30  # sparse samples' strokes count ALLOWANCE × tolerance (m) closer to their
@@ -361,8 +362,10 @@ def stroke_extremes(
 
 
 def time_grid(segment: Segment, time_step: float = TIME_STEP) -> np.ndarray:
-    """Uniform sample times over the segment, at most ``time_step`` apart, (T,) in s."""
-    steps = max(1, int(np.ceil(segment.duration / time_step - 1e-9)))
+    """Uniform sample times over the segment, at most ``time_step`` apart, (T,) in s; at least
+    `MIN_INTERVALS` intervals, so that a segment shorter than a few steps is still resolved
+    (ẍ by second-order differences, the fastest timing of its path by TOPP-RA)."""
+    steps = max(MIN_INTERVALS, int(np.ceil(segment.duration / time_step - 1e-9)))
     return np.linspace(0.0, segment.duration, steps + 1)
 
 

@@ -76,9 +76,14 @@ def hydraulics(motion: Trajectory) -> dict:
     """The hydraulic figures of the first motion of ``motion`` in the units the field uses:
     peak pump flow (L/min), highest load pressure (bar), pump energy under load sensing and
     constant pressure (kJ), whether a load overran, the circuit's limits passed, and the
-    shortest duration of its path within the circuit's limits (s, `shortest_duration`)."""
+    shortest duration of its path within the circuit's limits (s, `shortest_duration`; None
+    where TOPP-RA finds no timing)."""
     circuit, flows = motion.robot.circuit(), motion.flows
     violations = motion.hydraulic_violations(0)
+    try:
+        shortest: float | None = shortest_duration(motion).duration
+    except RedundancyError:
+        shortest = None
     return {
         "peak_pump_flow_l_min": float(flows.pump_flow[0].max() / LITRES_PER_MINUTE),
         "max_load_pressure_bar": float(flows.load[0].max() / BAR),
@@ -87,7 +92,7 @@ def hydraulics(motion: Trajectory) -> dict:
         "overrunning": bool(flows.overrunning[0].any()),
         "within_limits": not violations,
         "violations": [str(v) for v in violations],
-        "shortest_duration_s": shortest_duration(motion).duration,
+        "shortest_duration_s": shortest,
     }
 
 

@@ -276,11 +276,13 @@ class Study:
             percent = "".join(
                 f"{above[s]:>7.1f}" if s in above else f"{'-':>7}" for s in ("LS", "CP")
             )
+            shortest = figures["shortest_duration_s"]
             lines.append(
                 f"{run.segment:<{names}}{run.strategy:<36}"
                 f"{figures['peak_pump_flow_l_min']:>10.1f}{figures['max_load_pressure_bar']:>9.1f}"
                 f"{figures['ls_energy_kj']:>8.2f}{figures['cp_energy_kj']:>8.2f}{percent}"
-                f"{figures['shortest_duration_s']:>8.2f}  "
+                + (f"{'-':>8}" if shortest is None else f"{shortest:>8.2f}")
+                + "  "
                 + ("held" if figures["within_limits"] else "; ".join(figures["violations"]))
             )
         for segment, bounds in (self.energy_bounds or {}).items():
