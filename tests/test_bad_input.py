@@ -329,6 +329,15 @@ CASES = [
         "kinematic only: links boom1, boom2, telescope",
     ),
     (
+        "task axis never moved along",
+        ["study", "--robot", "r.toml", "--task", "t.toml"],
+        {
+            "r.toml": _description(task_axes='"xy"'),
+            "t.toml": 'segments = ["a-b"]\n[points]\na = [3.5, 0.0]\nb = [1.0, 0.0]\n',
+        },
+        "cannot move its tool along y at the start of segment a-b [3.5, 0.0]: the task Jacobian",
+    ),
+    (
         "unreachable end",
         ["study", "--task", "t.toml"],
         {"t.toml": TASK.replace("2 = [1.0, -0.5]", "2 = [100.0, -0.5]")},

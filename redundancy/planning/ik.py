@@ -19,10 +19,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from redundancy.errors import InvalidInputError, UnreachableError
+from redundancy.errors import InvalidInputError, SingularConfigurationError, UnreachableError
 from redundancy.model.robot import Robot
 from redundancy.planning.tasks import Segment
 from redundancy.resolution.limits import amount
+from redundancy.resolution.state import SINGULAR_TOLERANCE
 
 TOLERANCE = 1e-12  # m (and m or rad for held actuators): a residual this small has converged
 FOUND = 1e3 * TOLERANCE  # a residual below this has found a configuration
@@ -241,11 +242,12 @@ def check_path(robot: Robot, segment: Segment, seeds: int = 8) -> None:
     Gauss-Newton on y(q) = y_d from every configuration found for the point before (from
     ``seeds`` spread over the joint box for the first, and again wherever continuation
     misses), so a reachable path is followed through its workspace and only a point that every
-    seed misses by more than `PATH_TOLERANCE` is refused."""
+    seed misses by more than `PATH_TOLERANCE` is refused, and so is a start where the tool
+    cannot move along some task direction (`_check_mobility`)."""
     times = np.linspace(0.0, segment.duration, PATH_POINTS)
     fresh = _seeds(robot, seeds)
     q = fresh
-    for t, point in zip(times, segment.position(times)):
+    for i, (t, point) in enumerate(zip(times, segment.position(times))):
         q, miss = newton(
             robot, q, [], np.broadcast_to(point, q.shape[:1] + point.shape), ITERATIONS, True
         )
@@ -259,3 +261,31 @@ def check_path(robot: Robot, segment: Segment, seeds: int = 8) -> None:
                 f"limits, missed by {amount(miss.min(), 'm')}"
             )
         q = q[miss < FOUND] if np.any(miss < FOUND) else q
+        if not i:
+            _check_mobility(robot, segment, q)
+
+
+def _check_mobility(robot: Robot, segment: Segment, q: np.ndarray) -> None:
+    """Refuse the start of ``segment`` if at every configuration q (k, n) found for it the task
+    Jacobian J (m × n, Eq. 7) loses rank, σ_min < `SINGULAR_TOLERANCE` σ_max: the tool cannot
+    move along some task direction there (or ever, for a task axis the robot does not move
+    along), which no law can resolve."""
+    _, J = robot.task_point(robot.kinematics(q))
+    u, sigma, _ = np.linalg.svd(J)
+    able = sigma[:, -1] > SINGULAR_TOLERANCE * sigma[:, 0]
+    if able.any():
+        return
+    best = int(np.argmax(sigma[:, -1] / np.maximum(sigma[:, 0], np.finfo(float).tiny)))
+    direction = u[best, :, -1]
+    axes = [*robot.task_axes, *["angle"] * (robot.m - len(robot.task_axes))]
+    along = (
+        axes[int(np.argmax(np.abs(direction)))]
+        if np.abs(direction).max() > 0.99
+        else (f"{np.round(direction, 3).tolist()} (in {', '.join(axes)})")
+    )
+    raise SingularConfigurationError(
+        f"{robot.name} cannot move its tool along {along} at the start of segment "
+        f"{segment.name} {np.round(segment.start, 6).tolist()}: the task Jacobian J has rank "
+        f"{int(np.sum(sigma[best] > SINGULAR_TOLERANCE * sigma[best, 0]))} of {robot.m} there; "
+        f"task axes: {', '.join(axes)}"
+    )
