@@ -133,6 +133,9 @@ sample_count = argument(
 )
 worker_count = argument(int, lambda v: 1 <= v <= 4096, "must be a whole number within [1, 4,096]")
 cycle_count = argument(int, lambda v: 0 <= v <= 10_000, "must be a whole number within [0, 10,000]")
+repetition_count = argument(
+    int, lambda v: 1 <= v <= 10_000, "must be a whole number within [1, 10,000]"
+)
 payload_mass = argument(
     float, lambda v: 0 <= v <= MAX_PAYLOAD, f"must be a mass within [0, {MAX_PAYLOAD:g}] kg"
 )
@@ -516,7 +519,7 @@ def parser() -> argparse.ArgumentParser:
     cycle.add_argument("--task", help="task file (TOML); default: the robot's own")
     cycle.add_argument(
         "--cycles",
-        type=cycle_count,
+        type=repetition_count,
         default=CYCLES,
         help=f"cycles run one after another (default {CYCLES})",
     )

@@ -295,8 +295,8 @@ def test_the_cycle_command_writes_its_report_figures_and_playback(tmp_path):
 @pytest.mark.parametrize(
     "args, message",
     [
-        (["--cycles", "-1"], "--cycles: '-1' must be a whole number within [0, 10,000]"),
-        (["--cycles", "0"], "cycles must be a whole number within [1, 10,000]"),
+        (["--cycles", "-1"], "--cycles: '-1' must be a whole number within [1, 10,000]"),
+        (["--cycles", "0"], "--cycles: '0' must be a whole number within [1, 10,000]"),
         (["--strategy", "wander"], "invalid choice: 'wander'"),
         (["--gap-speed", "0"], "--gap-speed: '0' must be a speed > 0"),
     ],

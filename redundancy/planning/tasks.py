@@ -586,9 +586,9 @@ class WorkCycle:
             pairs.append((self.segments[-1], self.segments[0]))
         for before, after in pairs:
             if np.any(np.abs(after.start - before.end) > CLOSED):
-                what = "does not return to its start: " if after is self.segments[0] else ""
+                what = "it does not return to its start: " if after is self.segments[0] else ""
                 raise InvalidInputError(
-                    f"task {self.name!r} is not one continuous cycle; it {what}segment "
+                    f"task {self.name!r} is not one continuous cycle; {what}segment "
                     f"{after.name} starts at {np.round(after.start, 6).tolist()} but "
                     f"{before.name} ends at {np.round(before.end, 6).tolist()}"
                 )
