@@ -320,6 +320,17 @@ CASES = [
         "inverted: boom1_joint [2.6145, 0.827286]",
     ),
     (
+        "attachment far away",
+        ["check", "--robot", "m.toml"],
+        {
+            "m.urdf": URDF.replace(
+                'link="boom1" xyz="0.369583691280232', 'link="boom1" xyz="1e300'
+            ),
+            "m.toml": _description(urdf='"m.urdf"'),
+        },
+        'rod <attachment link="boom1" xyz="1e300 0 -0.0691657078303828"/> must be',
+    ),
+    (
         "no masses",
         ["study", "--robot", "m.toml"],
         {

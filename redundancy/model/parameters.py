@@ -30,6 +30,7 @@ import numpy as np
 from redundancy.errors import RobotDescriptionError
 
 REQUIRED = object()  # the default of a parameter that must be given
+MAX_OFFSET = 1000.0  # m: a point on a link, or a length, within this of the link's frame
 
 
 @dataclass(frozen=True)
@@ -83,6 +84,11 @@ def _finite(value: object) -> bool:
     return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
 
 
+def _offset(value: object) -> bool:
+    """A finite coordinate or length of a link's point, within `MAX_OFFSET`."""
+    return _finite(value) and abs(cast(float, value)) <= MAX_OFFSET
+
+
 @dataclass(frozen=True)
 class Number(Parameter):
     """A finite number (``<tag value="..."/>``), e.g. a prismatic drive's offset in m; one of
@@ -134,7 +140,9 @@ class Point(Parameter):
     ``{link = "...", xyz = [x, y, z]}`` in TOML, ``<tag link="..." xyz="x y z"/>`` in a URDF."""
 
     def read(self, value: object, where: str) -> tuple[str, np.ndarray]:
-        shape = '{link = "<a link>", xyz = [x, y, z]} with three finite numbers, m'
+        shape = (
+            f'{{link = "<a link>", xyz = [x, y, z]}} with three numbers within ±{MAX_OFFSET:g} m'
+        )
         if not isinstance(value, dict) or set(value) != {"link", "xyz"}:
             raise self._refuse(where, shape)
         link, xyz = value["link"], value["xyz"]
@@ -142,7 +150,7 @@ class Point(Parameter):
             not isinstance(link, str)
             or not isinstance(xyz, list)
             or len(xyz) != 3
-            or not all(_finite(c) for c in xyz)
+            or not all(_offset(c) for c in xyz)
         ):
             raise self._refuse(where, shape)
         return link, np.array(xyz, dtype=float)
@@ -174,11 +182,14 @@ class Arm(Parameter):
         return Point(self.name, self.meaning)
 
     def read(self, value: object, where: str) -> tuple[str, np.ndarray, float]:
-        shape = '{link = "<a link>", xyz = [x, y, z], length = l} with finite numbers, m, l > 0'
+        shape = (
+            f'{{link = "<a link>", xyz = [x, y, z], length = l}} with numbers within '
+            f"±{MAX_OFFSET:g} m, l > 0"
+        )
         if not isinstance(value, dict) or set(value) != {"link", "xyz", "length"}:
             raise self._refuse(where, shape)
         length = value["length"]
-        if not _finite(length) or not length > 0:
+        if not _offset(length) or not length > 0:
             raise self._refuse(where, shape)
         try:
             link, xyz = self._point.read({"link": value["link"], "xyz": value["xyz"]}, where)
