@@ -429,6 +429,13 @@ CASES = [
                 "100000}\nspeed = {from = 0.1, to = 1, count = 100000}\n",
                 "split a larger",
             ),
+            (
+                "too many workspace starts",
+                "name = 'big'\nobjectives = ['velocity']\n[workspace]\nlength = 1.0\n"
+                "direction = [-1.0, 0.0]\n[workspace.grid]\nx = [0.5, 4.0, 100000]\n"
+                "z = [-1.0, 3.0, 100000]\n",
+                "the family has 10,000,000,000 problems; it must have at most 2,000,000",
+            ),
         ]
     ],
     (

@@ -17,6 +17,7 @@ from commands import run_cli
 
 from redundancy import VELOCITY, WorkCycle, actuator_space, improved_start, load_robot
 from redundancy.errors import InvalidInputError
+from redundancy.study import families
 from redundancy.study.families import Design, read_family
 from redundancy.study.maps import design_map, summary
 from redundancy.study.study import run_study
@@ -307,6 +308,19 @@ def test_a_bad_family_gets_one_line(tmp_path, text, expected):
         read_family(write(tmp_path, "bad.toml", text))
     assert expected in str(raised.value)
     assert "\n" not in str(raised.value)
+
+
+def test_a_family_is_counted_before_any_segment_is_built(tmp_path, monkeypatch):
+    """3,000 × 1,000 starts are refused from the grid's counts, not after building 3,000,000
+    segments (about a minute)."""
+
+    def built(*args):
+        raise AssertionError("a segment was built")
+
+    monkeypatch.setattr(families, "Segment", built)
+    text = WORKSPACE.format(chunk=8, nx=3000).replace("[-1.0, 2.0, 3]", "[-1.0, 2.0, 1000]")
+    with pytest.raises(InvalidInputError, match="the family has 3,000,000 problems"):
+        read_family(write(tmp_path, "big.toml", text))
 
 
 def test_bad_map_runs_get_one_line_and_exit_2(tmp_path):

@@ -47,6 +47,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import itertools
+import math
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
 from pathlib import Path
@@ -111,7 +112,7 @@ class MapFamily:
     circuit: bool = False
 
     def __len__(self) -> int:
-        return len(self.segments) * int(np.prod([len(v) for _, v in self.grid]))
+        return len(self.segments) * math.prod(len(v) for _, v in self.grid)
 
     @property
     def chunks(self) -> int:
@@ -268,7 +269,11 @@ def workspace_extent(robot: Robot) -> np.ndarray:
     return np.stack([y.min(axis=0), y.max(axis=0)], axis=1)
 
 
-def _workspace_segments(robot: Robot, table: object, where: str) -> tuple[Segment, ...]:
+def _workspace(
+    robot: Robot, table: object, where: str
+) -> tuple[list[tuple[float, ...]], np.ndarray, float]:
+    """The ``[workspace]`` table: the grid's coordinates per task axis, the step from a
+    segment's start to its end (m) and the speed along it (m/s)."""
     if not isinstance(table, dict):
         raise InvalidInputError(f"{where}: [workspace] must be a table")
     length = number(table, "length", where, "m, each segment's length", lower=1e-6, upper=1e3)
@@ -293,11 +298,28 @@ def _workspace_segments(robot: Robot, table: object, where: str) -> tuple[Segmen
         if axis not in grid:
             raise InvalidInputError(f"{where}: [workspace.grid] misses the task axis {axis!r}")
         axes.append(_axis_values(grid[axis], f"{where}: workspace.grid.{axis}", tuple(extent[a])))
-    step = length * direction / np.linalg.norm(direction)
+    return axes, length * direction / np.linalg.norm(direction), speed
+
+
+def _workspace_segments(
+    axes: list[tuple[float, ...]], step: np.ndarray, speed: float
+) -> tuple[Segment, ...]:
+    """A segment from every point of the grid ``axes`` to that point + ``step``."""
     return tuple(
         Segment(f"start {i}", np.array(start), np.array(start) + step, speed)
         for i, start in enumerate(itertools.product(*axes))
     )
+
+
+def _check_size(segments: int, grid: tuple[tuple[str, tuple], ...], where: str) -> None:
+    """Refuse a family of more than `MAX_PROBLEMS` problems, counted from its ``segments``
+    and the design ``grid``'s sizes before any of them is built."""
+    problems = segments * math.prod(len(values) for _, values in grid)
+    if problems > MAX_PROBLEMS:
+        raise InvalidInputError(
+            f"{where}: the family has {problems:,} problems; it must have at most "
+            f"{MAX_PROBLEMS:,} (split a larger family)"
+        )
 
 
 def _task_segments(robot: Robot, table: object, folder: Path, where: str):
@@ -363,11 +385,15 @@ def read_family(path: Path | str) -> MapFamily:
     if ("workspace" in data) == ("task" in data):
         raise InvalidInputError(f"{where}: give the segments by one table, [workspace] or [task]")
     held = names(data, "held", where, "actuators the search holds", ())
+    grid, attachment, bore = _grid(robot, data.get("grid", {}), f"{where}: [grid]")
     if "workspace" in data:
-        segments = _workspace_segments(robot, data["workspace"], where)
+        axes, step, speed = _workspace(robot, data["workspace"], where)
+        _check_size(math.prod(len(values) for values in axes), grid, where)
+        segments = _workspace_segments(axes, step, speed)
         cycle = WorkCycle("workspace", segments[:1], held)
     else:
         segments, cycle = _task_segments(robot, data["task"], folder, where)
+        _check_size(len(segments), grid, where)
         cycle = WorkCycle(cycle.name, cycle.segments, held or cycle.held)
     held = held_actuators(robot, cycle)
     held_indices(robot, held)  # names checked before any work
@@ -376,8 +402,7 @@ def read_family(path: Path | str) -> MapFamily:
         raise InvalidInputError(
             f"{where}: chunk = {chunk!r} must be a whole number within [1, {MAX_CHUNK:,}]"
         )
-    grid, attachment, bore = _grid(robot, data.get("grid", {}), f"{where}: [grid]")
-    family = MapFamily(
+    return MapFamily(
         text(data, "name", where, "the map's name", path.stem),
         robot_name,
         hydraulics,
@@ -392,12 +417,6 @@ def read_family(path: Path | str) -> MapFamily:
         flags["energy"],
         flags["circuit"],
     )
-    if not 1 <= len(family) <= MAX_PROBLEMS:
-        raise InvalidInputError(
-            f"{where}: the family has {len(family):,} problems; it must have 1 to "
-            f"{MAX_PROBLEMS:,} (split a larger family)"
-        )
-    return family
 
 
 def _grid(robot: Robot, table: object, where: str):
