@@ -33,6 +33,14 @@ def read_toml(path: Path, what: str) -> dict:
         raise InvalidInputError(f"{path}: not valid TOML: {error}") from None
 
 
+def check_keys(table: dict, known, where: str) -> None:
+    """Refuse a key of ``table`` that is not among ``known``: one line naming it, ``where``
+    the table is and the valid keys."""
+    extra = sorted(set(table) - set(known))
+    if extra:
+        raise InvalidInputError(f"{where}: unknown keys {extra}; keys: {', '.join(known)}")
+
+
 def _given(table: dict, key: str, where: str, meaning: str, default):
     if key in table:
         return table[key]

@@ -62,6 +62,7 @@ from redundancy.model.robot import AXES, Robot
 from redundancy.model.values import (
     MAX_PAYLOAD,
     MAX_SPEED,
+    check_keys,
     coordinates,
     names,
     number,
@@ -73,6 +74,20 @@ from redundancy.planning.starts import held_actuators
 from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.resolution.objectives import OBJECTIVES
 
+KEYS = (
+    "name",
+    "robot",
+    "hydraulics",
+    "objectives",
+    "held",
+    "chunk",
+    "bound",
+    "energy",
+    "circuit",
+    "workspace",
+    "task",
+    "grid",
+)  # a map file's keys
 PARAMETERS = ("payload", "speed", "attachment", "bore")  # the design grid's keys, in order
 MAX_PROBLEMS = 2_000_000  # problems of one family: its table, held in memory at about 200 bytes
 # per row and objective, stays under 1 GB with two objectives; split a larger family
@@ -342,25 +357,7 @@ def read_family(path: Path | str) -> MapFamily:
     path = Path(path)
     data = read_toml(path, "map file")
     where, folder = str(path), path.resolve().parent
-    known = {
-        "name",
-        "robot",
-        "hydraulics",
-        "objectives",
-        "held",
-        "chunk",
-        "bound",
-        "energy",
-        "circuit",
-        "workspace",
-        "task",
-        "grid",
-    }
-    unknown = sorted(set(data) - known)
-    if unknown:
-        raise InvalidInputError(
-            f"{where}: unknown keys {unknown}; keys: {', '.join(sorted(known))}"
-        )
+    check_keys(data, KEYS, where)
     robot_name = text(data, "robot", where, "bundled name or robot path", "hiab031")
     if not (robot_name in bundled_robots() and not (folder / robot_name).exists()):
         robot_name = str(folder / robot_name)
