@@ -88,7 +88,14 @@ KEYS = (
     "task",
     "grid",
 )  # a map file's keys
+WORKSPACE_KEYS = ("length", "direction", "speed", "grid")
+TASK_KEYS = ("file", "segments")
 PARAMETERS = ("payload", "speed", "attachment", "bore")  # the design grid's keys, in order
+RANGE_KEYS = ("from", "to", "count")  # a design parameter's values as a range
+DESIGN_KEYS = {
+    "attachment": ("actuator", "end", "axis", "values"),
+    "bore": ("actuator", "values"),
+}  # the keys of the design parameters given as a table
 MAX_PROBLEMS = 2_000_000  # problems of one family: its table, held in memory at about 200 bytes
 # per row and objective, stays under 1 GB with two objectives; split a larger family
 MAX_CHUNK = 10_000
@@ -240,6 +247,7 @@ def _variant(
 def _values(value: object, where: str, meaning: str, lower: float, upper: float) -> tuple:
     """A list of numbers, or {from, to, count}, as a tuple of floats within [lower, upper]."""
     if isinstance(value, dict):
+        check_keys(value, RANGE_KEYS, where)
         start = number(value, "from", where, meaning, lower=lower, upper=upper)
         stop = number(value, "to", where, meaning, lower=lower, upper=upper)
         count = value.get("count")
@@ -291,6 +299,7 @@ def _workspace(
     segment's start to its end (m) and the speed along it (m/s)."""
     if not isinstance(table, dict):
         raise InvalidInputError(f"{where}: [workspace] must be a table")
+    check_keys(table, WORKSPACE_KEYS, f"{where}: [workspace]")
     length = number(table, "length", where, "m, each segment's length", lower=1e-6, upper=1e3)
     direction = coordinates(table.get("direction"), f"{where}: direction", robot.m)
     if not np.linalg.norm(direction) > 0:
@@ -340,6 +349,7 @@ def _check_size(segments: int, grid: tuple[tuple[str, tuple], ...], where: str) 
 def _task_segments(robot: Robot, table: object, folder: Path, where: str):
     if not isinstance(table, dict):
         raise InvalidInputError(f"{where}: [task] must be a table")
+    check_keys(table, TASK_KEYS, f"{where}: [task]")
     if "file" in table:
         path = folder / text(table, "file", where, "the task file, relative to the map file")
     elif robot.task_file is not None:
@@ -347,7 +357,7 @@ def _task_segments(robot: Robot, table: object, folder: Path, where: str):
     else:
         raise InvalidInputError(f"{where}: [task] needs file = ...; {robot.name} has no task")
     cycle = WorkCycle.from_toml(path, dimension=robot.m)
-    chosen = names(table, "segments", where, "segments of the task file", ())
+    chosen = names(table, "segments", where, "segments of the task file", (), distinct=True)
     segments = tuple(cycle[s] for s in chosen) if chosen else cycle.segments
     return segments, cycle
 
@@ -364,7 +374,14 @@ def read_family(path: Path | str) -> MapFamily:
     hydraulics = text(data, "hydraulics", where, "a [hydraulics] file", None)
     hydraulics = None if hydraulics is None else str(folder / hydraulics)
     robot = load_robot(robot_name, hydraulics=hydraulics)
-    objectives = names(data, "objectives", where, "objective names", ("velocity", "energy"))
+    objectives = names(
+        data,
+        "objectives",
+        where,
+        f"objectives: {', '.join(OBJECTIVES)}",
+        ("velocity", "energy"),
+        distinct=True,
+    )
     for name in objectives:
         if name not in OBJECTIVES:
             raise InvalidInputError(
@@ -381,7 +398,7 @@ def read_family(path: Path | str) -> MapFamily:
         robot.circuit()  # says how to declare one
     if ("workspace" in data) == ("task" in data):
         raise InvalidInputError(f"{where}: give the segments by one table, [workspace] or [task]")
-    held = names(data, "held", where, "actuators the search holds", ())
+    held = names(data, "held", where, "actuators the search holds", (), distinct=True)
     grid, attachment, bore = _grid(robot, data.get("grid", {}), f"{where}: [grid]")
     if "workspace" in data:
         axes, step, speed = _workspace(robot, data["workspace"], where)
@@ -437,6 +454,7 @@ def _grid(robot: Robot, table: object, where: str):
                 raise InvalidInputError(
                     f"{where} {key} must be a table with actuator = ... and values = [...]"
                 )
+            check_keys(value, DESIGN_KEYS[key], f"{where} {key}")
             actuator = text(value, "actuator", f"{where} {key}", "an actuator's name")
             if actuator not in robot.actuators.names:
                 raise InvalidInputError(
