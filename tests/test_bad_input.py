@@ -476,6 +476,15 @@ CASES = [
             ),
         ]
     ],
+    *[
+        (
+            f"map --scheduler {v}",
+            ["map", "m.toml", "--scheduler", v],
+            {"m.toml": "[task]\n"},
+            f"--scheduler {v!r} is not a scheduler's address; give tcp://HOST:PORT",
+        )
+        for v in ("not a url", "http://127.0.0.1:1", "tcp://127.0.0.1", "tcp://h:99999", "")
+    ],
     (
         "map out is a file",
         ["map", "m.toml", "--out", "f"],

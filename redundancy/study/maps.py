@@ -35,6 +35,7 @@ import json
 import logging
 import os
 import shutil
+import urllib.parse
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
@@ -236,11 +237,36 @@ def _frame(rows: list[dict], typed: dict[str, str]):
     )
 
 
+def scheduler_address(text: str) -> str:
+    """``text`` as a scheduler's address, tcp://HOST:PORT; one line naming that form
+    otherwise."""
+    try:
+        parts = urllib.parse.urlsplit(text)
+        valid = (
+            parts.scheme == "tcp"
+            and bool(parts.hostname)
+            and parts.username is None
+            and (parts.port or 0) > 0
+            and not (parts.path or parts.query or parts.fragment)
+            and not any(c.isspace() for c in text)
+        )
+    except ValueError:  # a port out of range, a malformed IPv6 address
+        valid = False
+    if not valid:
+        raise InvalidInputError(
+            f"--scheduler {text!r} is not a scheduler's address; give tcp://HOST:PORT, as "
+            "`dask scheduler` prints it (e.g. tcp://10.0.0.5:8786)"
+        )
+    return f"tcp://{parts.netloc}"
+
+
 def connect(scheduler: str, timeout: float = CONNECT_TIMEOUT):
-    """A `distributed.Client` on the scheduler at ``scheduler`` (e.g. tcp://10.0.0.5:8786), or
-    one line if it does not answer within ``timeout`` s."""
+    """A `distributed.Client` on the scheduler at ``scheduler`` (tcp://HOST:PORT, e.g.
+    tcp://10.0.0.5:8786), or one line if the address is malformed or no scheduler answers
+    there within ``timeout`` s."""
     from distributed import Client
 
+    scheduler = scheduler_address(scheduler)
     try:
         return Client(scheduler, timeout=timeout, set_as_default=False)
     except (OSError, TimeoutError, ValueError, TypeError) as error:
