@@ -1,11 +1,13 @@
 """Design maps on Dask: a real scheduler and workers, resumable Parquet chunks, the paper's
 findings reproduced, families read with one-line errors."""
 
+import contextlib
 import os
 import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -342,8 +344,8 @@ def test_bad_map_runs_get_one_line_and_exit_2(tmp_path):
     result = run_cli("map", str(family), "--scheduler", silent, "--timeout", "2")
     assert result.returncode == 2 and time.monotonic() - began < 30
     assert result.stderr.strip() == (
-        f"redundancy: error: --scheduler {silent}: no Dask scheduler answered within 2 s "
-        "(OSError); start one with `dask scheduler` and give its address, e.g. tcp://HOST:8786"
+        f"redundancy: error: --scheduler {silent}: no Dask scheduler answered within 2 s; "
+        "start one with `dask scheduler` and give its address, e.g. tcp://HOST:8786"
     )
 
     blocker = write(tmp_path, "file", "")
@@ -352,6 +354,54 @@ def test_bad_map_runs_get_one_line_and_exit_2(tmp_path):
     assert result.returncode == 2 and time.monotonic() - began < 30
     assert result.stderr.strip().startswith(f"redundancy: error: --out {blocker / 'maps'}")
     assert len(result.stderr.strip().splitlines()) == 1
+
+
+@contextlib.contextmanager
+def listener(reply: bytes):
+    """A TCP server on a free local port, in a thread, that accepts every connection and sends
+    ``reply`` on it (nothing if empty); yields its address."""
+    server = socket.create_server(("127.0.0.1", 0))
+    accepted = []
+
+    def serve():
+        with contextlib.suppress(OSError):  # the server shut down
+            while True:
+                connection, _ = server.accept()
+                accepted.append(connection)
+                connection.sendall(reply)
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    try:
+        yield f"tcp://127.0.0.1:{server.getsockname()[1]}"
+    finally:
+        server.shutdown(socket.SHUT_RDWR)  # wakes the accept
+        thread.join(timeout=5)
+        server.close()
+        for connection in accepted:
+            connection.close()
+
+
+@pytest.mark.parametrize(
+    ("reply", "expected"),
+    [
+        (b"", ": no Dask scheduler answered within 1 s; start one"),
+        (b"HTTP/1.1 400 Bad Request\r\n\r\n", " does not answer as a Dask scheduler"),
+    ],
+    ids=["silent", "another protocol"],
+)
+def test_a_server_that_is_no_scheduler_is_one_line_within_the_timeout(tmp_path, reply, expected):
+    """The timeout bounds the whole connection, handshake included, and a server speaking
+    another protocol is named as such."""
+    family = write(tmp_path, "ws.toml", WORKSPACE.format(chunk=2, nx=2))
+    with listener(reply) as address:
+        began = time.monotonic()
+        result = run_cli(
+            "map", str(family), "--scheduler", address, "--timeout", "1", cwd=tmp_path, timeout=30
+        )
+    assert result.returncode == 2 and time.monotonic() - began < 20
+    assert result.stderr.startswith(f"redundancy: error: --scheduler {address}{expected}")
+    assert len(result.stderr.splitlines()) == 1, result.stderr
 
 
 def test_bound_and_energy_columns_agree_with_the_searches_they_come_from(tmp_path, crane, client):

@@ -29,6 +29,7 @@ and ``peak_flow_lpm``; and ``reason``, why a problem has no feasible start.
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import fcntl
 import json
@@ -260,21 +261,51 @@ def scheduler_address(text: str) -> str:
     return f"tcp://{parts.netloc}"
 
 
+async def _identity(address: str, timeout: float):
+    """What the server at ``address`` says it is, asked in Dask's protocol (a scheduler
+    answers a dict with ``"type": "Scheduler"``)."""
+    from distributed.comm import connect as open_comm
+
+    comm = await open_comm(address, timeout=timeout)
+    try:
+        await comm.write({"op": "identity", "reply": True})
+        return await comm.read()
+    finally:
+        comm.abort()
+
+
 def connect(scheduler: str, timeout: float = CONNECT_TIMEOUT):
     """A `distributed.Client` on the scheduler at ``scheduler`` (tcp://HOST:PORT, e.g.
-    tcp://10.0.0.5:8786), or one line if the address is malformed or no scheduler answers
-    there within ``timeout`` s."""
+    tcp://10.0.0.5:8786), or one line if the address is malformed, if no scheduler answers
+    there within ``timeout`` s or if what answers is not a Dask scheduler.
+
+    The server is asked what it is before the Client is made: distributed bounds the TCP
+    connection by the timeout but not its handshake, so a server that accepts and stays
+    silent would hold the Client forever, and one that answers in another protocol would
+    leave a half-made Client that complains when it is collected."""
     from distributed import Client
 
     scheduler = scheduler_address(scheduler)
+    silent = InvalidInputError(
+        f"--scheduler {scheduler}: no Dask scheduler answered within {timeout:g} s; start one "
+        "with `dask scheduler` and give its address, e.g. tcp://HOST:8786"
+    )
+    try:
+        identity = asyncio.run(asyncio.wait_for(_identity(scheduler, timeout), timeout))
+    except OSError:  # refused, unreachable, or silent until the timeout (TimeoutError)
+        raise silent from None
+    except Exception:  # another protocol: its bytes, read as Dask's frames, fail anyhow
+        identity = None
+    if not (isinstance(identity, dict) and identity.get("type") == "Scheduler"):
+        raise InvalidInputError(
+            f"--scheduler {scheduler} does not answer as a Dask scheduler (something else "
+            "listens there); start one with `dask scheduler` and give its address, e.g. "
+            "tcp://HOST:8786"
+        )
     try:
         return Client(scheduler, timeout=timeout, set_as_default=False)
-    except (OSError, TimeoutError, ValueError, TypeError) as error:
-        raise InvalidInputError(
-            f"--scheduler {scheduler}: no Dask scheduler answered within {timeout:g} s "
-            f"({type(error).__name__}); start one with `dask scheduler` and give its address, "
-            "e.g. tcp://HOST:8786"
-        ) from None
+    except OSError:  # gone since it answered
+        raise silent from None
 
 
 def design_map(
