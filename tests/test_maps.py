@@ -341,7 +341,7 @@ def test_bad_map_runs_get_one_line_and_exit_2(tmp_path):
     family = write(tmp_path, "ws.toml", WORKSPACE.format(chunk=2, nx=2))
     silent = f"tcp://127.0.0.1:{free_port()}"
     began = time.monotonic()
-    result = run_cli("map", str(family), "--scheduler", silent, "--timeout", "2")
+    result = run_cli("map", str(family), "--scheduler", silent, "--timeout", "2", cwd=tmp_path)
     assert result.returncode == 2 and time.monotonic() - began < 30
     assert result.stderr.strip() == (
         f"redundancy: error: --scheduler {silent}: no Dask scheduler answered within 2 s; "
@@ -402,6 +402,14 @@ def test_a_server_that_is_no_scheduler_is_one_line_within_the_timeout(tmp_path, 
     assert result.returncode == 2 and time.monotonic() - began < 20
     assert result.stderr.startswith(f"redundancy: error: --scheduler {address}{expected}")
     assert len(result.stderr.splitlines()) == 1, result.stderr
+
+
+def test_a_map_whose_scheduler_does_not_answer_leaves_nothing_behind(tmp_path):
+    family = write(tmp_path, "ws.toml", WORKSPACE.format(chunk=2, nx=2))
+    silent = f"tcp://127.0.0.1:{free_port()}"
+    result = run_cli("map", str(family), "--scheduler", silent, "--timeout", "1", cwd=tmp_path)
+    assert result.returncode == 2, result.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ws.toml"]
 
 
 def test_bound_and_energy_columns_agree_with_the_searches_they_come_from(tmp_path, crane, client):

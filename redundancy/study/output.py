@@ -9,8 +9,9 @@ the new one renamed into place, the other files renamed over theirs, and the old
 (every staged file is flushed to the disk first, and the folders after, so a power cut never
 leaves an empty file in place of a written one);
 a rename that fails puts the old folder back. A run that fails or is interrupted before then
-removes what it staged and leaves every target as it was; two runs into one folder leave one
-complete output, the last to commit. A target that holds files this toolkit did not write is
+removes what it staged and the folders it made to stage it (those still empty), and leaves
+every target as it was; two runs into one folder leave one complete output, the last to
+commit. A target that holds files this toolkit did not write is
 refused rather than replaced, when the run starts and again at the swap.
 
 `write_atomically` writes one file the same way: to a temporary file beside it, then one rename.
@@ -59,8 +60,10 @@ class OutputFolder:
             raise InvalidInputError(f"{option} {self.target} is a file; give a folder")
         self._check_own()
         self.others: list[tuple[Path, Path]] = []  # (staged, final) files outside the folder
+        parent = self.target.parent
+        self.created = [f for f in (parent, *parent.parents) if not f.exists()]  # deepest first
         try:
-            self.target.parent.mkdir(parents=True, exist_ok=True)
+            parent.mkdir(parents=True, exist_ok=True)
             self.staging = Path(
                 tempfile.mkdtemp(dir=self.target.parent, prefix=f".{self.target.name}.partial-")
             )
@@ -131,11 +134,17 @@ class OutputFolder:
                 shutil.rmtree(aside, ignore_errors=True)
 
     def discard(self) -> None:
-        """Remove what was staged; the targets are untouched."""
+        """Remove what was staged, and the folders made for it that are empty again; the
+        targets are untouched."""
         if hasattr(self, "staging"):
             shutil.rmtree(self.staging, ignore_errors=True)
         for staged, _ in getattr(self, "others", []):
             staged.unlink(missing_ok=True)
+        for folder in self.created:
+            try:
+                folder.rmdir()
+            except OSError:  # it holds something (a map's chunks kept for a rerun)
+                break
 
     def __enter__(self) -> OutputFolder:
         return self
