@@ -404,6 +404,18 @@ def test_a_server_that_is_no_scheduler_is_one_line_within_the_timeout(tmp_path, 
     assert len(result.stderr.splitlines()) == 1, result.stderr
 
 
+def test_a_map_where_no_start_is_reachable_leaves_nothing_behind(tmp_path):
+    """The failure is final: the chunk store goes, and the default output folder maps/ that
+    the run made."""
+    nowhere = write(
+        tmp_path, "far.toml", WORKSPACE.format(chunk=2, nx=2).replace("[1.5, 4.0", "[40.0, 50.0")
+    )
+    result = run_cli("map", str(nowhere), "--workers", "1", cwd=tmp_path)
+    assert result.returncode == 2, result.stderr
+    assert "none of its 6 problems is reachable" in result.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["far.toml"]
+
+
 def test_a_map_whose_scheduler_does_not_answer_leaves_nothing_behind(tmp_path):
     family = write(tmp_path, "ws.toml", WORKSPACE.format(chunk=2, nx=2))
     silent = f"tcp://127.0.0.1:{free_port()}"

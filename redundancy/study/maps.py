@@ -164,7 +164,11 @@ def _energy(search) -> dict:
 @contextlib.contextmanager
 def _store(folder: Path, family: MapFamily) -> Iterator[set[int]]:
     """The store of finished chunks in ``folder``, locked for this run; yields the numbers of
-    the chunks already there for ``family`` (the store is emptied if it held another's)."""
+    the chunks already there for ``family`` (the store is emptied if it held another's).
+
+    A map that fails for its input (a `RedundancyError`: run again, it would fail again)
+    removes the store; one interrupted, or cut short by a lost worker or connection, keeps
+    its finished chunks for the rerun."""
     try:
         folder.mkdir(parents=True, exist_ok=True)
         descriptor = os.open(folder, os.O_RDONLY)
@@ -192,11 +196,15 @@ def _store(folder: Path, family: MapFamily) -> Iterator[set[int]]:
                 "chunks": family.chunks,
             }
             write_atomically(marker, lambda p: p.write_text(json.dumps(record)))
-        yield {
-            int(f.stem.split("-")[1])
-            for f in folder.glob("chunk-*.parquet")
-            if f.stem[6:].isdigit()
-        }
+        try:
+            yield {
+                int(f.stem.split("-")[1])
+                for f in folder.glob("chunk-*.parquet")
+                if f.stem[6:].isdigit()
+            }
+        except RedundancyError:
+            shutil.rmtree(folder)
+            raise
     finally:
         os.close(descriptor)
 
@@ -368,11 +376,11 @@ def design_map(
                 frames[chunk] = frame
                 bar.update(frame["problem"].nunique())
         table = pd.concat([frames[c] for c in sorted(frames)], ignore_index=True)
-    if not table["reachable"].any():
-        raise InvalidInputError(
-            f"map {family.name!r}: none of its {len(family)} problems is reachable, e.g. "
-            f"{table['reason'].iloc[0]}"
-        )
+        if not table["reachable"].any():  # final: the store goes with it
+            raise InvalidInputError(
+                f"map {family.name!r}: none of its {len(family)} problems is reachable, e.g. "
+                f"{table['reason'].iloc[0]}"
+            )
     return table
 
 
