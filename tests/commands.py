@@ -4,8 +4,13 @@ import subprocess
 import sys
 
 
-def run_cli(*args, cwd=None):
-    """``redundancy ARGS`` in a fresh interpreter; the completed process, text output."""
+def run_cli(*args, cwd=None, timeout=None):
+    """``redundancy ARGS`` in a fresh interpreter; the completed process, text output. A run
+    longer than ``timeout`` s is killed and raises `subprocess.TimeoutExpired`."""
     return subprocess.run(
-        [sys.executable, "-m", "redundancy.cli", *args], capture_output=True, text=True, cwd=cwd
+        [sys.executable, "-m", "redundancy.cli", *args],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        timeout=timeout,
     )

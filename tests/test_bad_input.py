@@ -458,12 +458,66 @@ CASES = [
             ),
             ("energy flag", "energy = 1\n[task]\n", "energy = 1 must be true or false"),
             (
+                "workspace key",
+                "[workspace]\nlength = 1\ndirection = [-1, 0]\ncolour = 1\n[workspace.grid]\n"
+                "x = 2\nz = 2\n",
+                "[workspace]: unknown keys ['colour']; keys: length, direction, speed, grid",
+            ),
+            (
+                "task key",
+                "[task]\nfiles = 't.toml'\n",
+                "m.toml: [task]: unknown keys ['files']; keys: file, segments",
+            ),
+            (
+                "grid attachment key",
+                '[task]\n[grid]\nattachment = {actuator = "x1", end = "base", axis = "x", '
+                "values = [0.33], colour = 1}\n",
+                "attachment: unknown keys ['colour']; keys: actuator, end, axis, values",
+            ),
+            (
+                "grid bore key",
+                '[task]\n[grid]\nbore = {actuator = "x1", values = [0.08], rod = 0.04}\n',
+                "bore: unknown keys ['rod']; keys: actuator, values",
+            ),
+            (
+                "grid range key",
+                "[task]\n[grid]\npayload = {from = 0, to = 500, count = 3, step = 250}\n",
+                "payload: unknown keys ['step']; keys: from, to, count",
+            ),
+            (
+                "objectives twice",
+                'objectives = ["velocity", "velocity"]\n[task]\n',
+                "objectives = ['velocity', 'velocity'] names 'velocity' more than once; give each "
+                "once (objectives: velocity, energy",
+            ),
+            (
+                "task segments twice",
+                '[task]\nsegments = ["1-2", "1-2"]\n',
+                "segments = ['1-2', '1-2'] names '1-2' more than once",
+            ),
+            (
                 "too many problems",
                 "[task]\n[grid]\npayload = {from = 0, to = 1, count = "
                 "100000}\nspeed = {from = 0.1, to = 1, count = 100000}\n",
                 "split a larger",
             ),
+            (
+                "too many workspace starts",
+                "name = 'big'\nobjectives = ['velocity']\n[workspace]\nlength = 1.0\n"
+                "direction = [-1.0, 0.0]\n[workspace.grid]\nx = [0.5, 4.0, 100000]\n"
+                "z = [-1.0, 3.0, 100000]\n",
+                "the family has 10,000,000,000 problems; it must have at most 2,000,000",
+            ),
         ]
+    ],
+    *[
+        (
+            f"map --scheduler {v}",
+            ["map", "m.toml", "--scheduler", v],
+            {"m.toml": "[task]\n"},
+            f"--scheduler {v!r} is not a scheduler's address; give tcp://HOST:PORT",
+        )
+        for v in ("not a url", "http://127.0.0.1:1", "tcp://127.0.0.1", "tcp://h:99999", "")
     ],
     (
         "map out is a file",

@@ -1,11 +1,13 @@
 """Design maps on Dask: a real scheduler and workers, resumable Parquet chunks, the paper's
 findings reproduced, families read with one-line errors."""
 
+import contextlib
 import os
 import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -17,6 +19,7 @@ from commands import run_cli
 
 from redundancy import VELOCITY, WorkCycle, actuator_space, improved_start, load_robot
 from redundancy.errors import InvalidInputError
+from redundancy.study import families
 from redundancy.study.families import Design, read_family
 from redundancy.study.maps import design_map, summary
 from redundancy.study.study import run_study
@@ -309,6 +312,19 @@ def test_a_bad_family_gets_one_line(tmp_path, text, expected):
     assert "\n" not in str(raised.value)
 
 
+def test_a_family_is_counted_before_any_segment_is_built(tmp_path, monkeypatch):
+    """3,000 × 1,000 starts are refused from the grid's counts, not after building 3,000,000
+    segments (about a minute)."""
+
+    def built(*args):
+        raise AssertionError("a segment was built")
+
+    monkeypatch.setattr(families, "Segment", built)
+    text = WORKSPACE.format(chunk=8, nx=3000).replace("[-1.0, 2.0, 3]", "[-1.0, 2.0, 1000]")
+    with pytest.raises(InvalidInputError, match="the family has 3,000,000 problems"):
+        read_family(write(tmp_path, "big.toml", text))
+
+
 def test_bad_map_runs_get_one_line_and_exit_2(tmp_path):
     nowhere = write(
         tmp_path, "far.toml", WORKSPACE.format(chunk=2, nx=2).replace("[1.5, 4.0", "[40.0, 50.0")
@@ -325,11 +341,11 @@ def test_bad_map_runs_get_one_line_and_exit_2(tmp_path):
     family = write(tmp_path, "ws.toml", WORKSPACE.format(chunk=2, nx=2))
     silent = f"tcp://127.0.0.1:{free_port()}"
     began = time.monotonic()
-    result = run_cli("map", str(family), "--scheduler", silent, "--timeout", "2")
+    result = run_cli("map", str(family), "--scheduler", silent, "--timeout", "2", cwd=tmp_path)
     assert result.returncode == 2 and time.monotonic() - began < 30
     assert result.stderr.strip() == (
-        f"redundancy: error: --scheduler {silent}: no Dask scheduler answered within 2 s "
-        "(OSError); start one with `dask scheduler` and give its address, e.g. tcp://HOST:8786"
+        f"redundancy: error: --scheduler {silent}: no Dask scheduler answered within 2 s; "
+        "start one with `dask scheduler` and give its address, e.g. tcp://HOST:8786"
     )
 
     blocker = write(tmp_path, "file", "")
@@ -338,6 +354,74 @@ def test_bad_map_runs_get_one_line_and_exit_2(tmp_path):
     assert result.returncode == 2 and time.monotonic() - began < 30
     assert result.stderr.strip().startswith(f"redundancy: error: --out {blocker / 'maps'}")
     assert len(result.stderr.strip().splitlines()) == 1
+
+
+@contextlib.contextmanager
+def listener(reply: bytes):
+    """A TCP server on a free local port, in a thread, that accepts every connection and sends
+    ``reply`` on it (nothing if empty); yields its address."""
+    server = socket.create_server(("127.0.0.1", 0))
+    accepted = []
+
+    def serve():
+        with contextlib.suppress(OSError):  # the server shut down
+            while True:
+                connection, _ = server.accept()
+                accepted.append(connection)
+                connection.sendall(reply)
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    try:
+        yield f"tcp://127.0.0.1:{server.getsockname()[1]}"
+    finally:
+        server.shutdown(socket.SHUT_RDWR)  # wakes the accept
+        thread.join(timeout=5)
+        server.close()
+        for connection in accepted:
+            connection.close()
+
+
+@pytest.mark.parametrize(
+    ("reply", "expected"),
+    [
+        (b"", ": no Dask scheduler answered within 1 s; start one"),
+        (b"HTTP/1.1 400 Bad Request\r\n\r\n", " does not answer as a Dask scheduler"),
+    ],
+    ids=["silent", "another protocol"],
+)
+def test_a_server_that_is_no_scheduler_is_one_line_within_the_timeout(tmp_path, reply, expected):
+    """The timeout bounds the whole connection, handshake included, and a server speaking
+    another protocol is named as such."""
+    family = write(tmp_path, "ws.toml", WORKSPACE.format(chunk=2, nx=2))
+    with listener(reply) as address:
+        began = time.monotonic()
+        result = run_cli(
+            "map", str(family), "--scheduler", address, "--timeout", "1", cwd=tmp_path, timeout=30
+        )
+    assert result.returncode == 2 and time.monotonic() - began < 20
+    assert result.stderr.startswith(f"redundancy: error: --scheduler {address}{expected}")
+    assert len(result.stderr.splitlines()) == 1, result.stderr
+
+
+def test_a_map_where_no_start_is_reachable_leaves_nothing_behind(tmp_path):
+    """The failure is final: the chunk store goes, and the default output folder maps/ that
+    the run made."""
+    nowhere = write(
+        tmp_path, "far.toml", WORKSPACE.format(chunk=2, nx=2).replace("[1.5, 4.0", "[40.0, 50.0")
+    )
+    result = run_cli("map", str(nowhere), "--workers", "1", cwd=tmp_path)
+    assert result.returncode == 2, result.stderr
+    assert "none of its 6 problems is reachable" in result.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["far.toml"]
+
+
+def test_a_map_whose_scheduler_does_not_answer_leaves_nothing_behind(tmp_path):
+    family = write(tmp_path, "ws.toml", WORKSPACE.format(chunk=2, nx=2))
+    silent = f"tcp://127.0.0.1:{free_port()}"
+    result = run_cli("map", str(family), "--scheduler", silent, "--timeout", "1", cwd=tmp_path)
+    assert result.returncode == 2, result.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ws.toml"]
 
 
 def test_bound_and_energy_columns_agree_with_the_searches_they_come_from(tmp_path, crane, client):

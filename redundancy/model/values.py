@@ -33,6 +33,14 @@ def read_toml(path: Path, what: str) -> dict:
         raise InvalidInputError(f"{path}: not valid TOML: {error}") from None
 
 
+def check_keys(table: dict, known, where: str) -> None:
+    """Refuse a key of ``table`` that is not among ``known``: one line naming it, ``where``
+    the table is and the valid keys."""
+    extra = sorted(set(table) - set(known))
+    if extra:
+        raise InvalidInputError(f"{where}: unknown keys {extra}; keys: {', '.join(known)}")
+
+
 def _given(table: dict, key: str, where: str, meaning: str, default):
     if key in table:
         return table[key]
@@ -73,12 +81,21 @@ def text(table: dict, key: str, where: str, meaning: str, default=REQUIRED) -> s
     return value
 
 
-def names(table: dict, key: str, where: str, meaning: str, default=()) -> tuple[str, ...]:
-    """``table[key]`` as a list of strings; a bare string is refused, not split."""
+def names(
+    table: dict, key: str, where: str, meaning: str, default=(), distinct: bool = False
+) -> tuple[str, ...]:
+    """``table[key]`` as a list of strings, each given once where ``distinct``; a bare string
+    is refused, not split."""
     value = _given(table, key, where, meaning, default)
     if not isinstance(value, list | tuple) or not all(isinstance(v, str) for v in value):
         raise InvalidInputError(
             f'{where}: {key} = {value!r} must be a list of names, e.g. {key} = ["..."] ({meaning})'
+        )
+    repeated = sorted({v for v in value if value.count(v) > 1})
+    if distinct and repeated:
+        raise InvalidInputError(
+            f"{where}: {key} = {value!r} names {', '.join(map(repr, repeated))} more than once; "
+            f"give each once ({meaning})"
         )
     return tuple(value)
 

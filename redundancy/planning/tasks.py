@@ -59,7 +59,15 @@ from pathlib import Path
 import numpy as np
 
 from redundancy.errors import InvalidInputError
-from redundancy.model.values import MAX_SPEED, coordinates, names, number, read_toml, text
+from redundancy.model.values import (
+    MAX_SPEED,
+    check_keys,
+    coordinates,
+    names,
+    number,
+    read_toml,
+    text,
+)
 
 PROFILES = ("constant", "trapezoidal")
 DIRECTIONS = ("ccw", "cw")
@@ -609,21 +617,7 @@ class WorkCycle:
         path = Path(path)
         data = read_toml(path, "task file")
         where = str(path)
-        known = {
-            "name",
-            "speed",
-            "profile",
-            "acceleration",
-            "tool_angle",
-            "held",
-            "segments",
-            "points",
-        }
-        unknown = sorted(set(data) - known)
-        if unknown:
-            raise InvalidInputError(
-                f"{path}: unknown keys {unknown}; a task file has {', '.join(sorted(known))}"
-            )
+        check_keys(data, TASK_KEYS, where)
         tool_angle = data.get("tool_angle", False)
         if not isinstance(tool_angle, bool):
             raise InvalidInputError(f"{path}: tool_angle = {tool_angle!r} must be true or false")
@@ -701,6 +695,7 @@ def _timing(table: dict, where: str, defaults: tuple | None) -> tuple:
     return speed, profile, acceleration
 
 
+TASK_KEYS = ("name", "speed", "profile", "acceleration", "tool_angle", "held", "segments", "points")
 SEGMENT_KEYS = (
     "from",
     "to",
@@ -746,11 +741,7 @@ def _segment(
             f"{where} = {entry!r} must be '<from>-<to>' or a table such as "
             '{ from = "1", to = "2", via = "3" }'
         )
-    unknown = sorted(set(entry) - set(SEGMENT_KEYS))
-    if unknown:
-        raise InvalidInputError(
-            f"{where}: unknown keys {unknown}; a segment has {', '.join(SEGMENT_KEYS)}"
-        )
+    check_keys(entry, SEGMENT_KEYS, where)
     speed, profile, acceleration = _timing(entry, where, defaults)
     centre = entry.get("centre", entry.get("center"))
     if "csv" in entry:

@@ -47,6 +47,7 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import itertools
+import math
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
 from pathlib import Path
@@ -61,6 +62,7 @@ from redundancy.model.robot import AXES, Robot
 from redundancy.model.values import (
     MAX_PAYLOAD,
     MAX_SPEED,
+    check_keys,
     coordinates,
     names,
     number,
@@ -72,7 +74,28 @@ from redundancy.planning.starts import held_actuators
 from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.resolution.objectives import OBJECTIVES
 
+KEYS = (
+    "name",
+    "robot",
+    "hydraulics",
+    "objectives",
+    "held",
+    "chunk",
+    "bound",
+    "energy",
+    "circuit",
+    "workspace",
+    "task",
+    "grid",
+)  # a map file's keys
+WORKSPACE_KEYS = ("length", "direction", "speed", "grid")
+TASK_KEYS = ("file", "segments")
 PARAMETERS = ("payload", "speed", "attachment", "bore")  # the design grid's keys, in order
+RANGE_KEYS = ("from", "to", "count")  # a design parameter's values as a range
+DESIGN_KEYS = {
+    "attachment": ("actuator", "end", "axis", "values"),
+    "bore": ("actuator", "values"),
+}  # the keys of the design parameters given as a table
 MAX_PROBLEMS = 2_000_000  # problems of one family: its table, held in memory at about 200 bytes
 # per row and objective, stays under 1 GB with two objectives; split a larger family
 MAX_CHUNK = 10_000
@@ -111,7 +134,7 @@ class MapFamily:
     circuit: bool = False
 
     def __len__(self) -> int:
-        return len(self.segments) * int(np.prod([len(v) for _, v in self.grid]))
+        return len(self.segments) * math.prod(len(v) for _, v in self.grid)
 
     @property
     def chunks(self) -> int:
@@ -224,6 +247,7 @@ def _variant(
 def _values(value: object, where: str, meaning: str, lower: float, upper: float) -> tuple:
     """A list of numbers, or {from, to, count}, as a tuple of floats within [lower, upper]."""
     if isinstance(value, dict):
+        check_keys(value, RANGE_KEYS, where)
         start = number(value, "from", where, meaning, lower=lower, upper=upper)
         stop = number(value, "to", where, meaning, lower=lower, upper=upper)
         count = value.get("count")
@@ -268,9 +292,14 @@ def workspace_extent(robot: Robot) -> np.ndarray:
     return np.stack([y.min(axis=0), y.max(axis=0)], axis=1)
 
 
-def _workspace_segments(robot: Robot, table: object, where: str) -> tuple[Segment, ...]:
+def _workspace(
+    robot: Robot, table: object, where: str
+) -> tuple[list[tuple[float, ...]], np.ndarray, float]:
+    """The ``[workspace]`` table: the grid's coordinates per task axis, the step from a
+    segment's start to its end (m) and the speed along it (m/s)."""
     if not isinstance(table, dict):
         raise InvalidInputError(f"{where}: [workspace] must be a table")
+    check_keys(table, WORKSPACE_KEYS, f"{where}: [workspace]")
     length = number(table, "length", where, "m, each segment's length", lower=1e-6, upper=1e3)
     direction = coordinates(table.get("direction"), f"{where}: direction", robot.m)
     if not np.linalg.norm(direction) > 0:
@@ -293,16 +322,34 @@ def _workspace_segments(robot: Robot, table: object, where: str) -> tuple[Segmen
         if axis not in grid:
             raise InvalidInputError(f"{where}: [workspace.grid] misses the task axis {axis!r}")
         axes.append(_axis_values(grid[axis], f"{where}: workspace.grid.{axis}", tuple(extent[a])))
-    step = length * direction / np.linalg.norm(direction)
+    return axes, length * direction / np.linalg.norm(direction), speed
+
+
+def _workspace_segments(
+    axes: list[tuple[float, ...]], step: np.ndarray, speed: float
+) -> tuple[Segment, ...]:
+    """A segment from every point of the grid ``axes`` to that point + ``step``."""
     return tuple(
         Segment(f"start {i}", np.array(start), np.array(start) + step, speed)
         for i, start in enumerate(itertools.product(*axes))
     )
 
 
+def _check_size(segments: int, grid: tuple[tuple[str, tuple], ...], where: str) -> None:
+    """Refuse a family of more than `MAX_PROBLEMS` problems, counted from its ``segments``
+    and the design ``grid``'s sizes before any of them is built."""
+    problems = segments * math.prod(len(values) for _, values in grid)
+    if problems > MAX_PROBLEMS:
+        raise InvalidInputError(
+            f"{where}: the family has {problems:,} problems; it must have at most "
+            f"{MAX_PROBLEMS:,} (split a larger family)"
+        )
+
+
 def _task_segments(robot: Robot, table: object, folder: Path, where: str):
     if not isinstance(table, dict):
         raise InvalidInputError(f"{where}: [task] must be a table")
+    check_keys(table, TASK_KEYS, f"{where}: [task]")
     if "file" in table:
         path = folder / text(table, "file", where, "the task file, relative to the map file")
     elif robot.task_file is not None:
@@ -310,7 +357,7 @@ def _task_segments(robot: Robot, table: object, folder: Path, where: str):
     else:
         raise InvalidInputError(f"{where}: [task] needs file = ...; {robot.name} has no task")
     cycle = WorkCycle.from_toml(path, dimension=robot.m)
-    chosen = names(table, "segments", where, "segments of the task file", ())
+    chosen = names(table, "segments", where, "segments of the task file", (), distinct=True)
     segments = tuple(cycle[s] for s in chosen) if chosen else cycle.segments
     return segments, cycle
 
@@ -320,32 +367,21 @@ def read_family(path: Path | str) -> MapFamily:
     path = Path(path)
     data = read_toml(path, "map file")
     where, folder = str(path), path.resolve().parent
-    known = {
-        "name",
-        "robot",
-        "hydraulics",
-        "objectives",
-        "held",
-        "chunk",
-        "bound",
-        "energy",
-        "circuit",
-        "workspace",
-        "task",
-        "grid",
-    }
-    unknown = sorted(set(data) - known)
-    if unknown:
-        raise InvalidInputError(
-            f"{where}: unknown keys {unknown}; keys: {', '.join(sorted(known))}"
-        )
+    check_keys(data, KEYS, where)
     robot_name = text(data, "robot", where, "bundled name or robot path", "hiab031")
     if not (robot_name in bundled_robots() and not (folder / robot_name).exists()):
         robot_name = str(folder / robot_name)
     hydraulics = text(data, "hydraulics", where, "a [hydraulics] file", None)
     hydraulics = None if hydraulics is None else str(folder / hydraulics)
     robot = load_robot(robot_name, hydraulics=hydraulics)
-    objectives = names(data, "objectives", where, "objective names", ("velocity", "energy"))
+    objectives = names(
+        data,
+        "objectives",
+        where,
+        f"objectives: {', '.join(OBJECTIVES)}",
+        ("velocity", "energy"),
+        distinct=True,
+    )
     for name in objectives:
         if name not in OBJECTIVES:
             raise InvalidInputError(
@@ -362,12 +398,16 @@ def read_family(path: Path | str) -> MapFamily:
         robot.circuit()  # says how to declare one
     if ("workspace" in data) == ("task" in data):
         raise InvalidInputError(f"{where}: give the segments by one table, [workspace] or [task]")
-    held = names(data, "held", where, "actuators the search holds", ())
+    held = names(data, "held", where, "actuators the search holds", (), distinct=True)
+    grid, attachment, bore = _grid(robot, data.get("grid", {}), f"{where}: [grid]")
     if "workspace" in data:
-        segments = _workspace_segments(robot, data["workspace"], where)
+        axes, step, speed = _workspace(robot, data["workspace"], where)
+        _check_size(math.prod(len(values) for values in axes), grid, where)
+        segments = _workspace_segments(axes, step, speed)
         cycle = WorkCycle("workspace", segments[:1], held)
     else:
         segments, cycle = _task_segments(robot, data["task"], folder, where)
+        _check_size(len(segments), grid, where)
         cycle = WorkCycle(cycle.name, cycle.segments, held or cycle.held)
     held = held_actuators(robot, cycle)
     held_indices(robot, held)  # names checked before any work
@@ -376,8 +416,7 @@ def read_family(path: Path | str) -> MapFamily:
         raise InvalidInputError(
             f"{where}: chunk = {chunk!r} must be a whole number within [1, {MAX_CHUNK:,}]"
         )
-    grid, attachment, bore = _grid(robot, data.get("grid", {}), f"{where}: [grid]")
-    family = MapFamily(
+    return MapFamily(
         text(data, "name", where, "the map's name", path.stem),
         robot_name,
         hydraulics,
@@ -392,12 +431,6 @@ def read_family(path: Path | str) -> MapFamily:
         flags["energy"],
         flags["circuit"],
     )
-    if not 1 <= len(family) <= MAX_PROBLEMS:
-        raise InvalidInputError(
-            f"{where}: the family has {len(family):,} problems; it must have 1 to "
-            f"{MAX_PROBLEMS:,} (split a larger family)"
-        )
-    return family
 
 
 def _grid(robot: Robot, table: object, where: str):
@@ -421,6 +454,7 @@ def _grid(robot: Robot, table: object, where: str):
                 raise InvalidInputError(
                     f"{where} {key} must be a table with actuator = ... and values = [...]"
                 )
+            check_keys(value, DESIGN_KEYS[key], f"{where} {key}")
             actuator = text(value, "actuator", f"{where} {key}", "an actuator's name")
             if actuator not in robot.actuators.names:
                 raise InvalidInputError(

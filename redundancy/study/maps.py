@@ -29,12 +29,14 @@ and ``peak_flow_lpm``; and ``reason``, why a problem has no feasible start.
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import fcntl
 import json
 import logging
 import os
 import shutil
+import urllib.parse
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
@@ -162,7 +164,11 @@ def _energy(search) -> dict:
 @contextlib.contextmanager
 def _store(folder: Path, family: MapFamily) -> Iterator[set[int]]:
     """The store of finished chunks in ``folder``, locked for this run; yields the numbers of
-    the chunks already there for ``family`` (the store is emptied if it held another's)."""
+    the chunks already there for ``family`` (the store is emptied if it held another's).
+
+    A map that fails for its input (a `RedundancyError`: run again, it would fail again)
+    removes the store; one interrupted, or cut short by a lost worker or connection, keeps
+    its finished chunks for the rerun."""
     try:
         folder.mkdir(parents=True, exist_ok=True)
         descriptor = os.open(folder, os.O_RDONLY)
@@ -190,11 +196,15 @@ def _store(folder: Path, family: MapFamily) -> Iterator[set[int]]:
                 "chunks": family.chunks,
             }
             write_atomically(marker, lambda p: p.write_text(json.dumps(record)))
-        yield {
-            int(f.stem.split("-")[1])
-            for f in folder.glob("chunk-*.parquet")
-            if f.stem[6:].isdigit()
-        }
+        try:
+            yield {
+                int(f.stem.split("-")[1])
+                for f in folder.glob("chunk-*.parquet")
+                if f.stem[6:].isdigit()
+            }
+        except RedundancyError:
+            shutil.rmtree(folder)
+            raise
     finally:
         os.close(descriptor)
 
@@ -236,19 +246,74 @@ def _frame(rows: list[dict], typed: dict[str, str]):
     )
 
 
+def scheduler_address(text: str) -> str:
+    """``text`` as a scheduler's address, tcp://HOST:PORT; one line naming that form
+    otherwise."""
+    try:
+        parts = urllib.parse.urlsplit(text)
+        valid = (
+            parts.scheme == "tcp"
+            and bool(parts.hostname)
+            and parts.username is None
+            and (parts.port or 0) > 0
+            and not (parts.path or parts.query or parts.fragment)
+            and not any(c.isspace() for c in text)
+        )
+    except ValueError:  # a port out of range, a malformed IPv6 address
+        valid = False
+    if not valid:
+        raise InvalidInputError(
+            f"--scheduler {text!r} is not a scheduler's address; give tcp://HOST:PORT, as "
+            "`dask scheduler` prints it (e.g. tcp://10.0.0.5:8786)"
+        )
+    return f"tcp://{parts.netloc}"
+
+
+async def _identity(address: str, timeout: float):
+    """What the server at ``address`` says it is, asked in Dask's protocol (a scheduler
+    answers a dict with ``"type": "Scheduler"``)."""
+    from distributed.comm import connect as open_comm
+
+    comm = await open_comm(address, timeout=timeout)
+    try:
+        await comm.write({"op": "identity", "reply": True})
+        return await comm.read()
+    finally:
+        comm.abort()
+
+
 def connect(scheduler: str, timeout: float = CONNECT_TIMEOUT):
-    """A `distributed.Client` on the scheduler at ``scheduler`` (e.g. tcp://10.0.0.5:8786), or
-    one line if it does not answer within ``timeout`` s."""
+    """A `distributed.Client` on the scheduler at ``scheduler`` (tcp://HOST:PORT, e.g.
+    tcp://10.0.0.5:8786), or one line if the address is malformed, if no scheduler answers
+    there within ``timeout`` s or if what answers is not a Dask scheduler.
+
+    The server is asked what it is before the Client is made: distributed bounds the TCP
+    connection by the timeout but not its handshake, so a server that accepts and stays
+    silent would hold the Client forever, and one that answers in another protocol would
+    leave a half-made Client that complains when it is collected."""
     from distributed import Client
 
+    scheduler = scheduler_address(scheduler)
+    silent = InvalidInputError(
+        f"--scheduler {scheduler}: no Dask scheduler answered within {timeout:g} s; start one "
+        "with `dask scheduler` and give its address, e.g. tcp://HOST:8786"
+    )
+    try:
+        identity = asyncio.run(asyncio.wait_for(_identity(scheduler, timeout), timeout))
+    except OSError:  # refused, unreachable, or silent until the timeout (TimeoutError)
+        raise silent from None
+    except Exception:  # another protocol: its bytes, read as Dask's frames, fail anyhow
+        identity = None
+    if not (isinstance(identity, dict) and identity.get("type") == "Scheduler"):
+        raise InvalidInputError(
+            f"--scheduler {scheduler} does not answer as a Dask scheduler (something else "
+            "listens there); start one with `dask scheduler` and give its address, e.g. "
+            "tcp://HOST:8786"
+        )
     try:
         return Client(scheduler, timeout=timeout, set_as_default=False)
-    except (OSError, TimeoutError, ValueError, TypeError) as error:
-        raise InvalidInputError(
-            f"--scheduler {scheduler}: no Dask scheduler answered within {timeout:g} s "
-            f"({type(error).__name__}); start one with `dask scheduler` and give its address, "
-            "e.g. tcp://HOST:8786"
-        ) from None
+    except OSError:  # gone since it answered
+        raise silent from None
 
 
 def design_map(
@@ -311,11 +376,11 @@ def design_map(
                 frames[chunk] = frame
                 bar.update(frame["problem"].nunique())
         table = pd.concat([frames[c] for c in sorted(frames)], ignore_index=True)
-    if not table["reachable"].any():
-        raise InvalidInputError(
-            f"map {family.name!r}: none of its {len(family)} problems is reachable, e.g. "
-            f"{table['reason'].iloc[0]}"
-        )
+        if not table["reachable"].any():  # final: the store goes with it
+            raise InvalidInputError(
+                f"map {family.name!r}: none of its {len(family)} problems is reachable, e.g. "
+                f"{table['reason'].iloc[0]}"
+            )
     return table
 
 
