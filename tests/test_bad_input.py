@@ -194,6 +194,12 @@ CASES = [
         "task_axes 'xq' must be distinct letters",
     ),
     (
+        "robot.toml unknown key",
+        ["describe", "--robot", "r.toml"],
+        {"r.toml": _description(paylaod="5")},
+        "r.toml: unknown keys ['paylaod']; keys: urdf, tool_frame, tool, task_axes, ",
+    ),
+    (
         "robot.toml missing keys",
         ["describe", "--robot", "r.toml"],
         {"r.toml": 'urdf = "x.urdf"\n'},

@@ -30,7 +30,7 @@ from redundancy.model.transmissions import (
     read_cylinders,
     read_transmissions,
 )
-from redundancy.model.values import MAX_PAYLOAD, names, number, read_toml, text
+from redundancy.model.values import MAX_PAYLOAD, names, number, read_toml, refuse_unknown, text
 
 
 def bundled_root() -> Path:
@@ -43,8 +43,24 @@ def bundled_robots() -> list[str]:
     return sorted(p.parent.name for p in bundled_root().glob("*/robot.toml"))
 
 
+DESCRIPTION_KEYS = (  # a robot.toml's keys (schema in load_robot's docstring)
+    "urdf",
+    "tool_frame",
+    "tool",
+    "task_axes",
+    "locked_joints",
+    "payload",
+    "task",
+    "actuators",
+    "hydraulics",
+)
+
+
 def _read_description(path: Path) -> dict:
+    """The contents of the robot description ``path`` (a ``robot.toml``), its keys checked:
+    every one known, the required ones given."""
     description = read_toml(path, "robot description")
+    refuse_unknown(description, DESCRIPTION_KEYS, str(path))
     given = {*description, *(["tool_frame"] if "tool" in description else [])}
     missing = [key for key in ("urdf", "tool_frame", "task_axes") if key not in given]
     if missing:

@@ -33,6 +33,14 @@ def read_toml(path: Path, what: str) -> dict:
         raise InvalidInputError(f"{path}: not valid TOML: {error}") from None
 
 
+def refuse_unknown(table: dict, known, where: str) -> None:
+    """One line naming ``table``'s keys that are not among ``known`` (from ``where``), and the
+    ``known`` ones, where there are such keys."""
+    extra = sorted(set(table) - set(known))
+    if extra:
+        raise InvalidInputError(f"{where}: unknown keys {extra}; keys: {', '.join(known)}")
+
+
 def _given(table: dict, key: str, where: str, meaning: str, default):
     if key in table:
         return table[key]
