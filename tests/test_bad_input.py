@@ -200,6 +200,12 @@ CASES = [
         "r.toml: unknown keys ['paylaod']; keys: urdf, tool_frame, tool, task_axes, ",
     ),
     (
+        "robot.toml tool and tool_frame",
+        ["describe", "--robot", "r.toml"],
+        {"r.toml": _description(tool='{link = "telescope", xyz = [1.47, 0, 0]}')},
+        "r.toml: tool_frame and tool are both given; give one: tool_frame = a link, or tool = ",
+    ),
+    (
         "robot.toml missing keys",
         ["describe", "--robot", "r.toml"],
         {"r.toml": 'urdf = "x.urdf"\n'},

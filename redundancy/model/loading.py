@@ -61,13 +61,13 @@ def _read_description(path: Path) -> dict:
     every one known, the required ones given."""
     description = read_toml(path, "robot description")
     refuse_unknown(description, DESCRIPTION_KEYS, str(path))
+    tool = "tool_frame = a link, or tool = {link = ..., xyz = [...]}, a point on a link"
+    if "tool" in description and "tool_frame" in description:
+        raise RobotDescriptionError(f"{path}: tool_frame and tool are both given; give one: {tool}")
     given = {*description, *(["tool_frame"] if "tool" in description else [])}
     missing = [key for key in ("urdf", "tool_frame", "task_axes") if key not in given]
     if missing:
-        raise RobotDescriptionError(
-            f"{path}: missing keys {missing} (the tool: tool_frame = a link, or tool = "
-            "{link = ..., xyz = [...]})"
-        )
+        raise RobotDescriptionError(f"{path}: missing keys {missing} (the tool: {tool})")
     return description
 
 
