@@ -4,6 +4,7 @@ error. The command line runs in-process (`redundancy.cli.main`), as a user's she
 but without an interpreter start per case."""
 
 import re
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -326,6 +327,56 @@ CASES = [
         },
         "kinematic only: links boom1, boom2, telescope",
     ),
+    *[
+        (
+            f"link {new}",
+            ["describe", "--robot", "r.toml"],
+            {"e.urdf": URDF.replace(old, new, 1), "r.toml": _description(urdf='"e.urdf"')},
+            f"e.urdf: link 'boom1' {written} must be {meaning}",
+        )
+        for old, new, written, meaning in [
+            *[
+                (
+                    '<mass value="80"/>',
+                    f'<mass value="{v}"/>',
+                    f'<mass value="{v}"/>',
+                    "a finite number ≥ 0 (the link's mass, kg)",
+                )
+                for v in ("nan", "inf", "-80", "abc", "")
+            ],
+            *[
+                ('<origin xyz="0.8 0 0"/>', origin, origin, 'xyz="x y z" rpy="r p y"')
+                for origin in ('<origin xyz="nan 0 0"/>', '<origin rpy="0 1"/>')
+            ],
+            *[
+                (
+                    'iyy="17.0666666666667"',
+                    f'iyy="{v}"',
+                    f'<inertia ixx="0" ixy="0" ixz="0" iyy="{v}" iyz="0" izz="17.0666666666667"/>',
+                    "six finite numbers",
+                )
+                for v in ("nan", "inf", "abc")
+            ],
+        ]
+    ],
+    (
+        "link negative mass, energy",
+        ["study", "--robot", "r.toml", "--objective", "energy", "--samples", "10", "--cycles", "0"],
+        {
+            "e.urdf": URDF.replace('<mass value="80"/>', '<mass value="-80"/>', 1),
+            "r.toml": _description(urdf='"e.urdf"'),
+        },
+        """e.urdf: link 'boom1' <mass value="-80"/> must be a finite number ≥ 0""",
+    ),
+    (
+        "link without mass",
+        ["describe", "--robot", "r.toml"],
+        {
+            "e.urdf": URDF.replace('<mass value="80"/>', "", 1),
+            "r.toml": _description(urdf='"e.urdf"'),
+        },
+        "e.urdf: link 'boom1': <inertial> has no <mass>; it needs one: a finite number ≥ 0",
+    ),
     (
         "unreachable end",
         ["study", "--task", "t.toml"],
@@ -530,7 +581,20 @@ API = [
         "time_step must be > 0",
     ),
     ("no hydraulics", lambda r: load_robot("panda").circuit(), "declare a [hydraulics] table"),
+    (
+        "load_robot mass nan",
+        lambda r: _crane_with('<mass value="80"/>', '<mass value="nan"/>'),
+        """crane.urdf: link 'boom1' <mass value="nan"/> must be a finite number ≥ 0""",
+    ),
 ]
+
+
+def _crane_with(old, new):
+    """``load_robot`` of the crane's URDF with ``old`` replaced by ``new``."""
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "crane.urdf"
+        path.write_text(URDF.replace(old, new, 1))
+        return load_robot(path)
 
 
 def _segment(robot):

@@ -23,7 +23,7 @@ from lxml import etree
 from redundancy.errors import InvalidInputError, RobotDescriptionError
 from redundancy.model.actuators import ActuatorSet, driven_joints
 from redundancy.model.hydraulics import circuit_from_table, read_hydraulics_file
-from redundancy.model.parameters import Point
+from redundancy.model.parameters import Point, number_or_text
 from redundancy.model.robot import AXES, Robot, frame_id
 from redundancy.model.transmissions import (
     read_actuator_tables,
@@ -195,6 +195,54 @@ def _intake(
             limit.set("upper", repr(math.pi))
             continuous.append(name)
     return root, continuous
+
+
+INERTIA = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")  # <inertia>'s attributes, kg·m²
+
+
+def _inertial_values(
+    inertial: etree._Element,
+    tag: str,
+    attributes: tuple[str, ...],
+    where: str,
+    meaning: str,
+    default: str | None = None,
+    lower: float = -math.inf,
+) -> np.ndarray:
+    """The numbers the ``attributes`` of the ``<inertial>``'s child ``tag`` hold, each finite and
+    ≥ ``lower``: one per attribute, or as many as ``default`` holds where it is given (the text
+    of an attribute left out, or of every one where the child is); otherwise one line naming
+    the link (``where``), the child as written and what it must be (``meaning``)."""
+    element = inertial.find(tag)
+    if element is None and default is None:
+        raise RobotDescriptionError(f"{where}: <inertial> has no <{tag}>; it needs one: {meaning}")
+    each = 1 if default is None else len(default.split())
+    given = {} if element is None else dict(element.attrib)
+    texts = [given.get(a, default) or "" for a in attributes]
+    values = [number_or_text(v) for text in texts for v in text.split()]
+    if len(values) != each * len(attributes) or not all(
+        isinstance(v, float) and math.isfinite(v) and v >= lower for v in values
+    ):
+        written = etree.tostring(element, encoding="unicode", with_tail=False)
+        raise RobotDescriptionError(f"{where} {written} must be {meaning}")
+    return np.array(values)
+
+
+def _check_inertials(root: etree._Element, source: str) -> None:
+    """Every link's ``<inertial>`` (of the URDF ``source``) holds numbers a body can have: its
+    origin finite, its mass finite and ≥ 0, its inertia finite. Where urdfdom cannot read one,
+    Pinocchio drops it without a word, leaving the link massless; a negative mass it keeps."""
+    for link in root.findall("link"):
+        inertial = link.find("inertial")
+        if inertial is None:
+            continue
+        where = f"{source}: link {link.get('name')!r}"
+        origin = 'xyz="x y z" rpy="r p y", finite numbers (m, rad)'
+        _inertial_values(inertial, "origin", ("xyz", "rpy"), where, origin, "0 0 0")
+        mass = "a finite number ≥ 0 (the link's mass, kg)"
+        _inertial_values(inertial, "mass", ("value",), where, mass, lower=0.0)
+        inertia = f"six finite numbers {', '.join(INERTIA)} (kg·m², about the centre of mass)"
+        _inertial_values(inertial, "inertia", INERTIA, where, inertia)
 
 
 def _package_dirs(folder: Path) -> list[Path]:
@@ -452,7 +500,8 @@ def load_robot(
 
     What the URDF lacks is said, not fatal: meshes no file answers are named in one warning
     (the playback then draws the links as rods between joint origins), and links without
-    inertia in another (the robot is kinematic only: anything needing masses refuses).
+    inertia in another (the robot is kinematic only: anything needing masses refuses). An
+    ``<inertial>`` that is there must hold numbers a body can have (`_check_inertials`).
     """
     name, folder, description, where = _describe(robot)
     reference = text(description, "urdf", where, "the URDF, beside this file or package://")
@@ -462,6 +511,7 @@ def load_robot(
     source = urdf_path.name
     locked = _locked_values(description.get("locked_joints", []), where)
     root, continuous = _intake(_urdf_text(urdf_path), source, locked)
+    _check_inertials(root, source)
     missing_meshes = _resolve_meshes(root, urdf_path.parent)
     if missing_meshes:
         warnings.warn(
