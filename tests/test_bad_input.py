@@ -368,6 +368,47 @@ CASES = [
         },
         """e.urdf: link 'boom1' <mass value="-80"/> must be a finite number ≥ 0""",
     ),
+    *[
+        (
+            f"link {new}",
+            [*command, "--robot", "r.toml"],
+            {"e.urdf": URDF.replace(old, new, 1), "r.toml": _description(urdf='"e.urdf"')},
+            f"e.urdf: link 'boom1' {written} is not a body's rotational inertia: its principal "
+            f"moments {moments} kg·m² must be ≥ 0 and each at most the sum of the other two",
+        )
+        for command, old, new, written, moments in [
+            (
+                ["describe"],
+                'iyy="17.0666666666667"',
+                'iyy="-17"',
+                '<inertia ixx="0" ixy="0" ixz="0" iyy="-17" iyz="0" izz="17.0666666666667"/>',
+                "[-17, 0, 17.07]",
+            ),
+            (
+                ["study", "--objective", "energy", "--samples", "10", "--cycles", "0"],
+                'iyy="17.0666666666667"',
+                'iyy="-1700"',
+                '<inertia ixx="0" ixy="0" ixz="0" iyy="-1700" iyz="0" izz="17.0666666666667"/>',
+                "[-1700, 0, 17.07]",
+            ),
+            (
+                ["describe"],
+                'ixx="0" ixy="0"',
+                'ixx="40" ixy="0"',
+                '<inertia ixx="40" ixy="0" ixz="0" iyy="17.0666666666667" iyz="0" '
+                'izz="17.0666666666667"/>',
+                "[17.07, 17.07, 40]",
+            ),
+            (
+                ["describe"],
+                'ixx="0" ixy="0"',
+                'ixx="0" ixy="5"',
+                '<inertia ixx="0" ixy="5" ixz="0" iyy="17.0666666666667" iyz="0" '
+                'izz="17.0666666666667"/>',
+                "[-1.357, 17.07, 18.42]",
+            ),
+        ]
+    ],
     (
         "link without mass",
         ["describe", "--robot", "r.toml"],
@@ -585,6 +626,11 @@ API = [
         "load_robot mass nan",
         lambda r: _crane_with('<mass value="80"/>', '<mass value="nan"/>'),
         """crane.urdf: link 'boom1' <mass value="nan"/> must be a finite number ≥ 0""",
+    ),
+    (
+        "load_robot inertia not a body's",
+        lambda r: _crane_with('iyy="17.0666666666667"', 'iyy="-17"'),
+        """iyy="-17" iyz="0" izz="17.0666666666667"/> is not a body's rotational inertia""",
     ),
 ]
 

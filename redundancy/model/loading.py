@@ -198,6 +198,7 @@ def _intake(
 
 
 INERTIA = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")  # <inertia>'s attributes, kg·m²
+INERTIA_TOLERANCE = 1e-6  # of the largest principal moment: what a file's rounding may cost
 
 
 def _inertial_values(
@@ -230,8 +231,9 @@ def _inertial_values(
 
 def _check_inertials(root: etree._Element, source: str) -> None:
     """Every link's ``<inertial>`` (of the URDF ``source``) holds numbers a body can have: its
-    origin finite, its mass finite and ≥ 0, its inertia finite. Where urdfdom cannot read one,
-    Pinocchio drops it without a word, leaving the link massless; a negative mass it keeps."""
+    origin finite, its mass finite and ≥ 0, its inertia finite and a body's rotational inertia
+    (`_check_inertia`). Where urdfdom cannot read one, Pinocchio drops it without a word,
+    leaving the link massless; a negative mass or moment it keeps."""
     for link in root.findall("link"):
         inertial = link.find("inertial")
         if inertial is None:
@@ -242,7 +244,27 @@ def _check_inertials(root: etree._Element, source: str) -> None:
         mass = "a finite number ≥ 0 (the link's mass, kg)"
         _inertial_values(inertial, "mass", ("value",), where, mass, lower=0.0)
         inertia = f"six finite numbers {', '.join(INERTIA)} (kg·m², about the centre of mass)"
-        _inertial_values(inertial, "inertia", INERTIA, where, inertia)
+        _check_inertia(
+            inertial, _inertial_values(inertial, "inertia", INERTIA, where, inertia), where
+        )
+
+
+def _check_inertia(inertial: etree._Element, entries: np.ndarray, where: str) -> None:
+    """The ``<inertia>`` of ``inertial`` (its ``entries``, ixx ... izz) is a body's rotational
+    inertia: symmetric positive semi-definite, and each principal moment at most the sum of the
+    other two, to `INERTIA_TOLERANCE`; otherwise one line naming the link (``where``), the
+    element as written and its principal moments. (Six entries make a symmetric matrix; with
+    the moments a ≤ b ≤ c, a + b ≥ c gives the other two inequalities and a ≥ c − b ≥ 0.)"""
+    ixx, ixy, ixz, iyy, iyz, izz = entries
+    moments = np.linalg.eigvalsh([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+    if moments[0] + moments[1] >= moments[2] - INERTIA_TOLERANCE * np.abs(moments).max():
+        return
+    written = etree.tostring(inertial.find("inertia"), encoding="unicode", with_tail=False)
+    raise RobotDescriptionError(
+        f"{where} {written} is not a body's rotational inertia: its principal moments "
+        f"[{', '.join(f'{m:.4g}' for m in moments)}] kg·m² must be ≥ 0 and each at most the "
+        "sum of the other two"
+    )
 
 
 def _package_dirs(folder: Path) -> list[Path]:
