@@ -294,6 +294,18 @@ CASES = [
         "joint 'boom1_joint' is driven twice",
     ),
     (
+        "actuator named otherwise",
+        ["describe", "--robot", "b.urdf"],
+        {"b.urdf": URDF.replace('<actuator name="x1">', '<actuator name="lift">', 1)},
+        """b.urdf: <transmission name='x1'> <actuator name="lift"> must be named 'x1': """,
+    ),
+    (
+        "two actuators",
+        ["describe", "--robot", "b.urdf"],
+        {"b.urdf": URDF.replace("</actuator>", '</actuator><actuator name="x1"/>', 1)},
+        "b.urdf: <transmission name='x1'> has 2 <actuator> elements; it declares one actuator",
+    ),
+    (
         "cylinder attribute",
         ["describe", "--robot", "b.urdf"],
         {
