@@ -339,6 +339,16 @@ CASES = [
         },
         "kinematic only: links boom1, boom2, telescope",
     ),
+    (
+        "zero masses",
+        ["study", "--robot", "m.toml", "--objective", "energy", "--samples", "10", "--cycles", "0"],
+        {
+            "m.urdf": re.sub(r'<mass value="[^"]*"/>', '<mass value="0"/>', URDF),
+            "m.toml": _description(urdf='"m.urdf"', payload="0"),
+        },
+        "kinematic only: links tool have no <inertial> and links boom1, boom2, telescope have a "
+        "zero <mass> in m.urdf, and ",
+    ),
     *[
         (
             f"link {new}",

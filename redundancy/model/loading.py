@@ -229,11 +229,13 @@ def _inertial_values(
     return np.array(values)
 
 
-def _check_inertials(root: etree._Element, source: str) -> None:
+def _check_inertials(root: etree._Element, source: str) -> tuple[str, ...]:
     """Every link's ``<inertial>`` (of the URDF ``source``) holds numbers a body can have: its
     origin finite, its mass finite and ≥ 0, its inertia finite and a body's rotational inertia
     (`_check_inertia`). Where urdfdom cannot read one, Pinocchio drops it without a word,
-    leaving the link massless; a negative mass or moment it keeps."""
+    leaving the link massless; a negative mass or moment it keeps. Returns the links whose
+    ``<inertial>`` gives a mass of 0."""
+    zero_masses = []
     for link in root.findall("link"):
         inertial = link.find("inertial")
         if inertial is None:
@@ -242,11 +244,13 @@ def _check_inertials(root: etree._Element, source: str) -> None:
         origin = 'xyz="x y z" rpy="r p y", finite numbers (m, rad)'
         _inertial_values(inertial, "origin", ("xyz", "rpy"), where, origin, "0 0 0")
         mass = "a finite number ≥ 0 (the link's mass, kg)"
-        _inertial_values(inertial, "mass", ("value",), where, mass, lower=0.0)
+        if _inertial_values(inertial, "mass", ("value",), where, mass, lower=0.0)[0] == 0:
+            zero_masses.append(link.get("name"))
         inertia = f"six finite numbers {', '.join(INERTIA)} (kg·m², about the centre of mass)"
         _check_inertia(
             inertial, _inertial_values(inertial, "inertia", INERTIA, where, inertia), where
         )
+    return tuple(zero_masses)
 
 
 def _check_inertia(inertial: etree._Element, entries: np.ndarray, where: str) -> None:
@@ -533,7 +537,7 @@ def load_robot(
     source = urdf_path.name
     locked = _locked_values(description.get("locked_joints", []), where)
     root, continuous = _intake(_urdf_text(urdf_path), source, locked)
-    _check_inertials(root, source)
+    zero_masses = _check_inertials(root, source)
     missing_meshes = _resolve_meshes(root, urdf_path.parent)
     if missing_meshes:
         warnings.warn(
@@ -604,13 +608,13 @@ def load_robot(
         circuit,
         etree.tostring(root, encoding="unicode"),
         tuple(missing_meshes),
+        zero_masses,
     )
     _bound_by_strokes(loaded, [j for j in continuous if j not in locked])
     if loaded.kinematic_only:
         warnings.warn(
-            f"{source}: links without inertia: {', '.join(loaded.massless_links)}; the robot "
-            "is kinematic only (the velocity objective, playback and check work; anything "
-            "needing masses refuses)",
+            f"{loaded.massless}; the robot is kinematic only (the velocity objective, playback "
+            "and check work; anything needing masses refuses)",
             stacklevel=2,
         )
     return loaded

@@ -218,6 +218,7 @@ def _variant(
         loaded.urdf,
         loaded.task_file,
         circuit,
+        zero_masses=loaded.zero_masses,
     )
 
 
