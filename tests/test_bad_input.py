@@ -27,6 +27,20 @@ TASK = (CRANE / "task.toml").read_text()
 ROBOT = (CRANE / "robot.toml").read_text()
 HYDRAULICS = ROBOT[ROBOT.index("[hydraulics]") :]
 
+# an arm whose turning joint moves no inertia at mid-range: its link has none about the joint's
+# axis, and the tip's point mass reaches the axis at mid-range (reach = 0)
+AXIS = """<robot name="axis">
+  <link name="base"/>
+  <joint name="turn" type="revolute"><parent link="base"/><child link="arm"/>
+    <axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <link name="arm"><inertial><mass value="10"/>
+    <inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="0"/></inertial></link>
+  <joint name="reach" type="prismatic"><parent link="arm"/><child link="tip"/>
+    <axis xyz="1 0 0"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <link name="tip"><inertial><mass value="1"/>
+    <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>
+</robot>"""
+
 
 def _description(**changes) -> str:
     """The crane's robot.toml, pointing at its URDF, with ``changes`` (TOML values) applied."""
@@ -338,6 +352,13 @@ CASES = [
             "m.toml": _description(urdf='"m.urdf"', payload="0"),
         },
         "kinematic only: links boom1, boom2, telescope",
+    ),
+    (
+        "mass on a joint's axis",
+        ["describe", "--robot", "axis.urdf"],
+        {"axis.urdf": AXIS},
+        "axis: M(q) is singular at q = [0, 0]: nothing beyond joints ['turn'] has mass off their "
+        "axes or inertia about them",
     ),
     (
         "zero masses",

@@ -232,11 +232,15 @@ class Robot:
             out[i] = pin.crba(self.model, self.data, qi)  # the upper triangle is M's
         lower, upper = self._lower_triangle
         out[:, lower, upper] = out[:, upper, lower]
-        if np.any(np.diagonal(out, axis1=1, axis2=2) <= 0):
+        still = np.diagonal(out, axis1=1, axis2=2) <= 0  # a massless link is refused above
+        if np.any(still):
+            state = int(np.flatnonzero(still.any(axis=1))[0])
+            joints = [self.joint_names[j] for j in np.flatnonzero(still[state])]
             raise InvalidInputError(
-                f"{self.name} has no mass beyond some joints, so M(q) is singular and its "
-                f"dynamics (M_H, N_H, F_H, the energy objective) are undefined; massless links: "
-                f"{', '.join(self.massless_links) or 'none'}; give them <inertial> elements"
+                f"{self.name}: M(q) is singular at q = [{', '.join(f'{v:.4g}' for v in q[state])}]"
+                f": nothing beyond joints {joints} has mass off their axes or inertia about them, "
+                "so the dynamics (M_H, N_H, F_H, the energy objective) are undefined there; give "
+                "those links inertia about the joints' axes"
             )
         return out
 
