@@ -4,6 +4,7 @@ error. The command line runs in-process (`redundancy.cli.main`), as a user's she
 but without an interpreter start per case."""
 
 import re
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +26,20 @@ URDF = (CRANE / "hiab031.urdf").read_text()
 TASK = (CRANE / "task.toml").read_text()
 ROBOT = (CRANE / "robot.toml").read_text()
 HYDRAULICS = ROBOT[ROBOT.index("[hydraulics]") :]
+
+# an arm whose turning joint moves no inertia at mid-range: its link has none about the joint's
+# axis, and the tip's point mass reaches the axis at mid-range (reach = 0)
+AXIS = """<robot name="axis">
+  <link name="base"/>
+  <joint name="turn" type="revolute"><parent link="base"/><child link="arm"/>
+    <axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <link name="arm"><inertial><mass value="10"/>
+    <inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="0"/></inertial></link>
+  <joint name="reach" type="prismatic"><parent link="arm"/><child link="tip"/>
+    <axis xyz="1 0 0"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <link name="tip"><inertial><mass value="1"/>
+    <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>
+</robot>"""
 
 
 def _description(**changes) -> str:
@@ -208,6 +223,18 @@ CASES = [
         "task_axes 'xq' must be distinct letters",
     ),
     (
+        "robot.toml unknown key",
+        ["describe", "--robot", "r.toml"],
+        {"r.toml": _description(paylaod="5")},
+        "r.toml: unknown keys ['paylaod']; keys: urdf, tool_frame, tool, task_axes, ",
+    ),
+    (
+        "robot.toml tool and tool_frame",
+        ["describe", "--robot", "r.toml"],
+        {"r.toml": _description(tool='{link = "telescope", xyz = [1.47, 0, 0]}')},
+        "r.toml: tool_frame and tool are both given; give one: tool_frame = a link, or tool = ",
+    ),
+    (
         "robot.toml missing keys",
         ["describe", "--robot", "r.toml"],
         {"r.toml": 'urdf = "x.urdf"\n'},
@@ -295,6 +322,18 @@ CASES = [
         "joint 'boom1_joint' is driven twice",
     ),
     (
+        "actuator named otherwise",
+        ["describe", "--robot", "b.urdf"],
+        {"b.urdf": URDF.replace('<actuator name="x1">', '<actuator name="lift">', 1)},
+        """b.urdf: <transmission name='x1'> <actuator name="lift"> must be named 'x1': """,
+    ),
+    (
+        "two actuators",
+        ["describe", "--robot", "b.urdf"],
+        {"b.urdf": URDF.replace("</actuator>", '</actuator><actuator name="x1"/>', 1)},
+        "b.urdf: <transmission name='x1'> has 2 <actuator> elements; it declares one actuator",
+    ),
+    (
         "cylinder attribute",
         ["describe", "--robot", "b.urdf"],
         {
@@ -347,6 +386,114 @@ CASES = [
             "t.toml": 'segments = ["a-b"]\n[points]\na = [3.5, 0.0]\nb = [1.0, 0.0]\n',
         },
         "cannot move its tool along y at the start of segment a-b [3.5, 0.0]: the task Jacobian",
+    ),
+    (
+        "mass on a joint's axis",
+        ["describe", "--robot", "axis.urdf"],
+        {"axis.urdf": AXIS},
+        "axis: M(q) is singular at q = [0, 0]: nothing beyond joints ['turn'] has mass off their "
+        "axes or inertia about them",
+    ),
+    (
+        "zero masses",
+        ["study", "--robot", "m.toml", "--objective", "energy", "--samples", "10", "--cycles", "0"],
+        {
+            "m.urdf": re.sub(r'<mass value="[^"]*"/>', '<mass value="0"/>', URDF),
+            "m.toml": _description(urdf='"m.urdf"', payload="0"),
+        },
+        "kinematic only: links tool have no <inertial> and links boom1, boom2, telescope have a "
+        "zero <mass> in m.urdf, and ",
+    ),
+    *[
+        (
+            f"link {new}",
+            ["describe", "--robot", "r.toml"],
+            {"e.urdf": URDF.replace(old, new, 1), "r.toml": _description(urdf='"e.urdf"')},
+            f"e.urdf: link 'boom1' {written} must be {meaning}",
+        )
+        for old, new, written, meaning in [
+            *[
+                (
+                    '<mass value="80"/>',
+                    f'<mass value="{v}"/>',
+                    f'<mass value="{v}"/>',
+                    "a finite number ≥ 0 (the link's mass, kg)",
+                )
+                for v in ("nan", "inf", "-80", "abc", "")
+            ],
+            *[
+                ('<origin xyz="0.8 0 0"/>', origin, origin, 'xyz="x y z" rpy="r p y"')
+                for origin in ('<origin xyz="nan 0 0"/>', '<origin rpy="0 1"/>')
+            ],
+            *[
+                (
+                    'iyy="17.0666666666667"',
+                    f'iyy="{v}"',
+                    f'<inertia ixx="0" ixy="0" ixz="0" iyy="{v}" iyz="0" izz="17.0666666666667"/>',
+                    "six finite numbers",
+                )
+                for v in ("nan", "inf", "abc")
+            ],
+        ]
+    ],
+    (
+        "link negative mass, energy",
+        ["study", "--robot", "r.toml", "--objective", "energy", "--samples", "10", "--cycles", "0"],
+        {
+            "e.urdf": URDF.replace('<mass value="80"/>', '<mass value="-80"/>', 1),
+            "r.toml": _description(urdf='"e.urdf"'),
+        },
+        """e.urdf: link 'boom1' <mass value="-80"/> must be a finite number ≥ 0""",
+    ),
+    *[
+        (
+            f"link {new}",
+            [*command, "--robot", "r.toml"],
+            {"e.urdf": URDF.replace(old, new, 1), "r.toml": _description(urdf='"e.urdf"')},
+            f"e.urdf: link 'boom1' {written} is not a body's rotational inertia: its principal "
+            f"moments {moments} kg·m² must be ≥ 0 and each at most the sum of the other two",
+        )
+        for command, old, new, written, moments in [
+            (
+                ["describe"],
+                'iyy="17.0666666666667"',
+                'iyy="-17"',
+                '<inertia ixx="0" ixy="0" ixz="0" iyy="-17" iyz="0" izz="17.0666666666667"/>',
+                "[-17, 0, 17.07]",
+            ),
+            (
+                ["study", "--objective", "energy", "--samples", "10", "--cycles", "0"],
+                'iyy="17.0666666666667"',
+                'iyy="-1700"',
+                '<inertia ixx="0" ixy="0" ixz="0" iyy="-1700" iyz="0" izz="17.0666666666667"/>',
+                "[-1700, 0, 17.07]",
+            ),
+            (
+                ["describe"],
+                'ixx="0" ixy="0"',
+                'ixx="40" ixy="0"',
+                '<inertia ixx="40" ixy="0" ixz="0" iyy="17.0666666666667" iyz="0" '
+                'izz="17.0666666666667"/>',
+                "[17.07, 17.07, 40]",
+            ),
+            (
+                ["describe"],
+                'ixx="0" ixy="0"',
+                'ixx="0" ixy="5"',
+                '<inertia ixx="0" ixy="5" ixz="0" iyy="17.0666666666667" iyz="0" '
+                'izz="17.0666666666667"/>',
+                "[-1.357, 17.07, 18.42]",
+            ),
+        ]
+    ],
+    (
+        "link without mass",
+        ["describe", "--robot", "r.toml"],
+        {
+            "e.urdf": URDF.replace('<mass value="80"/>', "", 1),
+            "r.toml": _description(urdf='"e.urdf"'),
+        },
+        "e.urdf: link 'boom1': <inertial> has no <mass>; it needs one: a finite number ≥ 0",
     ),
     (
         "unreachable end",
@@ -606,7 +753,25 @@ API = [
         "time_step must be > 0",
     ),
     ("no hydraulics", lambda r: load_robot("panda").circuit(), "declare a [hydraulics] table"),
+    (
+        "load_robot mass nan",
+        lambda r: _crane_with('<mass value="80"/>', '<mass value="nan"/>'),
+        """crane.urdf: link 'boom1' <mass value="nan"/> must be a finite number ≥ 0""",
+    ),
+    (
+        "load_robot inertia not a body's",
+        lambda r: _crane_with('iyy="17.0666666666667"', 'iyy="-17"'),
+        """iyy="-17" iyz="0" izz="17.0666666666667"/> is not a body's rotational inertia""",
+    ),
 ]
+
+
+def _crane_with(old, new):
+    """``load_robot`` of the crane's URDF with ``old`` replaced by ``new``."""
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "crane.urdf"
+        path.write_text(URDF.replace(old, new, 1))
+        return load_robot(path)
 
 
 def _segment(robot):

@@ -222,3 +222,16 @@ def test_a_joint_named_like_the_tool_link_is_not_taken_for_it(tmp_path):
     q = np.array([[1.7, 1.0, 0.5], [2.0, 0.6, 0.1]])
     np.testing.assert_allclose(renamed.fk(q), crane.fk(q), atol=1e-12)
     np.testing.assert_allclose(renamed.mass(q), crane.mass(q), atol=1e-9)
+
+
+def test_an_inertia_on_the_edge_of_a_body_loads_as_a_file_rounds_it(tmp_path):
+    """A slender boom's principal moments lie on the edge of the triangle inequality (0 + iyy =
+    izz): with izz rounded up by 8e-9 of itself the crane loads as before (izz, about an axis
+    normal to the joints' axes, leaves M alone); 2e-4 is refused."""
+    crane = load_robot(CRANE_URDF)
+    rounded = load_robot(crane_variant(tmp_path, 'izz="17.0666666666667"', 'izz="17.0666668"'))
+    q = (crane.lower + crane.upper) / 2
+    np.testing.assert_allclose(rounded.mass(q), crane.mass(q), rtol=1e-8)
+    beyond = crane_variant(tmp_path, 'izz="17.0666666666667"', 'izz="17.07"')
+    with pytest.raises(RobotDescriptionError, match=r"link 'boom1' <inertia .* izz=\"17.07\"/> is"):
+        load_robot(beyond)

@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from redundancy.errors import InvalidInputError
-from redundancy.model.values import check_keys, number, read_toml
+from redundancy.model.values import number, read_toml, refuse_unknown
 
 BAR = 1e5  # Pa
 LITRES_PER_MINUTE = 1e-3 / 60  # m³/s
@@ -234,7 +234,7 @@ def circuit_from_table(
     where = f"{source} [hydraulics]"
     if not isinstance(table, dict):
         raise InvalidInputError(f"{where} must be a table; got {table!r}")
-    check_keys(table, [*MACHINE_KEYS, "cylinders"], where)
+    refuse_unknown(table, [*MACHINE_KEYS, "cylinders"], where)
     supply = table.get("supply")
     if supply not in SUPPLIES:
         raise InvalidInputError(f"{where}: supply = {supply!r}; supplies: {', '.join(SUPPLIES)}")
@@ -266,7 +266,7 @@ def circuit_from_table(
             raise InvalidInputError(f"{place}: actuator {name!r} is rotary, not a cylinder")
         if not isinstance(entry, dict):
             raise InvalidInputError(f"{place} must be a table with {', '.join(CYLINDER_KEYS)}")
-        check_keys(entry, CYLINDER_KEYS, place)
+        refuse_unknown(entry, CYLINDER_KEYS, place)
         bore, rod, speed, acceleration = (
             number(entry, k, place, m, lower=0.0) for k, m in CYLINDER_KEYS.items()
         )

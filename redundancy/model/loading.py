@@ -23,14 +23,14 @@ from lxml import etree
 from redundancy.errors import InvalidInputError, RobotDescriptionError
 from redundancy.model.actuators import ActuatorSet, driven_joints
 from redundancy.model.hydraulics import circuit_from_table, read_hydraulics_file
-from redundancy.model.parameters import Point
+from redundancy.model.parameters import Point, number_or_text
 from redundancy.model.robot import AXES, Robot, frame_id
 from redundancy.model.transmissions import (
     read_actuator_tables,
     read_cylinders,
     read_transmissions,
 )
-from redundancy.model.values import MAX_PAYLOAD, names, number, read_toml, text
+from redundancy.model.values import MAX_PAYLOAD, names, number, read_toml, refuse_unknown, text
 
 
 def bundled_root() -> Path:
@@ -43,15 +43,31 @@ def bundled_robots() -> list[str]:
     return sorted(p.parent.name for p in bundled_root().glob("*/robot.toml"))
 
 
+DESCRIPTION_KEYS = (  # a robot.toml's keys (schema in load_robot's docstring)
+    "urdf",
+    "tool_frame",
+    "tool",
+    "task_axes",
+    "locked_joints",
+    "payload",
+    "task",
+    "actuators",
+    "hydraulics",
+)
+
+
 def _read_description(path: Path) -> dict:
+    """The contents of the robot description ``path`` (a ``robot.toml``), its keys checked:
+    every one known, the required ones given."""
     description = read_toml(path, "robot description")
+    refuse_unknown(description, DESCRIPTION_KEYS, str(path))
+    tool = "tool_frame = a link, or tool = {link = ..., xyz = [...]}, a point on a link"
+    if "tool" in description and "tool_frame" in description:
+        raise RobotDescriptionError(f"{path}: tool_frame and tool are both given; give one: {tool}")
     given = {*description, *(["tool_frame"] if "tool" in description else [])}
     missing = [key for key in ("urdf", "tool_frame", "task_axes") if key not in given]
     if missing:
-        raise RobotDescriptionError(
-            f"{path}: missing keys {missing} (the tool: tool_frame = a link, or tool = "
-            "{link = ..., xyz = [...]})"
-        )
+        raise RobotDescriptionError(f"{path}: missing keys {missing} (the tool: {tool})")
     return description
 
 
@@ -179,6 +195,80 @@ def _intake(
             limit.set("upper", repr(math.pi))
             continuous.append(name)
     return root, continuous
+
+
+INERTIA = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")  # <inertia>'s attributes, kg·m²
+INERTIA_TOLERANCE = 1e-6  # of the largest principal moment: what a file's rounding may cost
+
+
+def _inertial_values(
+    inertial: etree._Element,
+    tag: str,
+    attributes: tuple[str, ...],
+    where: str,
+    meaning: str,
+    default: str | None = None,
+    lower: float = -math.inf,
+) -> np.ndarray:
+    """The numbers the ``attributes`` of the ``<inertial>``'s child ``tag`` hold, each finite and
+    ≥ ``lower``: one per attribute, or as many as ``default`` holds where it is given (the text
+    of an attribute left out, or of every one where the child is); otherwise one line naming
+    the link (``where``), the child as written and what it must be (``meaning``)."""
+    element = inertial.find(tag)
+    if element is None and default is None:
+        raise RobotDescriptionError(f"{where}: <inertial> has no <{tag}>; it needs one: {meaning}")
+    each = 1 if default is None else len(default.split())
+    given = {} if element is None else dict(element.attrib)
+    texts = [given.get(a, default) or "" for a in attributes]
+    values = [number_or_text(v) for text in texts for v in text.split()]
+    if len(values) != each * len(attributes) or not all(
+        isinstance(v, float) and math.isfinite(v) and v >= lower for v in values
+    ):
+        written = etree.tostring(element, encoding="unicode", with_tail=False)
+        raise RobotDescriptionError(f"{where} {written} must be {meaning}")
+    return np.array(values)
+
+
+def _check_inertials(root: etree._Element, source: str) -> tuple[str, ...]:
+    """Every link's ``<inertial>`` (of the URDF ``source``) holds numbers a body can have: its
+    origin finite, its mass finite and ≥ 0, its inertia finite and a body's rotational inertia
+    (`_check_inertia`). Where urdfdom cannot read one, Pinocchio drops it without a word,
+    leaving the link massless; a negative mass or moment it keeps. Returns the links whose
+    ``<inertial>`` gives a mass of 0."""
+    zero_masses = []
+    for link in root.findall("link"):
+        inertial = link.find("inertial")
+        if inertial is None:
+            continue
+        where = f"{source}: link {link.get('name')!r}"
+        origin = 'xyz="x y z" rpy="r p y", finite numbers (m, rad)'
+        _inertial_values(inertial, "origin", ("xyz", "rpy"), where, origin, "0 0 0")
+        mass = "a finite number ≥ 0 (the link's mass, kg)"
+        if _inertial_values(inertial, "mass", ("value",), where, mass, lower=0.0)[0] == 0:
+            zero_masses.append(link.get("name"))
+        inertia = f"six finite numbers {', '.join(INERTIA)} (kg·m², about the centre of mass)"
+        _check_inertia(
+            inertial, _inertial_values(inertial, "inertia", INERTIA, where, inertia), where
+        )
+    return tuple(zero_masses)
+
+
+def _check_inertia(inertial: etree._Element, entries: np.ndarray, where: str) -> None:
+    """The ``<inertia>`` of ``inertial`` (its ``entries``, ixx ... izz) is a body's rotational
+    inertia: symmetric positive semi-definite, and each principal moment at most the sum of the
+    other two, to `INERTIA_TOLERANCE`; otherwise one line naming the link (``where``), the
+    element as written and its principal moments. (Six entries make a symmetric matrix; with
+    the moments a ≤ b ≤ c, a + b ≥ c gives the other two inequalities and a ≥ c − b ≥ 0.)"""
+    ixx, ixy, ixz, iyy, iyz, izz = entries
+    moments = np.linalg.eigvalsh([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+    if moments[0] + moments[1] >= moments[2] - INERTIA_TOLERANCE * np.abs(moments).max():
+        return
+    written = etree.tostring(inertial.find("inertia"), encoding="unicode", with_tail=False)
+    raise RobotDescriptionError(
+        f"{where} {written} is not a body's rotational inertia: its principal moments "
+        f"[{', '.join(f'{m:.4g}' for m in moments)}] kg·m² must be ≥ 0 and each at most the "
+        "sum of the other two"
+    )
 
 
 def _package_dirs(folder: Path) -> list[Path]:
@@ -436,7 +526,8 @@ def load_robot(
 
     What the URDF lacks is said, not fatal: meshes no file answers are named in one warning
     (the playback then draws the links as rods between joint origins), and links without
-    inertia in another (the robot is kinematic only: anything needing masses refuses).
+    inertia in another (the robot is kinematic only: anything needing masses refuses). An
+    ``<inertial>`` that is there must hold numbers a body can have (`_check_inertials`).
     """
     name, folder, description, where = _describe(robot)
     reference = text(description, "urdf", where, "the URDF, beside this file or package://")
@@ -446,6 +537,7 @@ def load_robot(
     source = urdf_path.name
     locked = _locked_values(description.get("locked_joints", []), where)
     root, continuous = _intake(_urdf_text(urdf_path), source, locked)
+    zero_masses = _check_inertials(root, source)
     missing_meshes = _resolve_meshes(root, urdf_path.parent)
     if missing_meshes:
         warnings.warn(
@@ -516,13 +608,13 @@ def load_robot(
         circuit,
         etree.tostring(root, encoding="unicode"),
         tuple(missing_meshes),
+        zero_masses,
     )
     _bound_by_strokes(loaded, [j for j in continuous if j not in locked])
     if loaded.kinematic_only:
         warnings.warn(
-            f"{source}: links without inertia: {', '.join(loaded.massless_links)}; the robot "
-            "is kinematic only (the velocity objective, playback and check work; anything "
-            "needing masses refuses)",
+            f"{loaded.massless}; the robot is kinematic only (the velocity objective, playback "
+            "and check work; anything needing masses refuses)",
             stacklevel=2,
         )
     return loaded

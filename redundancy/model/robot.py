@@ -56,8 +56,9 @@ class Robot:
 
     The task y is the tool position's world components ``task_axes`` (m of them); n joints; one
     actuator per joint (``actuators``), so that A = ∂x/∂q is square. ``description`` is the
-    URDF text the model was built from (a xacro expanded, meshes by absolute path), and
-    ``missing_meshes`` the mesh references no file answers.
+    URDF text the model was built from (a xacro expanded, meshes by absolute path),
+    ``missing_meshes`` the mesh references no file answers, and ``zero_masses`` the links whose
+    ``<inertial>`` gives a mass of 0 (a massless link not among them has no ``<inertial>``).
     """
 
     def __init__(
@@ -73,6 +74,7 @@ class Robot:
         hydraulics: Circuit | None = None,
         description: str = "",
         missing_meshes: tuple[str, ...] = (),
+        zero_masses: tuple[str, ...] = (),
     ) -> None:
         self.name = name
         self.model = model
@@ -86,6 +88,7 @@ class Robot:
         self.hydraulics = hydraulics
         self.description = description
         self.missing_meshes = missing_meshes
+        self.zero_masses = zero_masses
         self._tool = frame_id(model, tool_frame)
         self._task_rows = [AXES.index(a) for a in task_axes]
         self._task_frames = [self._tool]  # the frames the task is read from
@@ -199,13 +202,26 @@ class Robot:
         """Whether some links have no mass (`massless_links`), so that M(q) is undefined."""
         return bool(self.massless_links)
 
+    @property
+    def massless(self) -> str:
+        """The massless links in words, as the URDF has them: without ``<inertial>``, or with a
+        zero ``<mass>``."""
+        without = [link for link in self.massless_links if link not in self.zero_masses]
+        zero = [link for link in self.massless_links if link in self.zero_masses]
+        said = [
+            f"links {', '.join(links)} {what}"
+            for links, what in ((without, "have no <inertial>"), (zero, "have a zero <mass>"))
+            if links
+        ]
+        return f"{' and '.join(said)} in {self.urdf.name}"
+
     def require_masses(self, what: str) -> None:
         """Refuse ``what`` (e.g. "M(q)") on a kinematic-only robot, naming its massless links."""
         if self.kinematic_only:
             raise InvalidInputError(
-                f"{self.name} is kinematic only: links {', '.join(self.massless_links)} have no "
-                f"<inertial> in {self.urdf.name}, and {what} needs masses; give them <inertial> "
-                "elements, or use what needs none (the velocity objective, play, check)"
+                f"{self.name} is kinematic only: {self.massless}, and {what} needs masses; give "
+                "them <inertial> elements with a mass > 0, or use what needs none (the velocity "
+                "objective, play, check)"
             )
 
     def mass_matrices(self, q: np.ndarray) -> np.ndarray:
@@ -216,11 +232,15 @@ class Robot:
             out[i] = pin.crba(self.model, self.data, qi)  # the upper triangle is M's
         lower, upper = self._lower_triangle
         out[:, lower, upper] = out[:, upper, lower]
-        if np.any(np.diagonal(out, axis1=1, axis2=2) <= 0):
+        still = np.diagonal(out, axis1=1, axis2=2) <= 0  # a massless link is refused above
+        if np.any(still):
+            state = int(np.flatnonzero(still.any(axis=1))[0])
+            joints = [self.joint_names[j] for j in np.flatnonzero(still[state])]
             raise InvalidInputError(
-                f"{self.name} has no mass beyond some joints, so M(q) is singular and its "
-                f"dynamics (M_H, N_H, F_H, the energy objective) are undefined; massless links: "
-                f"{', '.join(self.massless_links) or 'none'}; give them <inertial> elements"
+                f"{self.name}: M(q) is singular at q = [{', '.join(f'{v:.4g}' for v in q[state])}]"
+                f": nothing beyond joints {joints} has mass off their axes or inertia about them, "
+                "so the dynamics (M_H, N_H, F_H, the energy objective) are undefined there; give "
+                "those links inertia about the joints' axes"
             )
         return out
 

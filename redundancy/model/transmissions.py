@@ -24,6 +24,8 @@ Pinocchio and yourdfpy alike, drop transmissions, so they are read here with lxm
       <attachment link="boom1" xyz="0.370 0 -0.069"/>
     </transmission>
 
+The transmission is the actuator: its one ``<actuator>`` child, which holds the stroke and any
+cylinder data, takes the transmission's name or none (another name is refused, not ignored).
 The kind's own parameters are those it lists in ``parameters``
 (`redundancy.model.parameters`): ``Prismatic`` takes ``offset`` (x = q + offset), ``Identity``
 nothing more, ``LinkageCylinder`` (`redundancy.model.linkage`) ``base``, ``rocker`` and
@@ -159,6 +161,17 @@ def _read_transmission(element: etree._Element, source: str) -> ActuatorMap:
         raise RobotDescriptionError(
             f"{where} needs a name and exactly one <joint name=...>; it has {len(joints)} "
             "joint elements"
+        )
+    actuators = element.findall("actuator")
+    if len(actuators) > 1:
+        raise RobotDescriptionError(
+            f"{where} has {len(actuators)} <actuator> elements; it declares one actuator, "
+            f'itself: <actuator name="{name}">'
+        )
+    if actuators and actuators[0].get("name", name) != name:
+        raise RobotDescriptionError(
+            f'{where} <actuator name="{actuators[0].get("name")}"> must be named {name!r}: the '
+            "actuator is the transmission itself, and takes its name (or none)"
         )
     stroke = element.find("actuator/stroke")
     limits: tuple[float, float] = (-math.inf, math.inf)

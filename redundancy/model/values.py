@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import tomllib
+from collections.abc import Collection
 from pathlib import Path
 
 import numpy as np
@@ -33,9 +34,9 @@ def read_toml(path: Path, what: str) -> dict:
         raise InvalidInputError(f"{path}: not valid TOML: {error}") from None
 
 
-def check_keys(table: dict, known, where: str) -> None:
-    """Refuse a key of ``table`` that is not among ``known``: one line naming it, ``where``
-    the table is and the valid keys."""
+def refuse_unknown(table: dict, known: Collection[str], where: str) -> None:
+    """Refuse the keys of ``table`` (from ``where``) that are not among ``known``, in one line
+    naming them, ``where`` and the ``known`` keys."""
     extra = sorted(set(table) - set(known))
     if extra:
         raise InvalidInputError(f"{where}: unknown keys {extra}; keys: {', '.join(known)}")

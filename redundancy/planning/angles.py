@@ -85,6 +85,7 @@ class ToolAngleRobot(Robot):
             base.hydraulics,
             base.description,
             base.missing_meshes,
+            base.zero_masses,
         )
         self.base = base
         self.centre = float(centre)

@@ -61,11 +61,11 @@ import numpy as np
 from redundancy.errors import InvalidInputError
 from redundancy.model.values import (
     MAX_SPEED,
-    check_keys,
     coordinates,
     names,
     number,
     read_toml,
+    refuse_unknown,
     text,
 )
 
@@ -617,7 +617,7 @@ class WorkCycle:
         path = Path(path)
         data = read_toml(path, "task file")
         where = str(path)
-        check_keys(data, TASK_KEYS, where)
+        refuse_unknown(data, TASK_KEYS, where)
         tool_angle = data.get("tool_angle", False)
         if not isinstance(tool_angle, bool):
             raise InvalidInputError(f"{path}: tool_angle = {tool_angle!r} must be true or false")
@@ -741,7 +741,7 @@ def _segment(
             f"{where} = {entry!r} must be '<from>-<to>' or a table such as "
             '{ from = "1", to = "2", via = "3" }'
         )
-    check_keys(entry, SEGMENT_KEYS, where)
+    refuse_unknown(entry, SEGMENT_KEYS, where)
     speed, profile, acceleration = _timing(entry, where, defaults)
     centre = entry.get("centre", entry.get("center"))
     if "csv" in entry:

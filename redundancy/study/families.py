@@ -62,11 +62,11 @@ from redundancy.model.robot import AXES, Robot
 from redundancy.model.values import (
     MAX_PAYLOAD,
     MAX_SPEED,
-    check_keys,
     coordinates,
     names,
     number,
     read_toml,
+    refuse_unknown,
     text,
 )
 from redundancy.planning.ik import held_indices
@@ -241,13 +241,14 @@ def _variant(
         loaded.urdf,
         loaded.task_file,
         circuit,
+        zero_masses=loaded.zero_masses,
     )
 
 
 def _values(value: object, where: str, meaning: str, lower: float, upper: float) -> tuple:
     """A list of numbers, or {from, to, count}, as a tuple of floats within [lower, upper]."""
     if isinstance(value, dict):
-        check_keys(value, RANGE_KEYS, where)
+        refuse_unknown(value, RANGE_KEYS, where)
         start = number(value, "from", where, meaning, lower=lower, upper=upper)
         stop = number(value, "to", where, meaning, lower=lower, upper=upper)
         count = value.get("count")
@@ -299,7 +300,7 @@ def _workspace(
     segment's start to its end (m) and the speed along it (m/s)."""
     if not isinstance(table, dict):
         raise InvalidInputError(f"{where}: [workspace] must be a table")
-    check_keys(table, WORKSPACE_KEYS, f"{where}: [workspace]")
+    refuse_unknown(table, WORKSPACE_KEYS, f"{where}: [workspace]")
     length = number(table, "length", where, "m, each segment's length", lower=1e-6, upper=1e3)
     direction = coordinates(table.get("direction"), f"{where}: direction", robot.m)
     if not np.linalg.norm(direction) > 0:
@@ -349,7 +350,7 @@ def _check_size(segments: int, grid: tuple[tuple[str, tuple], ...], where: str) 
 def _task_segments(robot: Robot, table: object, folder: Path, where: str):
     if not isinstance(table, dict):
         raise InvalidInputError(f"{where}: [task] must be a table")
-    check_keys(table, TASK_KEYS, f"{where}: [task]")
+    refuse_unknown(table, TASK_KEYS, f"{where}: [task]")
     if "file" in table:
         path = folder / text(table, "file", where, "the task file, relative to the map file")
     elif robot.task_file is not None:
@@ -367,7 +368,7 @@ def read_family(path: Path | str) -> MapFamily:
     path = Path(path)
     data = read_toml(path, "map file")
     where, folder = str(path), path.resolve().parent
-    check_keys(data, KEYS, where)
+    refuse_unknown(data, KEYS, where)
     robot_name = text(data, "robot", where, "bundled name or robot path", "hiab031")
     if not (robot_name in bundled_robots() and not (folder / robot_name).exists()):
         robot_name = str(folder / robot_name)
@@ -454,7 +455,7 @@ def _grid(robot: Robot, table: object, where: str):
                 raise InvalidInputError(
                     f"{where} {key} must be a table with actuator = ... and values = [...]"
                 )
-            check_keys(value, DESIGN_KEYS[key], f"{where} {key}")
+            refuse_unknown(value, DESIGN_KEYS[key], f"{where} {key}")
             actuator = text(value, "actuator", f"{where} {key}", "an actuator's name")
             if actuator not in robot.actuators.names:
                 raise InvalidInputError(
