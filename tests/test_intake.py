@@ -372,7 +372,7 @@ BAD = [
     (
         "offset = 0.2",
         "offset = 0.2\nbore = 80",
-        "[actuators.x3]: unknown keys ['bore']; keys of Prismatic: kind, joint, stroke, offset",
+        "[actuators.x3] (Prismatic): unknown keys ['bore']; keys: kind, joint, stroke, offset",
     ),
     (
         "offset = 0.2",

@@ -49,6 +49,7 @@ from redundancy.model.actuators import ActuatorMap
 from redundancy.model.hydraulics import CYLINDER_KEYS
 from redundancy.model.linkage import LinkageCylinder
 from redundancy.model.parameters import REQUIRED, number_or_text
+from redundancy.model.values import refuse_unknown
 
 # The kinds are found by class name among ActuatorMap's subclasses: the bundled ones beyond
 # actuators.py are defined by importing their modules.
@@ -121,11 +122,7 @@ def read_actuator_tables(tables: object, source: str) -> list[ActuatorMap]:
             raise RobotDescriptionError(f"{where} = {table!r} must be a table")
         kind = _kind(table.get("kind"), f"{where} kind")
         keys = [*_KEYS, *(p.name for p in kind.parameters)]
-        unknown = sorted(set(table) - set(keys))
-        if unknown:
-            raise RobotDescriptionError(
-                f"{where}: unknown keys {unknown}; keys of {kind.__name__}: {', '.join(keys)}"
-            )
+        refuse_unknown(table, keys, f"{where} ({kind.__name__})", error=RobotDescriptionError)
         joint = table.get("joint")
         if not isinstance(joint, str):
             raise RobotDescriptionError(f"{where} joint = {joint!r} must be a joint's name")
@@ -222,12 +219,9 @@ def read_cylinders(root: etree._Element, source: str) -> dict[str, dict[str, flo
         name = element.get("name") or ""
         for cylinder in element.findall("actuator/cylinder"):
             where = f"{source}: <transmission name={name!r}> <cylinder>"
-            extra = sorted(set(cylinder.attrib) - set(CYLINDER_KEYS))
-            if extra:
-                raise RobotDescriptionError(
-                    f"{where} has unknown attributes {extra}; attributes: "
-                    f"{', '.join(CYLINDER_KEYS)}"
-                )
+            refuse_unknown(
+                cylinder.attrib, CYLINDER_KEYS, where, "attributes", RobotDescriptionError
+            )
             values = {}
             for key in CYLINDER_KEYS:
                 if key in cylinder.attrib:

@@ -34,12 +34,19 @@ def read_toml(path: Path, what: str) -> dict:
         raise InvalidInputError(f"{path}: not valid TOML: {error}") from None
 
 
-def refuse_unknown(table: dict, known: Collection[str], where: str) -> None:
-    """Refuse the keys of ``table`` (from ``where``) that are not among ``known``, in one line
-    naming them, ``where`` and the ``known`` keys."""
+def refuse_unknown(
+    table: Collection[str],
+    known: Collection[str],
+    where: str,
+    what: str = "keys",
+    error: type[Exception] = InvalidInputError,
+) -> None:
+    """Refuse the entries of ``table`` (its keys, from ``where``) that are not among ``known``:
+    one ``error`` naming them, ``where`` and the ``known`` ones (``what`` they are: keys,
+    attributes, parameters)."""
     extra = sorted(set(table) - set(known))
     if extra:
-        raise InvalidInputError(f"{where}: unknown keys {extra}; keys: {', '.join(known)}")
+        raise error(f"{where}: unknown {what} {extra}; {what}: {', '.join(known)}")
 
 
 def _given(table: dict, key: str, where: str, meaning: str, default):

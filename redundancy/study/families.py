@@ -438,9 +438,7 @@ def _grid(robot: Robot, table: object, where: str):
     """The design grid: ((parameter, values), ...), the attachment moved, the bore's cylinder."""
     if not isinstance(table, dict):
         raise InvalidInputError(f"{where} must be a table")
-    unknown = sorted(set(table) - set(PARAMETERS))
-    if unknown:
-        raise InvalidInputError(f"{where}: unknown parameters {unknown}; parameters: {PARAMETERS}")
+    refuse_unknown(table, PARAMETERS, where, "parameters")
     grid, attachment, bore = [], None, None
     for key in PARAMETERS:
         if key not in table:
