@@ -129,7 +129,7 @@ CASES = [
             {"t.toml": TASK.replace('held = ["x3"]', f"held = {v}")},
             "held = ",
         )
-        for v in ('"x3"', "3", "[3]", "{x = 3}", "true")
+        for v in ('"x3"', "3", "[3]", "{x = 3}", "true", "[]", '["x3", "x3"]')
     ],
     (
         "task held unknown",

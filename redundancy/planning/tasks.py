@@ -654,7 +654,10 @@ class WorkCycle:
                     f"{path}: two segments are named {segment.name!r}; give one a name"
                 )
             seen.add(segment.name)
-        held = names(data, "held", where, "the actuators the improved search holds")
+        meaning = "the actuators the improved search holds; leave it out for the default"
+        held = names(data, "held", where, meaning, distinct=True)
+        if "held" in data and not held:
+            raise InvalidInputError(f"{where}: held = [] names no actuator ({meaning})")
         name = text(data, "name", where, "the task's name", path.stem)
         return cls(name, tuple(segments), held, tool_angle)
 
