@@ -19,8 +19,9 @@ from commands import run_cli
 
 from redundancy import VELOCITY, WorkCycle, actuator_space, improved_start, load_robot
 from redundancy.errors import InvalidInputError
+from redundancy.planning.tasks import Polyline, Segment
 from redundancy.study import families
-from redundancy.study.families import Design, read_family
+from redundancy.study.families import Design, MapFamily, read_family
 from redundancy.study.maps import design_map, summary
 from redundancy.study.study import run_study
 
@@ -452,3 +453,23 @@ def test_bound_and_energy_columns_agree_with_the_searches_they_come_from(tmp_pat
         assert (row.ls_energy_kj, row.cp_energy_kj) == pytest.approx((ls, cp), rel=1e-9)
         assert row.peak_flow_lpm == pytest.approx(motion.flows.pump_flow[0].max() * 60e3, rel=1e-9)
         assert row.ls_energy_kj < row.cp_energy_kj  # the LS pump meets the load, CP its setting
+
+
+def test_the_fingerprint_sees_every_point_of_a_long_path_and_nothing_cached():
+    """Two families whose 2,000-point paths differ at one point in the middle (which numpy's
+    repr elides) have different fingerprints; what a segment has computed and cached since
+    (its timing) changes none."""
+    x = np.linspace(1.5, 3.5, 2000)
+    points = np.column_stack([x, 0.2 * np.sin(x)])
+    bent = points.copy()
+    bent[1000, 1] += 1e-6
+
+    def family(path):
+        segment = Segment.along("dig", Polyline(path), 0.5)
+        return MapFamily("f", "hiab031", None, ("velocity",), ("x3",), (segment,))
+
+    first = family(points)
+    assert family(bent).fingerprint != first.fingerprint
+    cached = family(points)
+    cached.segments[0].duration  # noqa: B018 - caches the timing
+    assert cached.fingerprint == first.fingerprint

@@ -153,8 +153,10 @@ class MapFamily:
 
     @cached_property
     def fingerprint(self) -> str:
-        """A digest of everything the rows depend on: the family and the robot's files."""
-        digest = hashlib.sha256(repr(dataclasses.astuple(self)).encode())
+        """A digest of everything the rows depend on: the family (every segment's name, ends,
+        path and timing whole) and the robot's files."""
+        digest = hashlib.sha256()
+        _digest(digest, self)
         for path in _robot_files(self.robot, self.hydraulics):
             digest.update(path.read_bytes())
         return digest.hexdigest()[:16]
@@ -175,6 +177,26 @@ class MapFamily:
         if design.speed is None:
             return segment
         return Segment(segment.name, segment.start, segment.end, design.speed)
+
+
+def _digest(digest, value: object) -> None:
+    """Feed ``value`` to ``digest``: a dataclass field by field (what its fields are, not what
+    it has cached), an array by its type, shape and bytes (whole: its repr would elide a long
+    polyline's middle, and cost seconds on a large family), a sequence item by item, anything
+    else by its repr."""
+    if dataclasses.is_dataclass(value):
+        digest.update(type(value).__name__.encode())
+        for field in dataclasses.fields(value):
+            _digest(digest, getattr(value, field.name))
+    elif isinstance(value, np.ndarray):
+        digest.update(f"{value.dtype}{value.shape}".encode())
+        digest.update(np.ascontiguousarray(value).tobytes())
+    elif isinstance(value, list | tuple):
+        digest.update(f"{type(value).__name__}{len(value)}".encode())
+        for item in value:
+            _digest(digest, item)
+    else:
+        digest.update(repr(value).encode())
 
 
 def _robot_files(robot: str, hydraulics: str | None) -> list[Path]:

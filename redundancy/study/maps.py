@@ -364,8 +364,11 @@ def design_map(
             from distributed import as_completed
 
             run = uuid.uuid4().hex[:8]  # keys of this run alone: a shared client may hold others
+            # the family goes to each worker once, not with every chunk (a workspace family of
+            # 100,000 starts pickles to 23 MB)
+            shared = client.scatter(family, broadcast=True, hash=False)
             futures = {
-                client.submit(solve_chunk, family, c, key=f"map-{run}-chunk-{c}"): c
+                client.submit(solve_chunk, shared, c, key=f"map-{run}-chunk-{c}"): c
                 for c in pending
             }
             for future in as_completed(futures, loop=client.loop):
