@@ -2,15 +2,16 @@
 profiles, the tool's angle as a task coordinate, and the task file that declares them."""
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
 import pytest
 from commands import run_cli
 
-from redundancy import InvalidInputError, load_robot
+from redundancy import InvalidInputError, UnreachableError, load_robot
 from redundancy.planning.angles import ToolAngleRobot, task_robot, with_tool_angle
-from redundancy.planning.ik import configuration_at
+from redundancy.planning.ik import check_path, configuration_at
 from redundancy.planning.integrate import GAIN, simulate
 from redundancy.planning.tasks import (
     Arc,
@@ -280,3 +281,14 @@ def test_a_malformed_polyline_ends_the_command_line_in_one_line(tmp_path):
     assert run.returncode == 2
     assert run.stderr.strip().count("\n") == 0
     assert "path.csv line 2: cell 2 ('x') is not a number" in run.stderr
+
+
+def test_a_point_out_of_reach_is_shown_with_its_angle_in_degrees(arm):
+    """A task with the tool's angle: the point and its miss are shown in m or mm and degrees,
+    the angle never summed into the distance."""
+    far = Segment.along("far", Line(np.array([5.0, 0.0, 0.3]), np.array([5.5, 0.0, 0.3]), 1), 0.5)
+    with pytest.raises(UnreachableError) as refused:
+        check_path(arm, far)
+    message = str(refused.value)
+    assert f"its point [5.0, 0.0] at {math.degrees(0.3):.4g}° (t = 0 s)" in message
+    assert re.search(r"missed by [\d.]+ mm in position and [\d.]+° in angle$", message)

@@ -21,6 +21,7 @@ import numpy as np
 
 from redundancy.errors import InvalidInputError, SingularConfigurationError, UnreachableError
 from redundancy.model.robot import Robot
+from redundancy.planning.angles import task_labels
 from redundancy.planning.tasks import Segment
 from redundancy.resolution.limits import amount
 from redundancy.resolution.state import SINGULAR_TOLERANCE
@@ -255,14 +256,34 @@ def check_path(robot: Robot, segment: Segment, seeds: int = 8) -> None:
             target = np.broadcast_to(point, (len(fresh), robot.m))
             q, miss = newton(robot, fresh, [], target, ITERATIONS, True)
         if not miss.min() < PATH_TOLERANCE:
+            best = q[np.argmin(miss)][None]
+            error = robot.task_point(robot.kinematics(best))[0][0] - point
             raise UnreachableError(
                 f"{robot.name} cannot follow segment {segment.name}: its point "
-                f"{np.round(point, 6).tolist()} (t = {t:.3g} s) is out of reach inside the joint "
-                f"limits, missed by {amount(miss.min(), 'm')}"
+                f"{_point_text(robot, point)} (t = {t:.3g} s) is out of reach inside the joint "
+                f"limits, missed by {_miss_text(robot, error)}"
             )
         q = q[miss < FOUND] if np.any(miss < FOUND) else q
         if not i:
             _check_mobility(robot, segment, q)
+
+
+def _point_text(robot: Robot, y: np.ndarray) -> str:
+    """A task point y (m,) as messages show it: its position in m, and the tool's angle in
+    degrees where the task has one."""
+    size = len(robot.task_axes)
+    text = str(np.round(y[:size], 6).tolist())
+    return text if size == robot.m else f"{text} at {amount(float(y[size]), 'rad')}"
+
+
+def _miss_text(robot: Robot, error: np.ndarray) -> str:
+    """How far a task point is missed, by error (m,): in mm, and in degrees of the tool's
+    angle where the task has one."""
+    size = len(robot.task_axes)
+    text = amount(float(np.linalg.norm(error[:size])), "m")
+    if size == robot.m:
+        return text
+    return f"{text} in position and {amount(abs(float(error[size])), 'rad')} in angle"
 
 
 def _check_mobility(robot: Robot, segment: Segment, q: np.ndarray) -> None:
@@ -277,7 +298,7 @@ def _check_mobility(robot: Robot, segment: Segment, q: np.ndarray) -> None:
         return
     best = int(np.argmax(sigma[:, -1] / np.maximum(sigma[:, 0], np.finfo(float).tiny)))
     direction = u[best, :, -1]
-    axes = [*robot.task_axes, *["angle"] * (robot.m - len(robot.task_axes))]
+    axes = task_labels(robot)
     along = (
         axes[int(np.argmax(np.abs(direction)))]
         if np.abs(direction).max() > 0.99
