@@ -149,6 +149,28 @@ def _foreground() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
+@pytest.mark.parametrize("stop", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "terminate"])
+def test_a_signal_while_the_libraries_load_ends_the_command_with_one_line(tmp_path, stop):
+    """The command handles Ctrl-C and SIGTERM from its first moment: while it still imports
+    numpy, Pinocchio and the rest (about half a second), they end it with one line, nothing
+    written."""
+    for delay in (0.1, 0.2, 0.3):
+        process = subprocess.Popen(
+            [sys.executable, "-m", "redundancy", *STUDY, "--out", str(tmp_path / "out")],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            preexec_fn=_foreground,
+        )
+        time.sleep(delay)
+        process.send_signal(stop)
+        _, stderr = process.communicate(timeout=60)
+        ending = "terminated" if stop == signal.SIGTERM else "interrupted"
+        assert stderr.splitlines() == [f"redundancy: {ending}"], (delay, stderr)
+        assert process.returncode == (143 if stop == signal.SIGTERM else 130)
+        assert list(tmp_path.iterdir()) == []
+
+
 def _staged_files(parent: Path) -> int:
     return sum(
         len(list(folder.iterdir())) for folder in parent.glob(".out.partial-*") if folder.is_dir()
