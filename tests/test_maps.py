@@ -2,6 +2,7 @@
 findings reproduced, families read with one-line errors."""
 
 import contextlib
+import itertools
 import os
 import signal
 import socket
@@ -473,3 +474,22 @@ def test_the_fingerprint_sees_every_point_of_a_long_path_and_nothing_cached():
     cached = family(points)
     cached.segments[0].duration  # noqa: B018 - caches the timing
     assert cached.fingerprint == first.fingerprint
+
+
+def test_a_chunks_problems_are_segments_times_the_design_grid_in_product_order():
+    """Problem i is segment i // D with design i % D, the designs numbered as itertools.product
+    numbers them (the last parameter fastest), whatever the chunk it falls in."""
+    segments = tuple(
+        Segment(name, np.array([x, -0.5]), np.array([x - 1, -0.5]), 0.5)
+        for name, x in (("near", 3.0), ("far", 3.5))
+    )
+    grid = (("payload", (0.0, 50.0, 100.0)), ("speed", (0.2, 0.4)))
+    family = MapFamily("f", "hiab031", None, ("velocity",), ("x3",), segments, grid, chunk=4)
+    found = [problem for c in range(family.chunks) for problem in family.problems(c)]
+    assert [i for i, _, _ in found] == list(range(len(family))) == list(range(12))
+    expected = [
+        (segment, Design(payload=payload, speed=speed))
+        for segment in segments
+        for payload, speed in itertools.product(*(values for _, values in grid))
+    ]
+    assert all(s is es and d == ed for (_, s, d), (es, ed) in zip(found, expected, strict=True))

@@ -142,14 +142,18 @@ class MapFamily:
         return -(-len(self) // self.chunk)
 
     def problems(self, chunk: int) -> list[tuple[int, Segment, Design]]:
-        """The problems (index, segment, design) of chunk number ``chunk``."""
+        """The problems (index, segment, design) of chunk number ``chunk``: problem i is segment
+        i // D with design i % D of the D the grid makes, numbered as `itertools.product`
+        would (the last parameter fastest), each built alone."""
+        sizes = [len(values) for _, values in self.grid]
+        designs = math.prod(sizes)
         first = chunk * self.chunk
-        designs = [
-            Design(**dict(zip((k for k, _ in self.grid), values)))
-            for values in itertools.product(*(v for _, v in self.grid))
-        ]
-        indices = range(first, min(first + self.chunk, len(self)))
-        return [(i, self.segments[i // len(designs)], designs[i % len(designs)]) for i in indices]
+        found = []
+        for i in range(first, min(first + self.chunk, len(self))):
+            position = np.unravel_index(i % designs, sizes) if sizes else ()
+            values = {key: grid[j] for (key, grid), j in zip(self.grid, position)}
+            found.append((i, self.segments[i // designs], Design(**values)))
+        return found
 
     @cached_property
     def fingerprint(self) -> str:
