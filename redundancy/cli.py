@@ -620,19 +620,30 @@ def main(argv: list[str] | None = None) -> int:
         numbers.append(signal.SIGINT)
     previous = {n: signal.signal(n, _interrupt) for n in numbers}
     stdout, sys.stdout = sys.stdout, _Output(sys.stdout)
+    unraisable, sys.unraisablehook = sys.unraisablehook, _unraisable
     try:
         # the toolkit's matrices are stacks of n × n with n ≤ 7: BLAS threads never speed
         # them up, and their spinning takes the core the study's second process needs
         with threadpool_limits(limits=1, user_api="blas"):
             status = args.run(args)  # a command may end with a status of its own (check: 2)
         sys.stdout.flush()
+        if _signalled:  # raised where Python could only ignore it (a weakref callback)
+            raise KeyboardInterrupt
     except BaseException as error:
         return _ending(error)
     finally:
-        sys.stdout = stdout
+        sys.stdout, sys.unraisablehook = stdout, unraisable
         for number, handler in previous.items():
             signal.signal(number, handler)
     return status or 0
+
+
+def _unraisable(report) -> None:
+    """Python's report of an exception it had to ignore, silenced for the signals' own: where
+    `_interrupt` raised inside a callback (a weakref's, a finaliser), the signal stays noted
+    in `_signalled`, and `main` ends with it."""
+    if not isinstance(report.exc_value, KeyboardInterrupt | Terminated):
+        sys.__unraisablehook__(report)
 
 
 def _ending(error: BaseException) -> int:

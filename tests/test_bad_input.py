@@ -718,6 +718,27 @@ API = [
     ("space of a wrong shape", lambda r: actuator_space(r, [1.0, 2.0]), "q must have shape"),
     ("space of nan", lambda r: actuator_space(r, [np.nan, 1.0, 0.5]), "NaN or infinite"),
     ("space at a singularity", lambda r: actuator_space(r, [0.0, 1.0, 0.5]), "singular at q"),
+    ("space of text", lambda r: actuator_space(r, ["a", "b", "c"]), "q must be 3 numbers"),
+    (
+        "step of nan",
+        lambda r: VELOCITY.resolver.step(r, np.array([1.7, 1.0, 0.7]), np.array([np.nan, 0.0])),
+        "y_dot contains NaN",
+    ),
+    (
+        "step of three task velocities",
+        lambda r: VELOCITY.resolver.step(r, np.array([1.7, 1.0, 0.7]), np.zeros(3)),
+        "y_dot must have shape (2,)",
+    ),
+    (
+        "step of two states",
+        lambda r: VELOCITY.resolver.step(r, np.ones((2, 3)), np.zeros(2)),
+        "a step takes one q (3,) and one y_dot (2,)",
+    ),
+    (
+        "step at a singularity",
+        lambda r: VELOCITY.resolver.step(r, np.zeros(3), np.array([1.0, 1.0])),
+        "actuator Jacobian A is singular at q = [0.0, 0.0, 0.0]",
+    ),
     (
         "samples 2.5",
         lambda r: improved_start(r, _segment(r), VELOCITY, samples=2.5),

@@ -7,6 +7,7 @@ import signal
 import subprocess
 import sys
 import time
+import weakref
 from pathlib import Path
 
 import pytest
@@ -169,6 +170,27 @@ def test_a_signal_while_the_libraries_load_ends_the_command_with_one_line(tmp_pa
         assert stderr.splitlines() == [f"redundancy: {ending}"], (delay, stderr)
         assert process.returncode == (143 if stop == signal.SIGTERM else 130)
         assert list(tmp_path.iterdir()) == []
+
+
+def test_a_signal_python_had_to_ignore_still_ends_the_command(monkeypatch, capsys):
+    """A Ctrl-C whose KeyboardInterrupt is raised inside a weakref callback, where Python can
+    only report and ignore it: no report, and the command ends with one line and status 130."""
+    from redundancy import cli
+
+    def run(args):
+        class Part:
+            pass
+
+        part = Part()
+        noted = weakref.ref(part, lambda _: cli._interrupt(signal.SIGINT, None))
+        del part  # the callback runs here, and raises
+        assert noted() is None
+        print("finished")
+
+    monkeypatch.setattr(cli, "_robots_command", run)
+    assert cli.main(["robots"]) == 130
+    captured = capsys.readouterr()
+    assert captured.err.splitlines() == ["redundancy: interrupted"], captured.err
 
 
 def _staged_files(parent: Path) -> int:

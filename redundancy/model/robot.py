@@ -37,7 +37,12 @@ def frame_id(model: pin.Model, name: str) -> int:
 
 def _as_batch(name: str, values: np.ndarray | list[float], n: int) -> tuple[np.ndarray, bool]:
     """``values`` as a (k, n) float array and whether it came as one (n,) vector."""
-    array = np.asarray(values, dtype=float)
+    try:
+        array = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise InvalidInputError(
+            f"{name} must be {n} numbers, or k rows of {n}; got {values!r}"
+        ) from None
     single = array.ndim == 1
     if array.ndim not in (1, 2) or array.shape[-1] != n:
         raise InvalidInputError(f"{name} must have shape ({n},) or (k, {n}); got {array.shape}")
@@ -148,6 +153,10 @@ class Robot:
     def configuration(self, q: np.ndarray | list[float], name: str = "q") -> np.ndarray:
         """``q`` as a checked (k, n) array: right shape, finite."""
         return _as_batch(name, q, self.n)[0]
+
+    def task_values(self, y: np.ndarray | list[float], name: str = "y_dot") -> np.ndarray:
+        """Task coordinates or velocities ``y`` as a checked (k, m) array: right shape, finite."""
+        return _as_batch(name, y, self.m)[0]
 
     def kinematics(
         self, q: np.ndarray, v: np.ndarray | None = None, actuators: ActuatorSet | None = None

@@ -25,9 +25,10 @@ from typing import NamedTuple
 
 import numpy as np
 
+from redundancy.errors import InvalidInputError
 from redundancy.model.robot import Robot
 from redundancy.resolution.linalg import solve, solve_conditioned
-from redundancy.resolution.state import ActuatorSpace, evaluate
+from redundancy.resolution.state import ActuatorSpace, check_invertible, evaluate
 
 # The gradient-projection gain α, m²/s, tuned on the paper's segments by
 # `redundancy.study.peers.tune_gradient_projection`: the least worst-case peak ẋᵀẋ among the
@@ -99,9 +100,18 @@ class Resolver:
 
     def step(self, robot: Robot, q: np.ndarray, y_dot: np.ndarray) -> Step:
         """The law at one configuration q (n,) for the task velocity ẏ (m,) m/s: one control
-        step, by the same code as `resolve` on a batch of one."""
-        space = evaluate(robot, q[None])
-        x_dot = self.resolve(space, y_dot[None])
+        step, by the same code as `resolve` on a batch of one. Both are checked (shape, finite:
+        `InvalidInputError`), and so is A (`SingularConfigurationError` where it is singular,
+        as `actuator_space` raises)."""
+        states, velocities = robot.configuration(q), robot.task_values(y_dot)
+        if len(states) != 1 or len(velocities) != 1:
+            raise InvalidInputError(
+                f"a step takes one q ({robot.n},) and one y_dot ({robot.m},); got "
+                f"{np.shape(q)} and {np.shape(y_dot)}"
+            )
+        space = evaluate(robot, states)
+        check_invertible(space.A, states, robot.actuators.names)
+        x_dot = self.resolve(space, velocities)
         return Step(x_dot[0], space.joint_velocities(x_dot)[0], space.y[0])
 
 
