@@ -14,8 +14,11 @@ from redundancy import (
     VELOCITY,
     RedundancyError,
     actuator_space,
+    global_optimum,
     improved_start,
+    inverse_kinematics,
     load_robot,
+    return_map,
     simulate,
 )
 from redundancy.cli import main
@@ -775,6 +778,43 @@ API = [
     ),
     ("no hydraulics", lambda r: load_robot("panda").circuit(), "declare a [hydraulics] table"),
     (
+        "simulate a step too fine",
+        lambda r: simulate(
+            r, VELOCITY.resolver, _segment(r), np.array([[1.6, 1.0, 0.5]]), time_step=1e-9
+        ),
+        "time_step 1e-09 s makes 5,000,000,000 intervals of segment 1-2 (5 s); at most",
+    ),
+    (
+        "simulate a step as text",
+        lambda r: simulate(
+            r, VELOCITY.resolver, _segment(r), np.array([[1.6, 1.0, 0.5]]), time_step="0.01"
+        ),
+        "got time_step = '0.01', gain = ",
+    ),
+    *[
+        (
+            f"bound grids {grids!r}",
+            lambda r, grids=grids: global_optimum(r, _segment(r), grids=grids),
+            "grids must be strictly increasing whole interval counts within [3, 1,000]",
+        )
+        for grids in [(10**7,), (4.5,), 24, (32, 16)]
+    ],
+    (
+        "inverse kinematics from too many seeds",
+        lambda r: inverse_kinematics(r, np.array([3.5, -0.5]), ["x3"], [[0.8]], seeds=10**8),
+        "seeds must be a whole number within [1, 1000]; got 100000000",
+    ),
+    (
+        "return map of no samples",
+        lambda r: return_map(r, _cycle(r), VELOCITY.resolver, count=0),
+        "count must be a whole number within [2, 10,000]; got 0",
+    ),
+    (
+        "return map of text",
+        lambda r: return_map(r, _cycle(r), VELOCITY.resolver, values=["a"]),
+        "values must be finite strokes of x3, one per sample, shape (k,); got ['a']",
+    ),
+    (
         "load_robot mass nan",
         lambda r: _crane_with('<mass value="80"/>', '<mass value="nan"/>'),
         """crane.urdf: link 'boom1' <mass value="nan"/> must be a finite number ≥ 0""",
@@ -795,8 +835,12 @@ def _crane_with(old, new):
         return load_robot(path)
 
 
+def _cycle(robot):
+    return WorkCycle.from_toml(robot.task_file, dimension=robot.m)
+
+
 def _segment(robot):
-    return WorkCycle.from_toml(robot.task_file, dimension=robot.m)["1-2"]
+    return _cycle(robot)["1-2"]
 
 
 @pytest.mark.filterwarnings("ignore:joints without an actuator declaration")

@@ -52,7 +52,7 @@ from redundancy.planning.ik import (
     newton,
 )
 from redundancy.planning.integrate import Trajectory, simulate
-from redundancy.planning.refinement import Refined
+from redundancy.planning.refinement import Refined, checked_grids
 from redundancy.planning.starts import SearchResult, improved_start
 from redundancy.planning.tasks import Segment
 from redundancy.resolution.limits import Limits
@@ -364,9 +364,7 @@ def global_optimum(
     """
     row = held_indices(robot, [held])[0]
     refine = grids is None
-    grids = GRIDS if grids is None else tuple(grids)
-    if not grids or any(int(g) < 3 for g in grids) or list(grids) != sorted(grids):
-        raise InvalidInputError(f"grids must be increasing interval counts ≥ 3; got {grids}")
+    grids = checked_grids(GRIDS if grids is None else grids, 3)
     if objective.reduction != "peak":
         raise InvalidInputError(
             f"the bound minimises a peak; objective {objective.name!r} reduces its measure by "

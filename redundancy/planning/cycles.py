@@ -69,8 +69,9 @@ from redundancy.planning.bound import (
 )
 from redundancy.planning.ik import FOUND, continue_held, held_indices, inverse_kinematics
 from redundancy.planning.integrate import GAIN, TIME_STEP, TOLERANCE, Trajectory, simulate
-from redundancy.planning.refinement import Refined
+from redundancy.planning.refinement import Refined, checked_grids
 from redundancy.planning.starts import (
+    MAX_SAMPLES,
     Configurations,
     Sample,
     Samples,
@@ -905,13 +906,27 @@ def return_map(
     name = _one_held(robot, cycle, held)
     first = cycle.segments[0]
     configurations = Configurations(robot, first, name)
+    if values is None and not (
+        isinstance(count, int) and not isinstance(count, bool) and 2 <= count <= MAX_SAMPLES
+    ):
+        raise InvalidInputError(
+            f"count must be a whole number within [2, {MAX_SAMPLES:,}]; got {count!r}"
+        )
     if values is None:
         scan = configurations.at(sweep_values(robot, name, 4 * count))
         reachable = scan.values[scan.reachable, 0]
         if not reachable.size:
             raise UnreachableError(f"{robot.name} cannot reach the start of {cycle.name!r}")
         values = np.linspace(reachable.min(), reachable.max(), count)
-    values = np.asarray(values, dtype=float)
+    given = values
+    try:
+        values = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        values = np.array([np.nan])
+    if values.ndim != 1 or not values.size or not np.all(np.isfinite(values)):
+        raise InvalidInputError(
+            f"values must be finite strokes of {name}, one per sample, shape (k,); got {given!r}"
+        )
     starts = configurations.at(values)
     ok = starts.reachable
     following = np.full(len(values), np.nan)
@@ -1113,8 +1128,7 @@ def periodic_optimum(
             f"the periodic optimum minimises a peak; objective {objective.name!r} reduces its "
             f"measure by {objective.reduction!r}"
         )
-    if not grids or any(int(g) < 2 for g in grids) or list(grids) != sorted(grids):
-        raise InvalidInputError(f"grids must be increasing interval counts ≥ 2; got {grids}")
+    grids = checked_grids(grids, 2)
     row = robot.actuators.names.index(name)
     limits = Limits.strokes(robot, checked)
     others = Limits.strokes(robot, [n for n in limits.names if n != name])

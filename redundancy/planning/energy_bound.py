@@ -37,7 +37,6 @@ strategies' energies are computed with them. The bound converges as the grid is 
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,7 +52,7 @@ from redundancy.planning.ik import (
     inverse_kinematics,
     newton,
 )
-from redundancy.planning.refinement import Refined
+from redundancy.planning.refinement import Refined, checked_grids
 from redundancy.planning.tasks import Segment
 from redundancy.resolution.limits import TOLERANCE, Limits, hydraulic_values
 from redundancy.resolution.state import evaluate, regularised
@@ -217,11 +216,7 @@ def energy_optimum(
     circuit = robot.circuit()
     supply = supply or circuit.supply
     row = held_indices(robot, [held])[0]
-    whole = all(isinstance(n, int | np.integer) and n >= 1 for n in grids)
-    if not grids or not whole or any(b <= a for a, b in itertools.pairwise(grids)):
-        raise InvalidInputError(
-            f"grids must be strictly increasing whole interval counts ≥ 1; got {grids}"
-        )
+    grids = checked_grids(grids, 1)
     strokes = Limits.strokes(robot, checked)
     actuator = robot.actuators[held]
     lower, upper = actuator.lower, actuator.upper

@@ -31,6 +31,7 @@ FOUND = 1e3 * TOLERANCE  # a residual below this has found a configuration
 ITERATIONS = 40  # from a seed far away
 CONTINUATION_ITERATIONS = 10  # from a configuration nearby, Newton converges in about 4
 DAMPING = 1e-10
+MOST_SEEDS = 1000  # starts per point of inverse_kinematics: each is a Newton solve per value
 
 
 @dataclass(frozen=True)
@@ -131,7 +132,12 @@ def inverse_kinematics(
     values: np.ndarray,
     seeds: int = 8,
 ) -> InverseKinematics:
-    """Configurations reaching ``point`` (m,) with actuators ``held`` at ``values`` (k, r)."""
+    """Configurations reaching ``point`` (m,) with actuators ``held`` at ``values`` (k, r),
+    each from ``seeds`` starts (at most `MOST_SEEDS`)."""
+    if not isinstance(seeds, int) or isinstance(seeds, bool) or not 1 <= seeds <= MOST_SEEDS:
+        raise InvalidInputError(
+            f"seeds must be a whole number within [1, {MOST_SEEDS}]; got {seeds!r}"
+        )
     point = _point(robot, point)
     rows = held_indices(robot, held)
     values = np.atleast_2d(np.asarray(values, dtype=float))

@@ -46,6 +46,7 @@ from redundancy.resolution.state import ActuatorSpace, evaluate, regularised
 
 TIME_STEP = 0.01  # s
 MIN_INTERVALS = 10  # of a motion's grid, however short its segment
+MAX_INTERVALS = 1_000_000  # of a motion's grid: 24 MB of q alone for a 3-joint robot
 GAIN = 20.0  # K, 1/s, of the fixed-step method
 TOLERANCE = 1e-6  # relative and absolute error per adaptive step on q (rad, m)
 ALLOWANCE = 30  # sparse samples' strokes count ALLOWANCE × tolerance (m) closer to their
@@ -366,6 +367,12 @@ def time_grid(segment: Segment, time_step: float = TIME_STEP) -> np.ndarray:
     `MIN_INTERVALS` intervals, so that a segment shorter than a few steps is still resolved
     (ẍ by second-order differences, the fastest timing of its path by TOPP-RA)."""
     steps = max(MIN_INTERVALS, int(np.ceil(segment.duration / time_step - 1e-9)))
+    if steps > MAX_INTERVALS:
+        raise InvalidInputError(
+            f"time_step {time_step:g} s makes {steps:,} intervals of segment {segment.name} "
+            f"({segment.duration:.3g} s); at most {MAX_INTERVALS:,}: give a time_step of at "
+            f"least {segment.duration / MAX_INTERVALS:.3g} s"
+        )
     return np.linspace(0.0, segment.duration, steps + 1)
 
 
@@ -438,8 +445,14 @@ def simulate(
     if method not in METHODS:
         raise InvalidInputError(f"unknown method {method!r}; methods: {', '.join(METHODS)}")
     gain = (GAIN if method == "rk4" else 0.0) if gain is None else gain
-    if not (time_step > 0 and gain >= 0 and tolerance > 0):
-        raise InvalidInputError("time_step must be > 0 s, gain ≥ 0 1/s and tolerance > 0")
+    numbers = (time_step, gain, tolerance)
+    if not all(isinstance(v, int | float) and not isinstance(v, bool) for v in numbers) or not (
+        time_step > 0 and gain >= 0 and tolerance > 0
+    ):
+        raise InvalidInputError(
+            f"time_step must be > 0 s, gain ≥ 0 1/s and tolerance > 0; got time_step = "
+            f"{time_step!r}, gain = {gain!r}, tolerance = {tolerance!r}"
+        )
     limits = Limits.strokes(robot, checked)
     if circuit:
         robot.circuit()  # says how to declare one before any work
