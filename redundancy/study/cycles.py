@@ -41,7 +41,7 @@ from redundancy.planning.cycles import (
     repeat,
     return_map,
 )
-from redundancy.planning.starts import scalar_or_list
+from redundancy.planning.starts import held_actuators, scalar_or_list
 from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.objectives import VELOCITY, Objective
 from redundancy.study.output import write_atomically
@@ -293,6 +293,12 @@ def run_cycle(
         raise InvalidInputError(f"cycles must be a whole number within [1, 10,000]; got {cycles!r}")
     cycle.check_continuous(closed=True)
     chosen = STRATEGIES if strategy == "both" else (strategy,)
+    held = held_actuators(robot, cycle)
+    if chosen == ("periodic",) and len(held) != 1:
+        raise InvalidInputError(
+            f"the periodic strategy holds one actuator; {robot.name}'s task holds {list(held)}: "
+            "run the free strategy (--strategy free)"
+        )
     if circuit:
         robot.circuit()  # says how to declare one before any work
     steps = 2 + 2 * len(chosen)
