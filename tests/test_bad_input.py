@@ -22,7 +22,7 @@ from redundancy import (
     simulate,
 )
 from redundancy.cli import main
-from redundancy.planning.tasks import WorkCycle
+from redundancy.planning.tasks import Segment, WorkCycle
 
 CRANE = Path(__file__).parent.parent / "robots" / "hiab031"
 URDF = (CRANE / "hiab031.urdf").read_text()
@@ -777,6 +777,26 @@ API = [
         "time_step must be > 0",
     ),
     ("no hydraulics", lambda r: load_robot("panda").circuit(), "declare a [hydraulics] table"),
+    (
+        "forces of nan",
+        lambda r: actuator_space(r, [1.6, 1.0, 0.5]).forces([[np.nan, 0.0, 0.0]]),
+        "x_ddot contains NaN or infinite values",
+    ),
+    (
+        "segment at infinite speed",
+        lambda r: Segment("a", np.array([3.5, -0.5]), np.array([1.0, -0.5]), np.inf),
+        "segment a: speed must be > 0 and ≤ 10 m/s; got inf",
+    ),
+    (
+        "segment of text",
+        lambda r: Segment("a", np.array(["a", "b"]), np.array([1.0, -0.5]), 0.5),
+        "segment a: start must be finite task coordinates, shape (m,)",
+    ),
+    (
+        "held as a number",
+        lambda r: improved_start(r, _segment(r), VELOCITY, held=3),
+        "actuators must be given by name, e.g. 'x3'; got 3",
+    ),
     (
         "simulate a step too fine",
         lambda r: simulate(

@@ -14,11 +14,12 @@ from __future__ import annotations
 import copy
 import warnings
 from abc import ABC, abstractmethod
+from collections.abc import Sequence
 
 import numpy as np
 import pinocchio as pin
 
-from redundancy.errors import RobotDescriptionError, SingularConfigurationError
+from redundancy.errors import InvalidInputError, RobotDescriptionError, SingularConfigurationError
 from redundancy.model.kinematics import Kinematics
 from redundancy.model.parameters import Number, Parameter, Point
 
@@ -394,6 +395,20 @@ class ActuatorSet:
     @property
     def names(self) -> list[str]:
         return [a.name for a in self.maps]
+
+    def rows(self, chosen: str | Sequence[str]) -> list[int]:
+        """The rows of the actuators ``chosen`` (one name, or several), in that order;
+        `InvalidInputError` names any that is not an actuator's name."""
+        names = self.names
+        given = [chosen] if isinstance(chosen, str) else chosen
+        if not isinstance(given, list | tuple) or not all(isinstance(c, str) for c in given):
+            raise InvalidInputError(
+                f"actuators must be given by name, e.g. {names[-1]!r}; got {chosen!r}"
+            )
+        unknown = sorted({c for c in given if c not in names})
+        if unknown:
+            raise InvalidInputError(f"unknown actuators {unknown}; actuators: {', '.join(names)}")
+        return [names.index(c) for c in given]
 
     def part(self, rows: list[int]) -> ActuatorSet:
         """The actuators at ``rows``, in that order, as a set of their own (kept, so that its

@@ -67,7 +67,12 @@ from redundancy.planning.bound import (
     differentiation,
     solve_transcription,
 )
-from redundancy.planning.ik import FOUND, continue_held, held_indices, inverse_kinematics
+from redundancy.planning.ik import (
+    FOUND,
+    continue_held,
+    held_names,
+    inverse_kinematics,
+)
 from redundancy.planning.integrate import GAIN, TIME_STEP, TOLERANCE, Trajectory, simulate
 from redundancy.planning.refinement import Refined, checked_grids
 from redundancy.planning.starts import (
@@ -447,11 +452,7 @@ def _one_held(robot: Robot, cycle: WorkCycle, held: str | None) -> str:
 
 
 def _held(robot: Robot, cycle: WorkCycle, held) -> tuple[str, ...]:
-    if held is None:
-        held = held_actuators(robot, cycle)
-    held = (held,) if isinstance(held, str) else tuple(held)
-    held_indices(robot, held)
-    return held
+    return held_names(robot, held_actuators(robot, cycle) if held is None else held)
 
 
 @dataclass(frozen=True)

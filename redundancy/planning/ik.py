@@ -15,6 +15,7 @@ so that a start beyond them is found there.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -44,18 +45,21 @@ class InverseKinematics:
     miss: np.ndarray
 
 
-def held_indices(robot: Robot, held: list[str] | tuple[str, ...]) -> list[int]:
-    """Rows of the held actuators, checking there are exactly n − m of them."""
-    names = robot.actuators.names
-    unknown = [h for h in held if h not in names]
-    if unknown:
-        raise InvalidInputError(f"unknown actuators {unknown}; actuators: {', '.join(names)}")
-    if len(held) != robot.n - robot.m:
+def held_indices(robot: Robot, held: str | Sequence[str]) -> list[int]:
+    """Rows of the held actuators (one name, or several), checking there are exactly n − m."""
+    rows = robot.actuators.rows(held)
+    if len(rows) != robot.n - robot.m:
         raise InvalidInputError(
             f"{robot.name} has n − m = {robot.n - robot.m} redundant degrees; hold that many "
-            f"actuators (got {list(held)}; actuators: {', '.join(names)})"
+            f"actuators (got {held!r}; actuators: {', '.join(robot.actuators.names)})"
         )
-    return [names.index(h) for h in held]
+    return rows
+
+
+def held_names(robot: Robot, held: str | Sequence[str]) -> tuple[str, ...]:
+    """The held actuators (one name, or several) as a tuple of names, checked as
+    `held_indices` checks them."""
+    return tuple(robot.actuators.names[row] for row in held_indices(robot, held))
 
 
 def _residual(robot: Robot, q: np.ndarray, rows: list[int], target: np.ndarray):

@@ -45,7 +45,13 @@ import numpy as np
 from redundancy.errors import InvalidInputError, UnreachableError
 from redundancy.model.robot import Robot
 from redundancy.planning.brackets import bracket_probes, new_probes, vertex_probe
-from redundancy.planning.ik import FOUND, continue_held, held_indices, inverse_kinematics
+from redundancy.planning.ik import (
+    FOUND,
+    continue_held,
+    held_indices,
+    held_names,
+    inverse_kinematics,
+)
 from redundancy.planning.integrate import TIME_STEP, TOLERANCE, Trajectory, simulate
 from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
@@ -262,10 +268,6 @@ def concatenated(first: Trajectory, second: Trajectory) -> Trajectory:
     )
 
 
-def _held(held: str | Sequence[str]) -> tuple[str, ...]:
-    return (held,) if isinstance(held, str) else tuple(held)
-
-
 def held_actuators(robot: Robot, cycle: WorkCycle) -> tuple[str, ...]:
     """The actuators a search holds on ``cycle``: the task's ``held``, or the last n − m."""
     if robot.n <= robot.m:
@@ -403,8 +405,7 @@ def evaluate_starts(
     the objective. ``stop_past`` stops motions that, with both neighbours in the batch, are past
     a checked stroke (their margin is then unknown, −inf). With ``circuit`` a start is feasible
     only if its motion also keeps the hydraulic circuit's limits; its margin stays the strokes'."""
-    held = _held(held)
-    held_indices(robot, held)
+    held = held_names(robot, held)
     if not isinstance(values, Starts):
         values = np.asarray(values, dtype=float).reshape(-1, len(held))
         values = _ik_starts(robot, segment, held, values)
@@ -540,8 +541,7 @@ def improved_starts(
     """`improved_start` for each of ``objectives`` on one segment, in order. The start
     configurations do not depend on the objective, so the searches share them: the fast
     search's reachable scan is done once."""
-    held = _held(held)
-    held_indices(robot, held)
+    held = held_names(robot, held)
     method = search_method(held, samples, method)
     if len(held) > 1:
         return tuple(
@@ -693,7 +693,7 @@ def default_start(robot: Robot, segment: Segment, held: str | Sequence[str] = "x
 
     Returns (values (r,), q (n,)).
     """
-    held = _held(held)
+    held = held_names(robot, held)
     box = stroke_box(robot, held)
     if len(held) == 1:
         candidates = sweep_values(robot, held[0], 101)[:, None]

@@ -327,6 +327,11 @@ class Polyline(Shape):
         return self.points
 
 
+def _real(value: object) -> bool:
+    """Whether ``value`` is a real number (not a bool, not text)."""
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
 @dataclass(frozen=True)
 class Profile:
     """How fast a path of ``length`` m is travelled: "constant" at ``speed`` m/s (Eq. 34), or
@@ -340,10 +345,18 @@ class Profile:
     def __post_init__(self) -> None:
         if self.kind not in PROFILES:
             raise InvalidInputError(f"profile {self.kind!r} is not one of {', '.join(PROFILES)}")
-        if not self.speed > 0:
-            raise InvalidInputError("speed must be > 0 m/s")
-        if self.kind == "trapezoidal" and not (self.acceleration or 0) > 0:
-            raise InvalidInputError("a trapezoidal profile needs an acceleration > 0 m/s²")
+        if not (_real(self.speed) and 0 < self.speed <= MAX_SPEED):
+            raise InvalidInputError(
+                f"speed must be > 0 and ≤ {MAX_SPEED:g} m/s; got {self.speed!r}"
+            )
+        acceleration = self.acceleration
+        if self.kind == "trapezoidal" and not (
+            _real(acceleration) and 0 < acceleration <= MAX_ACCELERATION  # type: ignore[operator]
+        ):
+            raise InvalidInputError(
+                f"a trapezoidal profile needs an acceleration > 0 and ≤ {MAX_ACCELERATION:g} "
+                f"m/s²; got {acceleration!r}"
+            )
         if not self.duration <= MAX_DURATION:
             pace = f"speed {self.speed:g} m/s" + (
                 f" and acceleration {self.acceleration:g} m/s²" if self.ramp else ""
@@ -417,12 +430,19 @@ class Segment:
     acceleration: float | None = None
 
     def __post_init__(self) -> None:
-        if not np.all(np.isfinite(self.start)) or not np.all(np.isfinite(self.end)):
-            raise InvalidInputError(f"segment {self.name}: points must be finite")
+        for end in ("start", "end"):
+            try:
+                point = np.asarray(getattr(self, end), dtype=float)
+            except (TypeError, ValueError):
+                point = np.array([np.nan])
+            if point.ndim != 1 or not np.all(np.isfinite(point)):
+                raise InvalidInputError(
+                    f"segment {self.name}: {end} must be finite task coordinates, shape (m,); "
+                    f"got {getattr(self, end)!r}"
+                )
+            object.__setattr__(self, end, point)
         if np.shape(self.start) != np.shape(self.end):
             raise InvalidInputError(f"segment {self.name}: start and end differ in dimension")
-        if not self.speed > 0:
-            raise InvalidInputError(f"segment {self.name}: speed must be > 0 m/s")
         if self.shape is None:
             try:
                 object.__setattr__(self, "shape", Line(self.start, self.end))

@@ -15,7 +15,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from redundancy.errors import InvalidInputError
 from redundancy.model.hydraulics import Circuit, Flows, Supply
 from redundancy.model.robot import Robot
 
@@ -70,17 +69,15 @@ class Limits:
     units: tuple[str, ...]
 
     @classmethod
-    def strokes(cls, robot: Robot, checked: tuple[str, ...] | list[str] | None = None) -> Limits:
+    def strokes(
+        cls, robot: Robot, checked: str | tuple[str, ...] | list[str] | None = None
+    ) -> Limits:
         """The strokes of the actuators ``checked`` (default every one)."""
         actuators = robot.actuators
         names = actuators.names
-        checked = tuple(names if checked is None else checked)
-        unknown = sorted(set(checked) - set(names))
-        if unknown:
-            raise InvalidInputError(f"unknown actuators {unknown}; actuators: {', '.join(names)}")
-        columns = np.array([names.index(name) for name in checked], dtype=int)
+        columns = np.array(actuators.rows(names if checked is None else checked), dtype=int)
         return cls(
-            checked,
+            tuple(names[c] for c in columns),
             columns,
             actuators.lower[columns],
             actuators.upper[columns],

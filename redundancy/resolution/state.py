@@ -136,11 +136,16 @@ class ActuatorSpace:
 
     def forces(self, x_ddot: np.ndarray) -> np.ndarray:
         """Actuator forces F_H = M_H ẍ + N_H (Eq. 21), (k, n) in N, for x_ddot (k, n)."""
-        x_ddot = np.asarray(x_ddot, dtype=float)
+        try:
+            x_ddot = np.asarray(x_ddot, dtype=float)
+        except (TypeError, ValueError):
+            raise InvalidInputError(f"x_ddot must be numbers; got {x_ddot!r}") from None
         if x_ddot.shape != self.x.shape:
             raise InvalidInputError(
                 f"x_ddot must have shape {self.x.shape} (one ẍ per state); got {x_ddot.shape}"
             )
+        if not np.all(np.isfinite(x_ddot)):
+            raise InvalidInputError(f"x_ddot contains NaN or infinite values: {x_ddot.tolist()}")
         return (self.M_H @ x_ddot[..., None])[..., 0] + self.N_H
 
     def joint_velocities(self, x_dot: np.ndarray) -> np.ndarray:
