@@ -28,7 +28,7 @@ import numpy as np
 from redundancy.errors import InvalidInputError
 from redundancy.model.robot import Robot
 from redundancy.resolution.linalg import solve, solve_conditioned
-from redundancy.resolution.state import ActuatorSpace, check_invertible, evaluate
+from redundancy.resolution.state import ActuatorSpace, check_invertible, evaluate, singular
 
 # The gradient-projection gain α, m²/s, tuned on the paper's segments by
 # `redundancy.study.peers.tune_gradient_projection`: the least worst-case peak ẋᵀẋ among the
@@ -110,7 +110,8 @@ class Resolver:
                 f"{np.shape(q)} and {np.shape(y_dot)}"
             )
         space = evaluate(robot, states)
-        check_invertible(space.A, states, robot.actuators.names)
+        if singular(space.A)[0]:
+            check_invertible(space.A, states, robot.actuators.names)
         x_dot = self.resolve(space, velocities)
         return Step(x_dot[0], space.joint_velocities(x_dot)[0], space.y[0])
 
