@@ -173,6 +173,18 @@ def _load_task(robot: Robot, path: str | None) -> tuple[Robot, WorkCycle]:
     return task_robot(robot, cycle), cycle
 
 
+def _checked(robot: Robot, option: str | None) -> tuple[str, ...] | None:
+    """The actuators ``--check`` names (None: every one), each an actuator of ``robot``."""
+    if option is None:
+        return None
+    checked = tuple(option.split(","))
+    try:
+        robot.actuators.rows(checked)
+    except InvalidInputError as error:
+        raise InvalidInputError(f"--check {option}: {error}") from None
+    return checked
+
+
 def _study_command(args: argparse.Namespace) -> None:
     from tqdm import tqdm
 
@@ -184,7 +196,7 @@ def _study_command(args: argparse.Namespace) -> None:
         robot, cycle = _load_task(robot, args.task)
         chosen = ("velocity", "energy") if args.objective == "both" else (args.objective,)
         objectives = tuple(objective(name) for name in chosen)
-        checked = None if args.check is None else tuple(args.check.split(","))
+        checked = _checked(robot, args.check)
         options = dict(
             samples=args.samples, checked=checked, method=args.method, circuit=args.circuit_limits
         )
@@ -364,7 +376,7 @@ def _cycle_command(args: argparse.Namespace) -> None:
             report = out.beside(Path(args.json), "--json")
         robot = load_robot(args.robot, payload=args.payload, hydraulics=args.hydraulics)
         robot, cycle = _load_task(robot, args.task)
-        checked = None if args.check is None else tuple(args.check.split(","))
+        checked = _checked(robot, args.check)
         study = run_cycle(
             robot,
             cycle,

@@ -14,11 +14,15 @@ from redundancy import (
     VELOCITY,
     RedundancyError,
     actuator_space,
+    configuration_at,
     global_optimum,
     improved_start,
     inverse_kinematics,
     load_robot,
+    periodic_optimum,
+    repeat,
     return_map,
+    shortest_duration,
     simulate,
 )
 from redundancy.cli import main
@@ -83,7 +87,7 @@ CASES = [
     ("robot folder", ["describe", "--robot", "/"], {}, "unknown robot '/'"),
     ("missing urdf", ["describe", "--robot", "none.urdf"], {}, "no URDF file at none.urdf"),
     ("missing toml", ["describe", "--robot", "none.toml"], {}, "no robot description at"),
-    ("check unknown", ["study", "--check", "x9"], {}, "unknown actuators ['x9']"),
+    ("check unknown", ["study", "--check", "x9"], {}, "--check x9: unknown actuators ['x9']"),
     ("check empty", ["study", "--check", ""], {}, "unknown actuators ['']"),
     ("x3init outside", ["play", "--x3init", "5", "--html", "p.html"], {}, "--x3init 5 is outside"),
     ("x3init nan", ["play", "--x3init", "nan", "--html", "p.html"], {}, "--x3init nan is outside"),
@@ -777,6 +781,31 @@ API = [
         "time_step must be > 0",
     ),
     ("no hydraulics", lambda r: load_robot("panda").circuit(), "declare a [hydraulics] table"),
+    (
+        "held outside its stroke",
+        lambda r: configuration_at(r, [3.5, -0.5], {"x3": 5.0}),
+        "x3 = 5000 mm is outside its stroke [0 mm, 1090 mm]",
+    ),
+    (
+        "held values as text",
+        lambda r: configuration_at(r, [3.5, -0.5], {"x3": "a"}),
+        "held values must be finite numbers, shape (k, 1); got [['a']]",
+    ),
+    (
+        "periodic margin negative",
+        lambda r: periodic_optimum(r, _cycle(r), None, margin=-1.0),
+        "margin must be within [0, 0.2725] m; got -1.0",
+    ),
+    (
+        "repetitions from two starts",
+        lambda r: repeat(r, _cycle(r), VELOCITY.resolver, np.ones((2, 3)), cycles=1),
+        "start must be one configuration (3,): repetitions run one after another",
+    ),
+    (
+        "timing a failed motion",
+        lambda r: shortest_duration(simulate(r, VELOCITY.resolver, _segment(r), np.zeros(3))),
+        "motion 0 along segment 1-2 failed (A turned singular): it has no path to time",
+    ),
     (
         "forces of nan",
         lambda r: actuator_space(r, [1.6, 1.0, 0.5]).forces([[np.nan, 0.0, 0.0]]),

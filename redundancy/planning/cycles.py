@@ -801,6 +801,11 @@ def repeat(
     if not isinstance(cycles, int | np.integer) or not 1 <= cycles <= 10_000:
         raise InvalidInputError(f"cycles must be a whole number within [1, 10,000]; got {cycles!r}")
     q = robot.configuration(start, "start")
+    if len(q) != 1:
+        raise InvalidInputError(
+            f"start must be one configuration ({robot.n},): repetitions run one after another; "
+            f"got shape {np.shape(start)}"
+        )
     motions = []
     for _ in range(cycles):
         motion = simulate_cycle(
@@ -1130,6 +1135,18 @@ def periodic_optimum(
             f"measure by {objective.reduction!r}"
         )
     grids = checked_grids(grids, 2)
+    actuator = robot.actuators[name]
+    for key, value, most, unit in (
+        (
+            "margin",
+            margin,
+            (actuator.upper - actuator.lower) / 4,
+            "rad" if actuator.rotary else "m",
+        ),
+        ("smoothness", smoothness, 1.0, "s²"),
+    ):
+        if not (isinstance(value, int | float) and 0 <= value <= most):
+            raise InvalidInputError(f"{key} must be within [0, {most:g}] {unit}; got {value!r}")
     row = robot.actuators.names.index(name)
     limits = Limits.strokes(robot, checked)
     others = Limits.strokes(robot, [n for n in limits.names if n != name])

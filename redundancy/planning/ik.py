@@ -19,6 +19,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from redundancy.errors import InvalidInputError, SingularConfigurationError, UnreachableError
 from redundancy.model.robot import Robot
@@ -132,8 +133,8 @@ def _point(robot: Robot, point) -> np.ndarray:
 def inverse_kinematics(
     robot: Robot,
     point: np.ndarray,
-    held: list[str] | tuple[str, ...],
-    values: np.ndarray,
+    held: str | Sequence[str],
+    values: ArrayLike,
     seeds: int = 8,
 ) -> InverseKinematics:
     """Configurations reaching ``point`` (m,) with actuators ``held`` at ``values`` (k, r),
@@ -144,9 +145,15 @@ def inverse_kinematics(
         )
     point = _point(robot, point)
     rows = held_indices(robot, held)
-    values = np.atleast_2d(np.asarray(values, dtype=float))
-    if values.shape[1] != len(rows) or not np.all(np.isfinite(values)):
-        raise InvalidInputError(f"held values must be finite, shape (k, {len(rows)})")
+    given = values
+    try:
+        values = np.atleast_2d(np.asarray(values, dtype=float))
+    except (TypeError, ValueError):
+        values = np.array([[np.nan]])
+    if values.ndim != 2 or values.shape[1] != len(rows) or not np.all(np.isfinite(values)):
+        raise InvalidInputError(
+            f"held values must be finite numbers, shape (k, {len(rows)}); got {given!r}"
+        )
     k, starts = len(values), _seeds(robot, seeds)
     guess = np.repeat(starts[None], k, axis=0).reshape(k * seeds, robot.n)
     target = np.concatenate([np.repeat(point[None], k, 0), values], axis=1)
@@ -204,7 +211,17 @@ def configuration_at(robot: Robot, point: np.ndarray, held: dict[str, float]) ->
     Raises `UnreachableError` with the distance by which the point is missed (in mm, the held
     values in mm or degrees).
     """
-    solution = inverse_kinematics(robot, point, list(held), np.array([list(held.values())]))
+    if not isinstance(held, dict):
+        raise InvalidInputError(f"held must be {{actuator: value}}; got {held!r}")
+    solution = inverse_kinematics(robot, point, list(held), [list(held.values())])
+    for name, value in held.items():
+        actuator = robot.actuators[name]
+        if not actuator.lower <= value <= actuator.upper:
+            unit = "rad" if actuator.rotary else "m"
+            raise UnreachableError(
+                f"{name} = {amount(value, unit)} is outside its stroke "
+                f"[{amount(actuator.lower, unit)}, {amount(actuator.upper, unit)}]"
+            )
     if not solution.reached[0]:
         miss = _closest_miss(robot, np.asarray(point, dtype=float), held, solution.q[0])
         values = ", ".join(

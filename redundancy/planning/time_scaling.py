@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from redundancy.errors import RedundancyError
+from redundancy.errors import InvalidInputError, RedundancyError
 from redundancy.model.robot import Robot
 from redundancy.planning.integrate import Trajectory
 
@@ -61,7 +61,19 @@ def pumped_volume(robot: Robot, x: np.ndarray) -> np.ndarray:
 
 def shortest_duration(motion: Trajectory, row: int = 0, samples: int = SAMPLES) -> Retimed:
     """The fastest timing, from rest to rest, of the path of motion ``row`` within the
-    cylinders' speeds and accelerations and the pump's flow (see the module docstring)."""
+    cylinders' speeds and accelerations and the pump's flow (see the module docstring); a
+    motion that failed has no path to time (`InvalidInputError`)."""
+    if not (isinstance(row, int) and not isinstance(row, bool) and 0 <= row < len(motion.t)):
+        raise InvalidInputError(
+            f"row must be one of the {len(motion.t)} motions' rows; got {row!r}"
+        )
+    if not (isinstance(samples, int) and not isinstance(samples, bool) and samples >= 3):
+        raise InvalidInputError(f"samples must be a whole number ≥ 3; got {samples!r}")
+    if motion.failed[row]:
+        raise InvalidInputError(
+            f"motion {row} along segment {motion.segment.name} failed (A turned singular): it "
+            "has no path to time"
+        )
     import toppra
     import toppra.algorithm
     import toppra.constraint
