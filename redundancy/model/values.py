@@ -108,11 +108,23 @@ def names(
     return tuple(value)
 
 
+def is_real(value: object) -> bool:
+    """Whether ``value`` is a real number (Python's or numpy's), not a bool or text."""
+    return isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool)
+
+
+def is_whole(value: object, lower: float = -math.inf, upper: float = math.inf) -> bool:
+    """Whether ``value`` is a whole number (Python's or numpy's, not a bool) in [lower, upper]."""
+    return (
+        isinstance(value, int | np.integer)
+        and not isinstance(value, bool)
+        and bool(lower <= value <= upper)
+    )
+
+
 def coordinates(value: object, where: str, dimension: int | None) -> np.ndarray:
     """``value`` as finite coordinates, ``dimension`` of them where given."""
-    if not isinstance(value, list) or not all(
-        isinstance(v, int | float) and not isinstance(v, bool) for v in value
-    ):
+    if not isinstance(value, list) or not all(is_real(v) for v in value):
         raise InvalidInputError(f"{where} = {value!r} must be a list of numbers")
     array = np.asarray(value, dtype=float)
     if not np.all(np.isfinite(array)):

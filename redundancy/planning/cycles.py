@@ -61,6 +61,7 @@ from scipy.interpolate import CubicSpline
 from redundancy.errors import InvalidInputError, UnreachableError
 from redundancy.model.hydraulics import Supply
 from redundancy.model.robot import Robot
+from redundancy.model.values import is_real, is_whole
 from redundancy.planning.bound import (
     GridSolution,
     Transcription,
@@ -912,9 +913,7 @@ def return_map(
     name = _one_held(robot, cycle, held)
     first = cycle.segments[0]
     configurations = Configurations(robot, first, name)
-    if values is None and not (
-        isinstance(count, int) and not isinstance(count, bool) and 2 <= count <= MAX_SAMPLES
-    ):
+    if values is None and not is_whole(count, 2, MAX_SAMPLES):
         raise InvalidInputError(
             f"count must be a whole number within [2, {MAX_SAMPLES:,}]; got {count!r}"
         )
@@ -1145,7 +1144,7 @@ def periodic_optimum(
         ),
         ("smoothness", smoothness, 1.0, "s²"),
     ):
-        if not (isinstance(value, int | float) and 0 <= value <= most):
+        if not (is_real(value) and 0 <= value <= most):
             raise InvalidInputError(f"{key} must be within [0, {most:g}] {unit}; got {value!r}")
     row = robot.actuators.names.index(name)
     limits = Limits.strokes(robot, checked)

@@ -23,6 +23,7 @@ from numpy.typing import ArrayLike
 
 from redundancy.errors import InvalidInputError, SingularConfigurationError, UnreachableError
 from redundancy.model.robot import Robot
+from redundancy.model.values import is_whole
 from redundancy.planning.angles import task_labels
 from redundancy.planning.tasks import Segment
 from redundancy.resolution.limits import amount
@@ -139,7 +140,7 @@ def inverse_kinematics(
 ) -> InverseKinematics:
     """Configurations reaching ``point`` (m,) with actuators ``held`` at ``values`` (k, r),
     each from ``seeds`` starts (at most `MOST_SEEDS`)."""
-    if not isinstance(seeds, int) or isinstance(seeds, bool) or not 1 <= seeds <= MOST_SEEDS:
+    if not is_whole(seeds, 1, MOST_SEEDS):
         raise InvalidInputError(
             f"seeds must be a whole number within [1, {MOST_SEEDS}]; got {seeds!r}"
         )

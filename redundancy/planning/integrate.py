@@ -37,6 +37,7 @@ import numpy as np
 from redundancy.errors import InvalidInputError
 from redundancy.model.hydraulics import Flows, Supply
 from redundancy.model.robot import Robot
+from redundancy.model.values import is_real
 from redundancy.planning.tasks import Segment
 from redundancy.resolution.laws import Resolver
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
@@ -446,9 +447,7 @@ def simulate(
         raise InvalidInputError(f"unknown method {method!r}; methods: {', '.join(METHODS)}")
     gain = (GAIN if method == "rk4" else 0.0) if gain is None else gain
     numbers = (time_step, gain, tolerance)
-    if not all(isinstance(v, int | float) and not isinstance(v, bool) for v in numbers) or not (
-        time_step > 0 and gain >= 0 and tolerance > 0
-    ):
+    if not all(is_real(v) for v in numbers) or not (time_step > 0 and gain >= 0 and tolerance > 0):
         raise InvalidInputError(
             f"time_step must be > 0 s, gain ≥ 0 1/s and tolerance > 0; got time_step = "
             f"{time_step!r}, gain = {gain!r}, tolerance = {tolerance!r}"

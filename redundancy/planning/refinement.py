@@ -9,9 +9,8 @@ from __future__ import annotations
 
 import itertools
 
-import numpy as np
-
 from redundancy.errors import InvalidInputError
+from redundancy.model.values import is_whole
 
 CONVERGED = 0.005  # a last refinement that moves the optimum by less than this has converged
 MOST_INTERVALS = 1000  # of a grid given by hand: the solvers' cost grows with it, steeply
@@ -21,11 +20,9 @@ def checked_grids(grids: object, least: int) -> tuple[int, ...]:
     """``grids``, interval counts of ever finer grids, as a tuple: whole numbers within [least,
     `MOST_INTERVALS`], strictly increasing; otherwise `InvalidInputError` naming them."""
     given = tuple(grids) if isinstance(grids, list | tuple) else ()
-    whole = all(isinstance(g, int | np.integer) and not isinstance(g, bool) for g in given)
     if (
         not given
-        or not whole
-        or not least <= min(given) <= max(given) <= MOST_INTERVALS
+        or not all(is_whole(g, least, MOST_INTERVALS) for g in given)
         or any(b <= a for a, b in itertools.pairwise(given))
     ):
         raise InvalidInputError(

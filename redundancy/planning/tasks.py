@@ -62,6 +62,7 @@ from redundancy.errors import InvalidInputError
 from redundancy.model.values import (
     MAX_SPEED,
     coordinates,
+    is_real,
     names,
     number,
     read_toml,
@@ -327,11 +328,6 @@ class Polyline(Shape):
         return self.points
 
 
-def _real(value: object) -> bool:
-    """Whether ``value`` is a real number (not a bool, not text)."""
-    return isinstance(value, int | float) and not isinstance(value, bool)
-
-
 @dataclass(frozen=True)
 class Profile:
     """How fast a path of ``length`` m is travelled: "constant" at ``speed`` m/s (Eq. 34), or
@@ -345,13 +341,13 @@ class Profile:
     def __post_init__(self) -> None:
         if self.kind not in PROFILES:
             raise InvalidInputError(f"profile {self.kind!r} is not one of {', '.join(PROFILES)}")
-        if not (_real(self.speed) and 0 < self.speed <= MAX_SPEED):
+        if not (is_real(self.speed) and 0 < self.speed <= MAX_SPEED):
             raise InvalidInputError(
                 f"speed must be > 0 and ≤ {MAX_SPEED:g} m/s; got {self.speed!r}"
             )
         acceleration = self.acceleration
         if self.kind == "trapezoidal" and not (
-            _real(acceleration) and 0 < acceleration <= MAX_ACCELERATION  # type: ignore[operator]
+            is_real(acceleration) and 0 < acceleration <= MAX_ACCELERATION  # type: ignore[operator]
         ):
             raise InvalidInputError(
                 f"a trapezoidal profile needs an acceleration > 0 and ≤ {MAX_ACCELERATION:g} "

@@ -23,6 +23,7 @@ import numpy as np
 
 from redundancy.errors import InvalidInputError, RedundancyError
 from redundancy.model.robot import Robot
+from redundancy.model.values import is_whole
 from redundancy.planning.integrate import Trajectory
 
 SAMPLES = 400  # path points fed to TOPP-RA (at most; fewer if the motion has fewer)
@@ -63,11 +64,11 @@ def shortest_duration(motion: Trajectory, row: int = 0, samples: int = SAMPLES) 
     """The fastest timing, from rest to rest, of the path of motion ``row`` within the
     cylinders' speeds and accelerations and the pump's flow (see the module docstring); a
     motion that failed has no path to time (`InvalidInputError`)."""
-    if not (isinstance(row, int) and not isinstance(row, bool) and 0 <= row < len(motion.t)):
+    if not is_whole(row, 0, len(motion.t) - 1):
         raise InvalidInputError(
             f"row must be one of the {len(motion.t)} motions' rows; got {row!r}"
         )
-    if not (isinstance(samples, int) and not isinstance(samples, bool) and samples >= 3):
+    if not is_whole(samples, 3):
         raise InvalidInputError(f"samples must be a whole number ≥ 3; got {samples!r}")
     if motion.failed[row]:
         raise InvalidInputError(
