@@ -14,6 +14,7 @@ import json
 import math
 import os
 import signal
+import socket
 import sys
 import warnings
 from collections.abc import Callable
@@ -140,18 +141,24 @@ payload_mass = argument(
     float, lambda v: 0 <= v <= MAX_PAYLOAD, f"must be a mass within [0, {MAX_PAYLOAD:g}] kg"
 )
 seconds = argument(float, lambda v: 0 < v <= 3600, "must be seconds within (0, 3600]")
-speed_value = argument(float, lambda v: 0 < v < math.inf, "must be a speed > 0 (m/s or rad/s)")
+speed_value = argument(
+    float, lambda v: 1e-3 <= v <= 10, "must be a speed within [0.001, 10] (m/s or rad/s)"
+)
 
 
 def listen_address(text: str) -> str:
-    """An IP address to serve a page on."""
+    """An IP address of this machine to serve a page on (one a socket can be bound to)."""
     try:
-        return str(ipaddress.ip_address(text))
-    except ValueError:
+        address = ipaddress.ip_address(text)
+        family = socket.AF_INET6 if address.version == 6 else socket.AF_INET
+        with socket.socket(family) as probe:
+            probe.bind((str(address), 0))
+    except (ValueError, OSError):
         raise argparse.ArgumentTypeError(
             f"{text!r} must be an IP address of this machine, e.g. 127.0.0.1 (the default) or "
             "0.0.0.0 (every interface)"
         ) from None
+    return str(address)
 
 
 class OneLineParser(argparse.ArgumentParser):

@@ -92,6 +92,12 @@ CASES = [
     ("x3init outside", ["play", "--x3init", "5", "--html", "p.html"], {}, "--x3init 5 is outside"),
     ("x3init nan", ["play", "--x3init", "nan", "--html", "p.html"], {}, "--x3init nan is outside"),
     ("segment unknown", ["play", "--segment", "9-9", "--html", "p.html"], {}, "no segment '9-9'"),
+    (
+        "listen elsewhere",
+        ["play", "--listen", "192.0.2.1"],
+        {},
+        "--listen: '192.0.2.1' must be an IP address of this machine",
+    ),
     ("out is a file", ["study", "--out", "plain"], {"plain": ""}, "--out plain is a file"),
     ("json is a folder", ["study", "--json", "sub"], {"sub/x": ""}, "--json sub is a folder"),
     ("html below a file", ["play", "--html", "plain/p.html"], {"plain": ""}, "not a folder"),

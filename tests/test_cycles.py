@@ -302,7 +302,8 @@ def test_the_cycle_command_writes_its_report_figures_and_playback(tmp_path):
             ["--robot", "panda", "--strategy", "periodic"],
             "the periodic strategy holds one actuator; panda's task holds ['panda_joint3', ",
         ),
-        (["--gap-speed", "0"], "--gap-speed: '0' must be a speed > 0"),
+        (["--gap-speed", "0"], "--gap-speed: '0' must be a speed within [0.001, 10]"),
+        (["--gap-speed", "1e-12"], "--gap-speed: '1e-12' must be a speed within [0.001, 10]"),
     ],
 )
 def test_bad_cycle_options_exit_with_one_line(tmp_path, args, message):
