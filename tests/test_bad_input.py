@@ -527,6 +527,19 @@ CASES = [
         {"h.toml": "a = 1\n"},
         "no [hydraulics] table",
     ),
+    *[
+        (
+            f"hydraulics {key} = {v}",
+            ["describe", "--hydraulics", "h.toml"],
+            {"h.toml": re.sub(rf"(?m)^{key} = [^#\n]*", f"{key} = {v}", HYDRAULICS, count=1)},
+            f"{key} = {v} must be within [{bounds}]",
+        )
+        for key, v, bounds in [
+            ("bore", "0.001", "5, 1000"),
+            ("bore", "2000.0", "5, 1000"),
+            ("max_speed", "50.0", "0, 10"),
+        ]
+    ],
     (
         "hydraulics not a table",
         ["describe", "--hydraulics", "h.toml"],

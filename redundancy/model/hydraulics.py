@@ -211,11 +211,11 @@ MACHINE_KEYS = {
     "pump_flow": "pump's maximum flow, L/min",
     "tank": "tank pressure p_T, bar",
 }
-CYLINDER_KEYS = {
-    "bore": "bore D, mm",
-    "rod": "rod d, mm",
-    "max_speed": "maximum speed, m/s",
-    "max_acceleration": "maximum acceleration, m/s²",
+CYLINDER_KEYS = {  # key: (meaning, least, most), beyond which no hydraulic cylinder is built
+    "bore": ("bore D, mm", 5.0, 1000.0),
+    "rod": ("rod d, mm", 0.0, 1000.0),
+    "max_speed": ("maximum speed, m/s", 0.0, 10.0),
+    "max_acceleration": ("maximum acceleration, m/s²", 0.0, 100.0),
 }
 
 
@@ -268,7 +268,8 @@ def circuit_from_table(
             raise InvalidInputError(f"{place} must be a table with {', '.join(CYLINDER_KEYS)}")
         refuse_unknown(entry, CYLINDER_KEYS, place)
         bore, rod, speed, acceleration = (
-            number(entry, k, place, m, lower=0.0) for k, m in CYLINDER_KEYS.items()
+            number(entry, key, place, meaning, lower=least, upper=most)
+            for key, (meaning, least, most) in CYLINDER_KEYS.items()
         )
         if not 0 <= rod < bore or speed <= 0 or acceleration <= 0:
             raise InvalidInputError(
