@@ -119,7 +119,7 @@ def argument(convert: Callable[[str], float], accept: Callable[[float], bool], p
 
     def parse(text: str):
         try:
-            value = convert(text)
+            value = convert(text) if "_" not in text else math.nan  # not Python's 1_000
         except ValueError:
             value = math.nan
         if not accept(value):

@@ -82,6 +82,7 @@ CASES = [
         for option in ("method", "objective")
     ],
     ("unknown option", ["study", "--bogus"], {}, "unrecognized arguments: --bogus"),
+    ("payload with a digit separator", ["describe", "--payload", "1_000"], {}, "'1_000' must be"),
     ("unknown command", ["frobnicate"], {}, "invalid choice: 'frobnicate'"),
     ("unknown robot", ["describe", "--robot", "nope"], {}, "unknown robot 'nope'"),
     ("robot folder", ["describe", "--robot", "/"], {}, "unknown robot '/'"),

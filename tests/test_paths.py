@@ -259,6 +259,7 @@ def test_bad_segments_are_named_in_one_line(tmp_path, text, message):
     "csv, message",
     [
         ("x,y\n1.0,0.0\n1.5,abc\n", r"path.csv line 3: cell 2 \('abc'\) is not a number"),
+        ("1.0,0.0\n2_0,1.0\n", r"path.csv line 2: cell 1 \('2_0'\) is not a number"),
         ("1.0,0.0\n", r"path.csv: one point \(line 1\); a polyline needs at least two"),
         ("# only this\n1.0,0.0\n", r"one point \(line 2\)"),
         ("1.0,0.0\n1.0,0.0\n", r"one point \(lines 1-2\)"),

@@ -28,6 +28,7 @@ from typing import cast
 import numpy as np
 
 from redundancy.errors import RobotDescriptionError
+from redundancy.model.values import decimal
 
 REQUIRED = object()  # the default of a parameter that must be given
 MAX_OFFSET = 1000.0  # m: a point on a link, or a length, within this of the link's frame
@@ -75,7 +76,7 @@ class Parameter(ABC):
 def number_or_text(text: str) -> float | str:
     """An attribute's text as a number, or the text itself where it is none (for the message)."""
     try:
-        return float(text)
+        return decimal(text)
     except ValueError:
         return text
 

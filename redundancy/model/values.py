@@ -108,6 +108,14 @@ def names(
     return tuple(value)
 
 
+def decimal(text: str) -> float:
+    """The number ``text`` writes, in the notation files and options use (``-1.5``, ``2e-3``,
+    ``inf``, ``nan``); `ValueError` for anything else, Python's ``1_000`` included."""
+    if "_" in text:
+        raise ValueError(f"not a number: {text!r}")
+    return float(text)
+
+
 def is_real(value: object) -> bool:
     """Whether ``value`` is a real number (Python's or numpy's), not a bool or text."""
     return isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool)

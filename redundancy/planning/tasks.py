@@ -62,6 +62,7 @@ from redundancy.errors import InvalidInputError
 from redundancy.model.values import (
     MAX_SPEED,
     coordinates,
+    decimal,
     is_real,
     names,
     number,
@@ -817,7 +818,7 @@ def read_polyline(path: Path | str, dimension: int | None, tool_angle: bool = Fa
         values: list[float | None] = []
         for cell in cells:
             try:
-                values.append(float(cell))
+                values.append(decimal(cell))
             except ValueError:
                 values.append(None)
         if header_allowed and all(v is None for v in values):
