@@ -306,9 +306,8 @@ def run_cycle(
     failures: dict[str, str] = {}
     with bar:
         bar.set_description("cycle: plan")
-        plan = plan_cycle(robot, cycle, objective, None, samples, checked, method, circuit, speed)
+        plan = plan_cycle(robot, cycle, objective, held, samples, checked, method, circuit, speed)
         bar.update()
-        held = plan.held
         free_start = "whole-cycle improved start"
         free_motion = plan.motion
         if free_motion is not None:
