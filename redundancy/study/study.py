@@ -38,6 +38,7 @@ from redundancy.model.robot import Robot
 from redundancy.planning.bound import GlobalOptimum, global_optimum
 from redundancy.planning.energy_bound import EnergyOptimum, energy_optimum
 from redundancy.planning.ik import check_path
+from redundancy.planning.refinement import Refined
 from redundancy.planning.starts import (
     METHODS,
     SearchResult,
@@ -303,7 +304,7 @@ class Study:
         return max(8, *(len(s.name) + 2 for s in self.cycle.segments))
 
 
-def convergence(bound: GlobalOptimum | EnergyOptimum) -> str:
+def convergence(bound: Refined) -> str:
     """A bound's convergence in words: whether it converged, and how much the last refinement
     of its grid moved it."""
     change = "-" if bound.change is None else f"{100 * bound.change:.2f} %"
