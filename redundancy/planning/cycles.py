@@ -74,7 +74,7 @@ from redundancy.planning.ik import (
     held_names,
     inverse_kinematics,
 )
-from redundancy.planning.integrate import GAIN, TIME_STEP, TOLERANCE, Trajectory, simulate
+from redundancy.planning.integrate import TIME_STEP, TOLERANCE, Trajectory, simulate
 from redundancy.planning.refinement import Refined, checked_grids
 from redundancy.planning.starts import (
     MAX_SAMPLES,
@@ -110,6 +110,10 @@ SELF_MOTION_STEPS = 50  # held values the corners' self-motions are followed thr
 REPEAT_TOLERANCE = 1e-7  # per adaptive step on q: repetitions integrate this finely, so that
 # the integrator's own error stays far below the drift measured (`SETTLED`)
 HELD_GAIN = 20.0  # 1/s: feedback of the held actuators onto the periodic plan's r(t)
+TASK_GAIN = 1.0  # 1/s: feedback of the task in repetitions and the return map. It keeps the
+# integrator's own tool error from adding up cycle after cycle (a time constant of 1 s against
+# cycles of seconds) and leaves the motion smooth for the adaptive steps: with the fixed-step
+# method's 20/s the same motion turns stiff, and its steps are 6 × as many.
 PERIODIC_GRIDS = (48, 96)  # intervals over the whole cycle of the periodic optimum's grids
 PERIODIC_MARGIN = 5e-4  # m (or rad): the periodic plan keeps the strokes this far inside at
 # its nodes, so that the motion a machine runs between them keeps them too
@@ -696,7 +700,7 @@ class Repetition:
     x: np.ndarray
     y: np.ndarray
     circuit: bool = False
-    gain: float = GAIN
+    gain: float = TASK_GAIN
     tolerance: float = REPEAT_TOLERANCE
 
     def motion(self, number: int = 1, time_step: float = TIME_STEP) -> CycleMotion:
@@ -791,7 +795,7 @@ def repeat(
     circuit: bool = False,
     objective: Objective | None = None,
     tolerance: float = REPEAT_TOLERANCE,
-    gain: float = GAIN,
+    gain: float = TASK_GAIN,
 ) -> Repetition:
     """Run ``cycles`` cycles with ``laws`` (one `Resolver`, or one per segment) from the
     configuration ``start`` (n,), each from where the last ended, with closed-loop tracking of
@@ -938,7 +942,7 @@ def return_map(
     within = np.zeros(len(values), dtype=bool)
     if ok.any():
         motions = simulate_cycle(
-            robot, cycle, laws, starts.q[ok], checked=checked, sparse=True, gain=GAIN
+            robot, cycle, laws, starts.q[ok], checked=checked, sparse=True, gain=TASK_GAIN
         )
         column = robot.actuators.names.index(name)
         end = motions.pieces[-1].x[:, -1, column]
