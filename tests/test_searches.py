@@ -23,10 +23,11 @@ from redundancy import (
 from redundancy.model.loading import bundled_root
 from redundancy.model.parameters import Number
 from redundancy.model.transmissions import write_transmissions
+from redundancy.planning.cycles import improved_cycle_start
 from redundancy.planning.ik import inverse_kinematics
 from redundancy.planning.integrate import simulate, stroke_extremes
 from redundancy.planning.starts import evaluate_starts
-from redundancy.planning.tasks import WorkCycle
+from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.resolution.laws import GradientProjection, MinVelocityNorm
 from redundancy.resolution.objectives import ENERGY, VELOCITY
 
@@ -264,3 +265,20 @@ def test_a_sweep_of_one_sample_runs_the_default_start(crane, cycle):
     assert search.best.peak == pytest.approx(
         simulate(crane, VELOCITY.resolver, segment, q[None]).peak_velocity_norm[0], rel=1e-3
     )
+
+
+def test_one_sample_is_the_default_start_for_two_held_actuators_and_for_a_whole_cycle(crane, cycle):
+    """The compass search of several held actuators and the whole cycle's sweep take one
+    sample as a segment's sweep does: the default start, not the middle of the box or of the
+    stroke (out of reach at the paper's point 1)."""
+    robot = load_robot("hiab031", task_axes="x")
+    segment = Segment("in", np.array([3.0]), np.array([2.0]), 0.5)
+    held = ("x2", "x3")
+    values, _ = default_start(robot, segment, held)
+    search = improved_start(robot, segment, VELOCITY, held, samples=1)
+    assert search.samples[0].values == tuple(values)
+    assert search.best is not None
+    first = default_start(crane, cycle.segments[0], ["x3"])[0]
+    whole = improved_cycle_start(crane, cycle, VELOCITY, samples=1, method="sweep")
+    assert [s.values for s in whole.samples] == [tuple(first)]
+    assert whole.samples[0].peak is not None

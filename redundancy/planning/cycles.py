@@ -434,13 +434,18 @@ def improved_cycle_start(
     Limits.strokes(robot, checked)  # names checked before any work
     if method == "fast":
         return fast_search(Configurations(robot, first, held[0]), None, evaluate)
-    if len(held) == 1:
-        values = sweep_values(robot, held[0], samples)
-        return evaluate(Configurations(robot, first, held[0]).at(values), False)
-    from scipy.stats import qmc
+    if samples == 1:  # one sample is the default start, as in a segment's sweep
+        values = default_start(robot, first, held)[0][None]
+    elif len(held) == 1:
+        values = sweep_values(robot, held[0], samples)[:, None]
+    else:
+        from scipy.stats import qmc
 
-    box = stroke_box(robot, held)
-    values = box[:, 0] + (box[:, 1] - box[:, 0]) * qmc.Halton(len(held), seed=1).random(samples)
+        box = stroke_box(robot, held)
+        unit = qmc.Halton(len(held), seed=1).random(samples)
+        values = box[:, 0] + (box[:, 1] - box[:, 0]) * unit
+    if len(held) == 1:
+        return evaluate(Configurations(robot, first, held[0]).at(values[:, 0]), False)
     ik = inverse_kinematics(robot, first.start, held, values)
     margins = np.where(ik.reached, 0.0, -np.inf)
     return evaluate(Starts(values, ik.q, margins, np.where(ik.reached, 0.0, ik.miss)), False)

@@ -663,7 +663,10 @@ def _compass(robot, segment, objective, held, samples, checked, circuit) -> Sear
     def run(values):
         return evaluate_starts(robot, segment, objective, held, values, checked, circuit=circuit)
 
-    result = run(lower + span * qmc.Halton(len(held), seed=1).random(samples))
+    if samples == 1:  # one sample is the default start, as with one held actuator
+        result = run(default_start(robot, segment, held)[0][None])
+    else:
+        result = run(lower + span * qmc.Halton(len(held), seed=1).random(samples))
     leaders = sorted(result.feasible, key=lambda s: s.peak)[:REFINED_AROUND]  # type: ignore[arg-type,return-value]
     step = 1 / samples ** (1 / len(held))  # fraction of each stroke
     directions = np.concatenate([np.eye(len(held)), -np.eye(len(held))])
