@@ -112,3 +112,18 @@ def test_a_segment_of_the_wrong_dimension_is_refused(crane):
     segment = Segment("3d", np.zeros(3), np.ones(3), 0.5)
     with pytest.raises(InvalidInputError, match=r"3 coordinates.*task has 2"):
         simulate(crane, VELOCITY.resolver, segment, np.array([[1.5, 1.0, 0.5]]))
+
+
+def test_the_closed_loop_converges_within_rk4s_stability_and_is_refused_beyond_it(crane, cycle):
+    """The tracking error e obeys ė = −K e; one RK4 step multiplies it by R(−K h), R(z) = 1 + z
+    + z²/2 + z³/6 + z⁴/24, below 1 in size only for K h < 2.785. At K h = 2.7 a tool started
+    centimetres off the path returns to it (to within the lag so stiff a loop leaves the fixed
+    step, 2e-5 m); at K h = 2.8 the method is refused."""
+    segment = cycle["1-2"]
+    start = reachable_starts(crane, segment, [1.0]) + np.array([0.0, 0.01, 0.0])
+    motion = simulate(crane, VELOCITY.resolver, segment, start, method="rk4", gain=270.0)
+    error = np.linalg.norm(motion.y[0] - segment.position(motion.t[0]), axis=1)
+    assert error[0] > 0.02
+    assert error[-1] < 1e-4
+    with pytest.raises(InvalidInputError, match=r"gain = 280 1/s at time_step = 0.01 s makes"):
+        simulate(crane, VELOCITY.resolver, segment, start, method="rk4", gain=280.0)

@@ -49,6 +49,9 @@ TIME_STEP = 0.01  # s
 MIN_INTERVALS = 10  # of a motion's grid, however short its segment
 MAX_INTERVALS = 1_000_000  # of a motion's grid: 24 MB of q alone for a 3-joint robot
 GAIN = 20.0  # K, 1/s, of the fixed-step method
+RK4_STABLE = 2.785  # −K h of the classical Runge-Kutta method's stability limit on the
+# negative real axis (|1 + z + z²/2 + z³/6 + z⁴/24| = 1 at z = −2.7853): beyond it the closed
+# loop's tracking error grows step by step
 TOLERANCE = 1e-6  # relative and absolute error per adaptive step on q (rad, m)
 ALLOWANCE = 30  # sparse samples' strokes count ALLOWANCE × tolerance (m) closer to their
 # limits: the integrator's error in x, measured below 6 × tolerance on the crane
@@ -460,6 +463,12 @@ def simulate(
         robot, resolver, segment, gain, None if objective and objective.dynamic else objective
     )
     grid = time_grid(segment, time_step)
+    if method == "rk4" and gain * (grid[1] - grid[0]) >= RK4_STABLE:
+        raise InvalidInputError(
+            f"gain = {gain:g} 1/s at time_step = {grid[1] - grid[0]:g} s makes the fixed-step "
+            f"method unstable: gain × time_step must stay below {RK4_STABLE} (RK4's stability "
+            "limit); lower the gain or the time step, or use method='adaptive'"
+        )
     steps = None
     if method == "rk4":
         samples = _runge_kutta(law, starts, grid)
