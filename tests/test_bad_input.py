@@ -180,6 +180,7 @@ CASES = [
             ("[3.5]", "point 1 has 1 coordinates"),
             ("[nan, 0]", "point 1 = [nan, 0] must be finite"),
             ("[inf, 0]", "must be finite"),
+            ("[1e308, 0]", "point 1: 1e+308 lies beyond ±1000 (m, or degrees for the tool's"),
             ('"3.5, -0.5"', "must be a list of numbers"),
             ("[true, 0]", "must be a list of numbers"),
             ("[100.0, -0.5]", "cannot follow segment 1-2: its point [100.0, -0.5] (t = 0 s)"),

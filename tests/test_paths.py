@@ -266,6 +266,8 @@ def test_bad_segments_are_named_in_one_line(tmp_path, text, message):
         ("1.0,0.0\nnan,1.0\n", r"path.csv line 2: 'nan' is not a finite number"),
         ("1.0,0.0\n2.0,inf\n", r"path.csv line 2: 'inf' is not a finite number"),
         ("1.0,0.0\n2.0,1.0,3.0\n", r"path.csv line 2: 3 values; the task has 2 coordinates"),
+        ("1.0,0.0\n1e308,1.0\n", r"path.csv line 2: 1e308 lies beyond ±1000 \(m, or degrees"),
+        ("1.0,0.0\n2.0,-1000.5\n", r"path.csv line 2: -1000.5 lies beyond ±1000"),
         ("", r"path.csv: no points"),
     ],
 )

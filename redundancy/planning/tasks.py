@@ -75,6 +75,8 @@ PROFILES = ("constant", "trapezoidal")
 DIRECTIONS = ("ccw", "cw")
 MAX_ACCELERATION = 100.0  # m/s²: beyond any hydraulic manipulator's tool
 CLOSED = 1e-9  # m (or rad): ends this close count as one point
+MAX_COORDINATE = 1000.0  # m, or degrees for the tool's angle: a task file's points lie within
+# this of the robot's base, as far as any manipulator's workspace with room to spare
 MAX_DURATION = 600.0  # s a segment may take: a work cycle's moves take seconds to a minute, and
 # a motion on the 10 ms grid holds 60,000 samples at this
 ARC_MISMATCH = 1e-6  # relative: an arc's ends must lie this close to one circle about its centre
@@ -648,10 +650,11 @@ class WorkCycle:
             points = {}
         elif not isinstance(points, dict) or not points:
             raise InvalidInputError(f"{path}: needs a [points] table of name = [coordinates]")
-        found = {
-            name: _in_radians(coordinates(value, f"{where}: point {name}", size), tool_angle)
-            for name, value in points.items()
-        }
+        found = {}
+        for name, value in points.items():
+            given = coordinates(value, f"{where}: point {name}", size)
+            _check_reach(given, f"{where}: point {name}", [repr(v) for v in value])
+            found[name] = _in_radians(given, tool_angle)
         defaults = _timing(data, where, None)
         if not isinstance(entries, list) or not all(isinstance(e, str | dict) for e in entries):
             raise InvalidInputError(
@@ -677,6 +680,17 @@ class WorkCycle:
             raise InvalidInputError(f"{where}: held = [] names no actuator ({meaning})")
         name = text(data, "name", where, "the task's name", path.stem)
         return cls(name, tuple(segments), held, tool_angle)
+
+
+def _check_reach(point: np.ndarray, where: str, shown: list[str]) -> None:
+    """Refuse a point of a task file with a coordinate beyond `MAX_COORDINATE`, naming it as
+    ``shown`` (one text per coordinate) at ``where``."""
+    far = np.flatnonzero(np.abs(point) > MAX_COORDINATE)
+    if far.size:
+        raise InvalidInputError(
+            f"{where}: {shown[far[0]]} lies beyond ±{MAX_COORDINATE:g} (m, or degrees for the "
+            "tool's angle); a task point lies within that of the robot's base"
+        )
 
 
 def _in_radians(point: np.ndarray, tool_angle: bool) -> np.ndarray:
@@ -836,6 +850,7 @@ def read_polyline(path: Path | str, dimension: int | None, tool_angle: bool = Fa
                 f"{path} line {number_}: {cells[int(np.argmin(np.isfinite(array)))].strip()!r} "
                 "is not a finite number"
             )
+        _check_reach(array, f"{path} line {number_}", [c.strip() for c in cells])
         if dimension is not None and len(array) != dimension:
             raise InvalidInputError(
                 f"{path} line {number_}: {len(array)} values; the task has {dimension} "
