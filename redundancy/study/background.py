@@ -6,8 +6,9 @@ result, or the exception it raised, through a pipe; `result()` waits for it and 
 raises that exception here. Leaving the ``with`` block stops the process if its result was never
 collected (an error or Ctrl-C in this process), so no computation outlives the command. The child
 ignores Ctrl-C, which the terminal sends to both: this process decides; stopped, it ends at
-once, whatever handlers it inherited. The child writes no file, so nothing it leaves can be
-half-written.
+once, whatever handlers it inherited. What the child writes goes where its caller says: the
+study's child writes only into the output's staging folder, which is kept only if the whole
+command succeeds, so nothing a stopped child leaves can be seen half-written.
 
 Where a fork would not be safe, the function runs in this process, at once: where the POSIX
 ``fork`` start method is missing, and where this process runs other threads (a notebook's
