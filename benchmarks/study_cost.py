@@ -1,0 +1,69 @@
+"""The main job's cost against an earlier commit, in one run: `redundancy study` with its
+defaults, CPU time (user + sys of the command and every process it waited for) and wall time,
+this checkout against ``--against REV``, the two run in turn so that a drift of the machine's
+speed touches both alike.
+
+Run: python benchmarks/study_cost.py --against f72f75b [--runs 5]
+The earlier commit is taken with `git archive` into a temporary folder and imported from there,
+with this environment's packages. Medians and the ratio this / earlier are printed, never asserted.
+"""
+
+import argparse
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def cost(source: Path, out: Path) -> tuple[float, float]:
+    """(CPU seconds, wall seconds) of one `redundancy study --quiet` importing ``source``."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    command = [sys.executable, "-m", "redundancy", "study", "--quiet", "--out", str(out)]
+    env = {**os.environ, "PYTHONPATH": str(source), "OPENBLAS_NUM_THREADS": "1"}
+    wall = -time.perf_counter()
+    subprocess.run(command, check=True, capture_output=True, cwd=source, env=env)
+    wall += time.perf_counter()
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return cpu, wall
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--against", required=True, help="the earlier commit, e.g. f72f75b")
+    parser.add_argument("--runs", type=int, default=5)
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as scratch:
+        earlier = Path(scratch) / "earlier"
+        earlier.mkdir()
+        archive = subprocess.run(
+            ["git", "archive", args.against], cwd=ROOT, check=True, capture_output=True
+        ).stdout
+        subprocess.run(["tar", "-x", "-C", str(earlier)], input=archive, check=True)
+        figures: dict[str, list[tuple[float, float]]] = {"this": [], "earlier": []}
+        for run in range(args.runs + 1):  # the first pair warms the caches and is not counted
+            for name, source in (("this", ROOT), ("earlier", earlier)):
+                measured = cost(source, Path(scratch) / f"{name}-{run}")
+                if run:
+                    figures[name].append(measured)
+    print(f"redundancy study, defaults; {args.runs} runs each, medians")
+    medians = {
+        name: [statistics.median(m[i] for m in runs) for i in (0, 1)]
+        for name, runs in figures.items()
+    }
+    for i, what in enumerate(("CPU (user + sys)", "wall")):
+        this, earlier_value = medians["this"][i], medians["earlier"][i]
+        print(
+            f"{what:<17} this {this:6.2f} s   {args.against} {earlier_value:6.2f} s   "
+            f"ratio {this / earlier_value:.2f}"
+        )
+
+
+if __name__ == "__main__":
+    main()
