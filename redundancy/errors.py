@@ -22,3 +22,8 @@ class SingularConfigurationError(RedundancyError):
 
 class UnreachableError(RedundancyError):
     """A task point no configuration inside the joint and stroke limits reaches."""
+
+
+class SchedulerLostError(RedundancyError):
+    """A Dask scheduler, or the connection to it, lost while a design map ran: its finished
+    chunks stay in the map's store for the rerun."""

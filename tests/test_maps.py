@@ -10,6 +10,7 @@ import subprocess
 import sys
 import threading
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -64,52 +65,30 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-def test_a_map_on_a_dask_cluster_by_address_equals_the_local_run(tmp_path, client):
-    family = write(tmp_path, "ws.toml", WORKSPACE.format(chunk=2, nx=3))
+@contextlib.contextmanager
+def dask_cluster(folder: Path, workers: int):
+    """A Dask scheduler and ``workers`` worker processes started as a user starts them, on a
+    free port of this machine; yields the scheduler's address once the workers have joined, and
+    the started processes (scheduler first)."""
     address = f"tcp://127.0.0.1:{free_port()}"
-    started = [
-        subprocess.Popen(
-            [
-                BIN / "dask",
-                "scheduler",
-                "--host",
-                "127.0.0.1",
-                "--port",
-                address.rsplit(":")[-1],
-                "--no-dashboard",
-            ],
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL,
-        )
-    ]
+    quiet = {"stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL}
+    port = address.rsplit(":")[-1]
+    scheduler = [BIN / "dask", "scheduler", "--host", "127.0.0.1", "--port", port]
+    started = [subprocess.Popen([*scheduler, "--no-dashboard"], **quiet)]
+    worker = [BIN / "dask", "worker", address, "--nworkers", "1", "--nthreads", "1"]
     try:
-        for _ in range(2):
+        for _ in range(workers):
             started.append(
                 subprocess.Popen(
-                    [
-                        BIN / "dask",
-                        "worker",
-                        address,
-                        "--nworkers",
-                        "1",
-                        "--nthreads",
-                        "1",
-                        "--host",
-                        "127.0.0.1",
-                        "--no-dashboard",
-                    ],
-                    stdout=subprocess.DEVNULL,
-                    stderr=subprocess.DEVNULL,
-                    cwd=tmp_path,
+                    [*worker, "--host", "127.0.0.1", "--no-dashboard"], cwd=folder, **quiet
                 )
             )
         from distributed import Client
 
         with Client(address, timeout=30, set_as_default=False) as probe:
-            probe.wait_for_workers(2, timeout=60)
-            assert len(probe.scheduler_info()["workers"]) == 2
-        remote = run_cli("map", str(family), "--scheduler", address, "--out", str(tmp_path / "r"))
-        assert remote.returncode == 0, remote.stderr
+            probe.wait_for_workers(workers, timeout=60)
+            assert len(probe.scheduler_info()["workers"]) == workers
+        yield address, started
     finally:
         # the workers before the scheduler: a worker whose scheduler has gone first tries to
         # reach it again for seconds before it ends
@@ -121,6 +100,13 @@ def test_a_map_on_a_dask_cluster_by_address_equals_the_local_run(tmp_path, clien
             except subprocess.TimeoutExpired:
                 process.kill()
                 process.wait()
+
+
+def test_a_map_on_a_dask_cluster_by_address_equals_the_local_run(tmp_path, client):
+    family = write(tmp_path, "ws.toml", WORKSPACE.format(chunk=2, nx=3))
+    with dask_cluster(tmp_path, 2) as (address, started):
+        remote = run_cli("map", str(family), "--scheduler", address, "--out", str(tmp_path / "r"))
+        assert remote.returncode == 0, remote.stderr
     assert all(p.poll() is not None for p in started)
     rows = pd.read_parquet(tmp_path / "r" / "map.parquet")
     pd.testing.assert_frame_equal(rows, design_map(family, client))
@@ -493,3 +479,96 @@ def test_a_chunks_problems_are_segments_times_the_design_grid_in_product_order()
         for payload, speed in itertools.product(*(values for _, values in grid))
     ]
     assert all(s is es and d == ed for (_, s, d), (es, ed) in zip(found, expected, strict=True))
+
+
+def _damage_truncated(path: Path, other: Path) -> None:
+    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+
+
+def _damage_emptied(path: Path, other: Path) -> None:
+    path.write_bytes(b"")
+
+
+def _damage_garbage(path: Path, other: Path) -> None:
+    path.write_bytes(os.urandom(path.stat().st_size))
+
+
+def _damage_foreign(path: Path, other: Path) -> None:
+    path.write_bytes(other.read_bytes())  # another chunk's file, whole and valid Parquet
+
+
+@pytest.mark.parametrize(
+    "damage", [_damage_truncated, _damage_emptied, _damage_garbage, _damage_foreign]
+)
+def test_a_damaged_chunk_is_solved_again_with_one_line(tmp_path, client, damage):
+    family = read_family(write(tmp_path, "ws.toml", WORKSPACE.format(chunk=2, nx=2)))
+    store = tmp_path / "store"
+    first = design_map(family, client, store=store)
+    files = sorted(store.glob("chunk-*.parquet"))
+    damage(files[1], files[0])
+    untouched = {f.name: f.stat().st_ino for f in (files[0], files[2])}
+    with pytest.warns(UserWarning) as noted:
+        again = design_map(family, client, store=store)
+    assert [str(w.message) for w in noted] == [
+        f"map store {store}: {files[1].name} damaged: its checksum differs from the manifest's; "
+        "solved again"
+    ]
+    pd.testing.assert_frame_equal(first, again)
+    assert {f.name: f.stat().st_ino for f in (files[0], files[2])} == untouched
+    with warnings.catch_warnings():  # the chunk solved again is vouched for from now on
+        warnings.simplefilter("error")
+        pd.testing.assert_frame_equal(first, design_map(family, client, store=store))
+
+
+def test_a_chunk_file_the_manifest_does_not_name_is_solved_again(tmp_path, client):
+    family = read_family(write(tmp_path, "ws.toml", WORKSPACE.format(chunk=2, nx=2)))
+    store = tmp_path / "store"
+    first = design_map(family, client, store=store)
+    manifest = store / "chunks.jsonl"
+    lines = manifest.read_text().splitlines()
+    kept = [line for line in lines if '"chunk": 2,' not in line]
+    assert len(kept) == len(lines) - 1
+    manifest.write_text("\n".join(kept) + "\n")
+    with pytest.warns(UserWarning, match="chunk-000002.parquet not in the store's manifest"):
+        again = design_map(family, client, store=store)
+    pd.testing.assert_frame_equal(first, again)
+
+
+def test_a_manifest_line_whose_problems_differ_is_not_trusted(tmp_path, client):
+    """A manifest that vouches for a chunk's file but names other problems (a store written for
+    another chunk size under the same fingerprint cannot be, but a hand-edited one can)."""
+    family = read_family(write(tmp_path, "ws.toml", WORKSPACE.format(chunk=2, nx=2)))
+    store = tmp_path / "store"
+    first = design_map(family, client, store=store)
+    manifest = store / "chunks.jsonl"
+    manifest.write_text(manifest.read_text().replace('"problems": [2, 3]', '"problems": [4, 5]'))
+    with pytest.warns(UserWarning, match=r"chunk-000001.parquet holds problems \[4, 5\], not"):
+        again = design_map(family, client, store=store)
+    pd.testing.assert_frame_equal(first, again)
+
+
+def test_a_scheduler_lost_mid_map_ends_in_one_line_and_keeps_the_finished_chunks(tmp_path):
+    family = write(tmp_path, "ws.toml", WORKSPACE.format(chunk=1, nx=8))
+    store = tmp_path / ".out.chunks"
+    with dask_cluster(tmp_path, 1) as (address, started):
+        command = ["map", str(family), "--scheduler", address, "--timeout", "2", "--quiet"]
+        process = subprocess.Popen(
+            [sys.executable, "-m", "redundancy.cli", *command, "--out", str(tmp_path / "out")],
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        deadline = time.monotonic() + 120  # guards a hang only
+        while len(list(store.glob("chunk-*.parquet"))) < 2 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        started[0].kill()  # the scheduler
+        _, stderr = process.communicate(timeout=120)
+    assert process.returncode == 2, stderr
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1, stderr
+    assert lines[0].startswith("redundancy: error: map 'workspace': the Dask scheduler was lost")
+    assert "its finished chunks are kept" in lines[0]
+    kept = sorted(store.glob("chunk-*.parquet"))
+    assert 2 <= len(kept) < 24
+    rerun = run_cli("map", str(family), "--workers", "1", "--out", str(tmp_path / "out"))
+    assert rerun.returncode == 0, rerun.stderr
+    assert f"{len(kept)}/24" in rerun.stderr

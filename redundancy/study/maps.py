@@ -14,8 +14,12 @@ Problems are grouped in chunks of the family's ``chunk`` problems; each chunk is
 On a local `distributed.LocalCluster` of worker processes by default, or on the caller's
 `distributed.Client`. With a ``store`` folder, each finished chunk is written there at once as
 its own Parquet file (written to a temporary name, then renamed), beside ``family.json`` naming
-the family's fingerprint; a map run again with the same family keeps those chunks and solves
-only the others. A store that holds another family's chunks is emptied first.
+the family's fingerprint and the manifest ``chunks.jsonl``, where a line per chunk gives its
+problem range and the SHA-256 of its file, appended before the file is put in place. A map run
+again with the same family keeps the chunks the manifest vouches for and solves only the others:
+a chunk file that is damaged (truncated, emptied, overwritten), another chunk's, or not in the
+manifest is solved again, with one line saying so. A store that holds another family's chunks is
+emptied first. A scheduler lost mid-run ends the map in one line; its finished chunks stay.
 
 Columns: ``problem``, ``segment``, ``start_<axis>``, ``end_<axis>``, the design parameters the
 grid varies (``payload`` kg, ``speed`` m/s, ``attachment`` m, ``bore`` m), ``objective``,
@@ -32,13 +36,17 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import fcntl
+import hashlib
+import io
 import json
 import logging
 import os
 import shutil
 import urllib.parse
 import uuid
+import warnings
 from collections.abc import Iterator
+from concurrent.futures import CancelledError
 from pathlib import Path
 
 import numpy as np
@@ -46,6 +54,7 @@ import numpy as np
 from redundancy.errors import (
     InvalidInputError,
     RedundancyError,
+    SchedulerLostError,
     SingularConfigurationError,
     UnreachableError,
 )
@@ -59,6 +68,7 @@ from redundancy.study.output import write_atomically
 
 CONNECT_TIMEOUT = 10.0  # s a scheduler has to answer
 FAMILY_FILE = "family.json"
+MANIFEST = "chunks.jsonl"  # a line per finished chunk: {"chunk", "problems", "sha256"}
 
 
 def solve_chunk(family: MapFamily, chunk: int):
@@ -161,14 +171,80 @@ def _energy(search) -> dict:
     }
 
 
+class ChunkStore:
+    """The finished chunks of ``family`` in ``folder`` (see the module docstring): those the
+    manifest vouches for are `kept`, as DataFrames of the map's ``typed`` columns; `add` puts a
+    new one in place, its manifest line first."""
+
+    def __init__(self, folder: Path, family: MapFamily, typed: dict[str, str]):
+        self.folder, self.family = folder, family
+        self.kept = self._verified(typed)
+
+    def path(self, chunk: int) -> Path:
+        return self.folder / f"chunk-{chunk:06d}.parquet"
+
+    def problems(self, chunk: int) -> list[int]:
+        """The first and last problem of chunk number ``chunk``."""
+        first = chunk * self.family.chunk
+        return [first, min(first + self.family.chunk, len(self.family)) - 1]
+
+    def add(self, chunk: int, frame) -> None:
+        """Chunk ``chunk``'s rows, as a Parquet file whose manifest line is written first: a
+        run cut short between the two leaves a line without its file, which is solved again."""
+        data = frame.to_parquet()
+        record = {
+            "chunk": chunk,
+            "problems": self.problems(chunk),
+            "sha256": hashlib.sha256(data).hexdigest(),
+        }
+        with (self.folder / MANIFEST).open("a") as manifest:
+            manifest.write(json.dumps(record) + "\n")
+        write_atomically(self.path(chunk), lambda p: p.write_bytes(data))
+
+    def _verified(self, typed: dict[str, str]) -> dict:
+        """The chunks whose files match their manifest lines, read; every other chunk file is
+        removed, with one line saying why."""
+        import pandas as pd
+
+        vouched = {}
+        manifest = self.folder / MANIFEST
+        lines = manifest.read_text().splitlines() if manifest.is_file() else []
+        for line in lines:
+            with contextlib.suppress(ValueError, TypeError, KeyError):  # a line cut short
+                record = json.loads(line)
+                vouched[int(record["chunk"])] = record
+        kept = {}
+        for path in sorted(self.folder.glob("chunk-*.parquet")):
+            number = path.stem[len("chunk-") :]
+            chunk = int(number) if number.isdigit() else -1
+            record = vouched.get(chunk)
+            data = path.read_bytes()
+            if record is None or not 0 <= chunk < self.family.chunks:
+                why = "not in the store's manifest"
+            elif hashlib.sha256(data).hexdigest() != record["sha256"]:
+                why = "damaged: its checksum differs from the manifest's"
+            elif record["problems"] != self.problems(chunk):
+                why = f"holds problems {record['problems']}, not {self.problems(chunk)}"
+            else:
+                frame = pd.read_parquet(io.BytesIO(data)).astype(typed)
+                problems = [int(frame["problem"].min()), int(frame["problem"].max())]
+                if problems == self.problems(chunk):
+                    kept[chunk] = frame
+                    continue
+                why = f"holds problems {problems}, not {self.problems(chunk)}"
+            warnings.warn(f"map store {self.folder}: {path.name} {why}; solved again", stacklevel=2)
+            path.unlink()
+        return kept
+
+
 @contextlib.contextmanager
-def _store(folder: Path, family: MapFamily) -> Iterator[set[int]]:
-    """The store of finished chunks in ``folder``, locked for this run; yields the numbers of
-    the chunks already there for ``family`` (the store is emptied if it held another's).
+def _store(folder: Path, family: MapFamily, typed: dict[str, str]) -> Iterator[ChunkStore]:
+    """The store of finished chunks in ``folder``, locked for this run (emptied first if it
+    held another family's).
 
     A map that fails for its input (a `RedundancyError`: run again, it would fail again)
-    removes the store; one interrupted, or cut short by a lost worker or connection, keeps
-    its finished chunks for the rerun."""
+    removes the store; one interrupted, or cut short by a lost worker, scheduler or connection,
+    keeps its finished chunks for the rerun."""
     try:
         folder.mkdir(parents=True, exist_ok=True)
         descriptor = os.open(folder, os.O_RDONLY)
@@ -184,9 +260,10 @@ def _store(folder: Path, family: MapFamily) -> Iterator[set[int]]:
                 f"another map is writing to {folder}; wait for it, or give another --out"
             ) from None
         marker = folder / FAMILY_FILE
-        same = marker.is_file() and json.loads(marker.read_text()).get("fingerprint") == (
-            family.fingerprint
-        )
+        try:
+            same = json.loads(marker.read_text()).get("fingerprint") == family.fingerprint
+        except (OSError, ValueError, AttributeError):  # none yet, or not the toolkit's
+            same = False
         if not same:
             for entry in folder.iterdir():
                 entry.unlink() if entry.is_file() else shutil.rmtree(entry)
@@ -197,20 +274,14 @@ def _store(folder: Path, family: MapFamily) -> Iterator[set[int]]:
             }
             write_atomically(marker, lambda p: p.write_text(json.dumps(record)))
         try:
-            yield {
-                int(f.stem.split("-")[1])
-                for f in folder.glob("chunk-*.parquet")
-                if f.stem[6:].isdigit()
-            }
+            yield ChunkStore(folder, family, typed)
+        except SchedulerLostError:
+            raise
         except RedundancyError:
             shutil.rmtree(folder)
             raise
     finally:
         os.close(descriptor)
-
-
-def chunk_path(folder: Path, chunk: int) -> Path:
-    return folder / f"chunk-{chunk:06d}.parquet"
 
 
 def columns(family: MapFamily, task_axes: str) -> dict[str, str]:
@@ -310,6 +381,9 @@ def connect(scheduler: str, timeout: float = CONNECT_TIMEOUT):
             "listens there); start one with `dask scheduler` and give its address, e.g. "
             "tcp://HOST:8786"
         )
+    # a scheduler lost later is told in one line (`SchedulerLostError`), not in the client's log of
+    # its attempts to reconnect, with tracebacks
+    logging.getLogger("distributed.client").setLevel(logging.CRITICAL)
     try:
         return Client(scheduler, timeout=timeout, set_as_default=False)
     except OSError:  # gone since it answered
@@ -338,20 +412,15 @@ def design_map(
         isinstance(workers, bool) or not isinstance(workers, int) or not workers >= 1
     ):
         raise InvalidInputError(f"workers must be a whole number ≥ 1; got {workers!r}")
+    typed = columns(family, family.robot_for(Design()).task_axes)
     with contextlib.ExitStack() as stack:
-        done: set[int] = set()
-        folder = None if store is None else Path(store)
-        if folder is not None:
-            done = stack.enter_context(_store(folder, family))
-        typed = columns(family, family.robot_for(Design()).task_axes)
-        frames: dict[int, pd.DataFrame] = {
-            c: pd.read_parquet(chunk_path(folder, c)).astype(typed) for c in sorted(done) if folder
-        }
-        pending = [c for c in range(family.chunks) if c not in done]
+        chunks = None if store is None else stack.enter_context(_store(Path(store), family, typed))
+        frames = {} if chunks is None else dict(chunks.kept)
+        pending = [c for c in range(family.chunks) if c not in frames]
         bar = stack.enter_context(
             tqdm(
                 total=len(family),
-                initial=sum(len(family.problems(c)) for c in done),
+                initial=sum(frame["problem"].nunique() for frame in frames.values()),
                 unit="problem",
                 desc=family.name,
                 disable=not progress,
@@ -371,13 +440,24 @@ def design_map(
                 client.submit(solve_chunk, shared, c, key=f"map-{run}-chunk-{c}"): c
                 for c in pending
             }
-            for future in as_completed(futures, loop=client.loop):
-                chunk = futures[future]
-                frame = future.result()
-                if folder is not None:
-                    write_atomically(chunk_path(folder, chunk), frame.to_parquet)
-                frames[chunk] = frame
-                bar.update(frame["problem"].nunique())
+            try:
+                for future in as_completed(futures, loop=client.loop):
+                    chunk = futures[future]
+                    frame = future.result()
+                    if chunks is not None:
+                        chunks.add(chunk, frame)
+                    frames[chunk] = frame
+                    bar.update(frame["problem"].nunique())
+            except (OSError, CancelledError) as error:  # the scheduler or its connection lost
+                raise SchedulerLostError(
+                    f"map {family.name!r}: the Dask scheduler was lost after {len(frames)} of "
+                    f"{family.chunks} chunks ({type(error).__name__}); "
+                    + (
+                        "its finished chunks are kept: run the same command again to solve the rest"
+                        if chunks is not None
+                        else "nothing was kept"
+                    )
+                ) from None
         table = pd.concat([frames[c] for c in sorted(frames)], ignore_index=True)
         if not table["reachable"].any():  # final: the store goes with it
             raise InvalidInputError(
