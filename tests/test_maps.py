@@ -572,3 +572,25 @@ def test_a_scheduler_lost_mid_map_ends_in_one_line_and_keeps_the_finished_chunks
     rerun = run_cli("map", str(family), "--workers", "1", "--out", str(tmp_path / "out"))
     assert rerun.returncode == 0, rerun.stderr
     assert f"{len(kept)}/24" in rerun.stderr
+
+
+def test_ctrl_c_to_a_local_maps_process_group_ends_in_one_line(tmp_path):
+    """A Ctrl-C at a terminal reaches the command and its local workers alike: the command
+    alone answers, in one line, and closes them."""
+    family = write(tmp_path, "ws.toml", WORKSPACE.format(chunk=1, nx=8))
+    store = tmp_path / ".out.chunks"
+    command = ["map", str(family), "--workers", "2", "--out", str(tmp_path / "out"), "--quiet"]
+    process = subprocess.Popen(
+        [sys.executable, "-m", "redundancy.cli", *command],
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    deadline = time.monotonic() + 120  # guards a hang only
+    while not list(store.glob("chunk-*.parquet")) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    os.killpg(process.pid, signal.SIGINT)
+    _, stderr = process.communicate(timeout=60)
+    assert process.returncode == 130, stderr
+    assert stderr == "redundancy: interrupted\n"
+    assert list(store.glob("chunk-*.parquet"))

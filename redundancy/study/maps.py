@@ -68,6 +68,10 @@ from redundancy.study.output import write_atomically
 
 CONNECT_TIMEOUT = 10.0  # s a scheduler has to answer
 FAMILY_FILE = "family.json"
+# run in each local worker process as it starts: a Ctrl-C at a terminal reaches the whole
+# process group, and the map, not each of its workers with a traceback of its own, ends in one
+# line and closes them
+IGNORE_INTERRUPTS = "import signal\nsignal.signal(signal.SIGINT, signal.SIG_IGN)\n"
 MANIFEST = "chunks.jsonl"  # a line per finished chunk: {"chunk", "problems", "sha256"}
 
 
@@ -481,6 +485,7 @@ def local_client(workers: int | None):
             processes=True,
             dashboard_address="127.0.0.1:0",  # a free port: two maps can run at once
             silence_logs=logging.CRITICAL,  # a worker's restarts are not the user's business
+            preload=[IGNORE_INTERRUPTS],
         ) as cluster,
         Client(cluster, set_as_default=False) as client,
     ):
