@@ -581,7 +581,7 @@ def test_ctrl_c_to_a_local_maps_process_group_ends_in_one_line(tmp_path):
     store = tmp_path / ".out.chunks"
     command = ["map", str(family), "--workers", "2", "--out", str(tmp_path / "out"), "--quiet"]
     process = subprocess.Popen(
-        [sys.executable, "-m", "redundancy.cli", *command],
+        [sys.executable, "-m", "redundancy", *command],
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
