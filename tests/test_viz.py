@@ -5,7 +5,6 @@ import base64
 import json
 import os
 import re
-import shutil
 import signal
 import subprocess
 import sys
@@ -14,12 +13,14 @@ import time
 import urllib.request
 from pathlib import Path
 
+import browser
 import meshcat
 import numpy as np
 import pinocchio as pin
 import pytest
 import umsgpack
 import zmq
+from lxml import html
 from PIL import Image
 from sampling import random_configurations
 
@@ -314,39 +315,13 @@ def test_study_writes_a_playback_per_segment_for_the_best_start(tmp_path, capsys
         assert [c["type"] for c in commands].count("set_animation") == 1
 
 
-def chromium():
-    found = shutil.which("chromium")
-    if found is None:
-        if os.environ.get("REQUIRE_BROWSER") == "1":
-            pytest.fail(
-                "REQUIRE_BROWSER=1 but chromium is not installed (apt-get install chromium)"
-            )
-        pytest.skip("chromium is not installed (apt-get install chromium); REQUIRE_BROWSER=1 fails")
-    return found
-
-
 def screenshots(page, times, folder):
     """Headless Chromium's screenshots of ``page`` paused at each time (s), RGB (H, W, 3)."""
     runs, shots = [], []
     for i, t in enumerate(times):
         shot = folder / f"shot{i}.png"
-        command = [
-            chromium(),
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--enable-unsafe-swiftshader",
-            "--disable-quic",
-            "--no-first-run",
-            "--disable-background-networking",
-            "--disable-component-update",
-            "--disable-sync",
-            f"--user-data-dir={folder / f'profile{i}'}",
-            "--window-size=1024,768",
-            "--virtual-time-budget=3000",
-            f"--screenshot={shot}",
-            f"{page.as_uri()}?t={t}",
-        ]
+        options = ["--virtual-time-budget=3000", f"--screenshot={shot}"]
+        command = browser.command(f"{page.as_uri()}?t={t}", folder / f"profile{i}", *options)
         runs.append(subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE))
         shots.append(shot)
     for run in runs:
@@ -386,6 +361,38 @@ def test_exported_page_draws_the_crane_and_animates_it_in_a_browser(crane, motio
         assert 0.03 < mask.mean() < 0.5
     changed = np.abs(first - later).max(axis=2) > 24
     assert changed.mean() > 0.02
+
+
+def test_the_page_shows_the_time_and_each_actuator_red_at_its_stroke_limit(crane, tmp_path):
+    """From x3init at the top of x3's stroke: after virtual time, at t = 0 the page's clock
+    reads "t = 0.00 s" and x3's gauge is red and says why; at t = 4 s x3 is back inside its
+    stroke and no gauge is red. Every gauge gives its actuator's value and speed in m."""
+    segment = WorkCycle.from_toml(crane.task_file, dimension=crane.m)["1-2"]
+    q = configuration_at(crane, segment.start, {"x3": crane.actuators["x3"].upper})
+    motion = simulate(crane, VELOCITY.resolver, segment, q[None])
+    page = export_html(motion, tmp_path / "limit.html")
+    playback = Playback(motion)
+    for t, red in ((0.0, {"x3"}), (4.0, set())):
+        shown = html.fromstring(
+            browser.dom(f"{page.as_uri()}?t={t}", tmp_path / f"{t}", "--virtual-time-budget=3000")
+        )
+        assert shown.get_element_by_id("clock").text_content() == f"t = {t:.2f} s"
+        heading = shown.get_element_by_id("heading").text_content()
+        assert heading == f"hiab031: segment 1-2, {VELOCITY.resolver.name}"
+        i = playback.samples[np.searchsorted(playback.t[playback.samples], t + 1e-6) - 1]
+        at_limit = set()
+        for row, name in zip(
+            shown.xpath("//div[@class='gauge']"), crane.actuators.names, strict=True
+        ):
+            label, _, value = row.xpath("span")  # name, stroke gauge, value
+            j = crane.actuators.names.index(name)
+            assert label.text_content() == name
+            speed = f"{motion.x_dot[0, i, j]:.3f} m/s"
+            assert value.text_content().startswith(f"{motion.x[0, i, j]:.3f} m, ẋ = {speed}")
+            if "at-limit" in value.get("class", ""):
+                assert value.text_content().endswith("at its stroke limit")
+                at_limit.add(name)
+        assert at_limit == red
 
 
 def children(pid):
