@@ -540,3 +540,36 @@ def test_with_two_held_actuators_the_peak_figure_is_a_map_over_their_box(tmp_pat
         np.testing.assert_allclose(np.ravel(star[0].get_xydata()), search.best.values)
     paths = write_figures(study, tmp_path)
     assert (tmp_path / "fig4a_peak_velocity.png") in paths
+
+
+def test_every_axis_of_the_study_figures_names_its_unit(crane):
+    """Each figure of a study with its cycle section: every axis label ends with its unit in
+    brackets (a cycle count and colour bars aside); Fig. 4c shares Fig. 4b's velocity scale;
+    Fig. 5a's legend names the segments with no feasible start and explains its encodings."""
+    from matplotlib.legend import Legend
+
+    from redundancy import ENERGY, WorkCycle, run_study
+    from redundancy.viz.plots import study_figures
+
+    cycle = WorkCycle.from_toml(crane.task_file, dimension=crane.m)
+    study = run_study(
+        crane, cycle, (VELOCITY, ENERGY), samples=8, bound=False, progress=False, cycles=2
+    )
+    figures = study_figures(study)
+    assert {"cycle_strokes.png", "cycle_drift.png", "hydraulics_best_velocity_1-2.png"} <= set(
+        figures
+    )
+    for name, figure in figures.items():
+        for axes in figure.axes:
+            if axes.get_label() == "<colorbar>":
+                continue
+            for label in (axes.get_xlabel(), axes.get_ylabel()):
+                assert label in ("", "cycle") or re.search(r"\(.+\)$", label), (name, label)
+    optimal, other = (figures[f"fig4{k}_velocity_1-2.png"] for k in ("b_best", "c_nonoptimal"))
+    assert optimal.axes[1].get_ylim() == other.axes[1].get_ylim()
+    peaks = figures["fig5a_peak_energy.png"].axes[0]
+    legends = [a for a in peaks.get_children() if isinstance(a, Legend)]
+    said = [text.get_text() for legend in legends for text in legend.get_texts()]
+    infeasible = [s.segment.name for s in study.sweeps["energy"] if not s.feasible]
+    assert infeasible and all(f"segment {n}: no feasible start" in said for n in infeasible)
+    assert {"every reachable start", "keeps every stroke", "feasible range"} <= set(said)

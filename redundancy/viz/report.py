@@ -65,16 +65,17 @@ CAPTIONS = (
     ),
     (
         "cycle_strokes*",
-        "Each actuator over one work cycle: each strategy's first cycle (solid: free, dashed: "
-        "drift-free), the per-segment plan's best motions dotted (they jump at the corners by "
-        "the self-motions the plan leaves out); thick: the held actuator; thin dashed: stroke "
-        "limits; grey lines: the corners between segments. Below, the velocities.",
+        "Each actuator over one work cycle, one colour each: each strategy's first cycle "
+        "(solid: free, dashed: drift-free), the per-segment plan's best motions dotted (they "
+        "jump at the corners by the self-motions the plan leaves out); thick: the held "
+        "actuator; thin dashed: stroke limits; grey lines: the corners between the segments "
+        "named above. Below, the velocities.",
     ),
     (
         "cycle_drift*",
         "Above, how far each actuator ends a cycle from where it began (|drift| per cycle, log "
-        "scale), per strategy, the closing threshold dotted; below, the held actuator at each "
-        "cycle's start, on a scale fitted to its change.",
+        "scale), per strategy, the closing threshold dotted; below, how far the held actuator "
+        "at each cycle's start has moved from its first value.",
     ),
     (
         "cycle_return_map*",
