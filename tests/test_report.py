@@ -77,6 +77,7 @@ def test_every_segment_and_strategy_of_the_report_appears_in_a_table(study, rend
 
 def test_every_table_heading_of_a_quantity_names_its_unit(rendered):
     words = ("peak", "bound (", "energy", "pressure", "flow", "duration", "drift", "length", "Δ")
+    words += ("start", "limit cycle")
     headings = [h.text_content() for h in rendered.xpath("//th")]
     quantities = [h for h in headings if any(w in h for w in words) and "%" not in h]
     assert quantities
@@ -117,7 +118,7 @@ def test_a_cycle_folder_gets_its_own_index(study, tmp_path):
     page = html.fromstring(write_index(tmp_path).read_text())
     assert "work cycle" in page.xpath("//h1")[0].text_content()
     drift = [h.text_content() for h in page.xpath("//th") if "drift" in h.text_content()]
-    assert "largest drift, last cycle (m)" in drift
+    assert "largest drift, last cycle (m, or rad if rotary)" in drift
     assert page.xpath("//img/@src") == ["cycle_drift.png"]
 
 

@@ -588,11 +588,16 @@ class Recording:
     def get_scene(self) -> str:
         viewer = Path(_meshcat().__file__).parent / "viewer" / "dist" / "main.min.js"
         commands = ",\n".join(f'"{base64.b64encode(c).decode()}"' for c in self.commands)
-        # Commands are decoded in order and synchronously (meshcat's own page fetches each one
-        # asynchronously), so that the scene and animation exist when the time is chosen. The
-        # viewer's script goes in last, so that no marker is looked for inside it.
-        text = PAGE.replace("@TITLE@", html.escape(self.title)).replace("@COMMANDS@", commands)
-        shown = "" if self.overlay is None else OVERLAY.replace("@DATA@", json.dumps(self.overlay))
+        # The page (playback.html) and what it shows over the scene (overlay.html) hold
+        # @-markers for what each page fills in; the viewer's script goes in last, so that no
+        # marker is looked for inside it.
+        here = Path(__file__).parent
+        text = (here / "playback.html").read_text(encoding="utf-8")
+        text = text.replace("@TITLE@", html.escape(self.title)).replace("@COMMANDS@", commands)
+        shown = ""
+        if self.overlay is not None:
+            shown = (here / "overlay.html").read_text(encoding="utf-8")
+            shown = shown.replace("@DATA@", json.dumps(self.overlay))
         return text.replace("@OVERLAY@", shown).replace("@VIEWER@", viewer.read_text())
 
 
@@ -604,122 +609,6 @@ def _extension(value):
     if isinstance(value, umsgpack.Ext):
         return msgpack.ExtType(value.type, value.data)
     raise TypeError(f"cannot encode {type(value).__name__} for meshcat")
-
-
-PAGE = """<!DOCTYPE html>
-<html>
-<head>
-<meta charset="utf-8">
-<title>@TITLE@</title>
-<style>body { margin: 0; } #meshcat-pane { width: 100vw; height: 100vh; overflow: hidden; }
-</style>
-</head>
-<body>
-<div id="meshcat-pane"></div>
-<script>
-@VIEWER@
-</script>
-<script>
-var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
-for (const command of [
-@COMMANDS@
-]) {
-  viewer.handle_command_bytearray(Uint8Array.from(atob(command), c => c.charCodeAt(0)));
-}
-const time = new URLSearchParams(window.location.search).get("t");
-if (time !== null) {
-  viewer.animator.pause();
-  viewer.animator.seek(Number(time));
-  viewer.animator.display_progress(Number(time));
-}
-</script>
-@OVERLAY@
-</body>
-</html>
-"""
-
-# The title, the time, play and pause, a time slider and a gauge per actuator, over the scene;
-# they follow the animation's time (meshcat's animator), ten times a second.
-OVERLAY = """<style>
-#overlay { position: fixed; inset: 0; pointer-events: none; font: 14px system-ui, sans-serif;
-           color: #1d2329; }
-#overlay > * { pointer-events: auto; background: rgba(255, 255, 255, 0.85); position: absolute; }
-#heading { top: 0; left: 0; padding: 6px 12px; font-size: 16px; font-weight: 600; }
-#gauges { top: 36px; left: 0; padding: 6px 12px; display: grid; gap: 3px 8px;
-          grid-template-columns: auto 120px auto; align-items: center; font-size: 13px; }
-.bar { height: 10px; background: #dde2e8; position: relative; border: 1px solid #9aa3ad; }
-.fill { position: absolute; top: -3px; width: 3px; height: 16px; background: #3a6ea5; }
-.at-limit { color: #d62728; font-weight: 600; }
-.bar.at-limit { border-color: #d62728; background: #f6c9c9; }
-.fill.at-limit { background: #d62728; }
-.gauge { display: contents; }
-#controls { bottom: 0; left: 0; right: 0; padding: 8px 12px; display: flex; gap: 12px;
-            align-items: center; }
-#controls input { flex: 1; } #controls button { width: 5em; }
-</style>
-<div id="overlay">
-<div id="heading"></div>
-<div id="gauges"></div>
-<div id="controls"><button id="play" type="button">pause</button>
-<input id="slider" type="range" min="0" step="0.01"><span id="clock">t = 0.00 s</span>
-<span id="scale"></span></div>
-</div>
-<script>
-const shown = @DATA@;
-const animator = viewer.animator;
-const slider = document.getElementById("slider"), clock = document.getElementById("clock");
-const button = document.getElementById("play");
-document.getElementById("heading").textContent = shown.title;
-document.getElementById("scale").textContent = `grid squares ${shown.grid} m`;
-slider.max = shown.t[shown.t.length - 1];
-const digits = unit => unit === "rad" ? 4 : 3;
-const gauges = shown.names.map((name, j) => {
-  const row = document.createElement("div");
-  row.className = "gauge";
-  const stroke = shown.lower[j] === null || shown.upper[j] === null ? "" :
-    `stroke ${shown.lower[j].toFixed(3)}–${shown.upper[j].toFixed(3)} ${shown.units[j]}`;
-  row.innerHTML = `<span class="name"></span><span class="bar" title="${stroke}">` +
-    `<span class="fill"></span></span><span class="value"></span>`;
-  row.querySelector(".name").textContent = name;
-  document.getElementById("gauges").appendChild(row);
-  return row;
-});
-function sample(t) {
-  let low = 0, high = shown.t.length - 1;
-  while (low < high) {
-    const middle = (low + high + 1) >> 1;
-    if (shown.t[middle] <= t + 1e-6) low = middle; else high = middle - 1;
-  }
-  return low;
-}
-function update() {
-  const t = animator.time, i = sample(t);
-  clock.textContent = `t = ${t.toFixed(2)} s`;
-  if (document.activeElement !== slider) slider.value = t;
-  button.textContent = animator.playing ? "pause" : "play";
-  gauges.forEach((row, j) => {
-    const x = shown.x[i][j], unit = shown.units[j], lower = shown.lower[j], upper = shown.upper[j];
-    const part = lower === null || upper === null ? 0.5 : (x - lower) / (upper - lower);
-    row.querySelector(".fill").style.left = `${100 * Math.min(1, Math.max(0, part))}%`;
-    const alarm = shown.alarm[i][j];
-    row.querySelector(".value").textContent = `${x.toFixed(digits(unit))} ${unit}, ` +
-      `ẋ = ${shown.x_dot[i][j].toFixed(3)} ${unit}/s` + (alarm ? ` — at its ${alarm} limit` : "");
-    row.querySelectorAll("span").forEach(s => s.classList.toggle("at-limit", alarm !== ""));
-  });
-}
-button.addEventListener("click", () => {
-  if (animator.playing) animator.pause(); else animator.play();
-  update();
-});
-slider.addEventListener("input", () => {
-  animator.pause();
-  animator.seek(Number(slider.value));
-  animator.display_progress(Number(slider.value));
-  update();
-});
-update();
-setInterval(update, 100);
-</script>"""
 
 
 def page(motion: Trajectory, points: np.ndarray | None = None, strategy: str | None = None) -> str:

@@ -21,7 +21,7 @@ import pandas as pd
 from redundancy.resolution.objectives import OBJECTIVES
 from redundancy.study.output import write_atomically
 
-HELD_UNIT = "m; rad for a rotary actuator"  # the report gives actuator values in SI units
+UNIT = "m, or rad if rotary"  # actuator values: the report gives them in SI units, not which
 
 # What each figure shows and how to read it, by file-name pattern; the first match captions it.
 CAPTIONS = (
@@ -198,7 +198,7 @@ def _study_page(report: dict) -> tuple[str, str]:
         f"{_e(' and '.join(s['objective'] for s in studies))} objectives: payload "
         f"{report['payload']:g} kg, {report['samples']} samples, the {_e(report['method'])} "
         f"search, strokes checked: {_e(', '.join(report['checked_actuators']))}. Held values "
-        f"are in {HELD_UNIT}.</p><ul>{''.join(lines)}</ul></div>\n"
+        f"are in {UNIT}.</p><ul>{''.join(lines)}</ul></div>\n"
     )
     body = summary + "<h2>Improved start and bound, per segment</h2>\n"
     for study in studies:
@@ -208,8 +208,8 @@ def _study_page(report: dict) -> tuple[str, str]:
             {
                 "segment": s["name"],
                 "held": s["held_actuator"],
-                "feasible starts": _range(s["feasible_range"]),
-                "best start": _number(s["best"] and s["best"]["value"]),
+                f"feasible starts ({UNIT})": _range(s["feasible_range"]),
+                f"best start ({UNIT})": _number(s["best"] and s["best"]["value"]),
                 f"peak {measure}": _number(s["best"] and s["best"]["peak"]),
                 f"bound {measure}": _number(s["bound"] and s["bound"]["peak"]),
                 "gap to bound (%)": _number(s["gap_percent"], 3),
@@ -224,7 +224,7 @@ def _study_page(report: dict) -> tuple[str, str]:
         {
             "segment": r["segment"],
             "strategy": r["strategy"],
-            "start": _number(r["start_value"]),
+            f"start ({UNIT})": _number(r["start_value"]),
             "peak ẋᵀẋ (m²/s²)": _number(r["peak_velocity_norm"]),
             "peak ẋᵀ M_H ẋ (J)": _number(r["peak_kinetic"]),
             "largest tracking error (m)": _number(r.get("max_tracking_error"), 2),
@@ -233,7 +233,7 @@ def _study_page(report: dict) -> tuple[str, str]:
         for r in report["comparison"]
     ]
     body += "<h2>Strategies compared</h2>\n" + _table(
-        rows, f"Every strategy on every segment; start: the held actuator, in {HELD_UNIT}."
+        rows, "Every strategy on every segment; start: the held actuator's."
     )
     body += _hydraulics(report["comparison"], report.get("energy_bounds"))
     cycle = report.get("cycle") or {}
@@ -305,7 +305,7 @@ def _cycle_body(cycle: dict) -> str:
     text = (
         f'<div class="summary"><p>The cycle {_e(path)} ({cycle["duration_s"]:.2f} s) run '
         f"continuously, {cycle['cycles']} cycles, {_e(cycle['objective'])} objective, held "
-        f"actuator {_e(held)} (values in {HELD_UNIT}). Whole-cycle improved start: "
+        f"actuator {_e(held)} (values in {UNIT}). Whole-cycle improved start: "
         + (
             f"{held} = {best['value']:.4g} (feasible {_range(whole['feasible_range'])}), peak "
             f"{measure} {best['peak']:.4g}."
@@ -326,14 +326,14 @@ def _cycle_body(cycle: dict) -> str:
     ]
     text += _table(segments, "The cycle's segments.")
     plan = [
-        {"segment": s["name"], "best start": _number(s["best"] and s["best"]["value"])}
+        {"segment": s["name"], f"best start ({UNIT})": _number(s["best"] and s["best"]["value"])}
         | {f"peak {measure}": _number(s["best"] and s["best"]["peak"])}
         for s in per["segments"]
     ]
     text += _table(plan, "The paper's per-segment plan: each segment from its own best start.")
     corners = [
         {"corner": f"{c['after']} → {c['before']}"}
-        | {f"Δ{name} (m)": _number(d, 3) for name, d in c["delta"].items()}
+        | {f"Δ{name} ({UNIT})": _number(d, 3) for name, d in c["delta"].items()}
         | {
             "time (s)": _number(c["time_s"], 3),
             "held speed (m/s)": _number(c["speed"]),
@@ -359,8 +359,8 @@ def _cycle_body(cycle: dict) -> str:
                 f"peak {measure}": _number(s["objective"]),
                 "LS energy per cycle (kJ)": _number(s.get("ls_energy_kj")),
                 "CP energy per cycle (kJ)": _number(s.get("cp_energy_kj")),
-                "largest drift, first cycle (m)": _number(drift[0], 3),
-                "largest drift, last cycle (m)": _number(drift[-1], 3),
+                f"largest drift, first cycle ({UNIT})": _number(drift[0], 3),
+                f"largest drift, last cycle ({UNIT})": _number(drift[-1], 3),
                 "tool drift, last cycle (m)": _number(tool[-1], 3),
                 "first cycle past a stroke": _number(repetition.get("first_cycle_past_a_limit")),
                 "settling": repetition.get("settling", "–"),
@@ -376,7 +376,7 @@ def _cycle_body(cycle: dict) -> str:
     mapped = cycle.get("return_map") or {}
     points = [
         {
-            f"limit cycle {held}": _number(p["value"], 5),
+            f"limit cycle {held} ({UNIT})": _number(p["value"], 5),
             "slope P'": _number(p["slope"], 3),
             "stable": _number(p["stable"]),
             "keeps the strokes": _number(p.get("keeps_the_strokes")),
