@@ -46,6 +46,13 @@ def unit(actuators, names=None, rate: str = "") -> str:
     return f"m{rate}; rad{rate} for {', '.join(rotary)}"
 
 
+def measure_unit(objective, actuators) -> str:
+    """The objective's unit; ẋᵀẋ of actuators that all turn is in rad²/s², not m²/s²."""
+    if objective.name == "velocity" and all(a.rotary for a in actuators):
+        return objective.unit.replace("m", "rad")
+    return objective.unit
+
+
 def peaks_figure(
     searches: tuple[SearchResult, ...], title: str, chosen: tuple[SearchResult, ...] | None = None
 ):
@@ -83,7 +90,8 @@ def peaks_figure(
             axes.plot(choice.best.values[0], choice.best.peak, "*", ms=12, color=colour)
     objective, held = searches[0].objective, searches[0].held[0]
     axes.set_xlabel(f"initial {held} ({unit(searches[0].robot.actuators, [held])})")
-    axes.set_ylabel(f"peak {objective.label} ({objective.unit})")
+    measure = measure_unit(objective, searches[0].robot.actuators)
+    axes.set_ylabel(f"peak {objective.label} ({measure})")
     axes.set_title(title)
     axes.grid(alpha=0.3)
     grey = "0.35"
@@ -103,10 +111,10 @@ def peaks_figure(
 def peak_map_figure(
     searches: tuple[SearchResult, ...], title: str, chosen: tuple[SearchResult, ...] | None = None
 ):
-    """With two held actuators: per segment, the peak of the objective over the box of their
-    start values, at every reachable sample (colour), the feasible set outlined (the level ½
-    of the samples' feasibility, interpolated over their triangulation), feasible samples
-    filled and the others hollow, the best start a star (``chosen``'s, by default the
+    """With two or more held actuators: per segment, the peak of the objective over the box of
+    the first two's start values, at every reachable sample (colour), the feasible set outlined
+    (the level ½ of the samples' feasibility, interpolated over their triangulation), feasible
+    samples filled and the others hollow, the best start a star (``chosen``'s, by default the
     search's own)."""
     plt = pyplot()
     count = len(searches)
@@ -123,16 +131,19 @@ def peak_map_figure(
             pane.tricontour(x, y, feasible.astype(float), levels=[0.5], colors="crimson")
         if choice.best is not None:
             pane.plot(*choice.best.values, "*", ms=14, color="crimson")
-        box = [search.robot.actuators[h] for h in held]
+        actuators = search.robot.actuators
+        box = [actuators[h] for h in held]
         pane.set_xlim(box[0].lower, box[0].upper)
         pane.set_ylim(box[1].lower, box[1].upper)
-        actuators = search.robot.actuators
         pane.set_xlabel(f"initial {held[0]} ({unit(actuators, [held[0]])})")
         pane.set_ylabel(f"initial {held[1]} ({unit(actuators, [held[1]])})")
         pane.set_title(f"segment {search.segment.name}")
         if feasible.any():
-            figure.colorbar(shown, ax=pane, label=f"peak {objective.label} ({objective.unit})")
-    figure.suptitle(f"{title}; red: the feasible set's edge, ★ best, hollow: not feasible")
+            measure = measure_unit(objective, actuators)
+            figure.colorbar(shown, ax=pane, label=f"peak {objective.label} ({measure})")
+    rest = held[2:]  # drawn over the first two; the others vary among the samples
+    over = f"\nover {held[0]} and {held[1]}; {', '.join(rest)} as sampled" if rest else ""
+    figure.suptitle(f"{title}; red: the feasible set's edge, ★ best, hollow: not feasible{over}")
     figure.tight_layout()
     return figure
 
