@@ -510,7 +510,9 @@ def test_with_two_held_actuators_the_peak_figure_is_a_map_over_their_box(tmp_pat
     from matplotlib.collections import PathCollection
 
     from redundancy import WorkCycle, load_robot, run_study
+    from redundancy.study.study import write_report
     from redundancy.viz.plots import peak_map_figure, write_figures
+    from redundancy.viz.report import write_index
 
     robot = load_robot("hiab031", task_axes="x")
     task = tmp_path / "line.toml"
@@ -540,6 +542,10 @@ def test_with_two_held_actuators_the_peak_figure_is_a_map_over_their_box(tmp_pat
         np.testing.assert_allclose(np.ravel(star[0].get_xydata()), search.best.values)
     paths = write_figures(study, tmp_path)
     assert (tmp_path / "fig4a_peak_velocity.png") in paths
+    write_report(study, tmp_path / "report.json")  # its index gives each held actuator's start
+    page = write_index(tmp_path).read_text()
+    best = ", ".join(f"{v:.4g}" for v in searches[0].best.values)
+    assert "<td>x2, x3</td>" in page and f"<td>{best}</td>" in page
 
 
 def test_every_axis_of_the_study_figures_names_its_unit(crane):

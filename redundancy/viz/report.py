@@ -139,7 +139,10 @@ def _e(value) -> str:
 
 
 def _number(value, digits: int = 4) -> str:
-    """A number to ``digits`` significant digits; a missing one as a dash."""
+    """A number to ``digits`` significant digits (several, one per held actuator, joined); a
+    missing one as a dash."""
+    if isinstance(value, list):
+        return ", ".join(_number(v, digits) for v in value)
     if value is None:
         return "–"
     if isinstance(value, bool):
@@ -150,7 +153,12 @@ def _number(value, digits: int = 4) -> str:
 
 
 def _range(pair) -> str:
-    return "none" if pair is None else f"{pair[0]:.4g} – {pair[1]:.4g}"
+    """A feasible range [low, high], or one per held actuator, [[low, high], ...]."""
+    if pair is None:
+        return "none"
+    if isinstance(pair[0], list):
+        return "; ".join(_range(p) for p in pair)
+    return f"{pair[0]:.4g} – {pair[1]:.4g}"
 
 
 def _table(rows: list[dict], caption: str = "") -> str:
@@ -174,7 +182,7 @@ def _study_page(report: dict) -> tuple[str, str]:
     title = f"{report['robot']}: {report['task']}"
     studies = report["studies"]
     segments = [s["name"] for s in studies[0]["segments"]] if studies else []
-    held = studies[0]["segments"][0]["held_actuator"] if segments else "–"
+    held = _number(studies[0]["segments"][0]["held_actuator"]) if segments else "–"
     lines = []
     for study in studies:
         unit = _unit(study["objective"])
@@ -189,7 +197,7 @@ def _study_page(report: dict) -> tuple[str, str]:
             above = "" if gap is None else f", {round(gap, 1) + 0.0} % above the bound"
             lines.append(
                 f"<li>{study['objective']}, segment {_e(s['name'])}: improved start {held} = "
-                f"{s['best']['value']:.4g}, peak {study['measure']} "
+                f"{_number(s['best']['value'])}, peak {study['measure']} "
                 f"{s['best']['peak']:.4g} {unit}{above}</li>"
             )
     summary = (
@@ -207,7 +215,7 @@ def _study_page(report: dict) -> tuple[str, str]:
         rows = [
             {
                 "segment": s["name"],
-                "held": s["held_actuator"],
+                "held": _number(s["held_actuator"]),
                 f"feasible starts ({UNIT})": _range(s["feasible_range"]),
                 f"best start ({UNIT})": _number(s["best"] and s["best"]["value"]),
                 f"peak {measure}": _number(s["best"] and s["best"]["peak"]),
@@ -295,7 +303,7 @@ def _cycle_page(report: dict) -> tuple[str, str]:
 
 def _cycle_body(cycle: dict) -> str:
     """The work cycle: plans, corners, strategies with their drift, the return map."""
-    held = cycle["held_actuator"]
+    held = _number(cycle["held_actuator"])
     unit = _unit(cycle["objective"])
     measure = f"{cycle['measure']} ({unit})"
     whole = cycle["whole_cycle"]
@@ -307,7 +315,7 @@ def _cycle_body(cycle: dict) -> str:
         f"continuously, {cycle['cycles']} cycles, {_e(cycle['objective'])} objective, held "
         f"actuator {_e(held)} (values in {UNIT}). Whole-cycle improved start: "
         + (
-            f"{held} = {best['value']:.4g} (feasible {_range(whole['feasible_range'])}), peak "
+            f"{held} = {_number(best['value'])} (feasible {_range(whole['feasible_range'])}), peak "
             f"{measure} {best['peak']:.4g}."
             if best
             else f"none keeps the limits ({_e(whole.get('closest_violation'))})."
