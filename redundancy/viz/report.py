@@ -201,9 +201,9 @@ def _study_page(report: dict) -> tuple[str, str]:
                 f"{s['best']['peak']:.4g} {unit}{above}</li>"
             )
     summary = (
-        f'<div class="summary"><p>The improved start of the held actuator <b>{_e(held)}</b> '
-        f"on segments {_e(', '.join(segments))} of the task {_e(report['task'])!r} for the "
-        f"{_e(' and '.join(s['objective'] for s in studies))} objectives: payload "
+        f'<div class="summary"><p>The improved start of the held <b>{_e(held)}</b> on '
+        f"segments {_e(', '.join(segments))} of the task {_e(report['task'])!r}, objectives "
+        f"{_e(' and '.join(s['objective'] for s in studies))}: payload "
         f"{report['payload']:g} kg, {report['samples']} samples, the {_e(report['method'])} "
         f"search, strokes checked: {_e(', '.join(report['checked_actuators']))}. Held values "
         f"are in {UNIT}.</p><ul>{''.join(lines)}</ul></div>\n"
