@@ -579,3 +579,31 @@ def test_every_axis_of_the_study_figures_names_its_unit(crane):
     infeasible = [s.segment.name for s in study.sweeps["energy"] if not s.feasible]
     assert infeasible and all(f"segment {n}: no feasible start" in said for n in infeasible)
     assert {"every reachable start", "keeps every stroke", "feasible range"} <= set(said)
+
+
+def test_a_gauge_names_the_circuit_limit_a_cylinder_passes():
+    """The M_H-weighted law from the default start of 1-2 drives the telescope faster than its
+    cylinder's maximum speed, then past its stroke: at each shown sample each actuator's alarm
+    is "speed" past the cylinder's speed, else "pressure" past the load pressure the supply
+    serves, else "stroke" within 1 mm of a stroke end or past it, else none."""
+    from redundancy import ENERGY
+    from redundancy.planning.starts import default_start
+
+    robot = load_robot("hiab031", payload=100.0)
+    segment = WorkCycle.from_toml(robot.task_file, dimension=robot.m)["1-2"]
+    _, q = default_start(robot, segment)
+    motion = simulate(robot, ENERGY.resolver, segment, q[None])
+    playback = Playback(motion)
+    shown = playback.samples
+    circuit = robot.circuit()
+    x, x_dot = motion.x[0, shown], motion.x_dot[0, shown]
+    lower, upper = robot.actuators.lower, robot.actuators.upper
+    expected = np.where(np.minimum(x - lower, upper - x) <= 1e-3, "stroke", "").astype(object)
+    cylinders = circuit.columns
+    pressure = motion.flows.load[0, shown] > circuit.supply.available(circuit.relief)
+    speed = np.abs(x_dot[:, cylinders]) > circuit.max_speeds
+    expected[:, cylinders] = np.where(
+        speed, "speed", np.where(pressure, "pressure", expected[:, cylinders])
+    )
+    assert (expected == "speed").any() and (expected == "stroke").any()
+    assert playback.alarms().tolist() == expected.tolist()
