@@ -152,6 +152,11 @@ def _number(value, digits: int = 4) -> str:
     return str(value)
 
 
+def _percent(value) -> str:
+    """A percentage to 0.01, a solver's −3e-10 shown as 0.00; a missing one as a dash."""
+    return "–" if value is None else f"{round(value, 2) + 0.0:.2f}"
+
+
 def _range(pair) -> str:
     """A feasible range [low, high], or one per held actuator, [[low, high], ...]."""
     if pair is None:
@@ -194,7 +199,7 @@ def _study_page(report: dict) -> tuple[str, str]:
                 )
                 continue
             gap = s["gap_percent"]
-            above = "" if gap is None else f", {round(gap, 1) + 0.0} % above the bound"
+            above = "" if gap is None else f", {_percent(gap)} % above the bound"
             lines.append(
                 f"<li>{study['objective']}, segment {_e(s['name'])}: improved start {held} = "
                 f"{_number(s['best']['value'])}, peak {study['measure']} "
@@ -220,7 +225,7 @@ def _study_page(report: dict) -> tuple[str, str]:
                 f"best start ({UNIT})": _number(s["best"] and s["best"]["value"]),
                 f"peak {measure}": _number(s["best"] and s["best"]["peak"]),
                 f"bound {measure}": _number(s["bound"] and s["bound"]["peak"]),
-                "gap to bound (%)": _number(s["gap_percent"], 3),
+                "gap to bound (%)": _percent(s["gap_percent"]),
                 "motions": s["simulations"],
                 "note": s["closest_violation"] or s.get("bound_failure") or "",
             }
@@ -267,8 +272,8 @@ def _hydraulics(comparison: list[dict], bounds: dict | None) -> str:
                 "highest load pressure (bar)": _number(h["max_load_pressure_bar"], 3),
                 "LS energy (kJ)": _number(h["ls_energy_kj"]),
                 "CP energy (kJ)": _number(h["cp_energy_kj"]),
-                "above LS bound (%)": _number(above.get("LS"), 3),
-                "above CP bound (%)": _number(above.get("CP"), 3),
+                "above LS bound (%)": _percent(above.get("LS")),
+                "above CP bound (%)": _percent(above.get("CP")),
                 "shortest duration (s)": _number(h["shortest_duration_s"], 3),
                 "overrunning": _number(h["overrunning"]),
                 "circuit": _limits(h["violations"]),
