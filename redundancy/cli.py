@@ -60,6 +60,7 @@ from redundancy.viz.playback import (
     write_playbacks,
 )
 from redundancy.viz.plots import write_cycle_figures, write_figures
+from redundancy.viz.report import write_index
 from redundancy.viz.server import LOCALHOST
 
 
@@ -231,6 +232,7 @@ def _study_command(args: argparse.Namespace) -> None:
         study = replace(study, cycle_study=cycle_study, cycle_skipped=skipped)
         print(study.table())
         write_report(study, report)
+        write_index(out.staging, report)
         figures = [out.final(p) for p in figures + cycle_figures]
         playbacks = [out.final(p) for p in playbacks + cycle_playbacks]
     print(f"report: {args.json or out.target / 'report.json'}")
@@ -359,6 +361,7 @@ def _map_command(args: argparse.Namespace) -> None:
             ),
         )
         figures = [out.final(p) for p in write_map_figures(table, family, out.staging)]
+        write_index(out.staging)
     shutil.rmtree(store, ignore_errors=True)
     print(f"map: {out.target / 'map.parquet'} ({len(table)} rows)")
     print(f"figures: {', '.join(str(p) for p in figures)}")
@@ -401,6 +404,7 @@ def _cycle_command(args: argparse.Namespace) -> None:
         write_cycle_report(study, report)
         figures = [out.final(p) for p in write_cycle_figures(study, out.staging)]
         playbacks = [out.final(p) for p in write_cycle_playbacks(study, out.staging)]
+        write_index(out.staging, report)
     print(f"report: {args.json or out.target / 'report.json'}")
     print(f"figures: {', '.join(str(p) for p in figures)}")
     print(f"playbacks: {', '.join(str(p) for p in playbacks)}")

@@ -283,6 +283,7 @@ def test_the_cycle_command_writes_its_report_figures_and_playback(tmp_path):
         "cycle_drift.png",
         "cycle_return_map.png",
         "cycle_strokes.png",
+        "index.html",
         "playback_cycle_free.html",
         "playback_cycle_periodic.html",
         "report.json",

@@ -1,5 +1,5 @@
-"""Every Python block of the README runs, and every number a ``print(...)  # ...`` comment
-promises is what the print shows, to the digits the comment gives."""
+"""Every Python block of the README and of the pages in docs/ runs, and every number a
+``print(...)  # ...`` comment promises is what the print shows, to the digits the comment gives."""
 
 import ast
 import contextlib
@@ -9,8 +9,16 @@ from pathlib import Path
 
 import pytest
 
-README = Path(__file__).resolve().parents[1] / "README.md"
-BLOCKS = re.findall(r"```python\n(.*?)```", README.read_text(), re.S)
+ROOT = Path(__file__).resolve().parents[1]
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+
+
+def blocks(page: Path) -> list[str]:
+    return re.findall(r"```python\n(.*?)```", page.read_text(), re.S)
+
+
+# each distinct block once, named after the first page that shows it
+BLOCKS = {block: f"{page.stem}{i}" for page in PAGES[::-1] for i, block in enumerate(blocks(page))}
 NUMBER = re.compile(r"-?\d+\.?\d*(?:e-?\d+)?")
 
 
@@ -26,12 +34,13 @@ def shown(output: str, digits: list[str]) -> list[float]:
     return [round(v, len(d.split(".")[1]) if "." in d else 0) for v, d in zip(values, digits)]
 
 
-def test_the_readme_has_python_blocks():
-    assert len(BLOCKS) >= 2
+def test_the_readme_and_the_api_page_have_python_blocks():
+    assert blocks(ROOT / "README.md")
+    assert len(blocks(ROOT / "docs" / "api.md")) >= 2
 
 
 @pytest.mark.filterwarnings("ignore:joints without an actuator declaration")
-@pytest.mark.parametrize("block", BLOCKS, ids=[f"block{i}" for i in range(len(BLOCKS))])
+@pytest.mark.parametrize("block", BLOCKS, ids=BLOCKS.values())
 def test_a_readme_block_runs_and_prints_what_it_promises(block):
     lines = block.splitlines()
     namespace: dict = {}

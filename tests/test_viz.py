@@ -5,7 +5,6 @@ import base64
 import json
 import os
 import re
-import shutil
 import signal
 import subprocess
 import sys
@@ -14,12 +13,14 @@ import time
 import urllib.request
 from pathlib import Path
 
+import browser
 import meshcat
 import numpy as np
 import pinocchio as pin
 import pytest
 import umsgpack
 import zmq
+from lxml import html
 from PIL import Image
 from sampling import random_configurations
 
@@ -314,39 +315,13 @@ def test_study_writes_a_playback_per_segment_for_the_best_start(tmp_path, capsys
         assert [c["type"] for c in commands].count("set_animation") == 1
 
 
-def chromium():
-    found = shutil.which("chromium")
-    if found is None:
-        if os.environ.get("REQUIRE_BROWSER") == "1":
-            pytest.fail(
-                "REQUIRE_BROWSER=1 but chromium is not installed (apt-get install chromium)"
-            )
-        pytest.skip("chromium is not installed (apt-get install chromium); REQUIRE_BROWSER=1 fails")
-    return found
-
-
 def screenshots(page, times, folder):
     """Headless Chromium's screenshots of ``page`` paused at each time (s), RGB (H, W, 3)."""
     runs, shots = [], []
     for i, t in enumerate(times):
         shot = folder / f"shot{i}.png"
-        command = [
-            chromium(),
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--enable-unsafe-swiftshader",
-            "--disable-quic",
-            "--no-first-run",
-            "--disable-background-networking",
-            "--disable-component-update",
-            "--disable-sync",
-            f"--user-data-dir={folder / f'profile{i}'}",
-            "--window-size=1024,768",
-            "--virtual-time-budget=3000",
-            f"--screenshot={shot}",
-            f"{page.as_uri()}?t={t}",
-        ]
+        options = ["--virtual-time-budget=3000", f"--screenshot={shot}"]
+        command = browser.command(f"{page.as_uri()}?t={t}", folder / f"profile{i}", *options)
         runs.append(subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE))
         shots.append(shot)
     for run in runs:
@@ -386,6 +361,38 @@ def test_exported_page_draws_the_crane_and_animates_it_in_a_browser(crane, motio
         assert 0.03 < mask.mean() < 0.5
     changed = np.abs(first - later).max(axis=2) > 24
     assert changed.mean() > 0.02
+
+
+def test_the_page_shows_the_time_and_each_actuator_red_at_its_stroke_limit(crane, tmp_path):
+    """From x3init at the top of x3's stroke: after virtual time, at t = 0 the page's clock
+    reads "t = 0.00 s" and x3's gauge is red and says why; at t = 4 s x3 is back inside its
+    stroke and no gauge is red. Every gauge gives its actuator's value and speed in m."""
+    segment = WorkCycle.from_toml(crane.task_file, dimension=crane.m)["1-2"]
+    q = configuration_at(crane, segment.start, {"x3": crane.actuators["x3"].upper})
+    motion = simulate(crane, VELOCITY.resolver, segment, q[None])
+    page = export_html(motion, tmp_path / "limit.html")
+    playback = Playback(motion)
+    for t, red in ((0.0, {"x3"}), (4.0, set())):
+        shown = html.fromstring(
+            browser.dom(f"{page.as_uri()}?t={t}", tmp_path / f"{t}", "--virtual-time-budget=3000")
+        )
+        assert shown.get_element_by_id("clock").text_content() == f"t = {t:.2f} s"
+        heading = shown.get_element_by_id("heading").text_content()
+        assert heading == f"hiab031: segment 1-2, {VELOCITY.resolver.name}"
+        i = playback.samples[np.searchsorted(playback.t[playback.samples], t + 1e-6) - 1]
+        at_limit = set()
+        for row, name in zip(
+            shown.xpath("//div[@class='gauge']"), crane.actuators.names, strict=True
+        ):
+            label, _, value = row.xpath("span")  # name, stroke gauge, value
+            j = crane.actuators.names.index(name)
+            assert label.text_content() == name
+            speed = f"{motion.x_dot[0, i, j]:z.3f} m/s"  # a rounded −0 is 0, as on the page
+            assert value.text_content().startswith(f"{motion.x[0, i, j]:z.3f} m, ẋ = {speed}")
+            if "at-limit" in value.get("class", ""):
+                assert value.text_content().endswith("at its stroke limit")
+                at_limit.add(name)
+        assert at_limit == red
 
 
 def children(pid):
@@ -503,7 +510,9 @@ def test_with_two_held_actuators_the_peak_figure_is_a_map_over_their_box(tmp_pat
     from matplotlib.collections import PathCollection
 
     from redundancy import WorkCycle, load_robot, run_study
+    from redundancy.study.study import write_report
     from redundancy.viz.plots import peak_map_figure, write_figures
+    from redundancy.viz.report import write_index
 
     robot = load_robot("hiab031", task_axes="x")
     task = tmp_path / "line.toml"
@@ -533,3 +542,68 @@ def test_with_two_held_actuators_the_peak_figure_is_a_map_over_their_box(tmp_pat
         np.testing.assert_allclose(np.ravel(star[0].get_xydata()), search.best.values)
     paths = write_figures(study, tmp_path)
     assert (tmp_path / "fig4a_peak_velocity.png") in paths
+    write_report(study, tmp_path / "report.json")  # its index gives each held actuator's start
+    page = write_index(tmp_path).read_text()
+    best = ", ".join(f"{v:.4g}" for v in searches[0].best.values)
+    assert "<td>x2, x3</td>" in page and f"<td>{best}</td>" in page
+
+
+def test_every_axis_of_the_study_figures_names_its_unit(crane):
+    """Each figure of a study with its cycle section: every axis label ends with its unit in
+    brackets (a cycle count and colour bars aside); Fig. 4c shares Fig. 4b's velocity scale;
+    Fig. 5a's legend names the segments with no feasible start and explains its encodings."""
+    from matplotlib.legend import Legend
+
+    from redundancy import ENERGY, WorkCycle, run_study
+    from redundancy.viz.plots import study_figures
+
+    cycle = WorkCycle.from_toml(crane.task_file, dimension=crane.m)
+    study = run_study(
+        crane, cycle, (VELOCITY, ENERGY), samples=8, bound=False, progress=False, cycles=2
+    )
+    figures = study_figures(study)
+    assert {"cycle_strokes.png", "cycle_drift.png", "hydraulics_best_velocity_1-2.png"} <= set(
+        figures
+    )
+    for name, figure in figures.items():
+        for axes in figure.axes:
+            if axes.get_label() == "<colorbar>":
+                continue
+            for label in (axes.get_xlabel(), axes.get_ylabel()):
+                assert label in ("", "cycle") or re.search(r"\(.+\)$", label), (name, label)
+    optimal, other = (figures[f"fig4{k}_velocity_1-2.png"] for k in ("b_best", "c_nonoptimal"))
+    assert optimal.axes[1].get_ylim() == other.axes[1].get_ylim()
+    peaks = figures["fig5a_peak_energy.png"].axes[0]
+    legends = [a for a in peaks.get_children() if isinstance(a, Legend)]
+    said = [text.get_text() for legend in legends for text in legend.get_texts()]
+    infeasible = [s.segment.name for s in study.sweeps["energy"] if not s.feasible]
+    assert infeasible and all(f"segment {n}: no feasible start" in said for n in infeasible)
+    assert {"every reachable start", "keeps every stroke", "feasible range"} <= set(said)
+
+
+def test_a_gauge_names_the_circuit_limit_a_cylinder_passes():
+    """The M_H-weighted law from the default start of 1-2 drives the telescope faster than its
+    cylinder's maximum speed, then past its stroke: at each shown sample each actuator's alarm
+    is "speed" past the cylinder's speed, else "pressure" past the load pressure the supply
+    serves, else "stroke" within 1 mm of a stroke end or past it, else none."""
+    from redundancy import ENERGY
+    from redundancy.planning.starts import default_start
+
+    robot = load_robot("hiab031", payload=100.0)
+    segment = WorkCycle.from_toml(robot.task_file, dimension=robot.m)["1-2"]
+    _, q = default_start(robot, segment)
+    motion = simulate(robot, ENERGY.resolver, segment, q[None])
+    playback = Playback(motion)
+    shown = playback.samples
+    circuit = robot.circuit()
+    x, x_dot = motion.x[0, shown], motion.x_dot[0, shown]
+    lower, upper = robot.actuators.lower, robot.actuators.upper
+    expected = np.where(np.minimum(x - lower, upper - x) <= 1e-3, "stroke", "").astype(object)
+    cylinders = circuit.columns
+    pressure = motion.flows.load[0, shown] > circuit.supply.available(circuit.relief)
+    speed = np.abs(x_dot[:, cylinders]) > circuit.max_speeds
+    expected[:, cylinders] = np.where(
+        speed, "speed", np.where(pressure, "pressure", expected[:, cylinders])
+    )
+    assert (expected == "speed").any() and (expected == "stroke").any()
+    assert playback.alarms().tolist() == expected.tolist()

@@ -1,5 +1,6 @@
 """Heatmaps of a design map (`redundancy.study.maps`): per objective, the improved start's gain
-over the default start (%), the best held value and the share of feasible problems, over the
+over the default start (%, where both keep the strokes), the best held value and the share of
+feasible problems, over the
 map's first two axes (workspace start coordinates, or segments and design parameters). Where
 the map varies more than two, each cell is the mean over the others, as its title says.
 
@@ -16,18 +17,22 @@ from redundancy.study.maps import axes_of
 from redundancy.study.output import write_atomically
 from redundancy.viz.plots import pyplot
 
-PANELS = (("gain_pct", "gain over the default start, %"), ("feasible", "feasible share"))
+PANELS = (("gain_pct", "gain over the default start (%)"), ("feasible", "feasible share"))
+# The unit of each axis a map can vary over: the workspace starts and the design parameters.
+UNITS = {"payload": "kg", "speed": "m/s", "attachment": "m", "bore": "m"}
 
 
 def map_figure(table, family: MapFamily, objective: str):
     """Three heatmaps side by side for ``objective``: gain %, best held value, feasible."""
     plt = pyplot()
     rows = table[table["objective"] == objective].copy()
+    # a gain is only one where both starts keep the strokes: elsewhere it has no meaning
+    rows["gain_pct"] = rows["gain_pct"].where(rows["feasible"] & rows["default_feasible"])
     rows["feasible"] = rows["feasible"].astype(float)
     axes_names = axes_of(rows, family) or ["segment"]
     x, y = axes_names[0], (axes_names[1] if len(axes_names) > 1 else None)
     held = family.held[0]
-    panels = (PANELS[0], (f"best_{held}", f"best initial {held}"), PANELS[1])
+    panels = (PANELS[0], (f"best_{held}", f"best initial {held} (m; rad if rotary)"), PANELS[1])
     figure, panes = plt.subplots(1, 3, figsize=(15, 4.6), constrained_layout=True)
     for pane, (column, label) in zip(panes, panels):
         grid = (
@@ -40,14 +45,24 @@ def map_figure(table, family: MapFamily, objective: str):
         )
         pane.set_xticks(range(grid.shape[1]), [_tick(v) for v in grid.columns], rotation=45)
         pane.set_yticks(range(grid.shape[0]), [_tick(v) for v in grid.index])
-        pane.set_xlabel(x)
-        pane.set_ylabel(y or "")
+        pane.set_xlabel(_label(x))
+        pane.set_ylabel(_label(y) if y else "")
         pane.set_title(label)
         figure.colorbar(image, ax=pane)
     rest = axes_names[2:]
     suffix = f" (mean over {', '.join(rest)})" if rest else ""
-    figure.suptitle(f"{family.name}: {objective} objective{suffix}; blank: no value")
+    figure.suptitle(
+        f"{family.name}: {objective} objective{suffix}; blank: no value (a gain needs both "
+        "starts feasible)"
+    )
     return figure
+
+
+def _label(axis: str) -> str:
+    """An axis's name with its unit: a workspace start coordinate in m, a design parameter in
+    its own."""
+    unit = "m" if axis.startswith("start_") else UNITS.get(axis)
+    return f"{axis} ({unit})" if unit else axis
 
 
 def _tick(value) -> str:

@@ -4,15 +4,20 @@ What is drawn: the links (Pinocchio's meshcat visualizer, from the URDF's visual
 where the URDF has no visual geometry or names meshes no file answers, `Rods` between the joint
 origins); every `LinearCylinder` and `LinkageCylinder` as a barrel from its base point and a rod
 ending at its rod point, red while its length is at or past a stroke limit; each linkage's
-rocker and coupler as bars between their pins; the desired path, the path the tool traced, and
-the task points. The camera looks at the task plane (for the crane, world x–z, from −y).
+rocker and coupler as bars between their pins; the desired path, the path the tool traced (in
+front of it), the task points, and a grid behind the machine whose spacing the page states. The
+camera looks at the task plane (for the crane, world x–z, from −y) and frames every link's
+visual geometry over the whole motion.
 
 `play` serves the scene from a meshcat server on localhost and loops the motion in real time
 until interrupted; the server stops with it. `export_html` needs no server: a stand-in for
 meshcat's viewer window records the drawing commands, including a recorded
 `meshcat.animation.Animation`, and writes them into a page that embeds meshcat's viewer script
-and loads nothing from the network. Opening the page with ``?t=SECONDS`` shows that instant of
-the motion, paused.
+and loads nothing from the network. Over the scene the page shows its title (robot, segment,
+strategy), the time, play and pause, a time slider, and each actuator's value and speed with its
+unit and a gauge of its stroke that turns red at a limit: a stroke's end, and, where the robot
+has a hydraulic circuit, a cylinder's speed or load pressure past what the circuit allows.
+Opening the page with ``?t=SECONDS`` shows that instant of the motion, paused.
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ import base64
 import contextlib
 import html
 import io
+import json
 import math
 import os
 import subprocess
@@ -41,7 +47,6 @@ from redundancy.model.linkage import LinkageCylinder
 from redundancy.model.robot import AXES, frame_id
 from redundancy.planning.integrate import Trajectory
 from redundancy.planning.tasks import WorkCycle
-from redundancy.resolution.limits import Limits
 from redundancy.study.cycles import CycleStudy
 from redundancy.study.output import write_atomically
 from redundancy.study.study import Study
@@ -51,6 +56,8 @@ STARTUP = 30.0  # s: the meshcat server must have said where it listens by then
 FRAME_RATE = 30.0  # frames per second of playback; the motion is sampled at most this often
 FIELD_OF_VIEW = 30.0  # degrees, vertical
 ASPECT = 4 / 3  # width / height the camera distance is fitted for
+MARGIN = 1.3  # the camera's distance, in units of the distance that just fits the scene: room
+# for the page's title above and its controls below
 LIMIT_MARGIN = 1e-3  # m: a cylinder this close to a stroke limit counts as at it
 ROOT = "playback"  # every drawn object hangs below this node
 PARTS = ("barrel", "rod")
@@ -63,6 +70,7 @@ COLOURS = {
     "desired": 0x2CA02C,
     "traced": 0x1F4FB4,
     "points": 0x202020,
+    "grid": 0xB4BAC4,
 }
 BACKGROUND = [0.93, 0.94, 0.96]  # RGB, 0-1: light, yet light links stand out
 
@@ -168,35 +176,40 @@ class Cylinder:
 
     def at_limit(self, length: np.ndarray) -> np.ndarray:
         """Whether each length (k,) in m is within `LIMIT_MARGIN` of a stroke limit or past it."""
-        stroke = Limits(
-            (self.name,),
-            np.zeros(1, dtype=int),
-            np.array([self.actuator.lower]),
-            np.array([self.actuator.upper]),
-            ("m",),
-        )
-        return stroke.margin(length[:, None]) <= LIMIT_MARGIN
+        return at_stroke_limit(length, self.actuator.lower, self.actuator.upper)
 
 
-def _links(robot, root, size: float):
-    """The drawing of the links under the node ``root``: Pinocchio's meshcat visualizer of the
-    URDF's visual geometry, or `Rods` where it has none or some of its meshes are missing. Both
-    pose the links with ``display(q)`` on the node their ``viewer`` attribute names."""
+def at_stroke_limit(x: np.ndarray, lower, upper) -> np.ndarray:
+    """Whether each actuator value x (..., n) (or (k,) of one actuator) is within `LIMIT_MARGIN`
+    (m or rad) of its stroke's ``lower`` or ``upper`` end (n,), or past it."""
+    return np.minimum(x - lower, upper - x) <= LIMIT_MARGIN
+
+
+def _visual_model(robot):
+    """Pinocchio's model of the URDF's visual geometry, or None where it has none or some of
+    its meshes are missing."""
     import pinocchio as pin
     from lxml import etree
-    from pinocchio.visualize import MeshcatVisualizer
 
     description = etree.fromstring(robot.description.encode())
     if robot.missing_meshes or description.find("link/visual") is None:
-        return Rods(robot, root, size)
+        return None
     try:  # the description names every mesh by its absolute path
-        visuals = pin.buildGeomFromUrdfString(
-            robot.model, robot.description, pin.GeometryType.VISUAL
-        )
+        return pin.buildGeomFromUrdfString(robot.model, robot.description, pin.GeometryType.VISUAL)
     except (ValueError, RuntimeError) as error:
         raise RobotDescriptionError(
             f"{robot.urdf}: cannot load its visual geometry: {error}"
         ) from error
+
+
+def _links(robot, visuals, root, size: float):
+    """The drawing of the links under the node ``root``: Pinocchio's meshcat visualizer of the
+    ``visuals`` (`_visual_model`), or `Rods` where there are none. Both pose the links with
+    ``display(q)`` on the node their ``viewer`` attribute names."""
+    from pinocchio.visualize import MeshcatVisualizer
+
+    if visuals is None:
+        return Rods(robot, root, size)
     links = MeshcatVisualizer(robot.model, None, visuals)
     links.initViewer(viewer=root)
     links.loadViewerModel(rootNodeName="links")
@@ -248,14 +261,16 @@ class Playback:
     ends). ``samples`` are the indices of the motion's times that playback shows, at most
     `FRAME_RATE` per second and always the last. ``centre`` (3,) is the world point shown at the
     middle of the view and ``distance`` (m) the camera's distance from it, fitted so that every
-    frame, the paths and the points are in view; ``size`` (m) is the scene's largest extent,
-    which sizes the markers.
+    link's visual geometry (or every frame), the paths and the points are in view over the whole
+    motion; ``size`` (m) is the scene's largest extent, which sizes the markers and the grid.
     """
 
     def __init__(self, motion: Trajectory, points: np.ndarray | None = None) -> None:
         if len(motion) != 1:
             raise InvalidInputError(f"a playback shows one motion; got {len(motion)}")
+        self.motion = motion
         self.robot = robot = motion.robot
+        self.visuals = _visual_model(robot)
         segment = motion.segment
         self.q = motion.q[0]
         self.t = motion.t[0]
@@ -291,21 +306,36 @@ class Playback:
             if isinstance(actuator, LinkageCylinder)
             for bar, (a, b) in actuator.bars(kinematics).items()
         ]
-        self._fit_camera(np.concatenate([self._frame_origins(), self.traced, self.points]))
+        self._fit_camera(np.concatenate([self._extent(), self.traced, self.points]))
         self._links: Any = None  # Pinocchio's meshcat visualizer, once drawn
         self._shown: dict[str, bool] = {}
 
-    def _frame_origins(self) -> np.ndarray:
-        """Every Pinocchio frame's origin at every shown sample, (F·S, 3) in m."""
+    def _extent(self) -> np.ndarray:
+        """Points the view must hold at every shown sample, (P, 3) in m: the corners of each
+        visual geometry's bounding box, or without visuals every Pinocchio frame's origin."""
         import pinocchio as pin
 
         model = self.robot.model
         data = model.createData()
-        origins: list[np.ndarray] = []
+        found: list[np.ndarray] = []
+        if self.visuals is None:
+            for q in self.q[self.samples]:
+                pin.framesForwardKinematics(model, data, q)
+                found.extend(frame.translation.copy() for frame in data.oMf)
+            return np.array(found)
+        boxes = []
+        for item in self.visuals.geometryObjects:
+            item.geometry.computeLocalAABB()
+            low, high = item.geometry.aabb_local.min_, item.geometry.aabb_local.max_
+            boxes.append(
+                np.array([[(low, high)[b >> k & 1][k] for k in range(3)] for b in range(8)])
+            )
+        geometry = self.visuals.createData()
         for q in self.q[self.samples]:
-            pin.framesForwardKinematics(model, data, q)
-            origins.extend(frame.translation.copy() for frame in data.oMf)
-        return np.array(origins)
+            pin.updateGeometryPlacements(model, data, self.visuals, geometry, q)
+            for corners, placed in zip(boxes, geometry.oMg):
+                found.append(corners @ placed.rotation.T + placed.translation)
+        return np.concatenate(found)
 
     def _fit_camera(self, points: np.ndarray) -> None:
         axes = "".join(sorted(self.robot.task_axes))
@@ -321,7 +351,8 @@ class Playback:
         half_width = np.max(np.abs(offsets @ right))
         half_height = np.max(np.abs(offsets @ up))
         fit = max(half_height, half_width / ASPECT) / math.tan(math.radians(FIELD_OF_VIEW) / 2)
-        self.distance = float(np.max(offsets @ self.view) + 1.15 * fit)
+        self.distance = float(np.max(offsets @ self.view) + MARGIN * fit)
+        self.depth = float(np.max(-offsets @ self.view))  # how far the scene reaches behind
 
     def draw(self, vis) -> None:
         """Put the scene into the meshcat visualizer ``vis`` and show the motion's first pose."""
@@ -340,7 +371,7 @@ class Playback:
         root = vis[ROOT]
         root.set_transform(_translation(-self.centre))
 
-        self._links = _links(self.robot, root, self.size)
+        self._links = _links(self.robot, self.visuals, root, self.size)
 
         for cylinder in self.cylinders:
             for part, radius in zip(PARTS, (0.06, 0.035)):
@@ -362,9 +393,13 @@ class Playback:
             node.set_object(mg.Cylinder(float(np.linalg.norm(end - start)), 0.008 * size), material)
             node.set_transform(_between(start[None], end[None])[0])
         colours = np.outer(_rgb(COLOURS["traced"]), np.ones(len(self.traced)))
-        # meshcat's points take their colour from per-vertex colours only
-        dots = mg.PointsGeometry(self.traced.T.astype(np.float32), colours.astype(np.float32))
-        root["traced"].set_object(dots, mg.PointsMaterial(size=0.006 * size))
+        # meshcat's points take their colour from per-vertex colours only; the traced path lies
+        # in front of the band, towards the camera, so that the band never hides it
+        traced = self.traced + 0.02 * size * self.view
+        dots = mg.PointsGeometry(traced.T.astype(np.float32), colours.astype(np.float32))
+        root["traced"].set_object(dots, mg.PointsMaterial(size=0.015 * size))
+        lines = mg.PointsGeometry(self.grid().T.astype(np.float32))
+        root["grid"].set_object(mg.LineSegments(lines, mg.LineBasicMaterial(color=COLOURS["grid"])))
         for i, point in enumerate(self.points):
             node = root[f"points/{i}"]
             node.set_object(
@@ -373,6 +408,33 @@ class Playback:
             node.set_transform(_translation(point))
         self._shown = {}
         self.show(vis, self.q[0])
+
+    @property
+    def spacing(self) -> float:
+        """The grid's spacing (m): 1, 2 or 5 times a power of ten, some 10-25 lines across."""
+        step = self.size / 10
+        decade = 10 ** math.floor(math.log10(step))
+        return decade * min((1, 2, 5, 10), key=lambda m: abs(math.log(step / (m * decade))))
+
+    def grid(self) -> np.ndarray:
+        """The grid's lines as pairs of end points (2L, 3), m: just behind the scene in the
+        plane facing the camera for a planar task, else on the ground below it; lines fall on
+        multiples of `spacing`, so that its squares read as a scale."""
+        planar = np.count_nonzero(self.view) == 1
+        normal = self.view if planar else np.array([0.0, 0.0, 1.0])
+        a, b = (np.eye(3)[i] for i in np.flatnonzero(normal == 0)[:2])
+        half = 0.75 * self.size
+        reach = self.depth if planar else self.size / 2
+        level = self.centre @ normal - reach - 0.05 * self.size
+        pieces = []
+        for along, across in ((a, b), (b, a)):
+            low = math.floor((self.centre @ along - half) / self.spacing)
+            high = math.ceil((self.centre @ along + half) / self.spacing)
+            for k in range(low, high + 1):
+                base = k * self.spacing * along + level * normal
+                middle = (self.centre @ across) * across
+                pieces += [base + middle - half * across, base + middle + half * across]
+        return np.array(pieces)
 
     def placements(self, q: np.ndarray) -> tuple[dict[str, np.ndarray], np.ndarray]:
         """The poses of the drawn links, linkage bars and cylinders at the configurations
@@ -414,6 +476,49 @@ class Playback:
             for part in PARTS:
                 colour = _rgb(COLOURS["limit" if red else part])
                 root[f"cylinders/{cylinder.name}/{part}"].set_property("color", [*colour, 1])
+
+    def alarms(self) -> np.ndarray:
+        """Which limit each actuator is at or past at each shown sample, (S, n) text: "stroke"
+        within `LIMIT_MARGIN` of a stroke's end; with a hydraulic circuit and masses, "speed" or
+        "pressure" past the cylinder's maximum speed or the load pressure the supply serves (the
+        motion's own `hydraulic_values`); else ""."""
+        motion, robot = self.motion, self.robot
+        actuators = robot.actuators
+        found = np.where(
+            at_stroke_limit(motion.x[0, self.samples], actuators.lower, actuators.upper),
+            "stroke",
+            "",
+        ).astype(object)
+        if robot.hydraulics is not None and not robot.kinematic_only:
+            circuit = robot.circuit()
+            c = len(circuit.names)
+            past = motion.hydraulic_limits.excess(motion.hydraulic_values[0, self.samples]) > 0
+            for kind, columns in (("pressure", slice(0, c)), ("speed", slice(c + 1, 2 * c + 1))):
+                rows, cylinders = np.nonzero(past[:, columns])
+                found[rows, circuit.columns[cylinders]] = kind
+        return found
+
+    def overlay(self, title: str) -> dict:
+        """What the page shows over the scene, JSON-ready: its ``title``, the grid's spacing (m),
+        the shown samples' times (S,) s, each actuator's name, unit, stroke ends (None where
+        unbounded), values and speeds (S, n) and `alarms`."""
+        actuators = self.robot.actuators
+        finite = [
+            float(v) if np.isfinite(v) else None for v in (*actuators.lower, *actuators.upper)
+        ]
+        n = len(actuators.names)
+        return {
+            "title": title,
+            "grid": self.spacing,
+            "t": np.round(self.t[self.samples], 4).tolist(),
+            "names": list(actuators.names),
+            "units": ["rad" if a.rotary else "m" for a in actuators],
+            "lower": finite[:n],
+            "upper": finite[n:],
+            "x": np.round(self.motion.x[0, self.samples], 5).tolist(),
+            "x_dot": np.round(self.motion.x_dot[0, self.samples], 5).tolist(),
+            "alarm": self.alarms().tolist(),
+        }
 
     def animation(self, vis):
         """The motion as a `meshcat.animation.Animation` for ``vis``, keyed at every shown
@@ -466,11 +571,13 @@ class Poses:
 class Recording:
     """A stand-in for meshcat's viewer window that keeps every command instead of sending it
     to a server; ``get_scene`` (behind `meshcat.Visualizer.static_html`) writes them into a
-    self-contained page. ``commands`` holds each command msgpack-encoded, in order: the bytes
+    self-contained page, with the ``overlay`` (`Playback.overlay`) drawn over the scene where
+    one is given. ``commands`` holds each command msgpack-encoded, in order: the bytes
     meshcat's own encoder (umsgpack, pure Python) gives, by msgpack's compiled one."""
 
-    def __init__(self, title: str = "redundancy playback") -> None:
+    def __init__(self, title: str = "redundancy playback", overlay: dict | None = None) -> None:
         self.title = title
+        self.overlay = overlay
         self.commands: list[bytes] = []
 
     def send(self, command) -> None:
@@ -481,11 +588,17 @@ class Recording:
     def get_scene(self) -> str:
         viewer = Path(_meshcat().__file__).parent / "viewer" / "dist" / "main.min.js"
         commands = ",\n".join(f'"{base64.b64encode(c).decode()}"' for c in self.commands)
-        # Commands are decoded in order and synchronously (meshcat's own page fetches each one
-        # asynchronously), so that the scene and animation exist when the time is chosen.
-        return PAGE.format(
-            title=html.escape(self.title), viewer=viewer.read_text(), commands=commands
-        )
+        # The page (playback.html) and what it shows over the scene (overlay.html) hold
+        # @-markers for what each page fills in; the viewer's script goes in last, so that no
+        # marker is looked for inside it.
+        here = Path(__file__).parent
+        text = (here / "playback.html").read_text(encoding="utf-8")
+        text = text.replace("@TITLE@", html.escape(self.title)).replace("@COMMANDS@", commands)
+        shown = ""
+        if self.overlay is not None:
+            shown = (here / "overlay.html").read_text(encoding="utf-8")
+            shown = shown.replace("@DATA@", json.dumps(self.overlay))
+        return text.replace("@OVERLAY@", shown).replace("@VIEWER@", viewer.read_text())
 
 
 def _extension(value):
@@ -498,56 +611,32 @@ def _extension(value):
     raise TypeError(f"cannot encode {type(value).__name__} for meshcat")
 
 
-PAGE = """<!DOCTYPE html>
-<html>
-<head>
-<meta charset="utf-8">
-<title>{title}</title>
-<style>body {{ margin: 0; }} #meshcat-pane {{ width: 100vw; height: 100vh; overflow: hidden; }}
-</style>
-</head>
-<body>
-<div id="meshcat-pane"></div>
-<script>
-{viewer}
-</script>
-<script>
-var viewer = new MeshCat.Viewer(document.getElementById("meshcat-pane"));
-for (const command of [
-{commands}
-]) {{
-  viewer.handle_command_bytearray(Uint8Array.from(atob(command), c => c.charCodeAt(0)));
-}}
-const time = new URLSearchParams(window.location.search).get("t");
-if (time !== null) {{
-  viewer.animator.pause();
-  viewer.animator.seek(Number(time));
-  viewer.animator.display_progress(Number(time));
-}}
-</script>
-</body>
-</html>
-"""
-
-
-def page(motion: Trajectory, points: np.ndarray | None = None) -> str:
+def page(motion: Trajectory, points: np.ndarray | None = None, strategy: str | None = None) -> str:
     """A self-contained HTML page that plays ``motion`` in a loop, with no server and no
-    network; ``points`` as in `Playback`."""
+    network; ``points`` as in `Playback`; ``strategy`` names how the motion was made, for the
+    title (default: its resolver's name)."""
     meshcat = _meshcat()
     segment = motion.segment
     what = "cycle" if hasattr(segment, "segments") else "segment"
-    recording = Recording(f"{motion.robot.name}: {what} {segment.name}")
-    vis = meshcat.Visualizer(window=recording)
+    title = f"{motion.robot.name}: {what} {segment.name}"
     playback = Playback(motion, points)
+    heading = f"{title}, {strategy or motion.resolver.name}"
+    recording = Recording(title, playback.overlay(heading))
+    vis = meshcat.Visualizer(window=recording)
     playback.draw(vis)
     vis.set_animation(playback.animation(vis), play=True, repetitions=math.inf)
     return vis.static_html()
 
 
-def export_html(motion: Trajectory, path: Path | str, points: np.ndarray | None = None) -> Path:
+def export_html(
+    motion: Trajectory,
+    path: Path | str,
+    points: np.ndarray | None = None,
+    strategy: str | None = None,
+) -> Path:
     """Write `page` for ``motion`` to ``path`` (atomically); return the path."""
     path = Path(path)
-    text = page(motion, points)
+    text = page(motion, points, strategy)
     write_atomically(path, lambda p: p.write_text(text, encoding="utf-8"))
     return path
 
@@ -562,7 +651,8 @@ def write_playbacks(study: Study, folder: Path) -> list[Path]:
         for search in searches:
             if search.best is not None:  # its motion as the study ran it
                 path = folder / f"playback_{name}_{search.segment.name}.html"
-                paths.append(export_html(search.best_motion, path, points))
+                strategy = f"best start, {search.objective.label} objective"
+                paths.append(export_html(search.best_motion, path, points, strategy))
     if study.cycle_study is not None:
         paths += write_cycle_playbacks(study.cycle_study, folder)
     return paths
@@ -573,7 +663,9 @@ def write_cycle_playbacks(study: CycleStudy, folder: Path) -> list[Path]:
     ``playback_cycle_<strategy>.html`` in ``folder``; return their paths."""
     points = task_points(study.cycle)
     return [
-        export_html(motion.whole(0), folder / f"playback_cycle_{name}.html", points)
+        export_html(
+            motion.whole(0), folder / f"playback_cycle_{name}.html", points, f"{name} strategy"
+        )
         for name, motion in study.firsts.items()
     ]
 

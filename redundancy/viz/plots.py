@@ -34,6 +34,25 @@ def pyplot():
     return plt
 
 
+def unit(actuators, names=None, rate: str = "") -> str:
+    """The unit of the actuators ``names`` (default all) as a label: "m", "rad", or, for a
+    mix, "m; rad for" the rotary ones; ``rate`` appends a time derivative ("/s")."""
+    chosen = [a for a in actuators if names is None or a.name in names]
+    rotary = [a.name for a in chosen if a.rotary]
+    if not rotary:
+        return f"m{rate}"
+    if len(rotary) == len(chosen):
+        return f"rad{rate}"
+    return f"m{rate}; rad{rate} for {', '.join(rotary)}"
+
+
+def measure_unit(objective, actuators) -> str:
+    """The objective's unit; ẋᵀẋ of actuators that all turn is in rad²/s², not m²/s²."""
+    if objective.name == "velocity" and all(a.rotary for a in actuators):
+        return objective.unit.replace("m", "rad")
+    return objective.unit
+
+
 def peaks_figure(
     searches: tuple[SearchResult, ...], title: str, chosen: tuple[SearchResult, ...] | None = None
 ):
@@ -42,6 +61,9 @@ def peaks_figure(
     star: ``chosen``'s, the search that chose it, by default the curve's own (Figs. 4a, 5a).
     With several held actuators, each sample is a point over the first of them (two held
     actuators have `peak_map_figure`)."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
     plt = pyplot()
     figure, axes = plt.subplots(figsize=(7, 4.5))
     style = "o-" if len(searches[0].held) == 1 else "o"
@@ -49,12 +71,13 @@ def peaks_figure(
         reachable = sorted(
             (s for s in search.samples if s.peak is not None), key=lambda s: s.values
         )
+        none = "" if search.feasible else ": no feasible start"
         line = axes.plot(
             [s.values[0] for s in reachable],
             [s.peak for s in reachable],
             ":" if len(search.held) == 1 else ".",
             alpha=0.6,
-            label=f"segment {search.segment.name}",
+            label=f"segment {search.segment.name}{none}",
         )[0]
         feasible = sorted(search.feasible, key=lambda s: s.values)
         colour = line.get_color()
@@ -65,12 +88,22 @@ def peaks_figure(
             axes.axvspan(*search.feasible_box[0], color=colour, alpha=0.08)
         if choice.best is not None:
             axes.plot(choice.best.values[0], choice.best.peak, "*", ms=12, color=colour)
-    objective = searches[0].objective
-    axes.set_xlabel(f"initial {searches[0].held[0]}")
-    axes.set_ylabel(f"peak {objective.label} ({objective.unit})")
+    objective, held = searches[0].objective, searches[0].held[0]
+    axes.set_xlabel(f"initial {held} ({unit(searches[0].robot.actuators, [held])})")
+    measure = measure_unit(objective, searches[0].robot.actuators)
+    axes.set_ylabel(f"peak {objective.label} ({measure})")
     axes.set_title(title)
     axes.grid(alpha=0.3)
-    axes.legend(title="solid: feasible, ★ best")
+    grey = "0.35"
+    encodings = [
+        Line2D([], [], ls=":", color=grey, label="every reachable start"),
+        Line2D([], [], ls="-", marker="o", ms=2.5, color=grey, label="keeps every stroke"),
+        Patch(color=grey, alpha=0.15, label="feasible range"),
+        Line2D([], [], ls="", marker="*", ms=10, color=grey, label="improved start"),
+    ]
+    segments = axes.legend(loc="upper left", fontsize=8)
+    axes.add_artist(segments)
+    axes.legend(handles=encodings, loc="upper right", fontsize=8)
     figure.tight_layout()
     return figure
 
@@ -78,10 +111,10 @@ def peaks_figure(
 def peak_map_figure(
     searches: tuple[SearchResult, ...], title: str, chosen: tuple[SearchResult, ...] | None = None
 ):
-    """With two held actuators: per segment, the peak of the objective over the box of their
-    start values, at every reachable sample (colour), the feasible set outlined (the level ½
-    of the samples' feasibility, interpolated over their triangulation), feasible samples
-    filled and the others hollow, the best start a star (``chosen``'s, by default the
+    """With two or more held actuators: per segment, the peak of the objective over the box of
+    the first two's start values, at every reachable sample (colour), the feasible set outlined
+    (the level ½ of the samples' feasibility, interpolated over their triangulation), feasible
+    samples filled and the others hollow, the best start a star (``chosen``'s, by default the
     search's own)."""
     plt = pyplot()
     count = len(searches)
@@ -98,15 +131,19 @@ def peak_map_figure(
             pane.tricontour(x, y, feasible.astype(float), levels=[0.5], colors="crimson")
         if choice.best is not None:
             pane.plot(*choice.best.values, "*", ms=14, color="crimson")
-        box = [search.robot.actuators[h] for h in held]
+        actuators = search.robot.actuators
+        box = [actuators[h] for h in held]
         pane.set_xlim(box[0].lower, box[0].upper)
         pane.set_ylim(box[1].lower, box[1].upper)
-        pane.set_xlabel(f"initial {held[0]}")
-        pane.set_ylabel(f"initial {held[1]}")
+        pane.set_xlabel(f"initial {held[0]} ({unit(actuators, [held[0]])})")
+        pane.set_ylabel(f"initial {held[1]} ({unit(actuators, [held[1]])})")
         pane.set_title(f"segment {search.segment.name}")
         if feasible.any():
-            figure.colorbar(shown, ax=pane, label=f"peak {objective.label} ({objective.unit})")
-    figure.suptitle(f"{title}; red: the feasible set's edge, ★ best, hollow: not feasible")
+            measure = measure_unit(objective, actuators)
+            figure.colorbar(shown, ax=pane, label=f"peak {objective.label} ({measure})")
+    rest = held[2:]  # drawn over the first two; the others vary among the samples
+    over = f"\nover {held[0]} and {held[1]}; {', '.join(rest)} as sampled" if rest else ""
+    figure.suptitle(f"{title}; red: the feasible set's edge, ★ best, hollow: not feasible{over}")
     figure.tight_layout()
     return figure
 
@@ -123,46 +160,91 @@ def motion_figure(trajectory: Trajectory, title: str):
         for bound in (actuator.lower, actuator.upper):
             top.axhline(bound, ls="--", lw=0.8, color=line.get_color(), alpha=0.6)
         bottom.plot(t, trajectory.x_dot[0, :, row], label=f"ẋ of {actuator.name}")
-    return _over_time(figure, title, "actuator displacement x (m)", "actuator velocity ẋ (m/s)")
+    return _over_time(
+        figure,
+        title + "; dashed: stroke limits",
+        f"actuator displacement x ({unit(actuators)})",
+        f"actuator velocity ẋ ({unit(actuators, rate='/s')})",
+    )
 
 
 def hydraulics_figure(trajectory: Trajectory, title: str):
-    """Pump flow and pressures along one motion: Q_P with the pump's maximum dashed; each
-    cylinder's load pressure and the load-sensing pump pressure, with the highest load pressure
-    the supply serves dashed, overrunning stretches marked."""
+    """The circuit along one motion, read from its `flows`: the pump flow Q_P and each
+    cylinder's flow Q (L/min), the pump's maximum dashed; each cylinder's load pressure p_L and
+    the load-sensing pump pressure (bar), the highest load pressure the supply serves dashed,
+    overrunning stretches shaded under their cylinder's curve; the pump power p_P Q_P (kW)
+    under load sensing (LS) and constant pressure (CP)."""
     plt = pyplot()
     circuit, flows = trajectory.robot.circuit(), trajectory.flows
-    figure, (top, bottom) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
+    figure, (top, middle, bottom) = plt.subplots(3, 1, figsize=(7, 8), sharex=True)
     t = trajectory.t[0]
-    top.plot(t, flows.pump_flow[0] / LITRES_PER_MINUTE, label="pump flow Q_P")
-    top.axhline(circuit.pump_flow / LITRES_PER_MINUTE, ls="--", lw=0.8, label="pump maximum")
+    top.plot(t, flows.pump_flow[0] / LITRES_PER_MINUTE, "k", lw=1.5, label="pump flow Q_P")
+    top.axhline(
+        circuit.pump_flow / LITRES_PER_MINUTE, ls="--", lw=0.8, color="k", label="pump maximum"
+    )
     for column, name in enumerate(circuit.names):
-        line = bottom.plot(t, flows.load[0, :, column] / BAR, label=f"p_L of {name}")[0]
+        colour = f"C{column}"
+        top.plot(
+            t, flows.flow[0, :, column] / LITRES_PER_MINUTE, color=colour, label=f"Q of {name}"
+        )
+        load = flows.load[0, :, column] / BAR
+        middle.plot(t, load, color=colour, label=f"p_L of {name}")
         overrun = flows.overrunning[0, :, column]
         if overrun.any():
-            bottom.plot(
-                t[overrun], flows.load[0, overrun, column] / BAR, "x", color=line.get_color()
+            middle.fill_between(
+                t,
+                0,
+                load,
+                where=overrun,
+                color=colour,
+                alpha=0.2,
+                lw=0,
+                label=f"{name} overrunning",
             )
-    pump = flows.pump_pressure(circuit.load_sensing)[0] / BAR
-    bottom.plot(t, pump, "k", lw=1, label="LS pump pressure")
+    middle.plot(
+        t, flows.pump_pressure(circuit.load_sensing)[0] / BAR, "k", lw=1, label="LS pump pressure"
+    )
     available = circuit.supply.available(circuit.relief) / BAR
-    bottom.axhline(available, ls="--", lw=0.8, color="k", label="highest load served")
-    return _over_time(figure, title, "flow (L/min)", "pressure (bar); × overrunning")
-
-
-def _over_time(figure, title: str, upper: str, lower: str, along: str = "t (s)"):
-    """Label a figure of two plots sharing their horizontal axis (by default time t, s):
-    titles, grids and legends."""
-    top, bottom = figure.axes
-    top.set_ylabel(upper)
-    bottom.set_ylabel(lower)
-    bottom.set_xlabel(along)
-    top.set_title(title)
-    for axes in (top, bottom):
-        axes.grid(alpha=0.3)
-        axes.legend(loc="best", fontsize=8)
+    middle.axhline(available, ls="--", lw=0.8, color="k", label="highest load served")
+    for supply, name, style in (
+        (circuit.load_sensing, "LS", "-"),
+        (circuit.constant_pressure, "CP", "--"),
+    ):
+        bottom.plot(t, flows.power(supply)[0] / 1000, "k" + style, lw=1, label=f"{name} pump power")
+    _over_time(
+        figure,
+        title,
+        "flow (L/min)",
+        "pressure (bar)",
+        panels=("pump power (kW)",),
+    )
+    for axes in figure.axes:
+        axes.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=8)
     figure.tight_layout()
     return figure
+
+
+def _over_time(
+    figure, title: str, upper: str, lower: str, along: str = "t (s)", panels: tuple = ()
+):
+    """Label a figure of plots stacked over one horizontal axis (by default time t, s), each
+    labelled in turn by ``upper``, ``lower`` and ``panels``: titles, grids and legends."""
+    for axes, label in zip(figure.axes, (upper, lower, *panels)):
+        axes.set_ylabel(label)
+        axes.grid(alpha=0.3)
+        axes.legend(loc="best", fontsize=8)
+    figure.axes[-1].set_xlabel(along)
+    figure.axes[0].set_title(title)
+    figure.tight_layout()
+    return figure
+
+
+def _same_scale(*panels) -> None:
+    """Give ``panels`` one vertical range: the union of theirs."""
+    low = min(p.get_ylim()[0] for p in panels)
+    high = max(p.get_ylim()[1] for p in panels)
+    for panel in panels:
+        panel.set_ylim(low, high)
 
 
 def nonoptimal_sample(search: SearchResult):
@@ -176,7 +258,12 @@ def _start(held, values) -> str:
 
 
 def write_figures(study: Study, folder: Path, segment: str | None = None) -> list[Path]:
-    """Write the paper's figures for the study into ``folder``; return their paths.
+    """Write `study_figures` into ``folder``; return their paths."""
+    return _write(study_figures(study, segment), folder)
+
+
+def study_figures(study: Study, segment: str | None = None) -> dict:
+    """The paper's figures for the study by file name.
 
     ``segment`` is the one shown in the motion figures (default: the cycle's first). With a
     cycle section, the cycle's figures too (`cycle_figures`).
@@ -207,14 +294,18 @@ def write_figures(study: Study, folder: Path, segment: str | None = None) -> lis
         if name == "velocity":
             sweep = study.sweep(name, segment)
             other = nonoptimal_sample(sweep)
-            figures[f"fig4c_nonoptimal_{name}_{segment}.png"] = motion_figure(
+            nonoptimal = motion_figure(
                 sweep.motion(other),
                 f"min {objective.label}, segment {segment}, non-optimal start "
                 f"{_start(study.held, other.values)}",
             )
+            figures[f"fig4c_nonoptimal_{name}_{segment}.png"] = nonoptimal
+            optimal = figures.get(f"fig4b_best_{name}_{segment}.png")
+            if optimal is not None:  # Fig. 4c on Fig. 4b's velocity scale, to compare
+                _same_scale(optimal.axes[1], nonoptimal.axes[1])
     if study.cycle_study is not None:
         figures.update(cycle_figures(study.cycle_study))
-    return _write(figures, folder)
+    return figures
 
 
 def cycle_figure(study: CycleStudy, title: str):
@@ -269,18 +360,49 @@ def cycle_figure(study: CycleStudy, title: str):
     for axes in (top, bottom):
         for corner in offsets[1:-1]:
             axes.axvline(corner, color="k", lw=0.6, alpha=0.4)
-    return _over_time(figure, title, "stroke x (m or rad)", "velocity ẋ (m/s or rad/s)")
+    for start, end, segment in zip(offsets[:-1], offsets[1:], study.cycle.segments):
+        top.text(
+            (start + end) / 2,
+            1.01,
+            segment.name,
+            ha="center",
+            va="bottom",
+            transform=top.get_xaxis_transform(),
+            fontsize=9,
+        )
+    _over_time(
+        figure,
+        title,
+        f"stroke x ({unit(actuators)})",
+        f"velocity ẋ ({unit(actuators, rate='/s')})",
+    )
+    # one entry per actuator (its colour) and per line style, beside the curves
+    from matplotlib.lines import Line2D
+
+    key = [Line2D([], [], color=colours.get(a.name), label=a.name) for a in actuators]
+    key += [
+        Line2D([], [], ls=style, color="k", label=label)
+        for style, label in (("-", "free"), ("--", "drift-free"), (":", "per-segment plan"))
+    ]
+    key.append(Line2D([], [], ls="--", lw=0.6, color="0.5", label="stroke limits"))
+    for axes in (top, bottom):
+        axes.get_legend().remove()
+    top.legend(handles=key, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
+    top.set_title(title, pad=16)
+    figure.tight_layout()
+    return figure
 
 
 def drift_figure(study: CycleStudy, title: str):
     """Drift against cycle number: each actuator's |drift| per cycle for each strategy (log
-    scale, the closing threshold dotted); below, the held actuator at each cycle's start with
-    its stroke dashed."""
+    scale, the closing threshold dotted); below, how far the held actuator at each cycle's
+    start has moved from its first value."""
     from redundancy.planning.cycles import SETTLED
 
     plt = pyplot()
     figure, (top, bottom) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
-    names = study.robot.actuators.names
+    actuators, held = study.robot.actuators, study.held[0]
+    names = actuators.names
     markers = {"free": "o-", "periodic": "s--"}
     for name, repetition in study.repetitions.items():
         cycles = np.arange(1, repetition.cycles + 1)
@@ -294,27 +416,32 @@ def drift_figure(study: CycleStudy, title: str):
                 lw=1,
                 label=f"{actuator}, {name}",
             )
-        held = repetition.held_values[:, 0]
+        start = repetition.held_values[:, 0]
         bottom.plot(
             np.arange(repetition.cycles + 1),
-            held,
+            start - start[0],
             markers.get(name, "o-"),
             ms=3,
-            label=f"{study.held[0]} at the cycle's start, {name}",
+            label=f"{name}, from {start[0]:.4f} {unit(actuators, [held])}",
         )
     top.axhline(SETTLED, ls=":", color="k", lw=0.8, label=f"closed: {SETTLED:g}")
-    stroke = study.robot.actuators[study.held[0]]
-    for bound in (stroke.lower, stroke.upper):
-        bottom.axhline(bound, ls="--", lw=0.8, color="k", alpha=0.6)
+    # the change, not the value: its scale is the drift's, however far the stroke's ends are
+    bottom.ticklabel_format(axis="y", useOffset=False)
+    bottom.xaxis.get_major_locator().set_params(integer=True)
     return _over_time(
-        figure, title, "|drift| per cycle (m or rad)", f"{study.held[0]} (m or rad)", "cycle"
+        figure,
+        title,
+        f"|drift| per cycle ({unit(actuators)})",
+        f"{held} at the cycle's start, change ({unit(actuators, [held])})",
+        "cycle",
     )
 
 
-def return_map_figure(mapped: ReturnMap, title: str):
+def return_map_figure(mapped: ReturnMap, title: str, held_unit: str = "m"):
     """The return map P of the held actuator at the cycle's start: above, P(v) against the
-    diagonal; below, the drift per cycle P(v) − v. The fixed points are the limit cycles
-    (filled where stable, |P'| < 1); samples whose cycle passes a stroke are hollow."""
+    diagonal (dashed); below, the drift per cycle P(v) − v. The fixed points are the limit
+    cycles (filled where stable, |P'| < 1); samples whose cycle passes a stroke are hollow.
+    ``held_unit`` is the held actuator's unit."""
     plt = pyplot()
     figure, (top, bottom) = plt.subplots(2, 1, figsize=(6.5, 7), sharex=True)
     v, p = mapped.values, mapped.following
@@ -347,9 +474,9 @@ def return_map_figure(mapped: ReturnMap, title: str):
         axes.legend(fontsize=8)
     top.plot(v, v, "k--", lw=0.8)
     bottom.axhline(0.0, color="k", ls="--", lw=0.8)
-    top.set_ylabel(f"{mapped.held} one cycle later")
-    bottom.set_ylabel("drift per cycle")
-    bottom.set_xlabel(f"{mapped.held} at the cycle's start")
+    top.set_ylabel(f"{mapped.held} one cycle later ({held_unit})")
+    bottom.set_ylabel(f"drift per cycle ({held_unit})")
+    bottom.set_xlabel(f"{mapped.held} at the cycle's start ({held_unit})")
     top.set_title(title)
     figure.tight_layout()
     return figure
@@ -368,7 +495,9 @@ def cycle_figures(study: CycleStudy) -> dict:
         )
     if study.map is not None:
         figures["cycle_return_map.png"] = return_map_figure(
-            study.map, f"Return map of {study.map.held}: the free {study.objective.name} law"
+            study.map,
+            f"Return map of {study.map.held}: the free {study.objective.name} law",
+            unit(study.robot.actuators, [study.map.held]),
         )
     return figures
 

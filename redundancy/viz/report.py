@@ -1,0 +1,453 @@
+"""index.html: one page that gathers what a command wrote into its output folder.
+
+The page reads the folder's report (``report.json`` of `redundancy study` or `redundancy cycle`,
+``summary.json`` of `redundancy map`) and the names of the files beside it, and computes
+nothing: a summary first (what was solved, the headline numbers), then every table with its
+units, every figure with a caption saying what it shows and what its encodings mean, every
+playback linked, the hydraulics, and the work cycle with its drift. It loads nothing from the
+network, so the folder can be copied and opened anywhere.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+from collections.abc import Iterable
+from fnmatch import fnmatch
+from pathlib import Path
+
+import pandas as pd
+
+from redundancy.resolution.objectives import OBJECTIVES
+from redundancy.study.output import write_atomically
+
+UNIT = "m, or rad if rotary"  # actuator values: the report gives them in SI units, not which
+
+# What each figure shows and how to read it, by file-name pattern; the first match captions it.
+CAPTIONS = (
+    (
+        "fig4a_*",
+        "The paper's Fig. 4a: the peak of ẋᵀẋ (m²/s²) along each segment's motion under the "
+        "unweighted pseudoinverse, against the held actuator's initial value. One colour per "
+        "segment; dotted: every reachable start, solid with dots: the starts whose motion keeps "
+        "every checked stroke, over the shaded feasible range; ★ the improved start.",
+    ),
+    (
+        "fig5a_*",
+        "The paper's Fig. 5a: as Fig. 4a for the M_H-weighted pseudoinverse, the peak of the "
+        "kinetic energy ẋᵀ M_H ẋ (J). A segment with no feasible start has no solid curve and "
+        "no ★; the legend says so.",
+    ),
+    (
+        "fig*a_peak_*",
+        "The peak of the objective against the held actuators' initial values: colour the "
+        "peak, filled the feasible starts, hollow the others, the red line the feasible set's "
+        "edge, ★ the improved start.",
+    ),
+    (
+        "fig*b_best_*",
+        "Actuator strokes x (m; rad for a rotary actuator) and velocities ẋ along the best "
+        "motion (the paper's Figs. 4b and 5b); dashed: each actuator's stroke limits, in its "
+        "colour.",
+    ),
+    (
+        "fig4c_*",
+        "The paper's Fig. 4c: the same from a non-optimal feasible start (the least extended "
+        "one), on the velocity scale of Fig. 4b, so the two compare at a glance.",
+    ),
+    (
+        "hydraulics_*",
+        "The circuit along the best motion: pump flow Q_P and each cylinder's flow (L/min) "
+        "with the pump's maximum dashed; each cylinder's load pressure p_L and the "
+        "load-sensing pump pressure (bar), with the highest load pressure the supply serves "
+        "dashed, and overrunning stretches (the load drives the cylinder) shaded under the "
+        "curve; the pump power (kW) under load sensing (LS) and constant pressure (CP).",
+    ),
+    (
+        "cycle_strokes*",
+        "Each actuator over one work cycle, one colour each: each strategy's first cycle "
+        "(solid: free, dashed: drift-free), the per-segment plan's best motions dotted (they "
+        "jump at the corners by the self-motions the plan leaves out); thick: the held "
+        "actuator; thin dashed: stroke limits; grey lines: the corners between the segments "
+        "named above. Below, the velocities.",
+    ),
+    (
+        "cycle_drift*",
+        "Above, how far each actuator ends a cycle from where it began (|drift| per cycle, log "
+        "scale), per strategy, the closing threshold dotted; below, how far the held actuator "
+        "at each cycle's start has moved from its first value.",
+    ),
+    (
+        "cycle_return_map*",
+        "The return map P: the held actuator at a cycle's start against its value one cycle "
+        "later (above, with the diagonal dashed) and the drift P(v) − v (below). Filled: starts "
+        "whose cycle keeps the strokes, hollow: the others; ★ a limit cycle (a fixed point, "
+        "filled where stable, |P'| < 1).",
+    ),
+    (
+        "map_*",
+        "Per objective, over the map's first two axes: the improved start's gain over the "
+        "default start (%), only where both keep the strokes; the best initial value of the "
+        "held actuator; and the share of problems with a feasible start. Blank: no value.",
+    ),
+)
+
+STYLE = """
+body { font: 15px/1.45 system-ui, sans-serif; margin: 2em auto; max-width: 70em; padding: 0 1em;
+       color: #1d2329; }
+h1 { font-size: 1.6em; }
+h2 { border-bottom: 1px solid #ccd; padding-bottom: .2em; margin-top: 2em; }
+table { border-collapse: collapse; margin: .6em 0 1.2em; font-size: 13px; }
+th, td { border: 1px solid #d4d8de; padding: .25em .6em; text-align: left; }
+th { background: #eef1f5; }
+figure { margin: 1.2em 0; } figure img { max-width: 100%; border: 1px solid #e2e5ea; }
+figcaption { font-size: 13px; color: #444; max-width: 60em; }
+.summary { background: #f4f7fa; border-left: 4px solid #3a6ea5; padding: .6em 1em; }
+.bad { color: #b3261e; }
+"""
+
+
+def write_index(folder: Path | str, report: Path | str | None = None) -> Path:
+    """Write ``folder/index.html`` (atomically) from the report in ``folder`` (or ``report``,
+    where it was written elsewhere) and the figures and playbacks already in ``folder``;
+    return its path. A map's folder holds ``summary.json`` instead of a report."""
+    folder = Path(folder)
+    source = Path(report) if report is not None else folder / "report.json"
+    if not source.exists():
+        source = folder / "summary.json"
+    data = json.loads(source.read_text(encoding="utf-8"))
+    files = sorted(p.name for p in folder.iterdir())
+    if "summary" in data:
+        title, body = _map_page(data, folder.name)
+    elif "studies" in data:
+        title, body = _study_page(data)
+    else:
+        title, body = _cycle_page(data)
+    body += _figures(files) + _playbacks(files) + _data_files(files)
+    text = (
+        f'<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
+        f"<title>{_e(title)}</title>\n<style>{STYLE}</style>\n</head>\n<body>\n"
+        f"<h1>{_e(title)}</h1>\n{body}</body>\n</html>\n"
+    )
+    path = folder / "index.html"
+    write_atomically(path, lambda p: p.write_text(text, encoding="utf-8"))
+    return path
+
+
+def _e(value) -> str:
+    return html.escape(str(value))
+
+
+def _number(value, digits: int = 4) -> str:
+    """A number to ``digits`` significant digits (several, one per held actuator, joined); a
+    missing one as a dash."""
+    if isinstance(value, list):
+        return ", ".join(_number(v, digits) for v in value)
+    if value is None:
+        return "–"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, int | float):
+        return f"{value:.{digits}g}"
+    return str(value)
+
+
+def _percent(value) -> str:
+    """A percentage to 0.01, a solver's −3e-10 shown as 0.00; a missing one as a dash."""
+    return "–" if value is None else f"{round(value, 2) + 0.0:.2f}"
+
+
+def _range(pair) -> str:
+    """A feasible range [low, high], or one per held actuator, [[low, high], ...]."""
+    if pair is None:
+        return "none"
+    if isinstance(pair[0], list):
+        return "; ".join(_range(p) for p in pair)
+    return f"{pair[0]:.4g} – {pair[1]:.4g}"
+
+
+def _table(rows: list[dict], caption: str = "") -> str:
+    """A table whose column names carry their units; cells are formatted already."""
+    if not rows:
+        return ""
+    frame = pd.DataFrame(rows).fillna("–")
+    text = frame.to_html(index=False, escape=True, border=0)
+    return (f"<p>{_e(caption)}</p>\n" if caption else "") + text + "\n"
+
+
+def _unit(objective: str) -> str:
+    return OBJECTIVES[objective].unit if objective in OBJECTIVES else ""
+
+
+def _limits(violations: list[str]) -> str:
+    return "held" if not violations else "; ".join(violations)
+
+
+def _study_page(report: dict) -> tuple[str, str]:
+    title = f"{report['robot']}: {report['task']}"
+    studies = report["studies"]
+    segments = [s["name"] for s in studies[0]["segments"]] if studies else []
+    held = _number(studies[0]["segments"][0]["held_actuator"]) if segments else "–"
+    lines = []
+    for study in studies:
+        unit = _unit(study["objective"])
+        for s in study["segments"]:
+            if s["best"] is None:
+                lines.append(
+                    f"<li>{study['objective']}, segment {_e(s['name'])}: no start keeps the "
+                    f"limits; closest: {_e(s['closest_violation'])}</li>"
+                )
+                continue
+            gap = s["gap_percent"]
+            above = "" if gap is None else f", {_percent(gap)} % above the bound"
+            lines.append(
+                f"<li>{study['objective']}, segment {_e(s['name'])}: improved start {held} = "
+                f"{_number(s['best']['value'])}, peak {study['measure']} "
+                f"{s['best']['peak']:.4g} {unit}{above}</li>"
+            )
+    summary = (
+        f'<div class="summary"><p>The improved start of the held <b>{_e(held)}</b> on '
+        f"segments {_e(', '.join(segments))} of the task {_e(report['task'])!r}, objectives "
+        f"{_e(' and '.join(s['objective'] for s in studies))}: payload "
+        f"{report['payload']:g} kg, {report['samples']} samples, the {_e(report['method'])} "
+        f"search, strokes checked: {_e(', '.join(report['checked_actuators']))}. Held values "
+        f"are in {UNIT}.</p><ul>{''.join(lines)}</ul></div>\n"
+    )
+    body = summary + "<h2>Improved start and bound, per segment</h2>\n"
+    for study in studies:
+        unit = _unit(study["objective"])
+        measure = f"{study['measure']} ({unit})"
+        rows = [
+            {
+                "segment": s["name"],
+                "held": _number(s["held_actuator"]),
+                f"feasible starts ({UNIT})": _range(s["feasible_range"]),
+                f"best start ({UNIT})": _number(s["best"] and s["best"]["value"]),
+                f"peak {measure}": _number(s["best"] and s["best"]["peak"]),
+                f"bound {measure}": _number(s["bound"] and s["bound"]["peak"]),
+                "gap to bound (%)": _percent(s["gap_percent"]),
+                "motions": s["simulations"],
+                "note": s["closest_violation"] or s.get("bound_failure") or "",
+            }
+            for s in study["segments"]
+        ]
+        body += f"<h3>{_e(study['objective'])} objective: min {_e(study['measure'])}</h3>\n"
+        body += _table(rows)
+    rows = [
+        {
+            "segment": r["segment"],
+            "strategy": r["strategy"],
+            f"start ({UNIT})": _number(r["start_value"]),
+            "peak ẋᵀẋ (m²/s²)": _number(r["peak_velocity_norm"]),
+            "peak ẋᵀ M_H ẋ (J)": _number(r["peak_kinetic"]),
+            "largest tracking error (m)": _number(r.get("max_tracking_error"), 2),
+            "limits": _limits(r["violations"]),
+        }
+        for r in report["comparison"]
+    ]
+    body += "<h2>Strategies compared</h2>\n" + _table(
+        rows, "Every strategy on every segment; start: the held actuator's."
+    )
+    body += _hydraulics(report["comparison"], report.get("energy_bounds"))
+    cycle = report.get("cycle") or {}
+    if "skipped" in cycle:
+        body += f"<h2>Work cycle</h2>\n<p>No cycle section: {_e(cycle['skipped'])}</p>\n"
+    elif cycle:
+        body += "<h2>Work cycle</h2>\n" + _cycle_body(cycle)
+    return title, body
+
+
+def _hydraulics(comparison: list[dict], bounds: dict | None) -> str:
+    rows = []
+    for r in comparison:
+        h = r.get("hydraulics")
+        if h is None:
+            continue
+        above = h.get("above_energy_bound_percent", {})
+        rows.append(
+            {
+                "segment": r["segment"],
+                "strategy": r["strategy"],
+                "peak pump flow Q_P (L/min)": _number(h["peak_pump_flow_l_min"], 3),
+                "highest load pressure (bar)": _number(h["max_load_pressure_bar"], 3),
+                "LS energy (kJ)": _number(h["ls_energy_kj"]),
+                "CP energy (kJ)": _number(h["cp_energy_kj"]),
+                "above LS bound (%)": _percent(above.get("LS")),
+                "above CP bound (%)": _percent(above.get("CP")),
+                "shortest duration (s)": _number(h["shortest_duration_s"], 3),
+                "overrunning": _number(h["overrunning"]),
+                "circuit": _limits(h["violations"]),
+            }
+        )
+    if not rows:
+        return ""
+    text = "<h2>Hydraulics</h2>\n" + _table(
+        rows,
+        "Per motion, in the quasi-static meter-in model: LS, a load-sensing pump; CP, a "
+        "constant-pressure one; the shortest duration of the same path within the cylinders' "
+        "speeds and accelerations and the pump's flow.",
+    )
+    bound_rows = [
+        {
+            "segment": segment,
+            "supply": supply,
+            "energy bound (kJ)": _number(b["energy_kj"]),
+            "last refinement's change": _number(b["change"], 2),
+            "converged": _number(b["converged"]),
+        }
+        for segment, supplies in (bounds or {}).items()
+        for supply, b in supplies.items()
+    ]
+    return text + _table(bound_rows, "The least pump energy over every held actuator history.")
+
+
+def _cycle_page(report: dict) -> tuple[str, str]:
+    title = f"{report['robot']}: work cycle {report['task']}"
+    return title, _cycle_body(report)
+
+
+def _cycle_body(cycle: dict) -> str:
+    """The work cycle: plans, corners, strategies with their drift, the return map."""
+    held = _number(cycle["held_actuator"])
+    unit = _unit(cycle["objective"])
+    measure = f"{cycle['measure']} ({unit})"
+    whole = cycle["whole_cycle"]
+    per = cycle["per_segment"]
+    path = " → ".join(s["name"] for s in cycle["segments"])
+    best = whole["best"]
+    text = (
+        f'<div class="summary"><p>The cycle {_e(path)} ({cycle["duration_s"]:.2f} s) run '
+        f"continuously, {cycle['cycles']} cycles, {_e(cycle['objective'])} objective, held "
+        f"actuator {_e(held)} (values in {UNIT}). Whole-cycle improved start: "
+        + (
+            f"{held} = {_number(best['value'])} (feasible {_range(whole['feasible_range'])}), peak "
+            f"{measure} {best['peak']:.4g}."
+            if best
+            else f"none keeps the limits ({_e(whole.get('closest_violation'))})."
+        )
+        + "</p></div>\n"
+    )
+    segments = [
+        {
+            "segment": s["name"],
+            "path": s["path"],
+            "length (m)": _number(s["length_m"]),
+            "duration (s)": _number(s["duration_s"]),
+            "speed (m/s)": _number(s["speed"]),
+        }
+        for s in cycle["segments"]
+    ]
+    text += _table(segments, "The cycle's segments.")
+    plan = [
+        {"segment": s["name"], f"best start ({UNIT})": _number(s["best"] and s["best"]["value"])}
+        | {f"peak {measure}": _number(s["best"] and s["best"]["peak"])}
+        for s in per["segments"]
+    ]
+    text += _table(plan, "The paper's per-segment plan: each segment from its own best start.")
+    corners = [
+        {"corner": f"{c['after']} → {c['before']}"}
+        | {f"Δ{name} ({UNIT})": _number(d, 3) for name, d in c["delta"].items()}
+        | {
+            "time (s)": _number(c["time_s"], 3),
+            "held speed (m/s)": _number(c["speed"]),
+            "self-motion": "keeps the strokes"
+            if c["self_motion_within_limits"]
+            else (c["reason"] or "passes a limit"),
+        }
+        for c in per["corners"]
+    ]
+    text += _table(
+        corners,
+        "The self-motion the per-segment plan needs at each corner (the tool held still): "
+        f"{per['self_motion_time_s']:.2f} s per cycle in all.",
+    )
+    strategies = []
+    for s in cycle["strategies"].values():
+        repetition = s.get("repetition") or {}
+        drift = repetition.get("largest_drift_per_cycle") or [None]
+        tool = repetition.get("tool_drift_per_cycle") or [None]
+        strategies.append(
+            {
+                "strategy": s["name"],
+                f"peak {measure}": _number(s["objective"]),
+                "LS energy per cycle (kJ)": _number(s.get("ls_energy_kj")),
+                "CP energy per cycle (kJ)": _number(s.get("cp_energy_kj")),
+                f"largest drift, first cycle ({UNIT})": _number(drift[0], 3),
+                f"largest drift, last cycle ({UNIT})": _number(drift[-1], 3),
+                "tool drift, last cycle (m)": _number(tool[-1], 3),
+                "first cycle past a stroke": _number(repetition.get("first_cycle_past_a_limit")),
+                "settling": repetition.get("settling", "–"),
+            }
+        )
+    text += _table(
+        strategies, "Each strategy repeated; drift: where a cycle ends minus where it began."
+    )
+    versus = cycle.get("periodic_versus_free_percent")
+    if versus:
+        change = ", ".join(f"{k.replace('_kj', '')} {v:+.1f} %" for k, v in versus.items())
+        text += f"<p>The drift-free strategy against the free improved cycle: {_e(change)}.</p>\n"
+    mapped = cycle.get("return_map") or {}
+    points = [
+        {
+            f"limit cycle {held} ({UNIT})": _number(p["value"], 5),
+            "slope P'": _number(p["slope"], 3),
+            "stable": _number(p["stable"]),
+            "keeps the strokes": _number(p.get("keeps_the_strokes")),
+        }
+        for p in mapped.get("fixed_points", [])
+    ]
+    text += _table(points, "The return map's fixed points: the limit cycles of the free law.")
+    return text
+
+
+def _map_page(summary: dict, name: str) -> tuple[str, str]:
+    text = (
+        f'<div class="summary"><p>{_e(summary["summary"])}</p><p>{summary["problems"]} '
+        f"problems, {summary['rows']} rows (one per problem and objective) in "
+        '<a href="map.parquet">map.parquet</a>; read it with <code>pandas.read_parquet</code>.'
+        "</p></div>\n"
+    )
+    return f"design map {name}", text
+
+
+def _caption(name: str) -> str:
+    return next((text for pattern, text in CAPTIONS if fnmatch(name, pattern)), "")
+
+
+def _figures(files: Iterable[str]) -> str:
+    shown = [
+        f'<figure><img src="{_e(f)}" alt="{_e(f)}"><figcaption><b>{_e(f)}</b>. '
+        f"{_e(_caption(f))}</figcaption></figure>\n"
+        for f in sorted(files, key=lambda f: (f.startswith("cycle_"), f))
+        if f.endswith(".png")
+    ]
+    return "<h2>Figures</h2>\n" + "".join(shown) if shown else ""
+
+
+def _playbacks(files: Iterable[str]) -> str:
+    """Links to the playback pages: what each plays, from its file name."""
+    items = []
+    for f in files:
+        if not (f.startswith("playback_") and f.endswith(".html")):
+            continue
+        shown = f[len("playback_") : -len(".html")]
+        what = next((o for o in ("cycle", *OBJECTIVES) if shown.startswith(f"{o}_")), None)
+        rest = shown[len(what) + 1 :] if what else shown
+        words = (
+            f"the {rest} strategy's first whole cycle"
+            if what == "cycle"
+            else f"segment {rest} from the best start, {what} objective"
+        )
+        items.append(f'<li><a href="{_e(f)}">{_e(f)}</a>: {_e(words)}</li>')
+    if not items:
+        return ""
+    return (
+        "<h2>Playbacks</h2>\n<p>Each page plays a motion in 3-D, offline; add <code>?t=2.5</code>"
+        " to its address to see that instant, paused.</p>\n<ul>" + "".join(items) + "</ul>\n"
+    )
+
+
+def _data_files(files: Iterable[str]) -> str:
+    data = [f for f in files if f.endswith((".json", ".csv", ".parquet"))]
+    links = ", ".join(f'<a href="{_e(f)}">{_e(f)}</a>' for f in data)
+    return f"<h2>Data</h2>\n<p>{links}</p>\n" if data else ""

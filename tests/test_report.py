@@ -1,0 +1,151 @@
+"""index.html, the page that gathers an output folder: rendered by headless Chromium, every file
+it references exists, every table's segment and strategy appears, every figure has a caption."""
+
+import json
+import shutil
+import subprocess
+from fnmatch import fnmatch
+
+import browser
+import numpy as np
+import pytest
+from commands import run_cli
+from lxml import html
+from PIL import Image
+
+from redundancy.viz.report import CAPTIONS, write_index
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    """The study command's output folder: 5 samples, 2 cycles."""
+    out = tmp_path_factory.mktemp("study") / "out"
+    run = run_cli("study", "--samples", "5", "--cycles", "2", "--out", str(out), "--quiet")
+    assert run.returncode == 0, run.stderr
+    return out
+
+
+@pytest.fixture(scope="module")
+def rendered(study, tmp_path_factory):
+    """The study's index.html as Chromium's DOM holds it once loaded."""
+    return html.fromstring(
+        browser.dom(study.joinpath("index.html").as_uri(), tmp_path_factory.mktemp("profile"))
+    )
+
+
+def referenced(page) -> list[str]:
+    """The files a page's images and links name."""
+    return page.xpath("//img/@src") + [h for h in page.xpath("//a/@href") if "://" not in h]
+
+
+def rows(page) -> list[list[str]]:
+    return [[c.text_content().strip() for c in tr.xpath("td")] for tr in page.xpath("//tr[td]")]
+
+
+def test_the_study_writes_an_index_whose_references_all_exist(study, rendered):
+    for name in referenced(rendered):
+        assert (study / name).is_file(), name
+    written = {p.name for p in study.iterdir()}
+    pictures = {n for n in written if n.endswith(".png")}
+    playbacks = {n for n in written if n.startswith("playback_")}
+    assert pictures and playbacks
+    assert set(rendered.xpath("//img/@src")) == pictures  # every figure, each once
+    assert playbacks <= set(rendered.xpath("//a/@href"))  # every playback linked
+    assert "report.json" in rendered.xpath("//a/@href")
+
+
+def test_every_figure_has_a_caption_that_explains_it(rendered):
+    for figure in rendered.xpath("//figure"):
+        name = figure.xpath("img/@src")[0]
+        caption = figure.xpath("figcaption")[0].text_content()
+        assert caption.startswith(name) and len(caption) > len(name) + 60, name
+
+
+def test_every_segment_and_strategy_of_the_report_appears_in_a_table(study, rendered):
+    report = json.loads((study / "report.json").read_text())
+    shown = rows(rendered)
+    for entry in report["comparison"]:
+        assert [entry["segment"], entry["strategy"]] in [row[:2] for row in shown], entry
+    for study_entry in report["studies"]:
+        for segment in study_entry["segments"]:
+            assert any(row[:2] == [segment["name"], segment["held_actuator"]] for row in shown)
+    for strategy in report["cycle"]["strategies"].values():
+        assert any(row[0] == strategy["name"] for row in shown)
+    for corner in report["cycle"]["per_segment"]["corners"]:
+        assert any(row[0] == f"{corner['after']} → {corner['before']}" for row in shown)
+
+
+def test_every_table_heading_of_a_quantity_names_its_unit(rendered):
+    words = ("peak", "bound (", "energy", "pressure", "flow", "duration", "drift", "length", "Δ")
+    words += ("start", "limit cycle")
+    headings = [h.text_content() for h in rendered.xpath("//th")]
+    quantities = [h for h in headings if any(w in h for w in words) and "%" not in h]
+    assert quantities
+    for heading in quantities:
+        assert heading.rstrip().endswith(")"), heading  # "... (m²/s²)", "(kJ)", "(m)"
+
+
+def test_the_summary_comes_first_with_the_headline_numbers(study, rendered):
+    report = json.loads((study / "report.json").read_text())
+    summary = rendered.xpath("//div[@class='summary']")[0]
+    assert summary.getparent().index(summary) <= 1  # after the title
+    best = report["studies"][0]["segments"][0]["best"]
+    assert f"{best['peak']:.4g} m²/s²" in summary.text_content()
+
+
+def test_the_index_renders_in_a_browser(study, tmp_path):
+    shot = tmp_path / "index.png"
+    run = subprocess.run(
+        browser.command(
+            study.joinpath("index.html").as_uri(), tmp_path / "profile", f"--screenshot={shot}"
+        ),
+        capture_output=True,
+        timeout=120,
+    )
+    assert run.returncode == 0, run.stderr[-2000:]
+    image = np.asarray(Image.open(shot).convert("L")).astype(int)
+    assert image.shape == (768, 1024)
+    ink = image < 128
+    assert 0.005 < ink.mean() < 0.3  # text and tables drawn, not a blank or a black page
+    assert ink[:120].any()  # the title at the top
+
+
+def test_a_cycle_folder_gets_its_own_index(study, tmp_path):
+    """The cycle command's report is the study's cycle object: the page shows its drift."""
+    cycle = json.loads((study / "report.json").read_text())["cycle"]
+    (tmp_path / "report.json").write_text(json.dumps(cycle))
+    shutil.copy(study / "cycle_drift.png", tmp_path)
+    page = html.fromstring(write_index(tmp_path).read_text())
+    assert "work cycle" in page.xpath("//h1")[0].text_content()
+    drift = [h.text_content() for h in page.xpath("//th") if "drift" in h.text_content()]
+    assert "largest drift, last cycle (m, or rad if rotary)" in drift
+    assert page.xpath("//img/@src") == ["cycle_drift.png"]
+
+
+def test_a_map_folder_gets_its_own_index(tmp_path):
+    summary = {"summary": "best design: payload 0 kg", "problems": 4, "rows": 8}
+    (tmp_path / "summary.json").write_text(json.dumps(summary))
+    (tmp_path / "map.parquet").write_bytes(b"")
+    (tmp_path / "map_velocity.png").write_bytes(b"")
+    page = html.fromstring(write_index(tmp_path).read_text())
+    assert "best design: payload 0 kg" in page.text_content()
+    assert {"map.parquet", "summary.json", "map_velocity.png"} <= set(referenced(page))
+    caption = page.xpath("//figcaption")[0].text_content()
+    assert "gain over the default start (%)" in caption
+
+
+def test_each_written_figure_name_has_a_caption():
+    names = [
+        "fig4a_peak_velocity.png",
+        "fig5a_peak_energy.png",
+        "figflowa_peak_flow.png",
+        "fig4b_best_velocity_1-2.png",
+        "fig4c_nonoptimal_velocity_1-2.png",
+        "hydraulics_best_velocity_1-2.png",
+        "cycle_strokes.png",
+        "cycle_drift.png",
+        "cycle_return_map.png",
+        "map_velocity.png",
+    ]
+    for name in names:
+        assert any(fnmatch(name, pattern) for pattern, _ in CAPTIONS), name
