@@ -134,7 +134,7 @@ CASES = [
         "task speed zero",
         ["study", "--task", "t.toml"],
         {"t.toml": TASK.replace("speed = 0.5", "speed = 0")},
-        "speed must be > 0",
+        "speed = 0 must be within (0, 10] (the tool's speed, m/s)",
     ),
     *[
         (
@@ -175,14 +175,14 @@ CASES = [
             message,
         )
         for v, message in (
-            ('["a", "b"]', "point 1 = ['a', 'b'] must be a list of numbers"),
+            ('["a", "b"]', "[points] 1 = ['a', 'b'] must be a list of finite numbers"),
             ("[3.5, -0.5, 1.0]", "point 1 has 3 coordinates; the robot's task has 2"),
             ("[3.5]", "point 1 has 1 coordinates"),
-            ("[nan, 0]", "point 1 = [nan, 0] must be finite"),
-            ("[inf, 0]", "must be finite"),
+            ("[nan, 0]", "[points] 1 = [nan, 0] must be a list of finite numbers"),
+            ("[inf, 0]", "[points] 1 = [inf, 0] must be a list of finite numbers"),
             ("[1e308, 0]", "point 1: 1e+308 lies beyond ±1000 (m, or degrees for the tool's"),
-            ('"3.5, -0.5"', "must be a list of numbers"),
-            ("[true, 0]", "must be a list of numbers"),
+            ('"3.5, -0.5"', "[points] 1 = '3.5, -0.5' must be a list of finite numbers"),
+            ("[true, 0]", "[points] 1 = [True, 0] must be a list of finite numbers"),
             ("[100.0, -0.5]", "cannot follow segment 1-2: its point [100.0, -0.5] (t = 0 s)"),
         )
     ],
@@ -534,19 +534,19 @@ CASES = [
             f"hydraulics {key} = {v}",
             ["describe", "--hydraulics", "h.toml"],
             {"h.toml": re.sub(rf"(?m)^{key} = [^#\n]*", f"{key} = {v}", HYDRAULICS, count=1)},
-            f"{key} = {v} must be within [{bounds}]",
+            f"{key} = {v} must be within {bounds}",
         )
         for key, v, bounds in [
-            ("bore", "0.001", "5, 1000"),
-            ("bore", "2000.0", "5, 1000"),
-            ("max_speed", "50.0", "0, 10"),
+            ("bore", "0.001", "[5, 1000] (bore D, mm); did you give m? 1 m = 1000 mm"),
+            ("bore", "2000.0", "[5, 1000] (bore D, mm)"),
+            ("max_speed", "50.0", "(0, 10] (maximum speed, m/s); did you give mm/s?"),
         ]
     ],
     (
         "hydraulics not a table",
         ["describe", "--hydraulics", "h.toml"],
         {"h.toml": "hydraulics = 3\n"},
-        "[hydraulics] must be a table",
+        "h.toml: [hydraulics] = 3 must be a table",
     ),
     *[
         (
@@ -562,7 +562,7 @@ CASES = [
         "hydraulics supply",
         ["describe", "--hydraulics", "h.toml"],
         {"h.toml": HYDRAULICS.replace('supply = "LS"', 'supply = "XX"')},
-        "supply = 'XX'; supplies: LS, CP",
+        "[hydraulics] supply = 'XX' must be one of 'LS', 'CP'",
     ),
     (
         "hydraulics rod too big",
@@ -618,7 +618,7 @@ CASES = [
                 "grid attachment end",
                 '[task]\n[grid]\nattachment = {actuator = "x1", '
                 'end = "top", axis = "x", values = [0.1]}\n',
-                "ends: base, rod",
+                "[grid.attachment] end = 'top' must be one of 'base', 'rod'",
             ),
             (
                 "grid attachment kind",
@@ -647,17 +647,17 @@ CASES = [
                 "grid attachment key",
                 '[task]\n[grid]\nattachment = {actuator = "x1", end = "base", axis = "x", '
                 "values = [0.33], colour = 1}\n",
-                "attachment: unknown keys ['colour']; keys: actuator, end, axis, values",
+                "[grid.attachment]: unknown keys ['colour']; keys: actuator, end, axis, values",
             ),
             (
                 "grid bore key",
                 '[task]\n[grid]\nbore = {actuator = "x1", values = [0.08], rod = 0.04}\n',
-                "bore: unknown keys ['rod']; keys: actuator, values",
+                "[grid.bore]: unknown keys ['rod']; keys: actuator, values",
             ),
             (
                 "grid range key",
                 "[task]\n[grid]\npayload = {from = 0, to = 500, count = 3, step = 250}\n",
-                "payload: unknown keys ['step']; keys: from, to, count",
+                "[grid.payload]: unknown keys ['step']; keys: from, to, count",
             ),
             (
                 "objectives twice",

@@ -372,7 +372,7 @@ BAD = [
     (
         "offset = 0.2",
         "offset = 0.2\nbore = 80",
-        "[actuators.x3] (Prismatic): unknown keys ['bore']; keys: kind, joint, stroke, offset",
+        "[actuators.x3]: unknown keys ['bore']; keys: kind, joint, stroke, offset",
     ),
     (
         "offset = 0.2",
@@ -397,7 +397,7 @@ BAD = [
     (
         'task_axes = "xz"',
         'task_axes = "xz"\nlocked_joints = {stick_joint = "a"}',
-        "locked_joints: stick_joint = 'a' must be a finite number",
+        "[locked_joints] stick_joint = 'a' must be a finite number",
     ),
     (
         'tool = {link = "telescope", xyz = [0.8, 0.0, 0.0]}',
@@ -407,7 +407,7 @@ BAD = [
     (
         'tool = {link = "telescope", xyz = [0.8, 0.0, 0.0]}',
         'tool = {link = "telescope"}',
-        "tool = {'link': 'telescope'} must be {link = ",
+        "robot.toml: [tool]: missing key 'xyz'",
     ),
     ('urdf = "arm.urdf"', 'urdf = "arm.urdf.xacro"', "urdf = 'arm.urdf.xacro': no such file"),
 ]

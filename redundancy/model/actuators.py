@@ -57,6 +57,7 @@ class ActuatorMap(ABC):
     """
 
     rotary = False
+    distance = False  # whether x is a distance between two points (m, ≥ 0), a cylinder's length
     parameters: tuple[Parameter, ...] = ()
 
     def __init__(self, name: str, joint: str, lower: float = -np.inf, upper: float = np.inf):
@@ -268,6 +269,7 @@ class LinearCylinder(VectorisedMap):
     in the link frames.
     """
 
+    distance = True
     parameters = (
         Point("base", "the cylinder's base point", tag="attachment"),
         Point("rod", "the cylinder's rod point", tag="attachment"),

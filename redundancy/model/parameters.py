@@ -28,10 +28,10 @@ from typing import cast
 import numpy as np
 
 from redundancy.errors import RobotDescriptionError
+from redundancy.model.schema import MAX_OFFSET
 from redundancy.model.values import decimal
 
 REQUIRED = object()  # the default of a parameter that must be given
-MAX_OFFSET = 1000.0  # m: a point on a link, or a length, within this of the link's frame
 
 
 @dataclass(frozen=True)
@@ -142,7 +142,8 @@ class Point(Parameter):
 
     def read(self, value: object, where: str) -> tuple[str, np.ndarray]:
         shape = (
-            f'{{link = "<a link>", xyz = [x, y, z]}} with three numbers within ±{MAX_OFFSET:g} m'
+            f'{{link = "<a link>", xyz = [x, y, z]}} with three numbers within ±{MAX_OFFSET:g} m '
+            "(in m: 1 m = 1000 mm)"
         )
         if not isinstance(value, dict) or set(value) != {"link", "xyz"}:
             raise self._refuse(where, shape)
@@ -185,7 +186,7 @@ class Arm(Parameter):
     def read(self, value: object, where: str) -> tuple[str, np.ndarray, float]:
         shape = (
             f'{{link = "<a link>", xyz = [x, y, z], length = l}} with numbers within '
-            f"±{MAX_OFFSET:g} m, l > 0"
+            f"±{MAX_OFFSET:g} m, l > 0 (in m: 1 m = 1000 mm)"
         )
         if not isinstance(value, dict) or set(value) != {"link", "xyz", "length"}:
             raise self._refuse(where, shape)
