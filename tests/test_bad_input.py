@@ -570,6 +570,87 @@ CASES = [
         {"h.toml": HYDRAULICS.replace("rod = 45.0", "rod = 90.0")},
         "0 ≤ rod < bore",
     ),
+    # implausible units: the value, its range and the likely mistake
+    *[
+        (
+            f"hydraulics {key} = {v}",
+            ["describe", "--hydraulics", "h.toml"],
+            {"h.toml": re.sub(rf"(?m)^{key} = [^#\n]*", f"{key} = {v}", HYDRAULICS, count=1)},
+            f"[hydraulics] {key} = {v} must be within [{bounds}] ({meaning}); did you give {unit}",
+        )
+        for key, v, bounds, meaning, unit in [
+            ("relief", "21000000.0", "1, 1000", "relief pressure, bar", "Pa? 1 bar = 1e5 Pa"),
+            ("tank", "200000.0", "0, 1000", "tank pressure p_T, bar", "Pa?"),
+            ("ls_margin", "0.5", "1, 1000", "LS margin Δp_LS, bar", "MPa? 1 MPa = 10 bar"),
+            ("pump_flow", "0.0016", "0.1, 10000", "pump's maximum flow, L/min", "m³/s?"),
+        ]
+    ],
+    (
+        "stroke in mm",
+        ["describe", "--robot", "b.urdf"],
+        {
+            "b.urdf": URDF.replace(
+                '<stroke lower="0.83" upper="1.375"/>', '<stroke lower="830" upper="1375"/>', 1
+            )
+        },
+        '<stroke lower="830" upper="1375"/>: 830 m is beyond 100 m, longer than any cylinder; '
+        "did you give mm? 1 m = 1000 mm",
+    ),
+    (
+        "stroke of a negative length",
+        ["describe", "--robot", "b.urdf"],
+        {"b.urdf": URDF.replace('<stroke lower="0.83"', '<stroke lower="-0.5"', 1)},
+        '<stroke lower="-0.5" upper="1.375"/>: a cylinder\'s length is at least 0',
+    ),
+    (
+        "attachment in mm",
+        ["describe", "--robot", "b.urdf"],
+        {
+            "b.urdf": URDF.replace(
+                'xyz="0.383427387292961 0 -0.963510476680816"', 'xyz="383 0 -964"'
+            )
+        },
+        '<attachment link="column" xyz="383 0 -964"/> must be {link = "<a link>", xyz = [x, y, z]} '
+        "with three numbers within ±100 m (in m: 1 m = 1000 mm)",
+    ),
+    (
+        "tool point in mm",
+        ["describe", "--robot", "r.toml"],
+        {"r.toml": _description(tool_frame=None, tool='{link = "telescope", xyz = [1470, 0, 0]}')},
+        "r.toml: [tool] xyz = [1470, 0, 0] must be within ±100 m of the link's frame: 1470 m is "
+        "beyond; did you give mm? 1 m = 1000 mm",
+    ),
+    (
+        "map bore in mm",
+        ["map", "m.toml"],
+        {"m.toml": '[task]\n[grid]\nbore = {actuator = "x1", values = [80, 90]}\n'},
+        "m.toml: [grid.bore] values = [80, 90] must be within [0.005, 1]; did you give mm? "
+        "1 m = 1000 mm",
+    ),
+    (
+        "map attachment in mm",
+        ["map", "m.toml"],
+        {
+            "m.toml": '[task]\n[grid]\nattachment = {actuator = "x1", end = "base", axis = "x", '
+            "values = [383]}\n"
+        },
+        "m.toml: [grid.attachment] values = [383] must be within [-100, 100]; did you give mm?",
+    ),
+    # files that are no files: one line, not MemoryError
+    *[
+        (f"{what} /dev/zero", argv, files, fragment)
+        for what, argv, files, fragment in [
+            ("task", ["study", "--task", "/dev/zero"], {}, "/dev/zero: not a task file: not a "),
+            ("hydraulics", ["describe", "--hydraulics", "/dev/zero"], {}, "not a hydraulics file"),
+            ("map", ["map", "/dev/zero"], {}, "/dev/zero: not a map file: not a regular file"),
+            (
+                "csv",
+                ["study", "--task", "t.toml"],
+                {"t.toml": 'segments = [{ csv = "/dev/zero" }]\n'},
+                "/dev/zero: not a CSV file: not a regular file",
+            ),
+        ]
+    ],
     # paths out of reach: refused before any simulation, naming the point and the miss
     *[
         (
@@ -725,6 +806,19 @@ def test_bad_command_line_input_is_one_line(tmp_path, monkeypatch, capsys, argv,
     assert len(errors) == 1, errors
     assert "internal error" not in errors[0] and "Traceback" not in errors[0]
     assert fragment in errors[0], errors[0]
+
+
+def test_a_message_quotes_no_more_than_an_excerpt_of_a_file(tmp_path, monkeypatch, capsys):
+    """A CSV task naming a file that is no polyline (a system file, say) is refused in one line
+    that quotes at most the start of the offending cell, not the file's line."""
+    monkeypatch.chdir(tmp_path)
+    secret = "daemon:x:1:1:daemon:/usr/sbin:/usr/sbin/nologin:and-the-rest-of-the-line"
+    (tmp_path / "passwd").write_text(f"root:x:0:0:root:/root:/bin/bash\n{secret}\n")
+    (tmp_path / "t.toml").write_text('segments = [{ csv = "passwd" }]\n')
+    assert main(["study", "--task", "t.toml", "--quiet"]) == 2
+    errors = capsys.readouterr().err.strip().splitlines()
+    assert len(errors) == 1 and "passwd line 2: cell 1 ('daemon:x:1:1:daemon:" in errors[0]
+    assert "nologin" not in errors[0] and "rest-of-the-line" not in errors[0], errors[0]
 
 
 @pytest.fixture(scope="module")

@@ -12,6 +12,7 @@ import meshcat
 import numpy as np
 import pytest
 import umsgpack
+from declarations import actuator_tables, write_actuator_tables, write_transmissions
 from lxml import etree
 from sampling import random_configurations
 
@@ -26,13 +27,7 @@ from redundancy import (
 from redundancy.cli import _play_motion, main, parser
 from redundancy.model.loading import bundled_root
 from redundancy.model.parameters import Choice, Number
-from redundancy.model.transmissions import (
-    actuator_tables,
-    read_actuator_tables,
-    read_transmissions,
-    write_actuator_tables,
-    write_transmissions,
-)
+from redundancy.model.transmissions import read_actuator_tables, read_transmissions
 from redundancy.planning.ik import configuration_at
 from redundancy.planning.integrate import simulate
 from redundancy.planning.tasks import WorkCycle

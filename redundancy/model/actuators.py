@@ -38,7 +38,7 @@ class ActuatorMap(ABC):
 
     A kind declares its own parameters once, in ``parameters`` (`redundancy.model.parameters`:
     `Number`, `Point`, `Choice`); each is a keyword of the kind's constructor and an attribute
-    of the same name on its instances. That one list reads and writes both declaration forms,
+    of the same name on its instances. That one list reads both declaration forms,
     an ``[actuators.<name>]`` table of ``robot.toml`` and a URDF ``<transmission>``. A kind of
     your own::
 

@@ -60,17 +60,9 @@ class Parameter(ABC):
         ``where`` names the file, the actuator and the value as written, for the message."""
 
     @abstractmethod
-    def table(self, value: object) -> object:
-        """The value in its TOML shape, the inverse of `read`."""
-
-    @abstractmethod
     def from_attributes(self, attributes: dict[str, str]) -> object:
         """A ``<transmission>`` child's attributes in the TOML shape, unchecked: text that is
         not a number stays text, so that `read` names it."""
-
-    @abstractmethod
-    def attributes(self, value: object) -> dict[str, str]:
-        """The value as a ``<transmission>`` child's attributes."""
 
 
 def number_or_text(text: str) -> float | str:
@@ -104,14 +96,8 @@ class Number(Parameter):
             raise self._refuse(where, f"one of {', '.join(f'{a:g}' for a in self.allowed)}")
         return float(value)  # type: ignore[arg-type]
 
-    def table(self, value: object) -> float:
-        return float(value)  # type: ignore[arg-type]
-
     def from_attributes(self, attributes: dict[str, str]) -> object:
         return number_or_text(attributes.get("value", ""))
-
-    def attributes(self, value: object) -> dict[str, str]:
-        return {"value": repr(float(value))}  # type: ignore[arg-type]
 
 
 @dataclass(frozen=True)
@@ -125,14 +111,8 @@ class Choice(Parameter):
             raise self._refuse(where, f"one of {', '.join(map(repr, self.choices))}")
         return str(value)
 
-    def table(self, value: object) -> str:
-        return str(value)
-
     def from_attributes(self, attributes: dict[str, str]) -> object:
         return attributes.get("value", "")
-
-    def attributes(self, value: object) -> dict[str, str]:
-        return {"value": str(value)}
 
 
 @dataclass(frozen=True)
@@ -157,19 +137,11 @@ class Point(Parameter):
             raise self._refuse(where, shape)
         return link, np.array(xyz, dtype=float)
 
-    def table(self, value: object) -> dict:
-        link, xyz = cast(tuple[str, np.ndarray], value)
-        return {"link": link, "xyz": [float(c) for c in xyz]}
-
     def from_attributes(self, attributes: dict[str, str]) -> object:
         found: dict[str, object] = dict(attributes)
         if "xyz" in attributes:
             found["xyz"] = [number_or_text(c) for c in attributes["xyz"].split()]
         return found
-
-    def attributes(self, value: object) -> dict[str, str]:
-        link, xyz = cast(tuple[str, np.ndarray], value)
-        return {"link": link, "xyz": " ".join(repr(float(c)) for c in xyz)}
 
 
 @dataclass(frozen=True)
@@ -199,16 +171,8 @@ class Arm(Parameter):
             raise self._refuse(where, shape) from None
         return link, xyz, float(length)
 
-    def table(self, value: object) -> dict:
-        link, xyz, length = cast(tuple[str, np.ndarray, float], value)
-        return {**self._point.table((link, xyz)), "length": float(length)}
-
     def from_attributes(self, attributes: dict[str, str]) -> object:
         found = cast(dict[str, object], self._point.from_attributes(attributes))
         if "length" in attributes:
             found["length"] = number_or_text(attributes["length"])
         return found
-
-    def attributes(self, value: object) -> dict[str, str]:
-        link, xyz, length = cast(tuple[str, np.ndarray, float], value)
-        return {**self._point.attributes((link, xyz)), "length": repr(float(length))}

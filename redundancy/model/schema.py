@@ -103,10 +103,13 @@ def quantity(
 ) -> Any:
     """A number's field: what it means, its unit, its range [lower, upper] (lower excluded
     where ``open_lower``) and the likely mistakes of a value ``above`` or ``below`` it."""
-    bound = {"gt": lower} if open_lower else {"ge": lower}
-    extra = {"above": above, "below": below}
     return Field(
-        default, description=f"{meaning}, {unit}", json_schema_extra=extra, le=upper, **bound
+        default,
+        description=f"{meaning}, {unit}",
+        json_schema_extra={"above": above, "below": below},
+        gt=lower if open_lower else None,
+        ge=None if open_lower else lower,
+        le=upper,
     )
 
 
@@ -162,6 +165,9 @@ Xyz = Annotated[
 ]
 
 
+PAYLOAD = quantity("the point mass at the tool", "kg", 0.0, MAX_PAYLOAD, 0.0)
+
+
 class PointOnLink(Table):
     """A point fixed on a link: ``{link = "...", xyz = [x, y, z]}``, m in the link's frame."""
 
@@ -184,7 +190,7 @@ class Description(Table):
         description="joints fixed, at their neutral value or at one given in rad or m",
         json_schema_extra={"shape": "a list of names, or a table {joint = value}"},
     )
-    payload: float = quantity("the point mass at the tool", "kg", 0.0, MAX_PAYLOAD, 0.0)
+    payload: float = PAYLOAD
     task: str | None = Field(None, description="the robot's task file")
     actuators: dict[str, dict[str, Any]] = Field({}, description="[actuators.<name>] tables")
     hydraulics: dict[str, Any] | None = Field(None, description="the [hydraulics] table")
@@ -206,7 +212,7 @@ class Description(Table):
 class Payload(Table):
     """A payload given to the API, checked as ``robot.toml``'s."""
 
-    payload: float = Description.model_fields["payload"]
+    payload: float = PAYLOAD
 
 
 class CylinderTable(Table):
@@ -340,50 +346,58 @@ def message(
     table: str = "",
     entries: str = "",
 ) -> str:
-    """The one line of ``failure``'s first error: the file, the table and key, the value (an
-    excerpt), what it must be (its shape, range and likely unit mistake) and what it means."""
+    """The one line of ``failure``'s first error (an unknown key first: likely one misspelt):
+    the file, the table and key, the value (an excerpt), what it must be (its shape, range and
+    likely unit mistake) and what it means."""
     errors = failure.errors(include_url=False)
-    unknown = [e for e in errors if e["type"] == "extra_forbidden"]  # a key misspelt, likely
-    first = (unknown or errors)[0]
+    first = ([e for e in errors if e["type"] == "extra_forbidden"] or errors)[0]
     loc = tuple(first["loc"])
     if first["type"] in ("extra_forbidden", "missing"):
         path, parent, _ = _locate(model, loc[:-1])
         keys = [
             e["loc"][-1] for e in errors if e["type"] == first["type"] and e["loc"][:-1] == loc[:-1]
         ]
-        if first["type"] == "missing":
-            said = f"missing key {keys[0]!r}" if len(keys) == 1 else f"missing keys {keys}"
-        else:
-            known = entries or getattr(parent, "entries", "keys")
-            fields = getattr(parent, "model_fields", {})
-            said = f"unknown {known} {sorted(keys)}; {known}: " + ", ".join(
-                info.alias or name for name, info in fields.items()
-            )
-        return f"{_place(source, table, path)}: {said}"
+        return f"{_place(source, table, path)}: {_keys(first['type'], keys, parent, entries)}"
     path, annotation, info = _locate(model, loc)
-    if not path and first["type"] != DECLARED:  # not a table at all
-        return f"{_place(source, table, path)} = {excerpt(data)} must be a table"
-    if not path or (first["type"] == DECLARED and _is_table(annotation)):
+    if not path:
+        said = first["msg"] if first["type"] == DECLARED else f"= {excerpt(data)} must be a table"
+        return f"{_place(source, table, path)}{':' if first['type'] == DECLARED else ''} {said}"
+    if first["type"] == DECLARED and _is_table(annotation):  # a rule across the table's keys
         return f"{_place(source, table, path)}: {first['msg']}"
+    value = excerpt(_get(data, path))
+    where = f"{_place(source, table, path[:-1], keyed=True)}{path[-1]} = {value}"
     exact = len(path) == len([p for p in loc if p not in ("table", "other")])
-    shown = (
-        f"{_place(source, table, path[:-1], keyed=True)}{path[-1]} = {excerpt(_get(data, path))}"
-    )
+    return f"{where} {_problem(first, annotation, info, exact)}"
+
+
+def _keys(kind: str, keys: list, parent: Any, entries: str) -> str:
+    """The keys ``missing`` from a table, or the unknown ones and the table's known keys."""
+    if kind == "missing":
+        return f"missing key {keys[0]!r}" if len(keys) == 1 else f"missing keys {keys}"
+    known = entries or getattr(parent, "entries", "keys")
+    fields = getattr(parent, "model_fields", {})
+    names = ", ".join(info.alias or name for name, info in fields.items())
+    return f"unknown {known} {sorted(keys)}; {known}: {names}"
+
+
+def _problem(error: Any, annotation: Any, info: FieldInfo | None, exact: bool) -> str:
+    """What a value must be, from its ``error``, its ``annotation`` and its field ``info``:
+    a declared rule's words, a range with the likely unit mistake, or a shape; and what it
+    means. ``exact``: the error is the value's own, not one of its items'."""
     meaning = f" ({info.description})" if info is not None and info.description else ""
-    if first["type"] == DECLARED:
-        return f"{shown} {first['msg']}{meaning}"
+    if error["type"] == DECLARED:
+        return f"{error['msg']}{meaning}"
     bounds = _bounds(info)
-    if exact and bounds and first["type"] in _RANGE:
-        lower, upper, open_lower = bounds
-        shape = "a whole number " if annotation is int else ""
-        low = "(" if open_lower else "["
-        hint = (info.json_schema_extra or {}).get(
-            "below" if "greater" in first["type"] else "above"
-        )  # type: ignore[union-attr]
-        return f"{shown} must be {shape}within {low}{lower:g}, {upper:g}]{meaning}" + (
-            f"; {hint}" if hint else ""
-        )
-    return f"{shown} must be {_shape(annotation, info)}{meaning}"
+    if not (exact and info is not None and bounds and error["type"] in _RANGE):
+        return f"must be {_shape(annotation, info)}{meaning}"
+    lower, upper, open_lower = bounds
+    shape = "a whole number " if annotation is int else ""
+    extra = info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {}
+    hint = extra.get("below" if "greater" in error["type"] else "above")
+    low = "(" if open_lower else "["
+    return f"must be {shape}within {low}{lower:g}, {upper:g}]{meaning}" + (
+        f"; {hint}" if hint else ""
+    )
 
 
 _RANGE = ("greater_than", "greater_than_equal", "less_than", "less_than_equal")
@@ -469,17 +483,19 @@ def _is_table(annotation: Any) -> bool:
 def _bounds(info: FieldInfo | None) -> tuple[float, float, bool] | None:
     if info is None:
         return None
-    lower, upper, open_lower = None, None, False
+    lower: float | None = None
+    upper: float | None = None
+    open_lower = False
     for rule in info.metadata:
         if isinstance(rule, annotated_types.Ge):
-            lower = rule.ge
+            lower = float(rule.ge)  # type: ignore[arg-type]
         elif isinstance(rule, annotated_types.Gt):
-            lower, open_lower = rule.gt, True
+            lower, open_lower = float(rule.gt), True  # type: ignore[arg-type]
         elif isinstance(rule, annotated_types.Le):
-            upper = rule.le
+            upper = float(rule.le)  # type: ignore[arg-type]
     if lower is None or upper is None:
         return None
-    return float(lower), float(upper), open_lower  # type: ignore[arg-type]
+    return lower, upper, open_lower
 
 
 def _shape(annotation: Any, info: FieldInfo | None = None) -> str:

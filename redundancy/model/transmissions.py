@@ -1,4 +1,4 @@
-"""Actuator declarations, read and written in both forms with one schema.
+"""Actuator declarations, read in both forms with one schema.
 
 An actuator is declared beside an untouched URDF, as an ``[actuators.<name>]`` table of
 ``robot.toml``::
@@ -40,7 +40,6 @@ from __future__ import annotations
 
 import functools
 import math
-import re
 from typing import Any
 
 from lxml import etree
@@ -159,7 +158,7 @@ def read_actuator_tables(tables: dict[str, dict], source: str) -> list[ActuatorM
     return maps
 
 
-def _redundancy_transmissions(root: etree._Element) -> list[etree._Element]:
+def redundancy_transmissions(root: etree._Element) -> list[etree._Element]:
     return [
         element
         for element in root.findall("transmission")
@@ -225,7 +224,7 @@ def _read_transmission(element: etree._Element, source: str) -> ActuatorMap:
 
 def read_transmissions(root: etree._Element, source: str) -> list[ActuatorMap]:
     """The actuator maps declared in a URDF's root element; ``source`` names it in errors."""
-    return [_read_transmission(element, source) for element in _redundancy_transmissions(root)]
+    return [_read_transmission(element, source) for element in redundancy_transmissions(root)]
 
 
 def read_cylinders(root: etree._Element, source: str) -> dict[str, CylinderTable]:
@@ -233,7 +232,7 @@ def read_cylinders(root: etree._Element, source: str) -> dict[str, CylinderTable
     actuator name: each ``<actuator><cylinder .../></actuator>`` element's attributes, read as
     a ``[hydraulics.cylinders.<name>]`` table (`redundancy.model.schema.CylinderTable`)."""
     found = {}
-    for element in _redundancy_transmissions(root):
+    for element in redundancy_transmissions(root):
         name = element.get("name") or ""
         for cylinder in element.findall("actuator/cylinder"):
             values = {key: number_or_text(text) for key, text in cylinder.attrib.items()}
@@ -242,62 +241,3 @@ def read_cylinders(root: etree._Element, source: str) -> dict[str, CylinderTable
                 CylinderTable, values, where, error=RobotDescriptionError, entries="attributes"
             )
     return found
-
-
-def write_transmissions(urdf: str, actuators: list[ActuatorMap]) -> str:
-    """``urdf`` text with its redundancy transmissions replaced by declarations of ``actuators``."""
-    root = etree.fromstring(urdf.encode())
-    for element in _redundancy_transmissions(root):
-        root.remove(element)
-    for actuator in actuators:
-        element = etree.SubElement(root, "transmission", name=actuator.name)
-        etree.SubElement(element, "type").text = PREFIX + type(actuator).__name__
-        etree.SubElement(element, "joint", name=actuator.joint)
-        declared = etree.SubElement(element, "actuator", name=actuator.name)
-        etree.SubElement(declared, "stroke", lower=repr(actuator.lower), upper=repr(actuator.upper))
-        for parameter in type(actuator).parameters:
-            value = getattr(actuator, parameter.name)
-            etree.SubElement(element, parameter.element, **parameter.attributes(value))
-    etree.indent(root, space="  ")
-    return etree.tostring(root, encoding="unicode", xml_declaration=False) + "\n"
-
-
-def actuator_tables(actuators: list[ActuatorMap]) -> dict[str, dict[str, object]]:
-    """The ``[actuators.<name>]`` tables declaring ``actuators``, the inverse of
-    `read_actuator_tables`."""
-    tables: dict[str, dict[str, object]] = {}
-    for actuator in actuators:
-        table: dict[str, object] = {
-            "kind": type(actuator).__name__,
-            "joint": actuator.joint,
-            "stroke": [actuator.lower, actuator.upper],
-        }
-        for parameter in type(actuator).parameters:
-            table[parameter.name] = parameter.table(getattr(actuator, parameter.name))
-        tables[actuator.name] = table
-    return tables
-
-
-def _toml(value: object) -> str:
-    """A value of an actuator table (text, number, list, inline table) in TOML."""
-    if isinstance(value, str):
-        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(value, float):
-        return repr(value) if math.isfinite(value) else ("inf" if value > 0 else "-inf")
-    if isinstance(value, list):
-        return "[" + ", ".join(_toml(v) for v in value) + "]"
-    if isinstance(value, dict):
-        return "{" + ", ".join(f"{k} = {_toml(v)}" for k, v in value.items()) + "}"
-    return repr(value)
-
-
-def write_actuator_tables(actuators: list[ActuatorMap]) -> str:
-    """TOML text of the ``[actuators.<name>]`` tables declaring ``actuators``, to put in a
-    ``robot.toml`` beside an untouched URDF."""
-    blocks = []
-    for name, table in actuator_tables(actuators).items():
-        key = name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else _toml(name)
-        lines = [f"[actuators.{key}]"]
-        lines += [f"{key} = {_toml(value)}" for key, value in table.items()]
-        blocks.append("\n".join(lines) + "\n")
-    return "\n".join(blocks)
