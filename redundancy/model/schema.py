@@ -175,6 +175,12 @@ class PointOnLink(Table):
     xyz: Xyz
 
 
+class ArmOnLink(PointOnLink):
+    """A point fixed on a link and a length from it, m: ``{link, xyz, length}``."""
+
+    length: float = Field(gt=0.0, le=MAX_OFFSET, description="m")
+
+
 class Description(Table):
     """A ``robot.toml`` (schema in `redundancy.model.loading.load_robot`): the tool is a link
     (``tool_frame``) or a point on a link (``tool``), one of them."""
