@@ -585,34 +585,31 @@ CASES = [
             ("pump_flow", "0.0016", "0.1, 10000", "pump's maximum flow, L/min", "m³/s?"),
         ]
     ],
-    (
-        "stroke in mm",
-        ["describe", "--robot", "b.urdf"],
-        {
-            "b.urdf": URDF.replace(
-                '<stroke lower="0.83" upper="1.375"/>', '<stroke lower="830" upper="1375"/>', 1
-            )
-        },
-        '<stroke lower="830" upper="1375"/>: 830 m is beyond 100 m, longer than any cylinder; '
-        "did you give mm? 1 m = 1000 mm",
-    ),
-    (
-        "stroke of a negative length",
-        ["describe", "--robot", "b.urdf"],
-        {"b.urdf": URDF.replace('<stroke lower="0.83"', '<stroke lower="-0.5"', 1)},
-        '<stroke lower="-0.5" upper="1.375"/>: a cylinder\'s length is at least 0',
-    ),
-    (
-        "attachment in mm",
-        ["describe", "--robot", "b.urdf"],
-        {
-            "b.urdf": URDF.replace(
-                'xyz="0.383427387292961 0 -0.963510476680816"', 'xyz="383 0 -964"'
-            )
-        },
-        '<attachment link="column" xyz="383 0 -964"/> must be {link = "<a link>", xyz = [x, y, z]} '
-        "with three numbers within ±100 m (in m: 1 m = 1000 mm)",
-    ),
+    *[
+        (name, ["describe", "--robot", "b.urdf"], {"b.urdf": URDF.replace(old, new, 1)}, fragment)
+        for name, old, new, fragment in [
+            (
+                "stroke in mm",
+                '<stroke lower="0.83" upper="1.375"/>',
+                '<stroke lower="830" upper="1375"/>',
+                '<stroke lower="830" upper="1375"/>: 830 m is beyond 100 m, longer than any '
+                "cylinder; did you give mm? 1 m = 1000 mm",
+            ),
+            (
+                "stroke of a negative length",
+                '<stroke lower="0.83"',
+                '<stroke lower="-0.5"',
+                '<stroke lower="-0.5" upper="1.375"/>: a cylinder\'s length is at least 0',
+            ),
+            (
+                "attachment in mm",
+                'xyz="0.383427387292961 0 -0.963510476680816"',
+                'xyz="383 0 -964"',
+                '<attachment link="column" xyz="383 0 -964"/> must be {link = "<a link>", '
+                "xyz = [x, y, z]} with three numbers within ±100 m (in m: 1 m = 1000 mm)",
+            ),
+        ]
+    ],
     (
         "tool point in mm",
         ["describe", "--robot", "r.toml"],
