@@ -134,7 +134,7 @@ CASES = [
         "task speed zero",
         ["study", "--task", "t.toml"],
         {"t.toml": TASK.replace("speed = 0.5", "speed = 0")},
-        "speed must be > 0",
+        "speed = 0 must be within (0, 10] (the tool's speed, m/s)",
     ),
     *[
         (
@@ -175,14 +175,14 @@ CASES = [
             message,
         )
         for v, message in (
-            ('["a", "b"]', "point 1 = ['a', 'b'] must be a list of numbers"),
+            ('["a", "b"]', "[points] 1 = ['a', 'b'] must be a list of finite numbers"),
             ("[3.5, -0.5, 1.0]", "point 1 has 3 coordinates; the robot's task has 2"),
             ("[3.5]", "point 1 has 1 coordinates"),
-            ("[nan, 0]", "point 1 = [nan, 0] must be finite"),
-            ("[inf, 0]", "must be finite"),
+            ("[nan, 0]", "[points] 1 = [nan, 0] must be a list of finite numbers"),
+            ("[inf, 0]", "[points] 1 = [inf, 0] must be a list of finite numbers"),
             ("[1e308, 0]", "point 1: 1e+308 lies beyond ±1000 (m, or degrees for the tool's"),
-            ('"3.5, -0.5"', "must be a list of numbers"),
-            ("[true, 0]", "must be a list of numbers"),
+            ('"3.5, -0.5"', "[points] 1 = '3.5, -0.5' must be a list of finite numbers"),
+            ("[true, 0]", "[points] 1 = [True, 0] must be a list of finite numbers"),
             ("[100.0, -0.5]", "cannot follow segment 1-2: its point [100.0, -0.5] (t = 0 s)"),
         )
     ],
@@ -534,19 +534,19 @@ CASES = [
             f"hydraulics {key} = {v}",
             ["describe", "--hydraulics", "h.toml"],
             {"h.toml": re.sub(rf"(?m)^{key} = [^#\n]*", f"{key} = {v}", HYDRAULICS, count=1)},
-            f"{key} = {v} must be within [{bounds}]",
+            f"{key} = {v} must be within {bounds}",
         )
         for key, v, bounds in [
-            ("bore", "0.001", "5, 1000"),
-            ("bore", "2000.0", "5, 1000"),
-            ("max_speed", "50.0", "0, 10"),
+            ("bore", "0.001", "[5, 1000] (bore D, mm); did you give m? 1 m = 1000 mm"),
+            ("bore", "2000.0", "[5, 1000] (bore D, mm)"),
+            ("max_speed", "50.0", "(0, 10] (maximum speed, m/s); did you give mm/s?"),
         ]
     ],
     (
         "hydraulics not a table",
         ["describe", "--hydraulics", "h.toml"],
         {"h.toml": "hydraulics = 3\n"},
-        "[hydraulics] must be a table",
+        "h.toml: [hydraulics] = 3 must be a table",
     ),
     *[
         (
@@ -562,7 +562,7 @@ CASES = [
         "hydraulics supply",
         ["describe", "--hydraulics", "h.toml"],
         {"h.toml": HYDRAULICS.replace('supply = "LS"', 'supply = "XX"')},
-        "supply = 'XX'; supplies: LS, CP",
+        "[hydraulics] supply = 'XX' must be one of 'LS', 'CP'",
     ),
     (
         "hydraulics rod too big",
@@ -570,6 +570,84 @@ CASES = [
         {"h.toml": HYDRAULICS.replace("rod = 45.0", "rod = 90.0")},
         "0 ≤ rod < bore",
     ),
+    # implausible units: the value, its range and the likely mistake
+    *[
+        (
+            f"hydraulics {key} = {v}",
+            ["describe", "--hydraulics", "h.toml"],
+            {"h.toml": re.sub(rf"(?m)^{key} = [^#\n]*", f"{key} = {v}", HYDRAULICS, count=1)},
+            f"[hydraulics] {key} = {v} must be within [{bounds}] ({meaning}); did you give {unit}",
+        )
+        for key, v, bounds, meaning, unit in [
+            ("relief", "21000000.0", "1, 1000", "relief pressure, bar", "Pa? 1 bar = 1e5 Pa"),
+            ("tank", "200000.0", "0, 1000", "tank pressure p_T, bar", "Pa?"),
+            ("ls_margin", "0.5", "1, 1000", "LS margin Δp_LS, bar", "MPa? 1 MPa = 10 bar"),
+            ("pump_flow", "0.0016", "0.1, 10000", "pump's maximum flow, L/min", "m³/s?"),
+        ]
+    ],
+    *[
+        (name, ["describe", "--robot", "b.urdf"], {"b.urdf": URDF.replace(old, new, 1)}, fragment)
+        for name, old, new, fragment in [
+            (
+                "stroke in mm",
+                '<stroke lower="0.83" upper="1.375"/>',
+                '<stroke lower="830" upper="1375"/>',
+                '<stroke lower="830" upper="1375"/>: 830 m is beyond 100 m, longer than any '
+                "cylinder; did you give mm? 1 m = 1000 mm",
+            ),
+            (
+                "stroke of a negative length",
+                '<stroke lower="0.83"',
+                '<stroke lower="-0.5"',
+                '<stroke lower="-0.5" upper="1.375"/>: a cylinder\'s length is at least 0',
+            ),
+            (
+                "attachment in mm",
+                'xyz="0.383427387292961 0 -0.963510476680816"',
+                'xyz="383 0 -964"',
+                '<attachment link="column" xyz="383 0 -964"/> must be {link = "<a link>", '
+                "xyz = [x, y, z]} with three numbers within ±100 m (in m: 1 m = 1000 mm)",
+            ),
+        ]
+    ],
+    (
+        "tool point in mm",
+        ["describe", "--robot", "r.toml"],
+        {"r.toml": _description(tool_frame=None, tool='{link = "telescope", xyz = [1470, 0, 0]}')},
+        "r.toml: [tool] xyz = [1470, 0, 0] must be within ±100 m of the link's frame: 1470 m is "
+        "beyond; did you give mm? 1 m = 1000 mm",
+    ),
+    (
+        "map bore in mm",
+        ["map", "m.toml"],
+        {"m.toml": '[task]\n[grid]\nbore = {actuator = "x1", values = [80, 90]}\n'},
+        "m.toml: [grid.bore] values = [80, 90] must be within [0.005, 1]; did you give mm? "
+        "1 m = 1000 mm",
+    ),
+    (
+        "map attachment in mm",
+        ["map", "m.toml"],
+        {
+            "m.toml": '[task]\n[grid]\nattachment = {actuator = "x1", end = "base", axis = "x", '
+            "values = [383]}\n"
+        },
+        "m.toml: [grid.attachment] values = [383] must be within [-100, 100]; did you give mm?",
+    ),
+    # files that are no files: one line, not MemoryError
+    *[
+        (f"{what} /dev/zero", argv, files, fragment)
+        for what, argv, files, fragment in [
+            ("task", ["study", "--task", "/dev/zero"], {}, "/dev/zero: not a task file: not a "),
+            ("hydraulics", ["describe", "--hydraulics", "/dev/zero"], {}, "not a hydraulics file"),
+            ("map", ["map", "/dev/zero"], {}, "/dev/zero: not a map file: not a regular file"),
+            (
+                "csv",
+                ["study", "--task", "t.toml"],
+                {"t.toml": 'segments = [{ csv = "/dev/zero" }]\n'},
+                "/dev/zero: not a CSV file: not a regular file",
+            ),
+        ]
+    ],
     # paths out of reach: refused before any simulation, naming the point and the miss
     *[
         (
@@ -618,7 +696,7 @@ CASES = [
                 "grid attachment end",
                 '[task]\n[grid]\nattachment = {actuator = "x1", '
                 'end = "top", axis = "x", values = [0.1]}\n',
-                "ends: base, rod",
+                "[grid.attachment] end = 'top' must be one of 'base', 'rod'",
             ),
             (
                 "grid attachment kind",
@@ -647,17 +725,17 @@ CASES = [
                 "grid attachment key",
                 '[task]\n[grid]\nattachment = {actuator = "x1", end = "base", axis = "x", '
                 "values = [0.33], colour = 1}\n",
-                "attachment: unknown keys ['colour']; keys: actuator, end, axis, values",
+                "[grid.attachment]: unknown keys ['colour']; keys: actuator, end, axis, values",
             ),
             (
                 "grid bore key",
                 '[task]\n[grid]\nbore = {actuator = "x1", values = [0.08], rod = 0.04}\n',
-                "bore: unknown keys ['rod']; keys: actuator, values",
+                "[grid.bore]: unknown keys ['rod']; keys: actuator, values",
             ),
             (
                 "grid range key",
                 "[task]\n[grid]\npayload = {from = 0, to = 500, count = 3, step = 250}\n",
-                "payload: unknown keys ['step']; keys: from, to, count",
+                "[grid.payload]: unknown keys ['step']; keys: from, to, count",
             ),
             (
                 "objectives twice",
@@ -725,6 +803,19 @@ def test_bad_command_line_input_is_one_line(tmp_path, monkeypatch, capsys, argv,
     assert len(errors) == 1, errors
     assert "internal error" not in errors[0] and "Traceback" not in errors[0]
     assert fragment in errors[0], errors[0]
+
+
+def test_a_message_quotes_no_more_than_an_excerpt_of_a_file(tmp_path, monkeypatch, capsys):
+    """A CSV task naming a file that is no polyline (a system file, say) is refused in one line
+    that quotes at most the start of the offending cell, not the file's line."""
+    monkeypatch.chdir(tmp_path)
+    secret = "daemon:x:1:1:daemon:/usr/sbin:/usr/sbin/nologin:and-the-rest-of-the-line"
+    (tmp_path / "passwd").write_text(f"root:x:0:0:root:/root:/bin/bash\n{secret}\n")
+    (tmp_path / "t.toml").write_text('segments = [{ csv = "passwd" }]\n')
+    assert main(["study", "--task", "t.toml", "--quiet"]) == 2
+    errors = capsys.readouterr().err.strip().splitlines()
+    assert len(errors) == 1 and "passwd line 2: cell 1 ('daemon:x:1:1:daemon:" in errors[0]
+    assert "nologin" not in errors[0] and "rest-of-the-line" not in errors[0], errors[0]
 
 
 @pytest.fixture(scope="module")

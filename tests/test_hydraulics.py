@@ -283,18 +283,21 @@ def test_hydraulics_file_errors_name_the_value_and_the_choices(tmp_path):
     }
     assert circuit_from_table(good, "f.toml", names, rotary).names == ("x1",)
     cases = [
-        ({"supply": "XX"}, "supply = 'XX'; supplies: LS, CP"),
+        ({"supply": "XX"}, "[hydraulics] supply = 'XX' must be one of 'LS', 'CP'"),
         ({"relief": "high"}, "relief = 'high' must be a finite number (relief pressure, bar)"),
-        ({"cylinders": {"x9": {}}}, "no actuator 'x9'; actuators: ['x1', 'x2', 'x3']"),
+        (
+            {"cylinders": {"x9": good["cylinders"]["x1"]}},
+            "no actuator 'x9'; actuators: ['x1', 'x2', 'x3']",
+        ),
         (
             {"cylinders": {"x1": {"bore": 40, "rod": 45, "max_speed": 1, "max_acceleration": 1}}},
             "0 ≤ rod < bore",
         ),
         (
             {"cylinders": {"x1": {"bore": 80, "rod": 45, "max_speed": 1}}},
-            "missing 'max_acceleration'",
+            "f.toml: [hydraulics.cylinders.x1]: missing key 'max_acceleration'",
         ),
-        ({"pump_flow": 0}, "needs pump_flow > 0"),
+        ({"cp_pressure": 300}, "needs tank < cp_pressure ≤ relief"),
         ({"colour": 1}, "unknown keys ['colour']"),
     ]
     for change, message in cases:
@@ -302,7 +305,9 @@ def test_hydraulics_file_errors_name_the_value_and_the_choices(tmp_path):
             circuit_from_table({**good, **change}, "f.toml", names, rotary)
     path = tmp_path / "h.toml"
     path.write_text("[hydraulics]\nsupply = 'CP'\n")
-    with pytest.raises(InvalidInputError, match=r"h.toml \[hydraulics\]: missing 'ls_margin'"):
+    with pytest.raises(
+        InvalidInputError, match=r"h.toml: \[hydraulics\]: missing keys \['ls_margin', "
+    ):
         load_robot("hiab031", hydraulics=path)
     run = run_cli("describe", "--hydraulics", str(tmp_path / "none.toml"))
     assert run.returncode == 2 and "Traceback" not in run.stderr

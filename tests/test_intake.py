@@ -12,6 +12,7 @@ import meshcat
 import numpy as np
 import pytest
 import umsgpack
+from declarations import actuator_tables, write_actuator_tables, write_transmissions
 from lxml import etree
 from sampling import random_configurations
 
@@ -26,13 +27,7 @@ from redundancy import (
 from redundancy.cli import _play_motion, main, parser
 from redundancy.model.loading import bundled_root
 from redundancy.model.parameters import Choice, Number
-from redundancy.model.transmissions import (
-    actuator_tables,
-    read_actuator_tables,
-    read_transmissions,
-    write_actuator_tables,
-    write_transmissions,
-)
+from redundancy.model.transmissions import read_actuator_tables, read_transmissions
 from redundancy.planning.ik import configuration_at
 from redundancy.planning.integrate import simulate
 from redundancy.planning.tasks import WorkCycle
@@ -372,7 +367,7 @@ BAD = [
     (
         "offset = 0.2",
         "offset = 0.2\nbore = 80",
-        "[actuators.x3] (Prismatic): unknown keys ['bore']; keys: kind, joint, stroke, offset",
+        "[actuators.x3]: unknown keys ['bore']; keys: kind, joint, stroke, offset",
     ),
     (
         "offset = 0.2",
@@ -397,7 +392,7 @@ BAD = [
     (
         'task_axes = "xz"',
         'task_axes = "xz"\nlocked_joints = {stick_joint = "a"}',
-        "locked_joints: stick_joint = 'a' must be a finite number",
+        "[locked_joints] stick_joint = 'a' must be a finite number",
     ),
     (
         'tool = {link = "telescope", xyz = [0.8, 0.0, 0.0]}',
@@ -407,7 +402,7 @@ BAD = [
     (
         'tool = {link = "telescope", xyz = [0.8, 0.0, 0.0]}',
         'tool = {link = "telescope"}',
-        "tool = {'link': 'telescope'} must be {link = ",
+        "robot.toml: [tool]: missing key 'xyz'",
     ),
     ('urdf = "arm.urdf"', 'urdf = "arm.urdf.xacro"', "urdf = 'arm.urdf.xacro': no such file"),
 ]

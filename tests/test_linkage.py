@@ -3,13 +3,14 @@ differences, both assembly branches, and a linkage that cannot close."""
 
 import numpy as np
 import pytest
+from declarations import actuator_tables, write_actuator_tables, write_transmissions
 from lxml import etree
 from scipy.optimize import fsolve
 from test_derivatives import central_difference, columns
 
 from redundancy import RobotDescriptionError, SingularConfigurationError, actuator_space, load_robot
 from redundancy.model.linkage import LinkageCylinder
-from redundancy.model.transmissions import actuator_tables, read_transmissions, write_transmissions
+from redundancy.model.transmissions import read_transmissions
 
 # A slewing arm carrying a stick whose tip joint turns a bucket through a four-bar. The slew's
 # axis is oblique to the linkage's, so the linkage's plane turns every way, and the cylinder's
@@ -216,7 +217,6 @@ def test_the_excavators_linkage_is_declared_as_well_beside_its_urdf(tmp_path):
     """The bundled excavator's <transmission>s (two cylinders and the bucket's linkage) written
     as [actuators.*] tables beside the same URDF without them give the same x, A and Ȧ."""
     from redundancy.model.loading import bundled_root
-    from redundancy.model.transmissions import write_actuator_tables
 
     folder = bundled_root() / "excavator"
     urdf = (folder / "excavator.urdf").read_text()

@@ -221,7 +221,7 @@ def test_a_task_file_declares_arcs_circles_polylines_angles_and_profiles(tmp_pat
         ),
         (
             'profile = "smooth"\nsegments = ["a-b"]\n[points]\na = [0, 0]\nb = [1, 0]\n',
-            "profile = 'smooth' must be one of constant, trapezoidal",
+            "profile = 'smooth' must be one of 'constant', 'trapezoidal'",
         ),
         (
             'segments = [{ from = "a", to = "b", centre = "o" }]\n[points]\na = [1, 0]\n'
@@ -231,7 +231,7 @@ def test_a_task_file_declares_arcs_circles_polylines_angles_and_profiles(tmp_pat
         (
             'segments = [{ from = "a", to = "b", centre = "o", direction = "up" }]\n[points]\n'
             "a = [1, 0]\nb = [0, 1]\no = [0, 0]\n",
-            "direction = 'up' must be one of ccw, cw",
+            r"segments\[0\] direction = 'up' must be one of 'ccw', 'cw'",
         ),
         (
             'tool_angle = true\nsegments = ["a-b"]\n[points]\na = [0, 0]\nb = [1, 0]\n',

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from declarations import write_transmissions
 
 from redundancy import (
     ActuatorMap,
@@ -20,7 +21,6 @@ from redundancy import (
 )
 from redundancy.model.loading import bundled_root
 from redundancy.model.parameters import Number
-from redundancy.model.transmissions import write_transmissions
 
 CRANE_URDF = bundled_root() / "hiab031" / "hiab031.urdf"
 REPO = Path(__file__).resolve().parents[1]

@@ -8,6 +8,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from declarations import write_transmissions
 
 import redundancy.planning.integrate as integrate
 from redundancy import (
@@ -22,7 +23,6 @@ from redundancy import (
 )
 from redundancy.model.loading import bundled_root
 from redundancy.model.parameters import Number
-from redundancy.model.transmissions import write_transmissions
 from redundancy.planning.cycles import improved_cycle_start
 from redundancy.planning.ik import inverse_kinematics
 from redundancy.planning.integrate import simulate, stroke_extremes

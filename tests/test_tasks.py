@@ -54,3 +54,11 @@ def test_unknown_segment_lists_the_segments():
     cycle = WorkCycle.from_toml(bundled_root() / "hiab031" / "task.toml")
     with pytest.raises(InvalidInputError, match="segments: 1-2, 2-3, 3-1"):
         cycle["1-3"]
+
+
+def test_a_task_file_may_start_with_a_byte_order_mark(tmp_path):
+    text = (bundled_root() / "hiab031" / "task.toml").read_text()
+    path = tmp_path / "task.toml"
+    path.write_bytes("\ufeff".encode() + text.encode())
+    cycle = WorkCycle.from_toml(path, dimension=2)
+    assert [s.name for s in cycle.segments] == ["1-2", "2-3", "3-1"]

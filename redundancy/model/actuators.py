@@ -38,7 +38,7 @@ class ActuatorMap(ABC):
 
     A kind declares its own parameters once, in ``parameters`` (`redundancy.model.parameters`:
     `Number`, `Point`, `Choice`); each is a keyword of the kind's constructor and an attribute
-    of the same name on its instances. That one list reads and writes both declaration forms,
+    of the same name on its instances. That one list reads both declaration forms,
     an ``[actuators.<name>]`` table of ``robot.toml`` and a URDF ``<transmission>``. A kind of
     your own::
 
@@ -57,6 +57,7 @@ class ActuatorMap(ABC):
     """
 
     rotary = False
+    distance = False  # whether x is a distance between two points (m, ≥ 0), a cylinder's length
     parameters: tuple[Parameter, ...] = ()
 
     def __init__(self, name: str, joint: str, lower: float = -np.inf, upper: float = np.inf):
@@ -268,6 +269,7 @@ class LinearCylinder(VectorisedMap):
     in the link frames.
     """
 
+    distance = True
     parameters = (
         Point("base", "the cylinder's base point", tag="attachment"),
         Point("rod", "the cylinder's rod point", tag="attachment"),

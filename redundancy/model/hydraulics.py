@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from redundancy.errors import InvalidInputError
-from redundancy.model.values import number, read_toml, refuse_unknown
+from redundancy.model.schema import CylinderTable, Hydraulics, read_toml, validate
 
 BAR = 1e5  # Pa
 LITRES_PER_MINUTE = 1e-3 / 60  # m³/s
@@ -202,108 +202,56 @@ class Circuit:
         return self.cylinder_flows(x_dot[..., self.columns]).sum(axis=-1)
 
 
-SUPPLIES = ("LS", "CP")
-MACHINE_KEYS = {
-    "supply": "the machine's supply, 'LS' or 'CP'",
-    "ls_margin": "LS margin Δp_LS, bar",
-    "cp_pressure": "CP supply pressure p_S, bar",
-    "relief": "relief pressure, bar",
-    "pump_flow": "pump's maximum flow, L/min",
-    "tank": "tank pressure p_T, bar",
-}
-CYLINDER_KEYS = {  # key: (meaning, least, most), beyond which no hydraulic cylinder is built
-    "bore": ("bore D, mm", 5.0, 1000.0),
-    "rod": ("rod d, mm", 0.0, 1000.0),
-    "max_speed": ("maximum speed, m/s", 0.0, 10.0),
-    "max_acceleration": ("maximum acceleration, m/s²", 0.0, 100.0),
-}
-
-
 def circuit_from_table(
     table: object,
     source: str,
     actuators: list[str],
     rotary: list[bool],
-    declared: dict[str, dict] | None = None,
+    declared: dict[str, CylinderTable] | None = None,
     declared_in: str = "",
 ) -> Circuit:
-    """A `Circuit` from a ``[hydraulics]`` table (schema in the README), read from ``source``,
-    for a robot with actuators ``actuators`` (``rotary`` marks angles, which cylinders cannot
-    drive), with the cylinders ``declared`` beside the actuators (in ``declared_in``, a URDF's
-    transmissions) besides the table's own; a cylinder declared in both is an error."""
-    where = f"{source} [hydraulics]"
-    if not isinstance(table, dict):
-        raise InvalidInputError(f"{where} must be a table; got {table!r}")
-    refuse_unknown(table, [*MACHINE_KEYS, "cylinders"], where)
-    supply = table.get("supply")
-    if supply not in SUPPLIES:
-        raise InvalidInputError(f"{where}: supply = {supply!r}; supplies: {', '.join(SUPPLIES)}")
-    values = {
-        k: number(table, k, where, m, lower=0.0) for k, m in MACHINE_KEYS.items() if k != "supply"
-    }
-    cylinders = table.get("cylinders", {})
-    if not isinstance(cylinders, dict):
-        raise InvalidInputError(f"{where}: cylinders must be [hydraulics.cylinders.<actuator>]")
-    both = sorted(set(cylinders) & set(declared or {}))
+    """A `Circuit` from a ``[hydraulics]`` table (`redundancy.model.schema.Hydraulics`, schema
+    in the README), read from ``source``, for a robot with actuators ``actuators`` (``rotary``
+    marks angles, which cylinders cannot drive), with the cylinders ``declared`` beside the
+    actuators (in ``declared_in``, a URDF's transmissions) besides the table's own; a cylinder
+    declared in both is an error."""
+    given = validate(Hydraulics, table, source, "hydraulics")
+    where = f"{source}: [hydraulics]"
+    declared = declared or {}
+    both = sorted(set(given.cylinders) & set(declared))
     if both:
         raise InvalidInputError(
             f"{where}: cylinders {both} are declared here and in {declared_in}; keep one"
         )
-    places = {name: f"{where} cylinders.{name}" for name in cylinders}
-    places |= {name: f"{declared_in} transmission {name!r}" for name in declared or {}}
-    cylinders = {**cylinders, **(declared or {})}
+    places = {name: f"{where} cylinders.{name}" for name in given.cylinders}
+    places |= {name: f"{declared_in} transmission {name!r}" for name in declared}
+    cylinders = {**given.cylinders, **declared}
     if not cylinders:
         raise InvalidInputError(
             f"{where}: no cylinders; declare [hydraulics.cylinders.<actuator>] tables or "
             f"<cylinder> elements in the transmissions; actuators: {', '.join(actuators)}"
         )
-    found = []
-    for name, entry in cylinders.items():
-        place = places[name]
+    for name in cylinders:
         if name not in actuators:
-            raise InvalidInputError(f"{place}: no actuator {name!r}; actuators: {actuators}")
+            raise InvalidInputError(f"{places[name]}: no actuator {name!r}; actuators: {actuators}")
         if rotary[actuators.index(name)]:
-            raise InvalidInputError(f"{place}: actuator {name!r} is rotary, not a cylinder")
-        if not isinstance(entry, dict):
-            raise InvalidInputError(f"{place} must be a table with {', '.join(CYLINDER_KEYS)}")
-        refuse_unknown(entry, CYLINDER_KEYS, place)
-        bore, rod, speed, acceleration = (
-            number(entry, key, place, meaning, lower=least, upper=most)
-            for key, (meaning, least, most) in CYLINDER_KEYS.items()
-        )
-        if not 0 <= rod < bore or speed <= 0 or acceleration <= 0:
-            raise InvalidInputError(
-                f"{place}: needs 0 ≤ rod < bore, max_speed > 0 and max_acceleration > 0; got "
-                f"bore = {bore:g} mm, rod = {rod:g} mm, max_speed = {speed:g} m/s, "
-                f"max_acceleration = {acceleration:g} m/s²"
-            )
-        cylinder = Cylinder(bore * MM, rod * MM, speed, acceleration)
-        found.append((actuators.index(name), name, cylinder))
-    found.sort()
-    pressures = values["tank"] < values["cp_pressure"] <= values["relief"]
-    if (
-        not values["pump_flow"] > 0
-        or not pressures
-        or not values["ls_margin"] < (values["relief"] - values["tank"])
-    ):
-        raise InvalidInputError(
-            f"{where}: needs pump_flow > 0, tank < cp_pressure ≤ relief and ls_margin < relief "
-            f"− tank; got pump_flow = {values['pump_flow']:g} L/min, tank = {values['tank']:g}, "
-            f"cp_pressure = {values['cp_pressure']:g}, relief = {values['relief']:g}, "
-            f"ls_margin = {values['ls_margin']:g} bar"
-        )
-    load_sensing = LoadSensing(values["ls_margin"] * BAR)
-    constant_pressure = ConstantPressure(values["cp_pressure"] * BAR)
+            raise InvalidInputError(f"{places[name]}: actuator {name!r} is rotary, not a cylinder")
+    names = sorted(cylinders, key=actuators.index)
+    load_sensing = LoadSensing(given.ls_margin * BAR)
+    constant_pressure = ConstantPressure(given.cp_pressure * BAR)
     return Circuit(
-        tuple(name for _, name, _ in found),
-        np.array([column for column, _, _ in found], dtype=int),
-        tuple(cylinder for _, _, cylinder in found),
-        load_sensing if supply == "LS" else constant_pressure,
+        tuple(names),
+        np.array([actuators.index(name) for name in names], dtype=int),
+        tuple(
+            Cylinder(c.bore * MM, c.rod * MM, c.max_speed, c.max_acceleration)
+            for c in (cylinders[name] for name in names)
+        ),
+        load_sensing if given.supply == "LS" else constant_pressure,
         load_sensing,
         constant_pressure,
-        values["relief"] * BAR,
-        values["pump_flow"] * LITRES_PER_MINUTE,
-        values["tank"] * BAR,
+        given.relief * BAR,
+        given.pump_flow * LITRES_PER_MINUTE,
+        given.tank * BAR,
     )
 
 

@@ -55,6 +55,7 @@ class LinkageCylinder(VectorisedMap):
     """
 
     BRANCHES = (1, -1)
+    distance = True
     parameters = (
         Point("base", "the cylinder's base point, on the carrying link"),
         Arm("rocker", "the rocker's pivot on the carrying link, and its length to the rod's pin"),

@@ -23,14 +23,14 @@ from lxml import etree
 from redundancy.errors import InvalidInputError, RobotDescriptionError
 from redundancy.model.actuators import ActuatorSet, driven_joints
 from redundancy.model.hydraulics import circuit_from_table, read_hydraulics_file
-from redundancy.model.parameters import Point, number_or_text
+from redundancy.model.parameters import number_or_text
 from redundancy.model.robot import AXES, Robot, frame_id
+from redundancy.model.schema import Description, Payload, read_toml, validate
 from redundancy.model.transmissions import (
     read_actuator_tables,
     read_cylinders,
     read_transmissions,
 )
-from redundancy.model.values import MAX_PAYLOAD, names, number, read_toml, refuse_unknown, text
 
 
 def bundled_root() -> Path:
@@ -43,32 +43,11 @@ def bundled_robots() -> list[str]:
     return sorted(p.parent.name for p in bundled_root().glob("*/robot.toml"))
 
 
-DESCRIPTION_KEYS = (  # a robot.toml's keys (schema in load_robot's docstring)
-    "urdf",
-    "tool_frame",
-    "tool",
-    "task_axes",
-    "locked_joints",
-    "payload",
-    "task",
-    "actuators",
-    "hydraulics",
-)
-
-
-def _read_description(path: Path) -> dict:
-    """The contents of the robot description ``path`` (a ``robot.toml``), its keys checked:
-    every one known, the required ones given."""
-    description = read_toml(path, "robot description")
-    refuse_unknown(description, DESCRIPTION_KEYS, str(path))
-    tool = "tool_frame = a link, or tool = {link = ..., xyz = [...]}, a point on a link"
-    if "tool" in description and "tool_frame" in description:
-        raise RobotDescriptionError(f"{path}: tool_frame and tool are both given; give one: {tool}")
-    given = {*description, *(["tool_frame"] if "tool" in description else [])}
-    missing = [key for key in ("urdf", "tool_frame", "task_axes") if key not in given]
-    if missing:
-        raise RobotDescriptionError(f"{path}: missing keys {missing} (the tool: {tool})")
-    return description
+def _read_description(path: Path) -> Description:
+    """The robot description ``path`` (a ``robot.toml``), checked."""
+    return validate(
+        Description, read_toml(path, "robot description"), str(path), error=RobotDescriptionError
+    )
 
 
 URDF_SUFFIXES = (".urdf", ".xacro")
@@ -82,7 +61,7 @@ def _file_name(path: Path) -> str:
     return name or path.name
 
 
-def _describe(robot: str | Path) -> tuple[str, Path, dict, str]:
+def _describe(robot: str | Path) -> tuple[str, Path, Description, str]:
     """Name, folder, description (robot.toml contents) and where the description came from, of
     a bundled name or a file path. A robot loaded from a path is named after its folder (a
     ``robot.toml``) or its file (a URDF or xacro)."""
@@ -92,7 +71,8 @@ def _describe(robot: str | Path) -> tuple[str, Path, dict, str]:
     if path.suffix in URDF_SUFFIXES:
         if not path.is_file():
             raise RobotDescriptionError(f"no URDF file at {path}")
-        return _file_name(path), path.parent, {"urdf": path.name}, str(path)
+        bare = Description(urdf=path.name, tool_frame=None, task_axes=AXES)
+        return _file_name(path), path.parent, bare, str(path)
     if path.suffix == ".toml":
         if not path.is_file():
             raise RobotDescriptionError(f"no robot description at {path}")
@@ -319,17 +299,6 @@ def _build_model(root: etree._Element, source: str) -> pin.Model:
     return model
 
 
-def _locked_values(value: object, where: str) -> dict[str, float | None]:
-    """``locked_joints``: a list of joints fixed at their neutral value (None here), or a table
-    {joint = value} of joints fixed at the value (rad or m)."""
-    if isinstance(value, dict):
-        return {
-            name: number(value, name, f"{where} locked_joints", "rad or m, within its range")
-            for name in value
-        }
-    return dict.fromkeys(names({"locked_joints": value}, "locked_joints", where, "joints fixed"))
-
-
 def _lock(model: pin.Model, locked: dict[str, float | None], where: str, source: str) -> pin.Model:
     """``model`` (of the URDF ``source``) with the ``locked`` joints (from ``where``) fixed at
     their values (neutral where None)."""
@@ -407,26 +376,25 @@ def _add_payload(model: pin.Model, frame: str, payload: float) -> None:
     model.inertias[tool.parentJoint] = model.inertias[tool.parentJoint] + point_mass
 
 
-def _tool(model: pin.Model, description: dict, where: str) -> str:
+def _tool(model: pin.Model, description: Description, where: str) -> str:
     """The tool frame: ``tool_frame``, a link, or ``tool = {link = "...", xyz = [...]}``, a
     point on a link, added to ``model`` as the frame "tool point"; by default the last link."""
     bodies = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
-    if "tool" in description:
-        value = description["tool"]
-        link, xyz = Point("tool", "the tool point").read(value, f"{where} tool = {value!r}")
-        if link not in bodies:
+    tool = description.tool
+    if tool is not None:
+        if tool.link not in bodies:
             raise RobotDescriptionError(
-                f"{where} tool.link = {link!r} is not a link of the URDF; links: {bodies}"
+                f"{where} tool.link = {tool.link!r} is not a link of the URDF; links: {bodies}"
             )
-        parent_id = model.getFrameId(link, pin.FrameType.BODY)
+        parent_id = model.getFrameId(tool.link, pin.FrameType.BODY)
         parent = model.frames[parent_id]
-        placement = parent.placement * pin.SE3(np.eye(3), xyz)
+        placement = parent.placement * pin.SE3(np.eye(3), np.array(tool.xyz))
         frame = pin.Frame(
             TOOL_POINT, parent.parentJoint, parent_id, placement, pin.FrameType.OP_FRAME
         )
         model.addFrame(frame, False)
         return TOOL_POINT
-    tool_frame = text(description, "tool_frame", where, "the tool's link", bodies[-1])
+    tool_frame = description.tool_frame or bodies[-1]
     if tool_frame not in bodies:
         raise RobotDescriptionError(
             f"{where}: tool frame {tool_frame!r} is not a link of the URDF; links: {bodies}"
@@ -438,13 +406,12 @@ TOOL_POINT = "tool point"  # the frame of a tool given as a point on a link
 
 
 def _actuators(
-    root: etree._Element, description: dict, source: str, where: str, locked: list[str]
+    root: etree._Element, description: Description, source: str, where: str, locked: list[str]
 ) -> list:
     """The declared actuators, from the URDF's transmissions and robot.toml's tables, less
     those on locked joints (dropped with a warning)."""
     declared = read_transmissions(root, source)
-    if "actuators" in description:
-        declared += read_actuator_tables(description["actuators"], where)
+    declared += read_actuator_tables(description.actuators, where)
     dropped = [a.name for a in declared if a.joint in locked]
     if dropped:
         warnings.warn(f"actuators on locked joints are dropped: {', '.join(dropped)}", stacklevel=3)
@@ -530,12 +497,13 @@ def load_robot(
     ``<inertial>`` that is there must hold numbers a body can have (`_check_inertials`).
     """
     name, folder, description, where = _describe(robot)
-    reference = text(description, "urdf", where, "the URDF, beside this file or package://")
+    reference = description.urdf
     urdf_path = _urdf_path(folder, reference)
     if not urdf_path.is_file():
         raise RobotDescriptionError(f"{where}: urdf = {reference!r}: no such file {urdf_path}")
     source = urdf_path.name
-    locked = _locked_values(description.get("locked_joints", []), where)
+    locked = description.locked_joints
+    locked = dict(locked) if isinstance(locked, dict) else dict.fromkeys(locked)
     root, continuous = _intake(_urdf_text(urdf_path), source, locked)
     zero_masses = _check_inertials(root, source)
     missing_meshes = _resolve_meshes(root, urdf_path.parent)
@@ -553,7 +521,7 @@ def load_robot(
             model.lowerPositionLimit[index], model.upperPositionLimit[index] = -np.inf, np.inf
     tool_frame = _tool(model, description, where)
     if task_axes is None:
-        task_axes = text(description, "task_axes", where, "world axes of the task", AXES)
+        task_axes = description.task_axes
     if (
         not isinstance(task_axes, str)
         or not task_axes
@@ -563,30 +531,22 @@ def load_robot(
         raise RobotDescriptionError(
             f"task_axes {task_axes!r} must be distinct letters among 'x', 'y', 'z'"
         )
-    meaning = f"kg at the tool, 0 to {MAX_PAYLOAD:g}"
     if payload is None:
-        payload = number(description, "payload", where, meaning, 0.0, 0.0, MAX_PAYLOAD)
+        payload = description.payload
     else:
-        payload = number(
-            {"payload": payload}, "payload", "load_robot", meaning, 0.0, 0.0, MAX_PAYLOAD
-        )
+        payload = validate(Payload, {"payload": payload}, "load_robot").payload
     if payload > 0:
         _add_payload(model, tool_frame, payload)
     maps = _actuators(root, description, source, where, list(locked))
     actuators = ActuatorSet.bind(maps, model)
-    task = (
-        text(description, "task", where, "the robot's task file", None)
-        if "task" in description
-        else None
-    )
-    task_file = None if task is None else folder / task
+    task_file = None if description.task is None else folder / description.task
     actuator_names, rotary = actuators.names, actuators.rotary.tolist()
     declared = read_cylinders(root, source)
     table, origin = None, ""
     if hydraulics is not None:
         table, origin = read_hydraulics_file(Path(hydraulics)), str(hydraulics)
-    elif "hydraulics" in description:
-        table, origin = description["hydraulics"], where
+    elif description.hydraulics is not None:
+        table, origin = description.hydraulics, where
     elif declared:
         warnings.warn(
             f"{source} declares cylinders {sorted(declared)} but no [hydraulics] table "

@@ -20,18 +20,19 @@ forms give the same one-line errors, each naming the value as written.
 
 from __future__ import annotations
 
-import math
+import functools
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import cast
+from typing import Annotated, Any, Literal
 
 import numpy as np
+from pydantic import AfterValidator, AllowInfNan, Strict, TypeAdapter, ValidationError
 
 from redundancy.errors import RobotDescriptionError
+from redundancy.model.schema import MAX_OFFSET, ArmOnLink, PointOnLink
 from redundancy.model.values import decimal
 
 REQUIRED = object()  # the default of a parameter that must be given
-MAX_OFFSET = 1000.0  # m: a point on a link, or a length, within this of the link's frame
 
 
 @dataclass(frozen=True)
@@ -39,7 +40,8 @@ class Parameter(ABC):
     """One parameter of an actuator kind: its ``name`` (the TOML key and the attribute of the
     kind's instances, and the constructor's keyword), what it means (with its unit), its
     ``default`` (`REQUIRED` when it must be given) and its ``<transmission>`` child's ``tag``
-    (the name when empty)."""
+    (the name when empty). Its value's schema is its ``annotation`` (pydantic's), described in
+    words by its ``shape``."""
 
     name: str
     meaning: str
@@ -51,26 +53,38 @@ class Parameter(ABC):
         """The tag of its ``<transmission>`` child."""
         return self.tag or self.name
 
-    def _refuse(self, where: str, shape: str) -> RobotDescriptionError:
-        return RobotDescriptionError(f"{where} must be {shape} ({self.meaning})")
-
+    @property
     @abstractmethod
-    def read(self, value: object, where: str) -> object:
-        """The value from its TOML shape (or an element's attributes turned into that shape);
-        ``where`` names the file, the actuator and the value as written, for the message."""
+    def annotation(self) -> Any:
+        """The value's type in its TOML shape, which checks it."""
 
+    @property
     @abstractmethod
-    def table(self, value: object) -> object:
-        """The value in its TOML shape, the inverse of `read`."""
+    def shape(self) -> str:
+        """What the value must be, in words."""
+
+    def read(self, value: object, where: str) -> Any:
+        """The value from its TOML shape (or an element's attributes turned into that shape),
+        as the kind's constructor takes it; ``where`` names the file, the actuator and the
+        value as written, for the message."""
+        try:
+            return self.convert(_adapter(self.annotation).validate_python(value))
+        except ValidationError:
+            raise RobotDescriptionError(f"{where} must be {self.shape} ({self.meaning})") from None
+
+    def convert(self, value: Any) -> Any:
+        """The checked value as the kind's constructor takes it."""
+        return value
 
     @abstractmethod
     def from_attributes(self, attributes: dict[str, str]) -> object:
         """A ``<transmission>`` child's attributes in the TOML shape, unchecked: text that is
         not a number stays text, so that `read` names it."""
 
-    @abstractmethod
-    def attributes(self, value: object) -> dict[str, str]:
-        """The value as a ``<transmission>`` child's attributes."""
+
+@functools.cache
+def _adapter(annotation: Any) -> TypeAdapter:
+    return TypeAdapter(annotation)
 
 
 def number_or_text(text: str) -> float | str:
@@ -81,15 +95,6 @@ def number_or_text(text: str) -> float | str:
         return text
 
 
-def _finite(value: object) -> bool:
-    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
-
-
-def _offset(value: object) -> bool:
-    """A finite coordinate or length of a link's point, within `MAX_OFFSET`."""
-    return _finite(value) and abs(cast(float, value)) <= MAX_OFFSET
-
-
 @dataclass(frozen=True)
 class Number(Parameter):
     """A finite number (``<tag value="..."/>``), e.g. a prismatic drive's offset in m; one of
@@ -97,21 +102,25 @@ class Number(Parameter):
 
     allowed: tuple[float, ...] = ()
 
-    def read(self, value: object, where: str) -> float:
-        if not _finite(value):
-            raise self._refuse(where, "a finite number")
-        if self.allowed and value not in self.allowed:
-            raise self._refuse(where, f"one of {', '.join(f'{a:g}' for a in self.allowed)}")
-        return float(value)  # type: ignore[arg-type]
+    @property
+    def annotation(self) -> Any:
+        if self.allowed:
+            return Annotated[float, Strict(), AfterValidator(self._allowed)]
+        return Annotated[float, Strict(), AllowInfNan(False)]
 
-    def table(self, value: object) -> float:
-        return float(value)  # type: ignore[arg-type]
+    def _allowed(self, value: float) -> float:
+        if value not in self.allowed:
+            raise ValueError(value)
+        return value
+
+    @property
+    def shape(self) -> str:
+        if self.allowed:
+            return f"one of {', '.join(f'{a:g}' for a in self.allowed)}"
+        return "a finite number"
 
     def from_attributes(self, attributes: dict[str, str]) -> object:
         return number_or_text(attributes.get("value", ""))
-
-    def attributes(self, value: object) -> dict[str, str]:
-        return {"value": repr(float(value))}  # type: ignore[arg-type]
 
 
 @dataclass(frozen=True)
@@ -120,19 +129,16 @@ class Choice(Parameter):
 
     choices: tuple[str, ...] = ()
 
-    def read(self, value: object, where: str) -> str:
-        if value not in self.choices:
-            raise self._refuse(where, f"one of {', '.join(map(repr, self.choices))}")
-        return str(value)
+    @property
+    def annotation(self) -> Any:
+        return Literal[self.choices]
 
-    def table(self, value: object) -> str:
-        return str(value)
+    @property
+    def shape(self) -> str:
+        return f"one of {', '.join(map(repr, self.choices))}"
 
     def from_attributes(self, attributes: dict[str, str]) -> object:
         return attributes.get("value", "")
-
-    def attributes(self, value: object) -> dict[str, str]:
-        return {"value": str(value)}
 
 
 @dataclass(frozen=True)
@@ -140,74 +146,36 @@ class Point(Parameter):
     """A point fixed on a link: ``(link, xyz)`` with xyz (3,) in m in the link's frame;
     ``{link = "...", xyz = [x, y, z]}`` in TOML, ``<tag link="..." xyz="x y z"/>`` in a URDF."""
 
-    def read(self, value: object, where: str) -> tuple[str, np.ndarray]:
-        shape = (
-            f'{{link = "<a link>", xyz = [x, y, z]}} with three numbers within ±{MAX_OFFSET:g} m'
-        )
-        if not isinstance(value, dict) or set(value) != {"link", "xyz"}:
-            raise self._refuse(where, shape)
-        link, xyz = value["link"], value["xyz"]
-        if (
-            not isinstance(link, str)
-            or not isinstance(xyz, list)
-            or len(xyz) != 3
-            or not all(_offset(c) for c in xyz)
-        ):
-            raise self._refuse(where, shape)
-        return link, np.array(xyz, dtype=float)
+    annotation = PointOnLink
+    shape = (
+        f'{{link = "<a link>", xyz = [x, y, z]}} with three numbers within ±{MAX_OFFSET:g} m '
+        "(in m: 1 m = 1000 mm)"
+    )
 
-    def table(self, value: object) -> dict:
-        link, xyz = cast(tuple[str, np.ndarray], value)
-        return {"link": link, "xyz": [float(c) for c in xyz]}
+    def convert(self, value: PointOnLink) -> tuple[str, np.ndarray]:
+        return value.link, np.array(value.xyz)
 
     def from_attributes(self, attributes: dict[str, str]) -> object:
         found: dict[str, object] = dict(attributes)
         if "xyz" in attributes:
             found["xyz"] = [number_or_text(c) for c in attributes["xyz"].split()]
+        if "length" in attributes:
+            found["length"] = number_or_text(attributes["length"])
         return found
-
-    def attributes(self, value: object) -> dict[str, str]:
-        link, xyz = cast(tuple[str, np.ndarray], value)
-        return {"link": link, "xyz": " ".join(repr(float(c)) for c in xyz)}
 
 
 @dataclass(frozen=True)
-class Arm(Parameter):
+class Arm(Point):
     """A point fixed on a link and a length from it: ``(link, xyz, length)``, xyz (3,) and the
     length > 0 in m; ``{link = "...", xyz = [x, y, z], length = l}`` in TOML,
     ``<tag link="..." xyz="x y z" length="l"/>`` in a URDF (a linkage's rocker: its pivot and
     its length to the rod's pin)."""
 
-    @property
-    def _point(self) -> Point:
-        return Point(self.name, self.meaning)
+    annotation = ArmOnLink  # type: ignore[assignment]
+    shape = (
+        f'{{link = "<a link>", xyz = [x, y, z], length = l}} with numbers within '
+        f"±{MAX_OFFSET:g} m, l > 0 (in m: 1 m = 1000 mm)"
+    )
 
-    def read(self, value: object, where: str) -> tuple[str, np.ndarray, float]:
-        shape = (
-            f'{{link = "<a link>", xyz = [x, y, z], length = l}} with numbers within '
-            f"±{MAX_OFFSET:g} m, l > 0"
-        )
-        if not isinstance(value, dict) or set(value) != {"link", "xyz", "length"}:
-            raise self._refuse(where, shape)
-        length = value["length"]
-        if not _offset(length) or not length > 0:
-            raise self._refuse(where, shape)
-        try:
-            link, xyz = self._point.read({"link": value["link"], "xyz": value["xyz"]}, where)
-        except RobotDescriptionError:
-            raise self._refuse(where, shape) from None
-        return link, xyz, float(length)
-
-    def table(self, value: object) -> dict:
-        link, xyz, length = cast(tuple[str, np.ndarray, float], value)
-        return {**self._point.table((link, xyz)), "length": float(length)}
-
-    def from_attributes(self, attributes: dict[str, str]) -> object:
-        found = cast(dict[str, object], self._point.from_attributes(attributes))
-        if "length" in attributes:
-            found["length"] = number_or_text(attributes["length"])
-        return found
-
-    def attributes(self, value: object) -> dict[str, str]:
-        link, xyz, length = cast(tuple[str, np.ndarray, float], value)
-        return {**self._point.attributes((link, xyz)), "length": repr(float(length))}
+    def convert(self, value: ArmOnLink) -> tuple[str, np.ndarray, float]:  # type: ignore[override]
+        return value.link, np.array(value.xyz), value.length

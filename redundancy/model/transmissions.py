@@ -1,4 +1,4 @@
-"""Actuator declarations, read and written in both forms with one schema.
+"""Actuator declarations, read in both forms with one schema.
 
 An actuator is declared beside an untouched URDF, as an ``[actuators.<name>]`` table of
 ``robot.toml``::
@@ -38,18 +38,18 @@ TOML).
 
 from __future__ import annotations
 
+import functools
 import math
-import re
 from typing import Any
 
 from lxml import etree
+from pydantic import Field, create_model
 
 from redundancy.errors import RobotDescriptionError
 from redundancy.model.actuators import ActuatorMap
-from redundancy.model.hydraulics import CYLINDER_KEYS
 from redundancy.model.linkage import LinkageCylinder
 from redundancy.model.parameters import REQUIRED, number_or_text
-from redundancy.model.values import refuse_unknown
+from redundancy.model.schema import MAX_OFFSET, CylinderTable, Table, excerpt, validate
 
 # The kinds are found by class name among ActuatorMap's subclasses: the bundled ones beyond
 # actuators.py are defined by importing their modules.
@@ -57,7 +57,6 @@ BUNDLED_KINDS = (LinkageCylinder,)
 
 PREFIX = "redundancy/"
 _COMMON = ("type", "joint", "actuator")  # a transmission's children that are not parameters
-_KEYS = ("kind", "joint", "stroke")  # an actuator table's keys that are not parameters
 
 
 def _kind(kind_name: object, where: str, prefix: str = "") -> type[ActuatorMap]:
@@ -72,18 +71,31 @@ def _kind(kind_name: object, where: str, prefix: str = "") -> type[ActuatorMap]:
     return kinds[bare]  # type: ignore[index]
 
 
-def _stroke(value: object, where: str) -> tuple[float, float]:
-    """Stroke limits [lower, upper], numbers (infinite ones too) with lower < upper."""
-    if (
+def _stroke(value: object, kind: type[ActuatorMap], where: str) -> tuple[float, float]:
+    """Stroke limits [lower, upper], numbers (infinite ones too) with lower < upper; a cylinder's
+    (a ``distance``, m) at least 0 and, where finite, within `MAX_OFFSET`."""
+    if not (
         isinstance(value, list)
         and len(value) == 2
         and all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
         and value[0] < value[1]
     ):
-        return float(value[0]), float(value[1])
-    raise RobotDescriptionError(
-        f"{where} must be [lower, upper], numbers with lower < upper (m, rad for a rotary drive)"
-    )
+        raise RobotDescriptionError(
+            f"{where} must be [lower, upper], numbers with lower < upper (m, rad for a rotary "
+            "drive)"
+        )
+    lower, upper = float(value[0]), float(value[1])
+    if kind.distance and lower < 0:
+        raise RobotDescriptionError(
+            f"{where}: a cylinder's length is at least 0; its stroke must be too (m)"
+        )
+    far = [v for v in (lower, upper) if kind.distance and math.isfinite(v) and v > MAX_OFFSET]
+    if far:
+        raise RobotDescriptionError(
+            f"{where}: {far[0]:g} m is beyond {MAX_OFFSET:g} m, longer than any cylinder; did "
+            "you give mm? 1 m = 1000 mm"
+        )
+    return lower, upper
 
 
 def _declare(
@@ -108,40 +120,45 @@ def _declare(
     return kind(name, joint, stroke[0], stroke[1], **values)
 
 
-def read_actuator_tables(tables: object, source: str) -> list[ActuatorMap]:
+@functools.cache
+def _table(kind: type[ActuatorMap]) -> type[Table]:
+    """The ``[actuators.<name>]`` table of ``kind``: its keys, and the joint a name; the stroke
+    and the kind's parameters are read by `_stroke` and `Parameter.read`, as in a URDF."""
+    names = ["stroke", *(parameter.name for parameter in kind.parameters)]
+    keys: dict[str, Any] = dict.fromkeys(names, (Any, None))
+    return create_model(
+        f"{kind.__name__}Table",
+        __base__=Table,
+        kind=(str, ...),
+        joint=(str, Field(description="the joint it drives")),
+        **keys,
+    )
+
+
+def read_actuator_tables(tables: dict[str, dict], source: str) -> list[ActuatorMap]:
     """The actuators of ``robot.toml``'s ``[actuators.<name>]`` tables (``tables``: the
     ``actuators`` table); ``source`` names the file in errors."""
-    if not isinstance(tables, dict):
-        raise RobotDescriptionError(
-            f"{source}: actuators = {tables!r} must be tables [actuators.<name>]"
-        )
     maps = []
     for name, table in tables.items():
         where = f"{source}: [actuators.{name}]"
-        if not isinstance(table, dict):
-            raise RobotDescriptionError(f"{where} = {table!r} must be a table")
         kind = _kind(table.get("kind"), f"{where} kind")
-        keys = [*_KEYS, *(p.name for p in kind.parameters)]
-        refuse_unknown(table, keys, f"{where} ({kind.__name__})", error=RobotDescriptionError)
-        joint = table.get("joint")
-        if not isinstance(joint, str):
-            raise RobotDescriptionError(f"{where} joint = {joint!r} must be a joint's name")
+        joint = validate(_table(kind), table, source, f"actuators.{name}", RobotDescriptionError)
         stroke = table.get("stroke", [-math.inf, math.inf])
-        limits = _stroke(stroke, f"{where} stroke = {stroke!r}")
+        limits = _stroke(stroke, kind, f"{where} stroke = {excerpt(stroke)}")
         given = {
             p.name: (
                 table.get(p.name),
-                f"{where} {p.name} = {table[p.name]!r}"
+                f"{where} {p.name} = {excerpt(table[p.name])}"
                 if p.name in table
                 else f"{where}: missing key {p.name}",
             )
             for p in kind.parameters
         }
-        maps.append(_declare(kind, name, joint, limits, given))
+        maps.append(_declare(kind, name, joint.joint, limits, given))  # type: ignore[attr-defined]
     return maps
 
 
-def _redundancy_transmissions(root: etree._Element) -> list[etree._Element]:
+def redundancy_transmissions(root: etree._Element) -> list[etree._Element]:
     return [
         element
         for element in root.findall("transmission")
@@ -175,7 +192,7 @@ def _read_transmission(element: etree._Element, source: str) -> ActuatorMap:
     if stroke is not None:
         texts = (stroke.get("lower", "-inf"), stroke.get("upper", "inf"))
         written = etree.tostring(stroke, encoding="unicode", with_tail=False)
-        limits = _stroke([number_or_text(t) for t in texts], f"{where} {written}")
+        limits = _stroke([number_or_text(t) for t in texts], kind, f"{where} {written}")
     children: dict[str, list[etree._Element]] = {}
     for child in element:
         if isinstance(child.tag, str) and child.tag not in _COMMON:
@@ -207,88 +224,20 @@ def _read_transmission(element: etree._Element, source: str) -> ActuatorMap:
 
 def read_transmissions(root: etree._Element, source: str) -> list[ActuatorMap]:
     """The actuator maps declared in a URDF's root element; ``source`` names it in errors."""
-    return [_read_transmission(element, source) for element in _redundancy_transmissions(root)]
+    return [_read_transmission(element, source) for element in redundancy_transmissions(root)]
 
 
-def read_cylinders(root: etree._Element, source: str) -> dict[str, dict[str, float]]:
+def read_cylinders(root: etree._Element, source: str) -> dict[str, CylinderTable]:
     """The hydraulic data of the cylinders declared in a URDF's redundancy transmissions, by
-    actuator name: each ``<actuator><cylinder .../></actuator>`` element's attributes as numbers
-    (`CYLINDER_KEYS`; missing ones are left for `circuit_from_table` to name)."""
+    actuator name: each ``<actuator><cylinder .../></actuator>`` element's attributes, read as
+    a ``[hydraulics.cylinders.<name>]`` table (`redundancy.model.schema.CylinderTable`)."""
     found = {}
-    for element in _redundancy_transmissions(root):
+    for element in redundancy_transmissions(root):
         name = element.get("name") or ""
         for cylinder in element.findall("actuator/cylinder"):
+            values = {key: number_or_text(text) for key, text in cylinder.attrib.items()}
             where = f"{source}: <transmission name={name!r}> <cylinder>"
-            refuse_unknown(
-                cylinder.attrib, CYLINDER_KEYS, where, "attributes", RobotDescriptionError
+            found[name] = validate(
+                CylinderTable, values, where, error=RobotDescriptionError, entries="attributes"
             )
-            values = {}
-            for key in CYLINDER_KEYS:
-                if key in cylinder.attrib:
-                    try:
-                        values[key] = float(cylinder.get(key))
-                    except ValueError:
-                        raise RobotDescriptionError(
-                            f"{where} {key}={cylinder.get(key)!r} is not a number"
-                        ) from None
-            found[name] = values
     return found
-
-
-def write_transmissions(urdf: str, actuators: list[ActuatorMap]) -> str:
-    """``urdf`` text with its redundancy transmissions replaced by declarations of ``actuators``."""
-    root = etree.fromstring(urdf.encode())
-    for element in _redundancy_transmissions(root):
-        root.remove(element)
-    for actuator in actuators:
-        element = etree.SubElement(root, "transmission", name=actuator.name)
-        etree.SubElement(element, "type").text = PREFIX + type(actuator).__name__
-        etree.SubElement(element, "joint", name=actuator.joint)
-        declared = etree.SubElement(element, "actuator", name=actuator.name)
-        etree.SubElement(declared, "stroke", lower=repr(actuator.lower), upper=repr(actuator.upper))
-        for parameter in type(actuator).parameters:
-            value = getattr(actuator, parameter.name)
-            etree.SubElement(element, parameter.element, **parameter.attributes(value))
-    etree.indent(root, space="  ")
-    return etree.tostring(root, encoding="unicode", xml_declaration=False) + "\n"
-
-
-def actuator_tables(actuators: list[ActuatorMap]) -> dict[str, dict[str, object]]:
-    """The ``[actuators.<name>]`` tables declaring ``actuators``, the inverse of
-    `read_actuator_tables`."""
-    tables: dict[str, dict[str, object]] = {}
-    for actuator in actuators:
-        table: dict[str, object] = {
-            "kind": type(actuator).__name__,
-            "joint": actuator.joint,
-            "stroke": [actuator.lower, actuator.upper],
-        }
-        for parameter in type(actuator).parameters:
-            table[parameter.name] = parameter.table(getattr(actuator, parameter.name))
-        tables[actuator.name] = table
-    return tables
-
-
-def _toml(value: object) -> str:
-    """A value of an actuator table (text, number, list, inline table) in TOML."""
-    if isinstance(value, str):
-        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(value, float):
-        return repr(value) if math.isfinite(value) else ("inf" if value > 0 else "-inf")
-    if isinstance(value, list):
-        return "[" + ", ".join(_toml(v) for v in value) + "]"
-    if isinstance(value, dict):
-        return "{" + ", ".join(f"{k} = {_toml(v)}" for k, v in value.items()) + "}"
-    return repr(value)
-
-
-def write_actuator_tables(actuators: list[ActuatorMap]) -> str:
-    """TOML text of the ``[actuators.<name>]`` tables declaring ``actuators``, to put in a
-    ``robot.toml`` beside an untouched URDF."""
-    blocks = []
-    for name, table in actuator_tables(actuators).items():
-        key = name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else _toml(name)
-        lines = [f"[actuators.{key}]"]
-        lines += [f"{key} = {_toml(value)}" for key, value in table.items()]
-        blocks.append("\n".join(lines) + "\n")
-    return "\n".join(blocks)

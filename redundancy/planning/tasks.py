@@ -59,21 +59,19 @@ from pathlib import Path
 import numpy as np
 
 from redundancy.errors import InvalidInputError
-from redundancy.model.values import (
-    MAX_SPEED,
-    coordinates,
-    decimal,
-    is_real,
-    names,
-    number,
+from redundancy.model.schema import (
+    SegmentTable,
+    TaskFile,
+    Timing,
+    excerpt,
+    read_text,
     read_toml,
-    refuse_unknown,
-    text,
+    validate,
 )
+from redundancy.model.values import MAX_ACCELERATION, MAX_SPEED, decimal, is_real
 
 PROFILES = ("constant", "trapezoidal")
 DIRECTIONS = ("ccw", "cw")
-MAX_ACCELERATION = 100.0  # m/s²: beyond any hydraulic manipulator's tool
 CLOSED = 1e-9  # m (or rad): ends this close count as one point
 MAX_COORDINATE = 1000.0  # m, or degrees for the tool's angle: a task file's points lie within
 # this of the robot's base, as far as any manipulator's workspace with room to spare
@@ -634,52 +632,42 @@ class WorkCycle:
         """Read a task file (schema in the module docstring); ``dimension`` (the robot's m, its
         position axes) checks every point's size, one more with ``tool_angle``."""
         path = Path(path)
-        data = read_toml(path, "task file")
-        where = str(path)
-        refuse_unknown(data, TASK_KEYS, where)
-        tool_angle = data.get("tool_angle", False)
-        if not isinstance(tool_angle, bool):
-            raise InvalidInputError(f"{path}: tool_angle = {tool_angle!r} must be true or false")
-        size = None if dimension is None else dimension + int(tool_angle)
-        points = data.get("points")
-        entries = data.get("segments", [])
-        only_csv = isinstance(entries, list) and all(
-            isinstance(e, dict) and "csv" in e for e in entries
-        )
-        if points is None and only_csv:
+        task = validate(TaskFile, read_toml(path, "task file"), str(path))
+        size = None if dimension is None else dimension + int(task.tool_angle)
+        points = task.points
+        if points is None and all(
+            isinstance(e, SegmentTable) and e.csv is not None for e in task.segments
+        ):
             points = {}
-        elif not isinstance(points, dict) or not points:
+        elif not points:
             raise InvalidInputError(f"{path}: needs a [points] table of name = [coordinates]")
         found = {}
         for name, value in points.items():
-            given = coordinates(value, f"{where}: point {name}", size)
-            _check_reach(given, f"{where}: point {name}", [repr(v) for v in value])
-            found[name] = _in_radians(given, tool_angle)
-        defaults = _timing(data, where, None)
-        if not isinstance(entries, list) or not all(isinstance(e, str | dict) for e in entries):
-            raise InvalidInputError(
-                f"{where}: segments = {entries!r} must be a list of '<from>-<to>' names or "
-                'segment tables, e.g. segments = ["1-2", { from = "2", to = "3", via = "4" }]'
-            )
-        segments: list[Segment] = []
-        for i, entry in enumerate(entries):  # type: ignore[union-attr]
-            where_entry = f"{where}: segments[{i}]"
-            segments.append(_segment(entry, found, defaults, tool_angle, size, path, where_entry))
+            where = f"{path}: point {name}"
+            if size is not None and len(value) != size:
+                raise InvalidInputError(
+                    f"{where} has {len(value)} coordinates; the robot's task has {size}"
+                )
+            _check_reach(np.array(value), where, [repr(v) for v in value])
+            found[name] = _in_radians(np.array(value), task.tool_angle)
+        defaults = _timing(task, str(path), None)
+        segments = [
+            _segment(entry, found, defaults, task.tool_angle, size, path, f"{path}: segments[{i}]")
+            for i, entry in enumerate(task.segments)
+        ]
         if not segments:
             raise InvalidInputError(f"{path}: no segments")
-        seen: set[str] = set()
-        for segment in segments:
-            if segment.name in seen:
-                raise InvalidInputError(
-                    f"{path}: two segments are named {segment.name!r}; give one a name"
-                )
-            seen.add(segment.name)
-        meaning = "the actuators the improved search holds; leave it out for the default"
-        held = names(data, "held", where, meaning, distinct=True)
-        if "held" in data and not held:
-            raise InvalidInputError(f"{where}: held = [] names no actuator ({meaning})")
-        name = text(data, "name", where, "the task's name", path.stem)
-        return cls(name, tuple(segments), held, tool_angle)
+        names = [segment.name for segment in segments]
+        twice = next((name for name in names if names.count(name) > 1), None)
+        if twice is not None:
+            raise InvalidInputError(f"{path}: two segments are named {twice!r}; give one a name")
+        if task.held == []:
+            raise InvalidInputError(
+                f"{path}: held = [] names no actuator (the actuators the improved search holds; "
+                "leave it out for the default)"
+            )
+        name = path.stem if task.name is None else task.name
+        return cls(name, tuple(segments), tuple(task.held or ()), task.tool_angle)
 
 
 def _check_reach(point: np.ndarray, where: str, shown: list[str]) -> None:
@@ -700,28 +688,13 @@ def _in_radians(point: np.ndarray, tool_angle: bool) -> np.ndarray:
     return point
 
 
-def _timing(table: dict, where: str, defaults: tuple | None) -> tuple:
-    """(speed, profile, acceleration) of a task file or of one segment's table."""
-    speed0, profile0, acceleration0 = defaults or (0.5, "constant", None)
-    speed = number(table, "speed", where, "m/s of the tool", speed0, 0.0, MAX_SPEED)
-    profile = text(table, "profile", where, " or ".join(PROFILES), profile0)
-    if profile not in PROFILES:
-        raise InvalidInputError(
-            f"{where}: profile = {profile!r} must be one of {', '.join(PROFILES)}"
-        )
-    acceleration = acceleration0
-    if "acceleration" in table:
-        acceleration = number(
-            table,
-            "acceleration",
-            where,
-            "m/s², the trapezoidal profile's maximum",
-            None,
-            0.0,
-            MAX_ACCELERATION,
-        )
-        if not acceleration > 0:  # type: ignore[operator]
-            raise InvalidInputError(f"{where}: acceleration = {acceleration!r} must be > 0 m/s²")
+def _timing(table: Timing, where: str, defaults: tuple | None) -> tuple:
+    """(speed, profile, acceleration) of a task file or of one segment's ``table``, which
+    takes the file's ``defaults`` where it gives none."""
+    speed, profile, acceleration = defaults or (0.5, "constant", None)
+    speed = speed if table.speed is None else table.speed
+    profile = table.profile or profile
+    acceleration = acceleration if table.acceleration is None else table.acceleration
     if profile == "trapezoidal" and acceleration is None:
         raise InvalidInputError(
             f"{where}: a trapezoidal profile needs acceleration (m/s², the tool's maximum)"
@@ -729,24 +702,11 @@ def _timing(table: dict, where: str, defaults: tuple | None) -> tuple:
     return speed, profile, acceleration
 
 
-TASK_KEYS = ("name", "speed", "profile", "acceleration", "tool_angle", "held", "segments", "points")
-SEGMENT_KEYS = (
-    "from",
-    "to",
-    "via",
-    "centre",
-    "center",
-    "direction",
-    "csv",
-    "name",
-    "speed",
-    "profile",
-    "acceleration",
-)
+ARC_KEYS = ("from", "to", "via", "centre", "center", "direction")  # a line's or an arc's keys
 
 
 def _segment(
-    entry,
+    entry: SegmentTable | str,
     points: dict,
     defaults: tuple,
     tool_angle: bool,
@@ -758,8 +718,10 @@ def _segment(
     angles = int(tool_angle)
     known = ", ".join(points)
 
-    def point(name: object, key: str) -> np.ndarray:
-        if not isinstance(name, str) or name not in points:
+    def point(name: str | None, key: str) -> np.ndarray:
+        if name is None:
+            raise InvalidInputError(f"{where}: missing {key!r} (a point's name)")
+        if name not in points:
             raise InvalidInputError(f"{where}: {key} = {name!r} must name a point among {known}")
         return points[name]
 
@@ -767,45 +729,36 @@ def _segment(
         ends = entry.split("-")
         if len(ends) != 2 or any(e not in points for e in ends):
             raise InvalidInputError(
-                f"{path}: segment {entry!r} must be '<from>-<to>' with points among {known}"
+                f"{path}: segment {excerpt(entry)} must be '<from>-<to>' with points among {known}"
             )
-        entry = {"from": ends[0], "to": ends[1], "name": entry}
-    if not isinstance(entry, dict):
-        raise InvalidInputError(
-            f"{where} = {entry!r} must be '<from>-<to>' or a table such as "
-            '{ from = "1", to = "2", via = "3" }'
-        )
-    refuse_unknown(entry, SEGMENT_KEYS, where)
+        entry = SegmentTable.model_validate({"from": ends[0], "to": ends[1], "name": entry})
     speed, profile, acceleration = _timing(entry, where, defaults)
-    centre = entry.get("centre", entry.get("center"))
-    if "csv" in entry:
-        clash = sorted({"from", "to", "via", "centre", "center", "direction"} & set(entry))
+    given = entry.model_dump(by_alias=True, exclude_none=True)
+    centre = entry.centre if entry.centre is not None else entry.center
+    if entry.csv is not None:
+        clash = [key for key in ARC_KEYS if key in given]
         if clash:
             raise InvalidInputError(f"{where}: a csv polyline takes no {', '.join(clash)}")
-        file = text(entry, "csv", where, "a CSV file of points, beside the task file")
         dimension = size if size is not None or not points else len(next(iter(points.values())))
-        shape: Shape = read_polyline(path.parent / file, dimension, tool_angle)
-        name = text(entry, "name", where, "the segment's name", Path(file).stem)
+        shape: Shape = read_polyline(path.parent / entry.csv, dimension, tool_angle)
+        name = Path(entry.csv).stem if entry.name is None else entry.name
     else:
-        for key in ("from", "to"):
-            if key not in entry:
-                raise InvalidInputError(f"{where}: missing {key!r} (a point's name)")
-        start, end = point(entry["from"], "from"), point(entry["to"], "to")
-        name = text(entry, "name", where, "the segment's name", f"{entry['from']}-{entry['to']}")
+        start, end = point(entry.start, "from"), point(entry.to, "to")
+        name = f"{entry.start}-{entry.to}" if entry.name is None else entry.name
         try:
-            if "via" in entry and centre is not None:
+            if entry.via is not None and centre is not None:
                 raise InvalidInputError("give via or centre, not both")
-            if "via" in entry:
-                shape = Arc.through(start, point(entry["via"], "via"), end, angles)
+            if entry.via is not None:
+                shape = Arc.through(start, point(entry.via, "via"), end, angles)
             elif centre is not None:
-                if "direction" not in entry:
+                if entry.direction is None:
                     raise InvalidInputError('an arc about a centre needs direction = "ccw" or "cw"')
                 middle = point(centre, "centre")
                 shape = Arc.about(
-                    start, end, middle[: len(middle) - angles], entry["direction"], angles
+                    start, end, middle[: len(middle) - angles], entry.direction, angles
                 )
             else:
-                if "direction" in entry:
+                if entry.direction is not None:
                     raise InvalidInputError("direction belongs to an arc about a centre")
                 shape = Line(start, end, angles)
         except InvalidInputError as error:
@@ -817,12 +770,7 @@ def read_polyline(path: Path | str, dimension: int | None, tool_angle: bool = Fa
     """The polyline of a CSV file (module docstring): one point per line, ``dimension`` values
     each where given (the last an angle in degrees with ``tool_angle``). Errors name the line."""
     path = Path(path)
-    try:
-        text_lines = path.read_text(encoding="utf-8").splitlines()
-    except OSError as error:
-        raise InvalidInputError(f"cannot read polyline {path}: {error.strerror}") from None
-    except UnicodeDecodeError:
-        raise InvalidInputError(f"{path}: not a CSV file: not UTF-8 text") from None
+    text_lines = read_text(path, "CSV file").splitlines()
     rows: list[tuple[int, np.ndarray]] = []
     header_allowed = True
     for number_, cells in enumerate(csv.reader(text_lines), start=1):
@@ -842,12 +790,14 @@ def read_polyline(path: Path | str, dimension: int | None, tool_angle: bool = Fa
         bad = next((c for c, v in enumerate(values, start=1) if v is None), None)
         if bad is not None:
             raise InvalidInputError(
-                f"{path} line {number_}: cell {bad} ({cells[bad - 1].strip()!r}) is not a number"
+                f"{path} line {number_}: cell {bad} ({excerpt(cells[bad - 1].strip())}) is not a "
+                "number"
             )
         array = np.array(values, dtype=float)
         if not np.all(np.isfinite(array)):
             raise InvalidInputError(
-                f"{path} line {number_}: {cells[int(np.argmin(np.isfinite(array)))].strip()!r} "
+                f"{path} line {number_}: "
+                f"{excerpt(cells[int(np.argmin(np.isfinite(array)))].strip())} "
                 "is not a finite number"
             )
         _check_reach(array, f"{path} line {number_}", [c.strip() for c in cells])

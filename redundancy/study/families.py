@@ -51,56 +51,147 @@ import math
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
 from pathlib import Path
+from typing import Annotated, Any, ClassVar, Literal
 
 import numpy as np
 import pinocchio as pin
+from pydantic import AfterValidator, Field, model_validator
+from pydantic_core import PydanticCustomError
 
 from redundancy.errors import InvalidInputError
 from redundancy.model.actuators import ActuatorSet, LinearCylinder
 from redundancy.model.loading import bundled_robots, load_robot
 from redundancy.model.robot import AXES, Robot
-from redundancy.model.values import (
-    MAX_PAYLOAD,
-    MAX_SPEED,
-    coordinates,
-    names,
-    number,
+from redundancy.model.schema import (
+    DECLARED,
+    MAX_OFFSET,
+    MM_PER_S,
+    Names,
+    Table,
+    either,
+    excerpt,
+    quantity,
     read_toml,
-    refuse_unknown,
-    text,
+    validate,
 )
+from redundancy.model.values import MAX_PAYLOAD, MAX_SPEED, is_real, is_whole
 from redundancy.planning.ik import held_indices
 from redundancy.planning.starts import held_actuators
 from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.resolution.objectives import OBJECTIVES
 
-KEYS = (
-    "name",
-    "robot",
-    "hydraulics",
-    "objectives",
-    "held",
-    "chunk",
-    "bound",
-    "energy",
-    "circuit",
-    "workspace",
-    "task",
-    "grid",
-)  # a map file's keys
-WORKSPACE_KEYS = ("length", "direction", "speed", "grid")
-TASK_KEYS = ("file", "segments")
 PARAMETERS = ("payload", "speed", "attachment", "bore")  # the design grid's keys, in order
-RANGE_KEYS = ("from", "to", "count")  # a design parameter's values as a range
-DESIGN_KEYS = {
-    "attachment": ("actuator", "end", "axis", "values"),
-    "bore": ("actuator", "values"),
-}  # the keys of the design parameters given as a table
 MAX_PROBLEMS = 2_000_000  # problems of one family: its table, held in memory at about 200 bytes
 # per row and objective, stays under 1 GB with two objectives; split a larger family
 MAX_CHUNK = 10_000
-ENDS = ("base", "rod")
+MAX_COUNT = 100_000  # values of one range
 WORKSPACE_SAMPLES = 4096  # joint-space samples spanning the reachable workspace's extent
+
+
+class Range(Table):
+    """A design parameter's values as a range: ``{from = a, to = b, count = k}``."""
+
+    start: float = Field(alias="from")
+    to: float
+    count: int = Field(ge=1, le=MAX_COUNT, description="values from a to b")
+
+
+def design_values(lower: float, upper: float, hint: str = "") -> Any:
+    """A design parameter's values, a list of numbers or a `Range`, each within [lower,
+    upper] (``hint``: the likely unit mistake beyond), read as a tuple of floats."""
+
+    def expand(given: Range | list[float]) -> tuple[float, ...]:
+        found = (
+            given if isinstance(given, list) else np.linspace(given.start, given.to, given.count)
+        )
+        if not len(found):
+            raise PydanticCustomError(
+                DECLARED, "gives no values; give a list of numbers or {from = a, to = b, count = k}"
+            )
+        if not all(lower <= v <= upper for v in found):
+            raise PydanticCustomError(
+                DECLARED, f"must be within [{lower:g}, {upper:g}]" + (f"; {hint}" if hint else "")
+            )
+        return tuple(float(v) for v in found)
+
+    return Annotated[either(Range, list[float]), AfterValidator(expand)]
+
+
+MM = "did you give mm? 1 m = 1000 mm"
+Offsets = design_values(-MAX_OFFSET, MAX_OFFSET, MM)  # m, of a point in its link's frame
+Bores = design_values(0.005, 1.0, MM)  # m: the 5-1000 mm of a hydraulics file's bores
+Payloads = design_values(0.0, MAX_PAYLOAD)  # kg
+Speeds = design_values(1e-6, MAX_SPEED, MM_PER_S)  # m/s
+
+
+class Workspace(Table):
+    """The ``[workspace]`` table: segments of one length and direction from a grid of starts."""
+
+    length: float = quantity("each segment's length", "m", 1e-6, 1e3)
+    direction: list[float] = Field(description="along the task axes; normalised")
+    speed: float = quantity("along each segment", "m/s", 1e-6, MAX_SPEED, 0.5, above=MM_PER_S)
+    grid: dict[str, Any] = Field(description="per task axis: [from, to, count], or a count")
+
+
+class TaskTable(Table):
+    """The ``[task]`` table: segments of a task file."""
+
+    file: str | None = Field(None, description="the task file, relative to the map file")
+    segments: Names = Field([], description="segments of the task file")
+
+
+class Attachment(Table):
+    """An attachment coordinate the grid moves: ``{actuator, end, axis, values}``."""
+
+    actuator: str = Field(description="an actuator's name")
+    end: Literal["base", "rod"] | None = None
+    axis: Literal["x", "y", "z"] | None = Field(None, description="of the end's link frame")
+    values: Offsets = Field(description="m, in the end's link frame")  # type: ignore[valid-type]
+
+
+class Bore(Table):
+    """A cylinder's bore the grid varies: ``{actuator, values}``."""
+
+    actuator: str = Field(description="an actuator's name")
+    values: Bores = Field(description="m")  # type: ignore[valid-type]
+
+
+class Grid(Table):
+    """The design grid: each parameter's values."""
+
+    entries: ClassVar[str] = "parameters"
+    payload: Payloads | None = Field(None, description="kg")  # type: ignore[valid-type]
+    speed: Speeds | None = Field(None, description="m/s")  # type: ignore[valid-type]
+    attachment: Attachment | None = None
+    bore: Bore | None = None
+
+
+class Family(Table):
+    """A map file (see the module docstring)."""
+
+    name: str | None = None
+    robot: str = Field("hiab031", description="bundled name or robot path")
+    hydraulics: str | None = Field(None, description="a [hydraulics] file")
+    objectives: Names = Field(
+        ["velocity", "energy"], description=f"objectives: {', '.join(OBJECTIVES)}"
+    )
+    held: Names = Field([], description="actuators the search holds")
+    chunk: int = Field(8, ge=1, le=MAX_CHUNK, description="problems per chunk of work")
+    bound: bool = False
+    energy: bool = False
+    circuit: bool = False
+    workspace: Workspace | None = None
+    task: TaskTable | None = None
+    grid: Grid = Grid()
+
+    @model_validator(mode="before")
+    @classmethod
+    def _one_source(cls, data: Any) -> Any:
+        if isinstance(data, dict) and ("workspace" in data) == ("task" in data):
+            raise PydanticCustomError(
+                DECLARED, "give the segments by one table, [workspace] or [task]"
+            )
+        return data
 
 
 @dataclass(frozen=True)
@@ -271,42 +362,21 @@ def _variant(
     )
 
 
-def _values(value: object, where: str, meaning: str, lower: float, upper: float) -> tuple:
-    """A list of numbers, or {from, to, count}, as a tuple of floats within [lower, upper]."""
-    if isinstance(value, dict):
-        refuse_unknown(value, RANGE_KEYS, where)
-        start = number(value, "from", where, meaning, lower=lower, upper=upper)
-        stop = number(value, "to", where, meaning, lower=lower, upper=upper)
-        count = value.get("count")
-        if isinstance(count, bool) or not isinstance(count, int) or not 1 <= count <= 100_000:
-            raise InvalidInputError(f"{where}: count = {count!r} must be a whole number ≥ 1")
-        return tuple(float(v) for v in np.linspace(start, stop, count))
-    array = coordinates(value, where, None)
-    if array.ndim != 1 or not array.size:
-        raise InvalidInputError(
-            f"{where} = {value!r} gives no values; give a list of numbers or "
-            "{from = a, to = b, count = k}"
-        )
-    if np.any(array < lower) or np.any(array > upper):
-        raise InvalidInputError(
-            f"{where} = {value!r}: values must be within [{lower:g}, {upper:g}]"
-        )
-    return tuple(float(v) for v in array)
-
-
 def _axis_values(value: object, where: str, extent: tuple[float, float]) -> tuple[float, ...]:
     """[from, to, count], or a count over ``extent``, as the grid's coordinates."""
-    if isinstance(value, int) and not isinstance(value, bool):
+    if is_whole(value):
         value = [extent[0], extent[1], value]
-    if not (isinstance(value, list) and len(value) == 3):
+    if not (
+        isinstance(value, list)
+        and len(value) == 3
+        and all(is_real(v) and math.isfinite(v) for v in value[:2])
+    ):
         raise InvalidInputError(
-            f"{where} = {value!r} must be [from, to, count] (m) or a count alone"
+            f"{where} = {excerpt(value)} must be [from, to, count] (m) or a count alone"
         )
-    start, stop = coordinates(value[:2], where, None)
-    count = value[2]
-    if isinstance(count, bool) or not isinstance(count, int) or not 1 <= count <= 100_000:
-        raise InvalidInputError(f"{where}: count {count!r} must be a whole number ≥ 1")
-    return tuple(float(v) for v in np.linspace(start, stop, count))
+    if not is_whole(value[2], 1, MAX_COUNT):
+        raise InvalidInputError(f"{where}: count {value[2]!r} must be a whole number ≥ 1")
+    return tuple(float(v) for v in np.linspace(*value))
 
 
 def workspace_extent(robot: Robot) -> np.ndarray:
@@ -320,25 +390,19 @@ def workspace_extent(robot: Robot) -> np.ndarray:
 
 
 def _workspace(
-    robot: Robot, table: object, where: str
+    robot: Robot, table: Workspace, where: str
 ) -> tuple[list[tuple[float, ...]], np.ndarray, float]:
     """The ``[workspace]`` table: the grid's coordinates per task axis, the step from a
     segment's start to its end (m) and the speed along it (m/s)."""
-    if not isinstance(table, dict):
-        raise InvalidInputError(f"{where}: [workspace] must be a table")
-    refuse_unknown(table, WORKSPACE_KEYS, f"{where}: [workspace]")
-    length = number(table, "length", where, "m, each segment's length", lower=1e-6, upper=1e3)
-    direction = coordinates(table.get("direction"), f"{where}: direction", robot.m)
+    direction = np.array(table.direction)
+    if direction.shape != (robot.m,):
+        raise InvalidInputError(
+            f"{where}: direction = {excerpt(table.direction)} has {direction.size} coordinates; "
+            f"the robot's task has {robot.m}"
+        )
     if not np.linalg.norm(direction) > 0:
         raise InvalidInputError(f"{where}: direction = {direction.tolist()} must be nonzero")
-    speed = number(table, "speed", where, "m/s along each segment", 0.5, 1e-6, MAX_SPEED)
-    grid = table.get("grid")
-    if not isinstance(grid, dict):
-        raise InvalidInputError(
-            f"{where}: needs a [workspace.grid] table with one entry per task axis "
-            f"({', '.join(robot.task_axes)})"
-        )
-    unknown = sorted(set(grid) - set(robot.task_axes))
+    unknown = sorted(set(table.grid) - set(robot.task_axes))
     if unknown:
         raise InvalidInputError(
             f"{where}: [workspace.grid] has {unknown}; task axes: {', '.join(robot.task_axes)}"
@@ -346,10 +410,12 @@ def _workspace(
     extent = workspace_extent(robot)
     axes = []
     for a, axis in enumerate(robot.task_axes):
-        if axis not in grid:
+        if axis not in table.grid:
             raise InvalidInputError(f"{where}: [workspace.grid] misses the task axis {axis!r}")
-        axes.append(_axis_values(grid[axis], f"{where}: workspace.grid.{axis}", tuple(extent[a])))
-    return axes, length * direction / np.linalg.norm(direction), speed
+        axes.append(
+            _axis_values(table.grid[axis], f"{where}: workspace.grid.{axis}", tuple(extent[a]))
+        )
+    return axes, table.length * direction / np.linalg.norm(direction), table.speed
 
 
 def _workspace_segments(
@@ -373,145 +439,106 @@ def _check_size(segments: int, grid: tuple[tuple[str, tuple], ...], where: str) 
         )
 
 
-def _task_segments(robot: Robot, table: object, folder: Path, where: str):
-    if not isinstance(table, dict):
-        raise InvalidInputError(f"{where}: [task] must be a table")
-    refuse_unknown(table, TASK_KEYS, f"{where}: [task]")
-    if "file" in table:
-        path = folder / text(table, "file", where, "the task file, relative to the map file")
+def _task_segments(robot: Robot, table: TaskTable, folder: Path, where: str):
+    if table.file is not None:
+        path = folder / table.file
     elif robot.task_file is not None:
         path = robot.task_file
     else:
         raise InvalidInputError(f"{where}: [task] needs file = ...; {robot.name} has no task")
     cycle = WorkCycle.from_toml(path, dimension=robot.m)
-    chosen = names(table, "segments", where, "segments of the task file", (), distinct=True)
-    segments = tuple(cycle[s] for s in chosen) if chosen else cycle.segments
+    segments = tuple(cycle[s] for s in table.segments) if table.segments else cycle.segments
     return segments, cycle
 
 
 def read_family(path: Path | str) -> MapFamily:
     """The family declared in the map file ``path`` (see the module docstring)."""
     path = Path(path)
-    data = read_toml(path, "map file")
     where, folder = str(path), path.resolve().parent
-    refuse_unknown(data, KEYS, where)
-    robot_name = text(data, "robot", where, "bundled name or robot path", "hiab031")
+    family = validate(Family, read_toml(path, "map file"), where)
+    robot_name = family.robot
     if not (robot_name in bundled_robots() and not (folder / robot_name).exists()):
         robot_name = str(folder / robot_name)
-    hydraulics = text(data, "hydraulics", where, "a [hydraulics] file", None)
-    hydraulics = None if hydraulics is None else str(folder / hydraulics)
+    hydraulics = None if family.hydraulics is None else str(folder / family.hydraulics)
     robot = load_robot(robot_name, hydraulics=hydraulics)
-    objectives = names(
-        data,
-        "objectives",
-        where,
-        f"objectives: {', '.join(OBJECTIVES)}",
-        ("velocity", "energy"),
-        distinct=True,
-    )
-    for name in objectives:
+    for name in family.objectives:
         if name not in OBJECTIVES:
             raise InvalidInputError(
                 f"{where}: objective {name!r} unknown; objectives: {', '.join(OBJECTIVES)}"
             )
-    if not objectives:
+    if not family.objectives:
         raise InvalidInputError(f"{where}: objectives = [] names none; give at least one")
-    flags = {}
-    for key in ("bound", "energy", "circuit"):
-        flags[key] = data.get(key, False)
-        if not isinstance(flags[key], bool):
-            raise InvalidInputError(f"{where}: {key} = {flags[key]!r} must be true or false")
-    if flags["energy"] or flags["circuit"]:
+    if family.energy or family.circuit:
         robot.circuit()  # says how to declare one
-    if ("workspace" in data) == ("task" in data):
-        raise InvalidInputError(f"{where}: give the segments by one table, [workspace] or [task]")
-    held = names(data, "held", where, "actuators the search holds", (), distinct=True)
-    grid, attachment, bore = _grid(robot, data.get("grid", {}), f"{where}: [grid]")
-    if "workspace" in data:
-        axes, step, speed = _workspace(robot, data["workspace"], where)
+    held = tuple(family.held)
+    grid, attachment, bore = _grid(robot, family.grid, f"{where}: [grid]")
+    if family.workspace is not None:
+        axes, step, speed = _workspace(robot, family.workspace, f"{where}: [workspace]")
         _check_size(math.prod(len(values) for values in axes), grid, where)
         segments = _workspace_segments(axes, step, speed)
         cycle = WorkCycle("workspace", segments[:1], held)
     else:
-        segments, cycle = _task_segments(robot, data["task"], folder, where)
+        segments, cycle = _task_segments(robot, family.task, folder, where)  # type: ignore[arg-type]
         _check_size(len(segments), grid, where)
         cycle = WorkCycle(cycle.name, cycle.segments, held or cycle.held)
     held = held_actuators(robot, cycle)
     held_indices(robot, held)  # names checked before any work
-    chunk = data.get("chunk", 8)
-    if isinstance(chunk, bool) or not isinstance(chunk, int) or not 1 <= chunk <= MAX_CHUNK:
-        raise InvalidInputError(
-            f"{where}: chunk = {chunk!r} must be a whole number within [1, {MAX_CHUNK:,}]"
-        )
     return MapFamily(
-        text(data, "name", where, "the map's name", path.stem),
+        path.stem if family.name is None else family.name,
         robot_name,
         hydraulics,
-        objectives,
+        tuple(family.objectives),
         held,
         segments,
         grid,
         attachment,
         bore,
-        chunk,
-        flags["bound"],
-        flags["energy"],
-        flags["circuit"],
+        family.chunk,
+        family.bound,
+        family.energy,
+        family.circuit,
     )
 
 
-def _grid(robot: Robot, table: object, where: str):
+def _grid(robot: Robot, table: Grid, where: str):
     """The design grid: ((parameter, values), ...), the attachment moved, the bore's cylinder."""
-    if not isinstance(table, dict):
-        raise InvalidInputError(f"{where} must be a table")
-    refuse_unknown(table, PARAMETERS, where, "parameters")
     grid, attachment, bore = [], None, None
     for key in PARAMETERS:
-        if key not in table:
+        value = getattr(table, key)
+        if value is None:
             continue
-        value = table[key]
-        if key == "payload":
-            values = _values(value, f"{where} payload", "kg", 0.0, MAX_PAYLOAD)
-        elif key == "speed":
-            values = _values(value, f"{where} speed", "m/s", 1e-6, MAX_SPEED)
-        else:
-            if not isinstance(value, dict) or "values" not in value:
+        if isinstance(value, Attachment | Bore):
+            if value.actuator not in robot.actuators.names:
                 raise InvalidInputError(
-                    f"{where} {key} must be a table with actuator = ... and values = [...]"
-                )
-            refuse_unknown(value, DESIGN_KEYS[key], f"{where} {key}")
-            actuator = text(value, "actuator", f"{where} {key}", "an actuator's name")
-            if actuator not in robot.actuators.names:
-                raise InvalidInputError(
-                    f"{where} {key}: no actuator {actuator!r}; actuators: "
+                    f"{where} {key}: no actuator {value.actuator!r}; actuators: "
                     f"{', '.join(robot.actuators.names)}"
                 )
-            values = _values(value["values"], f"{where} {key} values", "m", -1e3, 1e3)
-            if key == "attachment":
-                if not isinstance(robot.actuators[actuator], LinearCylinder):
+            if isinstance(value, Attachment):
+                if not isinstance(robot.actuators[value.actuator], LinearCylinder):
                     raise InvalidInputError(
-                        f"{where} attachment: {actuator} is not a LinearCylinder; it has no "
+                        f"{where} attachment: {value.actuator} is not a LinearCylinder; it has no "
                         "attachment points"
                     )
-                end = text(value, "end", f"{where} attachment", "base or rod")
-                axis = text(value, "axis", f"{where} attachment", "x, y or z")
-                if end not in ENDS or axis not in AXES or len(axis) != 1:
+                if value.end is None or value.axis is None:
                     raise InvalidInputError(
-                        f"{where} attachment: end = {end!r}, axis = {axis!r}; ends: base, rod; "
-                        "axes: x, y, z (of the end's link frame)"
+                        f"{where} attachment: end = {value.end!r}, axis = {value.axis!r}; ends: "
+                        "base, rod; axes: x, y, z (of the end's link frame)"
                     )
-                attachment = (actuator, end, axis)
+                attachment = (value.actuator, value.end, value.axis)
             else:
                 circuit = robot.circuit()
-                if actuator not in circuit.names:
+                if value.actuator not in circuit.names:
                     raise InvalidInputError(
-                        f"{where} bore: {actuator} is no cylinder of the circuit; cylinders: "
-                        f"{', '.join(circuit.names)}"
+                        f"{where} bore: {value.actuator} is no cylinder of the circuit; "
+                        f"cylinders: {', '.join(circuit.names)}"
                     )
-                if not min(values) > circuit.cylinders[circuit.names.index(actuator)].rod:
+                rod = circuit.cylinders[circuit.names.index(value.actuator)].rod
+                if not min(value.values) > rod:
                     raise InvalidInputError(
-                        f"{where} bore values {list(values)} must all exceed the rod of {actuator}"
+                        f"{where} bore values {list(value.values)} must all exceed the rod of "
+                        f"{value.actuator}"
                     )
-                bore = actuator
-        grid.append((key, values))
+                bore = value.actuator
+            value = value.values
+        grid.append((key, value))
     return tuple(grid), attachment, bore

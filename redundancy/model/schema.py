@@ -1,0 +1,527 @@
+"""Declared input: the toolkit's files as pydantic models, and the one line a bad value gives.
+
+A file is read by `read_toml` (or `read_text`) and checked by `validate` against its model:
+
+- ``robot.toml``: `Description` (its ``[hydraulics]`` table: `Hydraulics`; its
+  ``[actuators.<name>]`` tables: the kinds' own parameters, `redundancy.model.transmissions`);
+- a hydraulics file (``--hydraulics FILE``): `Hydraulics`, cylinders `CylinderTable`;
+- a task file: `TaskFile`, its segment tables `SegmentTable`;
+- a map family: `redundancy.study.families`, built from the pieces here.
+
+Every model refuses unknown keys (naming the known ones), reads numbers strictly (true and "3"
+are no numbers) and finite, and declares each quantity's unit, range and likely unit mistakes
+(`quantity`): pressures within 1-1,000 bar, flows within 0.1-10,000 L/min, bores within 5-1,000
+mm. `validate` turns any `pydantic.ValidationError` into one line: the file, the table and key,
+the value given (at most `EXCERPT` characters of it) and what it must be.
+"""
+
+from __future__ import annotations
+
+import os
+import stat
+import tomllib
+import types
+import typing
+from pathlib import Path
+from typing import Annotated, Any, ClassVar, Literal, TypeVar, Union
+
+import annotated_types
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    ConfigDict,
+    Discriminator,
+    Field,
+    Tag,
+    ValidationError,
+    model_validator,
+)
+from pydantic.fields import FieldInfo
+from pydantic_core import PydanticCustomError
+
+from redundancy.errors import InvalidInputError
+from redundancy.model.values import MAX_ACCELERATION, MAX_PAYLOAD, MAX_SPEED
+
+MAX_BYTES = 1 << 24  # 16 MiB: far beyond any description, task, circuit, family or recorded path
+EXCERPT = 40  # characters of a user's value a message quotes at most
+MAX_OFFSET = 100.0  # m: a point on a link, a length or a stroke; beyond is surely mm given as m
+MM_PER_S = "did you give mm/s? 1 m/s = 1000 mm/s"
+DECLARED = "declared"  # the error type of the rules declared here, whose text is the message
+Model = TypeVar("Model", bound=BaseModel)
+
+
+def read_text(path: Path, what: str, error: type[Exception] = InvalidInputError) -> str:
+    """The UTF-8 text (a byte-order mark allowed) of the regular file ``path`` (a ``what``,
+    e.g. "task file") of at most `MAX_BYTES`, or one ``error`` line saying why not."""
+    try:
+        if not stat.S_ISREG(os.stat(path).st_mode):
+            raise error(f"{path}: not a {what}: not a regular file")
+        with path.open("rb") as file:
+            data = file.read(MAX_BYTES + 1)
+    except OSError as failure:
+        raise error(f"cannot read {what} {path}: {failure.strerror}") from None
+    if len(data) > MAX_BYTES:
+        raise error(f"{path}: not a {what}: larger than {MAX_BYTES >> 20} MiB")
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise error(f"{path}: not a {what}: not UTF-8 text") from None
+
+
+def read_toml(path: Path, what: str, error: type[Exception] = InvalidInputError) -> dict:
+    """The tables of the TOML file ``path`` (a ``what``), or one ``error`` line."""
+    try:
+        return tomllib.loads(read_text(path, what, error))
+    except tomllib.TOMLDecodeError as failure:
+        raise error(f"{path}: not valid TOML: {failure}") from None
+
+
+def excerpt(value: object) -> str:
+    """``value``'s repr, cut to `EXCERPT` characters: a message never echoes a whole file."""
+    text = repr(value)
+    return text if len(text) <= EXCERPT else text[: EXCERPT - 3] + "..."
+
+
+class Table(BaseModel):
+    """A table of a declared file: unknown keys refused, numbers strict and finite. ``entries``
+    says what its keys are called in messages."""
+
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False, frozen=True)
+    entries: ClassVar[str] = "keys"
+
+
+def quantity(
+    meaning: str,
+    unit: str,
+    lower: float,
+    upper: float,
+    default: Any = ...,
+    *,
+    above: str = "",
+    below: str = "",
+    open_lower: bool = False,
+) -> Any:
+    """A number's field: what it means, its unit, its range [lower, upper] (lower excluded
+    where ``open_lower``) and the likely mistakes of a value ``above`` or ``below`` it."""
+    return Field(
+        default,
+        description=f"{meaning}, {unit}",
+        json_schema_extra={"above": above, "below": below},
+        gt=lower if open_lower else None,
+        ge=None if open_lower else lower,
+        le=upper,
+    )
+
+
+def bar(meaning: str, lower: float = 1.0, default: Any = ...) -> Any:
+    """A pressure in bar, within [``lower``, 1000]."""
+    return quantity(
+        meaning,
+        "bar",
+        lower,
+        1000.0,
+        default,
+        above="did you give Pa? 1 bar = 1e5 Pa",
+        below="did you give MPa? 1 MPa = 10 bar" if lower > 0 else "",
+    )
+
+
+def _distinct(names: list[str]) -> list[str]:
+    repeated = sorted({name for name in names if names.count(name) > 1})
+    if repeated:
+        raise PydanticCustomError(
+            DECLARED, f"names {', '.join(map(repr, repeated))} more than once; give each once"
+        )
+    return names
+
+
+Names = Annotated[list[str], AfterValidator(_distinct)]  # names, each given once
+
+
+def either(table: Any, other: Any) -> Any:
+    """A key that takes a TOML table (``table``) or another form (``other``); its errors are
+    those of the form given."""
+    return Annotated[
+        Union[Annotated[table, Tag("table")], Annotated[other, Tag("other")]],  # noqa: UP007
+        Discriminator(lambda value: "table" if isinstance(value, dict) else "other"),
+    ]
+
+
+def _within_offset(xyz: list[float]) -> list[float]:
+    far = [c for c in xyz if abs(c) > MAX_OFFSET]
+    if far:
+        raise PydanticCustomError(
+            DECLARED,
+            f"must be within ±{MAX_OFFSET:g} m of the link's frame: {far[0]:g} m is beyond; "
+            "did you give mm? 1 m = 1000 mm",
+        )
+    return xyz
+
+
+Xyz = Annotated[
+    list[float],
+    Field(min_length=3, max_length=3, description="x, y, z in m, in the link's frame"),
+    AfterValidator(_within_offset),
+]
+
+
+PAYLOAD = quantity("the point mass at the tool", "kg", 0.0, MAX_PAYLOAD, 0.0)
+
+
+class PointOnLink(Table):
+    """A point fixed on a link: ``{link = "...", xyz = [x, y, z]}``, m in the link's frame."""
+
+    link: str = Field(description="a link of the URDF")
+    xyz: Xyz
+
+
+class ArmOnLink(PointOnLink):
+    """A point fixed on a link and a length from it, m: ``{link, xyz, length}``."""
+
+    length: float = Field(gt=0.0, le=MAX_OFFSET, description="m")
+
+
+class Description(Table):
+    """A ``robot.toml`` (schema in `redundancy.model.loading.load_robot`): the tool is a link
+    (``tool_frame``) or a point on a link (``tool``), one of them."""
+
+    urdf: str = Field(description="the URDF, beside this file or package://")
+    tool_frame: str | None = Field(
+        description="the tool's link (None: the last); or tool = {link = ..., xyz = [...]}"
+    )
+    tool: PointOnLink | None = Field(None, description="the tool point")
+    task_axes: str = Field(description="world axes of the task, e.g. 'xz'")
+    locked_joints: either(dict[str, float], list[str]) = Field(  # type: ignore[valid-type]
+        [],
+        description="joints fixed, at their neutral value or at one given in rad or m",
+        json_schema_extra={"shape": "a list of names, or a table {joint = value}"},
+    )
+    payload: float = PAYLOAD
+    task: str | None = Field(None, description="the robot's task file")
+    actuators: dict[str, dict[str, Any]] = Field({}, description="[actuators.<name>] tables")
+    hydraulics: dict[str, Any] | None = Field(None, description="the [hydraulics] table")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _one_tool(cls, data: Any) -> Any:
+        if isinstance(data, dict) and "tool" in data:
+            if "tool_frame" in data:
+                raise PydanticCustomError(
+                    DECLARED,
+                    "tool_frame and tool are both given; give one: tool_frame = a link, or "
+                    "tool = {link = ..., xyz = [...]}, a point on a link",
+                )
+            return {**data, "tool_frame": None}
+        return data
+
+
+class Payload(Table):
+    """A payload given to the API, checked as ``robot.toml``'s."""
+
+    payload: float = PAYLOAD
+
+
+class CylinderTable(Table):
+    """A cylinder's ``[hydraulics.cylinders.<actuator>]`` table (or its URDF ``<cylinder>``)."""
+
+    bore: float = quantity("bore D", "mm", 5.0, 1000.0, below="did you give m? 1 m = 1000 mm")
+    rod: float = quantity("rod d", "mm", 0.0, 1000.0)
+    max_speed: float = quantity("maximum speed", "m/s", 0.0, 10.0, open_lower=True, above=MM_PER_S)
+    max_acceleration: float = quantity(
+        "maximum acceleration",
+        "m/s²",
+        0.0,
+        100.0,
+        open_lower=True,
+        above="did you give mm/s²? 1 m/s² = 1000 mm/s²",
+    )
+
+    @model_validator(mode="after")
+    def _rod_inside(self) -> CylinderTable:
+        if not self.rod < self.bore:
+            raise PydanticCustomError(
+                DECLARED,
+                f"needs 0 ≤ rod < bore; got bore = {self.bore:g} mm, rod = {self.rod:g} mm",
+            )
+        return self
+
+
+class Hydraulics(Table):
+    """A machine's ``[hydraulics]`` table: its supply, pressures (bar), pump flow (L/min) and
+    cylinders by actuator name; schema in the README."""
+
+    supply: Literal["LS", "CP"] = Field(description="the machine's supply")
+    ls_margin: float = bar("LS margin Δp_LS")
+    cp_pressure: float = bar("CP supply pressure p_S")
+    relief: float = bar("relief pressure")
+    pump_flow: float = quantity(
+        "pump's maximum flow",
+        "L/min",
+        0.1,
+        10_000.0,
+        below="did you give m³/s? 1 m³/s = 60,000 L/min",
+        above="did you give mL/min? 1 L/min = 1000 mL/min",
+    )
+    tank: float = bar("tank pressure p_T", lower=0.0)
+    cylinders: dict[str, CylinderTable] = {}
+
+    @model_validator(mode="after")
+    def _pressures_ordered(self) -> Hydraulics:
+        if not self.tank < self.cp_pressure <= self.relief or not self.ls_margin < (
+            self.relief - self.tank
+        ):
+            raise PydanticCustomError(
+                DECLARED,
+                f"needs tank < cp_pressure ≤ relief and ls_margin < relief − tank; got tank = "
+                f"{self.tank:g}, cp_pressure = {self.cp_pressure:g}, relief = {self.relief:g}, "
+                f"ls_margin = {self.ls_margin:g} bar",
+            )
+        return self
+
+
+class Timing(Table):
+    """How fast a task file's segments are travelled (each segment's table may override it)."""
+
+    speed: float | None = quantity(
+        "the tool's speed", "m/s", 0.0, MAX_SPEED, None, open_lower=True, above=MM_PER_S
+    )
+    profile: Literal["constant", "trapezoidal"] | None = None
+    acceleration: float | None = quantity(
+        "the trapezoidal profile's maximum",
+        "m/s²",
+        0.0,
+        MAX_ACCELERATION,
+        None,
+        open_lower=True,
+    )
+
+
+class SegmentTable(Timing):
+    """One segment of a task file given as a table (`redundancy.planning.tasks`)."""
+
+    start: str | None = Field(None, alias="from", description="a point's name")
+    to: str | None = Field(None, description="a point's name")
+    via: str | None = Field(None, description="a point's name")
+    centre: str | None = Field(None, description="a point's name")
+    center: str | None = Field(None, description="a point's name")
+    direction: Literal["ccw", "cw"] | None = None
+    csv: str | None = Field(None, description="a CSV file of points, beside the task file")
+    name: str | None = None
+
+
+class TaskFile(Timing):
+    """A task file (schema in `redundancy.planning.tasks`)."""
+
+    name: str | None = None
+    tool_angle: bool = False
+    held: Names | None = Field(
+        None, description="the actuators the improved search holds; leave it out for the default"
+    )
+    segments: list[either(SegmentTable, str)] = Field(  # type: ignore[valid-type]
+        [],
+        json_schema_extra={
+            "shape": "a list of '<from>-<to>' names or segment tables, e.g. "
+            'segments = ["1-2", { from = "2", to = "3", via = "4" }]'
+        },
+    )
+    points: dict[str, list[float]] | None = Field(None, description="name = [coordinates]")
+
+
+def validate(
+    model: type[Model],
+    data: object,
+    source: str,
+    table: str = "",
+    error: type[Exception] = InvalidInputError,
+    entries: str = "",
+) -> Model:
+    """``data`` read as ``model``, or one ``error`` line (`message`) naming ``source`` (the
+    file), the ``table`` ``data`` is (dotted, "" for the whole file) and the key; unknown keys
+    are called ``entries`` (the model's own word by default)."""
+    try:
+        return model.model_validate(data)
+    except ValidationError as failure:
+        raise error(message(failure, model, data, source, table, entries)) from None
+
+
+def message(
+    failure: ValidationError,
+    model: type[BaseModel],
+    data: object,
+    source: str,
+    table: str = "",
+    entries: str = "",
+) -> str:
+    """The one line of ``failure``'s first error (an unknown key first: likely one misspelt):
+    the file, the table and key, the value (an excerpt), what it must be (its shape, range and
+    likely unit mistake) and what it means."""
+    errors = failure.errors(include_url=False)
+    first = ([e for e in errors if e["type"] == "extra_forbidden"] or errors)[0]
+    loc = tuple(first["loc"])
+    if first["type"] in ("extra_forbidden", "missing"):
+        path, parent, _ = _locate(model, loc[:-1])
+        keys = [
+            e["loc"][-1] for e in errors if e["type"] == first["type"] and e["loc"][:-1] == loc[:-1]
+        ]
+        return f"{_place(source, table, path)}: {_keys(first['type'], keys, parent, entries)}"
+    path, annotation, info = _locate(model, loc)
+    if not path:
+        said = first["msg"] if first["type"] == DECLARED else f"= {excerpt(data)} must be a table"
+        return f"{_place(source, table, path)}{':' if first['type'] == DECLARED else ''} {said}"
+    if first["type"] == DECLARED and _is_table(annotation):  # a rule across the table's keys
+        return f"{_place(source, table, path)}: {first['msg']}"
+    value = excerpt(_get(data, path))
+    where = f"{_place(source, table, path[:-1], keyed=True)}{path[-1]} = {value}"
+    exact = len(path) == len([p for p in loc if p not in ("table", "other")])
+    return f"{where} {_problem(first, annotation, info, exact)}"
+
+
+def _keys(kind: str, keys: list, parent: Any, entries: str) -> str:
+    """The keys ``missing`` from a table, or the unknown ones and the table's known keys."""
+    if kind == "missing":
+        return f"missing key {keys[0]!r}" if len(keys) == 1 else f"missing keys {keys}"
+    known = entries or getattr(parent, "entries", "keys")
+    fields = getattr(parent, "model_fields", {})
+    names = ", ".join(info.alias or name for name, info in fields.items())
+    return f"unknown {known} {sorted(keys)}; {known}: {names}"
+
+
+def _problem(error: Any, annotation: Any, info: FieldInfo | None, exact: bool) -> str:
+    """What a value must be, from its ``error``, its ``annotation`` and its field ``info``:
+    a declared rule's words, a range with the likely unit mistake, or a shape; and what it
+    means. ``exact``: the error is the value's own, not one of its items'."""
+    meaning = f" ({info.description})" if info is not None and info.description else ""
+    if error["type"] == DECLARED:
+        return f"{error['msg']}{meaning}"
+    bounds = _bounds(info)
+    if not (exact and info is not None and bounds and error["type"] in _RANGE):
+        return f"must be {_shape(annotation, info)}{meaning}"
+    lower, upper, open_lower = bounds
+    shape = "a whole number " if annotation is int else ""
+    extra = info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {}
+    hint = extra.get("below" if "greater" in error["type"] else "above")
+    low = "(" if open_lower else "["
+    return f"must be {shape}within {low}{lower:g}, {upper:g}]{meaning}" + (
+        f"; {hint}" if hint else ""
+    )
+
+
+_RANGE = ("greater_than", "greater_than_equal", "less_than", "less_than_equal")
+
+
+def _place(source: str, table: str, path: list, keyed: bool = False) -> str:
+    """Where a key lies: the file and, unless the file's top level, its table."""
+    parts = [table] if table else []
+    for part in path:
+        parts.append(f"[{part}]" if isinstance(part, int) else f".{part}" if parts else part)
+    name = "".join(parts)
+    where = f"[{name}]" if name and "[" not in name else name
+    if keyed:
+        return f"{source}: {where} " if where else f"{source}: "
+    return f"{source}: {where}" if where else source
+
+
+def _get(data: object, path: list) -> object:
+    for part in path:
+        try:
+            data = data[part]  # type: ignore[index]
+        except (KeyError, IndexError, TypeError):
+            return None
+    return data
+
+
+def _bare(annotation: Any) -> Any:
+    """``annotation`` without Annotated and without an optional None."""
+    while True:
+        if typing.get_origin(annotation) is Annotated:
+            annotation = typing.get_args(annotation)[0]
+            continue
+        members = [a for a in typing.get_args(annotation) if a is not type(None)]
+        if _union(annotation) and len(members) == 1:
+            annotation = members[0]
+            continue
+        return annotation
+
+
+def _union(annotation: Any) -> bool:
+    return typing.get_origin(annotation) in (Union, types.UnionType)
+
+
+def _locate(model: type[BaseModel], loc: tuple) -> tuple[list, Any, FieldInfo | None]:
+    """Follow ``loc`` through ``model``: the path of keys and indices to the deepest named key
+    (a field or a table's key), the annotation there and the field it belongs to."""
+    annotation: Any = model
+    info: FieldInfo | None = None
+    steps: list[tuple[object, Any, FieldInfo | None]] = []
+    for part in loc:
+        annotation = _bare(annotation)
+        if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+            fields = annotation.model_fields
+            name = next((n for n, f in fields.items() if (f.alias or n) == part), None)
+            if name is None:
+                break
+            info = fields[name]
+            annotation = info.annotation
+        elif typing.get_origin(annotation) is dict:
+            annotation, info = typing.get_args(annotation)[1], None
+        elif typing.get_origin(annotation) is list and isinstance(part, int):
+            annotation = typing.get_args(annotation)[0]
+        elif _union(annotation) and part in ("table", "other") and steps:
+            members = typing.get_args(annotation)
+            annotation = members[0] if part == "table" else members[1]
+            steps[-1] = (steps[-1][0], annotation, info)
+            continue
+        else:
+            break
+        steps.append((part, annotation, info))
+    while steps and isinstance(steps[-1][0], int) and not _is_table(steps[-1][1]):
+        steps.pop()
+    if not steps:
+        return [], model, None
+    return [s[0] for s in steps], _bare(steps[-1][1]), steps[-1][2]
+
+
+def _is_table(annotation: Any) -> bool:
+    annotation = _bare(annotation)
+    return isinstance(annotation, type) and issubclass(annotation, BaseModel)
+
+
+def _bounds(info: FieldInfo | None) -> tuple[float, float, bool] | None:
+    if info is None:
+        return None
+    lower: float | None = None
+    upper: float | None = None
+    open_lower = False
+    for rule in info.metadata:
+        if isinstance(rule, annotated_types.Ge):
+            lower = float(rule.ge)  # type: ignore[arg-type]
+        elif isinstance(rule, annotated_types.Gt):
+            lower, open_lower = float(rule.gt), True  # type: ignore[arg-type]
+        elif isinstance(rule, annotated_types.Le):
+            upper = float(rule.le)  # type: ignore[arg-type]
+    if lower is None or upper is None:
+        return None
+    return lower, upper, open_lower
+
+
+def _shape(annotation: Any, info: FieldInfo | None = None) -> str:
+    """What a value of ``annotation`` (of the field ``info``) is, in words."""
+    extra = info.json_schema_extra if info is not None else None
+    if isinstance(extra, dict) and "shape" in extra:
+        return str(extra["shape"])
+    annotation = _bare(annotation)
+    origin = typing.get_origin(annotation)
+    if annotation is float:
+        return "a finite number"
+    if annotation is int:
+        return "a whole number"
+    if annotation is str:
+        return "a string"
+    if annotation is bool:
+        return "true or false"
+    if origin is Literal:
+        return "one of " + ", ".join(map(repr, typing.get_args(annotation)))
+    if origin is list:
+        item = _bare(typing.get_args(annotation)[0])
+        return "a list of " + {str: "names", float: "finite numbers"}.get(item, "values")
+    return "a table"
