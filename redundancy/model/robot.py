@@ -20,7 +20,7 @@ import pinocchio as pin
 from redundancy.errors import InvalidInputError
 from redundancy.model.actuators import ActuatorSet, driven_joints, prismatic
 from redundancy.model.hydraulics import Circuit
-from redundancy.model.kinematics import Kinematics, PointMotion, track
+from redundancy.model.kinematics import Kinematics, PointMotion, Tracking, track
 
 AXES = "xyz"
 
@@ -97,7 +97,7 @@ class Robot:
         self._tool = frame_id(model, tool_frame)
         self._task_rows = [AXES.index(a) for a in task_axes]
         self._task_frames = [self._tool]  # the frames the task is read from
-        self._tracking: dict[tuple[int, ...], tuple[list[int], dict[int, int]]] = {}
+        self._tracking: dict[tuple[int, ...], Tracking] = {}
         self._lower_triangle = np.tril_indices(model.nv, -1)
 
     def __repr__(self) -> str:
@@ -167,9 +167,9 @@ class Robot:
         key = (self.actuators if actuators is None else actuators).frames
         if key not in self._tracking:
             frames = list(dict.fromkeys([*self._task_frames, *key]))
-            self._tracking[key] = frames, {f: i for i, f in enumerate(frames)}
-        frames, slots = self._tracking[key]
-        return track(self.model, self.data, frames, slots, q, v)
+            slots = {f: i for i, f in enumerate(frames)}
+            self._tracking[key] = Tracking(self.model, self.data, frames, slots)
+        return track(self._tracking[key], q, v)
 
     def tool(self, kinematics: Kinematics) -> PointMotion:
         """Motion of the tool point, all three world components."""

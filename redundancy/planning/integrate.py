@@ -9,7 +9,10 @@ Two methods, one result type (`Trajectory`):
 
 - "adaptive" (the default): Dormand-Prince 5(4) steps with error control on q (relative and
   absolute ``tolerance``), every start with its own step size, each stage one batched
-  evaluation of the starts still running. The method controls its own error, so it runs open
+  evaluation of the starts still running. scipy's `solve_ivp` integrates one system with one
+  step size: a batch of starts as one system would step all of them at the pace of the
+  hardest, and one call per start would evaluate the law state by state. So the loop is
+  written here, around scipy's RK45 tableau. The method controls its own error, so it runs open
   loop (K = 0) unless a gain is given. The motion is sampled on the uniform grid of
   ``time_step`` by the method's 4th-order dense output (Shampine's), or, with ``sparse``, at
   the accepted steps and their midpoints only: fewer samples for a search, between which strokes
@@ -33,6 +36,7 @@ from functools import cached_property
 from typing import NamedTuple
 
 import numpy as np
+from scipy.integrate import RK45
 
 from redundancy.errors import InvalidInputError
 from redundancy.model.hydraulics import Flows, Supply
@@ -57,38 +61,14 @@ ALLOWANCE = 30  # sparse samples' strokes count ALLOWANCE × tolerance (m) close
 # limits: the integrator's error in x, measured below 6 × tolerance on the crane
 METHODS = ("adaptive", "rk4")
 
-# Dormand-Prince 5(4): the stage nodes c, the stage weights (the last row gives the 5th-order
-# step, whose rates are the next step's first stage), the error weights (5th − 4th order) and
-# the dense output: the weights at θ of a step are P · (θ, θ², θ³, θ⁴) (Shampine, 1986).
-NODES = (1 / 5, 3 / 10, 4 / 5, 8 / 9, 1.0, 1.0)
-STAGES = tuple(
-    np.array(row)
-    for row in (
-        (1 / 5,),
-        (3 / 40, 9 / 40),
-        (44 / 45, -56 / 15, 32 / 9),
-        (19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729),
-        (9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656),
-        (35 / 384, 0.0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84),
-    )
-)
-ERROR = np.array([71 / 57600, 0, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40])
-DENSE = np.array(
-    [
-        [1, -8048581381 / 2820520608, 8663915743 / 2820520608, -12715105075 / 11282082432],
-        [0, 0, 0, 0],
-        [0, 131558114200 / 32700410799, -68118460800 / 10900136933, 87487479700 / 32700410799],
-        [0, -1754552775 / 470086768, 14199869525 / 1410260304, -10690763975 / 1880347072],
-        [
-            0,
-            127303824393 / 49829197408,
-            -318862633887 / 49829197408,
-            701980252875 / 199316789632,
-        ],
-        [0, -282668133 / 205662961, 2019193451 / 616988883, -1453857185 / 822651844],
-        [0, 40617522 / 29380423, -110615467 / 29380423, 69997945 / 29380423],
-    ]
-)
+# Dormand-Prince 5(4), the tableau scipy's RK45 integrates with: the stage nodes c (the last
+# stage, at c = 1, gives the next step's first slope), the stage weights (the last row gives
+# the 5th-order step), the error weights E (4th − 5th order) and the dense output, whose
+# weights at θ of a step are P · (θ, θ², θ³, θ⁴) (Shampine, 1986).
+NODES = (*RK45.C[1:], 1.0)
+STAGES = (*(RK45.A[i, :i] for i in range(1, RK45.n_stages)), RK45.B)
+ERROR = RK45.E
+DENSE = RK45.P
 
 
 @dataclass(frozen=True, eq=False)
@@ -101,7 +81,9 @@ class Trajectory:
     their limits; checked: the actuators whose strokes count; measure (k, T) the measure of
     ``objective`` at the samples, when integrated for one; ``sparse``: sampled at the adaptive
     steps (see the module docstring), with the strokes' error ``allowance`` (m); ``circuit``:
-    the hydraulic circuit's limits count too (`within_limits`, `violations`).
+    the hydraulic circuit's limits count too (`within_limits`, `violations`). ``space``: the
+    states at the samples as the integrator evaluated them (one flat batch of k·T, motion by
+    motion, v = q̇), which every quantity along the motion is read from (`states`).
     """
 
     robot: Robot = field(repr=False)
@@ -121,6 +103,7 @@ class Trajectory:
     allowance: float = 0.0
     circuit: bool = False
     steps: Steps | None = field(default=None, repr=False)
+    space: ActuatorSpace | None = field(default=None, repr=False)
 
     @classmethod
     def single(
@@ -172,7 +155,13 @@ class Trajectory:
             stopped=self.stopped[rows],
             measure=None if self.measure is None else self.measure[rows],
             steps=None if self.steps is None else self.steps.select(rows, len(self)),
+            space=None if self.space is None else self.space.take(self._flat(rows)),
         )
+
+    def _flat(self, rows: np.ndarray) -> np.ndarray:
+        """The indices into the flat batch of k·T states of the motions ``rows``."""
+        T = self.q.shape[1]
+        return (np.asarray(rows)[:, None] * T + np.arange(T)).ravel()
 
     def on_grid(self, time_step: float = TIME_STEP) -> Trajectory:
         """These motions sampled on the uniform grid of ``time_step`` by the dense output of the
@@ -181,11 +170,20 @@ class Trajectory:
         if self.steps is None:
             raise InvalidInputError("only adaptively integrated motions can be sampled again")
         grid = time_grid(self.segment, time_step)
-        t, q, x, x_dot, y, measure, _, _ = on_grid(
+        t, q, x, x_dot, y, measure, _, _, space = on_grid(
             self.steps, self.q[:, 0], grid, self.failed, self.stopped
         )
         return replace(
-            self, t=t, q=q, x=x, x_dot=x_dot, y=y, measure=measure, sparse=False, allowance=0.0
+            self,
+            t=t,
+            q=q,
+            x=x,
+            x_dot=x_dot,
+            y=y,
+            measure=measure,
+            sparse=False,
+            allowance=0.0,
+            space=space,
         )
 
     @cached_property
@@ -196,12 +194,14 @@ class Trajectory:
     @cached_property
     def states(self) -> ActuatorSpace:
         """The actuator space at every sample, with q̇ = A⁻¹ ẋ and ẍ (`x_ddot`), as one flat
-        batch of k·T."""
+        batch of k·T: the integrator's own states, or for motions built from their samples
+        alone, one evaluation of them."""
         k, T, n = self.q.shape
-        q = self.q.reshape(k * T, n)
-        at_rest = evaluate(self.robot, q)
-        v = np.linalg.solve(at_rest.A, self.x_dot.reshape(k * T, n, 1))[..., 0]
-        return replace(evaluate(self.robot, q, v), x_ddot=self.x_ddot.reshape(k * T, n))
+        space = self.space
+        if space is None:
+            space = evaluate(self.robot, self.q.reshape(k * T, n))
+            space = space.moving(space.joint_velocities(self.x_dot.reshape(k * T, n)))
+        return space.moving(space.v, self.x_ddot.reshape(k * T, n))
 
     def values(self, objective: Objective) -> np.ndarray:
         """``objective``'s measure at every sample (k, T)."""
@@ -381,15 +381,22 @@ def time_grid(segment: Segment, time_step: float = TIME_STEP) -> np.ndarray:
 
 
 class Rates(NamedTuple):
-    """The law at k states: q̇, ẋ (k, n); x (k, n), y (k, m); the objective's measure (k,) or
-    None; bad (k,) where A is singular or the state not finite (there q̇ = ẋ = 0)."""
+    """The law at k states: q̇, ẋ (k, n); the states themselves, at v = q̇ (``space``: x, y,
+    A, J, ...); the objective's measure (k,) or None; bad (k,) where A is singular or the
+    state not finite (there q̇ = ẋ = 0)."""
 
     q_dot: np.ndarray
     x_dot: np.ndarray
-    x: np.ndarray
-    y: np.ndarray
+    space: ActuatorSpace
     measure: np.ndarray | None
     bad: np.ndarray
+
+    def take(self, rows: np.ndarray) -> Rates:
+        """The rates of the states ``rows`` (indices or a mask) alone."""
+        measure = None if self.measure is None else self.measure[rows]
+        return Rates(
+            self.q_dot[rows], self.x_dot[rows], self.space.take(rows), measure, self.bad[rows]
+        )
 
 
 class Law:
@@ -412,7 +419,7 @@ class Law:
         if bad.any():
             q_dot[bad], x_dot[bad] = 0.0, 0.0
         measure = None if self.objective is None else self.objective.measure(space, x_dot)
-        return Rates(q_dot, x_dot, space.x, space.y, measure, bad)
+        return Rates(q_dot, x_dot, space.moving(q_dot), measure, bad)
 
 
 def simulate(
@@ -479,7 +486,7 @@ def simulate(
         samples, steps = _dormand_prince(
             law, starts, segment.duration, tolerance, grid, sparse, bounds
         )
-    t, q, x, x_dot, y, measure, failed, stopped = samples
+    t, q, x, x_dot, y, measure, failed, stopped, space = samples
     return Trajectory(
         robot,
         segment,
@@ -498,6 +505,7 @@ def simulate(
         allowance,
         circuit,
         steps,
+        space,
     )
 
 
@@ -513,7 +521,7 @@ def _runge_kutta(law: Law, starts: np.ndarray, t: np.ndarray):
     def rates(time, state):
         result = law(np.full(k, time), state)
         failed[result.bad] = True
-        result.q_dot[failed], result.x_dot[failed] = 0.0, 0.0
+        result.q_dot[failed], result.x_dot[failed] = 0.0, 0.0  # the state's v is q̇ itself
         return result
 
     for i, time in enumerate(t[:-1]):
@@ -525,12 +533,10 @@ def _runge_kutta(law: Law, starts: np.ndarray, t: np.ndarray):
         step = h / 6 * (first.q_dot + 2 * k2 + 2 * k3 + k4)
         q[:, i + 1] = q[:, i] + np.where(failed[:, None], 0.0, step)
     records.append(rates(t[-1], q[:, -1]))
-    x, x_dot, y = (
-        np.stack([getattr(r, part) for r in records], axis=1) for part in ("x", "x_dot", "y")
-    )
-    measure = None if law.objective is None else np.stack([r.measure for r in records], axis=1)
-    times = np.broadcast_to(t, (k, len(t))).copy()
-    return times, q, x, x_dot, y, measure, failed.copy(), np.zeros(k, dtype=bool)
+    rows = np.repeat(np.arange(k)[None], len(t), axis=0).ravel()
+    times = np.repeat(t, k)
+    evaluated = [(rows, times, q.transpose(1, 0, 2).reshape(-1, n), joined(records))]
+    return _assemble(k, evaluated, failed.copy(), np.zeros(k, dtype=bool), t)
 
 
 def _combine(weights: np.ndarray, slopes: np.ndarray) -> np.ndarray:
@@ -574,14 +580,14 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
         t0, h0, q0, q1 = t[done], step[accept, 0], q[done], q_new[accept]
         accepted.append((done, t0, h0, q0, kept.transpose(1, 0, 2)))
         if sparse:
-            evaluated.append((done, t0 + h0, q1, _select(end, accept)))
+            evaluated.append((done, t0 + h0, q1, end.take(accept)))
         t[done], q[done], f[done] = t0 + h0, q1, kept[-1]
         growth = np.clip(0.9 * np.maximum(error, 1e-10) ** -0.2, 0.2, 10.0)
         h[rows] = step[:, 0] * np.where(accept, growth, np.minimum(growth, 1.0))
         failed[rows[h[rows] < 1e-9 * duration]] = True
         if bounds is not None:
             limits, allowance = bounds
-            past[done] |= limits.margin(end.x[accept]) < -allowance
+            past[done] |= limits.margin(end.space.x[accept]) < -allowance
             stopped = past & np.append(True, past[:-1]) & np.append(past[1:], True)
     steps = Steps.gathered(law, accepted)
     if not sparse:
@@ -670,18 +676,22 @@ def on_grid(steps: Steps, starts: np.ndarray, grid: np.ndarray, failed, stopped)
     return _assemble(k, [(rows, times, q, steps.law(times, q))], failed, stopped, grid)
 
 
-def _select(rates: Rates, mask: np.ndarray) -> Rates:
-    """The rates of the states ``mask`` selects."""
-    measure = None if rates.measure is None else rates.measure[mask]
+def joined(parts: list[Rates]) -> Rates:
+    """The rates of several batches as one, in order."""
+    measures = [part.measure for part in parts]
     return Rates(
-        rates.q_dot[mask], rates.x_dot[mask], rates.x[mask], rates.y[mask], measure, rates.bad[mask]
+        np.concatenate([part.q_dot for part in parts]),
+        np.concatenate([part.x_dot for part in parts]),
+        ActuatorSpace.joined([part.space for part in parts]),
+        None if measures[0] is None else np.concatenate(measures),
+        np.concatenate([part.bad for part in parts]),
     )
 
 
 def _assemble(k, evaluated, failed, stopped, grid):
     """Samples (rows, times, q, rates) of k motions, in time order per motion, padded by
     repeating each motion's last sample; on a ``grid``, a motion frozen early stays at rest over
-    the grid's remaining times."""
+    the grid's remaining times. The states come as one flat batch of k·T, motion by motion."""
     rows = np.concatenate([part[0] for part in evaluated])
     times = np.concatenate([part[1] for part in evaluated])
     order = np.lexsort((times, rows))
@@ -691,25 +701,16 @@ def _assemble(k, evaluated, failed, stopped, grid):
     index = order[start[:, None] + np.minimum(np.arange(length)[None], counts[:, None] - 1)]
     padded = np.arange(length)[None] >= counts[:, None]
 
-    def gathered(parts):
-        parts = list(parts)
-        return None if parts[0] is None else np.concatenate(parts)[index]
-
-    x_dot = gathered(part[3].x_dot for part in evaluated)
-    measure = gathered(part[3].measure for part in evaluated)
+    rates = joined([part[3] for part in evaluated]).take(index.ravel())
+    q = np.concatenate([part[2] for part in evaluated])[index]
+    x_dot, measure, space = rates.x_dot.reshape(k, length, -1), rates.measure, rates.space
     t = times[index]
     if grid is not None:
         t = np.broadcast_to(grid, (k, length)).copy()
         x_dot[padded] = 0.0
+        space = space.moving(np.where(padded.reshape(-1, 1), 0.0, space.v))
         if measure is not None:
-            measure[padded] = 0.0
-    return (
-        t,
-        gathered(part[2] for part in evaluated),
-        gathered(part[3].x for part in evaluated),
-        x_dot,
-        gathered(part[3].y for part in evaluated),
-        measure,
-        failed,
-        stopped,
-    )
+            measure[padded.ravel()] = 0.0
+    measure = None if measure is None else measure.reshape(k, length)
+    x, y = (array.reshape(k, length, -1) for array in (space.x, space.y))
+    return t, q, x, x_dot, y, measure, failed, stopped, space
