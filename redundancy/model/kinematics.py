@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from functools import cached_property
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -114,27 +114,29 @@ class Kinematics:
 
     def take(self, rows: np.ndarray) -> Kinematics:
         """The states ``rows`` (indices into the batch) alone."""
-        return Kinematics(self.tracking, *(None if a is None else a[rows] for a in self._arrays()))
-
-    def _arrays(self) -> tuple[np.ndarray | None, ...]:
-        return (
-            self.q,
-            self.positions,
-            self.jacobians,
-            self.angular,
-            self.v,
-            self.velocities,
-            self.jacobian_rates,
-        )
+        taken: dict[str, Any] = {name: take(getattr(self, name), rows) for name in ARRAYS}
+        return replace(self, **taken)
 
     @classmethod
     def joined(cls, parts: list[Kinematics]) -> Kinematics:
         """The batches ``parts`` (same tracking) as one, in order; rates where all have them."""
-        columns = zip(*(part._arrays() for part in parts))
-        arrays = [
-            None if any(a is None for a in column) else np.concatenate(column) for column in columns
-        ]
-        return cls(parts[0].tracking, *arrays)
+        arrays: dict[str, Any] = {name: join([getattr(p, name) for p in parts]) for name in ARRAYS}
+        return replace(parts[0], **arrays)
+
+
+ARRAYS = ("q", "positions", "jacobians", "angular", "v", "velocities", "jacobian_rates")
+
+
+def take(array: np.ndarray | None, rows: np.ndarray) -> np.ndarray | None:
+    """The rows ``rows`` of a batch's ``array`` (batch axis first), or None for None."""
+    return None if array is None else array[rows]
+
+
+def join(arrays: list[np.ndarray | None]) -> np.ndarray | None:
+    """Batches' ``arrays`` as one, in order, or None where one is None."""
+    if any(array is None for array in arrays):
+        return None
+    return np.concatenate(arrays)  # type: ignore[arg-type]
 
 
 def track(tracking: Tracking, q: np.ndarray, v: np.ndarray | None = None) -> Kinematics:

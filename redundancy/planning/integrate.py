@@ -33,21 +33,25 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 from functools import cached_property
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from scipy.integrate import RK45
 
 from redundancy.errors import InvalidInputError
 from redundancy.model.hydraulics import Flows, Supply
+from redundancy.model.kinematics import join
 from redundancy.model.robot import Robot
 from redundancy.model.values import is_real
 from redundancy.planning.tasks import Segment
 from redundancy.resolution.laws import Resolver
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
 from redundancy.resolution.limits import Limits, Violation, hydraulic_values
-from redundancy.resolution.objectives import Objective, integral, kinetic, velocity_norm
+from redundancy.resolution.objectives import Objective, integral, kinetic
 from redundancy.resolution.state import ActuatorSpace, evaluate, regularised
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 TIME_STEP = 0.01  # s
 MIN_INTERVALS = 10  # of a motion's grid, however short its segment
@@ -57,6 +61,9 @@ RK4_STABLE = 2.785  # −K h of the classical Runge-Kutta method's stability lim
 # negative real axis (|1 + z + z²/2 + z³/6 + z⁴/24| = 1 at z = −2.7853): beyond it the closed
 # loop's tracking error grows step by step
 TOLERANCE = 1e-6  # relative and absolute error per adaptive step on q (rad, m)
+REPORT_TOLERANCE = 1e-10  # of a motion reported on its grid: its dense output's rate then
+# matches the law's q̇, so that the power balance Σ F ẋ = d(T + V)/dt holds on the grid (at
+# `TOLERANCE` it misses by 1e-4 of the peak power, the dense output's own error over a step)
 ALLOWANCE = 30  # sparse samples' strokes count ALLOWANCE × tolerance (m) closer to their
 # limits: the integrator's error in x, measured below 6 × tolerance on the crane
 METHODS = ("adaptive", "rk4")
@@ -171,7 +178,7 @@ class Trajectory:
             raise InvalidInputError("only adaptively integrated motions can be sampled again")
         grid = time_grid(self.segment, time_step)
         t, q, x, x_dot, y, measure, _, _, space = on_grid(
-            self.steps, self.q[:, 0], grid, self.failed, self.stopped
+            self.steps, grid, self.failed, self.stopped
         )
         return replace(
             self,
@@ -186,6 +193,27 @@ class Trajectory:
             space=space,
         )
 
+    def to_frame(self, i: int = 0) -> pd.DataFrame:
+        """Motion ``i`` as a table, one row per sample: t, the joints q, and per actuator x,
+        ẋ, ẍ and F_H, each column named with its unit (a rotary actuator's in rad and N·m)."""
+        import pandas as pd
+
+        robot = self.robot
+        joints = ["rad" if r else "m" for r in robot.rotary_joints]
+        rotary = robot.actuators.rotary
+        columns = {"t (s)": self.t[i]}
+        for j, (name, unit) in enumerate(zip(robot.joint_names, joints)):
+            columns[f"q_{name} ({unit})"] = self.q[i, :, j]
+        for part, values, units in (
+            ("x", self.x, ("m", "rad")),
+            ("x_dot", self.x_dot, ("m/s", "rad/s")),
+            ("x_ddot", self.x_ddot, ("m/s²", "rad/s²")),
+            ("F", self.forces, ("N", "N·m")),
+        ):
+            for a, name in enumerate(robot.actuators.names):
+                columns[f"{part}_{name} ({units[int(rotary[a])]})"] = values[i, :, a]
+        return pd.DataFrame(columns)
+
     @cached_property
     def limits(self) -> Limits:
         """The checked actuators' strokes."""
@@ -197,11 +225,11 @@ class Trajectory:
         batch of k·T: the integrator's own states, or for motions built from their samples
         alone, one evaluation of them."""
         k, T, n = self.q.shape
-        space = self.space
-        if space is None:
-            space = evaluate(self.robot, self.q.reshape(k * T, n))
-            space = space.moving(space.joint_velocities(self.x_dot.reshape(k * T, n)))
-        return space.moving(space.v, self.x_ddot.reshape(k * T, n))
+        x_ddot = self.x_ddot.reshape(k * T, n)
+        if self.space is not None and self.space.v is not None:
+            return self.space.moving(self.space.v, x_ddot)
+        space = evaluate(self.robot, self.q.reshape(k * T, n))
+        return space.moving(space.joint_velocities(self.x_dot.reshape(k * T, n)), x_ddot)
 
     def values(self, objective: Objective) -> np.ndarray:
         """``objective``'s measure at every sample (k, T)."""
@@ -222,10 +250,12 @@ class Trajectory:
 
     @cached_property
     def x_ddot(self) -> np.ndarray:
-        """ẍ (k, T, n) in m/s², by second-order differences of ẋ in time (of each motion's own
-        samples; repeated last samples repeat the last value)."""
+        """ẍ (k, T, n) in m/s², by differences of ẋ in time: on a uniform grid, fourth-order
+        central differences inside and second-order ones at the two samples of each end;
+        otherwise second-order ones of each motion's own samples (repeated last samples repeat
+        the last value)."""
         if np.all(self.t == self.t[:1]):
-            return np.gradient(self.x_dot, self.t[0], axis=1, edge_order=2)
+            return rate_on_grid(self.x_dot, self.t[0])
         out = np.empty_like(self.x_dot)
         for i, times in enumerate(self.t):
             count = int(np.searchsorted(times, times[-1])) + 1
@@ -268,8 +298,7 @@ class Trajectory:
     @property
     def velocity_norm(self) -> np.ndarray:
         """ẋᵀẋ (k, T), m²/s²."""
-        k, T, n = self.q.shape
-        return velocity_norm(self.states, self.x_dot.reshape(k * T, n)).reshape(k, T)
+        return np.sum(self.x_dot**2, axis=2)
 
     @cached_property
     def kinetic(self) -> np.ndarray:
@@ -280,7 +309,7 @@ class Trajectory:
     @property
     def peak_velocity_norm(self) -> np.ndarray:
         """max_t ẋᵀẋ (k,), m²/s²."""
-        return np.sum(self.x_dot**2, axis=2).max(axis=1)
+        return self.velocity_norm.max(axis=1)
 
     @property
     def peak_kinetic(self) -> np.ndarray:
@@ -364,6 +393,16 @@ def stroke_extremes(
         lowest = np.minimum(lowest, np.where(inside, value, np.inf).min(axis=1))
         highest = np.maximum(highest, np.where(inside, value, -np.inf).max(axis=1))
     return lowest, highest
+
+
+def rate_on_grid(values: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """d/dt of ``values`` (k, T, ...) sampled on the uniform grid t (T,): (f₋₂ − 8 f₋₁ + 8 f₁ −
+    f₂) / 12h inside, O(h⁴), and second-order differences at the two samples of each end."""
+    rate = np.gradient(values, t, axis=1, edge_order=2)
+    if len(t) >= 5:
+        f, h = values, t[1] - t[0]
+        rate[:, 2:-2] = (f[:, :-4] - 8 * f[:, 1:-3] + 8 * f[:, 3:-1] - f[:, 4:]) / (12 * h)
+    return rate
 
 
 def time_grid(segment: Segment, time_step: float = TIME_STEP) -> np.ndarray:
@@ -589,9 +628,9 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
             limits, allowance = bounds
             past[done] |= limits.margin(end.space.x[accept]) < -allowance
             stopped = past & np.append(True, past[:-1]) & np.append(past[1:], True)
-    steps = Steps.gathered(law, accepted)
+    steps = Steps.gathered(law, first, accepted)
     if not sparse:
-        return on_grid(steps, starts, grid, failed, stopped), steps
+        return on_grid(steps, grid, failed, stopped), steps
     rows, times, configurations = steps.midpoints()
     evaluated.append((rows, times, configurations, law(times, configurations)))
     return _assemble(k, evaluated, failed, stopped, None), steps
@@ -599,12 +638,14 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
 
 @dataclass(frozen=True, eq=False)
 class Steps:
-    """The accepted steps of an adaptive integration of ``law``: step i of motion rows[i]
-    went from t0[i] (s) and q0[i] (n,) over h[i] (s) with the stage slopes[i] (7, n), which
-    give q anywhere within it by the dense output. Motions sampled sparsely are sampled on a
-    grid from them without integrating again (`Trajectory.on_grid`)."""
+    """The accepted steps of an adaptive integration of ``law`` from the states whose rates
+    are ``start`` (one per motion): step i of motion rows[i] went from t0[i] (s) and q0[i]
+    (n,) over h[i] (s) with the stage slopes[i] (7, n), which give q anywhere within it by the
+    dense output. Motions sampled sparsely are sampled on a grid from them without integrating
+    or evaluating their starts again (`Trajectory.on_grid`)."""
 
     law: Law
+    start: Rates
     rows: np.ndarray
     t0: np.ndarray
     h: np.ndarray
@@ -612,10 +653,10 @@ class Steps:
     slopes: np.ndarray
 
     @classmethod
-    def gathered(cls, law: Law, parts: list[tuple[np.ndarray, ...]]) -> Steps:
+    def gathered(cls, law: Law, start: Rates, parts: list[tuple[np.ndarray, ...]]) -> Steps:
         """The steps of ``parts``, each (rows, t0, h, q0, slopes), as one record."""
         rows, t0, h, q0, slopes = (np.concatenate(part) for part in zip(*parts))
-        return cls(law, rows, t0, h, q0, slopes)
+        return cls(law, start, rows, t0, h, q0, slopes)
 
     def select(self, rows: np.ndarray, count: int) -> Steps:
         """The steps of the motions ``rows`` (distinct indices among ``count``), numbered in
@@ -625,6 +666,7 @@ class Steps:
         kept = number[self.rows] >= 0
         return Steps(
             self.law,
+            self.start.take(np.asarray(rows)),
             number[self.rows[kept]],
             self.t0[kept],
             self.h[kept],
@@ -636,6 +678,7 @@ class Steps:
         """These steps and ``other``'s, whose motions are numbered from ``offset`` on."""
         return Steps.gathered(
             self.law,
+            joined([self.start, other.start]),
             [
                 (self.rows, self.t0, self.h, self.q0, self.slopes),
                 (other.rows + offset, other.t0, other.h, other.q0, other.slopes),
@@ -665,25 +708,24 @@ class Steps:
         return self.q0[owner] + self.h[owner, None] * increment
 
 
-def on_grid(steps: Steps, starts: np.ndarray, grid: np.ndarray, failed, stopped):
-    """The samples on ``grid`` (T,) of the motions from ``starts`` (k, n) that took ``steps``
-    (those ``failed`` or ``stopped`` stay where they ended): the law at the starts and at the
-    dense output, evaluated as one batch."""
-    k = len(starts)
+def on_grid(steps: Steps, grid: np.ndarray, failed, stopped):
+    """The samples on ``grid`` (T,) of the motions that took ``steps`` (those ``failed`` or
+    ``stopped`` stay where they ended): the law at their starts, as the integration began,
+    and at the dense output, evaluated as one batch."""
+    start = steps.start
+    k = len(start.bad)
     rows, times, q = steps.dense(grid)
-    rows, times = np.concatenate([np.arange(k), rows]), np.concatenate([np.zeros(k), times])
-    q = np.concatenate([starts, q])
-    return _assemble(k, [(rows, times, q, steps.law(times, q))], failed, stopped, grid)
+    evaluated = [(np.arange(k), np.zeros(k), start.space.q, start)]
+    return _assemble(k, [*evaluated, (rows, times, q, steps.law(times, q))], failed, stopped, grid)
 
 
 def joined(parts: list[Rates]) -> Rates:
     """The rates of several batches as one, in order."""
-    measures = [part.measure for part in parts]
     return Rates(
         np.concatenate([part.q_dot for part in parts]),
         np.concatenate([part.x_dot for part in parts]),
         ActuatorSpace.joined([part.space for part in parts]),
-        None if measures[0] is None else np.concatenate(measures),
+        join([part.measure for part in parts]),
         np.concatenate([part.bad for part in parts]),
     )
 

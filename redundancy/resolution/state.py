@@ -20,11 +20,12 @@ from __future__ import annotations
 import contextlib
 from dataclasses import dataclass, field, replace
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 
 from redundancy.errors import InvalidInputError, SingularConfigurationError
-from redundancy.model.kinematics import Kinematics
+from redundancy.model.kinematics import Kinematics, join, take
 from redundancy.model.robot import Robot
 from redundancy.resolution.linalg import solve
 
@@ -171,8 +172,7 @@ class ActuatorSpace:
 
     def take(self, rows: np.ndarray) -> ActuatorSpace:
         """The states ``rows`` (indices into the batch) alone."""
-        arrays = {name: getattr(self, name) for name in ARRAYS}
-        taken = {name: None if a is None else a[rows] for name, a in arrays.items()}
+        taken: dict[str, Any] = {name: take(getattr(self, name), rows) for name in ARRAYS}
         return self._kept(replace(self, kinematics=self.kinematics.take(rows), **taken), rows)
 
     def _kept(self, other: ActuatorSpace, rows) -> ActuatorSpace:
@@ -185,15 +185,9 @@ class ActuatorSpace:
     @classmethod
     def joined(cls, parts: list[ActuatorSpace]) -> ActuatorSpace:
         """The batches ``parts`` (one robot) as one, in order."""
-        first = parts[0]
-        arrays = {
-            name: None
-            if any(getattr(p, name) is None for p in parts)
-            else np.concatenate([getattr(p, name) for p in parts])
-            for name in ARRAYS
-        }
+        arrays: dict[str, Any] = {name: join([getattr(p, name) for p in parts]) for name in ARRAYS}
         kinematics = Kinematics.joined([p.kinematics for p in parts])
-        joined = replace(first, kinematics=kinematics, **arrays)
+        joined = replace(parts[0], kinematics=kinematics, **arrays)
         for name in KEPT.intersection(*(vars(p) for p in parts)):
             vars(joined)[name] = np.concatenate([vars(p)[name] for p in parts])
         return joined
