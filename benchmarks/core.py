@@ -32,10 +32,10 @@ def main() -> None:
     step = per_call(lambda: VELOCITY.resolver.step(robot, q, segment.velocity), 5000)
     rows.append(("one control step (step, min ẋᵀẋ)", step * 1e6, "µs", 10))
     try:
-        from redundancy.study.peers import PinkResolver
+        from pink_peer import PinkResolver
 
         pink = PinkResolver(robot)
-        target = robot.fk(q) + segment.velocity * pink.time_step
+        target = actuator_space(robot, q).y[0] + segment.velocity * pink.time_step
         theirs = per_call(lambda: pink.control_step(q, target), 2000)
         print(f"pink's control step: {theirs * 1e6:.1f} µs, {theirs / step:.1f} × ours")
     except Exception as error:  # pink is an optional peer

@@ -27,6 +27,7 @@ import timeit
 from pathlib import Path
 
 import numpy as np
+from pink_peer import PinkResolver, pink_run  # the script's folder: the pink peer
 
 from redundancy import actuator_space, load_robot
 from redundancy.planning.bound import global_optimum
@@ -37,10 +38,8 @@ from redundancy.resolution.laws import GradientProjection
 from redundancy.resolution.objectives import ENERGY, VELOCITY
 from redundancy.study.peers import (
     TUNED_GAIN,
-    PinkResolver,
     StrategyRun,
     gradient_projection_run,
-    pink_run,
     pseudoinverse_run,
     tune_gradient_projection,
 )
@@ -288,7 +287,7 @@ def main() -> None:
     projection = GradientProjection(TUNED_GAIN)
     gradient = per_call(lambda: projection.resolve(actuator_space(robot, q), y_dot[None]), 3000)
     pink = PinkResolver(robot)
-    target = robot.fk(q) + y_dot * pink.time_step
+    target = actuator_space(robot, q).y[0] + y_dot * pink.time_step
     theirs = per_call(lambda: pink.control_step(q, target), 3000)
     lines += ["", "## One control step (one state on segment 1-2, best of 9)", ""]
     lines += table(

@@ -1,9 +1,13 @@
 import ast
 import functools
 import os
+import sys
 from pathlib import Path
 
 import pytest
+
+# The benchmarks' helpers the tests share: the pink peer, the evaluation counter
+sys.path.insert(0, str(Path(__file__).parents[1] / "benchmarks"))
 
 # One BLAS thread a process (and so in the processes the tests start), as scripts/test.sh sets:
 # the matrices are small, and idle OpenBLAS threads spin beside the other workers.

@@ -2,9 +2,12 @@
 point kinematics under them."""
 
 import warnings
+from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 import pytest
+from joint_space import fk, jacobian
 from sampling import random_configurations, random_velocities
 
 from redundancy import actuator_space, bundled_robots, load_robot
@@ -30,7 +33,9 @@ def robot(request):
 
 def test_task_jacobian_matches_finite_differences(robot):
     for q in random_configurations(robot, 20, seed=10, margin=0.01):
-        np.testing.assert_allclose(robot.jacobian(q), columns(robot.fk, q), atol=1e-8)
+        np.testing.assert_allclose(
+            jacobian(robot, q), columns(lambda qq: fk(robot, qq), q), atol=1e-8
+        )
 
 
 def test_actuator_jacobian_matches_finite_differences(robot):
@@ -56,4 +61,36 @@ def test_task_jacobian_rate_matches_finite_differences(robot):
     v = random_velocities(robot, 10, seed=15)
     motion = robot.task(robot.kinematics(q, v))
     for qi, vi, J_dot in zip(q, v, motion.jacobian_rate):
-        np.testing.assert_allclose(J_dot, central_difference(robot.jacobian, qi, vi), atol=1e-7)
+        np.testing.assert_allclose(
+            J_dot, central_difference(lambda qq: jacobian(robot, qq), qi, vi), atol=1e-7
+        )
+
+
+def test_rates_read_from_the_pass_equal_pinocchios(robot):
+    """The tracked points' velocities and Jacobian rates that `Kinematics.moving` derives from
+    the one pass's Jacobians equal Pinocchio's own second pass, to rounding."""
+    assert_rates_equal_pinocchios(robot)
+
+
+def test_a_mimic_joints_rates_equal_pinocchios():
+    """A mimic joint shares its column with the joint it follows: its robot's rates are
+    Pinocchio's, and equal them."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        robot = load_robot(Path(__file__).parent / "fixtures" / "intake" / "mimic" / "robot.toml")
+    assert robot.kinematics(robot.lower[None]).tracking.mimic
+    assert_rates_equal_pinocchios(robot)
+
+
+def assert_rates_equal_pinocchios(robot):
+    q = random_configurations(robot, 10, seed=16, margin=0.01)
+    v = random_velocities(robot, 10, seed=17)
+    moving = robot.kinematics(q).moving(v)
+    model, data = robot.model, robot.model.createData()
+    for i in range(len(q)):
+        pin.computeJointJacobiansTimeVariation(model, data, q[i], v[i])
+        for frame, slot in moving.slots.items():
+            rate = pin.getFrameJacobianTimeVariation(model, data, frame, pin.LOCAL_WORLD_ALIGNED)
+            np.testing.assert_allclose(moving.jacobian_rates[i, slot], rate[:3], atol=1e-12)
+            velocity = pin.getFrameVelocity(model, data, frame, pin.LOCAL_WORLD_ALIGNED).linear
+            np.testing.assert_allclose(moving.velocities[i, slot], velocity, atol=1e-12)

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 import umsgpack
 from declarations import actuator_tables, write_actuator_tables, write_transmissions
+from joint_space import fk, jacobian, mass
 from lxml import etree
 from sampling import random_configurations
 
@@ -182,13 +183,13 @@ def test_a_mimic_joint_moves_with_the_joint_it_follows():
     assert robot.n == 3 and robot.joint_names == ["boom_joint", "stick_joint", "telescope_joint"]
     q = random_configurations(robot, 10, seed=5)
     expected = [arm_tool(qi, lambda stick: -0.5 * stick + 0.2) for qi in q]
-    np.testing.assert_allclose(robot.fk(q), expected, atol=1e-12)
+    np.testing.assert_allclose(fk(robot, q), expected, atol=1e-12)
     h = 1e-6  # the task Jacobian against central differences, the mimic's column included
     for qi in q[:3]:
         numeric = np.stack(
-            [(robot.fk(qi + h * e) - robot.fk(qi - h * e)) / (2 * h) for e in np.eye(3)], axis=1
+            [(fk(robot, qi + h * e) - fk(robot, qi - h * e)) / (2 * h) for e in np.eye(3)], axis=1
         )
-        np.testing.assert_allclose(robot.jacobian(qi), numeric, atol=1e-8)
+        np.testing.assert_allclose(jacobian(robot, qi), numeric, atol=1e-8)
 
 
 def test_a_tool_point_on_a_link_and_the_xacro_arm_are_the_arm_itself():
@@ -198,9 +199,9 @@ def test_a_tool_point_on_a_link_and_the_xacro_arm_are_the_arm_itself():
     expanded = quietly(FIXTURES / "xacro" / "robot.toml")
     assert expanded.name == "xacro" and expanded.joint_names == plain.joint_names
     q = random_configurations(plain, 10, seed=8)
-    np.testing.assert_allclose(plain.fk(q), [arm_tool(qi) for qi in q], atol=1e-12)
-    np.testing.assert_allclose(expanded.fk(q), plain.fk(q), atol=1e-12)
-    np.testing.assert_allclose(expanded.mass(q), plain.mass(q), atol=1e-9)
+    np.testing.assert_allclose(fk(plain, q), [arm_tool(qi) for qi in q], atol=1e-12)
+    np.testing.assert_allclose(fk(expanded, q), fk(plain, q), atol=1e-12)
+    np.testing.assert_allclose(mass(expanded, q), mass(plain, q), atol=1e-9)
 
 
 def test_locked_joints_hold_their_chosen_values_and_drop_their_actuators(tmp_path):
@@ -213,10 +214,10 @@ def test_locked_joints_hold_their_chosen_values_and_drop_their_actuators(tmp_pat
     assert locked.joint_names == ["boom_joint", "telescope_joint"]
     assert locked.actuators.names == ["x1", "x3"]
     q = np.array([[0.3, 0.5], [0.8, 0.1]])
-    np.testing.assert_allclose(locked.fk(q), [arm_tool([b, -1.4, t]) for b, t in q], atol=1e-12)
+    np.testing.assert_allclose(fk(locked, q), [arm_tool([b, -1.4, t]) for b, t in q], atol=1e-12)
     toml.write_text(toml.read_text().replace("{stick_joint = -1.4}", '["telescope_joint"]'))
     neutral = quietly(toml)
-    np.testing.assert_allclose(neutral.fk([0.3, -1.0]), arm_tool([0.3, -1.0, 0.0]), atol=1e-12)
+    np.testing.assert_allclose(fk(neutral, [0.3, -1.0]), arm_tool([0.3, -1.0, 0.0]), atol=1e-12)
 
 
 def test_missing_meshes_are_named_once_and_drawn_as_rods_between_joint_origins():
@@ -306,7 +307,7 @@ def test_a_floating_root_is_refused_with_the_fix_and_loads_once_locked(tmp_path)
     )
     robot = quietly(toml)
     q = random_configurations(robot, 5, seed=2)
-    np.testing.assert_allclose(robot.fk(q), [arm_tool(qi) for qi in q], atol=1e-12)
+    np.testing.assert_allclose(fk(robot, q), [arm_tool(qi) for qi in q], atol=1e-12)
 
 
 def test_a_robot_loaded_from_a_path_is_named_after_its_folder_or_file(tmp_path, monkeypatch):
@@ -537,7 +538,7 @@ def test_a_mimic_joint_following_a_locked_joint_is_locked_where_it_follows(tmp_p
     assert locked.joint_names == ["boom_joint", "telescope_joint"]
     q = np.array([[0.3, 0.5], [0.8, 0.1]])
     expected = [arm_tool([b, -1.4, t], lambda stick: -0.5 * stick + 0.2) for b, t in q]
-    np.testing.assert_allclose(locked.fk(q), expected, atol=1e-12)
+    np.testing.assert_allclose(fk(locked, q), expected, atol=1e-12)
 
 
 def test_a_task_as_large_as_the_robot_is_refused_in_one_line(tmp_path, capsys):

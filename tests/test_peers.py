@@ -6,15 +6,14 @@ import sys
 
 import numpy as np
 import pytest
+from pink_peer import PinkResolver, pink_run
 
 from redundancy import RedundancyError, actuator_space, load_robot
 from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
 from redundancy.study.peers import (
     TUNED_GAIN,
-    PinkResolver,
     gradient_projection_run,
-    pink_run,
     pseudoinverse_run,
     tune_gradient_projection,
 )

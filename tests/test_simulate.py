@@ -3,6 +3,7 @@ limits, failures. The adaptive method is checked against it in test_searches.py.
 
 import numpy as np
 import pytest
+from joint_space import fk, inverse_dynamics
 
 from redundancy import InvalidInputError
 from redundancy.planning.ik import inverse_kinematics
@@ -56,7 +57,7 @@ def test_actuator_forces_along_a_motion_match_inverse_dynamics(crane, cycle):
     v = np.gradient(q, t, axis=0, edge_order=2)
     a = np.gradient(v, t, axis=0, edge_order=2)
     inner = slice(5, -5)  # away from the one-sided differences at the ends
-    tau = crane.inverse_dynamics(q[inner], v[inner], a[inner])
+    tau = inverse_dynamics(crane, q[inner], v[inner], a[inner])
     states = trajectory.states
     A = states.A.reshape(len(t), crane.n, crane.n)[inner]
     expected = np.linalg.solve(np.swapaxes(A, 1, 2), tau[..., None])[..., 0]
@@ -99,7 +100,7 @@ def test_checking_named_actuators_only(crane, cycle):
 def test_a_start_at_a_singular_actuator_jacobian_is_frozen_and_flagged(crane):
     """At q1 = 0 the lift cylinder's line passes through joint 1: its torque arm a1 vanishes."""
     q = np.array([[0.0, 1.0, 0.5], [1.5, 1.0, 0.5]])
-    y0 = crane.fk(q[1])
+    y0 = fk(crane, q[1])
     segment = Segment("short", y0, y0 + np.array([-0.2, 0.0]), 0.5)
     trajectory = simulate(crane, VELOCITY.resolver, segment, q, method="rk4")
     assert trajectory.failed.tolist() == [True, False]
@@ -127,3 +128,29 @@ def test_the_closed_loop_converges_within_rk4s_stability_and_is_refused_beyond_i
     assert error[-1] < 1e-4
     with pytest.raises(InvalidInputError, match=r"gain = 280 1/s at time_step = 0.01 s makes"):
         simulate(crane, VELOCITY.resolver, segment, start, method="rk4", gain=280.0)
+
+
+def test_a_motion_as_a_table_round_trips_its_arrays(crane, cycle):
+    """`Trajectory.to_frame`: one row per sample, each column named with its unit, holding
+    exactly the motion's t, q, x, ẋ, ẍ and F_H."""
+    segment = cycle["2-3"]
+    motion = simulate(crane, VELOCITY.resolver, segment, reachable_starts(crane, segment, [0.4]))
+    frame = motion.to_frame()
+    assert list(frame.columns[:4]) == [
+        "t (s)",
+        "q_boom1_joint (rad)",
+        "q_boom2_joint (rad)",
+        "q_telescope_joint (m)",
+    ]
+    assert list(frame.columns[-3:]) == ["F_x1 (N)", "F_x2 (N)", "F_x3 (N)"]
+    np.testing.assert_array_equal(frame["t (s)"], motion.t[0])
+    np.testing.assert_array_equal(frame.filter(like="q_").to_numpy(), motion.q[0])
+    for part, values in (
+        ("x_", motion.x),
+        ("x_dot_", motion.x_dot),
+        ("x_ddot_", motion.x_ddot),
+        ("F_", motion.forces),
+    ):
+        columns = [f"{part}{name} " for name in crane.actuators.names]
+        picked = frame[[c for c in frame.columns if any(c.startswith(p) for p in columns)]]
+        np.testing.assert_array_equal(picked.to_numpy(), values[0])

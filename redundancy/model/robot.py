@@ -2,11 +2,11 @@
 
 Every joint-space quantity comes from Pinocchio: the tracked frames' kinematics
 (`redundancy.model.kinematics`), the mass matrix M(q) (CRBA), the nonlinear terms
-N(q, v) = V(q, v) + G(q) and inverse dynamics (RNEA). Robots are built by
+N(q, v) = V(q, v) + G(q) (RNEA). Robots are built by
 `redundancy.model.loading.load_robot`.
 
-Configurations come one at a time, shape (n,), or as a batch, shape (k, n); every method
-answers in the same form, with the batch axis first.
+Configurations come one at a time, shape (n,), or as a batch, shape (k, n); `configuration`
+checks them into a batch, the batch axis first, which every method then takes.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import pinocchio as pin
 from redundancy.errors import InvalidInputError
 from redundancy.model.actuators import ActuatorSet, driven_joints, prismatic
 from redundancy.model.hydraulics import Circuit
-from redundancy.model.kinematics import Kinematics, PointMotion, track
+from redundancy.model.kinematics import Kinematics, PointMotion, Tracking, track
 
 AXES = "xyz"
 
@@ -35,24 +35,19 @@ def frame_id(model: pin.Model, name: str) -> int:
     raise InvalidInputError(f"no link or point {name!r} in the model")
 
 
-def _as_batch(name: str, values: np.ndarray | list[float], n: int) -> tuple[np.ndarray, bool]:
-    """``values`` as a (k, n) float array and whether it came as one (n,) vector."""
+def _as_batch(name: str, values: np.ndarray | list[float], n: int) -> np.ndarray:
+    """``values`` (n,) or (k, n) as a checked (k, n) float array: right shape, finite."""
     try:
         array = np.asarray(values, dtype=float)
     except (TypeError, ValueError):
         raise InvalidInputError(
             f"{name} must be {n} numbers, or k rows of {n}; got {values!r}"
         ) from None
-    single = array.ndim == 1
     if array.ndim not in (1, 2) or array.shape[-1] != n:
         raise InvalidInputError(f"{name} must have shape ({n},) or (k, {n}); got {array.shape}")
     if not np.all(np.isfinite(array)):
         raise InvalidInputError(f"{name} contains NaN or infinite values: {array.tolist()}")
-    return np.atleast_2d(array), single
-
-
-def _answer(batch: np.ndarray, single: bool) -> np.ndarray:
-    return batch[0] if single else batch
+    return np.atleast_2d(array)
 
 
 class Robot:
@@ -97,7 +92,7 @@ class Robot:
         self._tool = frame_id(model, tool_frame)
         self._task_rows = [AXES.index(a) for a in task_axes]
         self._task_frames = [self._tool]  # the frames the task is read from
-        self._tracking: dict[tuple[int, ...], tuple[list[int], dict[int, int]]] = {}
+        self._tracking: dict[tuple[int, ...], Tracking] = {}
         self._lower_triangle = np.tril_indices(model.nv, -1)
 
     def __repr__(self) -> str:
@@ -152,11 +147,11 @@ class Robot:
 
     def configuration(self, q: np.ndarray | list[float], name: str = "q") -> np.ndarray:
         """``q`` as a checked (k, n) array: right shape, finite."""
-        return _as_batch(name, q, self.n)[0]
+        return _as_batch(name, q, self.n)
 
     def task_values(self, y: np.ndarray | list[float], name: str = "y_dot") -> np.ndarray:
         """Task coordinates or velocities ``y`` as a checked (k, m) array: right shape, finite."""
-        return _as_batch(name, y, self.m)[0]
+        return _as_batch(name, y, self.m)
 
     def kinematics(
         self, q: np.ndarray, v: np.ndarray | None = None, actuators: ActuatorSet | None = None
@@ -167,9 +162,9 @@ class Robot:
         key = (self.actuators if actuators is None else actuators).frames
         if key not in self._tracking:
             frames = list(dict.fromkeys([*self._task_frames, *key]))
-            self._tracking[key] = frames, {f: i for i, f in enumerate(frames)}
-        frames, slots = self._tracking[key]
-        return track(self.model, self.data, frames, slots, q, v)
+            slots = {f: i for i, f in enumerate(frames)}
+            self._tracking[key] = Tracking(self.model, self.data, frames, slots)
+        return track(self._tracking[key], q, v)
 
     def tool(self, kinematics: Kinematics) -> PointMotion:
         """Motion of the tool point, all three world components."""
@@ -190,21 +185,6 @@ class Robot:
             None if tool.velocity is None else tool.velocity[:, rows],
             None if tool.jacobian_rate is None else tool.jacobian_rate[:, rows],
         )
-
-    def fk(self, q: np.ndarray | list[float]) -> np.ndarray:
-        """Task coordinates y = h1(q) (Eq. 6), (m,) or (k, m), in m."""
-        batch, single = _as_batch("q", q, self.n)
-        return _answer(self.task(self.kinematics(batch)).position, single)
-
-    def jacobian(self, q: np.ndarray | list[float]) -> np.ndarray:
-        """Task Jacobian J = ∂y/∂q (Eq. 7), (m, n) or (k, m, n)."""
-        batch, single = _as_batch("q", q, self.n)
-        return _answer(self.task(self.kinematics(batch)).jacobian, single)
-
-    def mass(self, q: np.ndarray | list[float]) -> np.ndarray:
-        """Joint-space inertia matrix M(q) (Eq. 18) by CRBA, (n, n) or (k, n, n)."""
-        batch, single = _as_batch("q", q, self.n)
-        return _answer(self.mass_matrices(batch), single)
 
     @property
     def kinematic_only(self) -> bool:
@@ -265,27 +245,7 @@ class Robot:
         ]
 
     def nonlinear(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """N(q, v) = V(q, v) + G(q) (Eq. 20), (n,) or (k, n), in N·m or N."""
+        """N(q, v) = V(q, v) + G(q) (Eq. 20), (k, n) in N·m or N, for states q, v (k, n) already
+        checked (`configuration`)."""
         self.require_masses("N(q, v)")
-        qb, single = _as_batch("q", q, self.n)
-        vb, _ = _as_batch("v", v, self.n)
-        out = np.array([pin.nonLinearEffects(self.model, self.data, a, b) for a, b in zip(qb, vb)])
-        return _answer(out, single)
-
-    def gravity(self, q: np.ndarray | list[float]) -> np.ndarray:
-        """Gravity torques G(q) (Eq. 18), (n,) or (k, n)."""
-        self.require_masses("G(q)")
-        qb, single = _as_batch("q", q, self.n)
-        out = np.array([pin.computeGeneralizedGravity(self.model, self.data, a) for a in qb])
-        return _answer(out, single)
-
-    def inverse_dynamics(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
-        """τ = M(q) a + V(q, v) + G(q) (Eq. 18) by RNEA, (n,) or (k, n)."""
-        self.require_masses("inverse dynamics")
-        qb, single = _as_batch("q", q, self.n)
-        vb, _ = _as_batch("v", v, self.n)
-        ab, _ = _as_batch("a", a, self.n)
-        out = np.array(
-            [pin.rnea(self.model, self.data, qi, vi, ai) for qi, vi, ai in zip(qb, vb, ab)]
-        )
-        return _answer(out, single)
+        return np.array([pin.nonLinearEffects(self.model, self.data, a, b) for a, b in zip(q, v)])

@@ -64,14 +64,32 @@ def held_names(robot: Robot, held: str | Sequence[str]) -> tuple[str, ...]:
     return tuple(robot.actuators.names[row] for row in held_indices(robot, held))
 
 
-def _residual(robot: Robot, q: np.ndarray, rows: list[int], target: np.ndarray):
-    """[y(q); x_h(q)] − target (k, n) and its Jacobian [J; A_h] (k, n, n), from the frames of
-    the task and the held actuators only."""
-    held = robot.actuators.part(rows)
-    kinematics = robot.kinematics(q, actuators=held)
-    x, A = held.evaluate(kinematics)
-    y, J = robot.task_point(kinematics)
-    return np.concatenate([y, x], axis=1) - target, np.concatenate([J, A], axis=1)
+class _Passes:
+    """[y(q); x_h(q)] (m + r,) and [J; A_h] (m + r, n) of every configuration one Newton run
+    met, from the frames of the task and the held actuators only, each evaluated once: Newton
+    sends many targets from the same seeds, and rows the clip drives into a corner of the joint
+    box meet there again and again."""
+
+    def __init__(self, robot: Robot, rows: list[int]):
+        self.robot, self.held = robot, robot.actuators.part(rows)
+        self.known: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+
+    def residual(self, q: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """[y(q); x_h(q)] − target (k, m + r) and its Jacobian [J; A_h] (k, m + r, n)."""
+        keys = [row.tobytes() for row in q]
+        new = [i for i, key in enumerate(dict.fromkeys(keys)) if key not in self.known]
+        if new:
+            fresh = np.array([np.frombuffer(key) for key in dict.fromkeys(keys)])[new]
+            kinematics = self.robot.kinematics(fresh, actuators=self.held)
+            x, A = self.held.evaluate(kinematics)
+            y, J = self.robot.task_point(kinematics)
+            values, jacobians = np.concatenate([y, x], axis=1), np.concatenate([J, A], axis=1)
+            for row, value, jacobian in zip(fresh, values, jacobians):
+                self.known[row.tobytes()] = value, jacobian
+        size, n = target.shape[1], self.robot.n
+        values = np.array([self.known[key][0] for key in keys]).reshape(len(q), size)
+        jacobians = np.array([self.known[key][1] for key in keys]).reshape(len(q), size, n)
+        return values - target, jacobians
 
 
 def newton(
@@ -87,10 +105,11 @@ def newton(
     limits when ``bounded`` (a projected Levenberg-Marquardt). A row stops once its residual is
     below `TOLERANCE` or its step no longer moves it. Returns q (k, n) and |r| (k,)."""
     q = np.array(guess, dtype=float)
+    passes = _Passes(robot, rows)
     active = np.arange(len(q))
     eye = DAMPING * np.eye(robot.n)
     for _ in range(iterations):
-        residual, jacobian = _residual(robot, q[active], rows, target[active])
+        residual, jacobian = passes.residual(q[active], target[active])
         moving = np.linalg.norm(residual, axis=1) > TOLERANCE
         active, residual, jacobian = active[moving], residual[moving], jacobian[moving]
         if not active.size:
@@ -103,7 +122,7 @@ def newton(
         stalled = np.all(np.abs(updated - q[active]) < 1e-15, axis=1)
         q[active] = updated
         active = active[~stalled]
-    residual, _ = _residual(robot, q, rows, target)
+    residual, _ = passes.residual(q, target)
     return q, np.linalg.norm(residual, axis=1)
 
 
@@ -241,15 +260,15 @@ def _closest_miss(robot: Robot, point: np.ndarray, held: dict[str, float], q0: n
     by a heavy penalty), by bounded least squares, in m."""
     from scipy.optimize import least_squares
 
-    rows = held_indices(robot, list(held))
+    passes = _Passes(robot, held_indices(robot, list(held)))
     target = np.concatenate([point, list(held.values())])[None]
-    weight = np.concatenate([np.ones(robot.m), np.full(len(rows), 1e4)])
+    weight = np.concatenate([np.ones(robot.m), np.full(len(held), 1e4)])
 
     def residual(q):
-        return weight * _residual(robot, q[None], rows, target)[0][0]
+        return weight * passes.residual(q[None], target)[0][0]
 
     def jacobian(q):
-        return weight[:, None] * _residual(robot, q[None], rows, target)[1][0]
+        return weight[:, None] * passes.residual(q[None], target)[1][0]
 
     fits = [
         least_squares(residual, start, jac=jacobian, bounds=(robot.lower, robot.upper))

@@ -9,7 +9,10 @@ Two methods, one result type (`Trajectory`):
 
 - "adaptive" (the default): Dormand-Prince 5(4) steps with error control on q (relative and
   absolute ``tolerance``), every start with its own step size, each stage one batched
-  evaluation of the starts still running. The method controls its own error, so it runs open
+  evaluation of the starts still running. scipy's `solve_ivp` integrates one system with one
+  step size: a batch of starts as one system would step all of them at the pace of the
+  hardest, and one call per start would evaluate the law state by state. So the loop is
+  written here, around scipy's RK45 tableau. The method controls its own error, so it runs open
   loop (K = 0) unless a gain is given. The motion is sampled on the uniform grid of
   ``time_step`` by the method's 4th-order dense output (Shampine's), or, with ``sparse``, at
   the accepted steps and their midpoints only: fewer samples for a search, between which strokes
@@ -30,20 +33,25 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 from functools import cached_property
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
+from scipy.integrate import RK45
 
 from redundancy.errors import InvalidInputError
 from redundancy.model.hydraulics import Flows, Supply
+from redundancy.model.kinematics import join
 from redundancy.model.robot import Robot
 from redundancy.model.values import is_real
 from redundancy.planning.tasks import Segment
 from redundancy.resolution.laws import Resolver
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
 from redundancy.resolution.limits import Limits, Violation, hydraulic_values
-from redundancy.resolution.objectives import Objective, integral, kinetic, velocity_norm
+from redundancy.resolution.objectives import Objective, integral, kinetic
 from redundancy.resolution.state import ActuatorSpace, evaluate, regularised
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 TIME_STEP = 0.01  # s
 MIN_INTERVALS = 10  # of a motion's grid, however short its segment
@@ -53,42 +61,21 @@ RK4_STABLE = 2.785  # −K h of the classical Runge-Kutta method's stability lim
 # negative real axis (|1 + z + z²/2 + z³/6 + z⁴/24| = 1 at z = −2.7853): beyond it the closed
 # loop's tracking error grows step by step
 TOLERANCE = 1e-6  # relative and absolute error per adaptive step on q (rad, m)
+REPORT_TOLERANCE = 1e-10  # of a motion reported on its grid: its dense output's rate then
+# matches the law's q̇, so that the power balance Σ F ẋ = d(T + V)/dt holds on the grid (at
+# `TOLERANCE` it misses by 1e-4 of the peak power, the dense output's own error over a step)
 ALLOWANCE = 30  # sparse samples' strokes count ALLOWANCE × tolerance (m) closer to their
 # limits: the integrator's error in x, measured below 6 × tolerance on the crane
 METHODS = ("adaptive", "rk4")
 
-# Dormand-Prince 5(4): the stage nodes c, the stage weights (the last row gives the 5th-order
-# step, whose rates are the next step's first stage), the error weights (5th − 4th order) and
-# the dense output: the weights at θ of a step are P · (θ, θ², θ³, θ⁴) (Shampine, 1986).
-NODES = (1 / 5, 3 / 10, 4 / 5, 8 / 9, 1.0, 1.0)
-STAGES = tuple(
-    np.array(row)
-    for row in (
-        (1 / 5,),
-        (3 / 40, 9 / 40),
-        (44 / 45, -56 / 15, 32 / 9),
-        (19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729),
-        (9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656),
-        (35 / 384, 0.0, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84),
-    )
-)
-ERROR = np.array([71 / 57600, 0, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40])
-DENSE = np.array(
-    [
-        [1, -8048581381 / 2820520608, 8663915743 / 2820520608, -12715105075 / 11282082432],
-        [0, 0, 0, 0],
-        [0, 131558114200 / 32700410799, -68118460800 / 10900136933, 87487479700 / 32700410799],
-        [0, -1754552775 / 470086768, 14199869525 / 1410260304, -10690763975 / 1880347072],
-        [
-            0,
-            127303824393 / 49829197408,
-            -318862633887 / 49829197408,
-            701980252875 / 199316789632,
-        ],
-        [0, -282668133 / 205662961, 2019193451 / 616988883, -1453857185 / 822651844],
-        [0, 40617522 / 29380423, -110615467 / 29380423, 69997945 / 29380423],
-    ]
-)
+# Dormand-Prince 5(4), the tableau scipy's RK45 integrates with: the stage nodes c (the last
+# stage, at c = 1, gives the next step's first slope), the stage weights (the last row gives
+# the 5th-order step), the error weights E (4th − 5th order) and the dense output, whose
+# weights at θ of a step are P · (θ, θ², θ³, θ⁴) (Shampine, 1986).
+NODES = (*RK45.C[1:], 1.0)
+STAGES = (*(RK45.A[i, :i] for i in range(1, RK45.n_stages)), RK45.B)
+ERROR = RK45.E
+DENSE = RK45.P
 
 
 @dataclass(frozen=True, eq=False)
@@ -101,7 +88,9 @@ class Trajectory:
     their limits; checked: the actuators whose strokes count; measure (k, T) the measure of
     ``objective`` at the samples, when integrated for one; ``sparse``: sampled at the adaptive
     steps (see the module docstring), with the strokes' error ``allowance`` (m); ``circuit``:
-    the hydraulic circuit's limits count too (`within_limits`, `violations`).
+    the hydraulic circuit's limits count too (`within_limits`, `violations`). ``space``: the
+    states at the samples as the integrator evaluated them (one flat batch of k·T, motion by
+    motion, v = q̇), which every quantity along the motion is read from (`states`).
     """
 
     robot: Robot = field(repr=False)
@@ -121,6 +110,7 @@ class Trajectory:
     allowance: float = 0.0
     circuit: bool = False
     steps: Steps | None = field(default=None, repr=False)
+    space: ActuatorSpace | None = field(default=None, repr=False)
 
     @classmethod
     def single(
@@ -172,7 +162,13 @@ class Trajectory:
             stopped=self.stopped[rows],
             measure=None if self.measure is None else self.measure[rows],
             steps=None if self.steps is None else self.steps.select(rows, len(self)),
+            space=None if self.space is None else self.space.take(self._flat(rows)),
         )
+
+    def _flat(self, rows: np.ndarray) -> np.ndarray:
+        """The indices into the flat batch of k·T states of the motions ``rows``."""
+        T = self.q.shape[1]
+        return (np.asarray(rows)[:, None] * T + np.arange(T)).ravel()
 
     def on_grid(self, time_step: float = TIME_STEP) -> Trajectory:
         """These motions sampled on the uniform grid of ``time_step`` by the dense output of the
@@ -181,12 +177,42 @@ class Trajectory:
         if self.steps is None:
             raise InvalidInputError("only adaptively integrated motions can be sampled again")
         grid = time_grid(self.segment, time_step)
-        t, q, x, x_dot, y, measure, _, _ = on_grid(
-            self.steps, self.q[:, 0], grid, self.failed, self.stopped
+        t, q, x, x_dot, y, measure, _, _, space = on_grid(
+            self.steps, grid, self.failed, self.stopped
         )
         return replace(
-            self, t=t, q=q, x=x, x_dot=x_dot, y=y, measure=measure, sparse=False, allowance=0.0
+            self,
+            t=t,
+            q=q,
+            x=x,
+            x_dot=x_dot,
+            y=y,
+            measure=measure,
+            sparse=False,
+            allowance=0.0,
+            space=space,
         )
+
+    def to_frame(self, i: int = 0) -> pd.DataFrame:
+        """Motion ``i`` as a table, one row per sample: t, the joints q, and per actuator x,
+        ẋ, ẍ and F_H, each column named with its unit (a rotary actuator's in rad and N·m)."""
+        import pandas as pd
+
+        robot = self.robot
+        joints = ["rad" if r else "m" for r in robot.rotary_joints]
+        rotary = robot.actuators.rotary
+        columns = {"t (s)": self.t[i]}
+        for j, (name, unit) in enumerate(zip(robot.joint_names, joints)):
+            columns[f"q_{name} ({unit})"] = self.q[i, :, j]
+        for part, values, units in (
+            ("x", self.x, ("m", "rad")),
+            ("x_dot", self.x_dot, ("m/s", "rad/s")),
+            ("x_ddot", self.x_ddot, ("m/s²", "rad/s²")),
+            ("F", self.forces, ("N", "N·m")),
+        ):
+            for a, name in enumerate(robot.actuators.names):
+                columns[f"{part}_{name} ({units[int(rotary[a])]})"] = values[i, :, a]
+        return pd.DataFrame(columns)
 
     @cached_property
     def limits(self) -> Limits:
@@ -196,12 +222,14 @@ class Trajectory:
     @cached_property
     def states(self) -> ActuatorSpace:
         """The actuator space at every sample, with q̇ = A⁻¹ ẋ and ẍ (`x_ddot`), as one flat
-        batch of k·T."""
+        batch of k·T: the integrator's own states, or for motions built from their samples
+        alone, one evaluation of them."""
         k, T, n = self.q.shape
-        q = self.q.reshape(k * T, n)
-        at_rest = evaluate(self.robot, q)
-        v = np.linalg.solve(at_rest.A, self.x_dot.reshape(k * T, n, 1))[..., 0]
-        return replace(evaluate(self.robot, q, v), x_ddot=self.x_ddot.reshape(k * T, n))
+        x_ddot = self.x_ddot.reshape(k * T, n)
+        if self.space is not None and self.space.v is not None:
+            return self.space.moving(self.space.v, x_ddot)
+        space = evaluate(self.robot, self.q.reshape(k * T, n))
+        return space.moving(space.joint_velocities(self.x_dot.reshape(k * T, n)), x_ddot)
 
     def values(self, objective: Objective) -> np.ndarray:
         """``objective``'s measure at every sample (k, T)."""
@@ -222,10 +250,12 @@ class Trajectory:
 
     @cached_property
     def x_ddot(self) -> np.ndarray:
-        """ẍ (k, T, n) in m/s², by second-order differences of ẋ in time (of each motion's own
-        samples; repeated last samples repeat the last value)."""
+        """ẍ (k, T, n) in m/s², by differences of ẋ in time: on a uniform grid, fourth-order
+        central differences inside and second-order ones at the two samples of each end;
+        otherwise second-order ones of each motion's own samples (repeated last samples repeat
+        the last value)."""
         if np.all(self.t == self.t[:1]):
-            return np.gradient(self.x_dot, self.t[0], axis=1, edge_order=2)
+            return rate_on_grid(self.x_dot, self.t[0])
         out = np.empty_like(self.x_dot)
         for i, times in enumerate(self.t):
             count = int(np.searchsorted(times, times[-1])) + 1
@@ -268,8 +298,7 @@ class Trajectory:
     @property
     def velocity_norm(self) -> np.ndarray:
         """ẋᵀẋ (k, T), m²/s²."""
-        k, T, n = self.q.shape
-        return velocity_norm(self.states, self.x_dot.reshape(k * T, n)).reshape(k, T)
+        return np.sum(self.x_dot**2, axis=2)
 
     @cached_property
     def kinetic(self) -> np.ndarray:
@@ -280,7 +309,7 @@ class Trajectory:
     @property
     def peak_velocity_norm(self) -> np.ndarray:
         """max_t ẋᵀẋ (k,), m²/s²."""
-        return np.sum(self.x_dot**2, axis=2).max(axis=1)
+        return self.velocity_norm.max(axis=1)
 
     @property
     def peak_kinetic(self) -> np.ndarray:
@@ -366,6 +395,16 @@ def stroke_extremes(
     return lowest, highest
 
 
+def rate_on_grid(values: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """d/dt of ``values`` (k, T, ...) sampled on the uniform grid t (T,): (f₋₂ − 8 f₋₁ + 8 f₁ −
+    f₂) / 12h inside, O(h⁴), and second-order differences at the two samples of each end."""
+    rate = np.gradient(values, t, axis=1, edge_order=2)
+    if len(t) >= 5:
+        f, h = values, t[1] - t[0]
+        rate[:, 2:-2] = (f[:, :-4] - 8 * f[:, 1:-3] + 8 * f[:, 3:-1] - f[:, 4:]) / (12 * h)
+    return rate
+
+
 def time_grid(segment: Segment, time_step: float = TIME_STEP) -> np.ndarray:
     """Uniform sample times over the segment, at most ``time_step`` apart, (T,) in s; at least
     `MIN_INTERVALS` intervals, so that a segment shorter than a few steps is still resolved
@@ -381,15 +420,22 @@ def time_grid(segment: Segment, time_step: float = TIME_STEP) -> np.ndarray:
 
 
 class Rates(NamedTuple):
-    """The law at k states: q̇, ẋ (k, n); x (k, n), y (k, m); the objective's measure (k,) or
-    None; bad (k,) where A is singular or the state not finite (there q̇ = ẋ = 0)."""
+    """The law at k states: q̇, ẋ (k, n); the states themselves, at v = q̇ (``space``: x, y,
+    A, J, ...); the objective's measure (k,) or None; bad (k,) where A is singular or the
+    state not finite (there q̇ = ẋ = 0)."""
 
     q_dot: np.ndarray
     x_dot: np.ndarray
-    x: np.ndarray
-    y: np.ndarray
+    space: ActuatorSpace
     measure: np.ndarray | None
     bad: np.ndarray
+
+    def take(self, rows: np.ndarray) -> Rates:
+        """The rates of the states ``rows`` (indices or a mask) alone."""
+        measure = None if self.measure is None else self.measure[rows]
+        return Rates(
+            self.q_dot[rows], self.x_dot[rows], self.space.take(rows), measure, self.bad[rows]
+        )
 
 
 class Law:
@@ -412,7 +458,7 @@ class Law:
         if bad.any():
             q_dot[bad], x_dot[bad] = 0.0, 0.0
         measure = None if self.objective is None else self.objective.measure(space, x_dot)
-        return Rates(q_dot, x_dot, space.x, space.y, measure, bad)
+        return Rates(q_dot, x_dot, space.moving(q_dot), measure, bad)
 
 
 def simulate(
@@ -479,7 +525,7 @@ def simulate(
         samples, steps = _dormand_prince(
             law, starts, segment.duration, tolerance, grid, sparse, bounds
         )
-    t, q, x, x_dot, y, measure, failed, stopped = samples
+    t, q, x, x_dot, y, measure, failed, stopped, space = samples
     return Trajectory(
         robot,
         segment,
@@ -498,6 +544,7 @@ def simulate(
         allowance,
         circuit,
         steps,
+        space,
     )
 
 
@@ -513,7 +560,7 @@ def _runge_kutta(law: Law, starts: np.ndarray, t: np.ndarray):
     def rates(time, state):
         result = law(np.full(k, time), state)
         failed[result.bad] = True
-        result.q_dot[failed], result.x_dot[failed] = 0.0, 0.0
+        result.q_dot[failed], result.x_dot[failed] = 0.0, 0.0  # the state's v is q̇ itself
         return result
 
     for i, time in enumerate(t[:-1]):
@@ -525,12 +572,10 @@ def _runge_kutta(law: Law, starts: np.ndarray, t: np.ndarray):
         step = h / 6 * (first.q_dot + 2 * k2 + 2 * k3 + k4)
         q[:, i + 1] = q[:, i] + np.where(failed[:, None], 0.0, step)
     records.append(rates(t[-1], q[:, -1]))
-    x, x_dot, y = (
-        np.stack([getattr(r, part) for r in records], axis=1) for part in ("x", "x_dot", "y")
-    )
-    measure = None if law.objective is None else np.stack([r.measure for r in records], axis=1)
-    times = np.broadcast_to(t, (k, len(t))).copy()
-    return times, q, x, x_dot, y, measure, failed.copy(), np.zeros(k, dtype=bool)
+    rows = np.repeat(np.arange(k)[None], len(t), axis=0).ravel()
+    times = np.repeat(t, k)
+    evaluated = [(rows, times, q.transpose(1, 0, 2).reshape(-1, n), joined(records))]
+    return _assemble(k, evaluated, failed.copy(), np.zeros(k, dtype=bool), t)
 
 
 def _combine(weights: np.ndarray, slopes: np.ndarray) -> np.ndarray:
@@ -574,18 +619,18 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
         t0, h0, q0, q1 = t[done], step[accept, 0], q[done], q_new[accept]
         accepted.append((done, t0, h0, q0, kept.transpose(1, 0, 2)))
         if sparse:
-            evaluated.append((done, t0 + h0, q1, _select(end, accept)))
+            evaluated.append((done, t0 + h0, q1, end.take(accept)))
         t[done], q[done], f[done] = t0 + h0, q1, kept[-1]
         growth = np.clip(0.9 * np.maximum(error, 1e-10) ** -0.2, 0.2, 10.0)
         h[rows] = step[:, 0] * np.where(accept, growth, np.minimum(growth, 1.0))
         failed[rows[h[rows] < 1e-9 * duration]] = True
         if bounds is not None:
             limits, allowance = bounds
-            past[done] |= limits.margin(end.x[accept]) < -allowance
+            past[done] |= limits.margin(end.space.x[accept]) < -allowance
             stopped = past & np.append(True, past[:-1]) & np.append(past[1:], True)
-    steps = Steps.gathered(law, accepted)
+    steps = Steps.gathered(law, first, accepted)
     if not sparse:
-        return on_grid(steps, starts, grid, failed, stopped), steps
+        return on_grid(steps, grid, failed, stopped), steps
     rows, times, configurations = steps.midpoints()
     evaluated.append((rows, times, configurations, law(times, configurations)))
     return _assemble(k, evaluated, failed, stopped, None), steps
@@ -593,12 +638,14 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
 
 @dataclass(frozen=True, eq=False)
 class Steps:
-    """The accepted steps of an adaptive integration of ``law``: step i of motion rows[i]
-    went from t0[i] (s) and q0[i] (n,) over h[i] (s) with the stage slopes[i] (7, n), which
-    give q anywhere within it by the dense output. Motions sampled sparsely are sampled on a
-    grid from them without integrating again (`Trajectory.on_grid`)."""
+    """The accepted steps of an adaptive integration of ``law`` from the states whose rates
+    are ``start`` (one per motion): step i of motion rows[i] went from t0[i] (s) and q0[i]
+    (n,) over h[i] (s) with the stage slopes[i] (7, n), which give q anywhere within it by the
+    dense output. Motions sampled sparsely are sampled on a grid from them without integrating
+    or evaluating their starts again (`Trajectory.on_grid`)."""
 
     law: Law
+    start: Rates
     rows: np.ndarray
     t0: np.ndarray
     h: np.ndarray
@@ -606,10 +653,10 @@ class Steps:
     slopes: np.ndarray
 
     @classmethod
-    def gathered(cls, law: Law, parts: list[tuple[np.ndarray, ...]]) -> Steps:
+    def gathered(cls, law: Law, start: Rates, parts: list[tuple[np.ndarray, ...]]) -> Steps:
         """The steps of ``parts``, each (rows, t0, h, q0, slopes), as one record."""
         rows, t0, h, q0, slopes = (np.concatenate(part) for part in zip(*parts))
-        return cls(law, rows, t0, h, q0, slopes)
+        return cls(law, start, rows, t0, h, q0, slopes)
 
     def select(self, rows: np.ndarray, count: int) -> Steps:
         """The steps of the motions ``rows`` (distinct indices among ``count``), numbered in
@@ -619,6 +666,7 @@ class Steps:
         kept = number[self.rows] >= 0
         return Steps(
             self.law,
+            self.start.take(np.asarray(rows)),
             number[self.rows[kept]],
             self.t0[kept],
             self.h[kept],
@@ -630,6 +678,7 @@ class Steps:
         """These steps and ``other``'s, whose motions are numbered from ``offset`` on."""
         return Steps.gathered(
             self.law,
+            joined([self.start, other.start]),
             [
                 (self.rows, self.t0, self.h, self.q0, self.slopes),
                 (other.rows + offset, other.t0, other.h, other.q0, other.slopes),
@@ -659,29 +708,32 @@ class Steps:
         return self.q0[owner] + self.h[owner, None] * increment
 
 
-def on_grid(steps: Steps, starts: np.ndarray, grid: np.ndarray, failed, stopped):
-    """The samples on ``grid`` (T,) of the motions from ``starts`` (k, n) that took ``steps``
-    (those ``failed`` or ``stopped`` stay where they ended): the law at the starts and at the
-    dense output, evaluated as one batch."""
-    k = len(starts)
+def on_grid(steps: Steps, grid: np.ndarray, failed, stopped):
+    """The samples on ``grid`` (T,) of the motions that took ``steps`` (those ``failed`` or
+    ``stopped`` stay where they ended): the law at their starts, as the integration began,
+    and at the dense output, evaluated as one batch."""
+    start = steps.start
+    k = len(start.bad)
     rows, times, q = steps.dense(grid)
-    rows, times = np.concatenate([np.arange(k), rows]), np.concatenate([np.zeros(k), times])
-    q = np.concatenate([starts, q])
-    return _assemble(k, [(rows, times, q, steps.law(times, q))], failed, stopped, grid)
+    evaluated = [(np.arange(k), np.zeros(k), start.space.q, start)]
+    return _assemble(k, [*evaluated, (rows, times, q, steps.law(times, q))], failed, stopped, grid)
 
 
-def _select(rates: Rates, mask: np.ndarray) -> Rates:
-    """The rates of the states ``mask`` selects."""
-    measure = None if rates.measure is None else rates.measure[mask]
+def joined(parts: list[Rates]) -> Rates:
+    """The rates of several batches as one, in order."""
     return Rates(
-        rates.q_dot[mask], rates.x_dot[mask], rates.x[mask], rates.y[mask], measure, rates.bad[mask]
+        np.concatenate([part.q_dot for part in parts]),
+        np.concatenate([part.x_dot for part in parts]),
+        ActuatorSpace.joined([part.space for part in parts]),
+        join([part.measure for part in parts]),
+        np.concatenate([part.bad for part in parts]),
     )
 
 
 def _assemble(k, evaluated, failed, stopped, grid):
     """Samples (rows, times, q, rates) of k motions, in time order per motion, padded by
     repeating each motion's last sample; on a ``grid``, a motion frozen early stays at rest over
-    the grid's remaining times."""
+    the grid's remaining times. The states come as one flat batch of k·T, motion by motion."""
     rows = np.concatenate([part[0] for part in evaluated])
     times = np.concatenate([part[1] for part in evaluated])
     order = np.lexsort((times, rows))
@@ -691,25 +743,16 @@ def _assemble(k, evaluated, failed, stopped, grid):
     index = order[start[:, None] + np.minimum(np.arange(length)[None], counts[:, None] - 1)]
     padded = np.arange(length)[None] >= counts[:, None]
 
-    def gathered(parts):
-        parts = list(parts)
-        return None if parts[0] is None else np.concatenate(parts)[index]
-
-    x_dot = gathered(part[3].x_dot for part in evaluated)
-    measure = gathered(part[3].measure for part in evaluated)
+    rates = joined([part[3] for part in evaluated]).take(index.ravel())
+    q = np.concatenate([part[2] for part in evaluated])[index]
+    x_dot, measure, space = rates.x_dot.reshape(k, length, -1), rates.measure, rates.space
     t = times[index]
     if grid is not None:
         t = np.broadcast_to(grid, (k, length)).copy()
         x_dot[padded] = 0.0
+        space = space.moving(np.where(padded.reshape(-1, 1), 0.0, space.v))
         if measure is not None:
-            measure[padded] = 0.0
-    return (
-        t,
-        gathered(part[2] for part in evaluated),
-        gathered(part[3].x for part in evaluated),
-        x_dot,
-        gathered(part[3].y for part in evaluated),
-        measure,
-        failed,
-        stopped,
-    )
+            measure[padded.ravel()] = 0.0
+    measure = None if measure is None else measure.reshape(k, length)
+    x, y = (array.reshape(k, length, -1) for array in (space.x, space.y))
+    return t, q, x, x_dot, y, measure, failed, stopped, space

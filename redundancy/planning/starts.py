@@ -52,7 +52,13 @@ from redundancy.planning.ik import (
     held_names,
     inverse_kinematics,
 )
-from redundancy.planning.integrate import TIME_STEP, TOLERANCE, Trajectory, simulate
+from redundancy.planning.integrate import (
+    REPORT_TOLERANCE,
+    TIME_STEP,
+    TOLERANCE,
+    Trajectory,
+    simulate,
+)
 from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
 from redundancy.resolution.limits import Limits, Violation, amount
@@ -185,9 +191,9 @@ class SearchResult(Samples):
     rounds: int = 1
 
     def motion(self, sample: Sample | None = None, time_step: float = TIME_STEP) -> Trajectory:
-        """The motion from ``sample`` (default the best) sampled on the grid of ``time_step``:
-        a trajectory of one, read from the steps the search integrated it with (integrated to
-        the end where the search stopped it)."""
+        """The motion from ``sample`` (default the best) on the grid of ``time_step``: a
+        trajectory of one, integrated from its start at `REPORT_TOLERANCE`, which keeps the
+        power balance on the grid (the search's steps, at its looser tolerance, do not)."""
         sample = self.best if sample is None else sample
         if sample is None:
             raise InvalidInputError(
@@ -200,8 +206,6 @@ class SearchResult(Samples):
         if row < 0:
             raise InvalidInputError(f"the start {sample.values} of {self.held} is unreachable")
         motion = self.trajectory.select(row)
-        if not motion.stopped[0]:
-            return motion.on_grid(time_step)
         return simulate(
             self.robot,
             self.objective.resolver,
@@ -209,6 +213,7 @@ class SearchResult(Samples):
             motion.q[:, 0],
             time_step,
             checked=motion.checked,
+            tolerance=REPORT_TOLERANCE,
             objective=self.objective,
             circuit=motion.circuit,
         )

@@ -20,11 +20,12 @@ from __future__ import annotations
 import contextlib
 from dataclasses import dataclass, field, replace
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 
 from redundancy.errors import InvalidInputError, SingularConfigurationError
-from redundancy.model.kinematics import Kinematics
+from redundancy.model.kinematics import Kinematics, join, take
 from redundancy.model.robot import Robot
 from redundancy.resolution.linalg import solve
 
@@ -103,10 +104,14 @@ class ActuatorSpace:
 
     @cached_property
     def A_dot(self) -> np.ndarray:
-        """Ȧ (k, n, n), so that ẍ = A q̈ + Ȧ q̇ (Eq. 12); zero at rest."""
+        """Ȧ (k, n, n), so that ẍ = A q̈ + Ȧ q̇ (Eq. 12); zero at rest. Read from the same
+        pass's Jacobians (`Kinematics.moving`), whenever v became known."""
         if self.v is None:
             return np.zeros_like(self.A)
-        return self.robot.actuators.rate(self.kinematics)
+        kinematics = self.kinematics
+        if kinematics.jacobian_rates is None:
+            kinematics = kinematics.moving(self.v)
+        return self.robot.actuators.rate(kinematics)
 
     @cached_property
     def J_H(self) -> np.ndarray:
@@ -158,6 +163,38 @@ class ActuatorSpace:
     def joint_velocities(self, x_dot: np.ndarray) -> np.ndarray:
         """q̇ = A⁻¹ ẋ (Eq. 11) for actuator velocities ẋ (k, n)."""
         return solve(self.A, x_dot[..., None])[..., 0]
+
+    def moving(self, v: np.ndarray, x_ddot: np.ndarray | None = None) -> ActuatorSpace:
+        """These states at joint velocities v (k, n), once a law has solved for them, and
+        accelerations ``x_ddot`` where known: what depends on q alone (J_H, M, M_H), where
+        already derived, is kept."""
+        return self._kept(replace(self, v=v, x_ddot=x_ddot), slice(None))
+
+    def take(self, rows: np.ndarray) -> ActuatorSpace:
+        """The states ``rows`` (indices into the batch) alone."""
+        taken: dict[str, Any] = {name: take(getattr(self, name), rows) for name in ARRAYS}
+        return self._kept(replace(self, kinematics=self.kinematics.take(rows), **taken), rows)
+
+    def _kept(self, other: ActuatorSpace, rows) -> ActuatorSpace:
+        """``other`` (these states, or those ``rows`` of them) with what is derived from q
+        alone copied over, not derived again."""
+        for name in KEPT.intersection(vars(self)):
+            vars(other)[name] = vars(self)[name][rows]
+        return other
+
+    @classmethod
+    def joined(cls, parts: list[ActuatorSpace]) -> ActuatorSpace:
+        """The batches ``parts`` (one robot) as one, in order."""
+        arrays: dict[str, Any] = {name: join([getattr(p, name) for p in parts]) for name in ARRAYS}
+        kinematics = Kinematics.joined([p.kinematics for p in parts])
+        joined = replace(parts[0], kinematics=kinematics, **arrays)
+        for name in KEPT.intersection(*(vars(p) for p in parts)):
+            vars(joined)[name] = np.concatenate([vars(p)[name] for p in parts])
+        return joined
+
+
+ARRAYS = ("q", "v", "x", "A", "y", "J", "x_ddot")  # the batch's own arrays, batch axis first
+KEPT = {"J_H", "M", "M_H"}  # derived from q alone: unchanged by velocities or accelerations
 
 
 def regularised(space: ActuatorSpace) -> tuple[ActuatorSpace, np.ndarray]:
