@@ -61,6 +61,7 @@ from redundancy.viz.playback import (
 )
 from redundancy.viz.plots import write_cycle_figures, write_figures
 from redundancy.viz.server import LOCALHOST
+from redundancy.viz.tables import cycle_table, study_table
 
 
 def _add_robot_options(parser: argparse.ArgumentParser) -> None:
@@ -229,7 +230,7 @@ def _study_command(args: argparse.Namespace) -> None:
                 cycle_study, skipped, cycle_figures, cycle_playbacks = pending.result()
                 waiting.update()
         study = replace(study, cycle_study=cycle_study, cycle_skipped=skipped)
-        print(study.table())
+        print(study_table(study))
         write_report(study, report)
         figures = [out.final(p) for p in figures + cycle_figures]
         playbacks = [out.final(p) for p in playbacks + cycle_playbacks]
@@ -397,7 +398,7 @@ def _cycle_command(args: argparse.Namespace) -> None:
             speed=args.gap_speed,
             progress=not args.quiet,
         )
-        print(study.table())
+        print(cycle_table(study))
         write_cycle_report(study, report)
         figures = [out.final(p) for p in write_cycle_figures(study, out.staging)]
         playbacks = [out.final(p) for p in write_cycle_playbacks(study, out.staging)]

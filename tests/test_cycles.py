@@ -28,6 +28,8 @@ from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.resolution.limits import Limits
 from redundancy.resolution.objectives import VELOCITY
 from redundancy.resolution.state import evaluate
+from redundancy.study.cycles import repetition_report
+from redundancy.viz.tables import cycle_table
 
 ARM = Path(__file__).parent / "data" / "planar4r"
 
@@ -66,7 +68,7 @@ def test_the_free_pseudoinverse_drifts_on_the_closed_circle(arm_runs):
     _, _, free, _, _ = arm_runs
     largest = np.abs(free.drift).max(axis=1)
     assert largest[0] > 1e-3  # far above the integrator's error
-    report = free.report()
+    report = repetition_report(free)
     assert len(report["largest_drift_per_cycle"]) == 20
     assert report["largest_drift_per_cycle"][0] == pytest.approx(largest[0])
     assert set(report["drift_per_cycle"]) == {"x1", "x2", "x3", "x4"}
@@ -186,7 +188,7 @@ def test_the_report_lists_the_corners_self_motion_gaps(crane_study):
     assert report["per_segment"]["self_motion_time_s"] == pytest.approx(
         sum(c["time_s"] for c in corners)
     )
-    assert "1-2 → 2-3" in crane_study.table()
+    assert "1-2 → 2-3" in cycle_table(crane_study)
 
 
 def test_the_cranes_cycle_reports_drift_and_the_drift_free_price(crane_study):
@@ -206,7 +208,7 @@ def test_the_cranes_cycle_reports_drift_and_the_drift_free_price(crane_study):
 
 def test_the_return_map_finds_the_free_cycles_limit_cycle(crane, paper_cycle, crane_study):
     mapped = crane_study.map
-    ((value, slope),) = mapped.fixed_points
+    ((value, slope, _),) = mapped.fixed_points
     assert 0.80 < value < 0.86 and 0 < slope < 1  # stable
     # the repetition converges towards it: each cycle's drift points at the fixed point
     free = crane_study.repetitions["free"]

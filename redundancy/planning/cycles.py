@@ -54,6 +54,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
+from typing import NamedTuple
 
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -502,20 +503,6 @@ class Corner:
         delta = self.held_delta
         return None if delta is None else float(np.abs(delta).max() / self.speed)
 
-    def report(self) -> dict:
-        delta = self.delta
-        return {
-            "after": self.after,
-            "before": self.before,
-            "point": self.point.tolist(),
-            "held_delta": None if delta is None else dict(zip(self.held, self.held_delta.tolist())),  # type: ignore[union-attr]
-            "delta": None if delta is None else dict(zip(self.names, delta.tolist())),
-            "speed": self.speed,
-            "time_s": self.time,
-            "self_motion_within_limits": self.within_limits,
-            "reason": self.reason,
-        }
-
 
 def gap_speed(robot: Robot, held: tuple[str, ...]) -> float:
     """The held actuators' speed in a corner's self-motion: the slowest maximum speed of the
@@ -655,19 +642,6 @@ class Settling:
     limit: float | None
     cycles_to_settle: int | None
 
-    def __str__(self) -> str:
-        if self.settled_at is not None:
-            return f"closed (drift below {SETTLED:g}) from cycle {self.settled_at}"
-        if self.settles:
-            return (
-                f"converging to a limit cycle at {self.limit:.6g} (drift ratio "
-                f"{self.contraction:.3g} per cycle, closed in about {self.cycles_to_settle} "
-                "more cycles)"
-            )
-        if self.contraction is None:
-            return "no trend"
-        return f"not settling (drift ratio {self.contraction:.3g} per cycle)"
-
 
 def settling(values: np.ndarray, drift: np.ndarray) -> Settling:
     """`Settling` from the held values at each cycle's start (N + 1,) and every actuator's drift
@@ -693,8 +667,10 @@ def settling(values: np.ndarray, drift: np.ndarray) -> Settling:
 class Repetition:
     """N cycles run one after another from one start with one strategy (``strategy`` names
     it) by ``laws``: ``motions`` one `CycleMotion` (of one) per cycle, sampled at the adaptive
-    steps; x (N + 1, n) the strokes and
-    y (N + 1, m) the tool at each cycle's start, the last row where the last cycle ended."""
+    steps; x (N + 1, n) the strokes and y (N + 1, m) the tool at each cycle's start, the last
+    row where the last cycle ended; ``within`` (N,) whether each cycle kept every checked limit,
+    and ``first_violation`` the first cycle (1-based) that passes a limit with the first limit
+    it passes (its times in that cycle's time), or None."""
 
     robot: Robot = field(repr=False)
     cycle: WorkCycle
@@ -704,6 +680,8 @@ class Repetition:
     motions: tuple[CycleMotion, ...] = field(repr=False)
     x: np.ndarray
     y: np.ndarray
+    within: np.ndarray
+    first_violation: tuple[int, str] | None
     circuit: bool = False
     gain: float = TASK_GAIN
     tolerance: float = REPEAT_TOLERANCE
@@ -735,23 +713,6 @@ class Repetition:
         return self.x[:, [names.index(h) for h in self.held]]
 
     @property
-    def within(self) -> np.ndarray:
-        """Whether each cycle kept every checked limit (N,)."""
-        return np.array([bool(m.within_limits[0]) for m in self.motions])
-
-    @property
-    def first_violation(self) -> tuple[int, str] | None:
-        """The first cycle (1-based) that passes a limit, and the first limit it passes (its
-        times in that cycle's time)."""
-        for number, motion in enumerate(self.motions, start=1):
-            found = motion.violations(0)
-            if found:
-                return number, str(found[0])
-            if not motion.within_limits[0]:
-                return number, "the motion failed (singular actuator Jacobian)"
-        return None
-
-    @property
     def settling(self) -> Settling:
         return settling(self.held_values[:, 0], self.drift)
 
@@ -763,29 +724,6 @@ class Repetition:
     def score(self, objective: Objective) -> float:
         """The first cycle's ``objective``."""
         return float(self.motions[0].score(objective)[0])
-
-    def report(self) -> dict:
-        first = self.first_violation
-        drift = self.drift
-        return {
-            "strategy": self.strategy,
-            "cycles": self.cycles,
-            "held_values": self.held_values[:, 0].tolist()
-            if len(self.held) == 1
-            else self.held_values.tolist(),
-            "drift_per_cycle": {
-                name: drift[:, j].tolist() for j, name in enumerate(self.robot.actuators.names)
-            },
-            "largest_drift_per_cycle": np.abs(drift).max(axis=1).tolist(),
-            "tool_drift_per_cycle": self.tool_drift.tolist(),
-            "within_limits_per_cycle": self.within.tolist(),
-            "first_cycle_past_a_limit": None if first is None else first[0],
-            "first_violation": None if first is None else first[1],
-            "settling": str(self.settling),
-            "settles": self.settling.settles,
-            "limit_cycle_value": self.settling.limit,
-            "contraction": self.settling.contraction,
-        }
 
 
 def repeat(
@@ -834,6 +772,7 @@ def repeat(
         q = motion.end
     x = np.array([m.pieces[0].x[0, 0] for m in motions] + [motions[-1].pieces[-1].x[0, -1]])
     y = np.array([m.pieces[0].y[0, 0] for m in motions] + [motions[-1].pieces[-1].y[0, -1]])
+    within = np.array([bool(m.within_limits[0]) for m in motions])
     return Repetition(
         robot,
         cycle,
@@ -843,10 +782,23 @@ def repeat(
         tuple(motions),
         x,
         y,
+        within,
+        _first_violation(motions),
         circuit,
         gain,
         tolerance,
     )
+
+
+def _first_violation(motions: Sequence[CycleMotion]) -> tuple[int, str] | None:
+    """The first cycle (1-based) that passes a limit, and the first limit it passes."""
+    for number, motion in enumerate(motions, start=1):
+        found = motion.violations(0)
+        if found:
+            return number, str(found[0])
+        if not motion.within_limits[0]:
+            return number, "the motion failed (singular actuator Jacobian)"
+    return None
 
 
 @dataclass(frozen=True)
@@ -854,7 +806,7 @@ class ReturnMap:
     """The map P from the held actuator's value at the cycle's start to its value there one
     cycle later, sampled at ``values`` (k,): ``following`` (k,) (NaN where the start is out of
     reach or the motion failed), ``within`` (k,) whether that cycle kept the strokes; its
-    ``fixed_points`` (v*, P'(v*)): the limit cycles, stable where |P'| < 1."""
+    ``fixed_points``: the limit cycles."""
 
     held: str
     values: np.ndarray
@@ -862,12 +814,8 @@ class ReturnMap:
     within: np.ndarray
 
     @property
-    def fixed_points(self) -> list[tuple[float, float]]:
-        """(v*, P'(v*)) where P(v) − v changes sign between two samples (linear in between)."""
-        return [(root, slope) for root, slope, _ in self._fixed()]
-
-    def _fixed(self) -> list[tuple[float, float, bool]]:
-        """The fixed points, each with whether both samples around it keep the strokes."""
+    def fixed_points(self) -> list[FixedPoint]:
+        """Where P(v) − v changes sign between two samples (linear in between)."""
         found = []
         v, p = self.values, self.following
         g = p - v
@@ -879,32 +827,21 @@ class ReturnMap:
             root = v[i] - g[i] * (v[i + 1] - v[i]) / (g[i + 1] - g[i])
             slope = (p[i + 1] - p[i]) / (v[i + 1] - v[i])
             kept = bool(self.within[i] and self.within[i + 1])
-            found.append((float(root), float(slope), kept))
+            found.append(FixedPoint(float(root), float(slope), kept))
         return found
 
-    def describe(self) -> str:
-        """The limit cycles in words."""
-        found = self._fixed()
-        if not found:
-            return "no fixed point over the reachable stroke"
-        return "; ".join(
-            f"limit cycle at {v:.5g} (P' = {s:.3g}, {'stable' if abs(s) < 1 else 'unstable'}"
-            + ("" if kept else ", its cycle passes a stroke")
-            + ")"
-            for v, s, kept in found
-        )
 
-    def report(self) -> dict:
-        return {
-            "held_actuator": self.held,
-            "values": self.values.tolist(),
-            "next": [None if not np.isfinite(p) else float(p) for p in self.following],
-            "within_limits": self.within.tolist(),
-            "fixed_points": [
-                {"value": v, "slope": s, "stable": abs(s) < 1, "keeps_the_strokes": kept}
-                for v, s, kept in self._fixed()
-            ],
-        }
+class FixedPoint(NamedTuple):
+    """A limit cycle: the held ``value`` v* with P(v*) = v*, the ``slope`` P'(v*) (stable where
+    |P'| < 1), and whether both samples around it keep the strokes."""
+
+    value: float
+    slope: float
+    keeps_the_strokes: bool
+
+    @property
+    def stable(self) -> bool:
+        return abs(self.slope) < 1
 
 
 def return_map(

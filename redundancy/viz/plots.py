@@ -332,7 +332,7 @@ def return_map_figure(mapped: ReturnMap, title: str):
         axes.plot(
             v[outside], values[outside], "o", ms=4, mfc="none", color="C0", label="passes a stroke"
         )
-        for value, slope in mapped.fixed_points:
+        for value, slope, _ in mapped.fixed_points:
             stable = abs(slope) < 1
             axes.plot(
                 value,
