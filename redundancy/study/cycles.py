@@ -33,19 +33,18 @@ from redundancy.planning.cycles import (
     CYCLES,
     SETTLED,
     Corner,
-    CycleMotion,
     CyclePlan,
     PeriodicOptimum,
     Repetition,
     ReturnMap,
     Settling,
-    default_cycle_start,
     periodic_optimum,
     plan_cycle,
     repeat,
     return_map,
 )
-from redundancy.planning.starts import held_actuators, scalar_or_list
+from redundancy.planning.integrate import Trajectory
+from redundancy.planning.starts import default_start, held_actuators, scalar_or_list
 from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.objectives import VELOCITY, Objective
 from redundancy.study.output import write_atomically
@@ -75,7 +74,7 @@ class Cost(NamedTuple):
         return {k: v for k, v in self._asdict().items() if v is not None}
 
 
-def cost(motion: CycleMotion, objective: Objective) -> Cost:
+def cost(motion: Trajectory, objective: Objective) -> Cost:
     """The `Cost` of the first motion of ``motion``."""
     circuit = motion.robot.hydraulics
     return Cost(
@@ -109,7 +108,7 @@ class CycleStudy:
     circuit: bool
     plan: CyclePlan = field(repr=False)
     repetitions: dict[str, Repetition] = field(repr=False)
-    firsts: dict[str, CycleMotion] = field(repr=False)
+    firsts: dict[str, Trajectory] = field(repr=False)
     costs: dict[str, Cost]
     periodic: PeriodicOptimum | None = field(repr=False)
     map: ReturnMap | None = field(repr=False)
@@ -316,12 +315,12 @@ def run_cycle(
         free_start = "whole-cycle improved start"
         free_motion = plan.motion
         if free_motion is not None:
-            start_q = free_motion.start[0]
+            start_q = free_motion.q[0, 0]
         else:
-            values, start_q = default_cycle_start(robot, cycle, held)
+            values, start_q = default_start(robot, cycle.chain(), held)
             free_start = f"default start {named_values(held, values)}: no start keeps every stroke"
         repetitions: dict[str, Repetition] = {}
-        firsts: dict[str, CycleMotion] = {}
+        firsts: dict[str, Trajectory] = {}
         periodic = None
         if "free" in chosen:
             bar.set_description("cycle: free, repeated")

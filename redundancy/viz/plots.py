@@ -228,8 +228,7 @@ def cycle_figure(study: CycleStudy, title: str):
     offsets = study.cycle.chain().offsets
     styles = {"free": "-", "periodic": "--"}
     colours: dict[str, str] = {}
-    for name, run in study.firsts.items():
-        whole = run.whole(0)
+    for name, whole in study.firsts.items():
         t = whole.t[0]
         for row, actuator in enumerate(actuators):
             held = actuator.name in study.held
