@@ -61,7 +61,7 @@ from redundancy.viz.playback import (
 )
 from redundancy.viz.plots import write_cycle_figures, write_figures
 from redundancy.viz.server import LOCALHOST
-from redundancy.viz.tables import cycle_table, study_table
+from redundancy.viz.tables import check_table, cycle_table, study_table
 
 
 def _add_robot_options(parser: argparse.ArgumentParser) -> None:
@@ -373,7 +373,7 @@ def _check_command(args: argparse.Namespace) -> int:
     if args.task is not None or robot.task_file is not None:
         robot, cycle = _load_task(robot, args.task)
     found = check(robot, cycle)
-    print(found.report())
+    print(check_table(found))
     return 2 if found.blocking() else 0
 
 

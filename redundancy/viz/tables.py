@@ -12,6 +12,7 @@ from redundancy.model.hydraulics import KILOJOULE
 from redundancy.planning.cycles import ReturnMap
 from redundancy.planning.refinement import Refined
 from redundancy.resolution.limits import amount
+from redundancy.study.check import Check, span
 from redundancy.study.cycles import NAMES, CycleStudy, named_values, settling_words
 from redundancy.study.study import Study
 
@@ -27,7 +28,7 @@ def study_table(study: Study) -> str:
         f"{'segment':<{names}}{'strategy':<36}{start:>{width}}"
         f"{'peak ẋᵀẋ':>12}{'peak ẋᵀM_Hẋ':>13}  limits"
     )
-    lines = [header, "-" * len(header)]
+    lines = ruled(header)
     for run in study.runs:
         row = run.summary()
         held = "held" if row["within_limits"] else "VIOLATED"
@@ -77,7 +78,7 @@ def hydraulic_table(study: Study) -> str:
         f"{'segment':<{names}}{'strategy':<36}{'Q_P L/min':>10}{'p_L bar':>9}"
         f"{'LS kJ':>8}{'CP kJ':>8}{'LS +%':>7}{'CP +%':>7}{'t_min s':>8}  circuit"
     )
-    lines = [header, "-" * len(header)]
+    lines = ruled(header)
     for run in study.runs:
         figures, above = run.summary()["hydraulics"], study.above_energy_bound(run)
         percent = "".join(f"{above[s]:>7.1f}" if s in above else f"{'-':>7}" for s in ("LS", "CP"))
@@ -102,6 +103,11 @@ def hydraulic_table(study: Study) -> str:
                 + f"{'':>22}  {convergence(bound)}"
             )
     return "\n".join(lines)
+
+
+def ruled(header: str) -> list[str]:
+    """A table's header and the rule under it."""
+    return [header, "-" * len(header)]
 
 
 def _segment_width(study: Study) -> int:
@@ -195,7 +201,7 @@ def _repetition_table(study: CycleStudy) -> str:
         f"{'strategy':<34}{'cycles':>7}{'drift/cycle: first':>20}{'last':>11}"
         f"{'tool drift':>12}  first stroke passed; settling"
     )
-    lines = [header, "-" * len(header)]
+    lines = ruled(header)
     for name, repetition in study.repetitions.items():
         largest = np.abs(repetition.drift).max(axis=1)
         first = repetition.first_violation
@@ -220,3 +226,61 @@ def fixed_point_words(mapped: ReturnMap) -> str:
         + ")"
         for point in found
     )
+
+
+def check_table(found: Check) -> str:
+    """The one-screen check of a robot: lengths in mm, angles in degrees."""
+    robot = found.robot
+    lines = [f"{robot.name}: n = {robot.n}, m = {robot.m} (task {robot.task_axes})", "joints:"]
+    for name, lo, hi, rotary in zip(
+        robot.joint_names, robot.lower, robot.upper, robot.rotary_joints
+    ):
+        lines.append(f"  {name:<20} {span(lo, hi, 'rad' if rotary else 'm')}")
+    lines.append("actuators (values over the joint's range against the stroke):")
+    for a in found.actuators:
+        unit = "rad" if a.rotary else "m"
+        verdict = (
+            "UNREACHABLE"
+            if a.unreachable
+            else ("MISMATCH: a stroke end is not reached" if a.mismatch else "ok")
+        )
+        lines.append(
+            f"  {a.name:<8} on {a.joint:<18} reaches {span(*a.reached, unit)}, "
+            f"stroke {span(*a.stroke, unit)}: {verdict}"
+        )
+        for value, x in zip(a.singular, a.singular_x):
+            inside = a.stroke[0] <= x <= a.stroke[1]
+            lines.append(
+                f"    A singular at {a.joint} = {a.joint_value(value)} ({a.name} = "
+                f"{amount(x, unit)}, {'inside' if inside else 'outside'} the stroke): its "
+                "line passes through the joint axis"
+            )
+    if robot.kinematic_only:
+        lines.append(
+            f"masses: none on {', '.join(robot.massless_links)} (kinematic only: the "
+            "velocity objective, play and check work; the energy objective refuses)"
+        )
+    else:
+        total = sum(inertia.mass for inertia in robot.model.inertias)
+        lines.append(f"masses: on every link, {total:.1f} kg in all")
+    lines.append(
+        "meshes: "
+        + (
+            f"not found: {', '.join(robot.missing_meshes)} (drawn as rods)"
+            if robot.missing_meshes
+            else "every mesh found"
+        )
+    )
+    if found.points is not None:
+        lines.append("task points:")
+        lines += [
+            f"  {p.tolist()}: {'reached' if ok else 'NOT reached'}"
+            for p, ok in zip(found.points, found.reached)
+        ]
+    problems = found.blocking()
+    lines.append(
+        "ready for a study"
+        if not problems
+        else f"{len(problems)} problems block a study: " + "; ".join(problems)
+    )
+    return "\n".join(lines)
