@@ -60,7 +60,7 @@ def main() -> None:
     )
     label = f"{args.cycles} repetitions"
     costs[f"{label}, free (whole-cycle improved start)"], free = best_of(
-        n, lambda: repeat(robot, cycle, VELOCITY.resolver, motion.start[0], args.cycles)
+        n, lambda: repeat(robot, cycle, VELOCITY.resolver, motion.q[0, 0], args.cycles)
     )
     costs[f"{label}, drift-free (periodic optimum)"], closed = best_of(
         n, lambda: repeat(robot, cycle, periodic.laws(), periodic.start, args.cycles, "periodic")

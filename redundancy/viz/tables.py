@@ -6,6 +6,8 @@ result (`run_study`, `run_cycle`), so printing one evaluates no state.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from redundancy.model.hydraulics import KILOJOULE
@@ -14,6 +16,7 @@ from redundancy.planning.refinement import Refined
 from redundancy.resolution.limits import amount
 from redundancy.study.check import Check, span
 from redundancy.study.cycles import NAMES, CycleStudy, named_values, settling_words
+from redundancy.study.peers import StrategyRun
 from redundancy.study.study import Study
 
 
@@ -24,20 +27,16 @@ def study_table(study: Study) -> str:
     width = max(10, len(start) + 1, 11 * len(study.held) + 1)
     units = ["rad" if study.robot.actuators[h].rotary else "m" for h in study.held]
     names = _segment_width(study)
-    header = (
-        f"{'segment':<{names}}{'strategy':<36}{start:>{width}}"
-        f"{'peak ẋᵀẋ':>12}{'peak ẋᵀM_Hẋ':>13}  limits"
-    )
-    lines = ruled(header)
-    for run in study.runs:
+
+    def cells(run: StrategyRun) -> str:
         row = run.summary()
         held = "held" if row["within_limits"] else "VIOLATED"
         values = ",".join(amount(v, unit) for v, unit in zip(run.start, units))
         kinetic = "-" if row["peak_kinetic"] is None else f"{row['peak_kinetic']:.3f}"
-        lines.append(
-            f"{run.segment:<{names}}{run.strategy:<36}{values:>{width}}"
-            f"{row['peak_velocity_norm']:>12.5f}{kinetic:>13}  {held}"
-        )
+        return f"{values:>{width}}{row['peak_velocity_norm']:>12.5f}{kinetic:>13}  {held}"
+
+    columns = f"{start:>{width}}{'peak ẋᵀẋ':>12}{'peak ẋᵀM_Hẋ':>13}  limits"
+    lines = _per_run(study, columns, cells)
     lines += [
         "",
         f"{'segment':<{names}}{'objective':<10}{'improved':>12}{'bound':>12}{'gap %':>8}",
@@ -74,23 +73,24 @@ def hydraulic_table(study: Study) -> str:
     """The hydraulic comparison: peak pump flow, highest load pressure, pump energies, shortest
     duration and, with energy bounds, per cent above them, then the bounds."""
     names = _segment_width(study)
-    header = (
-        f"{'segment':<{names}}{'strategy':<36}{'Q_P L/min':>10}{'p_L bar':>9}"
-        f"{'LS kJ':>8}{'CP kJ':>8}{'LS +%':>7}{'CP +%':>7}{'t_min s':>8}  circuit"
-    )
-    lines = ruled(header)
-    for run in study.runs:
+
+    def cells(run: StrategyRun) -> str:
         figures, above = run.summary()["hydraulics"], study.above_energy_bound(run)
         percent = "".join(f"{above[s]:>7.1f}" if s in above else f"{'-':>7}" for s in ("LS", "CP"))
         shortest = figures["shortest_duration_s"]
-        lines.append(
-            f"{run.segment:<{names}}{run.strategy:<36}"
+        return (
             f"{figures['peak_pump_flow_l_min']:>10.1f}{figures['max_load_pressure_bar']:>9.1f}"
             f"{figures['ls_energy_kj']:>8.2f}{figures['cp_energy_kj']:>8.2f}{percent}"
             + (f"{'-':>8}" if shortest is None else f"{shortest:>8.2f}")
             + "  "
             + ("held" if figures["within_limits"] else "; ".join(figures["violations"]))
         )
+
+    columns = (
+        f"{'Q_P L/min':>10}{'p_L bar':>9}{'LS kJ':>8}{'CP kJ':>8}{'LS +%':>7}{'CP +%':>7}"
+        f"{'t_min s':>8}  circuit"
+    )
+    lines = _per_run(study, columns, cells)
     for segment, bounds in (study.energy_bounds or {}).items():
         for supply, bound in bounds.items():
             lines.append(
@@ -108,6 +108,14 @@ def hydraulic_table(study: Study) -> str:
 def ruled(header: str) -> list[str]:
     """A table's header and the rule under it."""
     return [header, "-" * len(header)]
+
+
+def _per_run(study: Study, columns: str, cells: Callable[[StrategyRun], str]) -> list[str]:
+    """A table of the study's runs, ruled under its header: each run's segment and strategy,
+    then ``columns`` filled by ``cells(run)``."""
+    names = _segment_width(study)
+    lines = ruled(f"{'segment':<{names}}{'strategy':<36}{columns}")
+    return lines + [f"{run.segment:<{names}}{run.strategy:<36}{cells(run)}" for run in study.runs]
 
 
 def _segment_width(study: Study) -> int:
