@@ -14,6 +14,7 @@ from redundancy import InvalidInputError, load_robot
 from redundancy.planning.angles import task_robot
 from redundancy.planning.bound import (
     Transcription,
+    differentiation,
     global_optimum,
     node_intervals,
 )
@@ -264,6 +265,7 @@ def test_the_periodic_transcription_ties_the_cycles_ends(crane, paper_cycle):
         16,
         np.zeros((19, 3)),
         periodic=True,
+        differences=differentiation,
     )
     assert problem.D.shape == (19, 16)
     assert problem.owner[0] == problem.owner[-1] == 0

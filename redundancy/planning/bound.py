@@ -1,13 +1,11 @@
-"""The bound: the motion along a path whose whole history of the held actuator is optimised.
+"""The bound: the motion along a segment whose whole history of the held actuator is optimised.
 
 The paper's improved method chooses only where the motion starts; from there the pseudoinverse
 law decides every instant. Here the held actuator's stroke r(t) is free at every instant, and
 the motion that tracks the task exactly, keeps every checked stroke and has the least peak of
 the objective is found by direct transcription:
 
-- unknowns: r_j = x_h(t_j) at N + 1 nodes t_j = j h, h = t_f / N, and the peak s (on a chain
-  of segments, such as a work cycle, each segment has its own nodes, a corner's two nodes one
-  unknown, and a periodic problem ties the last node to the first: `Transcription`);
+- unknowns: r_j = x_h(t_j) at N + 1 nodes t_j = j h, h = t_f / N, and the peak s;
 - at each node the configuration q_j solves y(q_j) = y_d(t_j), x_h(q_j) = r_j (Eqs. 6, 10) by
   Newton's method from the previous iterate: the task is tracked exactly at every node;
 - the held rates ṙ = D r (second-order backward differences, `backward_differentiation`)
@@ -38,6 +36,7 @@ second order in h; `GlobalOptimum.change` says how much the last refinement move
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -141,6 +140,19 @@ def backward_differentiation(intervals: int, h: float) -> np.ndarray:
     return D / h
 
 
+def differentiation(intervals: int, h: float) -> np.ndarray:
+    """The (N + 1, N + 1) matrix D with ṙ ≈ D r on a uniform grid of step h: central
+    differences inside, second-order one-sided ones at both ends. Blind to a history that
+    alternates node by node (see the module docstring): the periodic transcription
+    (`redundancy.planning.cycles`) that differences with it filters that alternation out."""
+    D = np.zeros((intervals + 1, intervals + 1))
+    inside = np.arange(1, intervals)
+    D[inside, inside - 1], D[inside, inside + 1] = -0.5, 0.5
+    D[0, :3] = [-1.5, 2.0, -0.5]
+    D[-1, -3:] = [0.5, -2.0, 1.5]
+    return D / h
+
+
 def node_intervals(path: Segment | Chain, intervals: int) -> list[int]:
     """``intervals`` shared among the path's segments by duration, at least `MIN_INTERVALS`
     each (a segment's own count)."""
@@ -172,9 +184,9 @@ class Transcription:
 
     Each segment has the nodes of its share of ``intervals`` (`node_intervals`); a corner's two
     nodes (the end of one segment, the start of the next) share one unknown, and ``periodic``
-    ties the last node to the first, r(T) = r(0). Held rates are `backward_differentiation`
-    within each segment, one-sided at its start, so that they may jump at a corner, as ẏ does
-    at constant speed. ``objective`` gives the measure, ``row`` is
+    ties the last node to the first, r(T) = r(0). Held rates are differences within each
+    segment (by default `backward_differentiation`), one-sided at its ends, so that they may
+    jump at a corner, as ẏ does at constant speed. ``objective`` gives the measure, ``row`` is
     the held actuator, ``limits`` the other checked actuators' strokes, kept ``margin`` inside
     at the nodes; ``guess`` (N, n) the configurations Newton's method starts from at the nodes
     (`node_times`). ``smoothness`` weighs a second tie-break, mean r̈² inside each segment.
@@ -192,6 +204,7 @@ class Transcription:
         periodic: bool = False,
         margin: float = LIMIT_MARGIN,
         smoothness: float = 0.0,
+        differences: Callable[[int, float], np.ndarray] = backward_differentiation,
     ):
         self.robot, self.objective, self.row = robot, objective, row
         self.columns = limits.columns
@@ -217,7 +230,7 @@ class Transcription:
         for i, count in enumerate(counts):
             nodes = np.flatnonzero(self.piece == i)
             owner, h = self.owner[nodes], self.local[nodes[1]]
-            np.add.at(self.D, (nodes[:, None], owner[None, :]), backward_differentiation(count, h))
+            np.add.at(self.D, (nodes[:, None], owner[None, :]), differences(count, h))
             for j in range(1, count):
                 difference = np.zeros(unknowns)
                 np.add.at(difference, owner[j - 1 : j + 2], np.array([1.0, -2.0, 1.0]) / h**2)
