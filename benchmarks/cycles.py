@@ -23,6 +23,7 @@ from redundancy.planning.cycles import (
 )
 from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.objectives import VELOCITY
+from redundancy.study.cycles import settling_words
 
 
 def best_of(count: int, function):
@@ -59,7 +60,7 @@ def main() -> None:
     )
     label = f"{args.cycles} repetitions"
     costs[f"{label}, free (whole-cycle improved start)"], free = best_of(
-        n, lambda: repeat(robot, cycle, VELOCITY.resolver, motion.start[0], args.cycles)
+        n, lambda: repeat(robot, cycle, VELOCITY.resolver, motion.q[0, 0], args.cycles)
     )
     costs[f"{label}, drift-free (periodic optimum)"], closed = best_of(
         n, lambda: repeat(robot, cycle, periodic.laws(), periodic.start, args.cycles, "periodic")
@@ -82,10 +83,10 @@ def main() -> None:
         first = repetition.first_violation
         print(
             f"{name}: drift per cycle {largest[0]:.3g} → {largest[-1]:.3g}, "
-            f"{repetition.settling}; "
+            f"{settling_words(repetition.settling)}; "
             + ("no stroke passed" if first is None else f"first stroke passed in cycle {first[0]}")
         )
-    points = ", ".join(f"{v:.4f} (P' = {s:.3f})" for v, s in mapped.fixed_points)
+    points = ", ".join(f"{v:.4f} (P' = {s:.3f})" for v, s, _ in mapped.fixed_points)
     print(f"return map fixed points: {points or 'none'}")
     print(
         f"periodic optimum: peak {periodic.peak:.5f} m²/s², change {100 * periodic.change:.3f} %"

@@ -12,6 +12,7 @@ import time
 from redundancy import load_robot
 from redundancy.planning.tasks import WorkCycle
 from redundancy.study.study import run_study
+from redundancy.viz.tables import hydraulic_table
 
 
 def main() -> None:
@@ -23,7 +24,7 @@ def main() -> None:
         study = run_study(robot, cycle, progress=False, bound=False, energy_bound=energy_bound)
         costs.append(time.perf_counter() - start)
     bounds = costs[1] - costs[0]
-    print(study.hydraulic_table())
+    print(hydraulic_table(study))
     print()
     print(f"{'segment':<8}{'supply':<8}{'bound kJ':>9}  grids: energy kJ")
     for segment, found in (study.energy_bounds or {}).items():

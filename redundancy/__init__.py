@@ -49,9 +49,7 @@ if TYPE_CHECKING:
     from redundancy.planning.angles import ToolAngleRobot, with_tool_angle
     from redundancy.planning.bound import GlobalOptimum, global_optimum
     from redundancy.planning.cycles import (
-        CycleMotion,
         CyclePlan,
-        CycleSearch,
         PeriodicOptimum,
         Repetition,
         ReturnMap,
@@ -60,11 +58,11 @@ if TYPE_CHECKING:
         plan_cycle,
         repeat,
         return_map,
-        simulate_cycle,
     )
     from redundancy.planning.energy_bound import EnergyOptimum, energy_optimum
     from redundancy.planning.ik import configuration_at, inverse_kinematics
     from redundancy.planning.integrate import Trajectory, simulate
+    from redundancy.planning.motions import simulate_path
     from redundancy.planning.starts import (
         Sample,
         SearchResult,

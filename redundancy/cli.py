@@ -62,6 +62,7 @@ from redundancy.viz.playback import (
 from redundancy.viz.plots import write_cycle_figures, write_figures
 from redundancy.viz.report import write_index
 from redundancy.viz.server import LOCALHOST
+from redundancy.viz.tables import check_table, cycle_table, study_table
 
 
 def _add_robot_options(parser: argparse.ArgumentParser) -> None:
@@ -230,7 +231,7 @@ def _study_command(args: argparse.Namespace) -> None:
                 cycle_study, skipped, cycle_figures, cycle_playbacks = pending.result()
                 waiting.update()
         study = replace(study, cycle_study=cycle_study, cycle_skipped=skipped)
-        print(study.table())
+        print(study_table(study))
         write_report(study, report)
         write_index(out.staging, report)
         figures = [out.final(p) for p in figures + cycle_figures]
@@ -375,7 +376,7 @@ def _check_command(args: argparse.Namespace) -> int:
     if args.task is not None or robot.task_file is not None:
         robot, cycle = _load_task(robot, args.task)
     found = check(robot, cycle)
-    print(found.report())
+    print(check_table(found))
     return 2 if found.blocking() else 0
 
 
@@ -400,7 +401,7 @@ def _cycle_command(args: argparse.Namespace) -> None:
             speed=args.gap_speed,
             progress=not args.quiet,
         )
-        print(study.table())
+        print(cycle_table(study))
         write_cycle_report(study, report)
         figures = [out.final(p) for p in write_cycle_figures(study, out.staging)]
         playbacks = [out.final(p) for p in write_cycle_playbacks(study, out.staging)]

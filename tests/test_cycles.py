@@ -1,6 +1,7 @@
 """Work cycles as a machine runs them: continuous through the corners, the whole-cycle improved
 start beside the per-segment plan, repetition and drift, and the drift-free periodic strategy."""
 
+import itertools
 import json
 from dataclasses import replace
 from pathlib import Path
@@ -11,23 +12,29 @@ from commands import run_cli
 
 from redundancy import InvalidInputError, load_robot
 from redundancy.planning.angles import task_robot
+from redundancy.planning.bound import (
+    Transcription,
+    differentiation,
+    global_optimum,
+    node_intervals,
+)
 from redundancy.planning.cycles import (
     SETTLED,
-    CycleTranscription,
-    evaluate_cycle_starts,
     improved_cycle_start,
     periodic_optimum,
     plan_cycle,
     repeat,
     return_map,
     settling,
-    simulate_cycle,
 )
-from redundancy.planning.starts import Configurations
+from redundancy.planning.integrate import simulate
+from redundancy.planning.starts import Configurations, evaluate_starts, improved_start
 from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.resolution.limits import Limits
 from redundancy.resolution.objectives import VELOCITY
 from redundancy.resolution.state import evaluate
+from redundancy.study.cycles import repetition_report
+from redundancy.viz.tables import cycle_table
 
 ARM = Path(__file__).parent / "data" / "planar4r"
 
@@ -49,7 +56,7 @@ def arm_runs(circle):
     robot, cycle = circle
     search = improved_cycle_start(robot, cycle, VELOCITY)
     motion = search.motion()
-    free = repeat(robot, cycle, VELOCITY.resolver, motion.start[0], 20)
+    free = repeat(robot, cycle, VELOCITY.resolver, motion.q[0, 0], 20)
     periodic = periodic_optimum(robot, cycle, motion)
     closed = repeat(robot, cycle, periodic.laws(), periodic.start, 20, "periodic")
     return search, motion, free, periodic, closed
@@ -66,7 +73,7 @@ def test_the_free_pseudoinverse_drifts_on_the_closed_circle(arm_runs):
     _, _, free, _, _ = arm_runs
     largest = np.abs(free.drift).max(axis=1)
     assert largest[0] > 1e-3  # far above the integrator's error
-    report = free.report()
+    report = repetition_report(free)
     assert len(report["largest_drift_per_cycle"]) == 20
     assert report["largest_drift_per_cycle"][0] == pytest.approx(largest[0])
     assert set(report["drift_per_cycle"]) == {"x1", "x2", "x3", "x4"}
@@ -108,10 +115,16 @@ def test_the_drift_is_read_as_a_limit_cycle_or_not():
 
 
 def test_q_is_continuous_at_every_corner_of_the_cranes_cycle(crane, paper_cycle, crane_study):
+    """The cycle's motion is one trajectory in cycle time: one sample at each corner, on the
+    corner's point, and q moves no further across a corner than in any other sample's step."""
     motion = crane_study.plan.motion
-    for before, after in zip(motion.pieces[:-1], motion.pieces[1:]):
-        np.testing.assert_array_equal(before.q[0, -1], after.q[0, 0])
-    np.testing.assert_allclose(motion.pieces[-1].y[0, -1], motion.pieces[0].y[0, 0], atol=1e-4)
+    t, q = motion.t[0], motion.q[0]
+    steps = np.abs(np.diff(q, axis=0)).max(axis=1)
+    for offset, segment in zip(paper_cycle.chain().offsets[1:-1], paper_cycle.segments[1:]):
+        (corner,) = np.flatnonzero(np.abs(t - offset) < 1e-12)
+        np.testing.assert_allclose(motion.y[0, corner], segment.start, atol=1e-4)
+        assert steps[corner] <= 1.5 * max(steps[corner - 1], steps[corner + 1])
+    np.testing.assert_allclose(motion.y[0, -1], motion.y[0, 0], atol=1e-4)
 
 
 def _tool_velocity(motion, row, sample):
@@ -128,11 +141,13 @@ def test_with_trapezoidal_profiles_the_tool_velocity_is_continuous_at_the_corner
             replace(s, profile=profile, acceleration=0.5) for s in paper_cycle.segments
         )
         cycle = replace(paper_cycle, segments=segments)
-        start = Configurations(crane, segments[0], "x3").at(np.array([0.82])).q
-        motion = simulate_cycle(crane, cycle, VELOCITY.resolver, start, gain=20.0)
+        q = Configurations(crane, segments[0], "x3").at(np.array([0.82])).q
+        pieces = []  # each segment from where the one before ended, as the cycle runs them
+        for segment in cycle.segments:
+            pieces.append(simulate(crane, VELOCITY.resolver, segment, q, gain=20.0))
+            q = pieces[-1].q[:, -1]
         gaps = []
-        for before, after in zip(motion.pieces[:-1], motion.pieces[1:]):
-            np.testing.assert_array_equal(before.q[0, -1], after.q[0, 0])
+        for before, after in itertools.pairwise(pieces):
             gaps.append(np.linalg.norm(_tool_velocity(before, 0, -1) - _tool_velocity(after, 0, 0)))
         jumps[profile] = max(gaps)
     assert jumps["trapezoidal"] < 1e-9
@@ -153,12 +168,9 @@ def test_the_whole_cycle_improved_start_keeps_every_stroke_over_the_full_cycle(
     # segment 1-2's own best start, x3 = 1.09, passes a stroke later in the cycle
     own = crane_study.plan.segments[0].best.values[0]
     assert own == pytest.approx(1.09, abs=1e-3)
-    later = evaluate_cycle_starts(
-        crane,
-        paper_cycle,
-        VELOCITY,
-        ("x3",),
-        Configurations(crane, paper_cycle.segments[0], "x3").at(np.array([own])),
+    chain = paper_cycle.chain()
+    later = evaluate_starts(
+        crane, chain, VELOCITY, "x3", Configurations(crane, chain, "x3").at(np.array([own]))
     )
     assert not later.samples[0].feasible and later.samples[0].violations
 
@@ -186,7 +198,7 @@ def test_the_report_lists_the_corners_self_motion_gaps(crane_study):
     assert report["per_segment"]["self_motion_time_s"] == pytest.approx(
         sum(c["time_s"] for c in corners)
     )
-    assert "1-2 → 2-3" in crane_study.table()
+    assert "1-2 → 2-3" in cycle_table(crane_study)
 
 
 def test_the_cranes_cycle_reports_drift_and_the_drift_free_price(crane_study):
@@ -206,7 +218,7 @@ def test_the_cranes_cycle_reports_drift_and_the_drift_free_price(crane_study):
 
 def test_the_return_map_finds_the_free_cycles_limit_cycle(crane, paper_cycle, crane_study):
     mapped = crane_study.map
-    ((value, slope),) = mapped.fixed_points
+    ((value, slope, _),) = mapped.fixed_points
     assert 0.80 < value < 0.86 and 0 < slope < 1  # stable
     # the repetition converges towards it: each cycle's drift points at the fixed point
     free = crane_study.repetitions["free"]
@@ -242,15 +254,18 @@ def test_a_cycle_with_a_gap_is_refused(crane, paper_cycle):
 
 
 def test_the_periodic_transcription_ties_the_cycles_ends(crane, paper_cycle):
-    intervals = (4, 6, 6)
-    problem = CycleTranscription(
+    chain = paper_cycle.chain()
+    assert node_intervals(chain, 16) == [4, 6, 6]
+    problem = Transcription(
         crane,
         VELOCITY,
-        paper_cycle,
+        chain,
         2,
         Limits.strokes(crane, ["x1", "x2"]),
-        intervals,
+        16,
         np.zeros((19, 3)),
+        periodic=True,
+        differences=differentiation,
     )
     assert problem.D.shape == (19, 16)
     assert problem.owner[0] == problem.owner[-1] == 0
@@ -312,3 +327,45 @@ def test_bad_cycle_options_exit_with_one_line(tmp_path, args, message):
     assert run.returncode == 2
     errors = [line for line in run.stderr.splitlines() if "redundancy: note:" not in line]
     assert len(errors) == 1 and message in errors[0], run.stderr
+
+
+@pytest.mark.parametrize("whole", [False, True], ids=["segment", "cycle"])
+def test_the_search_and_the_bound_run_one_code_on_a_segment_and_on_a_cycle(
+    crane, paper_cycle, whole
+):
+    """A cycle is a path like any other: the fast search and the bound take the paper's
+    segment 1-2 and the whole cycle's chain through the same functions, and hold the same
+    properties on both (the motion spans the path, keeps every stroke and peaks where the
+    search said; the bound tracks the task, keeps the strokes and is never above the search)."""
+    path = paper_cycle.chain() if whole else paper_cycle["1-2"]
+    search = improved_start(crane, path, VELOCITY, "x3")
+    motion = search.motion()
+    assert motion.segment is path and motion.t[0, -1] == pytest.approx(path.duration)
+    assert motion.within_limits[0] and not motion.violations(0)
+    assert motion.score(VELOCITY)[0] == pytest.approx(search.best.peak, rel=1e-3)
+    optimum = global_optimum(crane, path, VELOCITY, "x3", grids=(48,), search=search)
+    assert optimum.motion.max_tracking_error[0] < 1e-9
+    assert optimum.motion.within_limits[0]
+    assert optimum.bound <= search.best_peak * (1 + 1e-6)
+
+
+def test_the_periodic_transcription_is_one_code_on_a_segment_and_on_a_cycle(circle):
+    """The arm's closed circle as its one segment and as its cycle's chain: the same nodes,
+    the same unknowns tied end to end, the same rates."""
+    robot, cycle = circle
+    problems = [
+        Transcription(
+            robot,
+            VELOCITY,
+            path,
+            0,
+            Limits.strokes(robot, ["x2", "x3", "x4"]),
+            24,
+            np.zeros((25, 4)),
+            periodic=True,
+        )
+        for path in (cycle.segments[0], cycle.chain())
+    ]
+    for name in ("t", "owner", "D", "points", "y_dot"):
+        np.testing.assert_array_equal(*(getattr(p, name) for p in problems))
+    assert problems[0].owner[-1] == 0 and problems[0].D.shape == (25, 24)

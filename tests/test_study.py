@@ -9,9 +9,11 @@ import numpy as np
 import pytest
 from commands import run_cli
 
+from redundancy.model.robot import Robot
 from redundancy.planning.tasks import WorkCycle
 from redundancy.study.output import write_atomically
 from redundancy.study.study import run_study
+from redundancy.viz.tables import study_table
 
 SEGMENTS = ["1-2", "2-3", "3-1"]
 
@@ -114,7 +116,7 @@ def test_a_segment_without_a_feasible_start_is_reported_not_raised(study):
     entry = next(s for s in energy["segments"] if s["name"] == "2-3")
     assert entry["feasible_range"] is None and entry["best"] is None
     assert "past its" in entry["closest_violation"]
-    assert "2-3" in study.table() and "no sampled start" in study.table()
+    assert "2-3" in study_table(study) and "no sampled start" in study_table(study)
 
 
 def test_study_command_writes_the_report_and_the_five_figures(tmp_path):
@@ -199,7 +201,22 @@ def test_the_report_has_a_cycle_section(study):
     ]
     assert all(c["time_s"] > 0 for c in corners)
     assert set(section["strategies"]) == {"free", "periodic"}
-    assert "work cycle 'paper work cycle'" in study.table()
+    assert "work cycle 'paper work cycle'" in study_table(study)
+
+
+def test_the_tables_and_the_report_evaluate_no_state(study, monkeypatch):
+    """Every figure the tables and the report show was computed by the study run: with
+    Pinocchio's passes refused, both are still written."""
+
+    def refused(*args, **kwargs):
+        raise AssertionError("a table or the report evaluated a state")
+
+    for name in ("kinematics", "mass_matrices", "nonlinear"):
+        monkeypatch.setattr(Robot, name, refused)
+    assert study.robot.hydraulics is not None  # the hydraulic table and the energies too
+    table = study_table(study)
+    assert "LS kJ" in table and "drift/cycle" in table and "return map" in table
+    json.dumps(study.report(), allow_nan=False)
 
 
 def test_a_task_that_is_no_cycle_has_no_cycle_section(crane):
@@ -222,7 +239,7 @@ def test_the_table_flags_a_bound_that_has_not_converged(study):
     bounds = dict(study.bounds, velocity=tuple(velocity))
     rows = [
         line
-        for line in dataclasses.replace(study, bounds=bounds).table().splitlines()
+        for line in study_table(dataclasses.replace(study, bounds=bounds)).splitlines()
         if line.split()[:2] in (["1-2", "velocity"], ["2-3", "velocity"], ["3-1", "velocity"])
     ]
     flagged = [row for row in rows if "NOT converged" in row]

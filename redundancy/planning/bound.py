@@ -36,6 +36,7 @@ second order in h; `GlobalOptimum.change` says how much the last refinement move
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -51,15 +52,17 @@ from redundancy.planning.ik import (
     inverse_kinematics,
     newton,
 )
-from redundancy.planning.integrate import Trajectory, simulate
+from redundancy.planning.integrate import Trajectory
+from redundancy.planning.motions import simulate_path
 from redundancy.planning.refinement import Refined, checked_grids
 from redundancy.planning.starts import SearchResult, improved_start
-from redundancy.planning.tasks import Segment
+from redundancy.planning.tasks import Chain, Segment
 from redundancy.resolution.limits import Limits
 from redundancy.resolution.objectives import VELOCITY, Objective
 from redundancy.resolution.state import ActuatorSpace, evaluate
 
 GRIDS = (24, 48)  # intervals of the successive grids
+MIN_INTERVALS = 4  # per segment of a chain, on every grid
 MAX_INTERVALS = 192  # by default, grids twice as fine follow GRIDS until the optimum converges,
 # up to this many intervals
 CANDIDATES = 3  # starts over the reachable range the first grid is also solved from
@@ -112,7 +115,7 @@ class GlobalOptimum(Refined):
     the held stroke at t = 0 (m).
     """
 
-    segment: Segment
+    segment: Segment | Chain
     objective: Objective
     held: str
     motion: Trajectory
@@ -150,41 +153,104 @@ def differentiation(intervals: int, h: float) -> np.ndarray:
     return D / h
 
 
-class Transcription:
-    """The problem on one grid of ``intervals`` along ``segment``: the constraints and their
-    Jacobian with respect to z = (r_0 … r_N, σ), σ = s / s₀ the peak against the starting
-    history's, for SLSQP.
+def node_intervals(path: Segment | Chain, intervals: int) -> list[int]:
+    """``intervals`` shared among the path's segments by duration, at least `MIN_INTERVALS`
+    each (a segment's own count)."""
+    if isinstance(path, Segment):
+        return [intervals]
+    durations = np.array([s.duration for s in path.segments])
+    return [max(MIN_INTERVALS, round(intervals * d / durations.sum())) for d in durations]
 
-    ``objective`` gives the measure, ``row`` is the held actuator, ``limits`` the other checked
-    actuators' strokes, ``guess`` (N + 1, n) the configurations Newton's method starts from at
-    the nodes.
+
+def node_times(path: Segment | Chain, intervals: int) -> np.ndarray:
+    """The times of the transcription's nodes along ``path`` (N,), s: each segment's uniform
+    grid of its `node_intervals`, a corner's time twice (the end of one, the start of the
+    next)."""
+    segments = path.segments if isinstance(path, Chain) else (path,)
+    offsets = np.cumsum([0.0] + [s.duration for s in segments])
+    return np.concatenate(
+        [
+            np.linspace(0.0, s.duration, count + 1) + offset
+            for s, count, offset in zip(segments, node_intervals(path, intervals), offsets)
+        ]
+    )
+
+
+class Transcription:
+    """The problem on one grid of ``intervals`` along ``path`` (a segment, or a chain of them
+    such as a work cycle): the constraints and their Jacobian with respect to z = (r, σ), the
+    held strokes r at the nodes and σ = s / s₀ the peak against the starting history's, for
+    SLSQP.
+
+    Each segment has the nodes of its share of ``intervals`` (`node_intervals`); a corner's two
+    nodes (the end of one segment, the start of the next) share one unknown, and ``periodic``
+    ties the last node to the first, r(T) = r(0). Held rates are differences within each
+    segment (by default `backward_differentiation`), one-sided at its ends, so that they may
+    jump at a corner, as ẏ does at constant speed. ``objective`` gives the measure, ``row`` is
+    the held actuator, ``limits`` the other checked actuators' strokes, kept ``margin`` inside
+    at the nodes; ``guess`` (N, n) the configurations Newton's method starts from at the nodes
+    (`node_times`). ``smoothness`` weighs a second tie-break, mean r̈² inside each segment.
     """
 
     def __init__(
         self,
         robot: Robot,
         objective: Objective,
-        segment: Segment,
+        path: Segment | Chain,
         row: int,
         limits: Limits,
         intervals: int,
         guess: np.ndarray,
+        periodic: bool = False,
+        margin: float = LIMIT_MARGIN,
+        smoothness: float = 0.0,
+        differences: Callable[[int, float], np.ndarray] = backward_differentiation,
     ):
         self.robot, self.objective, self.row = robot, objective, row
         self.columns = limits.columns
-        self.t = np.linspace(0.0, segment.duration, intervals + 1)
-        self.D = backward_differentiation(intervals, self.t[1])
-        self.points = segment.position(self.t)
-        self.y_dot = segment.velocity_at(self.t)
-        self.owner = np.arange(intervals + 1)  # the unknown r_i each node's held stroke is
+        segments = path.segments if isinstance(path, Chain) else (path,)
+        counts = node_intervals(path, intervals)
+        self.piece = np.repeat(np.arange(len(segments)), [c + 1 for c in counts])  # segments
+        self.t = node_times(path, intervals)
+        self.local = self.t - np.cumsum([0.0] + [s.duration for s in segments])[self.piece]
+        self.points = np.concatenate(
+            [s.position(self.local[self.piece == i]) for i, s in enumerate(segments)]
+        )
+        self.y_dot = np.concatenate(
+            [s.velocity_at(self.local[self.piece == i]) for i, s in enumerate(segments)]
+        )
+        firsts = np.cumsum([0, *counts[:-1]])
+        # the unknown r_i each node's held stroke is
+        self.owner = np.concatenate([f + np.arange(c + 1) for f, c in zip(firsts, counts)])
+        if periodic:
+            self.owner[-1] = 0
+        unknowns = sum(counts) + (0 if periodic else 1)
+        self.D = np.zeros((len(self.t), unknowns))
+        second = []  # second differences of the held strokes inside each segment, per s²
+        for i, count in enumerate(counts):
+            nodes = np.flatnonzero(self.piece == i)
+            owner, h = self.owner[nodes], self.local[nodes[1]]
+            np.add.at(self.D, (nodes[:, None], owner[None, :]), differences(count, h))
+            for j in range(1, count):
+                difference = np.zeros(unknowns)
+                np.add.at(difference, owner[j - 1 : j + 2], np.array([1.0, -2.0, 1.0]) / h**2)
+                second.append(difference)
+        self.S = np.array(second)
+        self.smoothness = smoothness
         self.q = np.array(guess, dtype=float)
-        self.lower = limits.lower + LIMIT_MARGIN
-        self.upper = limits.upper - LIMIT_MARGIN
+        self.lower = limits.lower + margin
+        self.upper = limits.upper - margin
         self.span = self.upper - self.lower  # strokes enter the constraints as fractions of it
         self.cache: tuple[bytes, Nodes] | None = None
         self.scale = 1.0  # s₀: the starting history's peak, in the objective's unit
         self.speed = 1.0  # its peak ẋᵀẋ, m²/s² (rad²/s² for rotary actuators)
-        self.tie_break = True  # whether the cost has the tie-break, or is the peak alone
+        self.tie_break = True  # whether the cost has the tie-breaks, or is the peak alone
+
+    def unknown_times(self) -> np.ndarray:
+        """The time of each unknown (its first node), (U,), s."""
+        times = np.full(self.D.shape[1], np.inf)
+        np.minimum.at(times, self.owner, self.t)
+        return times
 
     @property
     def incidence(self) -> np.ndarray:
@@ -251,12 +317,17 @@ class Transcription:
         return nodes
 
     def cost(self, z):
-        """σ + ε mean ṙ² / (ẋᵀẋ)₀ and its gradient: the peak σ = s / s₀, with a tie-break
-        (ε = `SMOOTHING`) for the smoothest held history where many share the least peak."""
-        r_dot = self.D @ z[:-1]
+        """σ + ε mean ṙ² / (ẋᵀẋ)₀ + ε₂ mean r̈² / (ẋᵀẋ)₀ and its gradient: the peak σ = s / s₀,
+        with tie-breaks (ε = `SMOOTHING`, ε₂ = ``smoothness`` in s²) for the smoothest held
+        history where many share the least peak."""
+        r_dot, r_ddot = self.D @ z[:-1], self.S @ z[:-1] if len(self.S) else np.zeros(0)
         weight = SMOOTHING / (len(r_dot) * self.speed) if self.tie_break else 0.0
-        gradient = np.append(2 * weight * (self.D.T @ r_dot), 1.0)
-        return z[-1] + weight * (r_dot @ r_dot), gradient
+        second = self.smoothness / (max(len(r_ddot), 1) * self.speed) if self.tie_break else 0.0
+        gradient = 2 * weight * (self.D.T @ r_dot)
+        if second:
+            gradient = gradient + 2 * second * (self.S.T @ r_ddot)
+        value = z[-1] + weight * (r_dot @ r_dot) + second * (r_ddot @ r_ddot)
+        return value, np.append(gradient, 1.0)
 
     def constraints(self, z):
         nodes = self.evaluate(z)
@@ -340,7 +411,7 @@ def solve_transcription(
 
 def global_optimum(
     robot: Robot,
-    segment: Segment,
+    segment: Segment | Chain,
     objective: Objective = VELOCITY,
     held: str = "x3",
     checked: tuple[str, ...] | None = None,
@@ -348,10 +419,11 @@ def global_optimum(
     initial: tuple[float, ...] | None = None,
     search: SearchResult | None = None,
 ) -> GlobalOptimum:
-    """The motion along ``segment`` of least peak of ``objective`` over every history of the
-    held actuator (see the module docstring), on each of ``grids`` (intervals) in turn; by
-    default `GRIDS`, then grids twice as fine while the last refinement still moves the optimum
-    by `redundancy.planning.refinement.CONVERGED` or more, up to `MAX_INTERVALS`.
+    """The motion along ``segment`` (any path: a segment, or a chain of them) of least peak of
+    ``objective`` over every history of the held actuator (see the module docstring), on each
+    of ``grids`` (intervals) in turn; by default `GRIDS`, then grids twice as fine while the
+    last refinement still moves the optimum by `redundancy.planning.refinement.CONVERGED` or
+    more, up to `MAX_INTERVALS`.
 
     The problem is not convex: the first grid is solved from the law's motion from each
     ``initial`` start (held strokes at t = 0, m; by default the best start of the improved
@@ -376,7 +448,7 @@ def global_optimum(
             search = improved_start(robot, segment, objective, held, checked=checked)
         if search.best is None:
             raise InvalidInputError(
-                f"no start on segment {segment.name} keeps every checked stroke for the "
+                f"no start on {segment.label} keeps every checked stroke for the "
                 f"{objective.name} objective; the global optimum starts from feasible motions"
             )
         reachable = [sample.values[0] for sample in search.samples if sample.peak is not None]
@@ -386,48 +458,51 @@ def global_optimum(
     stroke = robot.actuators[held]
     box = (stroke.lower, stroke.upper) if held in limits.names else (None, None)
 
-    def solve(intervals: int, t: np.ndarray, r: np.ndarray, q: np.ndarray):
-        """The optimum on a grid, from r and q sampled at times t; its r, solution, nodes, q."""
-        times = np.linspace(0.0, segment.duration, intervals + 1)
-        q = np.stack([np.interp(times, t, q[:, i]) for i in range(robot.n)], axis=1)
+    def solve(intervals: int, t: np.ndarray, r: np.ndarray, t_q: np.ndarray, q: np.ndarray):
+        """The optimum on a grid, from r sampled at times t and q at times t_q; its r, solution,
+        nodes and the problem."""
+        times = node_times(segment, intervals)
+        q = np.stack([np.interp(times, t_q, q[:, i]) for i in range(robot.n)], axis=1)
         bound = Limits.strokes(robot, others)
         problem = Transcription(robot, objective, segment, row, bound, intervals, q)
-        solved = solve_transcription(problem, np.interp(times, t, r), box, intervals, polish=True)
-        return (*solved, problem.q)
+        r = np.interp(problem.unknown_times(), t, r)
+        return (*solve_transcription(problem, r, box, intervals, polish=True), problem)
 
     starts = inverse_kinematics(robot, segment.start, [held], np.array(initial)[:, None])
     if not starts.reached.any():
         raise UnreachableError(
-            f"{robot.name} cannot reach the start {segment.start.tolist()} of segment "
-            f"{segment.name} with {held} at any of {list(initial)}"
+            f"{robot.name} cannot reach the start {segment.start.tolist()} of {segment.label} "
+            f"with {held} at any of {list(initial)}"
         )
-    motions = simulate(
+    motions = simulate_path(
         robot, objective.resolver, segment, starts.q[starts.reached], segment.duration / grids[0]
     )
     candidates, failures = [], []
     for i, value in enumerate(np.array(initial)[starts.reached]):
         try:
-            candidates.append(solve(grids[0], motions.t[i], motions.x[i, :, row], motions.q[i]))
+            t = motions.t[i]
+            candidates.append(solve(grids[0], t, motions.x[i, :, row], t, motions.q[i]))
         except InvalidInputError as error:  # the solver stepped where the task is out of reach
             failures.append(f"from {held} = {value:.4g}: {error}")
     if not candidates:
         raise InvalidInputError(f"the bound found no optimum; {'; '.join(failures)}")
-    r, grid, nodes, q = min(candidates, key=lambda c: c[1].peak)
+    r, grid, nodes, problem = min(candidates, key=lambda c: c[1].peak)
     solutions = [grid]
     finer = list(grids[1:])
     while finer:
         intervals = finer.pop(0)
-        r, grid, nodes, q = solve(intervals, np.linspace(0.0, segment.duration, len(r)), r, q)
+        order = np.argsort(problem.unknown_times())
+        t = problem.unknown_times()[order]
+        r, grid, nodes, problem = solve(intervals, t, r[order], problem.t, problem.q)
         solutions.append(grid)
         if refine and not finer and not Grids(tuple(solutions)).converged:
             finer = [2 * intervals] if 2 * intervals <= MAX_INTERVALS else []
-    times = np.linspace(0.0, segment.duration, len(r))
     optimum = Trajectory.single(
         robot,
-        segment,
+        segment,  # type: ignore[arg-type]
         objective.resolver,
-        times,
-        q,
+        problem.t,
+        problem.q,
         nodes.space.x,
         nodes.x_dot,
         nodes.space.y,

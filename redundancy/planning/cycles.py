@@ -5,14 +5,13 @@ The paper plans each segment on its own, from its own best start. A machine runs
 1 → 2 → 3 → 1 continuously: the end of one segment is the start of the next, and the end of
 the cycle the start of the next cycle. Here:
 
-- `simulate_cycle` integrates a law over a whole cycle, segment after segment, each from where
-  the one before ended (so q is continuous at every corner), for a batch of starts;
-  `CycleMotion` holds the per-segment motions and reads the cycle's margins, peaks, energies
-  and violations (in cycle time).
+- a cycle is a path like any other, its `Chain`: `simulate_path` integrates a law over it,
+  segment after segment, each from where the one before ended (so q is continuous at every
+  corner), into one `Trajectory` in cycle time.
 - `improved_cycle_start`: the improved initial configuration over the whole cycle, the start
   of the held actuators at the cycle's first point whose motion keeps every stroke over the
-  full cycle with the least peak (or integral) of the objective; by the fast search of
-  `redundancy.planning.starts` (one held actuator) or a sweep.
+  full cycle with the least peak (or integral) of the objective: `improved_start` along the
+  chain.
 - `plan_cycle` puts it beside the paper's per-segment plan, whose every corner would need a
   self-motion (the task point held still) from where one segment's best motion ends to where
   the next one's best start begins: `Corner` gives the Δ of every actuator, the held one's,
@@ -53,50 +52,42 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 from scipy.interpolate import CubicSpline
 
 from redundancy.errors import InvalidInputError, UnreachableError
-from redundancy.model.hydraulics import Supply
 from redundancy.model.robot import Robot
 from redundancy.model.values import is_real, is_whole
 from redundancy.planning.bound import (
     GridSolution,
     Transcription,
     differentiation,
+    node_times,
     solve_transcription,
 )
 from redundancy.planning.ik import (
     FOUND,
     continue_held,
     held_names,
-    inverse_kinematics,
 )
-from redundancy.planning.integrate import TIME_STEP, TOLERANCE, Trajectory, simulate
+from redundancy.planning.integrate import TIME_STEP, Trajectory
+from redundancy.planning.motions import Laws, per_segment, simulate_path
 from redundancy.planning.refinement import Refined, checked_grids
 from redundancy.planning.starts import (
     MAX_SAMPLES,
     Configurations,
-    Sample,
-    Samples,
     SearchResult,
-    Starts,
-    concatenated,
-    default_start,
-    fast_search,
     held_actuators,
     improved_start,
-    search_method,
-    stroke_box,
     sweep_values,
-    verdicts,
 )
 from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.laws import Resolver
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
-from redundancy.resolution.limits import Limits, Violation
+from redundancy.resolution.limits import Limits
 from redundancy.resolution.linalg import solve
 from redundancy.resolution.objectives import VELOCITY, Objective
 from redundancy.resolution.state import ActuatorSpace, evaluate
@@ -117,292 +108,9 @@ TASK_GAIN = 1.0  # 1/s: feedback of the task in repetitions and the return map. 
 PERIODIC_GRIDS = (48, 96)  # intervals over the whole cycle of the periodic optimum's grids
 PERIODIC_MARGIN = 5e-4  # m (or rad): the periodic plan keeps the strokes this far inside at
 # its nodes, so that the motion a machine runs between them keeps them too
-MIN_INTERVALS = 4  # per segment, on every grid
 SMOOTHNESS = 1e-4  # s²: the periodic plan's tie-break on the mean squared held acceleration
 # r̈², beside the bound's on ṙ²: a plan a machine runs should be smooth where the peak does not
 # bind (on the crane it halves the rms of ẍ_h and moves the peak by 2e-4 of itself)
-
-Laws = Resolver | Sequence[Resolver]  # one law for every segment, or one per segment
-
-
-def _laws(cycle: WorkCycle, laws: Laws) -> tuple[Resolver, ...]:
-    if isinstance(laws, Resolver):
-        return (laws,) * len(cycle.segments)
-    laws = tuple(laws)
-    if len(laws) != len(cycle.segments):
-        raise InvalidInputError(
-            f"{len(laws)} laws for the {len(cycle.segments)} segments of {cycle.name!r}"
-        )
-    return laws
-
-
-@dataclass(frozen=True, eq=False)
-class CycleMotion:
-    """k motions over a whole work cycle: ``pieces``, one `Trajectory` (k motions) per segment,
-    each starting where the one before ended."""
-
-    cycle: WorkCycle
-    pieces: tuple[Trajectory, ...]
-
-    def __len__(self) -> int:
-        return len(self.pieces[0])
-
-    @property
-    def robot(self) -> Robot:
-        return self.pieces[0].robot
-
-    @property
-    def offsets(self) -> np.ndarray:
-        """Cycle time at which each segment starts, (S + 1,) with the cycle's duration last."""
-        return self.cycle.chain().offsets
-
-    @property
-    def start(self) -> np.ndarray:
-        """q at the start, (k, n)."""
-        return self.pieces[0].q[:, 0]
-
-    @property
-    def end(self) -> np.ndarray:
-        """q at the end of the cycle, (k, n)."""
-        return self.pieces[-1].q[:, -1]
-
-    @property
-    def failed(self) -> np.ndarray:
-        return np.any([p.failed for p in self.pieces], axis=0)
-
-    @property
-    def margins(self) -> np.ndarray:
-        """The least margin of the checked strokes over each whole motion (k,)."""
-        return np.min([p.margins for p in self.pieces], axis=0)
-
-    @property
-    def within_limits(self) -> np.ndarray:
-        return np.all([p.within_limits for p in self.pieces], axis=0)
-
-    def score(self, objective: Objective) -> np.ndarray:
-        """``objective`` over each whole motion (k,): the peak over every segment, or the sum
-        of the integrals."""
-        scores = np.array([p.score(objective) for p in self.pieces])
-        return scores.max(axis=0) if objective.reduction == "peak" else scores.sum(axis=0)
-
-    @property
-    def peak_velocity_norm(self) -> np.ndarray:
-        """max ẋᵀẋ over the cycle (k,), m²/s²."""
-        return np.max([p.peak_velocity_norm for p in self.pieces], axis=0)
-
-    @property
-    def max_tracking_error(self) -> np.ndarray:
-        """max |y − y_d| over the cycle (k,), m (and rad)."""
-        return np.max([p.max_tracking_error for p in self.pieces], axis=0)
-
-    def energy(self, supply: Supply | None = None) -> np.ndarray:
-        """Pump energy over the cycle (k,), J (`Trajectory.energy` of each segment, summed)."""
-        return np.sum([p.energy(supply) for p in self.pieces], axis=0)
-
-    def violations(self, i: int = 0) -> list[Violation]:
-        """Every limit motion ``i`` passes, its times in cycle time."""
-        found = []
-        for offset, piece in zip(self.offsets, self.pieces):
-            found += [
-                replace(v, start=v.start + offset, end=v.end + offset) for v in piece.violations(i)
-            ]
-        return found
-
-    def select(self, rows) -> CycleMotion:
-        """The motions ``rows`` (distinct indices) alone."""
-        return CycleMotion(self.cycle, tuple(p.select(rows) for p in self.pieces))
-
-    def on_grid(self, time_step: float = TIME_STEP) -> CycleMotion:
-        """Every segment's motions on the grid of ``time_step`` (`Trajectory.on_grid`)."""
-        return CycleMotion(self.cycle, tuple(p.on_grid(time_step) for p in self.pieces))
-
-    def whole(self, i: int = 0) -> Trajectory:
-        """Motion ``i`` as one `Trajectory` over the cycle's time (its segment the cycle's
-        `Chain`), each segment's first sample dropped after the first segment (it repeats the
-        corner the one before ended at): for figures and playback."""
-        parts: dict[str, list[np.ndarray]] = {k: [] for k in ("t", "q", "x", "x_dot", "y")}
-        measures = []
-        for number, (offset, piece) in enumerate(zip(self.offsets, self.pieces)):
-            times = piece.t[i]
-            count = int(np.searchsorted(times, times[-1])) + 1
-            first = 0 if number == 0 else 1
-            parts["t"].append(times[first:count] + offset)
-            for name in ("q", "x", "x_dot", "y"):
-                parts[name].append(getattr(piece, name)[i, first:count])
-            if piece.measure is not None:
-                measures.append(piece.measure[i, first:count])
-        first_piece = self.pieces[0]
-        measure = np.concatenate(measures) if len(measures) == len(self.pieces) else None
-        t, q, x, x_dot, y = (np.concatenate(parts[name]) for name in ("t", "q", "x", "x_dot", "y"))
-        return Trajectory.single(
-            self.robot,
-            self.cycle.chain(),  # type: ignore[arg-type]
-            first_piece.resolver,
-            t,
-            q,
-            x,
-            x_dot,
-            y,
-            first_piece.checked,
-            first_piece.objective,
-            measure,
-        )
-
-
-def simulate_cycle(
-    robot: Robot,
-    cycle: WorkCycle,
-    laws: Laws,
-    starts: np.ndarray,
-    time_step: float = TIME_STEP,
-    checked: tuple[str, ...] | None = None,
-    objective: Objective | None = None,
-    sparse: bool = False,
-    stop_past: bool = False,
-    circuit: bool = False,
-    gain: float | None = None,
-    tolerance: float = TOLERANCE,
-) -> CycleMotion:
-    """Integrate the cycle's segments one after another from every start (k, n), each segment
-    from where the one before ended, by ``laws`` (one `Resolver`, or one per segment); the
-    other options as `simulate`'s."""
-    laws = _laws(cycle, laws)
-    q = robot.configuration(starts, "starts")
-    pieces = []
-    for segment, law in zip(cycle.segments, laws):
-        motion = simulate(
-            robot,
-            law,
-            segment,
-            q,
-            time_step,
-            gain,
-            checked,
-            tolerance=tolerance,
-            objective=objective,
-            sparse=sparse,
-            stop_past=stop_past,
-            circuit=circuit,
-        )
-        pieces.append(motion)
-        q = motion.q[:, -1]
-    return CycleMotion(cycle, tuple(pieces))
-
-
-@dataclass(frozen=True, eq=False)
-class CycleSearch(Samples):
-    """Every sample of a search of the start over a whole cycle: ``motions`` holds one motion
-    per reachable sample (sparse samples), ``rows[i]`` sample i's row there (−1 when
-    unreachable). The reading of the samples (`feasible_range`, `best`, ...) is `Samples`'."""
-
-    robot: Robot = field(repr=False)
-    cycle: WorkCycle
-    objective: Objective
-    held: tuple[str, ...]
-    samples: tuple[Sample, ...]
-    motions: CycleMotion = field(repr=False)
-    rows: np.ndarray
-    method: str = "sweep"
-    rounds: int = 1
-    circuit: bool = False
-
-    def motion(self, sample: Sample | None = None, time_step: float = TIME_STEP) -> CycleMotion:
-        """The cycle from ``sample`` (default the best) on the grid of ``time_step``."""
-        sample = self.best if sample is None else sample
-        if sample is None:
-            raise InvalidInputError(
-                f"no start keeps every checked limit over the whole cycle {self.cycle.name!r} "
-                f"for the {self.objective.name} objective; closest: {self.closest_violation}"
-            )
-        row = int(self.rows[self.samples.index(sample)])
-        if row < 0:
-            raise InvalidInputError(f"the start {sample.values} of {self.held} is unreachable")
-        motion = self.motions.select(row)
-        if not any(piece.stopped[0] for piece in motion.pieces):
-            return motion.on_grid(time_step)
-        return simulate_cycle(
-            self.robot,
-            self.cycle,
-            self.objective.resolver,
-            motion.start,
-            time_step,
-            motion.pieces[0].checked,
-            self.objective,
-            circuit=self.circuit,
-        )
-
-    def extended(self, other: CycleSearch) -> CycleSearch:
-        """This search with the samples of ``other`` appended."""
-        offset = len(self.motions)
-        rows = np.concatenate([self.rows, np.where(other.rows < 0, -1, other.rows + offset)])
-        pieces = tuple(
-            concatenated(a, b) for a, b in zip(self.motions.pieces, other.motions.pieces)
-        )
-        return replace(
-            self,
-            samples=self.samples + other.samples,
-            motions=CycleMotion(self.cycle, pieces),
-            rows=rows,
-            rounds=self.rounds + other.rounds,
-        )
-
-
-def evaluate_cycle_starts(
-    robot: Robot,
-    cycle: WorkCycle,
-    objective: Objective,
-    held: tuple[str, ...],
-    starts: Starts,
-    checked: tuple[str, ...] | None = None,
-    stop_past: bool = False,
-    method: str = "sweep",
-    circuit: bool = False,
-) -> CycleSearch:
-    """The whole cycle from each of ``starts`` (reachable ones integrated as one batch, sampled
-    sparsely): feasible where every checked stroke holds over the full cycle."""
-    reachable = np.flatnonzero(starts.reachable)
-    rows = np.full(len(starts.values), -1)
-    rows[reachable] = np.arange(reachable.size)
-    first = cycle.segments[0]
-    if not reachable.size:
-        raise UnreachableError(
-            f"{robot.name} cannot reach the start {first.start.tolist()} of cycle "
-            f"{cycle.name!r} from any of the {len(starts.values)} sampled values of "
-            f"{', '.join(held)}"
-        )
-    motions = simulate_cycle(
-        robot,
-        cycle,
-        objective.resolver,
-        starts.q[reachable],
-        checked=checked,
-        objective=objective,
-        sparse=True,
-        stop_past=stop_past,
-        circuit=circuit,
-    )
-
-    def reason(row: int, violations: tuple[Violation, ...]) -> str:
-        if motions.failed[row]:
-            return "singular actuator Jacobian"
-        if any(p.stopped[row] for p in motions.pieces):
-            return "past a stroke limit, as its neighbours: stopped"
-        if violations:
-            return str(max(violations, key=lambda v: v.excess))
-        return "within the integration allowance of a stroke limit"
-
-    samples = verdicts(
-        starts,
-        rows,
-        motions.score(objective),
-        motions.margins,
-        motions.within_limits,
-        motions.violations,
-        reason,
-    )
-    return CycleSearch(
-        robot, cycle, objective, held, samples, motions, rows, method, circuit=circuit
-    )
 
 
 def improved_cycle_start(
@@ -414,41 +122,16 @@ def improved_cycle_start(
     checked: tuple[str, ...] | None = None,
     method: str | None = None,
     circuit: bool = False,
-) -> CycleSearch:
-    """The improved initial configuration over the whole cycle: the start of the held actuators
-    (default the task's, `held_actuators`) at the cycle's first point whose continuous motion
-    through every segment keeps every checked stroke with the least peak (or integral) of
-    ``objective``. ``method`` "fast" (the default with one held actuator) or "sweep" (``samples``
-    values evenly over the stroke; with several held actuators ``samples`` Halton points over
-    their strokes)."""
+) -> SearchResult:
+    """The improved initial configuration over the whole cycle: `improved_start` along the
+    cycle's `Chain`, so that the start of the held actuators (default the task's,
+    `held_actuators`) at the cycle's first point keeps every checked stroke through every
+    segment with the least peak (or integral) of ``objective``."""
     cycle.check_continuous(closed=False)
     held = _held(robot, cycle, held)
-    method = search_method(held, samples, method)
-    first = cycle.segments[0]
-
-    def evaluate(starts: Starts, stop_past: bool) -> CycleSearch:
-        return evaluate_cycle_starts(
-            robot, cycle, objective, held, starts, checked, stop_past, method, circuit
-        )
-
-    Limits.strokes(robot, checked)  # names checked before any work
-    if method == "fast":
-        return fast_search(Configurations(robot, first, held[0]), None, evaluate)
-    if samples == 1:  # one sample is the default start, as in a segment's sweep
-        values = default_start(robot, first, held)[0][None]
-    elif len(held) == 1:
-        values = sweep_values(robot, held[0], samples)[:, None]
-    else:
-        from scipy.stats import qmc
-
-        box = stroke_box(robot, held)
-        unit = qmc.Halton(len(held), seed=1).random(samples)
-        values = box[:, 0] + (box[:, 1] - box[:, 0]) * unit
-    if len(held) == 1:
-        return evaluate(Configurations(robot, first, held[0]).at(values[:, 0]), False)
-    ik = inverse_kinematics(robot, first.start, held, values)
-    margins = np.where(ik.reached, 0.0, -np.inf)
-    return evaluate(Starts(values, ik.q, margins, np.where(ik.reached, 0.0, ik.miss)), False)
+    return improved_start(
+        robot, cycle.chain(), objective, held, samples, checked, method, circuit=circuit
+    )
 
 
 def _one_held(robot: Robot, cycle: WorkCycle, held: str | None) -> str:
@@ -501,20 +184,6 @@ class Corner:
         """How long the self-motion takes with the held actuators at ``speed``, s, or None."""
         delta = self.held_delta
         return None if delta is None else float(np.abs(delta).max() / self.speed)
-
-    def report(self) -> dict:
-        delta = self.delta
-        return {
-            "after": self.after,
-            "before": self.before,
-            "point": self.point.tolist(),
-            "held_delta": None if delta is None else dict(zip(self.held, self.held_delta.tolist())),  # type: ignore[union-attr]
-            "delta": None if delta is None else dict(zip(self.names, delta.tolist())),
-            "speed": self.speed,
-            "time_s": self.time,
-            "self_motion_within_limits": self.within_limits,
-            "reason": self.reason,
-        }
 
 
 def gap_speed(robot: Robot, held: tuple[str, ...]) -> float:
@@ -586,8 +255,8 @@ class CyclePlan:
     cycle: WorkCycle
     objective: Objective
     held: tuple[str, ...]
-    search: CycleSearch = field(repr=False)
-    motion: CycleMotion | None = field(repr=False)
+    search: SearchResult = field(repr=False)
+    motion: Trajectory | None = field(repr=False)
     segments: tuple[SearchResult, ...] = field(repr=False)
     segment_motions: tuple[Trajectory | None, ...] = field(repr=False)
     corners: tuple[Corner, ...]
@@ -655,19 +324,6 @@ class Settling:
     limit: float | None
     cycles_to_settle: int | None
 
-    def __str__(self) -> str:
-        if self.settled_at is not None:
-            return f"closed (drift below {SETTLED:g}) from cycle {self.settled_at}"
-        if self.settles:
-            return (
-                f"converging to a limit cycle at {self.limit:.6g} (drift ratio "
-                f"{self.contraction:.3g} per cycle, closed in about {self.cycles_to_settle} "
-                "more cycles)"
-            )
-        if self.contraction is None:
-            return "no trend"
-        return f"not settling (drift ratio {self.contraction:.3g} per cycle)"
-
 
 def settling(values: np.ndarray, drift: np.ndarray) -> Settling:
     """`Settling` from the held values at each cycle's start (N + 1,) and every actuator's drift
@@ -692,27 +348,44 @@ def settling(values: np.ndarray, drift: np.ndarray) -> Settling:
 @dataclass(frozen=True, eq=False)
 class Repetition:
     """N cycles run one after another from one start with one strategy (``strategy`` names
-    it) by ``laws``: ``motions`` one `CycleMotion` (of one) per cycle, sampled at the adaptive
-    steps; x (N + 1, n) the strokes and
-    y (N + 1, m) the tool at each cycle's start, the last row where the last cycle ended."""
+    it) by ``laws``: ``motions`` one `Trajectory` (of one) along the cycle's `Chain` per cycle,
+    sampled at the adaptive steps; x (N + 1, n) the strokes and y (N + 1, m) the tool at each
+    cycle's start, the last row where the last cycle ended; ``within`` (N,) whether each cycle
+    kept every checked limit, and ``first_violation`` the first cycle (1-based) that passes a
+    limit with the first limit it passes (its times in that cycle's time), or None."""
 
     robot: Robot = field(repr=False)
     cycle: WorkCycle
     strategy: str
     held: tuple[str, ...]
     laws: tuple[Resolver, ...] = field(repr=False)
-    motions: tuple[CycleMotion, ...] = field(repr=False)
+    motions: tuple[Trajectory, ...] = field(repr=False)
     x: np.ndarray
     y: np.ndarray
+    within: np.ndarray
+    first_violation: tuple[int, str] | None
     circuit: bool = False
     gain: float = TASK_GAIN
     tolerance: float = REPEAT_TOLERANCE
 
-    def motion(self, number: int = 1, time_step: float = TIME_STEP) -> CycleMotion:
-        """Cycle ``number`` (1-based) on the grid of ``time_step``, read from its steps."""
+    def motion(self, number: int = 1, time_step: float = TIME_STEP) -> Trajectory:
+        """Cycle ``number`` (1-based) on the grid of ``time_step``: integrated again from its
+        start as the repetition integrated it (the segments' steps are not kept)."""
         if not 1 <= number <= self.cycles:
             raise InvalidInputError(f"cycle {number} is not among 1-{self.cycles}")
-        return self.motions[number - 1].on_grid(time_step)
+        sampled = self.motions[number - 1]
+        return simulate_path(
+            self.robot,
+            self.laws,
+            self.cycle.chain(),
+            sampled.q[:, 0],
+            time_step,
+            checked=sampled.checked,
+            objective=sampled.objective,
+            circuit=self.circuit,
+            gain=self.gain,
+            tolerance=self.tolerance,
+        )
 
     @property
     def cycles(self) -> int:
@@ -735,23 +408,6 @@ class Repetition:
         return self.x[:, [names.index(h) for h in self.held]]
 
     @property
-    def within(self) -> np.ndarray:
-        """Whether each cycle kept every checked limit (N,)."""
-        return np.array([bool(m.within_limits[0]) for m in self.motions])
-
-    @property
-    def first_violation(self) -> tuple[int, str] | None:
-        """The first cycle (1-based) that passes a limit, and the first limit it passes (its
-        times in that cycle's time)."""
-        for number, motion in enumerate(self.motions, start=1):
-            found = motion.violations(0)
-            if found:
-                return number, str(found[0])
-            if not motion.within_limits[0]:
-                return number, "the motion failed (singular actuator Jacobian)"
-        return None
-
-    @property
     def settling(self) -> Settling:
         return settling(self.held_values[:, 0], self.drift)
 
@@ -763,29 +419,6 @@ class Repetition:
     def score(self, objective: Objective) -> float:
         """The first cycle's ``objective``."""
         return float(self.motions[0].score(objective)[0])
-
-    def report(self) -> dict:
-        first = self.first_violation
-        drift = self.drift
-        return {
-            "strategy": self.strategy,
-            "cycles": self.cycles,
-            "held_values": self.held_values[:, 0].tolist()
-            if len(self.held) == 1
-            else self.held_values.tolist(),
-            "drift_per_cycle": {
-                name: drift[:, j].tolist() for j, name in enumerate(self.robot.actuators.names)
-            },
-            "largest_drift_per_cycle": np.abs(drift).max(axis=1).tolist(),
-            "tool_drift_per_cycle": self.tool_drift.tolist(),
-            "within_limits_per_cycle": self.within.tolist(),
-            "first_cycle_past_a_limit": None if first is None else first[0],
-            "first_violation": None if first is None else first[1],
-            "settling": str(self.settling),
-            "settles": self.settling.settles,
-            "limit_cycle_value": self.settling.limit,
-            "contraction": self.settling.contraction,
-        }
 
 
 def repeat(
@@ -818,10 +451,10 @@ def repeat(
         )
     motions = []
     for _ in range(cycles):
-        motion = simulate_cycle(
+        motion = simulate_path(
             robot,
-            cycle,
             laws,
+            cycle.chain(),
             q,
             checked=checked,
             objective=objective,
@@ -831,22 +464,36 @@ def repeat(
             tolerance=tolerance,
         )
         motions.append(motion)
-        q = motion.end
-    x = np.array([m.pieces[0].x[0, 0] for m in motions] + [motions[-1].pieces[-1].x[0, -1]])
-    y = np.array([m.pieces[0].y[0, 0] for m in motions] + [motions[-1].pieces[-1].y[0, -1]])
+        q = motion.q[:, -1]
+    x = np.array([m.x[0, 0] for m in motions] + [motions[-1].x[0, -1]])
+    y = np.array([m.y[0, 0] for m in motions] + [motions[-1].y[0, -1]])
+    within = np.array([bool(m.within_limits[0]) for m in motions])
     return Repetition(
         robot,
         cycle,
         strategy,
         held,
-        _laws(cycle, laws),
+        per_segment(cycle.chain(), laws),
         tuple(motions),
         x,
         y,
+        within,
+        _first_violation(motions),
         circuit,
         gain,
         tolerance,
     )
+
+
+def _first_violation(motions: Sequence[Trajectory]) -> tuple[int, str] | None:
+    """The first cycle (1-based) that passes a limit, and the first limit it passes."""
+    for number, motion in enumerate(motions, start=1):
+        found = motion.violations(0)
+        if found:
+            return number, str(found[0])
+        if not motion.within_limits[0]:
+            return number, "the motion failed (singular actuator Jacobian)"
+    return None
 
 
 @dataclass(frozen=True)
@@ -854,7 +501,7 @@ class ReturnMap:
     """The map P from the held actuator's value at the cycle's start to its value there one
     cycle later, sampled at ``values`` (k,): ``following`` (k,) (NaN where the start is out of
     reach or the motion failed), ``within`` (k,) whether that cycle kept the strokes; its
-    ``fixed_points`` (v*, P'(v*)): the limit cycles, stable where |P'| < 1."""
+    ``fixed_points``: the limit cycles."""
 
     held: str
     values: np.ndarray
@@ -862,12 +509,8 @@ class ReturnMap:
     within: np.ndarray
 
     @property
-    def fixed_points(self) -> list[tuple[float, float]]:
-        """(v*, P'(v*)) where P(v) − v changes sign between two samples (linear in between)."""
-        return [(root, slope) for root, slope, _ in self._fixed()]
-
-    def _fixed(self) -> list[tuple[float, float, bool]]:
-        """The fixed points, each with whether both samples around it keep the strokes."""
+    def fixed_points(self) -> list[FixedPoint]:
+        """Where P(v) − v changes sign between two samples (linear in between)."""
         found = []
         v, p = self.values, self.following
         g = p - v
@@ -879,32 +522,21 @@ class ReturnMap:
             root = v[i] - g[i] * (v[i + 1] - v[i]) / (g[i + 1] - g[i])
             slope = (p[i + 1] - p[i]) / (v[i + 1] - v[i])
             kept = bool(self.within[i] and self.within[i + 1])
-            found.append((float(root), float(slope), kept))
+            found.append(FixedPoint(float(root), float(slope), kept))
         return found
 
-    def describe(self) -> str:
-        """The limit cycles in words."""
-        found = self._fixed()
-        if not found:
-            return "no fixed point over the reachable stroke"
-        return "; ".join(
-            f"limit cycle at {v:.5g} (P' = {s:.3g}, {'stable' if abs(s) < 1 else 'unstable'}"
-            + ("" if kept else ", its cycle passes a stroke")
-            + ")"
-            for v, s, kept in found
-        )
 
-    def report(self) -> dict:
-        return {
-            "held_actuator": self.held,
-            "values": self.values.tolist(),
-            "next": [None if not np.isfinite(p) else float(p) for p in self.following],
-            "within_limits": self.within.tolist(),
-            "fixed_points": [
-                {"value": v, "slope": s, "stable": abs(s) < 1, "keeps_the_strokes": kept}
-                for v, s, kept in self._fixed()
-            ],
-        }
+class FixedPoint(NamedTuple):
+    """A limit cycle: the held ``value`` v* with P(v*) = v*, the ``slope`` P'(v*) (stable where
+    |P'| < 1), and whether both samples around it keep the strokes."""
+
+    value: float
+    slope: float
+    keeps_the_strokes: bool
+
+    @property
+    def stable(self) -> bool:
+        return abs(self.slope) < 1
 
 
 def return_map(
@@ -946,11 +578,11 @@ def return_map(
     following = np.full(len(values), np.nan)
     within = np.zeros(len(values), dtype=bool)
     if ok.any():
-        motions = simulate_cycle(
-            robot, cycle, laws, starts.q[ok], checked=checked, sparse=True, gain=TASK_GAIN
+        motions = simulate_path(
+            robot, laws, cycle.chain(), starts.q[ok], checked=checked, sparse=True, gain=TASK_GAIN
         )
         column = robot.actuators.names.index(name)
-        end = motions.pieces[-1].x[:, -1, column]
+        end = motions.x[:, -1, column]
         following[ok] = np.where(motions.failed, np.nan, end)
         within[ok] = motions.within_limits
     return ReturnMap(name, values, following, within)
@@ -985,98 +617,6 @@ class HeldReference(Resolver):
         K = np.concatenate([space.J_H, np.eye(n)[self.row][None, None].repeat(len(t), 0)], 1)
         rhs = np.concatenate([y_dot, held[:, None]], axis=1)
         return solve(K, rhs[..., None])[..., 0]
-
-
-class CycleTranscription(Transcription):
-    """The bound's transcription (`redundancy.planning.bound.Transcription`) over a whole
-    cycle, periodic: nodes on every segment (``intervals`` (S,) each), a corner's two nodes
-    (end of one segment, start of the next) one unknown, and the cycle's last node the first's
-    unknown, so r(T) = r(0). Held rates are differences within each segment (one-sided at its
-    ends, so they may jump at a corner, as ẏ does at constant speed)."""
-
-    def __init__(
-        self,
-        robot: Robot,
-        objective: Objective,
-        cycle: WorkCycle,
-        row: int,
-        limits: Limits,
-        intervals: Sequence[int],
-        guess: np.ndarray,
-        margin: float = PERIODIC_MARGIN,
-        smoothness: float = SMOOTHNESS,
-    ):
-        self.robot, self.objective, self.row = robot, objective, row
-        self.columns = limits.columns
-        offsets = cycle.chain().offsets
-        unknowns = int(sum(intervals))
-        times, points, rates, owners, pieces, blocks, steps = [], [], [], [], [], [], []
-        first = 0
-        for i, (segment, count) in enumerate(zip(cycle.segments, intervals)):
-            local = np.linspace(0.0, segment.duration, count + 1)
-            owner = first + np.arange(count + 1)
-            if i == len(intervals) - 1:
-                owner[-1] = 0
-            times.append(local + offsets[i])
-            points.append(segment.position(local))
-            rates.append(segment.velocity_at(local))
-            owners.append(owner)
-            pieces.append(np.full(count + 1, i))
-            blocks.append(differentiation(count, local[1]))
-            steps.append(local[1])
-            first += count
-        self.t = np.concatenate(times)
-        self.local = np.concatenate(
-            [np.linspace(0.0, s.duration, c + 1) for s, c in zip(cycle.segments, intervals)]
-        )
-        self.points = np.concatenate(points)
-        self.y_dot = np.concatenate(rates)
-        self.owner = np.concatenate(owners)
-        self.piece = np.concatenate(pieces)
-        self.D = np.zeros((len(self.t), unknowns))
-        row0 = 0
-        for block, owner in zip(blocks, owners):
-            rows = row0 + np.arange(len(owner))
-            np.add.at(self.D, (rows[:, None], owner[None, :]), block)  # owners may repeat
-            row0 += len(owner)
-        self.q = np.array(guess, dtype=float)
-        self.lower = limits.lower + margin
-        self.upper = limits.upper - margin
-        self.span = np.maximum(self.upper - self.lower, 1e-12)
-        self.cache = None
-        self.scale = self.speed = 1.0
-        self.tie_break = True
-        self.smoothness = smoothness
-        second = []  # second differences of the held strokes inside each segment, per s²
-        for owner, h in zip(owners, steps):
-            for j in range(1, len(owner) - 1):
-                difference = np.zeros(unknowns)
-                np.add.at(difference, owner[j - 1 : j + 2], np.array([1.0, -2.0, 1.0]) / h**2)
-                second.append(difference)
-        self.S = np.array(second)
-
-    def cost(self, z):
-        """The bound's cost plus ε mean r̈² / (ẋᵀẋ)₀ (ε = ``smoothness``, r̈ the second
-        differences inside each segment), with its gradient."""
-        value, gradient = super().cost(z)
-        r_ddot = self.S @ z[:-1]
-        weight = self.smoothness / (len(r_ddot) * self.speed)
-        gradient = gradient.copy()
-        gradient[:-1] += 2 * weight * (self.S.T @ r_ddot)
-        return value + weight * (r_ddot @ r_ddot), gradient
-
-    def unknown_times(self) -> np.ndarray:
-        """The cycle time of each unknown (its first node), (U,)."""
-        times = np.empty(self.D.shape[1])
-        for j in range(len(self.owner) - 1, -1, -1):
-            times[self.owner[j]] = self.t[j]
-        return times
-
-
-def _split(cycle: WorkCycle, total: int) -> list[int]:
-    """``total`` intervals shared among the segments by duration, at least `MIN_INTERVALS`."""
-    durations = np.array([s.duration for s in cycle.segments])
-    return [max(MIN_INTERVALS, round(total * d / durations.sum())) for d in durations]
 
 
 @dataclass(frozen=True, eq=False)
@@ -1124,7 +664,7 @@ class PeriodicOptimum(Refined):
 def periodic_optimum(
     robot: Robot,
     cycle: WorkCycle,
-    guess: CycleMotion,
+    guess: Trajectory,
     objective: Objective = VELOCITY,
     held: str | None = None,
     checked: tuple[str, ...] | None = None,
@@ -1160,7 +700,7 @@ def periodic_optimum(
     others = Limits.strokes(robot, [n for n in limits.names if n != name])
     stroke = robot.actuators[name]
     box = (stroke.lower + margin, stroke.upper - margin) if name in limits.names else (None, None)
-    whole = guess.whole(0)
+    whole = guess.select(0)
     period = cycle.duration
     t0, r0 = whole.t[0], whole.x[0, :, row]
     closed = r0 - (r0[-1] - r0[0]) * t0 / period  # the free motion with its drift taken out
@@ -1168,17 +708,22 @@ def periodic_optimum(
     solutions = []
     nodes_t, nodes_q = t0, q0  # where the next grid's configurations are interpolated from
     unknown_t, unknown_r = t0, closed  # and its held strokes (periodic in the cycle's time)
+    chain = cycle.chain()
     for intervals in grids:
-        split = _split(cycle, intervals)
-        times = np.concatenate(
-            [
-                np.linspace(0.0, s.duration, c + 1) + offset
-                for s, c, offset in zip(cycle.segments, split, cycle.chain().offsets)
-            ]
-        )
+        times = node_times(chain, intervals)
         q = np.stack([np.interp(times, nodes_t, nodes_q[:, j]) for j in range(robot.n)], axis=1)
-        problem = CycleTranscription(
-            robot, objective, cycle, row, others, split, q, margin, smoothness
+        problem = Transcription(
+            robot,
+            objective,
+            chain,
+            row,
+            others,
+            intervals,
+            q,
+            periodic=True,
+            margin=margin,
+            smoothness=smoothness,
+            differences=differentiation,
         )
         r = np.interp(problem.unknown_times(), unknown_t, unknown_r)
         try:
@@ -1214,8 +759,3 @@ def periodic_optimum(
         nodes.measure,
         tuple(solutions),
     )
-
-
-def default_cycle_start(robot: Robot, cycle: WorkCycle, held=None) -> tuple[np.ndarray, np.ndarray]:
-    """The default start at the cycle's first point (`default_start`): (values (r,), q (n,))."""
-    return default_start(robot, cycle.segments[0], _held(robot, cycle, held))

@@ -5,9 +5,10 @@ The improved method (section 2, steps i-v): sample the held actuators (the crane
 their strokes; for each sample find the initial configuration by inverse kinematics, integrate
 the objective's law along the segment, keep the samples whose motion stays inside the actuator
 limits the whole way, and return the one with the lowest peak (or integral) of the objective.
-Every sample, whichever search asks for it, is evaluated by `evaluate_starts`: the same
-configurations, integration and definition of feasible (margin ≥ −`TOLERANCE`, see
-`redundancy.resolution.limits`).
+The segment may be any path: a work cycle's `Chain` is searched as one (its start at the cycle's
+first point, feasible where every stroke holds through every segment). Every sample, whichever
+search asks for it, is evaluated by `evaluate_starts`: the same configurations, integration and
+definition of feasible (margin ≥ −`TOLERANCE`, see `redundancy.resolution.limits`).
 
 Methods:
 
@@ -35,10 +36,9 @@ lift-swing).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
 from functools import cached_property
-from typing import Any
 
 import numpy as np
 
@@ -52,14 +52,9 @@ from redundancy.planning.ik import (
     held_names,
     inverse_kinematics,
 )
-from redundancy.planning.integrate import (
-    REPORT_TOLERANCE,
-    TIME_STEP,
-    TOLERANCE,
-    Trajectory,
-    simulate,
-)
-from redundancy.planning.tasks import Segment, WorkCycle
+from redundancy.planning.integrate import REPORT_TOLERANCE, TIME_STEP, TOLERANCE, Trajectory
+from redundancy.planning.motions import concatenated, simulate_path
+from redundancy.planning.tasks import Chain, Segment, WorkCycle
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
 from redundancy.resolution.limits import Limits, Violation, amount
 from redundancy.resolution.objectives import Objective
@@ -98,18 +93,25 @@ class Sample:
         return self.values[0]
 
 
-class Samples:
-    """What a search's samples say, for any search that holds ``held`` and has ``samples`` and
-    ``rows`` (a sample's row among the integrated motions, −1 when unreachable): along one
-    segment (`SearchResult`) or over a whole work cycle
-    (`redundancy.planning.cycles.CycleSearch`), of ``objective``, whose ``motion(sample)``
-    gives a sample's motion on the grid."""
+@dataclass(frozen=True)
+class SearchResult:
+    """Every sample of a search of the start along one path (a segment, or a work cycle's
+    `Chain`), and the motions of the reachable ones.
 
+    ``trajectory`` holds one motion per reachable sample (sparse samples); ``rows[i]`` is
+    sample i's row there (−1 when unreachable). ``method`` is the search that chose the
+    samples, ``rounds`` the batches it integrated.
+    """
+
+    robot: Robot = field(repr=False)
+    segment: Segment | Chain
+    objective: Objective
     held: tuple[str, ...]
     samples: tuple[Sample, ...]
+    trajectory: Trajectory = field(repr=False)
     rows: np.ndarray
-    objective: Objective
-    motion: Callable[..., Any]
+    method: str = "sweep"
+    rounds: int = 1
 
     @property
     def values(self) -> np.ndarray:
@@ -151,9 +153,8 @@ class Samples:
         return min(feasible, key=lambda s: s.peak) if feasible else None  # type: ignore[arg-type,return-value]
 
     @cached_property
-    def best_motion(self) -> Any:
-        """The best start's motion on the `TIME_STEP` grid (the search's ``motion()``: a
-        `Trajectory` or a `redundancy.planning.cycles.CycleMotion`), sampled once."""
+    def best_motion(self) -> Trajectory:
+        """The best start's motion on the `TIME_STEP` grid (``motion()``), sampled once."""
         return self.motion()
 
     @property
@@ -170,34 +171,15 @@ class Samples:
         worst = [max(s.violations, key=lambda v: v.excess) for s in self.samples if s.violations]
         return min(worst, key=lambda v: v.excess) if worst else None
 
-
-@dataclass(frozen=True)
-class SearchResult(Samples):
-    """Every sample of a search along one segment, and the motions of the reachable ones.
-
-    ``trajectory`` holds one motion per reachable sample (sparse samples); ``rows[i]`` is
-    sample i's row there (−1 when unreachable). ``method`` is the search that chose the
-    samples, ``rounds`` the batches it integrated.
-    """
-
-    robot: Robot = field(repr=False)
-    segment: Segment
-    objective: Objective
-    held: tuple[str, ...]
-    samples: tuple[Sample, ...]
-    trajectory: Trajectory = field(repr=False)
-    rows: np.ndarray
-    method: str = "sweep"
-    rounds: int = 1
-
     def motion(self, sample: Sample | None = None, time_step: float = TIME_STEP) -> Trajectory:
         """The motion from ``sample`` (default the best) on the grid of ``time_step``: a
-        trajectory of one, integrated from its start at `REPORT_TOLERANCE`, which keeps the
-        power balance on the grid (the search's steps, at its looser tolerance, do not)."""
+        trajectory of one, integrated from its start along the path (segment by segment for a
+        chain) at `REPORT_TOLERANCE`, which keeps the power balance on the grid (the search's
+        steps, at its looser tolerance, do not)."""
         sample = self.best if sample is None else sample
         if sample is None:
             raise InvalidInputError(
-                f"no start on segment {self.segment.name} keeps every checked limit for the "
+                f"no start on {self.segment.label} keeps every checked limit for the "
                 f"{self.objective.name} objective; closest: {self.closest_violation}"
             )
         if sample not in self.samples:
@@ -206,7 +188,7 @@ class SearchResult(Samples):
         if row < 0:
             raise InvalidInputError(f"the start {sample.values} of {self.held} is unreachable")
         motion = self.trajectory.select(row)
-        return simulate(
+        return simulate_path(
             self.robot,
             self.objective.resolver,
             self.segment,
@@ -219,58 +201,16 @@ class SearchResult(Samples):
         )
 
     def extended(self, other: SearchResult) -> SearchResult:
-        """This search with the samples of ``other`` (same segment and objective) appended."""
+        """This search with the samples of ``other`` (same path and objective) appended."""
         offset = len(self.trajectory)
         rows = np.concatenate([self.rows, np.where(other.rows < 0, -1, other.rows + offset)])
-        return SearchResult(
-            self.robot,
-            self.segment,
-            self.objective,
-            self.held,
-            self.samples + other.samples,
-            concatenated(self.trajectory, other.trajectory),
-            rows,
-            self.method,
-            self.rounds + other.rounds,
+        return replace(
+            self,
+            samples=self.samples + other.samples,
+            trajectory=concatenated(self.trajectory, other.trajectory),
+            rows=rows,
+            rounds=self.rounds + other.rounds,
         )
-
-
-def concatenated(first: Trajectory, second: Trajectory) -> Trajectory:
-    """Two batches of motions on one segment as one, padded to the longer by repetition."""
-    length = max(first.t.shape[1], second.t.shape[1])
-
-    def padded(array):
-        if array is None or array.shape[1] == length:
-            return array
-        extra = np.repeat(array[:, -1:], length - array.shape[1], axis=1)
-        return np.concatenate([array, extra], axis=1)
-
-    def joined(name):
-        a, b = getattr(first, name), getattr(second, name)
-        return None if a is None else np.concatenate([padded(a), padded(b)])
-
-    t, q, x, x_dot, y = (joined(name) for name in ("t", "q", "x", "x_dot", "y"))
-    return Trajectory(
-        first.robot,
-        first.segment,
-        first.resolver,
-        t,
-        q,
-        x,
-        x_dot,
-        y,
-        np.concatenate([first.failed, second.failed]),
-        first.checked,
-        np.concatenate([first.stopped, second.stopped]),
-        first.objective,
-        joined("measure"),
-        first.sparse,
-        first.allowance,
-        first.circuit,
-        None
-        if first.steps is None or second.steps is None
-        else first.steps.joined(second.steps, len(first)),
-    )
 
 
 def held_actuators(robot: Robot, cycle: WorkCycle) -> tuple[str, ...]:
@@ -333,7 +273,7 @@ class Configurations:
     """Start configurations at the point of a segment for one held actuator, by continuation
     from those found so far; seeded by multi-seed inverse kinematics at mid-stroke."""
 
-    def __init__(self, robot: Robot, segment: Segment, held: str):
+    def __init__(self, robot: Robot, segment: Segment | Chain, held: str):
         point = segment.start
         self.robot, self.point, self.held, self.segment = robot, point, held, segment
         self._reach: dict[float, Starts] = {}
@@ -347,8 +287,8 @@ class Configurations:
         found = anchor.reached
         if not found.any():
             raise UnreachableError(
-                f"{robot.name} cannot reach the start {point.tolist()} of segment "
-                f"{segment.name} with {held} anywhere in its stroke inside its joint limits; the "
+                f"{robot.name} cannot reach the start {point.tolist()} of {segment.label} "
+                f"with {held} anywhere in its stroke inside its joint limits; the "
                 f"closest configuration misses it by {amount(anchor.miss.min(), 'm')}"
             )
         values = scan[order[:1]] if len(anchor.q) == 1 else scan
@@ -386,16 +326,16 @@ class Configurations:
         return Starts(values[:, None], q, margins, np.zeros(len(values)))
 
 
-def _ik_starts(robot: Robot, segment: Segment, held: tuple[str, ...], values) -> Starts:
+def _ik_starts(robot: Robot, path: Segment | Chain, held: tuple[str, ...], values) -> Starts:
     """Starts by multi-seed inverse kinematics at held ``values`` (k, r)."""
-    ik = inverse_kinematics(robot, segment.start, held, values)
+    ik = inverse_kinematics(robot, path.start, held, values)
     margins = np.where(ik.reached, 0.0, -np.inf)
     return Starts(values, ik.q, margins, np.where(ik.reached, 0.0, ik.miss))
 
 
 def evaluate_starts(
     robot: Robot,
-    segment: Segment,
+    path: Segment | Chain,
     objective: Objective,
     held: str | Sequence[str],
     values: np.ndarray | Starts,
@@ -405,15 +345,17 @@ def evaluate_starts(
     method: str = "sweep",
     circuit: bool = False,
 ) -> SearchResult:
-    """Steps iv-v for the given held values, (k,) for one held actuator or (k, r), or for
-    `Starts` already found: integrate the reachable ones as one batch, check the limits, take
-    the objective. ``stop_past`` stops motions that, with both neighbours in the batch, are past
-    a checked stroke (their margin is then unknown, −inf). With ``circuit`` a start is feasible
-    only if its motion also keeps the hydraulic circuit's limits; its margin stays the strokes'."""
+    """Steps iv-v along ``path`` (a segment, or a cycle's `Chain`) for the given held values,
+    (k,) for one held actuator or (k, r), or for `Starts` already found: integrate the
+    reachable ones as one batch, check the limits, take the objective. ``stop_past`` stops
+    motions that, with both neighbours in the batch, are past a checked stroke (their margin is
+    then unknown, −inf). A start is feasible where its margin μ (the motion's and the start's
+    joint margin) is ≥ −`LIMIT_TOLERANCE` and the motion kept every other checked limit: with
+    ``circuit`` also the hydraulic circuit's (its margin stays the strokes')."""
     held = held_names(robot, held)
     if not isinstance(values, Starts):
         values = np.asarray(values, dtype=float).reshape(-1, len(held))
-        values = _ik_starts(robot, segment, held, values)
+        values = _ik_starts(robot, path, held, values)
     starts = values
     reachable = np.flatnonzero(starts.reachable)
     rows = np.full(len(starts.values), -1)
@@ -421,19 +363,18 @@ def evaluate_starts(
     if not reachable.size:
         miss = starts.miss[starts.miss > 0]
         raise UnreachableError(
-            f"{robot.name} cannot reach the start {segment.start.tolist()} of segment "
-            f"{segment.name} from any of the {len(starts.values)} sampled values of "
-            f"{', '.join(held)}"
+            f"{robot.name} cannot reach the start {path.start.tolist()} of {path.label} from "
+            f"any of the {len(starts.values)} sampled values of {', '.join(held)}"
             + (
                 f"; the closest configuration misses it by {amount(miss.min(), 'm')}"
                 if miss.size
                 else ""
             )
         )
-    trajectory = simulate(
+    motions = simulate_path(
         robot,
         objective.resolver,
-        segment,
+        path,
         starts.q[reachable],
         checked=checked,
         tolerance=tolerance,
@@ -442,32 +383,7 @@ def evaluate_starts(
         stop_past=stop_past,
         circuit=circuit,
     )
-    samples = verdicts(
-        starts,
-        rows,
-        trajectory.score(objective),
-        trajectory.margins,
-        trajectory.within_limits,
-        trajectory.violations,
-        lambda row, violations: _reason(trajectory, row, violations),
-    )
-    return SearchResult(robot, segment, objective, held, samples, trajectory, rows, method)
-
-
-def verdicts(
-    starts: Starts,
-    rows: np.ndarray,
-    scores: np.ndarray,
-    margins: np.ndarray,
-    within: np.ndarray,
-    violations: Callable[[int], list[Violation]],
-    reason: Callable[[int, tuple[Violation, ...]], str],
-) -> tuple[Sample, ...]:
-    """Step v's verdict on each start: its motion's row in ``rows`` (−1: unreachable), the
-    motions' ``scores``, ``margins`` and whether they kept the circuit (``within``), their
-    ``violations(row)`` and, for a start that is not feasible, ``reason(row, violations)``.
-    A start is feasible where its margin μ (the motion's and the start's joint margin) is
-    ≥ −`LIMIT_TOLERANCE` and the motion kept every other checked limit."""
+    scores, margins, within = motions.score(objective), motions.margins, motions.within_limits
     samples = []
     for i, row in enumerate(rows):
         start = tuple(float(v) for v in starts.values[i])
@@ -478,18 +394,10 @@ def verdicts(
             continue
         margin = float(min(margins[row], starts.joint_margins[i]))
         feasible = margin >= -LIMIT_TOLERANCE and bool(within[row])
-        found = tuple(violations(row))
-        samples.append(
-            Sample(
-                start,
-                float(scores[row]),
-                feasible,
-                margin,
-                found,
-                None if feasible else reason(row, found),
-            )
-        )
-    return tuple(samples)
+        found = tuple(motions.violations(row))
+        reason = None if feasible else _reason(motions, row, found)
+        samples.append(Sample(start, float(scores[row]), feasible, margin, found, reason))
+    return SearchResult(robot, path, objective, held, tuple(samples), motions, rows, method)
 
 
 def _reason(trajectory: Trajectory, row: int, violations: tuple[Violation, ...]) -> str:
@@ -507,7 +415,7 @@ def _reason(trajectory: Trajectory, row: int, violations: tuple[Violation, ...])
 
 def improved_start(
     robot: Robot,
-    segment: Segment,
+    segment: Segment | Chain,
     objective: Objective,
     held: str | Sequence[str] = "x3",
     samples: int = 100,
@@ -534,7 +442,7 @@ def improved_start(
 
 def improved_starts(
     robot: Robot,
-    segment: Segment,
+    segment: Segment | Chain,
     objectives: Sequence[Objective],
     held: str | Sequence[str] = "x3",
     samples: int = 100,
@@ -614,18 +522,17 @@ def end_tolerance(robot: Robot, held: str, tolerance: float | None) -> float:
 
 def fast_search(configurations: Configurations, tolerance: float | None, evaluate):
     """The fast search for one held actuator (see the module docstring) over the start
-    ``configurations`` of a segment: ``evaluate(starts, stop_past)`` integrates `Starts` (along
-    the segment, or a whole work cycle) and returns a search of their samples that can be
-    ``extended``. The reachable scan is the configurations' own, shared by every search that
-    uses them."""
+    ``configurations`` of a path: ``evaluate(starts, stop_past)`` integrates `Starts` along it
+    and returns a search of their samples that can be ``extended``. The reachable scan is the
+    configurations' own, shared by every search that uses them."""
     robot, segment, held = configurations.robot, configurations.segment, configurations.held
     tolerance = end_tolerance(robot, held, tolerance)
     reach = configurations.reach(tolerance)
     reachable = reach.values[reach.reachable, 0]
     if not reachable.size:
         raise UnreachableError(
-            f"{robot.name} cannot reach the start {segment.start.tolist()} of segment "
-            f"{segment.name} inside its joint limits with {held} anywhere in its stroke"
+            f"{robot.name} cannot reach the start {segment.start.tolist()} of {segment.label} "
+            f"inside its joint limits with {held} anywhere in its stroke"
         )
     grid = configurations.at(np.linspace(reachable.min(), reachable.max(), GRID))
     search = evaluate(grid, True)
@@ -694,7 +601,7 @@ def _compass(robot, segment, objective, held, samples, checked, circuit) -> Sear
     return result
 
 
-def default_start(robot: Robot, segment: Segment, held: str | Sequence[str] = "x3"):
+def default_start(robot: Robot, segment: Segment | Chain, held: str | Sequence[str] = "x3"):
     """The documented default start: the held actuators at mid-stroke or, where the segment's
     start is out of reach there, the reachable candidate nearest mid-stroke (candidates: 101
     values per held actuator for one, 256 Halton points for several).
@@ -722,8 +629,8 @@ def default_start(robot: Robot, segment: Segment, held: str | Sequence[str] = "x
             return batch[first], ik.q[first]
         tried, miss = tried + len(batch), min(miss, float(ik.miss.min()))
     raise UnreachableError(
-        f"{robot.name} cannot reach the start {segment.start.tolist()} of segment "
-        f"{segment.name} with {', '.join(held)} anywhere in their strokes; the closest "
+        f"{robot.name} cannot reach the start {segment.start.tolist()} of {segment.label} "
+        f"with {', '.join(held)} anywhere in their strokes; the closest "
         f"configuration misses it by {amount(miss, 'm')}"
     )
 

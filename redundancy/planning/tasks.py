@@ -506,6 +506,11 @@ class Segment:
         """Points (P, m) that draw the path as straight pieces."""
         return self.shape.outline()
 
+    @property
+    def label(self) -> str:
+        """The path as messages name it."""
+        return f"segment {self.name}"
+
     def describe(self) -> dict:
         """The segment's path and timing as JSON-ready data."""
         shape = self.shape
@@ -570,6 +575,11 @@ class Chain:
 
     def outline(self) -> np.ndarray:
         return np.concatenate([s.outline() for s in self.segments])
+
+    @property
+    def label(self) -> str:
+        """The path as messages name it."""
+        return f"cycle {self.name!r}"
 
 
 @dataclass(frozen=True)

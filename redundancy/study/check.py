@@ -113,63 +113,6 @@ class Check:
             ]
         return found
 
-    def report(self) -> str:
-        """The one-screen report: lengths in mm, angles in degrees."""
-        robot = self.robot
-        lines = [f"{robot.name}: n = {robot.n}, m = {robot.m} (task {robot.task_axes})", "joints:"]
-        for name, lo, hi, rotary in zip(
-            robot.joint_names, robot.lower, robot.upper, robot.rotary_joints
-        ):
-            lines.append(f"  {name:<20} {span(lo, hi, 'rad' if rotary else 'm')}")
-        lines.append("actuators (values over the joint's range against the stroke):")
-        for a in self.actuators:
-            unit = "rad" if a.rotary else "m"
-            verdict = (
-                "UNREACHABLE"
-                if a.unreachable
-                else ("MISMATCH: a stroke end is not reached" if a.mismatch else "ok")
-            )
-            lines.append(
-                f"  {a.name:<8} on {a.joint:<18} reaches {span(*a.reached, unit)}, "
-                f"stroke {span(*a.stroke, unit)}: {verdict}"
-            )
-            for value, x in zip(a.singular, a.singular_x):
-                inside = a.stroke[0] <= x <= a.stroke[1]
-                lines.append(
-                    f"    A singular at {a.joint} = {a.joint_value(value)} ({a.name} = "
-                    f"{amount(x, unit)}, {'inside' if inside else 'outside'} the stroke): its "
-                    "line passes through the joint axis"
-                )
-        if robot.kinematic_only:
-            lines.append(
-                f"masses: none on {', '.join(robot.massless_links)} (kinematic only: the "
-                "velocity objective, play and check work; the energy objective refuses)"
-            )
-        else:
-            total = sum(inertia.mass for inertia in robot.model.inertias)
-            lines.append(f"masses: on every link, {total:.1f} kg in all")
-        lines.append(
-            "meshes: "
-            + (
-                f"not found: {', '.join(robot.missing_meshes)} (drawn as rods)"
-                if robot.missing_meshes
-                else "every mesh found"
-            )
-        )
-        if self.points is not None:
-            lines.append("task points:")
-            lines += [
-                f"  {p.tolist()}: {'reached' if ok else 'NOT reached'}"
-                for p, ok in zip(self.points, self.reached)
-            ]
-        problems = self.blocking()
-        lines.append(
-            "ready for a study"
-            if not problems
-            else f"{len(problems)} problems block a study: " + "; ".join(problems)
-        )
-        return "\n".join(lines)
-
 
 def span(lower: float, upper: float, unit: str) -> str:
     """A range [lower, upper] in the SI ``unit`` ("m" or "rad") as messages show it (mm,

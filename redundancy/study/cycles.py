@@ -22,6 +22,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -30,18 +31,20 @@ from redundancy.model.hydraulics import KILOJOULE
 from redundancy.model.robot import Robot
 from redundancy.planning.cycles import (
     CYCLES,
-    CycleMotion,
+    SETTLED,
+    Corner,
     CyclePlan,
     PeriodicOptimum,
     Repetition,
     ReturnMap,
-    default_cycle_start,
+    Settling,
     periodic_optimum,
     plan_cycle,
     repeat,
     return_map,
 )
-from redundancy.planning.starts import held_actuators, scalar_or_list
+from redundancy.planning.integrate import Trajectory
+from redundancy.planning.starts import default_start, held_actuators, scalar_or_list
 from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.objectives import VELOCITY, Objective
 from redundancy.study.output import write_atomically
@@ -54,11 +57,48 @@ NAMES = {
 }
 
 
+class Cost(NamedTuple):
+    """A strategy's first cycle: the peak (or integral) of the objective, the peak ẋᵀẋ (m²/s²),
+    the largest tracking error (m, and rad), whether it kept every checked limit and, with
+    hydraulics, the pump energies under load sensing and constant pressure (kJ)."""
+
+    objective: float
+    peak_velocity_norm: float
+    max_tracking_error: float
+    within_limits: bool
+    ls_energy_kj: float | None = None
+    cp_energy_kj: float | None = None
+
+    def figures(self) -> dict:
+        """The cost as the report gives it (the energies only with hydraulics)."""
+        return {k: v for k, v in self._asdict().items() if v is not None}
+
+
+def cost(motion: Trajectory, objective: Objective) -> Cost:
+    """The `Cost` of the first motion of ``motion``."""
+    circuit = motion.robot.hydraulics
+    return Cost(
+        float(motion.score(objective)[0]),
+        float(motion.peak_velocity_norm[0]),
+        float(motion.max_tracking_error[0]),
+        bool(motion.within_limits[0]),
+        *(
+            ()
+            if circuit is None
+            else (
+                float(motion.energy(supply)[0] / KILOJOULE)
+                for supply in (circuit.load_sensing, circuit.constant_pressure)
+            )
+        ),
+    )
+
+
 @dataclass(frozen=True, eq=False)
 class CycleStudy:
     """One work cycle planned and repeated (module docstring). ``repetitions`` by strategy
-    ("free", "periodic"); ``firsts`` each strategy's first cycle on the grid (for its cost,
-    figures and playback); ``failures`` why a strategy or the return map did not run."""
+    ("free", "periodic"); ``firsts`` each strategy's first cycle on the grid (for figures and
+    playback) and ``costs`` its `Cost`; ``failures`` why a strategy or the return map did not
+    run."""
 
     robot: Robot = field(repr=False)
     cycle: WorkCycle
@@ -68,7 +108,8 @@ class CycleStudy:
     circuit: bool
     plan: CyclePlan = field(repr=False)
     repetitions: dict[str, Repetition] = field(repr=False)
-    firsts: dict[str, CycleMotion] = field(repr=False)
+    firsts: dict[str, Trajectory] = field(repr=False)
+    costs: dict[str, Cost]
     periodic: PeriodicOptimum | None = field(repr=False)
     map: ReturnMap | None = field(repr=False)
     free_start: str = "whole-cycle improved start"
@@ -78,27 +119,11 @@ class CycleStudy:
     def held(self) -> tuple[str, ...]:
         return self.plan.held
 
-    def cost(self, strategy: str) -> dict:
-        """A strategy's first cycle: the peak (or integral) of the objective, the peak ẋᵀẋ, the
-        largest tracking error and, with hydraulics, the pump energies in kJ."""
-        motion = self.firsts[strategy]
-        found = {
-            "objective": float(motion.score(self.objective)[0]),
-            "peak_velocity_norm": float(motion.peak_velocity_norm[0]),
-            "max_tracking_error": float(motion.max_tracking_error[0]),
-            "within_limits": bool(motion.within_limits[0]),
-        }
-        if self.robot.hydraulics is not None:
-            circuit = self.robot.hydraulics
-            found["ls_energy_kj"] = float(motion.energy(circuit.load_sensing)[0] / KILOJOULE)
-            found["cp_energy_kj"] = float(motion.energy(circuit.constant_pressure)[0] / KILOJOULE)
-        return found
-
     def price(self) -> dict | None:
         """The drift-free strategy against the free improved cycle, per cent (+: costs more)."""
-        if not {"free", "periodic"} <= set(self.firsts):
+        if not {"free", "periodic"} <= set(self.costs):
             return None
-        free, periodic = self.cost("free"), self.cost("periodic")
+        free, periodic = self.costs["free"].figures(), self.costs["periodic"].figures()
         keys = [k for k in ("objective", "ls_energy_kj", "cp_energy_kj") if k in free]
         return {k: 100 * (periodic[k] / free[k] - 1) for k in keys}
 
@@ -143,14 +168,14 @@ class CycleStudy:
                     }
                     for s in plan.segments
                 ],
-                "corners": [c.report() for c in plan.corners],
+                "corners": [corner_report(c) for c in plan.corners],
                 "self_motion_time_s": plan.gap_time,
             },
             "strategies": {
                 name: {
                     "name": NAMES[name],
-                    **self.cost(name),
-                    "repetition": self.repetitions[name].report(),
+                    **self.costs[name].figures(),
+                    "repetition": repetition_report(self.repetitions[name]),
                 }
                 for name in self.repetitions
             },
@@ -165,108 +190,87 @@ class CycleStudy:
                 "grids": [g.intervals for g in self.periodic.grids],
             },
             "periodic_versus_free_percent": self.price(),
-            "return_map": None if self.map is None else self.map.report(),
+            "return_map": None if self.map is None else map_report(self.map),
             "failures": self.failures,
         }
 
-    def table(self) -> str:
-        """The cycle study as text: the plan, the corners, the repetitions, the price."""
-        plan, held = self.plan, self.held
-        unit = self.objective.unit
-        label = self.objective.label
-        route = " → ".join(s.name for s in self.cycle.segments)
-        lines = [
-            f"work cycle {self.cycle.name!r}: {route} ({self.cycle.duration:.2f} s), "
-            f"{self.objective.name} objective, held {', '.join(held)}"
-        ]
-        search = plan.search
-        if search.best is None:
-            closest = search.closest_violation
-            lines.append(
-                "whole-cycle improved start: none keeps every stroke over the cycle"
-                + (f"; closest: {closest}" if closest else "")
-            )
-        else:
-            box = search.feasible_box
-            span = ", ".join(f"[{lo:.4g}, {hi:.4g}]" for lo, hi in box)  # type: ignore[union-attr]
-            lines.append(
-                f"whole-cycle improved start: {_values(held, search.best.values)} "
-                f"(feasible {span}), peak {label} {search.best_peak:.5g} {unit} "
-                f"({search.simulations} motions)"
-            )
-        starts = [
-            "none" if s.best is None else _values(held, s.best.values, names=False)
-            for s in plan.segments
-        ]
-        peaks = [peak for s in plan.segments if (peak := s.best_peak) is not None]
-        lines.append(
-            f"per-segment plan: best starts {' / '.join(starts)}"
-            + (f", peak {label} {max(peaks):.5g} {unit}" if peaks else "")
-            + ", with a self-motion at every corner:"
+
+def corner_report(corner: Corner) -> dict:
+    """A corner of the per-segment plan as JSON-ready data."""
+    delta, held = corner.delta, corner.held_delta
+    return {
+        "after": corner.after,
+        "before": corner.before,
+        "point": corner.point.tolist(),
+        "held_delta": None if held is None else dict(zip(corner.held, held.tolist())),
+        "delta": None if delta is None else dict(zip(corner.names, delta.tolist())),
+        "speed": corner.speed,
+        "time_s": corner.time,
+        "self_motion_within_limits": corner.within_limits,
+        "reason": corner.reason,
+    }
+
+
+def repetition_report(repetition: Repetition) -> dict:
+    """A repetition's drift, limits and settling as JSON-ready data."""
+    first, drift, settled = repetition.first_violation, repetition.drift, repetition.settling
+    held = repetition.held_values
+    return {
+        "strategy": repetition.strategy,
+        "cycles": repetition.cycles,
+        "held_values": (held[:, 0] if held.shape[1] == 1 else held).tolist(),
+        "drift_per_cycle": {
+            name: drift[:, j].tolist() for j, name in enumerate(repetition.robot.actuators.names)
+        },
+        "largest_drift_per_cycle": np.abs(drift).max(axis=1).tolist(),
+        "tool_drift_per_cycle": repetition.tool_drift.tolist(),
+        "within_limits_per_cycle": repetition.within.tolist(),
+        "first_cycle_past_a_limit": None if first is None else first[0],
+        "first_violation": None if first is None else first[1],
+        "settling": settling_words(settled),
+        "settles": settled.settles,
+        "limit_cycle_value": settled.limit,
+        "contraction": settled.contraction,
+    }
+
+
+def settling_words(settled: Settling) -> str:
+    """Whether the held actuator settles to a limit cycle, in words."""
+    if settled.settled_at is not None:
+        return f"closed (drift below {SETTLED:g}) from cycle {settled.settled_at}"
+    if settled.settles:
+        return (
+            f"converging to a limit cycle at {settled.limit:.6g} (drift ratio "
+            f"{settled.contraction:.3g} per cycle, closed in about {settled.cycles_to_settle} "
+            "more cycles)"
         )
-        names = list(self.robot.actuators.names)
-        header = f"  {'corner':<18}" + "".join(f"{'Δ' + n:>10}" for n in names)
-        header += f"{'time s':>9}  self-motion"
-        lines += [header]
-        for corner in plan.corners:
-            delta = corner.delta
-            row = f"  {corner.after + ' → ' + corner.before:<18}"
-            if delta is None:
-                lines.append(row + f"  {corner.reason}")
-                continue
-            row += "".join(f"{d:>10.4f}" for d in delta)
-            state = {True: "keeps the strokes", False: "passes a stroke", None: "-"}
-            reason = corner.reason or state[corner.within_limits]
-            lines.append(row + f"{corner.time:>9.2f}  {reason}")
-        if plan.gap_time is not None and plan.corners:
-            lines.append(
-                f"  the self-motions add {plan.gap_time:.2f} s per cycle, the held actuator at "
-                f"{plan.corners[0].speed:g} m/s"
-            )
-        lines += ["", self._repetition_table()]
-        price = self.price()
-        if price is not None:
-            free, periodic = self.cost("free"), self.cost("periodic")
-            parts = [
-                f"peak {label} {free['objective']:.5g} → {periodic['objective']:.5g} {unit} "
-                f"({price['objective']:+.1f} %)"
-            ]
-            for key, name in (("ls_energy_kj", "LS"), ("cp_energy_kj", "CP")):
-                if key in price:
-                    parts.append(
-                        f"{name} pump energy {free[key]:.2f} → {periodic[key]:.2f} kJ "
-                        f"({price[key]:+.1f} %)"
-                    )
-            lines.append("drift-free against the free improved cycle: " + "; ".join(parts))
-        if self.map is not None:
-            lines.append(
-                f"return map of {self.map.held} at the cycle's start: {self.map.describe()}"
-            )
-        for name, reason in self.failures.items():
-            lines.append(f"{name}: {reason}")
-        return "\n".join(lines)
-
-    def _repetition_table(self) -> str:
-        header = (
-            f"{'strategy':<34}{'cycles':>7}{'drift/cycle: first':>20}{'last':>11}"
-            f"{'tool drift':>12}  first stroke passed; settling"
-        )
-        lines = [header, "-" * len(header)]
-        for name, repetition in self.repetitions.items():
-            largest = np.abs(repetition.drift).max(axis=1)
-            first = repetition.first_violation
-            passed = "none" if first is None else f"cycle {first[0]}: {first[1]}"
-            lines.append(
-                f"{NAMES[name]:<34}{repetition.cycles:>7}{largest[0]:>20.3g}{largest[-1]:>11.3g}"
-                f"{repetition.tool_drift.max():>12.3g}  {passed}; {repetition.settling}"
-            )
-        return "\n".join(lines)
+    if settled.contraction is None:
+        return "no trend"
+    return f"not settling (drift ratio {settled.contraction:.3g} per cycle)"
 
 
-def _values(held, values, names: bool = True) -> str:
-    if names:
-        return ", ".join(f"{h} = {v:.4g}" for h, v in zip(held, values))
-    return ",".join(f"{v:.4g}" for v in values)
+def map_report(mapped: ReturnMap) -> dict:
+    """The return map as JSON-ready data."""
+    return {
+        "held_actuator": mapped.held,
+        "values": mapped.values.tolist(),
+        "next": [None if not np.isfinite(p) else float(p) for p in mapped.following],
+        "within_limits": mapped.within.tolist(),
+        "fixed_points": [
+            {
+                "value": p.value,
+                "slope": p.slope,
+                "stable": p.stable,
+                "keeps_the_strokes": p.keeps_the_strokes,
+            }
+            for p in mapped.fixed_points
+        ],
+    }
+
+
+def named_values(held, values) -> str:
+    """The held actuators' values by name: "x3 = 0.8123"."""
+    return ", ".join(f"{h} = {v:.4g}" for h, v in zip(held, values))
 
 
 def run_cycle(
@@ -311,12 +315,12 @@ def run_cycle(
         free_start = "whole-cycle improved start"
         free_motion = plan.motion
         if free_motion is not None:
-            start_q = free_motion.start[0]
+            start_q = free_motion.q[0, 0]
         else:
-            values, start_q = default_cycle_start(robot, cycle, held)
-            free_start = f"default start {_values(held, values)}: no start keeps every stroke"
+            values, start_q = default_start(robot, cycle.chain(), held)
+            free_start = f"default start {named_values(held, values)}: no start keeps every stroke"
         repetitions: dict[str, Repetition] = {}
-        firsts: dict[str, CycleMotion] = {}
+        firsts: dict[str, Trajectory] = {}
         periodic = None
         if "free" in chosen:
             bar.set_description("cycle: free, repeated")
@@ -384,6 +388,7 @@ def run_cycle(
         plan,
         repetitions,
         firsts,
+        {name: cost(motion, objective) for name, motion in firsts.items()},
         periodic,
         mapped,
         free_start,

@@ -38,7 +38,6 @@ from redundancy.model.robot import Robot
 from redundancy.planning.bound import GlobalOptimum, global_optimum
 from redundancy.planning.energy_bound import EnergyOptimum, energy_optimum
 from redundancy.planning.ik import check_path
-from redundancy.planning.refinement import Refined
 from redundancy.planning.starts import (
     METHODS,
     SearchResult,
@@ -49,7 +48,6 @@ from redundancy.planning.starts import (
 )
 from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.laws import GradientProjection, Resolver
-from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import ENERGY, VELOCITY, Objective
 from redundancy.study.check import check
 from redundancy.study.cycles import CycleStudy, run_cycle
@@ -210,106 +208,6 @@ class Study:
             ],
         }
 
-    def table(self) -> str:
-        """The comparison as a fixed-width text table (held starts in mm, or degrees for a
-        rotary actuator), then the bounds."""
-        start = "start " + ",".join(self.held)
-        width = max(10, len(start) + 1, 11 * len(self.held) + 1)
-        units = ["rad" if self.robot.actuators[h].rotary else "m" for h in self.held]
-        names = self._segment_width()
-        header = (
-            f"{'segment':<{names}}{'strategy':<36}{start:>{width}}"
-            f"{'peak ẋᵀẋ':>12}{'peak ẋᵀM_Hẋ':>13}  limits"
-        )
-        lines = [header, "-" * len(header)]
-        for run in self.runs:
-            row = run.summary()
-            held = "held" if row["within_limits"] else "VIOLATED"
-            values = ",".join(amount(v, unit) for v, unit in zip(run.start, units))
-            kinetic = "-" if row["peak_kinetic"] is None else f"{row['peak_kinetic']:.3f}"
-            lines.append(
-                f"{run.segment:<{names}}{run.strategy:<36}{values:>{width}}"
-                f"{row['peak_velocity_norm']:>12.5f}{kinetic:>13}  {held}"
-            )
-        lines += [
-            "",
-            f"{'segment':<{names}}{'objective':<10}{'improved':>12}{'bound':>12}{'gap %':>8}",
-        ]
-        for name, searches in self.searches.items():
-            for search in searches:
-                segment = search.segment.name
-                bound, gap = self.bound(name, segment), self.gap(name, segment)
-                if search.best is None:
-                    closest = self.sweep(name, segment).closest_violation
-                    lines.append(
-                        f"{segment:<{names}}{name:<10}{'none':>12}{'-':>12}{'-':>8}  "
-                        f"no sampled start stays inside the limits"
-                        + (f"; closest: {closest}" if closest else "")
-                    )
-                    continue
-                failure = (self.bound_failures or {}).get(f"{name}/{segment}")
-                lines.append(
-                    f"{segment:<{names}}{name:<10}{search.best_peak:>12.5g}"
-                    + ("" if bound is None else f"{bound.bound:>12.5g}{gap:>8.2f}")
-                    + ("" if bound is None or bound.converged else f"  {convergence(bound)}")
-                    + ("" if failure is None else f"{'-':>12}{'-':>8}  no bound: {failure}")
-                )
-        if self.robot.hydraulics is not None:
-            lines += ["", self.hydraulic_table()]
-        if self.cycle_study is not None:
-            lines += ["", self.cycle_study.table()]
-        elif self.cycle_skipped:
-            lines += ["", f"no cycle section: {self.cycle_skipped}"]
-        return "\n".join(lines)
-
-    def hydraulic_table(self) -> str:
-        """The hydraulic comparison as a fixed-width text table: peak pump flow, highest load
-        pressure, pump energies, shortest duration and, with energy bounds, per cent above
-        them, then the bounds."""
-        names = self._segment_width()
-        header = (
-            f"{'segment':<{names}}{'strategy':<36}{'Q_P L/min':>10}{'p_L bar':>9}"
-            f"{'LS kJ':>8}{'CP kJ':>8}{'LS +%':>7}{'CP +%':>7}{'t_min s':>8}  circuit"
-        )
-        lines = [header, "-" * len(header)]
-        for run in self.runs:
-            figures, above = run.summary()["hydraulics"], self.above_energy_bound(run)
-            percent = "".join(
-                f"{above[s]:>7.1f}" if s in above else f"{'-':>7}" for s in ("LS", "CP")
-            )
-            shortest = figures["shortest_duration_s"]
-            lines.append(
-                f"{run.segment:<{names}}{run.strategy:<36}"
-                f"{figures['peak_pump_flow_l_min']:>10.1f}{figures['max_load_pressure_bar']:>9.1f}"
-                f"{figures['ls_energy_kj']:>8.2f}{figures['cp_energy_kj']:>8.2f}{percent}"
-                + (f"{'-':>8}" if shortest is None else f"{shortest:>8.2f}")
-                + "  "
-                + ("held" if figures["within_limits"] else "; ".join(figures["violations"]))
-            )
-        for segment, bounds in (self.energy_bounds or {}).items():
-            for supply, bound in bounds.items():
-                lines.append(
-                    f"{segment:<{names}}{f'energy bound, {supply}':<36}{'':>19}"
-                    + (
-                        f"{bound.energy / KILOJOULE:>8.2f}{'':>8}"
-                        if supply == "LS"
-                        else f"{'':>8}{bound.energy / KILOJOULE:>8.2f}"
-                    )
-                    + f"{'':>22}  {convergence(bound)}"
-                )
-        return "\n".join(lines)
-
-    def _segment_width(self) -> int:
-        """The width of the tables' segment column."""
-        return max(8, *(len(s.name) + 2 for s in self.cycle.segments))
-
-
-def convergence(bound: Refined) -> str:
-    """A bound's convergence in words: whether it converged, and how much the last refinement
-    of its grid moved it."""
-    change = "-" if bound.change is None else f"{100 * bound.change:.2f} %"
-    return f"{'converged' if bound.converged else 'NOT converged'}, change {change}"
-
 
 def run_study(
     robot: Robot,
@@ -421,6 +319,8 @@ def run_study(
                 except (InvalidInputError, UnreachableError) as error:
                     failures[f"energy bound {supply.name}/{segment.name}"] = str(error)
             energy_bounds[segment.name] = found
+    for run in runs:  # every figure a report or table shows is computed here, once
+        run.summary()
     cycle_study, skipped = cycle_section(
         robot, cycle, objectives[0], cycles, samples, checked, method, circuit, progress
     )

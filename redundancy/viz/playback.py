@@ -663,9 +663,7 @@ def write_cycle_playbacks(study: CycleStudy, folder: Path) -> list[Path]:
     ``playback_cycle_<strategy>.html`` in ``folder``; return their paths."""
     points = task_points(study.cycle)
     return [
-        export_html(
-            motion.whole(0), folder / f"playback_cycle_{name}.html", points, f"{name} strategy"
-        )
+        export_html(motion, folder / f"playback_cycle_{name}.html", points, f"{name} strategy")
         for name, motion in study.firsts.items()
     ]
 

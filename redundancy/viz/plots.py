@@ -319,8 +319,7 @@ def cycle_figure(study: CycleStudy, title: str):
     offsets = study.cycle.chain().offsets
     styles = {"free": "-", "periodic": "--"}
     colours: dict[str, str] = {}
-    for name, run in study.firsts.items():
-        whole = run.whole(0)
+    for name, whole in study.firsts.items():
         t = whole.t[0]
         for row, actuator in enumerate(actuators):
             held = actuator.name in study.held
@@ -459,7 +458,7 @@ def return_map_figure(mapped: ReturnMap, title: str, held_unit: str = "m"):
         axes.plot(
             v[outside], values[outside], "o", ms=4, mfc="none", color="C0", label="passes a stroke"
         )
-        for value, slope in mapped.fixed_points:
+        for value, slope, _ in mapped.fixed_points:
             stable = abs(slope) < 1
             axes.plot(
                 value,

@@ -1,0 +1,294 @@
+"""The study's and the cycle study's results as fixed-width text tables.
+
+Tables read finished numbers only: every figure they show was computed by the run that made the
+result (`run_study`, `run_cycle`), so printing one evaluates no state.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from redundancy.model.hydraulics import KILOJOULE
+from redundancy.planning.cycles import ReturnMap
+from redundancy.planning.refinement import Refined
+from redundancy.resolution.limits import amount
+from redundancy.study.check import Check, span
+from redundancy.study.cycles import NAMES, CycleStudy, named_values, settling_words
+from redundancy.study.peers import StrategyRun
+from redundancy.study.study import Study
+
+
+def study_table(study: Study) -> str:
+    """The comparison (held starts in mm, or degrees for a rotary actuator), then the bounds,
+    the hydraulic comparison where the robot has a circuit, and the cycle section."""
+    start = "start " + ",".join(study.held)
+    width = max(10, len(start) + 1, 11 * len(study.held) + 1)
+    units = ["rad" if study.robot.actuators[h].rotary else "m" for h in study.held]
+    names = _segment_width(study)
+
+    def cells(run: StrategyRun) -> str:
+        row = run.summary()
+        held = "held" if row["within_limits"] else "VIOLATED"
+        values = ",".join(amount(v, unit) for v, unit in zip(run.start, units))
+        kinetic = "-" if row["peak_kinetic"] is None else f"{row['peak_kinetic']:.3f}"
+        return f"{values:>{width}}{row['peak_velocity_norm']:>12.5f}{kinetic:>13}  {held}"
+
+    columns = f"{start:>{width}}{'peak ẋᵀẋ':>12}{'peak ẋᵀM_Hẋ':>13}  limits"
+    lines = _per_run(study, columns, cells)
+    lines += [
+        "",
+        f"{'segment':<{names}}{'objective':<10}{'improved':>12}{'bound':>12}{'gap %':>8}",
+    ]
+    for name, searches in study.searches.items():
+        for search in searches:
+            segment = search.segment.name
+            bound, gap = study.bound(name, segment), study.gap(name, segment)
+            if search.best is None:
+                closest = study.sweep(name, segment).closest_violation
+                lines.append(
+                    f"{segment:<{names}}{name:<10}{'none':>12}{'-':>12}{'-':>8}  "
+                    f"no sampled start stays inside the limits"
+                    + (f"; closest: {closest}" if closest else "")
+                )
+                continue
+            failure = (study.bound_failures or {}).get(f"{name}/{segment}")
+            lines.append(
+                f"{segment:<{names}}{name:<10}{search.best_peak:>12.5g}"
+                + ("" if bound is None else f"{bound.bound:>12.5g}{gap:>8.2f}")
+                + ("" if bound is None or bound.converged else f"  {convergence(bound)}")
+                + ("" if failure is None else f"{'-':>12}{'-':>8}  no bound: {failure}")
+            )
+    if study.robot.hydraulics is not None:
+        lines += ["", hydraulic_table(study)]
+    if study.cycle_study is not None:
+        lines += ["", cycle_table(study.cycle_study)]
+    elif study.cycle_skipped:
+        lines += ["", f"no cycle section: {study.cycle_skipped}"]
+    return "\n".join(lines)
+
+
+def hydraulic_table(study: Study) -> str:
+    """The hydraulic comparison: peak pump flow, highest load pressure, pump energies, shortest
+    duration and, with energy bounds, per cent above them, then the bounds."""
+    names = _segment_width(study)
+
+    def cells(run: StrategyRun) -> str:
+        figures, above = run.summary()["hydraulics"], study.above_energy_bound(run)
+        percent = "".join(f"{above[s]:>7.1f}" if s in above else f"{'-':>7}" for s in ("LS", "CP"))
+        shortest = figures["shortest_duration_s"]
+        return (
+            f"{figures['peak_pump_flow_l_min']:>10.1f}{figures['max_load_pressure_bar']:>9.1f}"
+            f"{figures['ls_energy_kj']:>8.2f}{figures['cp_energy_kj']:>8.2f}{percent}"
+            + (f"{'-':>8}" if shortest is None else f"{shortest:>8.2f}")
+            + "  "
+            + ("held" if figures["within_limits"] else "; ".join(figures["violations"]))
+        )
+
+    columns = (
+        f"{'Q_P L/min':>10}{'p_L bar':>9}{'LS kJ':>8}{'CP kJ':>8}{'LS +%':>7}{'CP +%':>7}"
+        f"{'t_min s':>8}  circuit"
+    )
+    lines = _per_run(study, columns, cells)
+    for segment, bounds in (study.energy_bounds or {}).items():
+        for supply, bound in bounds.items():
+            lines.append(
+                f"{segment:<{names}}{f'energy bound, {supply}':<36}{'':>19}"
+                + (
+                    f"{bound.energy / KILOJOULE:>8.2f}{'':>8}"
+                    if supply == "LS"
+                    else f"{'':>8}{bound.energy / KILOJOULE:>8.2f}"
+                )
+                + f"{'':>22}  {convergence(bound)}"
+            )
+    return "\n".join(lines)
+
+
+def ruled(header: str) -> list[str]:
+    """A table's header and the rule under it."""
+    return [header, "-" * len(header)]
+
+
+def _per_run(study: Study, columns: str, cells: Callable[[StrategyRun], str]) -> list[str]:
+    """A table of the study's runs, ruled under its header: each run's segment and strategy,
+    then ``columns`` filled by ``cells(run)``."""
+    names = _segment_width(study)
+    lines = ruled(f"{'segment':<{names}}{'strategy':<36}{columns}")
+    return lines + [f"{run.segment:<{names}}{run.strategy:<36}{cells(run)}" for run in study.runs]
+
+
+def _segment_width(study: Study) -> int:
+    """The width of the tables' segment column."""
+    return max(8, *(len(s.name) + 2 for s in study.cycle.segments))
+
+
+def convergence(bound: Refined) -> str:
+    """A bound's convergence in words: whether it converged, and how much the last refinement
+    of its grid moved it."""
+    change = "-" if bound.change is None else f"{100 * bound.change:.2f} %"
+    return f"{'converged' if bound.converged else 'NOT converged'}, change {change}"
+
+
+def cycle_table(study: CycleStudy) -> str:
+    """The cycle study: the plan, the corners, the repetitions, the price."""
+    plan, held = study.plan, study.held
+    unit, label = study.objective.unit, study.objective.label
+    route = " → ".join(s.name for s in study.cycle.segments)
+    lines = [
+        f"work cycle {study.cycle.name!r}: {route} ({study.cycle.duration:.2f} s), "
+        f"{study.objective.name} objective, held {', '.join(held)}"
+    ]
+    search = plan.search
+    if search.best is None:
+        closest = search.closest_violation
+        lines.append(
+            "whole-cycle improved start: none keeps every stroke over the cycle"
+            + (f"; closest: {closest}" if closest else "")
+        )
+    else:
+        box = search.feasible_box
+        span = ", ".join(f"[{lo:.4g}, {hi:.4g}]" for lo, hi in box)  # type: ignore[union-attr]
+        lines.append(
+            f"whole-cycle improved start: {named_values(held, search.best.values)} "
+            f"(feasible {span}), peak {label} {search.best_peak:.5g} {unit} "
+            f"({search.simulations} motions)"
+        )
+    starts = [
+        "none" if s.best is None else ",".join(f"{v:.4g}" for v in s.best.values)
+        for s in plan.segments
+    ]
+    peaks = [peak for s in plan.segments if (peak := s.best_peak) is not None]
+    lines.append(
+        f"per-segment plan: best starts {' / '.join(starts)}"
+        + (f", peak {label} {max(peaks):.5g} {unit}" if peaks else "")
+        + ", with a self-motion at every corner:"
+    )
+    names = list(study.robot.actuators.names)
+    header = f"  {'corner':<18}" + "".join(f"{'Δ' + n:>10}" for n in names)
+    lines.append(header + f"{'time s':>9}  self-motion")
+    state = {True: "keeps the strokes", False: "passes a stroke", None: "-"}
+    for corner in plan.corners:
+        delta = corner.delta
+        row = f"  {corner.after + ' → ' + corner.before:<18}"
+        if delta is None:
+            lines.append(row + f"  {corner.reason}")
+            continue
+        row += "".join(f"{d:>10.4f}" for d in delta)
+        lines.append(row + f"{corner.time:>9.2f}  {corner.reason or state[corner.within_limits]}")
+    if plan.gap_time is not None and plan.corners:
+        lines.append(
+            f"  the self-motions add {plan.gap_time:.2f} s per cycle, the held actuator at "
+            f"{plan.corners[0].speed:g} m/s"
+        )
+    lines += ["", _repetition_table(study)]
+    price = study.price()
+    if price is not None:
+        free, periodic = study.costs["free"].figures(), study.costs["periodic"].figures()
+        parts = [
+            f"peak {label} {free['objective']:.5g} → {periodic['objective']:.5g} {unit} "
+            f"({price['objective']:+.1f} %)"
+        ]
+        for key, name in (("ls_energy_kj", "LS"), ("cp_energy_kj", "CP")):
+            if key in price:
+                parts.append(
+                    f"{name} pump energy {free[key]:.2f} → {periodic[key]:.2f} kJ "
+                    f"({price[key]:+.1f} %)"
+                )
+        lines.append("drift-free against the free improved cycle: " + "; ".join(parts))
+    if study.map is not None:
+        lines.append(
+            f"return map of {study.map.held} at the cycle's start: {fixed_point_words(study.map)}"
+        )
+    lines += [f"{name}: {reason}" for name, reason in study.failures.items()]
+    return "\n".join(lines)
+
+
+def _repetition_table(study: CycleStudy) -> str:
+    header = (
+        f"{'strategy':<34}{'cycles':>7}{'drift/cycle: first':>20}{'last':>11}"
+        f"{'tool drift':>12}  first stroke passed; settling"
+    )
+    lines = ruled(header)
+    for name, repetition in study.repetitions.items():
+        largest = np.abs(repetition.drift).max(axis=1)
+        first = repetition.first_violation
+        passed = "none" if first is None else f"cycle {first[0]}: {first[1]}"
+        lines.append(
+            f"{NAMES[name]:<34}{repetition.cycles:>7}{largest[0]:>20.3g}{largest[-1]:>11.3g}"
+            f"{repetition.tool_drift.max():>12.3g}  {passed}; "
+            f"{settling_words(repetition.settling)}"
+        )
+    return "\n".join(lines)
+
+
+def fixed_point_words(mapped: ReturnMap) -> str:
+    """The return map's limit cycles in words."""
+    found = mapped.fixed_points
+    if not found:
+        return "no fixed point over the reachable stroke"
+    return "; ".join(
+        f"limit cycle at {point.value:.5g} (P' = {point.slope:.3g}, "
+        f"{'stable' if point.stable else 'unstable'}"
+        + ("" if point.keeps_the_strokes else ", its cycle passes a stroke")
+        + ")"
+        for point in found
+    )
+
+
+def check_table(found: Check) -> str:
+    """The one-screen check of a robot: lengths in mm, angles in degrees."""
+    robot = found.robot
+    lines = [f"{robot.name}: n = {robot.n}, m = {robot.m} (task {robot.task_axes})", "joints:"]
+    for name, lo, hi, rotary in zip(
+        robot.joint_names, robot.lower, robot.upper, robot.rotary_joints
+    ):
+        lines.append(f"  {name:<20} {span(lo, hi, 'rad' if rotary else 'm')}")
+    lines.append("actuators (values over the joint's range against the stroke):")
+    for a in found.actuators:
+        unit = "rad" if a.rotary else "m"
+        verdict = (
+            "UNREACHABLE"
+            if a.unreachable
+            else ("MISMATCH: a stroke end is not reached" if a.mismatch else "ok")
+        )
+        lines.append(
+            f"  {a.name:<8} on {a.joint:<18} reaches {span(*a.reached, unit)}, "
+            f"stroke {span(*a.stroke, unit)}: {verdict}"
+        )
+        for value, x in zip(a.singular, a.singular_x):
+            inside = a.stroke[0] <= x <= a.stroke[1]
+            lines.append(
+                f"    A singular at {a.joint} = {a.joint_value(value)} ({a.name} = "
+                f"{amount(x, unit)}, {'inside' if inside else 'outside'} the stroke): its "
+                "line passes through the joint axis"
+            )
+    if robot.kinematic_only:
+        lines.append(
+            f"masses: none on {', '.join(robot.massless_links)} (kinematic only: the "
+            "velocity objective, play and check work; the energy objective refuses)"
+        )
+    else:
+        total = sum(inertia.mass for inertia in robot.model.inertias)
+        lines.append(f"masses: on every link, {total:.1f} kg in all")
+    lines.append(
+        "meshes: "
+        + (
+            f"not found: {', '.join(robot.missing_meshes)} (drawn as rods)"
+            if robot.missing_meshes
+            else "every mesh found"
+        )
+    )
+    if found.points is not None:
+        lines.append("task points:")
+        lines += [
+            f"  {p.tolist()}: {'reached' if ok else 'NOT reached'}"
+            for p, ok in zip(found.points, found.reached)
+        ]
+    problems = found.blocking()
+    lines.append(
+        "ready for a study"
+        if not problems
+        else f"{len(problems)} problems block a study: " + "; ".join(problems)
+    )
+    return "\n".join(lines)
