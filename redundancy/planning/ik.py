@@ -68,28 +68,50 @@ class _Passes:
     """[y(q); x_h(q)] (m + r,) and [J; A_h] (m + r, n) of every configuration one Newton run
     met, from the frames of the task and the held actuators only, each evaluated once: Newton
     sends many targets from the same seeds, and rows the clip drives into a corner of the joint
-    box meet there again and again."""
+    box meet there again and again. Configurations are found again by a hash of their bits
+    (sorted, for a binary search) and compared in full."""
 
     def __init__(self, robot: Robot, rows: list[int]):
         self.robot, self.held = robot, robot.actuators.part(rows)
-        self.known: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+        self.mix = np.random.default_rng(0).integers(1, 2**62, robot.n) | 1  # odd multipliers
+        self.codes = np.zeros(0, dtype=np.int64)  # sorted
+        self.q = np.zeros((0, robot.n))
+        self.values = np.zeros((0, robot.m + len(rows)))
+        self.jacobians = np.zeros((0, robot.m + len(rows), robot.n))
+
+    def _found(self, q: np.ndarray, codes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Where each of q (k, n) is among the known configurations, and whether it is."""
+        at = np.minimum(np.searchsorted(self.codes, codes), max(len(self.codes) - 1, 0))
+        if not len(self.codes):
+            return at, np.zeros(len(q), dtype=bool)
+        return at, (self.codes[at] == codes) & np.all(self.q[at] == q, axis=1)
+
+    def _evaluated(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """[y(q); x_h(q)] (k, m + r) and [J; A_h] (k, m + r, n) by one pass."""
+        kinematics = self.robot.kinematics(q, actuators=self.held)
+        x, A = self.held.evaluate(kinematics)
+        y, J = self.robot.task_point(kinematics)
+        return np.concatenate([y, x], axis=1), np.concatenate([J, A], axis=1)
 
     def residual(self, q: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """[y(q); x_h(q)] − target (k, m + r) and its Jacobian [J; A_h] (k, m + r, n)."""
-        keys = [row.tobytes() for row in q]
-        new = [i for i, key in enumerate(dict.fromkeys(keys)) if key not in self.known]
-        if new:
-            fresh = np.array([np.frombuffer(key) for key in dict.fromkeys(keys)])[new]
-            kinematics = self.robot.kinematics(fresh, actuators=self.held)
-            x, A = self.held.evaluate(kinematics)
-            y, J = self.robot.task_point(kinematics)
-            values, jacobians = np.concatenate([y, x], axis=1), np.concatenate([J, A], axis=1)
-            for row, value, jacobian in zip(fresh, values, jacobians):
-                self.known[row.tobytes()] = value, jacobian
-        size, n = target.shape[1], self.robot.n
-        values = np.array([self.known[key][0] for key in keys]).reshape(len(q), size)
-        jacobians = np.array([self.known[key][1] for key in keys]).reshape(len(q), size, n)
-        return values - target, jacobians
+        q = np.ascontiguousarray(q)
+        codes = q.view(np.int64) @ self.mix  # wraps around: a hash
+        at, known = self._found(q, codes)
+        if not known.all():
+            _, first = np.unique(codes[~known], return_index=True)
+            fresh = q[~known][first]
+            values, jacobians = self._evaluated(fresh)
+            codes_now = np.concatenate([self.codes, codes[~known][first]])
+            order = np.argsort(codes_now, kind="stable")
+            self.codes, self.q = codes_now[order], np.concatenate([self.q, fresh])[order]
+            self.values = np.concatenate([self.values, values])[order]
+            self.jacobians = np.concatenate([self.jacobians, jacobians])[order]
+            at, known = self._found(q, codes)
+        if not known.all():  # two configurations of one hash: this batch as it comes
+            values, jacobians = self._evaluated(q)
+            return values - target, jacobians
+        return self.values[at] - target, self.jacobians[at]
 
 
 def newton(
