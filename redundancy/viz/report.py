@@ -16,8 +16,6 @@ from collections.abc import Iterable
 from fnmatch import fnmatch
 from pathlib import Path
 
-import pandas as pd
-
 from redundancy.resolution.objectives import OBJECTIVES
 from redundancy.study.output import write_atomically
 
@@ -168,6 +166,8 @@ def _range(pair) -> str:
 
 def _table(rows: list[dict], caption: str = "") -> str:
     """A table whose column names carry their units; cells are formatted already."""
+    import pandas as pd  # where used: the command loads it only when it writes a page
+
     if not rows:
         return ""
     frame = pd.DataFrame(rows).fillna("–")
