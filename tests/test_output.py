@@ -285,8 +285,7 @@ def test_signals_during_the_swap_wait_for_its_end():
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)  # as in the foreground
     try:
         with pytest.raises(KeyboardInterrupt), deferred():
-            os.kill(os.getpid(), signal.SIGINT)
-            time.sleep(0.05)
+            signal.raise_signal(signal.SIGINT)  # in this thread: handled before the next line
             finished = True  # not interrupted inside the block
     finally:
         signal.signal(signal.SIGINT, previous)
