@@ -1,9 +1,10 @@
 """The ``redundancy`` command line.
 
 Every failure a user can cause ends in one line on stderr naming the problem, and exit status 2;
-an interrupt ends with status 130, a termination (SIGTERM) with 143, anything else (a bug) with
-one "internal error" line and status 1. None prints a traceback. The study's outputs appear all
-together or not at all (`redundancy.study.output`).
+an interrupt ends with status 130, a termination (SIGTERM) with 143 (`redundancy.study.signals`),
+anything else (a bug) with one "internal error" line and status 1. None prints a traceback. The
+outputs appear all together or not at all (`redundancy.study.output`). Progress bars are drawn
+only on a terminal.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ import warnings
 from collections.abc import Callable
 from dataclasses import replace
 from functools import partial
+from importlib.metadata import version
 from pathlib import Path
 
 import numpy as np
@@ -50,6 +52,7 @@ from redundancy.study.cycles import CHOICES, run_cycle, write_cycle_report
 from redundancy.study.families import read_family
 from redundancy.study.maps import CONNECT_TIMEOUT, connect, design_map, summary
 from redundancy.study.output import OutputFolder, writable, write_atomically
+from redundancy.study.signals import Terminated, caught, ending, received
 from redundancy.study.study import STUDY_CYCLES, cycle_section, run_study, write_report
 from redundancy.viz.map_figures import write_map_figures
 from redundancy.viz.playback import (
@@ -63,20 +66,6 @@ from redundancy.viz.plots import write_cycle_figures, write_figures
 from redundancy.viz.report import write_index
 from redundancy.viz.server import LOCALHOST
 from redundancy.viz.tables import check_table, cycle_table, study_table
-
-
-def _add_robot_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument(
-        "--robot", default="hiab031", help="bundled robot name, or path of a robot.toml or .urdf"
-    )
-    parser.add_argument(
-        "--payload", type=payload_mass, default=None, help="payload at the tool, kg (robot default)"
-    )
-    parser.add_argument(
-        "--hydraulics",
-        metavar="FILE",
-        help="TOML file with a [hydraulics] table (default: the robot's own, if any)",
-    )
 
 
 def describe(robot: Robot) -> str:
@@ -112,7 +101,7 @@ def describe(robot: Robot) -> str:
 
 
 def _describe_command(args: argparse.Namespace) -> None:
-    print(describe(load_robot(args.robot, payload=args.payload, hydraulics=args.hydraulics)))
+    print(describe(_robot(args)))
 
 
 def argument(convert: Callable[[str], float], accept: Callable[[float], bool], phrase: str):
@@ -171,6 +160,20 @@ class OneLineParser(argparse.ArgumentParser):
         sys.exit(2)
 
 
+class Help(argparse.RawDescriptionHelpFormatter, argparse.ArgumentDefaultsHelpFormatter):
+    """Help that shows each option's default (where it has one) and the example as written."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        if action.default in (None, False) or "default" in (action.help or ""):
+            return action.help
+        return super()._get_help_string(action)
+
+
+def _robot(args: argparse.Namespace) -> Robot:
+    """The robot of the options --robot, --payload and --hydraulics."""
+    return load_robot(args.robot, payload=args.payload, hydraulics=args.hydraulics)
+
+
 def _load_task(robot: Robot, path: str | None) -> tuple[Robot, WorkCycle]:
     """The task file's work cycle and the robot it is read on (with the tool's angle as a task
     coordinate where the task asks for it)."""
@@ -198,11 +201,8 @@ def _study_command(args: argparse.Namespace) -> None:
     from tqdm import tqdm
 
     with OutputFolder(args.out) as out:  # committed only if everything below succeeds
-        report = out / "report.json"
-        if args.json is not None:
-            report = out.beside(Path(args.json), "--json")
-        robot = load_robot(args.robot, payload=args.payload, hydraulics=args.hydraulics)
-        robot, cycle = _load_task(robot, args.task)
+        report = _report(out, args)
+        robot, cycle = _load_task(_robot(args), args.task)
         chosen = ("velocity", "energy") if args.objective == "both" else (args.objective,)
         objectives = tuple(objective(name) for name in chosen)
         checked = _checked(robot, args.check)
@@ -219,7 +219,7 @@ def _study_command(args: argparse.Namespace) -> None:
                 cycle,
                 objectives,
                 **options,
-                progress=not args.quiet,
+                progress=args.progress,
                 energy_bound=args.energy_bound,
                 cycles=0,
             )
@@ -227,7 +227,7 @@ def _study_command(args: argparse.Namespace) -> None:
             playbacks = write_playbacks(study, out.staging)
             for run in study.runs:  # each run's figures for the table and report, kept by the
                 run.summary()  # run: computed while the cycle section still runs, not after
-            with tqdm(total=1, desc="cycle section", disable=args.quiet) as waiting:
+            with tqdm(total=1, desc="cycle section", disable=not args.progress) as waiting:
                 cycle_study, skipped, cycle_figures, cycle_playbacks = pending.result()
                 waiting.update()
         study = replace(study, cycle_study=cycle_study, cycle_skipped=skipped)
@@ -236,6 +236,16 @@ def _study_command(args: argparse.Namespace) -> None:
         write_index(out.staging, report)
         figures = [out.final(p) for p in figures + cycle_figures]
         playbacks = [out.final(p) for p in playbacks + cycle_playbacks]
+    _written(out, args, figures, playbacks)
+
+
+def _report(out: OutputFolder, args: argparse.Namespace) -> Path:
+    """Where the report is written: ``--json``, or report.json in the output folder."""
+    return out / "report.json" if args.json is None else out.beside(Path(args.json), "--json")
+
+
+def _written(out: OutputFolder, args, figures: list[Path], playbacks: list[Path]) -> None:
+    """What the run wrote, a line for the report, the figures and the playback pages."""
     print(f"report: {args.json or out.target / 'report.json'}")
     print(f"figures: {', '.join(str(p) for p in figures)}")
     print(f"playbacks: {', '.join(str(p) for p in playbacks)}")
@@ -318,8 +328,7 @@ def _held(names, values) -> str:
 
 def _play_command(args: argparse.Namespace) -> None:
     html = None if args.html is None else writable(args.html, "--html")
-    robot = load_robot(args.robot, payload=args.payload, hydraulics=args.hydraulics)
-    robot, cycle = _load_task(robot, args.task)
+    robot, cycle = _load_task(_robot(args), args.task)
     segment = cycle[args.segment] if args.segment else cycle.segments[0]
     chosen = objective(args.objective)
     check_path(robot, segment)
@@ -348,7 +357,7 @@ def _map_command(args: argparse.Namespace) -> None:
         store = target.parent / f".{target.name}.chunks"  # finished chunks, kept for a rerun
         client = None if args.scheduler is None else connect(args.scheduler, args.timeout)
         try:
-            table = design_map(family, client, args.workers, store, progress=not args.quiet)
+            table = design_map(family, client, args.workers, store, progress=args.progress)
         finally:
             if client is not None:
                 client.close()
@@ -371,7 +380,7 @@ def _map_command(args: argparse.Namespace) -> None:
 def _check_command(args: argparse.Namespace) -> int:
     """The one-screen check of a robot (and its task); status 2 where something blocks a
     study."""
-    robot = load_robot(args.robot, payload=args.payload, hydraulics=args.hydraulics)
+    robot = _robot(args)
     cycle = None
     if args.task is not None or robot.task_file is not None:
         robot, cycle = _load_task(robot, args.task)
@@ -382,11 +391,8 @@ def _check_command(args: argparse.Namespace) -> int:
 
 def _cycle_command(args: argparse.Namespace) -> None:
     with OutputFolder(args.out) as out:  # committed only if everything below succeeds
-        report = out / "report.json"
-        if args.json is not None:
-            report = out.beside(Path(args.json), "--json")
-        robot = load_robot(args.robot, payload=args.payload, hydraulics=args.hydraulics)
-        robot, cycle = _load_task(robot, args.task)
+        report = _report(out, args)
+        robot, cycle = _load_task(_robot(args), args.task)
         checked = _checked(robot, args.check)
         study = run_cycle(
             robot,
@@ -399,16 +405,14 @@ def _cycle_command(args: argparse.Namespace) -> None:
             method=args.method,
             circuit=args.circuit_limits,
             speed=args.gap_speed,
-            progress=not args.quiet,
+            progress=args.progress,
         )
         print(cycle_table(study))
         write_cycle_report(study, report)
         figures = [out.final(p) for p in write_cycle_figures(study, out.staging)]
         playbacks = [out.final(p) for p in write_cycle_playbacks(study, out.staging)]
         write_index(out.staging, report)
-    print(f"report: {args.json or out.target / 'report.json'}")
-    print(f"figures: {', '.join(str(p) for p in figures)}")
-    print(f"playbacks: {', '.join(str(p) for p in playbacks)}")
+    _written(out, args, figures, playbacks)
 
 
 def _robots_command(args: argparse.Namespace) -> None:
@@ -419,43 +423,73 @@ def _robots_command(args: argparse.Namespace) -> None:
 
 
 def parser() -> argparse.ArgumentParser:
+    robot = argparse.ArgumentParser(add_help=False)  # options shared by several commands
+    robot.add_argument("--robot", default="hiab031", help="bundled robot, or robot.toml or .urdf")
+    robot.add_argument("--payload", type=payload_mass, help="payload at the tool, kg (robot's)")
+    robot.add_argument(
+        "--hydraulics", metavar="FILE", help="TOML file with a [hydraulics] table (robot's own)"
+    )
+    task = argparse.ArgumentParser(add_help=False)
+    task.add_argument("--task", help="task file (TOML); default: the robot's own")
+    search = argparse.ArgumentParser(add_help=False)
+    search.add_argument("--samples", type=sample_count, default=100, help="starts per sweep")
+    search.add_argument(
+        "--method",
+        choices=METHODS,
+        help="the improved start's search: fast (default, one held actuator) or the paper's "
+        "uniform sweep",
+    )
+    search.add_argument(
+        "--check", help="comma-separated actuators whose limits count (all; the paper: x1,x2)"
+    )
+    search.add_argument(
+        "--circuit-limits",
+        action="store_true",
+        help="the hydraulic circuit's limits (pressure, pump flow, speeds) count like strokes",
+    )
+    written = argparse.ArgumentParser(add_help=False)
+    written.add_argument("--json", help="report path (default: OUT/report.json)")
+    written.add_argument("--quiet", action="store_true", help="no progress bar")
     main = OneLineParser(
         prog="redundancy",
         description="Redundancy resolution of hydraulic manipulators in actuator coordinates.",
     )
+    main.add_argument("--version", action="version", version=f"%(prog)s {version('redundancy')}")
     commands = main.add_subparsers(dest="command", required=True)
-    describe_parser = commands.add_parser("describe", help="summarise a robot")
-    _add_robot_options(describe_parser)
-    describe_parser.set_defaults(run=_describe_command)
-    commands.add_parser("robots", help="list the bundled robots").set_defaults(run=_robots_command)
-    check_parser = commands.add_parser(
-        "check", help="check a new robot for a study: strokes, singular A, masses, meshes, task"
+
+    def command(name, run, help, example, parents=()) -> argparse.ArgumentParser:
+        found = commands.add_parser(
+            name,
+            help=help,
+            description=help,
+            parents=parents,
+            formatter_class=Help,
+            epilog=f"example:\n  redundancy {name} {example}".rstrip(),
+        )
+        found.set_defaults(run=run)
+        return found
+
+    command("robots", _robots_command, "list the bundled robots", "")
+    command("describe", _describe_command, "summarise a robot", "--robot excavator", [robot])
+    command(
+        "check",
+        _check_command,
+        "check a new robot for a study: strokes, singular A, masses, meshes, task",
+        "--robot path/to/robot.toml",
+        [robot, task],
     )
-    _add_robot_options(check_parser)
-    check_parser.add_argument("--task", help="task file (TOML); default: the robot's own, if any")
-    check_parser.set_defaults(run=_check_command)
-    study = commands.add_parser(
-        "study", help="the paper's study: improved initial configurations and strategies compared"
+    study = command(
+        "study",
+        _study_command,
+        "the paper's study: improved initial configurations and strategies compared",
+        "--objective velocity --check x1,x2 --out results",
+        [robot, task, search, written],
     )
-    _add_robot_options(study)
-    study.add_argument("--task", help="task file (TOML); default: the robot's own")
     study.add_argument(
         "--objective",
         choices=[*OBJECTIVES, "both"],
         default="both",
         help="what to minimise; both: the paper's velocity and energy",
-    )
-    study.add_argument("--samples", type=sample_count, default=100, help="starts per sweep")
-    study.add_argument(
-        "--method",
-        choices=METHODS,
-        default=None,
-        help="the improved start's search: fast (default, one held actuator) or the paper's "
-        "uniform sweep",
-    )
-    study.add_argument(
-        "--check",
-        help="comma-separated actuators whose limits count (default: all; the paper: x1,x2)",
     )
     study.add_argument(
         "--energy-bound",
@@ -463,26 +497,19 @@ def parser() -> argparse.ArgumentParser:
         help="also the energy bound of each segment under LS and CP (seconds per segment)",
     )
     study.add_argument(
-        "--circuit-limits",
-        action="store_true",
-        help="the hydraulic circuit's limits (pressure, pump flow, speeds) count like strokes",
-    )
-    study.add_argument(
         "--cycles",
         type=cycle_count,
         default=STUDY_CYCLES,
-        help=f"the cycle section repeats the task this many times (default {STUDY_CYCLES}; 0: no "
-        "cycle section)",
+        help="the cycle section repeats the task this many times (0: no cycle section)",
     )
     study.add_argument("--out", default="results", help="output folder (figures, report)")
-    study.add_argument("--json", help="report path (default: OUT/report.json)")
-    study.add_argument("--quiet", action="store_true", help="no progress bar")
-    study.set_defaults(run=_study_command)
-    play = commands.add_parser(
-        "play", help="play one motion in meshcat: live in a browser, or as an HTML page"
+    play = command(
+        "play",
+        _play_command,
+        "play one motion in meshcat: live in a browser, or as an HTML page",
+        "--segment 1-2 --best",
+        [robot, task],
     )
-    _add_robot_options(play)
-    play.add_argument("--task", help="task file (TOML); default: the robot's own")
     play.add_argument("--segment", help="segment to play (default: the task's first)")
     play.add_argument(
         "--objective", choices=list(OBJECTIVES), default="velocity", help="what to minimise"
@@ -512,14 +539,17 @@ def parser() -> argparse.ArgumentParser:
         metavar="ADDRESS",
         type=listen_address,
         default=LOCALHOST,
-        help="serve the page on ADDRESS (default 127.0.0.1, this machine only; 0.0.0.0 opens it "
-        "to every network this machine is on)",
+        help="serve the page on ADDRESS (this machine only; 0.0.0.0 opens it to every network "
+        "this machine is on)",
     )
-    play.set_defaults(run=_play_command)
-    design = commands.add_parser(
-        "map", help="a design map: a family of planning problems solved on Dask, to Parquet"
+    design = command(
+        "map",
+        _map_command,
+        "a design map: a family of planning problems solved on Dask, to Parquet",
+        "workspace.toml --workers 2",
     )
     design.add_argument("family", help="map file (TOML; schema in the README)")
+    design.add_argument("--quiet", action="store_true", help="no progress bar")
     where = design.add_mutually_exclusive_group()
     where.add_argument(
         "--workers", type=worker_count, help="local worker processes (default: the core count)"
@@ -531,74 +561,46 @@ def parser() -> argparse.ArgumentParser:
         "--timeout",
         type=seconds,
         default=CONNECT_TIMEOUT,
-        help=f"seconds the scheduler has to answer (default {CONNECT_TIMEOUT:g})",
+        help="seconds the scheduler has to answer",
     )
     design.add_argument("--out", help="output folder (default: maps/<map file name>)")
-    design.add_argument("--quiet", action="store_true", help="no progress bar")
-    design.set_defaults(run=_map_command)
-    cycle = commands.add_parser(
-        "cycle", help="the work cycle as a machine runs it: whole-cycle plan, repetition, drift"
+    cycle = command(
+        "cycle",
+        _cycle_command,
+        "the work cycle as a machine runs it: whole-cycle plan, repetition, drift",
+        "--strategy periodic --cycles 50",
+        [robot, task, search, written],
     )
-    _add_robot_options(cycle)
-    cycle.add_argument("--task", help="task file (TOML); default: the robot's own")
     cycle.add_argument(
         "--cycles",
         type=repetition_count,
         default=CYCLES,
-        help=f"cycles run one after another (default {CYCLES})",
+        help="cycles run one after another",
     )
     cycle.add_argument(
         "--strategy",
         choices=CHOICES,
         default="both",
         help="free: the objective's law from the whole-cycle improved start; periodic: the "
-        "drift-free periodic optimum; both (default)",
+        "drift-free periodic optimum",
     )
     cycle.add_argument(
         "--objective", choices=list(OBJECTIVES), default="velocity", help="what to minimise"
     )
-    cycle.add_argument("--samples", type=sample_count, default=100, help="starts per sweep")
-    cycle.add_argument(
-        "--method", choices=METHODS, default=None, help="the improved starts' search"
-    )
-    cycle.add_argument(
-        "--check", help="comma-separated actuators whose limits count (default: all)"
-    )
-    cycle.add_argument(
-        "--circuit-limits",
-        action="store_true",
-        help="the hydraulic circuit's limits (pressure, pump flow, speeds) count like strokes",
-    )
     cycle.add_argument(
         "--gap-speed",
         type=speed_value,
-        default=None,
         metavar="V",
         help="the held actuator's speed in the corners' self-motions, m/s or rad/s (default: "
         "its cylinder's maximum, else 0.1)",
     )
     cycle.add_argument("--out", default="cycle_results", help="output folder")
-    cycle.add_argument("--json", help="report path (default: OUT/report.json)")
-    cycle.add_argument("--quiet", action="store_true", help="no progress bar")
-    cycle.set_defaults(run=_cycle_command)
     return main
 
 
 def _note(message, category, filename, lineno, file=None, line=None) -> None:
     """Warnings (e.g. joints driven directly for want of declarations) as one line each."""
     print(f"redundancy: note: {message}", file=sys.stderr)
-
-
-class Terminated(BaseException):
-    """SIGTERM, raised where the program is so that clean-ups run as for Ctrl-C."""
-
-
-_signalled: list[int] = []  # the signals received, whatever a library made of their exceptions
-
-
-def _interrupt(number, frame) -> None:
-    _signalled.append(number)
-    raise Terminated if number == signal.SIGTERM else KeyboardInterrupt
 
 
 class _Output:
@@ -634,50 +636,44 @@ class _Output:
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; exit status 0, 2 for a user's error (one line), 130 / 143 when
     interrupted / terminated, 1 for an internal error (one line with the exception's type)."""
+    if sys.stdout is None:  # started with its standard output closed (``>&-``)
+        print(
+            "redundancy: error: standard output is closed; give it a file or /dev/null",
+            file=sys.stderr,
+        )
+        return 2
+    for stream in (sys.stdout, sys.stderr):  # a terminal that cannot show m², ±, ẋ: a '?'
+        stream.reconfigure(errors="replace")  # type: ignore[union-attr]
     args = parser().parse_args(argv)
+    args.progress = not getattr(args, "quiet", True) and sys.stderr.isatty()
     warnings.showwarning = _note
-    _signalled.clear()
-    # a Ctrl-C meant for a foreground job leaves a background one (SIGINT ignored) running;
-    # play's loop is stopped by it all the same
-    numbers = [signal.SIGTERM]
-    if args.run is _play_command or signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:
-        numbers.append(signal.SIGINT)
-    previous = {n: signal.signal(n, _interrupt) for n in numbers}
     stdout, sys.stdout = sys.stdout, _Output(sys.stdout)
-    unraisable, sys.unraisablehook = sys.unraisablehook, _unraisable
     try:
-        # the toolkit's matrices are stacks of n × n with n ≤ 7: BLAS threads never speed
-        # them up, and their spinning takes the core the study's second process needs
-        with threadpool_limits(limits=1, user_api="blas"):
-            status = args.run(args)  # a command may end with a status of its own (check: 2)
-        sys.stdout.flush()
-        if _signalled:  # raised where Python could only ignore it (a weakref callback)
-            raise KeyboardInterrupt
+        # play's loop is stopped by Ctrl-C even where the shell started it as a background job
+        with caught(interrupt=args.run is _play_command):
+            # the toolkit's matrices are stacks of n × n with n ≤ 7: BLAS threads never speed
+            # them up, and their spinning takes the core the study's second process needs
+            with threadpool_limits(limits=1, user_api="blas"):
+                status = args.run(args)  # a command may end with a status of its own (check: 2)
+            sys.stdout.flush()
+            if received:  # raised where Python could only ignore it (a weakref callback)
+                raise KeyboardInterrupt
     except BaseException as error:
         return _ending(error)
     finally:
-        sys.stdout, sys.unraisablehook = stdout, unraisable
-        for number, handler in previous.items():
-            signal.signal(number, handler)
+        sys.stdout = stdout
     return status or 0
-
-
-def _unraisable(report) -> None:
-    """Python's report of an exception it had to ignore, silenced for the signals' own: where
-    `_interrupt` raised inside a callback (a weakref's, a finaliser), the signal stays noted
-    in `_signalled`, and `main` ends with it."""
-    if not isinstance(report.exc_value, KeyboardInterrupt | Terminated):
-        sys.__unraisablehook__(report)
 
 
 def _ending(error: BaseException) -> int:
     """The one line and the exit status for an exception that reached the command line. A
     signal decides, even where a library turned its exception into another (an import cut
     short ends in ImportError)."""
-    if _signalled or isinstance(error, KeyboardInterrupt | Terminated):
-        terminated = (_signalled or [0])[-1] == signal.SIGTERM or isinstance(error, Terminated)
-        print(f"redundancy: {'terminated' if terminated else 'interrupted'}", file=sys.stderr)
-        return 143 if terminated else 130
+    if received or isinstance(error, KeyboardInterrupt | Terminated):
+        number = signal.SIGTERM if isinstance(error, Terminated) else signal.SIGINT
+        word, status = ending(received[-1] if received else number)
+        print(f"redundancy: {word}", file=sys.stderr)
+        return status
     if isinstance(error, RedundancyError):
         print(f"redundancy: error: {error}", file=sys.stderr)
         return 2

@@ -152,7 +152,8 @@ def test_an_interrupted_map_keeps_its_finished_chunks_and_solves_only_the_rest(t
     kept = {p.name: p.stat() for p in store.glob("chunk-*.parquet")}
     assert 3 <= len(kept) < 24, "the run must be cut short after its first chunks"
 
-    rerun = run_cli("map", str(family), "--workers", "1", "--out", str(tmp_path / "out"))
+    out = str(tmp_path / "out")
+    rerun = run_cli("map", str(family), "--workers", "1", "--out", out, terminal=True)
     assert rerun.returncode == 0, rerun.stderr
     assert not store.exists()
     # the kept chunks were read, not solved again: the progress bar starts at their count

@@ -1,12 +1,15 @@
-"""All-or-nothing output: interrupted, failed and concurrent runs leave one complete output."""
+"""All-or-nothing output: interrupted, killed, failed and concurrent runs leave one complete
+output, and nothing the toolkit did not write is lost."""
 
 import hashlib
 import json
 import os
+import random
 import signal
 import subprocess
 import sys
 import time
+import warnings
 import weakref
 from pathlib import Path
 
@@ -14,7 +17,9 @@ import pytest
 from commands import run_cli
 
 from redundancy.errors import InvalidInputError
+from redundancy.study import output
 from redundancy.study.output import MARKER, OutputFolder, writable
+from redundancy.study.signals import deferred
 
 STUDY = ("study", "--objective", "velocity", "--cycles", "0", "--samples", "3", "--quiet")
 
@@ -75,17 +80,26 @@ def test_a_folder_of_other_files_is_refused_not_replaced(tmp_path):
     assert (tmp_path / "thesis.tex").read_text() == "mine"
 
 
+NO_ROBOT = ("--robot", "no-such-robot")  # a study that fails as soon as it loads the robot
+
+
 def test_unwritable_paths_fail_before_any_computing(tmp_path):
+    """The paths are checked before the robot is even loaded: the error names the path."""
     blocker = tmp_path / "plain"
     blocker.write_text("")
     for option in ("--out", "--json"):
         path = blocker / "below" / ("report.json" if option == "--json" else "out")
-        start = time.monotonic()
-        run = run_cli("study", option, str(path))
+        run = run_cli("study", *NO_ROBOT, option, str(path))
         assert run.returncode == 2 and "Traceback" not in run.stderr
         assert run.stderr.count("\n") == 1
         assert f"{option} {path}: {blocker} is a file, not a folder" in run.stderr
-        assert time.monotonic() - start < 3.0  # no study was run
+    long = tmp_path / ("a" * 300)
+    run = run_cli("study", *NO_ROBOT, "--out", str(long))
+    assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
+    assert "cannot write there (File name too long)" in run.stderr
+    run = run_cli("study", *NO_ROBOT, "--out", "/sys/out")  # read-only, even for root
+    assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
+    assert "--out /sys/out: cannot write there" in run.stderr
     run = run_cli("play", "--html", str(blocker / "page.html" / "x"))
     assert run.returncode == 2 and "--html" in run.stderr and run.stderr.count("\n") == 1
 
@@ -118,11 +132,9 @@ def test_devices_and_pipes_are_refused_and_links_followed(tmp_path):
 def test_a_report_overlapping_the_output_folder_is_refused_before_any_computing(
     tmp_path, json, out
 ):
-    start = time.monotonic()
-    run = run_cli(*STUDY, "--out", out, "--json", json, cwd=tmp_path)
+    run = run_cli(*STUDY, *NO_ROBOT, "--out", out, "--json", json, cwd=tmp_path)
     assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
     assert f"--json {json} overlaps --out {out}" in run.stderr
-    assert time.monotonic() - start < 3.0  # no study was run
     assert list(tmp_path.iterdir()) == []
 
 
@@ -133,7 +145,7 @@ def test_a_reader_that_goes_away_stops_nothing(tmp_path):
         read, write = os.pipe()
         os.close(read)  # the reader is gone before the first line
         process = subprocess.run(
-            [sys.executable, "-m", "redundancy.cli", *command],
+            [sys.executable, "-m", "redundancy", *command],
             stdout=write,
             stderr=subprocess.PIPE,
             text=True,
@@ -150,12 +162,21 @@ def _foreground() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
+def handles_sigterm(pid: int) -> bool:
+    """Whether the process ``pid`` has a handler of its own for SIGTERM (the command installs
+    its handlers first thing, before it imports numpy, Pinocchio and the rest)."""
+    status = Path(f"/proc/{pid}/status").read_text()
+    caught = next(line for line in status.splitlines() if line.startswith("SigCgt:"))
+    return bool(int(caught.split()[1], 16) & 1 << (signal.SIGTERM - 1))
+
+
 @pytest.mark.parametrize("stop", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "terminate"])
 def test_a_signal_while_the_libraries_load_ends_the_command_with_one_line(tmp_path, stop):
-    """The command handles Ctrl-C and SIGTERM from its first moment: while it still imports
-    numpy, Pinocchio and the rest (about half a second), they end it with one line, nothing
-    written."""
-    for delay in (0.1, 0.2, 0.3):
+    """The command handles Ctrl-C and SIGTERM from its first moment: once its handler is in
+    place, a signal at any instant of the imports (about a second) or of the study after them
+    ends it with one line, nothing written."""
+    pace = random.Random(int(stop))
+    for _ in range(6):
         process = subprocess.Popen(
             [sys.executable, "-m", "redundancy", *STUDY, "--out", str(tmp_path / "out")],
             stdout=subprocess.PIPE,
@@ -163,11 +184,15 @@ def test_a_signal_while_the_libraries_load_ends_the_command_with_one_line(tmp_pa
             text=True,
             preexec_fn=_foreground,
         )
-        time.sleep(delay)
+        deadline = time.monotonic() + 60
+        while not handles_sigterm(process.pid):
+            assert time.monotonic() < deadline and process.poll() is None
+            time.sleep(0.001)
+        time.sleep(pace.uniform(0, 1))  # an instant of the imports, or just after them
         process.send_signal(stop)
         _, stderr = process.communicate(timeout=60)
         ending = "terminated" if stop == signal.SIGTERM else "interrupted"
-        assert stderr.splitlines() == [f"redundancy: {ending}"], (delay, stderr)
+        assert stderr.splitlines() == [f"redundancy: {ending}"], stderr
         assert process.returncode == (143 if stop == signal.SIGTERM else 130)
         assert list(tmp_path.iterdir()) == []
 
@@ -176,13 +201,14 @@ def test_a_signal_python_had_to_ignore_still_ends_the_command(monkeypatch, capsy
     """A Ctrl-C whose KeyboardInterrupt is raised inside a weakref callback, where Python can
     only report and ignore it: no report, and the command ends with one line and status 130."""
     from redundancy import cli
+    from redundancy.study.signals import stop
 
     def run(args):
         class Part:
             pass
 
         part = Part()
-        noted = weakref.ref(part, lambda _: cli._interrupt(signal.SIGINT, None))
+        noted = weakref.ref(part, lambda _: stop(signal.SIGINT, None))
         del part  # the callback runs here, and raises
         assert noted() is None
         print("finished")
@@ -210,7 +236,7 @@ def test_an_interrupted_write_leaves_the_earlier_output_byte_identical(
     """The signal lands once the run has staged ``staged`` files (the marker, then its report
     and figures): the earlier folder stays byte-identical, nothing temporary remains."""
     folder, contents = earlier
-    command = [sys.executable, "-m", "redundancy.cli", *STUDY, "--out", str(folder)]
+    command = [sys.executable, "-m", "redundancy", *STUDY, "--out", str(folder)]
     run = subprocess.Popen(
         command,
         stdout=subprocess.PIPE,
@@ -234,7 +260,7 @@ def test_an_interrupted_write_leaves_the_earlier_output_byte_identical(
 
 def test_two_runs_into_one_folder_leave_one_complete_output(tmp_path):
     folder = tmp_path / "out"
-    command = [sys.executable, "-m", "redundancy.cli", *STUDY[:-2]]
+    command = [sys.executable, "-m", "redundancy", *STUDY[:-2]]
     runs = [
         subprocess.Popen(
             [*command, samples, "--quiet", "--out", str(folder)],
@@ -256,53 +282,172 @@ def test_two_runs_into_one_folder_leave_one_complete_output(tmp_path):
 
 def test_signals_during_the_swap_wait_for_its_end():
     """A Ctrl-C that arrives inside the swap is handled after it, as the Ctrl-C it was."""
-    from redundancy.study.output import _deferred_signals
-
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)  # as in the foreground
     try:
-        with pytest.raises(KeyboardInterrupt), _deferred_signals():
-            os.kill(os.getpid(), signal.SIGINT)
-            time.sleep(0.05)
+        with pytest.raises(KeyboardInterrupt), deferred():
+            signal.raise_signal(signal.SIGINT)  # in this thread: handled before the next line
             finished = True  # not interrupted inside the block
     finally:
         signal.signal(signal.SIGINT, previous)
     assert finished
 
 
-def test_a_failed_swap_puts_the_old_folder_back(tmp_path, monkeypatch):
+def test_a_failed_swap_leaves_the_old_folder(tmp_path, monkeypatch):
+    """The exchange is one rename: where it fails (a full disk), nothing has moved."""
     target = tmp_path / "out"
     with OutputFolder(target) as out:
         (out / "report.json").write_text("old")
     before = _contents(target)
-    replace = os.replace
+    rename = output._rename
 
-    def failing(source, destination):
-        if ".partial-" in str(source):
+    def failing(source, destination, flags):
+        if flags == output.RENAME_EXCHANGE:
             raise OSError(28, "No space left on device")
-        replace(source, destination)
+        rename(source, destination, flags)
 
-    monkeypatch.setattr(os, "replace", failing)
-    with pytest.raises(OSError), OutputFolder(target) as out:
+    monkeypatch.setattr(output, "_rename", failing)
+    with (
+        pytest.raises(InvalidInputError, match=r"cannot write there \(No space left"),
+        OutputFolder(target) as out,
+    ):
         (out / "report.json").write_text("new")
     assert _contents(target) == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
 
 
-def test_files_saved_into_the_target_while_a_run_computes_are_kept(tmp_path):
-    target = tmp_path / "out"
+def _earlier_output(target: Path) -> None:
     with OutputFolder(target) as out:
         (out / "report.json").write_text("old")
+        (out / "fig.png").write_text("old")
+
+
+def test_files_saved_into_an_earlier_output_are_kept_and_named(tmp_path):
+    """A user's notes and a folder named like a figure, saved into an earlier output, before
+    the run or while it computes: carried into the new output, with one line naming them."""
+    target = tmp_path / "out"
+    _earlier_output(target)
+    (target / "notes.html").write_text("mine")
+    (target / "old_runs.png").mkdir()
+    (target / "old_runs.png" / "a.png").write_text("mine too")
     run = OutputFolder(target)
-    (target / "notes.txt").write_text("mine")
-    with pytest.raises(InvalidInputError, match=r"holds files this toolkit did not write"), run:
+    (target / "later.txt").write_text("saved while it computed")
+    with pytest.warns(UserWarning, match=r"kept later.txt, notes.html, old_runs.png, which"), run:
         (run / "report.json").write_text("new")
-    assert (target / "notes.txt").read_text() == "mine"
-    assert (target / "report.json").read_text() == "old"
+    assert (target / "notes.html").read_text() == "mine"
+    assert (target / "old_runs.png" / "a.png").read_text() == "mine too"
+    assert (target / "later.txt").read_text() == "saved while it computed"
+    assert (target / "report.json").read_text() == "new"
+    assert not (target / "fig.png").exists()  # the earlier output's, not written again
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
 
 
-def test_the_current_folder_is_not_an_output_folder(tmp_path, monkeypatch):
-    monkeypatch.chdir(tmp_path)
-    for name in (".", ".."):
-        with pytest.raises(InvalidInputError, match="give a folder by its own name"):
-            OutputFolder(name)
+def test_a_folder_of_pictures_is_refused_and_kept(tmp_path):
+    pictures = tmp_path / "holiday"
+    pictures.mkdir()
+    (pictures / "beach.png").write_bytes(b"\x89PNG mine")
+    run = run_cli(*STUDY, "--out", str(pictures))
+    assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
+    assert "holds files this toolkit did not write (beach.png)" in run.stderr
+    assert _contents(pictures) == {"beach.png": hashlib.sha256(b"\x89PNG mine").hexdigest()}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["holiday"]
+
+
+def test_a_file_of_the_outputs_name_not_in_its_manifest_is_not_replaced(tmp_path):
+    target = tmp_path / "out"
+    _earlier_output(target)
+    (target / "summary.json").write_text("mine")
+    with (
+        pytest.raises(InvalidInputError, match=r"holds summary.json, which this toolkit did"),
+        OutputFolder(target) as out,
+    ):
+        (out / "summary.json").write_text("new")
+    assert (target / "summary.json").read_text() == "mine"
+    assert (target / "report.json").read_text() == "old"
+
+
+@pytest.mark.parametrize("kind", ["file", "folder"])
+def test_a_path_that_appears_at_the_target_during_the_run_is_left_as_it_is(tmp_path, kind):
+    target = tmp_path / "out"
+    run = OutputFolder(target)
+    if kind == "file":
+        target.write_text("mine")
+    else:
+        target.mkdir()
+        (target / "mine.png").write_text("mine")
+    with pytest.raises(InvalidInputError, match=r"is a file; give a folder|did not write"), run:
+        (run / "report.json").write_text("new")
+    mine = target if kind == "file" else target / "mine.png"
+    assert mine.read_text() == "mine"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def _dead_pid() -> int:
+    child = subprocess.Popen([sys.executable, "-c", "pass"])
+    child.wait()
+    return child.pid
+
+
+def test_a_new_run_removes_the_staging_folders_of_dead_runs_and_says_so(tmp_path):
+    target = tmp_path / "out"
+    _earlier_output(target)
+    dead = tmp_path / f".out.partial-{_dead_pid()}-abc"
+    dead.mkdir()
+    (dead / "report.json").write_text("half")
+    alive = tmp_path / f".out.partial-{os.getppid()}-abc"  # a run still computing
+    alive.mkdir()
+    with (
+        pytest.warns(UserWarning, match=rf"removed {dead.name}: staged by runs that were"),
+        OutputFolder(target) as out,
+    ):
+        (out / "report.json").write_text("new")
+    assert sorted(p.name for p in tmp_path.iterdir()) == [alive.name, "out"]
+
+
+CHURN = """
+import sys
+from pathlib import Path
+from redundancy.study.output import OutputFolder
+
+target, report = Path(sys.argv[1]), Path(sys.argv[2])
+print("ready", flush=True)
+for version in range(1, 1_000_000):
+    with OutputFolder(target) as out:
+        for name in ("fig.png", "page.html", "report.json"):
+            (out / name).write_text(str(version))
+        out.beside(report, "--json").write_text(str(version))
+"""
+
+
+def test_killed_at_any_instant_of_its_writing_a_run_leaves_the_old_or_the_new_output(tmp_path):
+    """A process that does nothing but commit outputs, version after version, is killed
+    (SIGKILL) at 50 random instants. Each time the folder holds one complete version and the
+    user's notes; once the next run has looked (finishing a --json the killed one had staged,
+    removing its staging folder), the --json file holds the folder's version, the notes are
+    there, and nothing else is left."""
+    target, report = tmp_path / "out", tmp_path / "report.json"
+    with OutputFolder(target) as out:
+        for name in ("fig.png", "page.html", "report.json"):
+            (out / name).write_text("0")
+        out.beside(report, "--json").write_text("0")
+    (target / "notes.html").write_text("mine")
+    pace = random.Random(50)
+    for _ in range(50):
+        churn = subprocess.Popen(
+            [sys.executable, "-c", CHURN, str(target), str(report)],
+            stdout=subprocess.PIPE,
+            text=True,
+        )
+        assert churn.stdout.readline() == "ready\n"  # type: ignore[union-attr]
+        time.sleep(pace.uniform(0, 0.3))
+        churn.kill()
+        churn.wait(timeout=60)
+        names = {p.name for p in target.iterdir()} - {"notes.html"}
+        assert names == {MARKER, "fig.png", "page.html", "report.json"}
+        versions = {(target / name).read_text() for name in names - {MARKER}}
+        assert len(versions) == 1  # one complete version
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the next run's notes
+            OutputFolder(target).discard()  # the next run, stopped at once
+        assert report.read_text() == versions.pop()
+        assert (target / "notes.html").read_text() == "mine"
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "report.json"]

@@ -11,7 +11,7 @@ from commands import run_cli
 
 from redundancy.model.robot import Robot
 from redundancy.planning.tasks import WorkCycle
-from redundancy.study.output import write_atomically
+from redundancy.study.output import MARKER, OutputFolder, write_atomically
 from redundancy.study.study import run_study
 from redundancy.viz.tables import study_table
 
@@ -164,16 +164,16 @@ def test_an_unreachable_segment_point_fails_cleanly_and_keeps_the_old_report(tmp
         'segments = ["1-2"]\nheld = ["x3"]\n[points]\n1 = [9.0, 9.0]\n2 = [1.0, -0.5]\n'
     )
     out = tmp_path / "out"
-    out.mkdir()
+    with OutputFolder(out) as earlier:
+        (earlier / "report.json").write_text('{"previous": true}\n')
     report = out / "report.json"
-    report.write_text('{"previous": true}\n')
     run = run_cli("study", "--task", str(task), "--out", str(out), "--quiet")
     assert run.returncode == 2
     assert "cannot follow segment 1-2: its point [9.0, 9.0] (t = 0 s)" in run.stderr
     assert "Traceback" not in run.stderr
     assert report.read_text() == '{"previous": true}\n'
     assert sorted(p.name for p in tmp_path.iterdir()) == ["far.toml", "out"]
-    assert [p.name for p in out.iterdir()] == ["report.json"]
+    assert sorted(p.name for p in out.iterdir()) == [MARKER, "report.json"]
 
 
 def test_written_files_get_the_mode_the_umask_gives(tmp_path):

@@ -6,7 +6,8 @@ result, or the exception it raised, through a pipe; `result()` waits for it and 
 raises that exception here. Leaving the ``with`` block stops the process if its result was never
 collected (an error or Ctrl-C in this process), so no computation outlives the command. The child
 ignores Ctrl-C, which the terminal sends to both: this process decides; stopped, it ends at
-once, whatever handlers it inherited. What the child writes goes where its caller says: the
+once, whatever handlers it inherited. It dies with this process however that ends, SIGKILL
+included (`die_with_parent`). What the child writes goes where its caller says: the
 study's child writes only into the output's staging folder, which is kept only if the whole
 command succeeds, so nothing a stopped child leaves can be seen half-written.
 
@@ -18,21 +19,34 @@ threads that would release them.
 
 from __future__ import annotations
 
+import ctypes
 import multiprocessing
 import os
 import signal
+import sys
 import threading
 from collections.abc import Callable
 from multiprocessing.connection import Connection
 from typing import Any
 
 STOPPING = {signal.SIGINT, signal.SIGTERM}
+PR_SET_PDEATHSIG = 1  # prctl option, <linux/prctl.h>
 
 
-def _run(sender: Connection, function: Callable[..., Any], args: tuple) -> None:
+def die_with_parent(parent: int) -> None:
+    """Have the kernel send this process SIGKILL when its parent ``parent`` ends (Linux's
+    parent-death signal); end now if it already has."""
+    if sys.platform.startswith("linux"):
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+    if os.getppid() != parent:
+        os._exit(0)
+
+
+def _run(sender: Connection, parent: int, function: Callable[..., Any], args: tuple) -> None:
     """In the child: call ``function(*args)``, send ("result", value) or ("error", e), and end
     at once (`os._exit`: no clean-up inherited from the parent runs, no buffered output of the
     parent's is written twice). It starts with `STOPPING` blocked (see `Background`)."""
+    die_with_parent(parent)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides
     signal.signal(signal.SIGTERM, signal.SIG_DFL)  # `Background.stop`: end quietly, at once
     signal.pthread_sigmask(signal.SIG_UNBLOCK, STOPPING)
@@ -60,7 +74,9 @@ class Background:
             return
         context = multiprocessing.get_context("fork")
         self._receiver, sender = context.Pipe(duplex=False)
-        self._process = context.Process(target=_run, args=(sender, function, args), daemon=True)
+        self._process = context.Process(
+            target=_run, args=(sender, os.getpid(), function, args), daemon=True
+        )
         # a Ctrl-C at the fork would reach a child still running this process's handlers: it
         # waits, blocked, for the child's own, and is handled here once the child is started
         # (should it stop this constructor, the child is stopped; at the latest, as a daemon,

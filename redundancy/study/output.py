@@ -1,19 +1,24 @@
-"""All-or-nothing output: a run's files appear together, or not at all.
+"""All-or-nothing output: a run's files appear together or not at all, and nothing else is lost.
 
-`OutputFolder` stages a run's whole output set (report, figures, pages, and files elsewhere
-such as ``--json``, via `beside`) in fresh hidden places beside their targets, created before any
-computing, so an unwritable target fails at once. `commit` swaps them in: under an exclusive
-lock on the parent folder, with SIGINT and SIGTERM deferred (their handlers only note them until
-the swap is done, whichever thread the kernel hands them to), the old folder is renamed aside,
-the new one renamed into place, the other files renamed over theirs, and the old folder removed
-(every staged file is flushed to the disk first, and the folders after, so a power cut never
-leaves an empty file in place of a written one);
-a rename that fails puts the old folder back. A run that fails or is interrupted before then
-removes what it staged, and the folders it made for it, and leaves every target as it was; two
-runs into one folder leave one complete output, the last to commit. A target that holds files
-this toolkit did not write is refused rather than replaced, when the run starts and again at the
-swap; so are a file target that is a device or a pipe, and a file that overlaps the folder. A
-target that is a symbolic link stays one: what it names is written.
+`OutputFolder` stages a run's output folder in a hidden folder beside the target,
+``.NAME.partial-PID-*``, made before any computing so that an unwritable target fails at once.
+Its commit writes the manifest of the files staged into the folder's marker file (`MARKER`),
+flushes them to the disk, and exchanges the staged folder with the target in one rename (Linux's
+``renameat2``): whenever the run is killed, either the old or the new complete folder sits at
+the target. SIGINT and SIGTERM wait for the end of the commit; a run that fails or is
+interrupted before it removes what it staged, and the folders it made for it.
+
+A folder is the toolkit's only if it carries the marker, and only the files its manifest names
+are ever replaced or removed. A target without the marker that holds anything is refused; so is
+one that holds, outside its manifest, a file of a name the new output writes. Anything else in an
+earlier output (a user's notes, folders) is carried into the new one, with a note; a target that
+appears while the run computes is left as it is. A new run removes the staging folders of runs
+that died (by the pid in their name), with a note.
+
+Files kept outside the folder (``--json``, `beside`) are staged beside their targets and renamed
+over them just after the exchange. The manifest names them, so that where a run was killed in
+between, the next run into the same folder finishes those renames first, with a note. A target
+that is a symbolic link stays one: what it names is written.
 
 `write_atomically` writes one file the same way: to a temporary file beside it, then one rename.
 """
@@ -21,32 +26,35 @@ target that is a symbolic link stays one: what it names is written.
 from __future__ import annotations
 
 import contextlib
-import fcntl
+import ctypes
+import errno
 import fnmatch
+import glob
 import itertools
+import json
 import os
 import shutil
-import signal
-import tempfile
-from collections.abc import Callable, Iterator
+import warnings
+from collections.abc import Callable
 from pathlib import Path
 
 from redundancy.errors import InvalidInputError
+from redundancy.study.signals import deferred
 
-MARKER = ".redundancy-output"  # names the folder as one this toolkit wrote
-OWN_FILES = (
-    "report.json",
-    "map.parquet",
-    "summary.json",
-    "*.png",
-    "*.html",
-    MARKER,
-)  # what an output folder may hold
+MARKER = ".redundancy-output"  # names the folder as one this toolkit wrote; holds its manifest
+_EARLIER_MARKER = "written by redundancy\n"  # before manifests: the files were known by name
+_EARLIER_FILES = ("report.json", "map.parquet", "summary.json", "*.png", "*.html")
+RENAME_NOREPLACE, RENAME_EXCHANGE = 1, 2  # renameat2 flags, <linux/fs.h>
 
 
 def _unwritable(path: Path, error: OSError, option: str) -> InvalidInputError:
     reason = error.strerror or type(error).__name__
     return InvalidInputError(f"{option} {path}: cannot write there ({reason})")
+
+
+def _note(message: str) -> None:
+    """One line for the user (the command line prints warnings as notes)."""
+    warnings.warn(message, stacklevel=3)
 
 
 def _followed(path: Path) -> Path:
@@ -66,10 +74,123 @@ def _make_parent(path: Path, option: str) -> list[Path]:
     return missing[::-1]
 
 
+def _hidden(path: Path, kind: str) -> Path:
+    """A new hidden name beside ``path``: ``.NAME.KIND-PID-RANDOM``, its owner's pid in it."""
+    return path.parent / f".{path.name}.{kind}-{os.getpid()}-{os.urandom(4).hex()}"
+
+
 def _overlapping(a: Path, b: Path) -> bool:
     """Whether ``a`` and ``b`` are the same path or one lies inside the other."""
     a, b = Path(os.path.abspath(a)), Path(os.path.abspath(b))
     return a == b or a in b.parents or b in a.parents
+
+
+def _rename(source: Path, target: Path, flags: int) -> None:
+    """``renameat2(source, target, flags)``: RENAME_EXCHANGE swaps the two paths in one step,
+    RENAME_NOREPLACE fails (FileExistsError) where ``target`` exists. Where the C library or the
+    file system lacks it, the same by plain renames, with an instant between them."""
+    function = getattr(ctypes.CDLL(None, use_errno=True), "renameat2", None)
+    if function is not None:
+        at_cwd = -100  # AT_FDCWD: paths relative to the current folder
+        if function(at_cwd, os.fsencode(source), at_cwd, os.fsencode(target), flags) == 0:
+            return
+        number = ctypes.get_errno()
+        if number not in (errno.EINVAL, errno.ENOSYS):
+            raise OSError(number, os.strerror(number), str(source), None, str(target))
+    if flags == RENAME_NOREPLACE:
+        if os.path.lexists(target):
+            raise FileExistsError(errno.EEXIST, os.strerror(errno.EEXIST), str(target))
+        os.rename(source, target)
+        return
+    aside = _hidden(target, "old")
+    os.replace(target, aside)
+    os.replace(source, target)
+    os.replace(aside, source)
+
+
+def _manifest(folder: Path) -> dict | None:
+    """The marker of ``folder``, read: ``{"files": [...], "beside": [[staged, final], ...]}``,
+    with files None for a folder still staging (everything in it is the run's); None for a
+    folder without the marker, which is not the toolkit's."""
+    try:
+        text = (folder / MARKER).read_text()
+        if text == _EARLIER_MARKER:
+            own = [e.name for e in folder.iterdir() if e.is_file()]
+            return {"files": [n for n in own if any(fnmatch.fnmatch(n, p) for p in _EARLIER_FILES)]}
+        found = json.loads(text)
+    except (OSError, ValueError):
+        return None
+    return found if isinstance(found, dict) and "files" in found else None
+
+
+def _finish_beside(folder: Path) -> None:
+    """Rename the files kept outside ``folder`` (its manifest's ``beside``) that a killed run
+    left staged, over their targets."""
+    for staged, final in (_manifest(folder) or {}).get("beside", []):
+        if os.path.exists(staged):
+            os.replace(staged, final)
+            _note(f"{final}: finished writing it, as the run that wrote {folder} was stopped first")
+
+
+def _retire(folder: Path, into: Path, manifest: dict) -> None:
+    """Remove an earlier output (or a dead run's staging folder) ``folder`` of ``manifest``:
+    anything the manifest does not name is first carried into ``into``, with a note; then the
+    files it names and stages beside go, the marker last, and the folder. A staging folder not
+    yet committed (files None) is the run's alone, and goes whole. What cannot be carried (its
+    name taken in ``into``) stays, with the marker, so that it is never taken for the run's."""
+    for staged, _ in manifest.get("beside", []):
+        with contextlib.suppress(OSError):
+            Path(staged).unlink()
+    files = manifest["files"]
+    if files is None:
+        shutil.rmtree(folder, ignore_errors=True)
+        return
+    own = {Path(name).parts[0] for name in files} | {MARKER}
+    carried, left = [], []
+    for entry in sorted(folder.iterdir()):
+        if entry.name not in own:
+            try:
+                _rename(entry, into / entry.name, RENAME_NOREPLACE)
+                carried.append(entry.name)
+            except OSError:
+                left.append(entry.name)
+    if carried:
+        _note(f"{into}: kept {', '.join(carried)}, which redundancy did not write")
+    for name in files:
+        (folder / name).unlink(missing_ok=True)
+        for parent in Path(name).parents[:-1]:
+            with contextlib.suppress(OSError):
+                (folder / parent).rmdir()
+    if left:
+        _note(f"{folder}: kept, as it holds {', '.join(left)}, names {into} holds too")
+        return
+    (folder / MARKER).unlink(missing_ok=True)
+    with contextlib.suppress(OSError):
+        folder.rmdir()
+
+
+def _dead(folder: Path, target: Path) -> bool:
+    """Whether the run that staged ``folder`` (``.NAME.partial-PID-*`` beside ``target``) has
+    ended."""
+    pid = folder.name.removeprefix(f".{target.name}.partial-").partition("-")[0]
+    try:
+        os.kill(int(pid), 0)
+    except ProcessLookupError:
+        return True
+    except (ValueError, PermissionError):  # not a pid; another user's process
+        pass
+    return False
+
+
+def _remove_dead_staging(target: Path) -> None:
+    """Remove (`_retire`) the staging folders beside ``target`` of runs that died, with a
+    note."""
+    found = sorted(target.parent.glob(f".{glob.escape(target.name)}.partial-*"))
+    dead = [folder for folder in found if _dead(folder, target)]
+    for folder in dead:
+        _retire(folder, target, _manifest(folder) or {"files": None})
+    if dead:
+        _note(f"removed {', '.join(f.name for f in dead)}: staged by runs that were stopped")
 
 
 class OutputFolder:
@@ -77,40 +198,47 @@ class OutputFolder:
     docstring); ``option`` names where the target came from, for messages."""
 
     def __init__(self, target: Path | str, option: str = "--out"):
-        self.target = _followed(Path(target))
         self.option = option
-        if self.target.name in ("", ".", ".."):
-            raise InvalidInputError(f"{option} {target}: give a folder by its own name")
-        if self.target.exists() and not self.target.is_dir():
-            raise InvalidInputError(f"{option} {self.target} is a file; give a folder")
-        self._check_own()
         self.others: list[tuple[Path, Path]] = []  # (staged, final) files outside the folder
         self.created: list[Path] = []  # the folders made to hold the target, outermost first
+        self._committed = False
         try:
+            self.target = _followed(Path(target))
+            if self.target.name in ("", ".", ".."):
+                raise InvalidInputError(f"{option} {target}: give a folder by its own name")
+            self._check_target()
             self.created = _make_parent(self.target, option)
-            self.staging = Path(
-                tempfile.mkdtemp(dir=self.target.parent, prefix=f".{self.target.name}.partial-")
-            )
-            (self.staging / MARKER).write_text("written by redundancy\n")
+            _finish_beside(self.target)
+            _remove_dead_staging(self.target)
+            self.staging = _hidden(self.target, "partial")
+            self.staging.mkdir()
+            self._mark(None)
         except OSError as error:
             self.discard()
-            raise _unwritable(self.target, error, option) from None
+            raise _unwritable(Path(target), error, option) from None
 
-    def _check_own(self) -> None:
-        """Refuse a target that holds files this toolkit did not write."""
+    def _check_target(self, writing: tuple[str, ...] = ()) -> bool:
+        """Whether the target exists; one line where it is not an output folder of the
+        toolkit's (or an empty folder), or holds, outside its manifest, one of ``writing``."""
+        if not self.target.exists():
+            return False
         if not self.target.is_dir():
-            return
-        foreign = [
-            entry.name
-            for entry in self.target.iterdir()
-            if not any(fnmatch.fnmatch(entry.name, own) for own in OWN_FILES)
-        ]
-        if foreign:
+            raise InvalidInputError(f"{self.option} {self.target} is a file; give a folder")
+        manifest = _manifest(self.target)
+        names = sorted(e.name for e in self.target.iterdir())
+        if manifest is None and names:
             raise InvalidInputError(
                 f"{self.option} {self.target} holds files this toolkit did not write "
-                f"({', '.join(sorted(foreign)[:3])}); give a new or empty folder, or an earlier "
+                f"({', '.join(names[:3])}); give a new or empty folder, or an earlier "
                 "output folder"
             )
+        own = {Path(f).parts[0] for f in (manifest or {}).get("files", [])}
+        if clashing := sorted(set(names) & set(writing) - own):
+            raise InvalidInputError(
+                f"{self.option} {self.target} holds {', '.join(clashing)}, which this toolkit "
+                "did not write; move it, or give another folder"
+            )
+        return True
 
     def __truediv__(self, name: str) -> Path:
         """Where the file ``name`` of the output set is written."""
@@ -122,57 +250,67 @@ class OutputFolder:
 
     def beside(self, path: Path, option: str) -> Path:
         """Where to write the output file ``path`` kept outside the folder (e.g. ``--json``): a
-        temporary file beside it, renamed over it at `commit`. ``path`` may not be the folder,
-        lie inside it or hold it."""
+        hidden file beside it, named in the staging folder's marker before it is made, renamed
+        over it at `commit`. ``path`` may not be the folder, lie inside it or hold it."""
         path = _followed(path)
         if _overlapping(path, self.target):
             raise InvalidInputError(
                 f"{option} {path} overlaps {self.option} {self.target}; give a file outside "
                 f"that folder (it holds its own report.json)"
             )
-        staged, created = _temporary_beside(path, option)
+        staged = (
+            path.parent / f".{path.name}{self.staging.name.removeprefix(f'.{self.target.name}')}"
+        )
         self.others.append((staged, path))
-        self.created += created
+        self._mark(None)
+        self.created += _create_beside(path, staged, option)
         return staged
 
+    def _mark(self, files: list[str] | None) -> None:
+        """Write the marker (in one rename: a run killed meanwhile leaves the old or the new):
+        the manifest of ``files`` (None: still staging) and of the files staged beside."""
+        beside = [[str(staged), str(final)] for staged, final in self.others]
+        text = json.dumps({"files": files, "beside": beside}, indent=1) + "\n"
+        write_atomically(self.staging / MARKER, lambda path: path.write_text(text))
+
     def commit(self) -> None:
-        """Swap the staged set in for the targets, in one step for anyone who looks."""
-        mode = 0o777 & ~_umask()
-        self.staging.chmod(mode)  # mkdtemp makes it private; give a folder's mode
-        for staged, _ in self.others:
-            staged.chmod(mode & 0o666)
+        """Exchange the staged folder with the target, then rename the files beside it; the
+        earlier output is retired (`_retire`)."""
+        files = [p for p in self.staging.rglob("*") if p.is_file() and p.name != MARKER]
+        self._mark(sorted(str(p.relative_to(self.staging)) for p in files))
         for path in [*self.staging.rglob("*"), self.staging, *(s for s, _ in self.others)]:
             _sync(path)
-        with _deferred_signals(), _locked(self.target.parent):
-            self._check_own()  # a user may have saved files there while the run computed
-            aside = Path(
-                tempfile.mkdtemp(dir=self.target.parent, prefix=f".{self.target.name}.old-")
-            )
-            kept = aside / "output"
-            try:
-                if self.target.exists():
-                    os.replace(self.target, kept)
+        writing = tuple({p.relative_to(self.staging).parts[0] for p in files})
+        with deferred():
+            while True:  # until the rename finds the target as checked just before
+                exists = self._check_target(writing)
                 try:
-                    os.replace(self.staging, self.target)
-                except OSError:
-                    if kept.exists():
-                        os.replace(kept, self.target)
-                    raise
-                for staged, final in self.others:
-                    os.replace(staged, final)
-                for folder in {self.target.parent, *(final.parent for _, final in self.others)}:
-                    _sync(folder)
-            finally:
-                shutil.rmtree(aside, ignore_errors=True)
+                    _rename(
+                        self.staging, self.target, RENAME_EXCHANGE if exists else RENAME_NOREPLACE
+                    )
+                    break
+                except (FileExistsError, FileNotFoundError):
+                    if not self.staging.is_dir():
+                        raise
+            self._committed = True
+            for staged, final in self.others:
+                os.replace(staged, final)
+            for folder in {self.target.parent, *(final.parent for _, final in self.others)}:
+                _sync(folder)
+            if exists:  # the earlier output, now where the staged one was
+                _retire(self.staging, self.target, _manifest(self.staging) or {"files": []})
 
     def discard(self) -> None:
-        """Remove what was staged, and the folders made for it where they are empty again; the
-        targets are untouched."""
+        """Before the commit, remove what was staged, and the folders made for it where they
+        are empty again; the targets are untouched."""
+        if self._committed:
+            return
         if hasattr(self, "staging"):
             shutil.rmtree(self.staging, ignore_errors=True)
-        for staged, _ in getattr(self, "others", []):
-            staged.unlink(missing_ok=True)
-        for folder in reversed(getattr(self, "created", [])):
+        for staged, _ in self.others:
+            with contextlib.suppress(OSError):  # never made, or its folder not either
+                staged.unlink()
+        for folder in reversed(self.created):
             with contextlib.suppress(OSError):
                 folder.rmdir()
 
@@ -185,6 +323,9 @@ class OutputFolder:
             return
         try:
             self.commit()
+        except OSError as error:
+            self.discard()
+            raise _unwritable(self.target, error, self.option) from None
         except BaseException:
             self.discard()
             raise
@@ -200,51 +341,6 @@ def _sync(path: Path) -> None:
         os.close(descriptor)
 
 
-def _umask() -> int:
-    """The process's umask, read where the system shows it (setting it to read it would
-    change it for an instant under every other thread)."""
-    with contextlib.suppress(OSError, ValueError):
-        for line in Path("/proc/self/status").read_text().splitlines():
-            if line.startswith("Umask:"):
-                return int(line.split()[1], 8)
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
-@contextlib.contextmanager
-def _deferred_signals() -> Iterator[None]:
-    """SIGINT and SIGTERM only noted during the block, then handled as they would have been.
-
-    Python runs signal handlers in the main thread, whichever thread the kernel delivered the
-    signal to, so swapping the handlers (rather than masking one thread) covers them all."""
-    noted: list[int] = []
-    numbers = (signal.SIGINT, signal.SIGTERM)
-    previous = {n: signal.signal(n, lambda number, frame: noted.append(number)) for n in numbers}
-    try:
-        yield
-    finally:
-        for number, handler in previous.items():
-            signal.signal(number, handler)
-        for noted_number in noted:
-            handler = previous[signal.Signals(noted_number)]
-            if callable(handler):
-                handler(noted_number, None)
-            elif handler == signal.SIG_DFL:
-                signal.raise_signal(noted_number)
-
-
-@contextlib.contextmanager
-def _locked(folder: Path) -> Iterator[None]:
-    """An exclusive lock on ``folder`` (flock on its descriptor) for the block."""
-    descriptor = os.open(folder, os.O_RDONLY)
-    try:
-        fcntl.flock(descriptor, fcntl.LOCK_EX)
-        yield
-    finally:
-        os.close(descriptor)
-
-
 def _check_file(path: Path, option: str) -> None:
     """One line naming the option where ``path`` is a folder, or anything else but a regular
     file (a device or a pipe, which the rename of a written file would replace)."""
@@ -256,25 +352,26 @@ def _check_file(path: Path, option: str) -> None:
         )
 
 
-def _temporary_beside(path: Path, option: str) -> tuple[Path, list[Path]]:
-    """A new empty temporary file beside the file ``path``, and the folders made to hold it
-    (`_make_parent`); one line naming the option where ``path`` cannot be written (or is no
+def _create_beside(path: Path, staged: Path, option: str) -> list[Path]:
+    """Create the empty file ``staged`` beside the file ``path``; the folders made to hold it
+    (`_make_parent`). One line naming the option where ``path`` cannot be written (or is no
     file, `_check_file`)."""
-    _check_file(path, option)
     try:
+        _check_file(path, option)
         created = _make_parent(path, option)
-        handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
-        os.close(handle)
+        staged.open("x").close()
     except OSError as error:
         raise _unwritable(path, error, option) from None
-    return Path(temporary), created
+    return created
 
 
 def writable(path: Path | str, option: str) -> Path:
     """``path`` (where it links to, for a link) after checking that a file can be written
     beside it (its folder is created); one line naming the option otherwise."""
     path = _followed(Path(path))
-    _temporary_beside(path, option)[0].unlink()
+    staged = _hidden(path, "check")
+    _create_beside(path, staged, option)
+    staged.unlink()
     return path
 
 
@@ -282,16 +379,12 @@ def write_atomically(path: Path, write: Callable[[Path], object]) -> None:
     """Call ``write(temporary_path)``, then move the result over ``path`` in one step, so a
     failure never leaves ``path`` half-written or loses what it held."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(
-        dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix
-    )
-    os.close(handle)
+    temporary = Path(f"{_hidden(path, 'new')}{path.suffix}")  # a writer may read the suffix
     try:
-        write(Path(temporary))
-        os.chmod(temporary, 0o666 & ~_umask())  # mkstemp makes it private; give a file's mode
-        _sync(Path(temporary))
+        write(temporary)
+        _sync(temporary)
         os.replace(temporary, path)
         _sync(path.parent)
     except BaseException:
-        Path(temporary).unlink(missing_ok=True)
+        temporary.unlink(missing_ok=True)
         raise

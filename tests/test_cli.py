@@ -1,0 +1,67 @@
+"""The console: --version, help with defaults and an example, no progress frames in a log, and
+one line (never a traceback) where the output streams are odd."""
+
+import os
+import subprocess
+import sys
+
+import pytest
+from commands import run_cli
+
+from redundancy.cli import parser
+
+COMMANDS = ["robots", "describe", "check", "study", "play", "map", "cycle"]
+
+
+def test_version_names_the_package_version():
+    from importlib.metadata import version
+
+    run = run_cli("--version")
+    assert run.returncode == 0 and run.stdout == f"redundancy {version('redundancy')}\n"
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_help_shows_defaults_and_an_example(command, capsys):
+    with pytest.raises(SystemExit) as ended:
+        parser().parse_args([command, "--help"])
+    assert ended.value.code == 0
+    shown = capsys.readouterr().out
+    assert f"example:\n  redundancy {command}" in shown
+    if command in ("study", "cycle"):
+        assert "(default: 100)" in shown  # --samples
+        assert "(default: None)" not in shown
+
+
+def test_a_run_into_a_log_draws_no_progress_frames(tmp_path):
+    """Progress bars are drawn on a terminal only: a log gets lines, never '\\r' frames."""
+    run = run_cli(
+        "study", "--objective", "velocity", "--cycles", "0", "--samples", "3", "--out",
+        str(tmp_path / "out"),
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    assert "\r" not in run.stdout + run.stderr
+
+
+def test_a_console_that_cannot_show_the_units_still_gets_the_run(tmp_path):
+    """PYTHONIOENCODING=ascii: the characters it lacks (°, ±) are shown as "?"."""
+    run = subprocess.run(
+        [sys.executable, "-m", "redundancy", "describe"],
+        capture_output=True,
+        env={**os.environ, "PYTHONIOENCODING": "ascii"},
+    )
+    assert run.returncode == 0, run.stderr
+    assert b"M_H (kg)" in run.stdout and not run.stderr
+
+
+def test_a_closed_standard_output_is_one_line():
+    run = subprocess.run(
+        [sys.executable, "-m", "redundancy", "robots"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: os.close(1),
+    )
+    assert run.returncode == 2
+    assert (
+        run.stderr == "redundancy: error: standard output is closed; give it a file or /dev/null\n"
+    )
