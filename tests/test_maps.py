@@ -570,7 +570,8 @@ def test_a_scheduler_lost_mid_map_ends_in_one_line_and_keeps_the_finished_chunks
     assert "its finished chunks are kept" in lines[0]
     kept = sorted(store.glob("chunk-*.parquet"))
     assert 2 <= len(kept) < 24
-    rerun = run_cli("map", str(family), "--workers", "1", "--out", str(tmp_path / "out"))
+    out = str(tmp_path / "out")
+    rerun = run_cli("map", str(family), "--workers", "1", "--out", out, terminal=True)
     assert rerun.returncode == 0, rerun.stderr
     assert f"{len(kept)}/24" in rerun.stderr
 
