@@ -64,6 +64,7 @@ from redundancy.viz.playback import (
 )
 from redundancy.viz.plots import write_cycle_figures, write_figures
 from redundancy.viz.report import write_index
+from redundancy.viz.series import write_series
 from redundancy.viz.server import LOCALHOST
 from redundancy.viz.tables import check_table, cycle_table, study_table
 
@@ -233,10 +234,11 @@ def _study_command(args: argparse.Namespace) -> None:
         study = replace(study, cycle_study=cycle_study, cycle_skipped=skipped)
         print(study_table(study))
         write_report(study, report)
+        series = [out.final(p) for p in write_series(study, out.staging)]
         write_index(out.staging, report)
         figures = [out.final(p) for p in figures + cycle_figures]
         playbacks = [out.final(p) for p in playbacks + cycle_playbacks]
-    _written(out, args, figures, playbacks)
+    _written(out, args, figures, playbacks, series)
 
 
 def _report(out: OutputFolder, args: argparse.Namespace) -> Path:
@@ -244,10 +246,12 @@ def _report(out: OutputFolder, args: argparse.Namespace) -> Path:
     return out / "report.json" if args.json is None else out.beside(Path(args.json), "--json")
 
 
-def _written(out: OutputFolder, args, figures: list[Path], playbacks: list[Path]) -> None:
-    """What the run wrote, a line for the report, the figures and the playback pages."""
+def _written(out: OutputFolder, args, figures, playbacks, series) -> None:
+    """What the run wrote, a line for the report, the figures, the playback pages and the
+    time series."""
     print(f"report: {args.json or out.target / 'report.json'}")
     print(f"figures: {', '.join(str(p) for p in figures)}")
+    print(f"time series (CSV): {', '.join(str(p) for p in series)}")
     print(f"playbacks: {', '.join(str(p) for p in playbacks)}")
 
 
@@ -411,8 +415,9 @@ def _cycle_command(args: argparse.Namespace) -> None:
         write_cycle_report(study, report)
         figures = [out.final(p) for p in write_cycle_figures(study, out.staging)]
         playbacks = [out.final(p) for p in write_cycle_playbacks(study, out.staging)]
+        series = [out.final(p) for p in write_series(study, out.staging)]
         write_index(out.staging, report)
-    _written(out, args, figures, playbacks)
+    _written(out, args, figures, playbacks, series)
 
 
 def _robots_command(args: argparse.Namespace) -> None:

@@ -299,6 +299,8 @@ def test_the_cycle_command_writes_its_report_figures_and_playback(tmp_path):
         "cycle_return_map.png",
         "cycle_strokes.png",
         "index.html",
+        "motion_cycle_free.csv",
+        "motion_cycle_periodic.csv",
         "playback_cycle_free.html",
         "playback_cycle_periodic.html",
         "report.json",

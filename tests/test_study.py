@@ -140,6 +140,8 @@ def test_study_command_writes_the_report_and_the_five_figures(tmp_path):
     for name in figures:
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "improved, velocity objective" in run.stdout
+    assert (out / "motion_velocity_1-2.csv").read_text().startswith("t (s),q_")
+    assert 'href="motion_velocity_1-2.csv"' in (out / "index.html").read_text()
 
 
 @pytest.mark.parametrize(
@@ -245,3 +247,43 @@ def test_the_table_flags_a_bound_that_has_not_converged(study):
     flagged = [row for row in rows if "NOT converged" in row]
     assert len(rows) == 3 and len(flagged) == 1
     assert flagged[0].startswith("2-3") and flagged[0].endswith("NOT converged, change 2.00 %")
+
+
+def test_every_reported_motion_is_a_csv_that_reads_back_to_its_arrays(study, tmp_path):
+    """One file per best motion and per cycle strategy; every column equals the motion's array
+    it names, the pump's flow is the cylinders' sum and its power p_P Q_P."""
+    import pandas as pd
+
+    from redundancy.model.hydraulics import BAR, LITRES_PER_MINUTE
+    from redundancy.viz.series import write_series
+
+    motions = {f"motion_{o}_{s}.csv": m for (o, s), m in study.best_motions.items()}
+    motions |= {f"motion_cycle_{n}.csv": m for n, m in study.cycle_study.firsts.items()}
+    paths = write_series(study, tmp_path)
+    assert sorted(p.name for p in paths) == sorted(motions)
+    # every segment has a best start for the velocity objective; the cycle two strategies
+    assert {f"motion_velocity_{s}.csv" for s in SEGMENTS} <= set(motions)
+    assert {"motion_cycle_free.csv", "motion_cycle_periodic.csv"} <= set(motions)
+    circuit = study.robot.circuit()
+    for path in paths:
+        motion, table = motions[path.name], pd.read_csv(path)
+        flows = motion.flows
+        np.testing.assert_array_equal(table["t (s)"], motion.t[0])
+        for a, name in enumerate(study.robot.actuators.names):
+            for column, values in (
+                (f"x_{name} (m)", motion.x),
+                (f"x_dot_{name} (m/s)", motion.x_dot),
+                (f"x_ddot_{name} (m/s²)", motion.x_ddot),
+                (f"F_{name} (N)", motion.forces),
+            ):
+                np.testing.assert_array_equal(table[column], values[0, :, a])
+        for c, name in enumerate(circuit.names):
+            np.testing.assert_array_equal(table[f"p_L_{name} (bar)"], flows.load[0, :, c] / BAR)
+            np.testing.assert_array_equal(
+                table[f"Q_{name} (L/min)"], flows.flow[0, :, c] / LITRES_PER_MINUTE
+            )
+        cylinders = table[[f"Q_{name} (L/min)" for name in circuit.names]].sum(axis=1)
+        np.testing.assert_allclose(table["Q_pump (L/min)"], cylinders, rtol=1e-12, atol=1e-12)
+        pressure = flows.pump_pressure(circuit.supply)[0]
+        pump_flow = table["Q_pump (L/min)"] * LITRES_PER_MINUTE
+        np.testing.assert_allclose(table["P_pump (kW)"] * 1e3, pressure * pump_flow, rtol=1e-12)

@@ -39,7 +39,7 @@ import numpy as np
 from scipy.integrate import RK45
 
 from redundancy.errors import InvalidInputError
-from redundancy.model.hydraulics import Flows, Supply
+from redundancy.model.hydraulics import BAR, LITRES_PER_MINUTE, Flows, Supply
 from redundancy.model.kinematics import join
 from redundancy.model.robot import Robot
 from redundancy.model.values import is_real
@@ -194,8 +194,11 @@ class Trajectory:
         )
 
     def to_frame(self, i: int = 0) -> pd.DataFrame:
-        """Motion ``i`` as a table, one row per sample: t, the joints q, and per actuator x,
-        ẋ, ẍ and F_H, each column named with its unit (a rotary actuator's in rad and N·m)."""
+        """Motion ``i`` as a table, one row per sample: t, the joints q, per actuator x, ẋ, ẍ
+        and F_H (where the robot has masses), each column named with its unit (a rotary
+        actuator's in rad and N·m); where the machine has a hydraulic circuit, per cylinder the
+        load pressure p_L (bar) and flow Q (L/min), and the pump's flow (L/min) and power (kW)
+        under the machine's supply."""
         import pandas as pd
 
         robot = self.robot
@@ -204,14 +207,23 @@ class Trajectory:
         columns = {"t (s)": self.t[i]}
         for j, (name, unit) in enumerate(zip(robot.joint_names, joints)):
             columns[f"q_{name} ({unit})"] = self.q[i, :, j]
-        for part, values, units in (
+        parts = [
             ("x", self.x, ("m", "rad")),
             ("x_dot", self.x_dot, ("m/s", "rad/s")),
             ("x_ddot", self.x_ddot, ("m/s²", "rad/s²")),
-            ("F", self.forces, ("N", "N·m")),
-        ):
+        ]
+        if not robot.kinematic_only:
+            parts.append(("F", self.forces, ("N", "N·m")))
+        for part, values, units in parts:
             for a, name in enumerate(robot.actuators.names):
                 columns[f"{part}_{name} ({units[int(rotary[a])]})"] = values[i, :, a]
+        if robot.hydraulics is not None and not robot.kinematic_only:
+            circuit, flows = robot.hydraulics, self.flows
+            for c, name in enumerate(circuit.names):
+                columns[f"p_L_{name} (bar)"] = flows.load[i, :, c] / BAR
+                columns[f"Q_{name} (L/min)"] = flows.flow[i, :, c] / LITRES_PER_MINUTE
+            columns["Q_pump (L/min)"] = flows.pump_flow[i] / LITRES_PER_MINUTE
+            columns["P_pump (kW)"] = flows.power(circuit.supply)[i] / 1e3
         return pd.DataFrame(columns)
 
     @cached_property

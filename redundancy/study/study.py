@@ -38,6 +38,7 @@ from redundancy.model.robot import Robot
 from redundancy.planning.bound import GlobalOptimum, global_optimum
 from redundancy.planning.energy_bound import EnergyOptimum, energy_optimum
 from redundancy.planning.ik import check_path
+from redundancy.planning.integrate import Trajectory
 from redundancy.planning.starts import (
     METHODS,
     SearchResult,
@@ -89,6 +90,18 @@ class Study:
 
     def search(self, objective: str, segment: str) -> SearchResult:
         return self.searches[objective][self._segment(segment)]
+
+    @property
+    def best_motions(self) -> dict[tuple[str, str], Trajectory]:
+        """The motion from each improved start, as the study ran it, by (objective, segment)
+        where the segment has a feasible start: what the playbacks show and the time series
+        export."""
+        return {
+            (name, search.segment.name): search.best_motion
+            for name, searches in self.searches.items()
+            for search in searches
+            if search.best is not None
+        }
 
     def sweep(self, objective: str, segment: str) -> SearchResult:
         return self.sweeps[objective][self._segment(segment)]

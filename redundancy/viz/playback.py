@@ -647,12 +647,10 @@ def write_playbacks(study: Study, folder: Path) -> list[Path]:
     strategy's whole cycle (`write_cycle_playbacks`); return their paths."""
     points = task_points(study.cycle)
     paths = []
-    for name, searches in study.searches.items():
-        for search in searches:
-            if search.best is not None:  # its motion as the study ran it
-                path = folder / f"playback_{name}_{search.segment.name}.html"
-                strategy = f"best start, {search.objective.label} objective"
-                paths.append(export_html(search.best_motion, path, points, strategy))
+    for (name, segment), motion in study.best_motions.items():
+        path = folder / f"playback_{name}_{segment}.html"
+        strategy = f"best start, {study.searches[name][0].objective.label} objective"
+        paths.append(export_html(motion, path, points, strategy))
     if study.cycle_study is not None:
         paths += write_cycle_playbacks(study.cycle_study, folder)
     return paths
