@@ -10,6 +10,7 @@ Names: ``motion_<objective>_<segment>.csv`` for a segment's improved start,
 
 from __future__ import annotations
 
+from functools import partial
 from pathlib import Path
 
 from redundancy.planning.integrate import Trajectory
@@ -22,17 +23,19 @@ def write_series(study: Study | CycleStudy, folder: Path) -> list[Path]:
     """The CSV file of every motion ``study`` reports (a cycle run's alone, or a study's and
     its cycle section's) in ``folder``; return their paths."""
     motions: dict[str, Trajectory] = {}
-    cycle = study
+    cycle = study if isinstance(study, CycleStudy) else study.cycle_study
     if isinstance(study, Study):
         for (objective, segment), motion in study.best_motions.items():
             motions[f"motion_{objective}_{segment}.csv"] = motion
-        cycle = study.cycle_study
     if cycle is not None:
         for strategy, motion in cycle.firsts.items():
             motions[f"motion_cycle_{strategy}.csv"] = motion
     paths = []
     for name, motion in motions.items():
-        frame = motion.to_frame()
-        write_atomically(folder / name, lambda path, f=frame: f.to_csv(path, index=False))
+        write_atomically(folder / name, partial(_write_csv, motion))
         paths.append(folder / name)
     return paths
+
+
+def _write_csv(motion: Trajectory, path: Path) -> None:
+    motion.to_frame().to_csv(path, index=False)
