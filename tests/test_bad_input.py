@@ -838,6 +838,32 @@ API = [
     ("space of nan", lambda r: actuator_space(r, [np.nan, 1.0, 0.5]), "NaN or infinite"),
     ("space at a singularity", lambda r: actuator_space(r, [0.0, 1.0, 0.5]), "singular at q"),
     ("space of text", lambda r: actuator_space(r, ["a", "b", "c"]), "q must be 3 numbers"),
+    ("space of complex", lambda r: actuator_space(r, [1.6 + 1j, 1.0, 0.5]), "q must be 3 numbers"),
+    (
+        "load_robot hydraulics int",
+        lambda r: load_robot("hiab031", hydraulics=3),
+        "hydraulics must be the path of a TOML file with a [hydraulics] table; got int 3",
+    ),
+    (
+        "improved_start of a segment's name",
+        lambda r: improved_start(r, "1-2", VELOCITY),
+        "segment must be a Segment or a Chain (e.g. cycle['1-2']",
+    ),
+    (
+        "improved_start of an unknown objective",
+        lambda r: improved_start(r, _segment(r), "speed"),
+        "unknown objective 'speed'; objectives: velocity, energy",
+    ),
+    (
+        "improved_start of an objective of the wrong type",
+        lambda r: improved_start(r, _segment(r), 3),
+        "unknown objective 3",
+    ),
+    (
+        "global_optimum of a segment's name",
+        lambda r: global_optimum(r, "1-2"),
+        "segment must be a Segment or a Chain",
+    ),
     (
         "step of nan",
         lambda r: VELOCITY.resolver.step(r, np.array([1.7, 1.0, 0.7]), np.array([np.nan, 0.0])),

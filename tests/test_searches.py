@@ -282,3 +282,12 @@ def test_one_sample_is_the_default_start_for_two_held_actuators_and_for_a_whole_
     whole = improved_cycle_start(crane, cycle, VELOCITY, samples=1, method="sweep")
     assert [s.values for s in whole.samples] == [tuple(first)]
     assert whole.samples[0].peak is not None
+
+
+def test_an_objective_may_be_named(crane, paper_cycle):
+    """improved_start takes an objective's name as the objective itself."""
+    named = improved_start(crane, paper_cycle["1-2"], "energy")
+    given = improved_start(crane, paper_cycle["1-2"], ENERGY)
+    assert named.objective is ENERGY
+    assert [s.values for s in named.samples] == [s.values for s in given.samples]
+    assert named.best_peak == given.best_peak

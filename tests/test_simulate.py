@@ -142,7 +142,19 @@ def test_a_motion_as_a_table_round_trips_its_arrays(crane, cycle):
         "q_boom2_joint (rad)",
         "q_telescope_joint (m)",
     ]
-    assert list(frame.columns[-3:]) == ["F_x1 (N)", "F_x2 (N)", "F_x3 (N)"]
+    forces = ["F_x1 (N)", "F_x2 (N)", "F_x3 (N)"]
+    assert list(frame.columns[13:16]) == forces  # after t, q and x, ẋ, ẍ of each actuator
+    # then the crane's circuit: each cylinder's load pressure and flow, the pump's flow and power
+    assert list(frame.columns[16:]) == [
+        "p_L_x1 (bar)",
+        "Q_x1 (L/min)",
+        "p_L_x2 (bar)",
+        "Q_x2 (L/min)",
+        "p_L_x3 (bar)",
+        "Q_x3 (L/min)",
+        "Q_pump (L/min)",
+        "P_pump (kW)",
+    ]
     np.testing.assert_array_equal(frame["t (s)"], motion.t[0])
     np.testing.assert_array_equal(frame.filter(like="q_").to_numpy(), motion.q[0])
     for part, values in (

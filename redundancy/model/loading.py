@@ -544,6 +544,11 @@ def load_robot(
     declared = read_cylinders(root, source)
     table, origin = None, ""
     if hydraulics is not None:
+        if not isinstance(hydraulics, str | os.PathLike):
+            raise InvalidInputError(
+                f"hydraulics must be the path of a TOML file with a [hydraulics] table; got "
+                f"{type(hydraulics).__name__} {hydraulics!r}"[:240]
+            )
         table, origin = read_hydraulics_file(Path(hydraulics)), str(hydraulics)
     elif description.hydraulics is not None:
         table, origin = description.hydraulics, where

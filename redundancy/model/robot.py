@@ -36,8 +36,10 @@ def frame_id(model: pin.Model, name: str) -> int:
 
 
 def _as_batch(name: str, values: np.ndarray | list[float], n: int) -> np.ndarray:
-    """``values`` (n,) or (k, n) as a checked (k, n) float array: right shape, finite."""
+    """``values`` (n,) or (k, n) as a checked (k, n) float array: real, right shape, finite."""
     try:
+        if np.iscomplexobj(values):  # numpy would drop the imaginary part with a warning
+            raise TypeError
         array = np.asarray(values, dtype=float)
     except (TypeError, ValueError):
         raise InvalidInputError(

@@ -56,9 +56,10 @@ from redundancy.planning.integrate import Trajectory
 from redundancy.planning.motions import simulate_path
 from redundancy.planning.refinement import Refined, checked_grids
 from redundancy.planning.starts import SearchResult, improved_start
-from redundancy.planning.tasks import Chain, Segment
+from redundancy.planning.tasks import Chain, Segment, checked_path
 from redundancy.resolution.limits import Limits
 from redundancy.resolution.objectives import VELOCITY, Objective
+from redundancy.resolution.objectives import objective as as_objective
 from redundancy.resolution.state import ActuatorSpace, evaluate
 
 GRIDS = (24, 48)  # intervals of the successive grids
@@ -434,6 +435,7 @@ def global_optimum(
     ``checked`` names the actuators whose strokes bind (default all). The objective must be a
     peak objective (its reduction "peak").
     """
+    segment, objective = checked_path(segment), as_objective(objective)
     row = held_indices(robot, [held])[0]
     refine = grids is None
     grids = checked_grids(GRIDS if grids is None else grids, 3)

@@ -54,10 +54,11 @@ from redundancy.planning.ik import (
 )
 from redundancy.planning.integrate import REPORT_TOLERANCE, TIME_STEP, TOLERANCE, Trajectory
 from redundancy.planning.motions import concatenated, simulate_path
-from redundancy.planning.tasks import Chain, Segment, WorkCycle
+from redundancy.planning.tasks import Chain, Segment, WorkCycle, checked_path
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
 from redundancy.resolution.limits import Limits, Violation, amount
 from redundancy.resolution.objectives import Objective
+from redundancy.resolution.objectives import objective as as_objective
 
 METHODS = ("fast", "sweep")
 MAX_SAMPLES = 10_000  # starts of one sweep, integrated as one batch: about 47 MB per 1,000
@@ -352,6 +353,7 @@ def evaluate_starts(
     then unknown, −inf). A start is feasible where its margin μ (the motion's and the start's
     joint margin) is ≥ −`LIMIT_TOLERANCE` and the motion kept every other checked limit: with
     ``circuit`` also the hydraulic circuit's (its margin stays the strokes')."""
+    path, objective = checked_path(path, "path"), as_objective(objective)
     held = held_names(robot, held)
     if not isinstance(values, Starts):
         values = np.asarray(values, dtype=float).reshape(-1, len(held))
@@ -454,6 +456,8 @@ def improved_starts(
     """`improved_start` for each of ``objectives`` on one segment, in order. The start
     configurations do not depend on the objective, so the searches share them: the fast
     search's reachable scan is done once."""
+    segment = checked_path(segment)
+    objectives = tuple(as_objective(o) for o in objectives)
     held = held_names(robot, held)
     method = search_method(held, samples, method)
     if len(held) > 1:

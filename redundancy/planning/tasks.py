@@ -836,3 +836,14 @@ def read_polyline(path: Path | str, dimension: int | None, tool_angle: bool = Fa
             f"{path}: one point ({where}); a polyline needs at least two distinct points"
         )
     return Polyline(np.array([p for _, p in kept]), angles)
+
+
+def checked_path(path: object, name: str = "segment") -> Segment | Chain:
+    """``path`` if it is one the integrators take (a `Segment`, or a cycle's `Chain`), else one
+    line naming what was given: a segment's name is looked up in its `WorkCycle`."""
+    if isinstance(path, Segment | Chain):
+        return path
+    raise InvalidInputError(
+        f"{name} must be a Segment or a Chain (e.g. cycle[{path!r}] or cycle.chain() of a "
+        f"WorkCycle); got {type(path).__name__} {path!r}"[:240]
+    )

@@ -112,8 +112,13 @@ CP_ENERGY = Objective(
 OBJECTIVES = {o.name: o for o in (VELOCITY, ENERGY, FLOW, LS_ENERGY, CP_ENERGY)}
 
 
-def objective(name: str) -> Objective:
-    """The objective called ``name``; the error lists the choices."""
-    if name not in OBJECTIVES:
-        raise InvalidInputError(f"unknown objective {name!r}; objectives: {', '.join(OBJECTIVES)}")
+def objective(name: str | Objective) -> Objective:
+    """The objective called ``name`` (an `Objective` is taken as it is); the error lists the
+    choices."""
+    if isinstance(name, Objective):
+        return name
+    if not isinstance(name, str) or name not in OBJECTIVES:
+        raise InvalidInputError(
+            f"unknown objective {name!r}; objectives: {', '.join(OBJECTIVES)}, or an Objective"
+        )
     return OBJECTIVES[name]
