@@ -46,6 +46,7 @@ from redundancy.planning.cycles import (
 from redundancy.planning.integrate import Trajectory
 from redundancy.planning.starts import default_start, held_actuators, scalar_or_list
 from redundancy.planning.tasks import WorkCycle
+from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import VELOCITY, Objective
 from redundancy.study.output import write_atomically
 
@@ -237,7 +238,7 @@ def repetition_report(repetition: Repetition) -> dict:
 def settling_words(settled: Settling) -> str:
     """Whether the held actuator settles to a limit cycle, in words."""
     if settled.settled_at is not None:
-        return f"closed (drift below {SETTLED:g}) from cycle {settled.settled_at}"
+        return f"closed (drift below {SETTLED:g} m or rad) from cycle {settled.settled_at}"
     if settled.settles:
         return (
             f"converging to a limit cycle at {settled.limit:.6g} (drift ratio "
@@ -268,9 +269,12 @@ def map_report(mapped: ReturnMap) -> dict:
     }
 
 
-def named_values(held, values) -> str:
-    """The held actuators' values by name: "x3 = 0.8123"."""
-    return ", ".join(f"{h} = {v:.4g}" for h, v in zip(held, values))
+def named_values(robot: Robot, held, values) -> str:
+    """The held actuators' values by name, in mm or degrees: "x3 = 812.3 mm"."""
+    return ", ".join(
+        f"{h} = {amount(v, 'rad' if robot.actuators[h].rotary else 'm')}"
+        for h, v in zip(held, values)
+    )
 
 
 def run_cycle(
@@ -318,7 +322,9 @@ def run_cycle(
             start_q = free_motion.q[0, 0]
         else:
             values, start_q = default_start(robot, cycle.chain(), held)
-            free_start = f"default start {named_values(held, values)}: no start keeps every stroke"
+            free_start = (
+                f"default start {named_values(robot, held, values)}: no start keeps every stroke"
+            )
         repetitions: dict[str, Repetition] = {}
         firsts: dict[str, Trajectory] = {}
         periodic = None

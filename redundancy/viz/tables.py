@@ -25,12 +25,16 @@ def study_table(study: Study) -> str:
     the hydraulic comparison where the robot has a circuit, and the cycle section."""
     start = "start " + ",".join(study.held)
     width = max(10, len(start) + 1, 11 * len(study.held) + 1)
-    units = ["rad" if study.robot.actuators[h].rotary else "m" for h in study.held]
+    units = [_unit(study.robot, h) for h in study.held]
     names = _segment_width(study)
 
     def cells(run: StrategyRun) -> str:
         row = run.summary()
-        held = "held" if row["within_limits"] else "VIOLATED"
+        # a limit passed is named: the first violation (in time), the count of the others
+        passed = row["violations"]
+        held = "held" if row["within_limits"] else f"passed: {passed[0]}" if passed else "failed"
+        if len(passed) > 1:
+            held += f" (+{len(passed) - 1} more)"
         values = ",".join(amount(v, unit) for v, unit in zip(run.start, units))
         kinetic = "-" if row["peak_kinetic"] is None else f"{row['peak_kinetic']:.3f}"
         return f"{values:>{width}}{row['peak_velocity_norm']:>12.5f}{kinetic:>13}  {held}"
@@ -118,6 +122,17 @@ def _per_run(study: Study, columns: str, cells: Callable[[StrategyRun], str]) ->
     return lines + [f"{run.segment:<{names}}{run.strategy:<36}{cells(run)}" for run in study.runs]
 
 
+def _largest(values: np.ndarray, units: list[str]) -> str:
+    """The largest of one value per actuator (n,), shown in its actuator's unit."""
+    i = int(np.argmax(values))
+    return amount(values[i], units[i])
+
+
+def _unit(robot, actuator: str) -> str:
+    """An actuator's SI unit: rad for a rotary one, else m."""
+    return "rad" if robot.actuators[actuator].rotary else "m"
+
+
 def _segment_width(study: Study) -> int:
     """The width of the tables' segment column."""
     return max(8, *(len(s.name) + 2 for s in study.cycle.segments))
@@ -134,6 +149,7 @@ def cycle_table(study: CycleStudy) -> str:
     """The cycle study: the plan, the corners, the repetitions, the price."""
     plan, held = study.plan, study.held
     unit, label = study.objective.unit, study.objective.label
+    units = [_unit(study.robot, h) for h in held]
     route = " → ".join(s.name for s in study.cycle.segments)
     lines = [
         f"work cycle {study.cycle.name!r}: {route} ({study.cycle.duration:.2f} s), "
@@ -148,14 +164,17 @@ def cycle_table(study: CycleStudy) -> str:
         )
     else:
         box = search.feasible_box
-        span = ", ".join(f"[{lo:.4g}, {hi:.4g}]" for lo, hi in box)  # type: ignore[union-attr]
+        span = ", ".join(
+            f"[{amount(lo, u)}, {amount(hi, u)}]"
+            for (lo, hi), u in zip(box, units)  # type: ignore[arg-type]
+        )
         lines.append(
-            f"whole-cycle improved start: {named_values(held, search.best.values)} "
+            f"whole-cycle improved start: {named_values(study.robot, held, search.best.values)} "
             f"(feasible {span}), peak {label} {search.best_peak:.5g} {unit} "
             f"({search.simulations} motions)"
         )
     starts = [
-        "none" if s.best is None else ",".join(f"{v:.4g}" for v in s.best.values)
+        "none" if s.best is None else ",".join(amount(v, u) for v, u in zip(s.best.values, units))
         for s in plan.segments
     ]
     peaks = [peak for s in plan.segments if (peak := s.best_peak) is not None]
@@ -165,7 +184,8 @@ def cycle_table(study: CycleStudy) -> str:
         + ", with a self-motion at every corner:"
     )
     names = list(study.robot.actuators.names)
-    header = f"  {'corner':<18}" + "".join(f"{'Δ' + n:>10}" for n in names)
+    all_units = [_unit(study.robot, n) for n in names]
+    header = f"  {'corner':<18}" + "".join(f"{'Δ' + n:>12}" for n in names)
     lines.append(header + f"{'time s':>9}  self-motion")
     state = {True: "keeps the strokes", False: "passes a stroke", None: "-"}
     for corner in plan.corners:
@@ -174,7 +194,7 @@ def cycle_table(study: CycleStudy) -> str:
         if delta is None:
             lines.append(row + f"  {corner.reason}")
             continue
-        row += "".join(f"{d:>10.4f}" for d in delta)
+        row += "".join(f"{amount(d, u):>12}" for d, u in zip(delta, all_units))
         lines.append(row + f"{corner.time:>9.2f}  {corner.reason or state[corner.within_limits]}")
     if plan.gap_time is not None and plan.corners:
         lines.append(
@@ -197,38 +217,39 @@ def cycle_table(study: CycleStudy) -> str:
                 )
         lines.append("drift-free against the free improved cycle: " + "; ".join(parts))
     if study.map is not None:
-        lines.append(
-            f"return map of {study.map.held} at the cycle's start: {fixed_point_words(study.map)}"
-        )
+        words = fixed_point_words(study.map, _unit(study.robot, study.map.held))
+        lines.append(f"return map of {study.map.held} at the cycle's start: {words}")
     lines += [f"{name}: {reason}" for name, reason in study.failures.items()]
     return "\n".join(lines)
 
 
 def _repetition_table(study: CycleStudy) -> str:
     header = (
-        f"{'strategy':<34}{'cycles':>7}{'drift/cycle: first':>20}{'last':>11}"
-        f"{'tool drift':>12}  first stroke passed; settling"
+        f"{'strategy':<34}{'cycles':>7}{'drift/cycle: first':>20}{'last':>13}"
+        f"{'tool drift':>13}  first stroke passed; settling"
     )
     lines = ruled(header)
+    units = [_unit(study.robot, a) for a in study.robot.actuators.names]
     for name, repetition in study.repetitions.items():
-        largest = np.abs(repetition.drift).max(axis=1)
+        drift = np.abs(repetition.drift)  # (cycles, n): each actuator's, in its own unit
+        first_cycle, last_cycle = _largest(drift[0], units), _largest(drift[-1], units)
         first = repetition.first_violation
         passed = "none" if first is None else f"cycle {first[0]}: {first[1]}"
         lines.append(
-            f"{NAMES[name]:<34}{repetition.cycles:>7}{largest[0]:>20.3g}{largest[-1]:>11.3g}"
-            f"{repetition.tool_drift.max():>12.3g}  {passed}; "
+            f"{NAMES[name]:<34}{repetition.cycles:>7}{first_cycle:>20}{last_cycle:>13}"
+            f"{amount(repetition.tool_drift.max(), 'm'):>13}  {passed}; "
             f"{settling_words(repetition.settling)}"
         )
     return "\n".join(lines)
 
 
-def fixed_point_words(mapped: ReturnMap) -> str:
-    """The return map's limit cycles in words."""
+def fixed_point_words(mapped: ReturnMap, unit: str) -> str:
+    """The return map's limit cycles in words, the held actuator's values in ``unit`` (SI)."""
     found = mapped.fixed_points
     if not found:
         return "no fixed point over the reachable stroke"
     return "; ".join(
-        f"limit cycle at {point.value:.5g} (P' = {point.slope:.3g}, "
+        f"limit cycle at {amount(point.value, unit)} (P' = {point.slope:.3g}, "
         f"{'stable' if point.stable else 'unstable'}"
         + ("" if point.keeps_the_strokes else ", its cycle passes a stroke")
         + ")"
