@@ -236,3 +236,17 @@ def test_an_inertia_on_the_edge_of_a_body_loads_as_a_file_rounds_it(tmp_path):
     beyond = crane_variant(tmp_path, 'izz="17.0666666666667"', 'izz="17.07"')
     with pytest.raises(RobotDescriptionError, match=r"link 'boom1' <inertia .* izz=\"17.07\"/> is"):
         load_robot(beyond)
+
+
+def test_a_robot_toml_reached_through_a_symbolic_link_reads_from_its_own_folder(tmp_path):
+    """A robot.toml linked from elsewhere names its URDF, task and hydraulics relative to the
+    folder it is in, not to the link's: the same robot loads."""
+    link = tmp_path / "elsewhere" / "robot.toml"
+    link.parent.mkdir()
+    link.symlink_to(bundled_root() / "hiab031" / "robot.toml")
+    linked, bundled = load_robot(link), load_robot("hiab031")
+    assert linked.actuators.names == bundled.actuators.names
+    assert linked.task_file == bundled.task_file
+    assert (linked.hydraulics is None) == (bundled.hydraulics is None)
+    q = (bundled.lower + bundled.upper) / 2
+    np.testing.assert_array_equal(fk(linked, q), fk(bundled, q))

@@ -64,7 +64,8 @@ def _file_name(path: Path) -> str:
 def _describe(robot: str | Path) -> tuple[str, Path, Description, str]:
     """Name, folder, description (robot.toml contents) and where the description came from, of
     a bundled name or a file path. A robot loaded from a path is named after its folder (a
-    ``robot.toml``) or its file (a URDF or xacro)."""
+    ``robot.toml``) or its file (a URDF or xacro). Paths a file names are relative to the folder
+    the file itself is in: reached through a symbolic link, the folder the link points into."""
     if not isinstance(robot, str | Path):
         raise InvalidInputError(f"robot must be a name or a path; got {robot!r}")
     path = Path(robot)
@@ -72,11 +73,12 @@ def _describe(robot: str | Path) -> tuple[str, Path, Description, str]:
         if not path.is_file():
             raise RobotDescriptionError(f"no URDF file at {path}")
         bare = Description(urdf=path.name, tool_frame=None, task_axes=AXES)
-        return _file_name(path), path.parent, bare, str(path)
+        return _file_name(path), path.resolve().parent, bare, str(path)
     if path.suffix == ".toml":
         if not path.is_file():
             raise RobotDescriptionError(f"no robot description at {path}")
-        return path.resolve().parent.name, path.parent, _read_description(path), str(path)
+        folder = path.resolve().parent
+        return folder.name, folder, _read_description(path), str(path)
     names = bundled_robots()
     if str(robot) not in names:
         raise RobotDescriptionError(
