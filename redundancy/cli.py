@@ -80,7 +80,7 @@ def describe(robot: Robot) -> str:
         lines.append(f"  {name:<20} {span(lo, hi, 'rad' if rotary else 'm')}")
     lines.append("actuators:")
     for actuator in robot.actuators:
-        stroke = span(actuator.lower, actuator.upper, "rad" if actuator.rotary else "m")
+        stroke = span(actuator.lower, actuator.upper, actuator.unit)
         lines.append(
             f"  {actuator.name:<8} {type(actuator).__name__:<15} on {actuator.joint:<18} "
             f"stroke {stroke}"
@@ -291,7 +291,7 @@ def _play_motion(
             )
         for name, value in given.items():
             stroke = robot.actuators[name]
-            unit = "rad" if stroke.rotary else "m"
+            unit = stroke.unit
             if not stroke.lower <= value <= stroke.upper:
                 shown = f"{name}={value:g}" if option == "--start" else f"{value:g}"
                 raise InvalidInputError(

@@ -60,6 +60,11 @@ class ActuatorMap(ABC):
     distance = False  # whether x is a distance between two points (m, ≥ 0), a cylinder's length
     parameters: tuple[Parameter, ...] = ()
 
+    @property
+    def unit(self) -> str:
+        """The SI unit of its stroke x: rad for a rotary actuator, else m."""
+        return "rad" if self.rotary else "m"
+
     def __init__(self, name: str, joint: str, lower: float = -np.inf, upper: float = np.inf):
         if not lower < upper:
             raise RobotDescriptionError(

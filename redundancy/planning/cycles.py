@@ -689,7 +689,7 @@ def periodic_optimum(
             "margin",
             margin,
             (actuator.upper - actuator.lower) / 4,
-            "rad" if actuator.rotary else "m",
+            actuator.unit,
         ),
         ("smoothness", smoothness, 1.0, "s²"),
     ):

@@ -259,17 +259,14 @@ def configuration_at(robot: Robot, point: np.ndarray, held: dict[str, float]) ->
     for name, value in held.items():
         actuator = robot.actuators[name]
         if not actuator.lower <= value <= actuator.upper:
-            unit = "rad" if actuator.rotary else "m"
+            unit = actuator.unit
             raise UnreachableError(
                 f"{name} = {amount(value, unit)} is outside its stroke "
                 f"[{amount(actuator.lower, unit)}, {amount(actuator.upper, unit)}]"
             )
     if not solution.reached[0]:
         miss = _closest_miss(robot, np.asarray(point, dtype=float), held, solution.q[0])
-        values = ", ".join(
-            f"{k} = {amount(v, 'rad' if robot.actuators[k].rotary else 'm')}"
-            for k, v in held.items()
-        )
+        values = ", ".join(f"{k} = {amount(v, robot.actuators[k].unit)}" for k, v in held.items())
         raise UnreachableError(
             f"{robot.name} cannot reach task point {np.asarray(point).tolist()} with {values} "
             f"inside its joint limits: the closest configuration misses it by {amount(miss, 'm')}"

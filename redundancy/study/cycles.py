@@ -271,10 +271,7 @@ def map_report(mapped: ReturnMap) -> dict:
 
 def named_values(robot: Robot, held, values) -> str:
     """The held actuators' values by name, in mm or degrees: "x3 = 812.3 mm"."""
-    return ", ".join(
-        f"{h} = {amount(v, 'rad' if robot.actuators[h].rotary else 'm')}"
-        for h, v in zip(held, values)
-    )
+    return ", ".join(f"{h} = {amount(v, robot.actuators[h].unit)}" for h, v in zip(held, values))
 
 
 def run_cycle(

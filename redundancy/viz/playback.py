@@ -512,7 +512,7 @@ class Playback:
             "grid": self.spacing,
             "t": np.round(self.t[self.samples], 4).tolist(),
             "names": list(actuators.names),
-            "units": ["rad" if a.rotary else "m" for a in actuators],
+            "units": [a.unit for a in actuators],
             "lower": finite[:n],
             "upper": finite[n:],
             "x": np.round(self.motion.x[0, self.samples], 5).tolist(),

@@ -25,7 +25,7 @@ def study_table(study: Study) -> str:
     the hydraulic comparison where the robot has a circuit, and the cycle section."""
     start = "start " + ",".join(study.held)
     width = max(10, len(start) + 1, 11 * len(study.held) + 1)
-    units = [_unit(study.robot, h) for h in study.held]
+    units = [study.robot.actuators[h].unit for h in study.held]
     names = _segment_width(study)
 
     def cells(run: StrategyRun) -> str:
@@ -128,11 +128,6 @@ def _largest(values: np.ndarray, units: list[str]) -> str:
     return amount(values[i], units[i])
 
 
-def _unit(robot, actuator: str) -> str:
-    """An actuator's SI unit: rad for a rotary one, else m."""
-    return "rad" if robot.actuators[actuator].rotary else "m"
-
-
 def _segment_width(study: Study) -> int:
     """The width of the tables' segment column."""
     return max(8, *(len(s.name) + 2 for s in study.cycle.segments))
@@ -149,7 +144,7 @@ def cycle_table(study: CycleStudy) -> str:
     """The cycle study: the plan, the corners, the repetitions, the price."""
     plan, held = study.plan, study.held
     unit, label = study.objective.unit, study.objective.label
-    units = [_unit(study.robot, h) for h in held]
+    units = [study.robot.actuators[h].unit for h in held]
     route = " → ".join(s.name for s in study.cycle.segments)
     lines = [
         f"work cycle {study.cycle.name!r}: {route} ({study.cycle.duration:.2f} s), "
@@ -184,7 +179,7 @@ def cycle_table(study: CycleStudy) -> str:
         + ", with a self-motion at every corner:"
     )
     names = list(study.robot.actuators.names)
-    all_units = [_unit(study.robot, n) for n in names]
+    all_units = [study.robot.actuators[n].unit for n in names]
     header = f"  {'corner':<18}" + "".join(f"{'Δ' + n:>12}" for n in names)
     lines.append(header + f"{'time s':>9}  self-motion")
     state = {True: "keeps the strokes", False: "passes a stroke", None: "-"}
@@ -217,7 +212,7 @@ def cycle_table(study: CycleStudy) -> str:
                 )
         lines.append("drift-free against the free improved cycle: " + "; ".join(parts))
     if study.map is not None:
-        words = fixed_point_words(study.map, _unit(study.robot, study.map.held))
+        words = fixed_point_words(study.map, study.robot.actuators[study.map.held].unit)
         lines.append(f"return map of {study.map.held} at the cycle's start: {words}")
     lines += [f"{name}: {reason}" for name, reason in study.failures.items()]
     return "\n".join(lines)
@@ -229,7 +224,7 @@ def _repetition_table(study: CycleStudy) -> str:
         f"{'tool drift':>13}  first stroke passed; settling"
     )
     lines = ruled(header)
-    units = [_unit(study.robot, a) for a in study.robot.actuators.names]
+    units = [a.unit for a in study.robot.actuators]
     for name, repetition in study.repetitions.items():
         drift = np.abs(repetition.drift)  # (cycles, n): each actuator's, in its own unit
         first_cycle, last_cycle = _largest(drift[0], units), _largest(drift[-1], units)
