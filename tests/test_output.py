@@ -197,6 +197,19 @@ def test_a_signal_while_the_libraries_load_ends_the_command_with_one_line(tmp_pa
         assert list(tmp_path.iterdir()) == []
 
 
+def test_a_signal_while_the_staging_folder_is_made_leaves_nothing(tmp_path, monkeypatch):
+    """Ctrl-C between making the staging folder and marking it, before any `with` block could
+    discard it: the folder is removed, and the target's parent holds nothing new."""
+
+    def interrupted(self, files):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(OutputFolder, "_mark", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        OutputFolder(tmp_path / "out")
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_signal_python_had_to_ignore_still_ends_the_command(monkeypatch, capsys):
     """A Ctrl-C whose KeyboardInterrupt is raised inside a weakref callback, where Python can
     only report and ignore it: no report, and the command ends with one line and status 130."""

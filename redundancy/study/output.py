@@ -216,6 +216,9 @@ class OutputFolder:
         except OSError as error:
             self.discard()
             raise _unwritable(Path(target), error, option) from None
+        except BaseException:  # a signal while staging: no `with` block will discard it
+            self.discard()
+            raise
 
     def _check_target(self, writing: tuple[str, ...] = ()) -> bool:
         """Whether the target exists; one line where it is not an output folder of the
