@@ -462,7 +462,8 @@ def test_live_playback_answers_on_localhost_and_leaves_nothing_behind(stop):
         assert int(address.group(1)) in ports
         assert bound == {"127.0.0.1"}
         with urllib.request.urlopen(address.group(0), timeout=10) as response:
-            assert response.status == 200 and b"MeshCat" in response.read()
+            assert response.status == 200
+            assert b"<title>hiab031: segment 1-2</title>" in response.read()
         run.send_signal(stop)
         _, errors = run.communicate(timeout=30)
     finally:
@@ -479,6 +480,41 @@ def test_live_playback_answers_on_localhost_and_leaves_nothing_behind(stop):
     state = Path(f"/proc/{servers[0]}/stat")
     assert not state.exists() or state.read_text().rsplit(")", 1)[1].split()[0] == "Z"
     assert not ports & listening_ports()
+
+
+def test_the_live_page_explains_itself_as_the_exported_one_does(crane, motion, tmp_path):
+    """The page ``play`` serves, opened at ``?t=4`` in Chromium: after virtual time the
+    animation the server sent has arrived, so the clock reads "t = 4.00 s" and each gauge
+    gives its actuator's value and speed in m at that instant; the tab is titled after the
+    robot and segment, the heading names the law, play and the time slider are on the page,
+    and the grid's spacing is stated."""
+    run, watchdog = launched_play()
+    try:
+        line = run.stdout.readline()
+        address = re.search(r"http://127\.0\.0\.1:\d+/static/", line)
+        assert address, line + run.stderr.read()
+        served = browser.dom(f"{address.group(0)}?t=4", tmp_path, "--virtual-time-budget=3000")
+    finally:
+        watchdog.cancel()
+        run.terminate()
+        run.communicate(timeout=30)
+    shown = html.fromstring(served)
+    assert shown.findtext(".//title") == "hiab031: segment 1-2"
+    heading = shown.get_element_by_id("heading").text_content()
+    assert heading == f"hiab031: segment 1-2, {VELOCITY.resolver.name}"
+    assert shown.get_element_by_id("clock").text_content() == "t = 4.00 s"
+    assert shown.get_element_by_id("play").text_content() == "play"  # paused at the instant
+    assert shown.get_element_by_id("slider").get("type") == "range"
+    playback = Playback(motion)
+    assert shown.get_element_by_id("scale").text_content() == f"grid squares {playback.spacing:g} m"
+    i = playback.samples[np.searchsorted(playback.t[playback.samples], 4.0 + 1e-6) - 1]
+    rows = shown.xpath("//div[@class='gauge']")
+    for row, name in zip(rows, crane.actuators.names, strict=True):
+        label, _, value = row.xpath("span")
+        j = crane.actuators.names.index(name)
+        assert label.text_content() == name
+        speed = f"{motion.x_dot[0, i, j]:z.3f} m/s"
+        assert value.text_content().startswith(f"{motion.x[0, i, j]:z.3f} m, ẋ = {speed}")
 
 
 @pytest.mark.skipif(not Path("/proc/net/tcp").exists(), reason="reads processes from /proc")

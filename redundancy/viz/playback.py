@@ -9,15 +9,16 @@ front of it), the task points, and a grid behind the machine whose spacing the p
 camera looks at the task plane (for the crane, world x–z, from −y) and frames every link's
 visual geometry over the whole motion.
 
-`play` serves the scene from a meshcat server on localhost and loops the motion in real time
-until interrupted; the server stops with it. `export_html` needs no server: a stand-in for
-meshcat's viewer window records the drawing commands, including a recorded
-`meshcat.animation.Animation`, and writes them into a page that embeds meshcat's viewer script
-and loads nothing from the network. Over the scene the page shows its title (robot, segment,
-strategy), the time, play and pause, a time slider, and each actuator's value and speed with its
-unit and a gauge of its stroke that turns red at a limit: a stroke's end, and, where the robot
-has a hydraulic circuit, a cylinder's speed or load pressure past what the circuit allows.
-Opening the page with ``?t=SECONDS`` shows that instant of the motion, paused.
+The motion is one recorded `meshcat.animation.Animation` that loops in the browser. `export_html`
+needs no server: a stand-in for meshcat's viewer window records the drawing commands and writes
+them into a page that embeds meshcat's viewer script and loads nothing from the network. `play`
+serves the same page from a meshcat server on localhost until interrupted, the scene sent by the
+server; the server stops with it. Over the scene the page shows its title (robot, segment,
+strategy), the time, play and pause, a time slider, the grid's spacing, and each actuator's
+value and speed with its unit and a gauge of its stroke that turns red at a limit: a stroke's
+end, and, where the robot has a hydraulic circuit, a cylinder's speed or load pressure past what
+the circuit allows. Opening the page with ``?t=SECONDS`` shows that instant of the motion,
+paused.
 """
 
 from __future__ import annotations
@@ -29,11 +30,11 @@ import io
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 import tempfile
 import threading
-import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -50,7 +51,7 @@ from redundancy.planning.tasks import WorkCycle
 from redundancy.study.cycles import CycleStudy
 from redundancy.study.output import write_atomically
 from redundancy.study.study import Study
-from redundancy.viz.server import LOCALHOST
+from redundancy.viz.server import LOCALHOST, PAGE
 
 STARTUP = 30.0  # s: the meshcat server must have said where it listens by then
 FRAME_RATE = 30.0  # frames per second of playback; the motion is sampled at most this often
@@ -588,17 +589,29 @@ class Recording:
     def get_scene(self) -> str:
         viewer = Path(_meshcat().__file__).parent / "viewer" / "dist" / "main.min.js"
         commands = ",\n".join(f'"{base64.b64encode(c).decode()}"' for c in self.commands)
-        # The page (playback.html) and what it shows over the scene (overlay.html) hold
-        # @-markers for what each page fills in; the viewer's script goes in last, so that no
-        # marker is looked for inside it.
-        here = Path(__file__).parent
-        text = (here / "playback.html").read_text(encoding="utf-8")
-        text = text.replace("@TITLE@", html.escape(self.title)).replace("@COMMANDS@", commands)
-        shown = ""
-        if self.overlay is not None:
-            shown = (here / "overlay.html").read_text(encoding="utf-8")
-            shown = shown.replace("@DATA@", json.dumps(self.overlay))
-        return text.replace("@OVERLAY@", shown).replace("@VIEWER@", viewer.read_text())
+        # Decoded in order and synchronously (meshcat's own page fetches each one
+        # asynchronously), so that the scene and animation exist when the time is chosen.
+        scene = (
+            f"for (const command of [\n{commands}\n]) {{\n  viewer.handle_command_bytearray("
+            "Uint8Array.from(atob(command), c => c.charCodeAt(0)));\n}"
+        )
+        return _html(self.title, self.overlay, f"<script>{viewer.read_text()}</script>", scene)
+
+
+def _html(title: str, overlay: dict | None, viewer: str, scene: str) -> str:
+    """A playback page (playback.html): its ``title``, meshcat's ``viewer`` script element, the
+    ``scene`` script that fills the viewer, and what it shows over the scene (overlay.html, from
+    `Playback.overlay`) where ``overlay`` is given. Each @-marker is filled in one pass, so that
+    none is looked for inside what fills another."""
+    here = Path(__file__).parent
+
+    def filled(name: str, values: dict[str, str]) -> str:
+        text = (here / name).read_text(encoding="utf-8")
+        return re.sub(r"@([A-Z]+)@", lambda marker: values[marker.group(1)], text)
+
+    shown = "" if overlay is None else filled("overlay.html", {"DATA": json.dumps(overlay)})
+    markers = {"TITLE": html.escape(title), "VIEWER": viewer, "SCENE": scene, "OVERLAY": shown}
+    return filled("playback.html", markers)
 
 
 def _extension(value):
@@ -611,18 +624,23 @@ def _extension(value):
     raise TypeError(f"cannot encode {type(value).__name__} for meshcat")
 
 
+def _titles(motion: Trajectory, strategy: str | None) -> tuple[str, str]:
+    """A playback page's title (robot and segment or cycle) and its heading, which adds how the
+    motion was made: ``strategy``, by default its resolver's name."""
+    segment = motion.segment
+    what = "cycle" if hasattr(segment, "segments") else "segment"
+    title = f"{motion.robot.name}: {what} {segment.name}"
+    return title, f"{title}, {strategy or motion.resolver.name}"
+
+
 def page(motion: Trajectory, points: np.ndarray | None = None, strategy: str | None = None) -> str:
     """A self-contained HTML page that plays ``motion`` in a loop, with no server and no
     network; ``points`` as in `Playback`; ``strategy`` names how the motion was made, for the
     title (default: its resolver's name)."""
-    meshcat = _meshcat()
-    segment = motion.segment
-    what = "cycle" if hasattr(segment, "segments") else "segment"
-    title = f"{motion.robot.name}: {what} {segment.name}"
+    title, heading = _titles(motion, strategy)
     playback = Playback(motion, points)
-    heading = f"{title}, {strategy or motion.resolver.name}"
     recording = Recording(title, playback.overlay(heading))
-    vis = meshcat.Visualizer(window=recording)
+    vis = _meshcat().Visualizer(window=recording)
     playback.draw(vis)
     vis.set_animation(playback.animation(vis), play=True, repetitions=math.inf)
     return vis.static_html()
@@ -713,17 +731,20 @@ def play(
     announce: Callable[[str], None] = print,
     address: str = LOCALHOST,
 ) -> None:
-    """Serve the playback of ``motion`` on ``address`` (this machine only by default) and loop
-    it in real time until interrupted (KeyboardInterrupt, which propagates); ``announce`` is
-    given the page's address once the scene is drawn. The server stops when this returns or
-    raises."""
+    """Serve the playback of ``motion`` on ``address`` (this machine only by default) until
+    interrupted (KeyboardInterrupt, which propagates): the page `page` writes, its scene and
+    animation sent by the server instead of held in the page, so that it loops in the browser
+    under the same title, gauges and controls. ``announce`` is given the page's address once it
+    is served. The server stops when this returns or raises."""
+    title, heading = _titles(motion, None)
     with served(address) as vis:
         playback = Playback(motion, points)
         playback.draw(vis)
+        vis.set_animation(playback.animation(vis), play=True, repetitions=math.inf)
+        viewer = '<script src="main.min.js"></script>'  # meshcat's, beside the page
+        live = _html(title, playback.overlay(heading), viewer, "viewer.connect();")
+        vis.window.zmq_socket.send_multipart([PAGE, live.encode()])
+        vis.window.zmq_socket.recv()
         url = vis.url()
         announce(url if address == LOCALHOST else url.replace(LOCALHOST, address, 1))
-        while True:
-            start = time.monotonic()
-            for i in playback.samples:
-                time.sleep(max(0.0, playback.t[i] - (time.monotonic() - start)))
-                playback.show(vis, playback.q[i])
+        threading.Event().wait()
