@@ -607,6 +607,18 @@ def test_every_axis_of_the_study_figures_names_its_unit(crane):
                 continue
             for label in (axes.get_xlabel(), axes.get_ylabel()):
                 assert label in ("", "cycle") or re.search(r"\(.+\)$", label), (name, label)
+    workspace = figures["workspace.png"].axes[0]
+    drawn = [line.get_xydata() for line in workspace.get_lines() if len(line.get_xydata())]
+    for segment in cycle.segments:  # each path, in the task plane (world x, z)
+        assert any(np.allclose(d, segment.outline()) for d in drawn), segment.name
+    velocity = {n: m for (o, n), m in study.best_motions.items() if o == "velocity"}
+    assert velocity
+    for name, best in velocity.items():
+        kinematics = crane.kinematics(best.q[0, :1])  # the machine at the best start
+        for actuator in crane.actuators:
+            if hasattr(actuator, "ends"):
+                ends = np.array([p[0, [0, 2]] for p in actuator.ends(kinematics)])
+                assert any(np.allclose(d, ends, atol=1e-9) for d in drawn), (name, actuator)
     optimal, other = (figures[f"fig4{k}_velocity_1-2.png"] for k in ("b_best", "c_nonoptimal"))
     assert optimal.axes[1].get_ylim() == other.axes[1].get_ylim()
     peaks = figures["fig5a_peak_energy.png"].axes[0]

@@ -12,7 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
+from redundancy.model.actuators import LinearCylinder
 from redundancy.model.hydraulics import BAR, LITRES_PER_MINUTE
+from redundancy.model.linkage import LinkageCylinder
+from redundancy.model.robot import AXES
 from redundancy.planning.cycles import ReturnMap
 from redundancy.planning.integrate import Trajectory
 from redundancy.planning.starts import SearchResult
@@ -303,9 +306,53 @@ def study_figures(study: Study, segment: str | None = None) -> dict:
             optimal = figures.get(f"fig4b_best_{name}_{segment}.png")
             if optimal is not None:  # Fig. 4c on Fig. 4b's velocity scale, to compare
                 _same_scale(optimal.axes[1], nonoptimal.axes[1])
+    objective = study.searches[next(iter(study.searches))][0].objective
+    figures["workspace.png"] = workspace_figure(
+        study, f"The task and the cylinders at each best start, min {objective.label}"
+    )
     if study.cycle_study is not None:
         figures.update(cycle_figures(study.cycle_study))
     return figures
+
+
+def workspace_figure(study: Study, title: str):
+    """The task in its plane (the first two task axes, m): each segment's path in its own
+    colour, named at its middle; at each segment's improved start for the study's first
+    objective, the machine as its best motion's first state holds it: each cylinder from its
+    base to its rod point (thick, pale) and the tool point (●). Only the tracked points are
+    drawn: the state holds no link's pose, and the study maps no reachable area."""
+    plt = pyplot()
+    robot = study.robot
+    rows = [AXES.index(a) for a in robot.task_axes][:2]
+    figure, axes = plt.subplots(figsize=(7, 5.5))
+    first = next(iter(study.searches))
+    motions = study.best_motions
+    for i, segment in enumerate(study.cycle.segments):
+        colour = f"C{i}"
+        path = segment.outline()[:, : len(rows)]
+        axes.plot(*path.T, color=colour, lw=2, label=f"segment {segment.name}")
+        axes.annotate(segment.name, path.mean(axis=0), color=colour, fontsize=9)
+        motion = motions.get((first, segment.name))
+        if motion is None or motion.space is None:
+            continue
+        kinematics = motion.space.kinematics
+        for actuator in robot.actuators:
+            if isinstance(actuator, LinearCylinder | LinkageCylinder):
+                base, rod = (end[0, rows] for end in actuator.ends(kinematics))
+                axes.plot(*np.transpose([base, rod]), lw=5, alpha=0.4, color=colour)
+                axes.annotate(actuator.name, (base + rod) / 2, fontsize=8, color="0.3")
+        axes.plot(*robot.tool(kinematics).position[0, rows], "o", color=colour)
+    grey = "0.45"
+    axes.plot([], [], lw=5, alpha=0.4, color=grey, label="cylinders at the best start")
+    axes.plot([], [], "o", color=grey, label="tool at the best start")
+    axes.set_aspect("equal", adjustable="datalim")
+    axes.set_xlabel(f"world {robot.task_axes[0]} (m)")
+    axes.set_ylabel(f"world {robot.task_axes[1]} (m)")
+    axes.set_title(title)
+    axes.grid(alpha=0.3)
+    axes.legend(loc="best", fontsize=8)
+    figure.tight_layout()
+    return figure
 
 
 def cycle_figure(study: CycleStudy, title: str):

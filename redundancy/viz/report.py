@@ -62,6 +62,13 @@ CAPTIONS = (
         "curve; the pump power (kW) under load sensing (LS) and constant pressure (CP).",
     ),
     (
+        "workspace*",
+        "The task in its plane (m): each segment's path in its colour, and at each segment's "
+        "improved start for the first objective the machine's cylinders from base to rod pin "
+        "(thick, pale, in the segment's colour) with the tool (●) where the segment begins. "
+        "The links are not drawn: the study keeps the tracked points only.",
+    ),
+    (
         "cycle_strokes*",
         "Each actuator over one work cycle, one colour each: each strategy's first cycle "
         "(solid: free, dashed: drift-free), the per-segment plan's best motions dotted (they "
