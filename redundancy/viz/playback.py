@@ -117,36 +117,13 @@ def _translation(p: np.ndarray) -> np.ndarray:
 
 
 def quaternions(transforms: np.ndarray) -> np.ndarray:
-    """The rotations of transforms (k, 4, 4) as quaternions (k, 4), [x, y, z, w] with w ≥ 0:
-    meshcat's `quaternion_from_matrix` (and `js_quaternion`'s order) for a whole batch at once.
-    Its method (Bar-Itzhack's) takes the eigenvector of the largest eigenvalue of the symmetric
+    """The rotations of transforms (k, 4, 4) as quaternions (k, 4), [x, y, z, w] with w ≥ 0, as
+    meshcat's `quaternion_from_matrix` gives them one matrix at a time: scipy's takes the same
+    method (Bar-Itzhack's), the quaternion of the rotation nearest the upper-left block even
+    where it is not orthonormal (a scaled mesh's transform)."""
+    from scipy.spatial.transform import Rotation
 
-        K = ⅓ [[r00 − r11 − r22, r01 + r10,       r02 + r20,       r21 − r12      ],
-               [r01 + r10,       r11 − r00 − r22, r12 + r21,       r02 − r20      ],
-               [r02 + r20,       r12 + r21,       r22 − r00 − r11, r10 − r01      ],
-               [r21 − r12,       r02 − r20,       r10 − r01,       r00 + r11 + r22]],
-
-    the quaternion of the rotation nearest the upper-left block R, even where R is not
-    orthonormal (a scaled mesh's transform); K is built as meshcat builds it (its lower
-    triangle, the one `eigh` reads)."""
-    R = transforms[:, :3, :3]
-    r00, r01, r02 = R[:, 0, 0], R[:, 0, 1], R[:, 0, 2]
-    r10, r11, r12 = R[:, 1, 0], R[:, 1, 1], R[:, 1, 2]
-    r20, r21, r22 = R[:, 2, 0], R[:, 2, 1], R[:, 2, 2]
-    K = np.zeros((len(R), 4, 4))
-    K[:, 0, 0] = r00 - r11 - r22
-    K[:, 1, 0], K[:, 1, 1] = r01 + r10, r11 - r00 - r22
-    K[:, 2, 0], K[:, 2, 1], K[:, 2, 2] = r02 + r20, r12 + r21, r22 - r00 - r11
-    K[:, 3, 0], K[:, 3, 1], K[:, 3, 2], K[:, 3, 3] = (
-        r21 - r12,
-        r02 - r20,
-        r10 - r01,
-        r00 + r11 + r22,
-    )
-    K /= 3.0
-    w, V = np.linalg.eigh(K)
-    q = V[np.arange(len(R)), :, np.argmax(w, axis=1)]  # K's rows are x, y, z, w
-    return np.where(q[:, 3:] < 0.0, -q, q)
+    return Rotation.from_matrix(transforms[:, :3, :3]).as_quat(canonical=True)
 
 
 def task_points(cycle: WorkCycle) -> np.ndarray:

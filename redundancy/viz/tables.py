@@ -194,7 +194,7 @@ def cycle_table(study: CycleStudy) -> str:
     if plan.gap_time is not None and plan.corners:
         lines.append(
             f"  the self-motions add {plan.gap_time:.2f} s per cycle, the held actuator at "
-            f"{plan.corners[0].speed:g} m/s"
+            f"{plan.corners[0].speed:g} {units[0]}/s"
         )
     lines += ["", _repetition_table(study)]
     price = study.price()
