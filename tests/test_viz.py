@@ -392,9 +392,11 @@ def test_the_page_shows_the_time_and_each_actuator_red_at_its_stroke_limit(crane
         for row, name in zip(
             shown.xpath("//div[@class='gauge']"), crane.actuators.names, strict=True
         ):
-            label, _, value = row.xpath("span")  # name, stroke gauge, value
+            label, _, value, stroke = row.xpath("span")  # name, gauge, value, stroke's ends
             j = crane.actuators.names.index(name)
             assert label.text_content() == name
+            ends = crane.actuators[name].lower, crane.actuators[name].upper
+            assert stroke.text_content() == f"stroke {ends[0]:.3f}–{ends[1]:.3f} m"
             speed = f"{motion.x_dot[0, i, j]:z.3f} m/s"  # a rounded −0 is 0, as on the page
             assert value.text_content().startswith(f"{motion.x[0, i, j]:z.3f} m, ẋ = {speed}")
             if "at-limit" in value.get("class", ""):
@@ -518,9 +520,11 @@ def test_the_live_page_explains_itself_as_the_exported_one_does(crane, motion, t
     i = playback.samples[np.searchsorted(playback.t[playback.samples], 4.0 + 1e-6) - 1]
     rows = shown.xpath("//div[@class='gauge']")
     for row, name in zip(rows, crane.actuators.names, strict=True):
-        label, _, value = row.xpath("span")
+        label, _, value, stroke = row.xpath("span")
         j = crane.actuators.names.index(name)
         assert label.text_content() == name
+        ends = crane.actuators[name].lower, crane.actuators[name].upper
+        assert stroke.text_content() == f"stroke {ends[0]:.3f}–{ends[1]:.3f} m"
         speed = f"{motion.x_dot[0, i, j]:z.3f} m/s"
         assert value.text_content().startswith(f"{motion.x[0, i, j]:z.3f} m, ẋ = {speed}")
 
