@@ -37,14 +37,13 @@ def pyplot():
     return plt
 
 
-def unit(actuators, names=None, rate: str = "") -> str:
-    """The unit of the actuators ``names`` (default all) as a label: "m", "rad", or, for a
-    mix, "m; rad for" the rotary ones; ``rate`` appends a time derivative ("/s")."""
-    chosen = [a for a in actuators if names is None or a.name in names]
-    rotary = [a.name for a in chosen if a.rotary]
+def unit(actuators, rate: str = "") -> str:
+    """The unit of all the ``actuators`` as a label: "m", "rad", or, for a mix, "m; rad for"
+    the rotary ones; ``rate`` appends a time derivative ("/s")."""
+    rotary = [a.name for a in actuators if a.rotary]
     if not rotary:
         return f"m{rate}"
-    if len(rotary) == len(chosen):
+    if len(rotary) == len(actuators):
         return f"rad{rate}"
     return f"m{rate}; rad{rate} for {', '.join(rotary)}"
 
@@ -92,7 +91,7 @@ def peaks_figure(
         if choice.best is not None:
             axes.plot(choice.best.values[0], choice.best.peak, "*", ms=12, color=colour)
     objective, held = searches[0].objective, searches[0].held[0]
-    axes.set_xlabel(f"initial {held} ({unit(searches[0].robot.actuators, [held])})")
+    axes.set_xlabel(f"initial {held} ({searches[0].robot.actuators[held].unit})")
     measure = measure_unit(objective, searches[0].robot.actuators)
     axes.set_ylabel(f"peak {objective.label} ({measure})")
     axes.set_title(title)
@@ -138,8 +137,8 @@ def peak_map_figure(
         box = [actuators[h] for h in held]
         pane.set_xlim(box[0].lower, box[0].upper)
         pane.set_ylim(box[1].lower, box[1].upper)
-        pane.set_xlabel(f"initial {held[0]} ({unit(actuators, [held[0]])})")
-        pane.set_ylabel(f"initial {held[1]} ({unit(actuators, [held[1]])})")
+        pane.set_xlabel(f"initial {held[0]} ({actuators[held[0]].unit})")
+        pane.set_ylabel(f"initial {held[1]} ({actuators[held[1]].unit})")
         pane.set_title(f"segment {search.segment.name}")
         if feasible.any():
             measure = measure_unit(objective, actuators)
@@ -163,12 +162,11 @@ def motion_figure(trajectory: Trajectory, title: str):
         for bound in (actuator.lower, actuator.upper):
             top.axhline(bound, ls="--", lw=0.8, color=line.get_color(), alpha=0.6)
         bottom.plot(t, trajectory.x_dot[0, :, row], label=f"ẋ of {actuator.name}")
-    return _over_time(
-        figure,
-        title + "; dashed: stroke limits",
+    labels = (
         f"actuator displacement x ({unit(actuators)})",
         f"actuator velocity ẋ ({unit(actuators, rate='/s')})",
     )
+    return _over_time(figure, title + "; dashed: stroke limits", labels)
 
 
 def hydraulics_figure(trajectory: Trajectory, title: str):
@@ -214,28 +212,21 @@ def hydraulics_figure(trajectory: Trajectory, title: str):
         (circuit.constant_pressure, "CP", "--"),
     ):
         bottom.plot(t, flows.power(supply)[0] / 1000, "k" + style, lw=1, label=f"{name} pump power")
-    _over_time(
-        figure,
-        title,
-        "flow (L/min)",
-        "pressure (bar)",
-        panels=("pump power (kW)",),
-    )
-    for axes in figure.axes:
-        axes.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=8)
-    figure.tight_layout()
-    return figure
+    beside = {"loc": "center left", "bbox_to_anchor": (1.01, 0.5), "fontsize": 8}
+    labels = ("flow (L/min)", "pressure (bar)", "pump power (kW)")
+    return _over_time(figure, title, labels, legend=beside)
 
 
 def _over_time(
-    figure, title: str, upper: str, lower: str, along: str = "t (s)", panels: tuple = ()
+    figure, title: str, labels: tuple[str, ...], along: str = "t (s)", legend: dict | None = None
 ):
-    """Label a figure of plots stacked over one horizontal axis (by default time t, s), each
-    labelled in turn by ``upper``, ``lower`` and ``panels``: titles, grids and legends."""
-    for axes, label in zip(figure.axes, (upper, lower, *panels)):
+    """Label a figure of plots stacked over one horizontal axis (by default time t, s), from the
+    top down by ``labels``: title, grids and a legend in each, placed by ``legend`` (matplotlib's
+    `legend` options; default: where it hides least, small)."""
+    for axes, label in zip(figure.axes, labels):
         axes.set_ylabel(label)
         axes.grid(alpha=0.3)
-        axes.legend(loc="best", fontsize=8)
+        axes.legend(**(legend or {"loc": "best", "fontsize": 8}))
     figure.axes[-1].set_xlabel(along)
     figure.axes[0].set_title(title)
     figure.tight_layout()
@@ -256,8 +247,12 @@ def nonoptimal_sample(search: SearchResult):
     return min(candidates, key=lambda s: s.values)
 
 
-def _start(held, values) -> str:
-    return ", ".join(f"{name} = {value:.3f}" for name, value in zip(held, values))
+def _start(study: Study, values) -> str:
+    """The held actuators' start ``values`` in words, each in its unit."""
+    actuators = study.robot.actuators
+    return ", ".join(
+        f"{name} = {value:.3f} {actuators[name].unit}" for name, value in zip(study.held, values)
+    )
 
 
 def write_figures(study: Study, folder: Path, segment: str | None = None) -> list[Path]:
@@ -286,7 +281,7 @@ def study_figures(study: Study, segment: str | None = None) -> dict:
         search = study.search(name, segment)
         if search.best is not None:
             best = search.best_motion  # as the study ran it
-            start = _start(study.held, search.best.values)
+            start = _start(study, search.best.values)
             figures[f"fig{number}b_best_{name}_{segment}.png"] = motion_figure(
                 best, f"min {objective.label}, segment {segment}, optimal start {start}"
             )
@@ -300,27 +295,29 @@ def study_figures(study: Study, segment: str | None = None) -> dict:
             nonoptimal = motion_figure(
                 sweep.motion(other),
                 f"min {objective.label}, segment {segment}, non-optimal start "
-                f"{_start(study.held, other.values)}",
+                f"{_start(study, other.values)}",
             )
             figures[f"fig4c_nonoptimal_{name}_{segment}.png"] = nonoptimal
             optimal = figures.get(f"fig4b_best_{name}_{segment}.png")
             if optimal is not None:  # Fig. 4c on Fig. 4b's velocity scale, to compare
                 _same_scale(optimal.axes[1], nonoptimal.axes[1])
-    objective = study.searches[next(iter(study.searches))][0].objective
-    figures["workspace.png"] = workspace_figure(
-        study, f"The task and the cylinders at each best start, min {objective.label}"
-    )
+    if len(study.robot.task_axes) >= 2:  # a task along one axis has no plane to draw
+        objective = study.searches[next(iter(study.searches))][0].objective
+        figures["workspace.png"] = workspace_figure(
+            study, f"The task and the cylinders at each best start, min {objective.label}"
+        )
     if study.cycle_study is not None:
         figures.update(cycle_figures(study.cycle_study))
     return figures
 
 
 def workspace_figure(study: Study, title: str):
-    """The task in its plane (the first two task axes, m): each segment's path in its own
-    colour, named at its middle; at each segment's improved start for the study's first
-    objective, the machine as its best motion's first state holds it: each cylinder from its
-    base to its rod point (thick, pale) and the tool point (●). Only the tracked points are
-    drawn: the state holds no link's pose, and the study maps no reachable area."""
+    """The task in its plane (the first two task axes, m; a task has two or more): each
+    segment's path in its own colour, named at its middle; at each segment's improved start for
+    the study's first objective, the machine as its best motion's first state holds it: each
+    cylinder from its base to its rod point (thick, pale) and the tool point (●). Only the
+    tracked points are drawn: the state holds no link's pose, and the study maps no reachable
+    area."""
     plt = pyplot()
     robot = study.robot
     rows = [AXES.index(a) for a in robot.task_axes][:2]
@@ -416,12 +413,8 @@ def cycle_figure(study: CycleStudy, title: str):
             transform=top.get_xaxis_transform(),
             fontsize=9,
         )
-    _over_time(
-        figure,
-        title,
-        f"stroke x ({unit(actuators)})",
-        f"velocity ẋ ({unit(actuators, rate='/s')})",
-    )
+    labels = (f"stroke x ({unit(actuators)})", f"velocity ẋ ({unit(actuators, rate='/s')})")
+    _over_time(figure, title, labels)
     # one entry per actuator (its colour) and per line style, beside the curves
     from matplotlib.lines import Line2D
 
@@ -468,19 +461,17 @@ def drift_figure(study: CycleStudy, title: str):
             start - start[0],
             markers.get(name, "o-"),
             ms=3,
-            label=f"{name}, from {start[0]:.4f} {unit(actuators, [held])}",
+            label=f"{name}, from {start[0]:.4f} {actuators[held].unit}",
         )
     top.axhline(SETTLED, ls=":", color="k", lw=0.8, label=f"closed: {SETTLED:g}")
     # the change, not the value: its scale is the drift's, however far the stroke's ends are
     bottom.ticklabel_format(axis="y", useOffset=False)
     bottom.xaxis.get_major_locator().set_params(integer=True)
-    return _over_time(
-        figure,
-        title,
+    labels = (
         f"|drift| per cycle ({unit(actuators)})",
-        f"{held} at the cycle's start, change ({unit(actuators, [held])})",
-        "cycle",
+        f"{held} at the cycle's start, change ({actuators[held].unit})",
     )
+    return _over_time(figure, title, labels, "cycle")
 
 
 def return_map_figure(mapped: ReturnMap, title: str, held_unit: str = "m"):
@@ -543,7 +534,7 @@ def cycle_figures(study: CycleStudy) -> dict:
         figures["cycle_return_map.png"] = return_map_figure(
             study.map,
             f"Return map of {study.map.held}: the free {study.objective.name} law",
-            unit(study.robot.actuators, [study.map.held]),
+            study.robot.actuators[study.map.held].unit,
         )
     return figures
 
