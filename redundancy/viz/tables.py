@@ -158,14 +158,11 @@ def cycle_table(study: CycleStudy) -> str:
             + (f"; closest: {closest}" if closest else "")
         )
     else:
-        box = search.feasible_box
-        span = ", ".join(
-            f"[{amount(lo, u)}, {amount(hi, u)}]"
-            for (lo, hi), u in zip(box, units)  # type: ignore[arg-type]
-        )
+        box = search.feasible_box  # a best start is feasible: there is a box
+        ranges = ", ".join(span(lo, hi, u) for (lo, hi), u in zip(box, units))  # type: ignore[arg-type]
         lines.append(
             f"whole-cycle improved start: {named_values(study.robot, held, search.best.values)} "
-            f"(feasible {span}), peak {label} {search.best_peak:.5g} {unit} "
+            f"(feasible {ranges}), peak {label} {search.best_peak:.5g} {unit} "
             f"({search.simulations} motions)"
         )
     starts = [
