@@ -14,10 +14,12 @@ from redundancy.model.hydraulics import KILOJOULE
 from redundancy.planning.cycles import ReturnMap
 from redundancy.planning.refinement import Refined
 from redundancy.resolution.limits import amount
+from redundancy.resolution.objectives import VELOCITY
 from redundancy.study.check import Check, span
 from redundancy.study.cycles import NAMES, CycleStudy, named_values, settling_words
 from redundancy.study.peers import StrategyRun
 from redundancy.study.study import Study
+from redundancy.viz.plots import measure_unit
 
 
 def study_table(study: Study) -> str:
@@ -25,7 +27,8 @@ def study_table(study: Study) -> str:
     the hydraulic comparison where the robot has a circuit, and the cycle section."""
     start = "start " + ",".join(study.held)
     width = max(10, len(start) + 1, 11 * len(study.held) + 1)
-    units = [study.robot.actuators[h].unit for h in study.held]
+    actuators = study.robot.actuators
+    units = [actuators[h].unit for h in study.held]
     names = _segment_width(study)
 
     def cells(run: StrategyRun) -> str:
@@ -37,30 +40,33 @@ def study_table(study: Study) -> str:
             held += f" (+{len(passed) - 1} more)"
         values = ",".join(amount(v, unit) for v, unit in zip(run.start, units))
         kinetic = "-" if row["peak_kinetic"] is None else f"{row['peak_kinetic']:.3f}"
-        return f"{values:>{width}}{row['peak_velocity_norm']:>12.5f}{kinetic:>13}  {held}"
+        return f"{values:>{width}}{row['peak_velocity_norm']:>16.5f}{kinetic:>15}  {held}"
 
-    columns = f"{start:>{width}}{'peak ẋᵀẋ':>12}{'peak ẋᵀM_Hẋ':>13}  limits"
+    squared = measure_unit(VELOCITY, actuators)
+    columns = f"{start:>{width}}{'peak ẋᵀẋ ' + squared:>16}{'peak ẋᵀM_Hẋ J':>15}  limits"
     lines = _per_run(study, columns, cells)
     lines += [
         "",
-        f"{'segment':<{names}}{'objective':<10}{'improved':>12}{'bound':>12}{'gap %':>8}",
+        f"{'segment':<{names}}{'objective':<10}{'unit':<8}{'improved':>12}{'bound':>12}"
+        f"{'gap %':>8}",
     ]
     for name, searches in study.searches.items():
+        unit = measure_unit(searches[0].objective, actuators)
         for search in searches:
             segment = search.segment.name
             bound, gap = study.bound(name, segment), study.gap(name, segment)
             if search.best is None:
                 closest = study.sweep(name, segment).closest_violation
                 lines.append(
-                    f"{segment:<{names}}{name:<10}{'none':>12}{'-':>12}{'-':>8}  "
+                    f"{segment:<{names}}{name:<10}{unit:<8}{'none':>12}{'-':>12}{'-':>8}  "
                     f"no sampled start stays inside the limits"
                     + (f"; closest: {closest}" if closest else "")
                 )
                 continue
             failure = (study.bound_failures or {}).get(f"{name}/{segment}")
             lines.append(
-                f"{segment:<{names}}{name:<10}{search.best_peak:>12.5g}"
-                + ("" if bound is None else f"{bound.bound:>12.5g}{gap:>8.2f}")
+                f"{segment:<{names}}{name:<10}{unit:<8}{search.best_peak:>12.5g}"
+                + ("" if bound is None else f"{bound.bound:>12.5g}{gap:>z8.2f}")
                 + ("" if bound is None or bound.converged else f"  {convergence(bound)}")
                 + ("" if failure is None else f"{'-':>12}{'-':>8}  no bound: {failure}")
             )
