@@ -286,7 +286,6 @@ class Playback:
         ]
         self._fit_camera(np.concatenate([self._extent(), self.traced, self.points]))
         self._links: Any = None  # Pinocchio's meshcat visualizer, once drawn
-        self._shown: dict[str, bool] = {}
 
     def _extent(self) -> np.ndarray:
         """Points the view must hold at every shown sample, (P, 3) in m: the corners of each
@@ -384,8 +383,9 @@ class Playback:
                 mg.Sphere(0.012 * size), mg.MeshLambertMaterial(color=COLOURS["points"])
             )
             node.set_transform(_translation(point))
-        self._shown = {}
-        self.show(vis, self.q[0])
+        # the first pose; the animation colours a cylinder red at a stroke limit
+        for path, poses in self.placements(self.q[:1])[0].items():
+            root[path].set_transform(poses[0])
 
     @property
     def spacing(self) -> float:
@@ -439,21 +439,6 @@ class Playback:
                 placed[f"cylinders/{cylinder.name}/{part}"] = pose
             limited[:, column] = cylinder.at_limit(np.linalg.norm(rod - base, axis=1))
         return placed, limited
-
-    def show(self, vis, q: np.ndarray) -> None:
-        """Pose the drawn scene at configuration ``q`` (n,) in the visualizer ``vis``, turning
-        each cylinder red while it is at or past a stroke limit."""
-        placed, limited = self.placements(q[None])
-        root = vis[ROOT]
-        for path, poses in placed.items():
-            root[path].set_transform(poses[0])
-        for cylinder, red in zip(self.cylinders, limited[0]):
-            if self._shown.get(cylinder.name) == red:
-                continue  # a server keeps every property sent, so send only changes
-            self._shown[cylinder.name] = bool(red)
-            for part in PARTS:
-                colour = _rgb(COLOURS["limit" if red else part])
-                root[f"cylinders/{cylinder.name}/{part}"].set_property("color", [*colour, 1])
 
     def alarms(self) -> np.ndarray:
         """Which limit each actuator is at or past at each shown sample, (S, n) text: "stroke"
