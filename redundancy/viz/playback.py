@@ -51,7 +51,7 @@ from redundancy.planning.tasks import WorkCycle
 from redundancy.study.cycles import CycleStudy
 from redundancy.study.output import write_atomically
 from redundancy.study.study import Study
-from redundancy.viz.server import LOCALHOST, PAGE
+from redundancy.viz.server import LOCALHOST
 
 STARTUP = 30.0  # s: the meshcat server must have said where it listens by then
 FRAME_RATE = 30.0  # frames per second of playback; the motion is sampled at most this often
@@ -647,15 +647,20 @@ def write_cycle_playbacks(study: CycleStudy, folder: Path) -> list[Path]:
 
 
 @contextlib.contextmanager
-def served(address: str = LOCALHOST) -> Iterator:
-    """A meshcat visualizer whose server (`redundancy.viz.server`: its page on ``address``,
-    127.0.0.1 unless asked, ended with this process however it ends) runs for the duration of
-    the block; the server process is stopped, and its ports freed, however the block ends."""
+def served(page: str, address: str = LOCALHOST) -> Iterator:
+    """A meshcat visualizer whose server (`redundancy.viz.server`: the HTML ``page`` on
+    ``address``, 127.0.0.1 unless asked, ended with this process however it ends) runs for the
+    duration of the block; the server process is stopped, and its ports freed, however the block
+    ends."""
     meshcat = _meshcat()
     command = [sys.executable, "-u", "-m", "redundancy.viz.server", str(os.getpid()), address]
     # the server's chatter (a line per connection) goes to a file never read, not a pipe
     with tempfile.TemporaryFile() as log:
-        server = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=log, text=True)
+        pipe = subprocess.PIPE
+        server = subprocess.Popen(command, stdin=pipe, stdout=pipe, stderr=log, encoding="utf-8")
+        with contextlib.suppress(BrokenPipeError):  # a server that died says why below
+            server.stdin.write(page)  # type: ignore[union-attr]
+            server.stdin.close()  # type: ignore[union-attr]
         stalled = threading.Timer(STARTUP, server.kill)  # a server that never says where it is
         stalled.start()
         try:
@@ -699,14 +704,12 @@ def play(
     under the same title, gauges and controls. ``announce`` is given the page's address once it
     is served. The server stops when this returns or raises."""
     title, heading = _titles(motion, None)
-    with served(address) as vis:
-        playback = Playback(motion, points)
+    playback = Playback(motion, points)
+    viewer = '<script src="main.min.js"></script>'  # meshcat's, beside the page
+    live = _html(title, playback.overlay(heading), viewer, "viewer.connect();")
+    with served(live, address) as vis:
         playback.draw(vis)
         vis.set_animation(playback.animation(vis), play=True, repetitions=math.inf)
-        viewer = '<script src="main.min.js"></script>'  # meshcat's, beside the page
-        live = _html(title, playback.overlay(heading), viewer, "viewer.connect();")
-        vis.window.zmq_socket.send_multipart([PAGE, live.encode()])
-        vis.window.zmq_socket.recv()
         url = vis.url()
         announce(url if address == LOCALHOST else url.replace(LOCALHOST, address, 1))
         threading.Event().wait()
