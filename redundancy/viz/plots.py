@@ -233,14 +233,6 @@ def _over_time(
     return figure
 
 
-def _same_scale(*panels) -> None:
-    """Give ``panels`` one vertical range: the union of theirs."""
-    low = min(p.get_ylim()[0] for p in panels)
-    high = max(p.get_ylim()[1] for p in panels)
-    for panel in panels:
-        panel.set_ylim(low, high)
-
-
 def nonoptimal_sample(search: SearchResult):
     """The paper's Fig. 4c start: the least extended feasible start, else the lowest reachable."""
     candidates = search.feasible or [s for s in search.samples if s.peak is not None]
@@ -300,7 +292,7 @@ def study_figures(study: Study, segment: str | None = None) -> dict:
             figures[f"fig4c_nonoptimal_{name}_{segment}.png"] = nonoptimal
             optimal = figures.get(f"fig4b_best_{name}_{segment}.png")
             if optimal is not None:  # Fig. 4c on Fig. 4b's velocity scale, to compare
-                _same_scale(optimal.axes[1], nonoptimal.axes[1])
+                nonoptimal.axes[1].sharey(optimal.axes[1])  # one range: the union of theirs
     if len(study.robot.task_axes) >= 2:  # a task along one axis has no plane to draw
         objective = study.searches[next(iter(study.searches))][0].objective
         figures["workspace.png"] = workspace_figure(

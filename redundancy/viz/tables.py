@@ -128,12 +128,6 @@ def _per_run(study: Study, columns: str, cells: Callable[[StrategyRun], str]) ->
     return lines + [f"{run.segment:<{names}}{run.strategy:<36}{cells(run)}" for run in study.runs]
 
 
-def _largest(values: np.ndarray, units: list[str]) -> str:
-    """The largest of one value per actuator (n,), shown in its actuator's unit."""
-    i = int(np.argmax(values))
-    return amount(values[i], units[i])
-
-
 def _segment_width(study: Study) -> int:
     """The width of the tables' segment column."""
     return max(8, *(len(s.name) + 2 for s in study.cycle.segments))
@@ -230,7 +224,7 @@ def _repetition_table(study: CycleStudy) -> str:
     units = [a.unit for a in study.robot.actuators]
     for name, repetition in study.repetitions.items():
         drift = np.abs(repetition.drift)  # (cycles, n): each actuator's, in its own unit
-        first_cycle, last_cycle = _largest(drift[0], units), _largest(drift[-1], units)
+        first_cycle, last_cycle = (amount(d.max(), units[d.argmax()]) for d in drift[[0, -1]])
         first = repetition.first_violation
         passed = "none" if first is None else f"cycle {first[0]}: {first[1]}"
         lines.append(
