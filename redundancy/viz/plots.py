@@ -166,7 +166,7 @@ def motion_figure(trajectory: Trajectory, title: str):
         f"actuator displacement x ({unit(actuators)})",
         f"actuator velocity ẋ ({unit(actuators, rate='/s')})",
     )
-    return _over_time(figure, title + "; dashed: stroke limits", labels)
+    return _labelled(figure, title + "; dashed: stroke limits", labels)
 
 
 def hydraulics_figure(trajectory: Trajectory, title: str):
@@ -214,13 +214,13 @@ def hydraulics_figure(trajectory: Trajectory, title: str):
         bottom.plot(t, flows.power(supply)[0] / 1000, "k" + style, lw=1, label=f"{name} pump power")
     beside = {"loc": "center left", "bbox_to_anchor": (1.01, 0.5), "fontsize": 8}
     labels = ("flow (L/min)", "pressure (bar)", "pump power (kW)")
-    return _over_time(figure, title, labels, legend=beside)
+    return _labelled(figure, title, labels, legend=beside)
 
 
-def _over_time(
+def _labelled(
     figure, title: str, labels: tuple[str, ...], along: str = "t (s)", legend: dict | None = None
 ):
-    """Label a figure of plots stacked over one horizontal axis (by default time t, s), from the
+    """Label a figure of one or more plots over one horizontal axis (by default time t, s), from the
     top down by ``labels``: title, grids and a legend in each, placed by ``legend`` (matplotlib's
     `legend` options; default: where it hides least, small)."""
     for axes, label in zip(figure.axes, labels):
@@ -335,13 +335,8 @@ def workspace_figure(study: Study, title: str):
     axes.plot([], [], lw=5, alpha=0.4, color=grey, label="cylinders at the best start")
     axes.plot([], [], "o", color=grey, label="tool at the best start")
     axes.set_aspect("equal", adjustable="datalim")
-    axes.set_xlabel(f"world {robot.task_axes[0]} (m)")
-    axes.set_ylabel(f"world {robot.task_axes[1]} (m)")
-    axes.set_title(title)
-    axes.grid(alpha=0.3)
-    axes.legend(loc="best", fontsize=8)
-    figure.tight_layout()
-    return figure
+    across, up = (f"world {a} (m)" for a in robot.task_axes[:2])
+    return _labelled(figure, title, (up,), across)
 
 
 def cycle_figure(study: CycleStudy, title: str):
@@ -406,7 +401,7 @@ def cycle_figure(study: CycleStudy, title: str):
             fontsize=9,
         )
     labels = (f"stroke x ({unit(actuators)})", f"velocity ẋ ({unit(actuators, rate='/s')})")
-    _over_time(figure, title, labels)
+    _labelled(figure, title, labels)
     # one entry per actuator (its colour) and per line style, beside the curves
     from matplotlib.lines import Line2D
 
@@ -463,7 +458,7 @@ def drift_figure(study: CycleStudy, title: str):
         f"|drift| per cycle ({unit(actuators)})",
         f"{held} at the cycle's start, change ({actuators[held].unit})",
     )
-    return _over_time(figure, title, labels, "cycle")
+    return _labelled(figure, title, labels, "cycle")
 
 
 def return_map_figure(mapped: ReturnMap, title: str, held_unit: str = "m"):
@@ -497,18 +492,12 @@ def return_map_figure(mapped: ReturnMap, title: str, held_unit: str = "m"):
                 ms=12,
                 color="C3",
                 mfc="C3" if stable else "none",
-                label=f"limit cycle {value:.4g} (P' = {slope:.2f})",
+                label=f"limit cycle {value:.4g} {held_unit} (P' = {slope:.2f})",
             )
-        axes.grid(alpha=0.3)
-        axes.legend(fontsize=8)
     top.plot(v, v, "k--", lw=0.8)
     bottom.axhline(0.0, color="k", ls="--", lw=0.8)
-    top.set_ylabel(f"{mapped.held} one cycle later ({held_unit})")
-    bottom.set_ylabel(f"drift per cycle ({held_unit})")
-    bottom.set_xlabel(f"{mapped.held} at the cycle's start ({held_unit})")
-    top.set_title(title)
-    figure.tight_layout()
-    return figure
+    labels = (f"{mapped.held} one cycle later ({held_unit})", f"drift per cycle ({held_unit})")
+    return _labelled(figure, title, labels, f"{mapped.held} at the cycle's start ({held_unit})")
 
 
 def cycle_figures(study: CycleStudy) -> dict:
