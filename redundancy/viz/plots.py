@@ -91,11 +91,11 @@ def peaks_figure(
         if choice.best is not None:
             axes.plot(choice.best.values[0], choice.best.peak, "*", ms=12, color=colour)
     objective, held = searches[0].objective, searches[0].held[0]
-    axes.set_xlabel(f"initial {held} ({searches[0].robot.actuators[held].unit})")
     measure = measure_unit(objective, searches[0].robot.actuators)
-    axes.set_ylabel(f"peak {objective.label} ({measure})")
-    axes.set_title(title)
-    axes.grid(alpha=0.3)
+    along = f"initial {held} ({searches[0].robot.actuators[held].unit})"
+    segments = {"loc": "upper left", "fontsize": 8}
+    _labelled(figure, title, (f"peak {objective.label} ({measure})",), along, segments)
+    axes.add_artist(axes.get_legend())  # kept beside the encodings' own legend
     grey = "0.35"
     encodings = [
         Line2D([], [], ls=":", color=grey, label="every reachable start"),
@@ -103,10 +103,7 @@ def peaks_figure(
         Patch(color=grey, alpha=0.15, label="feasible range"),
         Line2D([], [], ls="", marker="*", ms=10, color=grey, label="improved start"),
     ]
-    segments = axes.legend(loc="upper left", fontsize=8)
-    axes.add_artist(segments)
     axes.legend(handles=encodings, loc="upper right", fontsize=8)
-    figure.tight_layout()
     return figure
 
 
