@@ -86,6 +86,7 @@ def _meshcat():
     import meshcat
     import meshcat.animation
     import meshcat.geometry
+    import meshcat.transformations
 
     return meshcat
 
@@ -107,12 +108,6 @@ def _between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     T[:, :3, 0], T[:, :3, 1], T[:, :3, 2] = side, u, np.cross(side, u)
     T[:, :3, 3] = (a + b) / 2
     T[:, 3, 3] = 1.0
-    return T
-
-
-def _translation(p: np.ndarray) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, 3] = p
     return T
 
 
@@ -346,7 +341,7 @@ class Playback:
         camera.set_property("position", [x, z, -y])  # the camera's frame has y up
         # The camera orbits the world origin, so the scene is moved to put its centre there.
         root = vis[ROOT]
-        root.set_transform(_translation(-self.centre))
+        root.set_transform(meshcat.transformations.translation_matrix(-self.centre))
 
         self._links = _links(self.robot, self.visuals, root, self.size)
 
@@ -382,7 +377,7 @@ class Playback:
             node.set_object(
                 mg.Sphere(0.012 * size), mg.MeshLambertMaterial(color=COLOURS["points"])
             )
-            node.set_transform(_translation(point))
+            node.set_transform(meshcat.transformations.translation_matrix(point))
         # the first pose; the animation colours a cylinder red at a stroke limit
         for path, poses in self.placements(self.q[:1])[0].items():
             root[path].set_transform(poses[0])
