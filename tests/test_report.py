@@ -142,6 +142,7 @@ def test_each_written_figure_name_has_a_caption():
         "fig4b_best_velocity_1-2.png",
         "fig4c_nonoptimal_velocity_1-2.png",
         "hydraulics_best_velocity_1-2.png",
+        "workspace.png",
         "cycle_strokes.png",
         "cycle_drift.png",
         "cycle_return_map.png",

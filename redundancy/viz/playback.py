@@ -9,15 +9,16 @@ front of it), the task points, and a grid behind the machine whose spacing the p
 camera looks at the task plane (for the crane, world x–z, from −y) and frames every link's
 visual geometry over the whole motion.
 
-`play` serves the scene from a meshcat server on localhost and loops the motion in real time
-until interrupted; the server stops with it. `export_html` needs no server: a stand-in for
-meshcat's viewer window records the drawing commands, including a recorded
-`meshcat.animation.Animation`, and writes them into a page that embeds meshcat's viewer script
-and loads nothing from the network. Over the scene the page shows its title (robot, segment,
-strategy), the time, play and pause, a time slider, and each actuator's value and speed with its
-unit and a gauge of its stroke that turns red at a limit: a stroke's end, and, where the robot
-has a hydraulic circuit, a cylinder's speed or load pressure past what the circuit allows.
-Opening the page with ``?t=SECONDS`` shows that instant of the motion, paused.
+The motion is one recorded `meshcat.animation.Animation` that loops in the browser. `export_html`
+needs no server: a stand-in for meshcat's viewer window records the drawing commands and writes
+them into a page that embeds meshcat's viewer script and loads nothing from the network. `play`
+serves the same page from a meshcat server on localhost until interrupted, the scene sent by the
+server; the server stops with it. Over the scene the page shows its title (robot, segment,
+strategy), the time, play and pause, a time slider, the grid's spacing, and each actuator's
+value and speed with its unit and a gauge of its stroke that turns red at a limit: a stroke's
+end, and, where the robot has a hydraulic circuit, a cylinder's speed or load pressure past what
+the circuit allows. Opening the page with ``?t=SECONDS`` shows that instant of the motion,
+paused.
 """
 
 from __future__ import annotations
@@ -29,11 +30,11 @@ import io
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 import tempfile
 import threading
-import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -85,6 +86,7 @@ def _meshcat():
     import meshcat
     import meshcat.animation
     import meshcat.geometry
+    import meshcat.transformations
 
     return meshcat
 
@@ -109,43 +111,14 @@ def _between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return T
 
 
-def _translation(p: np.ndarray) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, 3] = p
-    return T
-
-
 def quaternions(transforms: np.ndarray) -> np.ndarray:
-    """The rotations of transforms (k, 4, 4) as quaternions (k, 4), [x, y, z, w] with w ≥ 0:
-    meshcat's `quaternion_from_matrix` (and `js_quaternion`'s order) for a whole batch at once.
-    Its method (Bar-Itzhack's) takes the eigenvector of the largest eigenvalue of the symmetric
+    """The rotations of transforms (k, 4, 4) as quaternions (k, 4), [x, y, z, w] with w ≥ 0, as
+    meshcat's `quaternion_from_matrix` gives them one matrix at a time: scipy's takes the same
+    method (Bar-Itzhack's), the quaternion of the rotation nearest the upper-left block even
+    where it is not orthonormal (a scaled mesh's transform)."""
+    from scipy.spatial.transform import Rotation
 
-        K = ⅓ [[r00 − r11 − r22, r01 + r10,       r02 + r20,       r21 − r12      ],
-               [r01 + r10,       r11 − r00 − r22, r12 + r21,       r02 − r20      ],
-               [r02 + r20,       r12 + r21,       r22 − r00 − r11, r10 − r01      ],
-               [r21 − r12,       r02 − r20,       r10 − r01,       r00 + r11 + r22]],
-
-    the quaternion of the rotation nearest the upper-left block R, even where R is not
-    orthonormal (a scaled mesh's transform); K is built as meshcat builds it (its lower
-    triangle, the one `eigh` reads)."""
-    R = transforms[:, :3, :3]
-    r00, r01, r02 = R[:, 0, 0], R[:, 0, 1], R[:, 0, 2]
-    r10, r11, r12 = R[:, 1, 0], R[:, 1, 1], R[:, 1, 2]
-    r20, r21, r22 = R[:, 2, 0], R[:, 2, 1], R[:, 2, 2]
-    K = np.zeros((len(R), 4, 4))
-    K[:, 0, 0] = r00 - r11 - r22
-    K[:, 1, 0], K[:, 1, 1] = r01 + r10, r11 - r00 - r22
-    K[:, 2, 0], K[:, 2, 1], K[:, 2, 2] = r02 + r20, r12 + r21, r22 - r00 - r11
-    K[:, 3, 0], K[:, 3, 1], K[:, 3, 2], K[:, 3, 3] = (
-        r21 - r12,
-        r02 - r20,
-        r10 - r01,
-        r00 + r11 + r22,
-    )
-    K /= 3.0
-    w, V = np.linalg.eigh(K)
-    q = V[np.arange(len(R)), :, np.argmax(w, axis=1)]  # K's rows are x, y, z, w
-    return np.where(q[:, 3:] < 0.0, -q, q)
+    return Rotation.from_matrix(transforms[:, :3, :3]).as_quat(canonical=True)
 
 
 def task_points(cycle: WorkCycle) -> np.ndarray:
@@ -308,7 +281,6 @@ class Playback:
         ]
         self._fit_camera(np.concatenate([self._extent(), self.traced, self.points]))
         self._links: Any = None  # Pinocchio's meshcat visualizer, once drawn
-        self._shown: dict[str, bool] = {}
 
     def _extent(self) -> np.ndarray:
         """Points the view must hold at every shown sample, (P, 3) in m: the corners of each
@@ -369,7 +341,7 @@ class Playback:
         camera.set_property("position", [x, z, -y])  # the camera's frame has y up
         # The camera orbits the world origin, so the scene is moved to put its centre there.
         root = vis[ROOT]
-        root.set_transform(_translation(-self.centre))
+        root.set_transform(meshcat.transformations.translation_matrix(-self.centre))
 
         self._links = _links(self.robot, self.visuals, root, self.size)
 
@@ -405,9 +377,10 @@ class Playback:
             node.set_object(
                 mg.Sphere(0.012 * size), mg.MeshLambertMaterial(color=COLOURS["points"])
             )
-            node.set_transform(_translation(point))
-        self._shown = {}
-        self.show(vis, self.q[0])
+            node.set_transform(meshcat.transformations.translation_matrix(point))
+        # the first pose; the animation colours a cylinder red at a stroke limit
+        for path, poses in self.placements(self.q[:1])[0].items():
+            root[path].set_transform(poses[0])
 
     @property
     def spacing(self) -> float:
@@ -461,21 +434,6 @@ class Playback:
                 placed[f"cylinders/{cylinder.name}/{part}"] = pose
             limited[:, column] = cylinder.at_limit(np.linalg.norm(rod - base, axis=1))
         return placed, limited
-
-    def show(self, vis, q: np.ndarray) -> None:
-        """Pose the drawn scene at configuration ``q`` (n,) in the visualizer ``vis``, turning
-        each cylinder red while it is at or past a stroke limit."""
-        placed, limited = self.placements(q[None])
-        root = vis[ROOT]
-        for path, poses in placed.items():
-            root[path].set_transform(poses[0])
-        for cylinder, red in zip(self.cylinders, limited[0]):
-            if self._shown.get(cylinder.name) == red:
-                continue  # a server keeps every property sent, so send only changes
-            self._shown[cylinder.name] = bool(red)
-            for part in PARTS:
-                colour = _rgb(COLOURS["limit" if red else part])
-                root[f"cylinders/{cylinder.name}/{part}"].set_property("color", [*colour, 1])
 
     def alarms(self) -> np.ndarray:
         """Which limit each actuator is at or past at each shown sample, (S, n) text: "stroke"
@@ -588,17 +546,29 @@ class Recording:
     def get_scene(self) -> str:
         viewer = Path(_meshcat().__file__).parent / "viewer" / "dist" / "main.min.js"
         commands = ",\n".join(f'"{base64.b64encode(c).decode()}"' for c in self.commands)
-        # The page (playback.html) and what it shows over the scene (overlay.html) hold
-        # @-markers for what each page fills in; the viewer's script goes in last, so that no
-        # marker is looked for inside it.
-        here = Path(__file__).parent
-        text = (here / "playback.html").read_text(encoding="utf-8")
-        text = text.replace("@TITLE@", html.escape(self.title)).replace("@COMMANDS@", commands)
-        shown = ""
-        if self.overlay is not None:
-            shown = (here / "overlay.html").read_text(encoding="utf-8")
-            shown = shown.replace("@DATA@", json.dumps(self.overlay))
-        return text.replace("@OVERLAY@", shown).replace("@VIEWER@", viewer.read_text())
+        # Decoded in order and synchronously (meshcat's own page fetches each one
+        # asynchronously), so that the scene and animation exist when the time is chosen.
+        scene = (
+            f"for (const command of [\n{commands}\n]) {{\n  viewer.handle_command_bytearray("
+            "Uint8Array.from(atob(command), c => c.charCodeAt(0)));\n}"
+        )
+        return _html(self.title, self.overlay, f"<script>{viewer.read_text()}</script>", scene)
+
+
+def _html(title: str, overlay: dict | None, viewer: str, scene: str) -> str:
+    """A playback page (playback.html): its ``title``, meshcat's ``viewer`` script element, the
+    ``scene`` script that fills the viewer, and what it shows over the scene (overlay.html, from
+    `Playback.overlay`) where ``overlay`` is given. Each @-marker is filled in one pass, so that
+    none is looked for inside what fills another."""
+    here = Path(__file__).parent
+
+    def filled(name: str, values: dict[str, str]) -> str:
+        text = (here / name).read_text(encoding="utf-8")
+        return re.sub(r"@([A-Z]+)@", lambda marker: values[marker.group(1)], text)
+
+    shown = "" if overlay is None else filled("overlay.html", {"DATA": json.dumps(overlay)})
+    markers = {"TITLE": html.escape(title), "VIEWER": viewer, "SCENE": scene, "OVERLAY": shown}
+    return filled("playback.html", markers)
 
 
 def _extension(value):
@@ -611,18 +581,23 @@ def _extension(value):
     raise TypeError(f"cannot encode {type(value).__name__} for meshcat")
 
 
+def _titles(motion: Trajectory, strategy: str | None) -> tuple[str, str]:
+    """A playback page's title (robot and segment or cycle) and its heading, which adds how the
+    motion was made: ``strategy``, by default its resolver's name."""
+    segment = motion.segment
+    what = "cycle" if hasattr(segment, "segments") else "segment"
+    title = f"{motion.robot.name}: {what} {segment.name}"
+    return title, f"{title}, {strategy or motion.resolver.name}"
+
+
 def page(motion: Trajectory, points: np.ndarray | None = None, strategy: str | None = None) -> str:
     """A self-contained HTML page that plays ``motion`` in a loop, with no server and no
     network; ``points`` as in `Playback`; ``strategy`` names how the motion was made, for the
     title (default: its resolver's name)."""
-    meshcat = _meshcat()
-    segment = motion.segment
-    what = "cycle" if hasattr(segment, "segments") else "segment"
-    title = f"{motion.robot.name}: {what} {segment.name}"
+    title, heading = _titles(motion, strategy)
     playback = Playback(motion, points)
-    heading = f"{title}, {strategy or motion.resolver.name}"
     recording = Recording(title, playback.overlay(heading))
-    vis = meshcat.Visualizer(window=recording)
+    vis = _meshcat().Visualizer(window=recording)
     playback.draw(vis)
     vis.set_animation(playback.animation(vis), play=True, repetitions=math.inf)
     return vis.static_html()
@@ -667,15 +642,20 @@ def write_cycle_playbacks(study: CycleStudy, folder: Path) -> list[Path]:
 
 
 @contextlib.contextmanager
-def served(address: str = LOCALHOST) -> Iterator:
-    """A meshcat visualizer whose server (`redundancy.viz.server`: its page on ``address``,
-    127.0.0.1 unless asked, ended with this process however it ends) runs for the duration of
-    the block; the server process is stopped, and its ports freed, however the block ends."""
+def served(page: str, address: str = LOCALHOST) -> Iterator:
+    """A meshcat visualizer whose server (`redundancy.viz.server`: the HTML ``page`` on
+    ``address``, 127.0.0.1 unless asked, ended with this process however it ends) runs for the
+    duration of the block; the server process is stopped, and its ports freed, however the block
+    ends."""
     meshcat = _meshcat()
     command = [sys.executable, "-u", "-m", "redundancy.viz.server", str(os.getpid()), address]
     # the server's chatter (a line per connection) goes to a file never read, not a pipe
     with tempfile.TemporaryFile() as log:
-        server = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=log, text=True)
+        pipe = subprocess.PIPE
+        server = subprocess.Popen(command, stdin=pipe, stdout=pipe, stderr=log, encoding="utf-8")
+        with contextlib.suppress(BrokenPipeError):  # a server that died says why below
+            server.stdin.write(page)  # type: ignore[union-attr]
+            server.stdin.close()  # type: ignore[union-attr]
         stalled = threading.Timer(STARTUP, server.kill)  # a server that never says where it is
         stalled.start()
         try:
@@ -713,17 +693,18 @@ def play(
     announce: Callable[[str], None] = print,
     address: str = LOCALHOST,
 ) -> None:
-    """Serve the playback of ``motion`` on ``address`` (this machine only by default) and loop
-    it in real time until interrupted (KeyboardInterrupt, which propagates); ``announce`` is
-    given the page's address once the scene is drawn. The server stops when this returns or
-    raises."""
-    with served(address) as vis:
-        playback = Playback(motion, points)
+    """Serve the playback of ``motion`` on ``address`` (this machine only by default) until
+    interrupted (KeyboardInterrupt, which propagates): the page `page` writes, its scene and
+    animation sent by the server instead of held in the page, so that it loops in the browser
+    under the same title, gauges and controls. ``announce`` is given the page's address once it
+    is served. The server stops when this returns or raises."""
+    title, heading = _titles(motion, None)
+    playback = Playback(motion, points)
+    viewer = '<script src="main.min.js"></script>'  # meshcat's, beside the page
+    live = _html(title, playback.overlay(heading), viewer, "viewer.connect();")
+    with served(live, address) as vis:
         playback.draw(vis)
+        vis.set_animation(playback.animation(vis), play=True, repetitions=math.inf)
         url = vis.url()
         announce(url if address == LOCALHOST else url.replace(LOCALHOST, address, 1))
-        while True:
-            start = time.monotonic()
-            for i in playback.samples:
-                time.sleep(max(0.0, playback.t[i] - (time.monotonic() - start)))
-                playback.show(vis, playback.q[i])
+        threading.Event().wait()

@@ -12,7 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
+from redundancy.model.actuators import LinearCylinder
 from redundancy.model.hydraulics import BAR, LITRES_PER_MINUTE
+from redundancy.model.linkage import LinkageCylinder
+from redundancy.model.robot import AXES
 from redundancy.planning.cycles import ReturnMap
 from redundancy.planning.integrate import Trajectory
 from redundancy.planning.starts import SearchResult
@@ -34,14 +37,13 @@ def pyplot():
     return plt
 
 
-def unit(actuators, names=None, rate: str = "") -> str:
-    """The unit of the actuators ``names`` (default all) as a label: "m", "rad", or, for a
-    mix, "m; rad for" the rotary ones; ``rate`` appends a time derivative ("/s")."""
-    chosen = [a for a in actuators if names is None or a.name in names]
-    rotary = [a.name for a in chosen if a.rotary]
+def unit(actuators, rate: str = "") -> str:
+    """The unit of all the ``actuators`` as a label: "m", "rad", or, for a mix, "m; rad for"
+    the rotary ones; ``rate`` appends a time derivative ("/s")."""
+    rotary = [a.name for a in actuators if a.rotary]
     if not rotary:
         return f"m{rate}"
-    if len(rotary) == len(chosen):
+    if len(rotary) == len(actuators):
         return f"rad{rate}"
     return f"m{rate}; rad{rate} for {', '.join(rotary)}"
 
@@ -89,11 +91,11 @@ def peaks_figure(
         if choice.best is not None:
             axes.plot(choice.best.values[0], choice.best.peak, "*", ms=12, color=colour)
     objective, held = searches[0].objective, searches[0].held[0]
-    axes.set_xlabel(f"initial {held} ({unit(searches[0].robot.actuators, [held])})")
     measure = measure_unit(objective, searches[0].robot.actuators)
-    axes.set_ylabel(f"peak {objective.label} ({measure})")
-    axes.set_title(title)
-    axes.grid(alpha=0.3)
+    along = f"initial {held} ({searches[0].robot.actuators[held].unit})"
+    segments = {"loc": "upper left", "fontsize": 8}
+    _labelled(figure, title, (f"peak {objective.label} ({measure})",), along, segments)
+    axes.add_artist(axes.get_legend())  # kept beside the encodings' own legend
     grey = "0.35"
     encodings = [
         Line2D([], [], ls=":", color=grey, label="every reachable start"),
@@ -101,10 +103,7 @@ def peaks_figure(
         Patch(color=grey, alpha=0.15, label="feasible range"),
         Line2D([], [], ls="", marker="*", ms=10, color=grey, label="improved start"),
     ]
-    segments = axes.legend(loc="upper left", fontsize=8)
-    axes.add_artist(segments)
     axes.legend(handles=encodings, loc="upper right", fontsize=8)
-    figure.tight_layout()
     return figure
 
 
@@ -135,8 +134,8 @@ def peak_map_figure(
         box = [actuators[h] for h in held]
         pane.set_xlim(box[0].lower, box[0].upper)
         pane.set_ylim(box[1].lower, box[1].upper)
-        pane.set_xlabel(f"initial {held[0]} ({unit(actuators, [held[0]])})")
-        pane.set_ylabel(f"initial {held[1]} ({unit(actuators, [held[1]])})")
+        pane.set_xlabel(f"initial {held[0]} ({actuators[held[0]].unit})")
+        pane.set_ylabel(f"initial {held[1]} ({actuators[held[1]].unit})")
         pane.set_title(f"segment {search.segment.name}")
         if feasible.any():
             measure = measure_unit(objective, actuators)
@@ -160,12 +159,11 @@ def motion_figure(trajectory: Trajectory, title: str):
         for bound in (actuator.lower, actuator.upper):
             top.axhline(bound, ls="--", lw=0.8, color=line.get_color(), alpha=0.6)
         bottom.plot(t, trajectory.x_dot[0, :, row], label=f"ẋ of {actuator.name}")
-    return _over_time(
-        figure,
-        title + "; dashed: stroke limits",
+    labels = (
         f"actuator displacement x ({unit(actuators)})",
         f"actuator velocity ẋ ({unit(actuators, rate='/s')})",
     )
+    return _labelled(figure, title + "; dashed: stroke limits", labels)
 
 
 def hydraulics_figure(trajectory: Trajectory, title: str):
@@ -211,40 +209,25 @@ def hydraulics_figure(trajectory: Trajectory, title: str):
         (circuit.constant_pressure, "CP", "--"),
     ):
         bottom.plot(t, flows.power(supply)[0] / 1000, "k" + style, lw=1, label=f"{name} pump power")
-    _over_time(
-        figure,
-        title,
-        "flow (L/min)",
-        "pressure (bar)",
-        panels=("pump power (kW)",),
-    )
-    for axes in figure.axes:
-        axes.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize=8)
-    figure.tight_layout()
-    return figure
+    beside = {"loc": "center left", "bbox_to_anchor": (1.01, 0.5), "fontsize": 8}
+    labels = ("flow (L/min)", "pressure (bar)", "pump power (kW)")
+    return _labelled(figure, title, labels, legend=beside)
 
 
-def _over_time(
-    figure, title: str, upper: str, lower: str, along: str = "t (s)", panels: tuple = ()
+def _labelled(
+    figure, title: str, labels: tuple[str, ...], along: str = "t (s)", legend: dict | None = None
 ):
-    """Label a figure of plots stacked over one horizontal axis (by default time t, s), each
-    labelled in turn by ``upper``, ``lower`` and ``panels``: titles, grids and legends."""
-    for axes, label in zip(figure.axes, (upper, lower, *panels)):
+    """Label a figure of one or more plots over one horizontal axis (by default time t, s), from the
+    top down by ``labels``: title, grids and a legend in each, placed by ``legend`` (matplotlib's
+    `legend` options; default: where it hides least, small)."""
+    for axes, label in zip(figure.axes, labels):
         axes.set_ylabel(label)
         axes.grid(alpha=0.3)
-        axes.legend(loc="best", fontsize=8)
+        axes.legend(**(legend or {"loc": "best", "fontsize": 8}))
     figure.axes[-1].set_xlabel(along)
     figure.axes[0].set_title(title)
     figure.tight_layout()
     return figure
-
-
-def _same_scale(*panels) -> None:
-    """Give ``panels`` one vertical range: the union of theirs."""
-    low = min(p.get_ylim()[0] for p in panels)
-    high = max(p.get_ylim()[1] for p in panels)
-    for panel in panels:
-        panel.set_ylim(low, high)
 
 
 def nonoptimal_sample(search: SearchResult):
@@ -253,8 +236,12 @@ def nonoptimal_sample(search: SearchResult):
     return min(candidates, key=lambda s: s.values)
 
 
-def _start(held, values) -> str:
-    return ", ".join(f"{name} = {value:.3f}" for name, value in zip(held, values))
+def _start(study: Study, values) -> str:
+    """The held actuators' start ``values`` in words, each in its unit."""
+    actuators = study.robot.actuators
+    return ", ".join(
+        f"{name} = {value:.3f} {actuators[name].unit}" for name, value in zip(study.held, values)
+    )
 
 
 def write_figures(study: Study, folder: Path, segment: str | None = None) -> list[Path]:
@@ -283,7 +270,7 @@ def study_figures(study: Study, segment: str | None = None) -> dict:
         search = study.search(name, segment)
         if search.best is not None:
             best = search.best_motion  # as the study ran it
-            start = _start(study.held, search.best.values)
+            start = _start(study, search.best.values)
             figures[f"fig{number}b_best_{name}_{segment}.png"] = motion_figure(
                 best, f"min {objective.label}, segment {segment}, optimal start {start}"
             )
@@ -297,15 +284,56 @@ def study_figures(study: Study, segment: str | None = None) -> dict:
             nonoptimal = motion_figure(
                 sweep.motion(other),
                 f"min {objective.label}, segment {segment}, non-optimal start "
-                f"{_start(study.held, other.values)}",
+                f"{_start(study, other.values)}",
             )
             figures[f"fig4c_nonoptimal_{name}_{segment}.png"] = nonoptimal
             optimal = figures.get(f"fig4b_best_{name}_{segment}.png")
             if optimal is not None:  # Fig. 4c on Fig. 4b's velocity scale, to compare
-                _same_scale(optimal.axes[1], nonoptimal.axes[1])
+                nonoptimal.axes[1].sharey(optimal.axes[1])  # one range: the union of theirs
+    if len(study.robot.task_axes) >= 2:  # a task along one axis has no plane to draw
+        objective = study.searches[next(iter(study.searches))][0].objective
+        figures["workspace.png"] = workspace_figure(
+            study, f"The task and the cylinders at each best start, min {objective.label}"
+        )
     if study.cycle_study is not None:
         figures.update(cycle_figures(study.cycle_study))
     return figures
+
+
+def workspace_figure(study: Study, title: str):
+    """The task in its plane (the first two task axes, m; a task has two or more): each
+    segment's path in its own colour, named at its middle; at each segment's improved start for
+    the study's first objective, the machine as its best motion's first state holds it: each
+    cylinder from its base to its rod point (thick, pale) and the tool point (●). Only the
+    tracked points are drawn: the state holds no link's pose, and the study maps no reachable
+    area."""
+    plt = pyplot()
+    robot = study.robot
+    rows = [AXES.index(a) for a in robot.task_axes][:2]
+    figure, axes = plt.subplots(figsize=(7, 5.5))
+    first = next(iter(study.searches))
+    motions = study.best_motions
+    for i, segment in enumerate(study.cycle.segments):
+        colour = f"C{i}"
+        path = segment.outline()[:, : len(rows)]
+        axes.plot(*path.T, color=colour, lw=2, label=f"segment {segment.name}")
+        axes.annotate(segment.name, path.mean(axis=0), color=colour, fontsize=9)
+        motion = motions.get((first, segment.name))
+        if motion is None or motion.space is None:
+            continue
+        kinematics = motion.space.kinematics
+        for actuator in robot.actuators:
+            if isinstance(actuator, LinearCylinder | LinkageCylinder):
+                base, rod = (end[0, rows] for end in actuator.ends(kinematics))
+                axes.plot(*np.transpose([base, rod]), lw=5, alpha=0.4, color=colour)
+                axes.annotate(actuator.name, (base + rod) / 2, fontsize=8, color="0.3")
+        axes.plot(*robot.tool(kinematics).position[0, rows], "o", color=colour)
+    grey = "0.45"
+    axes.plot([], [], lw=5, alpha=0.4, color=grey, label="cylinders at the best start")
+    axes.plot([], [], "o", color=grey, label="tool at the best start")
+    axes.set_aspect("equal", adjustable="datalim")
+    across, up = (f"world {a} (m)" for a in robot.task_axes[:2])
+    return _labelled(figure, title, (up,), across)
 
 
 def cycle_figure(study: CycleStudy, title: str):
@@ -369,12 +397,8 @@ def cycle_figure(study: CycleStudy, title: str):
             transform=top.get_xaxis_transform(),
             fontsize=9,
         )
-    _over_time(
-        figure,
-        title,
-        f"stroke x ({unit(actuators)})",
-        f"velocity ẋ ({unit(actuators, rate='/s')})",
-    )
+    labels = (f"stroke x ({unit(actuators)})", f"velocity ẋ ({unit(actuators, rate='/s')})")
+    _labelled(figure, title, labels)
     # one entry per actuator (its colour) and per line style, beside the curves
     from matplotlib.lines import Line2D
 
@@ -421,19 +445,17 @@ def drift_figure(study: CycleStudy, title: str):
             start - start[0],
             markers.get(name, "o-"),
             ms=3,
-            label=f"{name}, from {start[0]:.4f} {unit(actuators, [held])}",
+            label=f"{name}, from {start[0]:.4f} {actuators[held].unit}",
         )
     top.axhline(SETTLED, ls=":", color="k", lw=0.8, label=f"closed: {SETTLED:g}")
     # the change, not the value: its scale is the drift's, however far the stroke's ends are
     bottom.ticklabel_format(axis="y", useOffset=False)
     bottom.xaxis.get_major_locator().set_params(integer=True)
-    return _over_time(
-        figure,
-        title,
+    labels = (
         f"|drift| per cycle ({unit(actuators)})",
-        f"{held} at the cycle's start, change ({unit(actuators, [held])})",
-        "cycle",
+        f"{held} at the cycle's start, change ({actuators[held].unit})",
     )
+    return _labelled(figure, title, labels, "cycle")
 
 
 def return_map_figure(mapped: ReturnMap, title: str, held_unit: str = "m"):
@@ -467,18 +489,12 @@ def return_map_figure(mapped: ReturnMap, title: str, held_unit: str = "m"):
                 ms=12,
                 color="C3",
                 mfc="C3" if stable else "none",
-                label=f"limit cycle {value:.4g} (P' = {slope:.2f})",
+                label=f"limit cycle {value:.4g} {held_unit} (P' = {slope:.2f})",
             )
-        axes.grid(alpha=0.3)
-        axes.legend(fontsize=8)
     top.plot(v, v, "k--", lw=0.8)
     bottom.axhline(0.0, color="k", ls="--", lw=0.8)
-    top.set_ylabel(f"{mapped.held} one cycle later ({held_unit})")
-    bottom.set_ylabel(f"drift per cycle ({held_unit})")
-    bottom.set_xlabel(f"{mapped.held} at the cycle's start ({held_unit})")
-    top.set_title(title)
-    figure.tight_layout()
-    return figure
+    labels = (f"{mapped.held} one cycle later ({held_unit})", f"drift per cycle ({held_unit})")
+    return _labelled(figure, title, labels, f"{mapped.held} at the cycle's start ({held_unit})")
 
 
 def cycle_figures(study: CycleStudy) -> dict:
@@ -496,7 +512,7 @@ def cycle_figures(study: CycleStudy) -> dict:
         figures["cycle_return_map.png"] = return_map_figure(
             study.map,
             f"Return map of {study.map.held}: the free {study.objective.name} law",
-            unit(study.robot.actuators, [study.map.held]),
+            study.robot.actuators[study.map.held].unit,
         )
     return figures
 

@@ -15,6 +15,7 @@ import json
 from collections.abc import Iterable
 from fnmatch import fnmatch
 from pathlib import Path
+from string import Template
 
 from redundancy.resolution.objectives import OBJECTIVES
 from redundancy.study.output import write_atomically
@@ -62,6 +63,13 @@ CAPTIONS = (
         "curve; the pump power (kW) under load sensing (LS) and constant pressure (CP).",
     ),
     (
+        "workspace*",
+        "The task in its plane (m): each segment's path in its colour, and at each segment's "
+        "improved start for the first objective the machine's cylinders from base to rod pin "
+        "(thick, pale, in the segment's colour) with the tool (●) where the segment begins. "
+        "The links are not drawn: the study keeps the tracked points only.",
+    ),
+    (
         "cycle_strokes*",
         "Each actuator over one work cycle, one colour each: each strategy's first cycle "
         "(solid: free, dashed: drift-free), the per-segment plan's best motions dotted (they "
@@ -90,20 +98,6 @@ CAPTIONS = (
     ),
 )
 
-STYLE = """
-body { font: 15px/1.45 system-ui, sans-serif; margin: 2em auto; max-width: 70em; padding: 0 1em;
-       color: #1d2329; }
-h1 { font-size: 1.6em; }
-h2 { border-bottom: 1px solid #ccd; padding-bottom: .2em; margin-top: 2em; }
-table { border-collapse: collapse; margin: .6em 0 1.2em; font-size: 13px; }
-th, td { border: 1px solid #d4d8de; padding: .25em .6em; text-align: left; }
-th { background: #eef1f5; }
-figure { margin: 1.2em 0; } figure img { max-width: 100%; border: 1px solid #e2e5ea; }
-figcaption { font-size: 13px; color: #444; max-width: 60em; }
-.summary { background: #f4f7fa; border-left: 4px solid #3a6ea5; padding: .6em 1em; }
-.bad { color: #b3261e; }
-"""
-
 
 def write_index(folder: Path | str, report: Path | str | None = None) -> Path:
     """Write ``folder/index.html`` (atomically) from the report in ``folder`` (or ``report``,
@@ -122,11 +116,8 @@ def write_index(folder: Path | str, report: Path | str | None = None) -> Path:
     else:
         title, body = _cycle_page(data)
     body += _figures(files) + _playbacks(files) + _data_files(files)
-    text = (
-        f'<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
-        f"<title>{_e(title)}</title>\n<style>{STYLE}</style>\n</head>\n<body>\n"
-        f"<h1>{_e(title)}</h1>\n{body}</body>\n</html>\n"
-    )
+    page = Template((Path(__file__).parent / "report.html").read_text(encoding="utf-8"))
+    text = page.substitute(title=_e(title), body=body)
     path = folder / "index.html"
     write_atomically(path, lambda p: p.write_text(text, encoding="utf-8"))
     return path

@@ -14,10 +14,12 @@ from redundancy.model.hydraulics import KILOJOULE
 from redundancy.planning.cycles import ReturnMap
 from redundancy.planning.refinement import Refined
 from redundancy.resolution.limits import amount
+from redundancy.resolution.objectives import VELOCITY
 from redundancy.study.check import Check, span
 from redundancy.study.cycles import NAMES, CycleStudy, named_values, settling_words
 from redundancy.study.peers import StrategyRun
 from redundancy.study.study import Study
+from redundancy.viz.plots import measure_unit
 
 
 def study_table(study: Study) -> str:
@@ -25,7 +27,8 @@ def study_table(study: Study) -> str:
     the hydraulic comparison where the robot has a circuit, and the cycle section."""
     start = "start " + ",".join(study.held)
     width = max(10, len(start) + 1, 11 * len(study.held) + 1)
-    units = [study.robot.actuators[h].unit for h in study.held]
+    actuators = study.robot.actuators
+    units = [actuators[h].unit for h in study.held]
     names = _segment_width(study)
 
     def cells(run: StrategyRun) -> str:
@@ -37,30 +40,33 @@ def study_table(study: Study) -> str:
             held += f" (+{len(passed) - 1} more)"
         values = ",".join(amount(v, unit) for v, unit in zip(run.start, units))
         kinetic = "-" if row["peak_kinetic"] is None else f"{row['peak_kinetic']:.3f}"
-        return f"{values:>{width}}{row['peak_velocity_norm']:>12.5f}{kinetic:>13}  {held}"
+        return f"{values:>{width}}{row['peak_velocity_norm']:>16.5f}{kinetic:>15}  {held}"
 
-    columns = f"{start:>{width}}{'peak ẋᵀẋ':>12}{'peak ẋᵀM_Hẋ':>13}  limits"
+    squared = measure_unit(VELOCITY, actuators)
+    columns = f"{start:>{width}}{'peak ẋᵀẋ ' + squared:>16}{'peak ẋᵀM_Hẋ J':>15}  limits"
     lines = _per_run(study, columns, cells)
     lines += [
         "",
-        f"{'segment':<{names}}{'objective':<10}{'improved':>12}{'bound':>12}{'gap %':>8}",
+        f"{'segment':<{names}}{'objective':<10}{'unit':<8}{'improved':>12}{'bound':>12}"
+        f"{'gap %':>8}",
     ]
     for name, searches in study.searches.items():
+        unit = measure_unit(searches[0].objective, actuators)
         for search in searches:
             segment = search.segment.name
             bound, gap = study.bound(name, segment), study.gap(name, segment)
             if search.best is None:
                 closest = study.sweep(name, segment).closest_violation
                 lines.append(
-                    f"{segment:<{names}}{name:<10}{'none':>12}{'-':>12}{'-':>8}  "
+                    f"{segment:<{names}}{name:<10}{unit:<8}{'none':>12}{'-':>12}{'-':>8}  "
                     f"no sampled start stays inside the limits"
                     + (f"; closest: {closest}" if closest else "")
                 )
                 continue
             failure = (study.bound_failures or {}).get(f"{name}/{segment}")
             lines.append(
-                f"{segment:<{names}}{name:<10}{search.best_peak:>12.5g}"
-                + ("" if bound is None else f"{bound.bound:>12.5g}{gap:>8.2f}")
+                f"{segment:<{names}}{name:<10}{unit:<8}{search.best_peak:>12.5g}"
+                + ("" if bound is None else f"{bound.bound:>12.5g}{gap:>z8.2f}")
                 + ("" if bound is None or bound.converged else f"  {convergence(bound)}")
                 + ("" if failure is None else f"{'-':>12}{'-':>8}  no bound: {failure}")
             )
@@ -122,12 +128,6 @@ def _per_run(study: Study, columns: str, cells: Callable[[StrategyRun], str]) ->
     return lines + [f"{run.segment:<{names}}{run.strategy:<36}{cells(run)}" for run in study.runs]
 
 
-def _largest(values: np.ndarray, units: list[str]) -> str:
-    """The largest of one value per actuator (n,), shown in its actuator's unit."""
-    i = int(np.argmax(values))
-    return amount(values[i], units[i])
-
-
 def _segment_width(study: Study) -> int:
     """The width of the tables' segment column."""
     return max(8, *(len(s.name) + 2 for s in study.cycle.segments))
@@ -158,14 +158,11 @@ def cycle_table(study: CycleStudy) -> str:
             + (f"; closest: {closest}" if closest else "")
         )
     else:
-        box = search.feasible_box
-        span = ", ".join(
-            f"[{amount(lo, u)}, {amount(hi, u)}]"
-            for (lo, hi), u in zip(box, units)  # type: ignore[arg-type]
-        )
+        box = search.feasible_box  # a best start is feasible: there is a box
+        ranges = ", ".join(span(lo, hi, u) for (lo, hi), u in zip(box, units))  # type: ignore[arg-type]
         lines.append(
             f"whole-cycle improved start: {named_values(study.robot, held, search.best.values)} "
-            f"(feasible {span}), peak {label} {search.best_peak:.5g} {unit} "
+            f"(feasible {ranges}), peak {label} {search.best_peak:.5g} {unit} "
             f"({search.simulations} motions)"
         )
     starts = [
@@ -194,7 +191,7 @@ def cycle_table(study: CycleStudy) -> str:
     if plan.gap_time is not None and plan.corners:
         lines.append(
             f"  the self-motions add {plan.gap_time:.2f} s per cycle, the held actuator at "
-            f"{plan.corners[0].speed:g} m/s"
+            f"{plan.corners[0].speed:g} {units[0]}/s"
         )
     lines += ["", _repetition_table(study)]
     price = study.price()
@@ -227,7 +224,7 @@ def _repetition_table(study: CycleStudy) -> str:
     units = [a.unit for a in study.robot.actuators]
     for name, repetition in study.repetitions.items():
         drift = np.abs(repetition.drift)  # (cycles, n): each actuator's, in its own unit
-        first_cycle, last_cycle = _largest(drift[0], units), _largest(drift[-1], units)
+        first_cycle, last_cycle = (amount(d.max(), units[d.argmax()]) for d in drift[[0, -1]])
         first = repetition.first_violation
         passed = "none" if first is None else f"cycle {first[0]}: {first[1]}"
         lines.append(
