@@ -731,7 +731,7 @@ def periodic_optimum(
         except InvalidInputError as error:
             raise InvalidInputError(f"the periodic optimum found no motion: {error}") from None
         solutions.append(grid)
-        nodes_t, nodes_q = problem.t, problem.q
+        nodes_t, nodes_q = problem.t, nodes.space.q
         order = np.argsort(problem.unknown_times())
         unknown_t = np.append(problem.unknown_times()[order], period)
         unknown_r = np.append(r[order], r[0])
