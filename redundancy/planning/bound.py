@@ -240,6 +240,7 @@ class Transcription:
         self.smoothness = smoothness
         self.q = np.array(guess, dtype=float)
         self.space: ActuatorSpace | None = None  # the states at q, once evaluated
+        self.around: tuple[np.ndarray, ActuatorSpace, ActuatorSpace] | None = None  # `shifted`
         self.lower = limits.lower + margin
         self.upper = limits.upper - margin
         self.span = self.upper - self.lower  # strokes enter the constraints as fractions of it
@@ -316,15 +317,32 @@ class Transcription:
         ahead = measure_of(space, x_dot + DIFFERENCE_STEP * dx)
         behind = measure_of(space, x_dot - DIFFERENCE_STEP * dx)
         rate = (ahead - behind) / (2 * DIFFERENCE_STEP)  # ∂ measure_j / ∂ṙ_j
-        step = DIFFERENCE_STEP * dq  # through q_j at fixed ṙ_j: a central difference
-        ahead, behind = (
-            self.motion(evaluate(self.robot, space.q + sign * step), r_dot)[-1] for sign in (1, -1)
-        )
+        # through q_j at fixed ṙ_j: a central difference
+        ahead, behind = (self.motion(s, r_dot)[-1] for s in self.shifted(space.q, dq))
         own = (ahead - behind) / (2 * DIFFERENCE_STEP)
         gradient = rate[:, None] * self.D + own[:, None] * self.incidence
         nodes = Nodes(measure, gradient, space, x_dot, dx, missed)
         self.cache = (key, nodes)
         return nodes
+
+    def shifted(self, q: np.ndarray, dq: np.ndarray) -> list[ActuatorSpace]:
+        """The states at q ± `DIFFERENCE_STEP` dq (N + 1, n) each, dq = ∂q/∂r a function of q:
+        a node whose q the last iterate had too keeps its states from there."""
+        fresh = np.ones(len(q), dtype=bool)
+        if self.around is not None:
+            fresh = ~np.all(self.around[0] == q, axis=1)
+        step = DIFFERENCE_STEP * dq[fresh]
+        found = [evaluate(self.robot, q[fresh] + sign * step) for sign in (1, -1)]
+        if self.around is not None and not fresh.all():
+            index = np.arange(len(q))  # a kept node's among the last iterate's, at its own row
+            index[fresh] = len(q) + np.arange(fresh.sum())
+            found = [
+                ActuatorSpace.joined([last, new]).take(index)
+                for last, new in zip(self.around[1:], found)
+            ]
+        ahead, behind = found
+        self.around = (q, ahead, behind)
+        return found
 
     def cost(self, z):
         """σ + ε mean ṙ² / (ẋᵀẋ)₀ + ε₂ mean r̈² / (ẋᵀẋ)₀ and its gradient: the peak σ = s / s₀,

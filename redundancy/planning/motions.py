@@ -11,6 +11,7 @@ feedback), for twice to four times the steps.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 
@@ -19,6 +20,7 @@ from redundancy.model.robot import Robot
 from redundancy.planning.integrate import TIME_STEP, Trajectory, simulate
 from redundancy.planning.tasks import Chain, Segment
 from redundancy.resolution.laws import Resolver
+from redundancy.resolution.state import ActuatorSpace
 
 Laws = Resolver | Sequence[Resolver]  # one law for every segment of a chain, or one per segment
 
@@ -58,46 +60,28 @@ def per_segment(path: Chain, laws: Laws) -> tuple[Resolver, ...]:
     return laws
 
 
-SAMPLED = ("t", "q", "x", "x_dot", "y", "measure")  # a motion's arrays over its samples
-
-
 def joined(path: Chain, pieces: Sequence[Trajectory]) -> Trajectory:
     """k motions along each segment of ``path`` in turn (each piece starting where the one
     before ended) as k motions along the whole chain: times from the chain's start, each later
     piece's first sample left out (it repeats the corner the one before ended at), each motion
     padded by repeating its last sample. A motion failed or stopped where any piece did."""
-    names = SAMPLED if all(p.measure is not None for p in pieces) else SAMPLED[:-1]
-    columns: dict[str, list[np.ndarray]] = {name: [] for name in names}
+    firsts = np.cumsum([0, *(p.t.size for p in pieces)])
+    index = []  # each motion's samples among the pieces' flattened motion by motion
     for i in range(len(pieces[0])):
-        parts: dict[str, list[np.ndarray]] = {name: [] for name in names}
-        for number, (offset, piece) in enumerate(zip(path.offsets, pieces)):
+        parts = []
+        for number, (first, piece) in enumerate(zip(firsts, pieces)):
             times = piece.t[i]
-            kept = slice(0 if number == 0 else 1, int(np.searchsorted(times, times[-1])) + 1)
-            for name in names:
-                values = getattr(piece, name)[i, kept]
-                parts[name].append(values + offset if name == "t" else values)
-        for name in names:
-            columns[name].append(np.concatenate(parts[name]))
-    t, q, x, x_dot, y = (padded(columns[name]) for name in SAMPLED[:-1])
-    measure = padded(columns["measure"]) if "measure" in columns else None
-    first = pieces[0]
-    return Trajectory(
-        first.robot,
-        path,  # type: ignore[arg-type]
-        first.resolver,
-        t,
-        q,
-        x,
-        x_dot,
-        y,
-        np.any([p.failed for p in pieces], axis=0),
-        first.checked,
-        np.any([p.stopped for p in pieces], axis=0),
-        first.objective,
-        measure,
-        first.sparse,
-        first.allowance,
-        first.circuit,
+            count = int(np.searchsorted(times, times[-1])) + 1
+            parts.append(first + i * times.size + np.arange(min(number, 1), count))
+        index.append(np.concatenate(parts))
+    return _gathered(
+        path,
+        pieces,
+        padded(index),
+        path.offsets,
+        failed=np.any([p.failed for p in pieces], axis=0),
+        stopped=np.any([p.stopped for p in pieces], axis=0),
+        steps=None,
     )
 
 
@@ -109,29 +93,48 @@ def padded(arrays: Sequence[np.ndarray]) -> np.ndarray:
 
 def concatenated(first: Trajectory, second: Trajectory) -> Trajectory:
     """Two batches of motions on one path as one, padded to the longer by repetition."""
-
-    t, q, x, x_dot, y = (padded([*getattr(first, n), *getattr(second, n)]) for n in SAMPLED[:-1])
-    measure = None
-    if first.measure is not None and second.measure is not None:
-        measure = padded([*first.measure, *second.measure])
-    return Trajectory(
-        first.robot,
+    rows = [
+        offset + i * part.t.shape[1] + np.arange(part.t.shape[1])
+        for offset, part in ((0, first), (first.t.size, second))
+        for i in range(len(part))
+    ]
+    return _gathered(
         first.segment,
-        first.resolver,
-        t,
-        q,
-        x,
-        x_dot,
-        y,
-        np.concatenate([first.failed, second.failed]),
-        first.checked,
-        np.concatenate([first.stopped, second.stopped]),
-        first.objective,
-        measure,
-        first.sparse,
-        first.allowance,
-        first.circuit,
-        None
+        (first, second),
+        padded(rows),
+        (0.0, 0.0),
+        failed=np.concatenate([first.failed, second.failed]),
+        stopped=np.concatenate([first.stopped, second.stopped]),
+        steps=None
         if first.steps is None or second.steps is None
         else first.steps.joined(second.steps, len(first)),
+    )
+
+
+def _gathered(path, pieces: Sequence[Trajectory], index: np.ndarray, shifts, **fields):
+    """The samples ``index`` (k, T) among the ``pieces``' samples flattened motion by motion
+    (each piece's times shifted by its ``shifts``, s) as k motions along ``path``; the other
+    ``fields`` given."""
+
+    def gather(name: str) -> np.ndarray:
+        arrays = [getattr(p, name) for p in pieces]
+        return np.concatenate([a.reshape(-1, *a.shape[2:]) for a in arrays])[index]
+
+    t = np.concatenate([p.t.ravel() + shift for p, shift in zip(pieces, shifts)])[index]
+    measure = gather("measure") if all(p.measure is not None for p in pieces) else None
+    spaces = [p.space for p in pieces]
+    space = None
+    if all(s is not None for s in spaces):
+        space = ActuatorSpace.joined(spaces).take(index.ravel())  # type: ignore[arg-type]
+    return replace(
+        pieces[0],
+        segment=path,
+        t=t,
+        q=gather("q"),
+        x=gather("x"),
+        x_dot=gather("x_dot"),
+        y=gather("y"),
+        measure=measure,
+        space=space,
+        **fields,
     )
