@@ -133,20 +133,11 @@ class Trajectory:
     ) -> Trajectory:
         """One motion that ran to its end, from its samples t (T,), q, x, ẋ (T, n), y (T, m)
         and, for ``objective``, its ``measure`` (T,)."""
+        t, q, x, x_dot, y = (a[None] for a in (t, q, x, x_dot, y))
+        measure = None if measure is None else measure[None]
+        done = np.zeros(1, dtype=bool)  # neither failed nor stopped
         return cls(
-            robot,
-            segment,
-            resolver,
-            t[None],
-            q[None],
-            x[None],
-            x_dot[None],
-            y[None],
-            np.zeros(1, dtype=bool),
-            checked,
-            np.zeros(1, dtype=bool),
-            objective,
-            None if measure is None else measure[None],
+            robot, segment, resolver, t, q, x, x_dot, y, done, checked, done, objective, measure
         )
 
     def __len__(self) -> int:
