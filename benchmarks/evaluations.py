@@ -1,6 +1,9 @@
 """States through the one Pinocchio pass against the distinct states, and the CPU time, of what
 `redundancy study` computes: the study of the paper's segments, every run's figures, the figures
-and playbacks, and the cycle section, here in one process so that every pass is counted.
+and playbacks, and the cycle section, here in one process so that every pass is counted. The
+command computes the cycle section in a second process, so its ratio is printed apart too: the
+states both compute (the cycle section searches the paper's segments again, for its per-segment
+plan) count twice in the whole.
 
 Run: python benchmarks/evaluations.py
 The target (issue 24): evaluated ≤ 1.05 × distinct. Printed, never asserted.
@@ -24,16 +27,24 @@ def main() -> None:
     robot = load_robot("hiab031")
     cycle = WorkCycle.from_toml(robot.task_file, dimension=robot.m)
     start = time.process_time()
-    with counting() as counts, tempfile.TemporaryDirectory() as folder:
+    with counting() as study_counts, tempfile.TemporaryDirectory() as folder:
         study = run_study(robot, cycle, (VELOCITY, ENERGY), progress=False, cycles=0)
         write_figures(study, Path(folder))
         write_playbacks(study, Path(folder))
         for run in study.runs:
             run.summary()
+    with counting() as cycle_counts:  # the command computes it in a second process
         cycle_section(robot, cycle, VELOCITY, STUDY_CYCLES)
     cpu = time.process_time() - start
-    print(f"states evaluated: {counts.evaluated:,}; distinct: {counts.distinct:,}")
-    print(f"evaluated / distinct: {counts.ratio:.3f} (target ≤ 1.05)")
+    both = study_counts.evaluated + cycle_counts.evaluated
+    for name, counts in (("the study", study_counts), ("its cycle section", cycle_counts)):
+        print(
+            f"{name}: {counts.evaluated:,} states evaluated, {counts.distinct:,} distinct, "
+            f"ratio {counts.ratio:.3f}"
+        )
+    distinct = len(study_counts.seen | cycle_counts.seen)
+    print(f"states evaluated: {both:,}; distinct: {distinct:,}")
+    print(f"evaluated / distinct: {both / distinct:.3f} (target ≤ 1.05)")
     print(f"CPU time in this process: {cpu:.1f} s")
 
 

@@ -38,7 +38,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import NamedTuple, cast
 
 import numpy as np
 from scipy.optimize import minimize
@@ -239,6 +239,8 @@ class Transcription:
         self.S = np.array(second)
         self.smoothness = smoothness
         self.q = np.array(guess, dtype=float)
+        self.space: ActuatorSpace | None = None  # the states at q, once evaluated
+        self.around: tuple[np.ndarray, ActuatorSpace, ActuatorSpace] | None = None  # `shifted`
         self.lower = limits.lower + margin
         self.upper = limits.upper - margin
         self.span = self.upper - self.lower  # strokes enter the constraints as fractions of it
@@ -258,15 +260,21 @@ class Transcription:
         """(nodes, unknowns): 1 where a node's held stroke is that unknown."""
         return np.eye(self.D.shape[1])[self.owner]
 
-    def reach(self, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """q at every node for the held strokes r (one per unknown), Newton-continued from the
-        last configurations that reached every node, and which nodes it did not reach."""
+    def reach(self, r: np.ndarray) -> tuple[ActuatorSpace, np.ndarray]:
+        """The states at every node for the held strokes r (one per unknown), Newton-continued
+        from the last ones that reached every node (evaluated already), and which nodes it did
+        not reach."""
         target = np.concatenate([self.points, r[self.owner, None]], axis=1)
-        q, residual = newton(self.robot, self.q, [self.row], target, CONTINUATION_ITERATIONS)
-        missed = residual > FOUND
+        if self.space is None:
+            self.space = evaluate(self.robot, self.q)
+        solved = newton(
+            self.robot, self.q, [self.row], target, CONTINUATION_ITERATIONS, start=self.space
+        )
+        space = cast(ActuatorSpace, solved.space)  # given the states it starts from, Newton's
+        missed = solved.miss > FOUND
         if not missed.any():
-            self.q = q
-        return q, missed
+            self.q, self.space = space.q, space
+        return space, missed
 
     def unreached(self, r: np.ndarray, missed: np.ndarray) -> InvalidInputError:
         """The error for held strokes r whose ``missed`` nodes no configuration reaches."""
@@ -278,30 +286,30 @@ class Transcription:
 
     def configurations(self, r: np.ndarray) -> np.ndarray:
         """q at every node for the held strokes r, or an error where a node is not reached."""
-        q, missed = self.reach(r)
+        space, missed = self.reach(r)
         if missed.any():
             raise self.unreached(r, missed)
-        return q
+        return space.q
 
-    def motion(self, q: np.ndarray, r_dot: np.ndarray):
-        """At configurations q (N + 1, n) with held rates ṙ (N + 1,): the actuator space, K =
-        [J; A_h] (Eqs. 7, 11), ẋ = A q̇ (N + 1, n) with K q̇ = [ẏ_d; ṙ], and the measure."""
-        space = evaluate(self.robot, q)
+    def motion(self, space: ActuatorSpace, r_dot: np.ndarray):
+        """At the nodes' states with held rates ṙ (N + 1,): K = [J; A_h] (Eqs. 7, 11),
+        ẋ = A q̇ (N + 1, n) with K q̇ = [ẏ_d; ṙ], and the measure."""
         K = np.concatenate([space.J, space.A[:, [self.row]]], axis=1)
         rhs = np.concatenate([self.y_dot, r_dot[:, None]], axis=1)
         x_dot = (space.A @ np.linalg.solve(K, rhs[..., None]))[..., 0]
-        return space, K, x_dot, self.objective.measure(space, x_dot)
+        return K, x_dot, self.objective.measure(space, x_dot)
 
     def evaluate(self, z: np.ndarray) -> Nodes:
-        """The transcription at z = (r, σ), computed once per iterate."""
-        key = z.tobytes()
+        """The transcription at z = (r, σ), computed once per held history r (σ enters no
+        node)."""
+        key = z[:-1].tobytes()
         if self.cache is not None and self.cache[0] == key:
             return self.cache[1]
         r_dot = self.D @ z[:-1]
-        q, missed = self.reach(z[:-1])
-        space, K, x_dot, measure = self.motion(q, r_dot)
+        space, missed = self.reach(z[:-1])
+        K, x_dot, measure = self.motion(space, r_dot)
         measure = np.where(missed, UNREACHED * self.scale, measure)
-        unit = np.zeros((len(q), self.robot.n, 1))
+        unit = np.zeros((len(space.q), self.robot.n, 1))
         unit[:, -1] = 1.0
         dq = np.linalg.solve(K, unit)[..., 0]  # ∂q_j/∂r_j = K⁻¹ e, and ∂q̇_j/∂ṙ_j
         dx = (space.A @ dq[..., None])[..., 0]  # ∂x_j/∂r_j, and ∂ẋ_j/∂ṙ_j
@@ -309,13 +317,32 @@ class Transcription:
         ahead = measure_of(space, x_dot + DIFFERENCE_STEP * dx)
         behind = measure_of(space, x_dot - DIFFERENCE_STEP * dx)
         rate = (ahead - behind) / (2 * DIFFERENCE_STEP)  # ∂ measure_j / ∂ṙ_j
-        step = DIFFERENCE_STEP * dq  # through q_j at fixed ṙ_j: a central difference
-        ahead, behind = self.motion(q + step, r_dot)[-1], self.motion(q - step, r_dot)[-1]
+        # through q_j at fixed ṙ_j: a central difference
+        ahead, behind = (self.motion(s, r_dot)[-1] for s in self.shifted(space.q, dq))
         own = (ahead - behind) / (2 * DIFFERENCE_STEP)
         gradient = rate[:, None] * self.D + own[:, None] * self.incidence
         nodes = Nodes(measure, gradient, space, x_dot, dx, missed)
         self.cache = (key, nodes)
         return nodes
+
+    def shifted(self, q: np.ndarray, dq: np.ndarray) -> list[ActuatorSpace]:
+        """The states at q ± `DIFFERENCE_STEP` dq (N + 1, n) each, dq = ∂q/∂r a function of q:
+        a node whose q the last iterate had too keeps its states from there."""
+        fresh = np.ones(len(q), dtype=bool)
+        if self.around is not None:
+            fresh = ~np.all(self.around[0] == q, axis=1)
+        step = DIFFERENCE_STEP * dq[fresh]
+        found = [evaluate(self.robot, q[fresh] + sign * step) for sign in (1, -1)]
+        if self.around is not None and not fresh.all():
+            index = np.arange(len(q))  # a kept node's among the last iterate's, at its own row
+            index[fresh] = len(q) + np.arange(fresh.sum())
+            found = [
+                ActuatorSpace.joined([last, new]).take(index)
+                for last, new in zip(self.around[1:], found)
+            ]
+        ahead, behind = found
+        self.around = (q, ahead, behind)
+        return found
 
     def cost(self, z):
         """σ + ε mean ṙ² / (ẋᵀẋ)₀ + ε₂ mean r̈² / (ẋᵀẋ)₀ and its gradient: the peak σ = s / s₀,
@@ -495,7 +522,7 @@ def global_optimum(
         intervals = finer.pop(0)
         order = np.argsort(problem.unknown_times())
         t = problem.unknown_times()[order]
-        r, grid, nodes, problem = solve(intervals, t, r[order], problem.t, problem.q)
+        r, grid, nodes, problem = solve(intervals, t, r[order], problem.t, nodes.space.q)
         solutions.append(grid)
         if refine and not finer and not Grids(tuple(solutions)).converged:
             finer = [2 * intervals] if 2 * intervals <= MAX_INTERVALS else []
@@ -504,7 +531,7 @@ def global_optimum(
         segment,  # type: ignore[arg-type]
         objective.resolver,
         problem.t,
-        problem.q,
+        nodes.space.q,
         nodes.space.x,
         nodes.x_dot,
         nodes.space.y,

@@ -369,23 +369,11 @@ class Repetition:
     tolerance: float = REPEAT_TOLERANCE
 
     def motion(self, number: int = 1, time_step: float = TIME_STEP) -> Trajectory:
-        """Cycle ``number`` (1-based) on the grid of ``time_step``: integrated again from its
-        start as the repetition integrated it (the segments' steps are not kept)."""
+        """Cycle ``number`` (1-based) on the grid of ``time_step``, by the dense output of the
+        steps the repetition took (`Trajectory.on_grid`): not integrated again."""
         if not 1 <= number <= self.cycles:
             raise InvalidInputError(f"cycle {number} is not among 1-{self.cycles}")
-        sampled = self.motions[number - 1]
-        return simulate_path(
-            self.robot,
-            self.laws,
-            self.cycle.chain(),
-            sampled.q[:, 0],
-            time_step,
-            checked=sampled.checked,
-            objective=sampled.objective,
-            circuit=self.circuit,
-            gain=self.gain,
-            tolerance=self.tolerance,
-        )
+        return self.motions[number - 1].on_grid(time_step)
 
     @property
     def cycles(self) -> int:
@@ -731,7 +719,7 @@ def periodic_optimum(
         except InvalidInputError as error:
             raise InvalidInputError(f"the periodic optimum found no motion: {error}") from None
         solutions.append(grid)
-        nodes_t, nodes_q = problem.t, problem.q
+        nodes_t, nodes_q = problem.t, nodes.space.q
         order = np.argsort(problem.unknown_times())
         unknown_t = np.append(problem.unknown_times()[order], period)
         unknown_r = np.append(r[order], r[0])

@@ -114,7 +114,7 @@ def _nodes(robot: Robot, segment: Segment, row: int, values: np.ndarray, t: np.n
     for j, point in enumerate(points):
         target[:, : robot.m] = point
         if j:
-            q[j], residual = newton(robot, q[j - 1], [row], target, ITERATIONS, bounded=True)
+            q[j], residual, _ = newton(robot, q[j - 1], [row], target, ITERATIONS, bounded=True)
             found[j] = residual < FOUND
         missing = np.flatnonzero(~found[j])
         if not found[j].any():
@@ -123,7 +123,7 @@ def _nodes(robot: Robot, segment: Segment, row: int, values: np.ndarray, t: np.n
         elif missing.size:
             known = np.flatnonzero(found[j])
             nearest = known[np.argmin(np.abs(values[missing, None] - values[known]), axis=1)]
-            q[j, missing], residual = newton(
+            q[j, missing], residual, _ = newton(
                 robot, q[j, nearest], [row], target[missing], ITERATIONS, bounded=True
             )
             found[j, missing] = residual < FOUND

@@ -17,23 +17,28 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import lru_cache
+from typing import NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from redundancy.errors import InvalidInputError, SingularConfigurationError, UnreachableError
+from redundancy.model.actuators import ActuatorSet
 from redundancy.model.robot import Robot
 from redundancy.model.values import is_whole
 from redundancy.planning.angles import task_labels
 from redundancy.planning.tasks import Segment
 from redundancy.resolution.limits import amount
-from redundancy.resolution.state import SINGULAR_TOLERANCE
+from redundancy.resolution.state import SINGULAR_TOLERANCE, ActuatorSpace, evaluate
 
 TOLERANCE = 1e-12  # m (and m or rad for held actuators): a residual this small has converged
 FOUND = 1e3 * TOLERANCE  # a residual below this has found a configuration
 ITERATIONS = 40  # from a seed far away
 CONTINUATION_ITERATIONS = 10  # from a configuration nearby, Newton converges in about 4
 DAMPING = 1e-10
+STALLED = 1e-12  # m or rad: a step this small no longer moves a row: it has converged (its
+# residual is then far below FOUND) or, clipped to the joint limits, it is stuck in a corner
 MOST_SEEDS = 1000  # starts per point of inverse_kinematics: each is a Newton solve per value
 
 
@@ -64,54 +69,13 @@ def held_names(robot: Robot, held: str | Sequence[str]) -> tuple[str, ...]:
     return tuple(robot.actuators.names[row] for row in held_indices(robot, held))
 
 
-class _Passes:
-    """[y(q); x_h(q)] (m + r,) and [J; A_h] (m + r, n) of every configuration one Newton run
-    met, from the frames of the task and the held actuators only, each evaluated once: Newton
-    sends many targets from the same seeds, and rows the clip drives into a corner of the joint
-    box meet there again and again. Configurations are found again by a hash of their bits
-    (sorted, for a binary search) and compared in full."""
+class Solved(NamedTuple):
+    """Newton's answer: q (k, n), the residuals |[y − y*, x_h − x_h*]| (k,) in m (and rad),
+    and, where it read every actuator, the states at q."""
 
-    def __init__(self, robot: Robot, rows: list[int]):
-        self.robot, self.held = robot, robot.actuators.part(rows)
-        self.mix = np.random.default_rng(0).integers(1, 2**62, robot.n) | 1  # odd multipliers
-        self.codes = np.zeros(0, dtype=np.int64)  # sorted
-        self.q = np.zeros((0, robot.n))
-        self.values = np.zeros((0, robot.m + len(rows)))
-        self.jacobians = np.zeros((0, robot.m + len(rows), robot.n))
-
-    def _found(self, q: np.ndarray, codes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Where each of q (k, n) is among the known configurations, and whether it is."""
-        at = np.minimum(np.searchsorted(self.codes, codes), max(len(self.codes) - 1, 0))
-        if not len(self.codes):
-            return at, np.zeros(len(q), dtype=bool)
-        return at, (self.codes[at] == codes) & np.all(self.q[at] == q, axis=1)
-
-    def _evaluated(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """[y(q); x_h(q)] (k, m + r) and [J; A_h] (k, m + r, n) by one pass."""
-        kinematics = self.robot.kinematics(q, actuators=self.held)
-        x, A = self.held.evaluate(kinematics)
-        y, J = self.robot.task_point(kinematics)
-        return np.concatenate([y, x], axis=1), np.concatenate([J, A], axis=1)
-
-    def residual(self, q: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """[y(q); x_h(q)] − target (k, m + r) and its Jacobian [J; A_h] (k, m + r, n)."""
-        q = np.ascontiguousarray(q)
-        codes = q.view(np.int64) @ self.mix  # wraps around: a hash
-        at, known = self._found(q, codes)
-        if not known.all():
-            _, first = np.unique(codes[~known], return_index=True)
-            fresh = q[~known][first]
-            values, jacobians = self._evaluated(fresh)
-            codes_now = np.concatenate([self.codes, codes[~known][first]])
-            order = np.argsort(codes_now, kind="stable")
-            self.codes, self.q = codes_now[order], np.concatenate([self.q, fresh])[order]
-            self.values = np.concatenate([self.values, values])[order]
-            self.jacobians = np.concatenate([self.jacobians, jacobians])[order]
-            at, known = self._found(q, codes)
-        if not known.all():  # two configurations of one hash: this batch as it comes
-            values, jacobians = self._evaluated(q)
-            return values - target, jacobians
-        return self.values[at] - target, self.jacobians[at]
+    q: np.ndarray
+    miss: np.ndarray
+    space: ActuatorSpace | None
 
 
 def newton(
@@ -121,31 +85,75 @@ def newton(
     target: np.ndarray,
     iterations: int,
     bounded: bool = False,
-) -> tuple[np.ndarray, np.ndarray]:
+    start: ActuatorSpace | None = None,
+) -> Solved:
     """Damped Gauss-Newton on [y(q); x_h(q)] = target (k, n) from ``guess`` (k, n): steps
     δ = (KᵀK + δ₀ I)⁻¹ Kᵀ r with K = [J; A_h] (Eqs. 7, 11), each iterate clipped to the joint
     limits when ``bounded`` (a projected Levenberg-Marquardt). A row stops once its residual is
-    below `TOLERANCE` or its step no longer moves it. Returns q (k, n) and |r| (k,)."""
+    below `TOLERANCE` or its step no longer moves it (`STALLED`).
+
+    Each configuration is evaluated once: a row keeps the residual and K of its latest iterate,
+    and the rows of a pass at one configuration (the seeds every target starts from, a corner
+    of the joint box) share it. A pass reads the task and the held actuators alone; given
+    ``start``, the states at ``guess`` evaluated already, Newton begins from them and reads
+    every actuator, and the states at its solution come back for whoever reads them next."""
     q = np.array(guess, dtype=float)
-    passes = _Passes(robot, rows)
+    part = robot.actuators.part(rows)
+    parts: list[ActuatorSpace] = []  # with ``start``: every pass's states, in order
+    latest = np.arange(len(q))  # with ``start``: each row's latest state among them, joined
+
+    def passed(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """[y; x_h] (k, m + r) and K (k, m + r, n) at q (k, n), by one pass."""
+        unique, inverse = np.unique(q, axis=0, return_inverse=True)
+        inverse = inverse.reshape(-1)
+        if start is None:
+            value, jacobian = _held_pass(robot, part, unique)
+        else:
+            space = evaluate(robot, unique)
+            parts.append(space.take(inverse))
+            value, jacobian = _read(space, rows)
+        return value[inverse], jacobian[inverse]
+
+    if start is None:
+        value, jacobian = passed(q)
+    else:
+        parts.append(start)
+        value, jacobian = _read(start, rows)
+    residual = value - target
     active = np.arange(len(q))
     eye = DAMPING * np.eye(robot.n)
     for _ in range(iterations):
-        residual, jacobian = passes.residual(q[active], target[active])
-        moving = np.linalg.norm(residual, axis=1) > TOLERANCE
-        active, residual, jacobian = active[moving], residual[moving], jacobian[moving]
+        active = active[np.linalg.norm(residual[active], axis=1) > TOLERANCE]
         if not active.size:
             break
-        jacobian_t = jacobian.mT
-        step = np.linalg.solve(jacobian_t @ jacobian + eye, jacobian_t @ residual[..., None])
-        updated = q[active] - step[..., 0]
+        K, r = jacobian[active], residual[active]
+        step = np.linalg.solve(K.mT @ K + eye, K.mT @ r[..., None])[..., 0]
+        updated = q[active] - step
         if bounded:
             updated = np.clip(updated, robot.lower, robot.upper)
-        stalled = np.all(np.abs(updated - q[active]) < 1e-15, axis=1)
-        q[active] = updated
-        active = active[~stalled]
-    residual, _ = passes.residual(q, target)
-    return q, np.linalg.norm(residual, axis=1)
+        moved = ~np.all(np.abs(updated - q[active]) < STALLED, axis=1)
+        active = active[moved]
+        q[active] = updated[moved]
+        if active.size:
+            value, jacobian[active] = passed(q[active])
+            residual[active] = value - target[active]
+            latest[active] = sum(len(p.q) for p in parts[:-1]) + np.arange(active.size)
+    space = None if start is None else ActuatorSpace.joined(parts).take(latest)
+    return Solved(q, np.linalg.norm(residual, axis=1), space)
+
+
+def _held_pass(robot: Robot, part: ActuatorSet, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """[y; x_h] (k, m + r) and K = [J; A_h] (k, m + r, n) at q (k, n), by a pass that reads the
+    task and the held actuators ``part`` alone."""
+    kinematics = robot.kinematics(q, actuators=part)
+    (x, A), (y, J) = part.evaluate(kinematics), robot.task_point(kinematics)
+    return np.concatenate([y, x], axis=1), np.concatenate([J, A], axis=1)
+
+
+def _read(space: ActuatorSpace, rows: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """[y; x_h] and K = [J; A_h] of the held actuators ``rows`` at evaluated states."""
+    value = np.concatenate([space.y, space.x[:, rows]], axis=1)
+    return value, np.concatenate([space.J, space.A[:, rows]], axis=1)
 
 
 def _seeds(robot: Robot, count: int) -> np.ndarray:
@@ -199,7 +207,7 @@ def inverse_kinematics(
     k, starts = len(values), _seeds(robot, seeds)
     guess = np.repeat(starts[None], k, axis=0).reshape(k * seeds, robot.n)
     target = np.concatenate([np.repeat(point[None], k, 0), values], axis=1)
-    q, error = newton(robot, guess, rows, np.repeat(target, seeds, axis=0), ITERATIONS, True)
+    q, error, _ = newton(robot, guess, rows, np.repeat(target, seeds, axis=0), ITERATIONS, True)
     error = error.reshape(k, seeds)
     per_seed = q.reshape(k, seeds, robot.n)
     converged = error < FOUND
@@ -237,7 +245,7 @@ def continue_held(
         target = np.concatenate(
             [np.broadcast_to(point, (pending.size, robot.m)), values[pending, None]], axis=1
         )
-        q[pending], residual[pending] = newton(
+        q[pending], residual[pending], _ = newton(
             robot, configurations[nearest], [row], target, CONTINUATION_ITERATIONS
         )
         done = residual[pending] < FOUND
@@ -279,15 +287,20 @@ def _closest_miss(robot: Robot, point: np.ndarray, held: dict[str, float], q0: n
     by a heavy penalty), by bounded least squares, in m."""
     from scipy.optimize import least_squares
 
-    passes = _Passes(robot, held_indices(robot, list(held)))
-    target = np.concatenate([point, list(held.values())])[None]
+    part = robot.actuators.part(held_indices(robot, list(held)))
+    target = np.concatenate([point, list(held.values())])
     weight = np.concatenate([np.ones(robot.m), np.full(len(held), 1e4)])
 
+    @lru_cache(maxsize=1)  # least squares asks for the residual, then K, at one q
+    def at(key: bytes) -> tuple[np.ndarray, np.ndarray]:
+        value, jacobian = _held_pass(robot, part, np.frombuffer(key)[None])
+        return weight * (value[0] - target), weight[:, None] * jacobian[0]
+
     def residual(q):
-        return weight * passes.residual(q[None], target)[0][0]
+        return at(q.tobytes())[0]
 
     def jacobian(q):
-        return weight[:, None] * passes.residual(q[None], target)[1][0]
+        return at(q.tobytes())[1]
 
     fits = [
         least_squares(residual, start, jac=jacobian, bounds=(robot.lower, robot.upper))
@@ -315,12 +328,12 @@ def check_path(robot: Robot, segment: Segment, seeds: int = 8) -> None:
     fresh = _seeds(robot, seeds)
     q = fresh
     for i, (t, point) in enumerate(zip(times, segment.position(times))):
-        q, miss = newton(
+        q, miss, _ = newton(
             robot, q, [], np.broadcast_to(point, q.shape[:1] + point.shape), ITERATIONS, True
         )
         if not miss.min() < FOUND:
             target = np.broadcast_to(point, (len(fresh), robot.m))
-            q, miss = newton(robot, fresh, [], target, ITERATIONS, True)
+            q, miss, _ = newton(robot, fresh, [], target, ITERATIONS, True)
         if not miss.min() < PATH_TOLERANCE:
             best = q[np.argmin(miss)][None]
             error = robot.task_point(robot.kinematics(best))[0][0] - point

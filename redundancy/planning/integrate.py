@@ -31,6 +31,7 @@ and flagged (`Trajectory.failed`), so one bad start never spoils the batch.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import TYPE_CHECKING, NamedTuple
@@ -43,7 +44,7 @@ from redundancy.model.hydraulics import BAR, LITRES_PER_MINUTE, Flows, Supply
 from redundancy.model.kinematics import join
 from redundancy.model.robot import Robot
 from redundancy.model.values import is_real
-from redundancy.planning.tasks import Segment
+from redundancy.planning.tasks import Chain, Segment
 from redundancy.resolution.laws import Resolver
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
 from redundancy.resolution.limits import Limits, Violation, hydraulic_values
@@ -91,6 +92,8 @@ class Trajectory:
     the hydraulic circuit's limits count too (`within_limits`, `violations`). ``space``: the
     states at the samples as the integrator evaluated them (one flat batch of k·T, motion by
     motion, v = q̇), which every quantity along the motion is read from (`states`).
+    ``pieces``: a chain's motions as integrated, segment by segment, which `on_grid` samples
+    again.
     """
 
     robot: Robot = field(repr=False)
@@ -111,6 +114,7 @@ class Trajectory:
     circuit: bool = False
     steps: Steps | None = field(default=None, repr=False)
     space: ActuatorSpace | None = field(default=None, repr=False)
+    pieces: tuple[Trajectory, ...] = field(default=(), repr=False)
 
     @classmethod
     def single(
@@ -129,20 +133,11 @@ class Trajectory:
     ) -> Trajectory:
         """One motion that ran to its end, from its samples t (T,), q, x, ẋ (T, n), y (T, m)
         and, for ``objective``, its ``measure`` (T,)."""
+        t, q, x, x_dot, y = (a[None] for a in (t, q, x, x_dot, y))
+        measure = None if measure is None else measure[None]
+        done = np.zeros(1, dtype=bool)  # neither failed nor stopped
         return cls(
-            robot,
-            segment,
-            resolver,
-            t[None],
-            q[None],
-            x[None],
-            x_dot[None],
-            y[None],
-            np.zeros(1, dtype=bool),
-            checked,
-            np.zeros(1, dtype=bool),
-            objective,
-            None if measure is None else measure[None],
+            robot, segment, resolver, t, q, x, x_dot, y, done, checked, done, objective, measure
         )
 
     def __len__(self) -> int:
@@ -163,6 +158,7 @@ class Trajectory:
             measure=None if self.measure is None else self.measure[rows],
             steps=None if self.steps is None else self.steps.select(rows, len(self)),
             space=None if self.space is None else self.space.take(self._flat(rows)),
+            pieces=tuple(piece.select(rows) for piece in self.pieces),
         )
 
     def _flat(self, rows: np.ndarray) -> np.ndarray:
@@ -173,7 +169,11 @@ class Trajectory:
     def on_grid(self, time_step: float = TIME_STEP) -> Trajectory:
         """These motions sampled on the uniform grid of ``time_step`` by the dense output of the
         steps they were integrated with, as `simulate` samples them without ``sparse``: no
-        integration again. A motion a search stopped stays where it was stopped."""
+        integration again (a chain's segment by segment). A motion a search stopped stays where
+        it was stopped."""
+        if self.pieces:
+            pieces = [piece.on_grid(time_step) for piece in self.pieces]
+            return chained(self.segment, pieces)  # type: ignore[arg-type]
         if self.steps is None:
             raise InvalidInputError("only adaptively integrated motions can be sampled again")
         grid = time_grid(self.segment, time_step)
@@ -374,6 +374,88 @@ class Trajectory:
         if self.circuit:
             found = sorted(found + self.hydraulic_violations(i), key=lambda v: v.start)
         return found
+
+
+def chained(path: Chain, pieces: Sequence[Trajectory]) -> Trajectory:
+    """k motions along each segment of ``path`` in turn (each piece starting where the one
+    before ended) as k motions along the whole chain: times from the chain's start, each later
+    piece's first sample left out (it repeats the corner the one before ended at), each motion
+    padded by repeating its last sample. A motion failed or stopped where any piece did."""
+    firsts = np.cumsum([0, *(p.t.size for p in pieces)])
+    index = []  # each motion's samples among the pieces' flattened motion by motion
+    for i in range(len(pieces[0])):
+        parts = []
+        for number, (first, piece) in enumerate(zip(firsts, pieces)):
+            times = piece.t[i]
+            count = int(np.searchsorted(times, times[-1])) + 1
+            parts.append(first + i * times.size + np.arange(min(number, 1), count))
+        index.append(np.concatenate(parts))
+    return _gathered(
+        path,
+        pieces,
+        padded(index),
+        path.offsets,
+        failed=np.any([p.failed for p in pieces], axis=0),
+        stopped=np.any([p.stopped for p in pieces], axis=0),
+        steps=None,
+        pieces=tuple(pieces),
+    )
+
+
+def padded(arrays: Sequence[np.ndarray]) -> np.ndarray:
+    """Arrays (T_i, ...) as one (k, max T_i, ...), each padded by repeating its last row."""
+    length = max(len(a) for a in arrays)
+    return np.stack([np.concatenate([a, np.repeat(a[-1:], length - len(a), 0)]) for a in arrays])
+
+
+def concatenated(first: Trajectory, second: Trajectory) -> Trajectory:
+    """Two batches of motions on one path as one, padded to the longer by repetition."""
+    rows = [
+        offset + i * part.t.shape[1] + np.arange(part.t.shape[1])
+        for offset, part in ((0, first), (first.t.size, second))
+        for i in range(len(part))
+    ]
+    return _gathered(
+        first.segment,
+        (first, second),
+        padded(rows),
+        (0.0, 0.0),
+        failed=np.concatenate([first.failed, second.failed]),
+        stopped=np.concatenate([first.stopped, second.stopped]),
+        steps=None
+        if first.steps is None or second.steps is None
+        else first.steps.joined(second.steps, len(first)),
+        pieces=tuple(concatenated(a, b) for a, b in zip(first.pieces, second.pieces)),
+    )
+
+
+def _gathered(path, parts: Sequence[Trajectory], index: np.ndarray, shifts, **fields):
+    """The samples ``index`` (k, T) among the ``parts``' samples flattened motion by motion
+    (each part's times shifted by its ``shifts``, s) as k motions along ``path``; the other
+    ``fields`` given."""
+
+    def gather(name: str) -> np.ndarray:
+        arrays = [getattr(p, name) for p in parts]
+        return np.concatenate([a.reshape(-1, *a.shape[2:]) for a in arrays])[index]
+
+    t = np.concatenate([p.t.ravel() + shift for p, shift in zip(parts, shifts)])[index]
+    measure = gather("measure") if all(p.measure is not None for p in parts) else None
+    spaces = [p.space for p in parts]
+    space = None
+    if all(s is not None for s in spaces):
+        space = ActuatorSpace.joined(spaces).take(index.ravel())  # type: ignore[arg-type]
+    return replace(
+        parts[0],
+        segment=path,
+        t=t,
+        q=gather("q"),
+        x=gather("x"),
+        x_dot=gather("x_dot"),
+        y=gather("y"),
+        measure=measure,
+        space=space,
+        **fields,
+    )
 
 
 def stroke_extremes(

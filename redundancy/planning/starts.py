@@ -52,8 +52,14 @@ from redundancy.planning.ik import (
     held_names,
     inverse_kinematics,
 )
-from redundancy.planning.integrate import REPORT_TOLERANCE, TIME_STEP, TOLERANCE, Trajectory
-from redundancy.planning.motions import concatenated, simulate_path
+from redundancy.planning.integrate import (
+    REPORT_TOLERANCE,
+    TIME_STEP,
+    TOLERANCE,
+    Trajectory,
+    concatenated,
+)
+from redundancy.planning.motions import simulate_path
 from redundancy.planning.tasks import Chain, Segment, WorkCycle, checked_path
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
 from redundancy.resolution.limits import Limits, Violation, amount

@@ -725,7 +725,6 @@ def _segment(
     where: str,
 ) -> Segment:
     """One entry of a task file's ``segments``: "<from>-<to>" or a table (module docstring)."""
-    angles = int(tool_angle)
     known = ", ".join(points)
 
     def point(name: str | None, key: str) -> np.ndarray:
@@ -743,9 +742,8 @@ def _segment(
             )
         entry = SegmentTable.model_validate({"from": ends[0], "to": ends[1], "name": entry})
     speed, profile, acceleration = _timing(entry, where, defaults)
-    given = entry.model_dump(by_alias=True, exclude_none=True)
-    centre = entry.centre if entry.centre is not None else entry.center
     if entry.csv is not None:
+        given = entry.model_dump(by_alias=True, exclude_none=True)
         clash = [key for key in ARC_KEYS if key in given]
         if clash:
             raise InvalidInputError(f"{where}: a csv polyline takes no {', '.join(clash)}")
@@ -756,86 +754,92 @@ def _segment(
         start, end = point(entry.start, "from"), point(entry.to, "to")
         name = f"{entry.start}-{entry.to}" if entry.name is None else entry.name
         try:
-            if entry.via is not None and centre is not None:
-                raise InvalidInputError("give via or centre, not both")
-            if entry.via is not None:
-                shape = Arc.through(start, point(entry.via, "via"), end, angles)
-            elif centre is not None:
-                if entry.direction is None:
-                    raise InvalidInputError('an arc about a centre needs direction = "ccw" or "cw"')
-                middle = point(centre, "centre")
-                shape = Arc.about(
-                    start, end, middle[: len(middle) - angles], entry.direction, angles
-                )
-            else:
-                if entry.direction is not None:
-                    raise InvalidInputError("direction belongs to an arc about a centre")
-                shape = Line(start, end, angles)
+            shape = _curve(entry, start, end, point, int(tool_angle))
         except InvalidInputError as error:
             raise InvalidInputError(f"{where} ({name}): {error}") from None
     return Segment.along(name, shape, speed, profile, acceleration)
+
+
+def _curve(entry: SegmentTable, start, end, point, angles: int) -> Shape:
+    """The line or arc from ``start`` to ``end`` a segment's table declares, its other points
+    found by ``point(name, key)``."""
+    centre = entry.centre if entry.centre is not None else entry.center
+    if entry.via is not None and centre is not None:
+        raise InvalidInputError("give via or centre, not both")
+    if entry.via is not None:
+        return Arc.through(start, point(entry.via, "via"), end, angles)
+    if centre is None:
+        if entry.direction is not None:
+            raise InvalidInputError("direction belongs to an arc about a centre")
+        return Line(start, end, angles)
+    if entry.direction is None:
+        raise InvalidInputError('an arc about a centre needs direction = "ccw" or "cw"')
+    middle = point(centre, "centre")
+    return Arc.about(start, end, middle[: len(middle) - angles], entry.direction, angles)
 
 
 def read_polyline(path: Path | str, dimension: int | None, tool_angle: bool = False) -> Polyline:
     """The polyline of a CSV file (module docstring): one point per line, ``dimension`` values
     each where given (the last an angle in degrees with ``tool_angle``). Errors name the line."""
     path = Path(path)
-    text_lines = read_text(path, "CSV file").splitlines()
     rows: list[tuple[int, np.ndarray]] = []
-    header_allowed = True
-    for number_, cells in enumerate(csv.reader(text_lines), start=1):
-        line = text_lines[number_ - 1] if number_ <= len(text_lines) else ""
-        if not cells or not "".join(cells).strip() or line.lstrip().startswith("#"):
-            continue
-        values: list[float | None] = []
-        for cell in cells:
-            try:
-                values.append(decimal(cell))
-            except ValueError:
-                values.append(None)
-        if header_allowed and all(v is None for v in values):
-            header_allowed = False
-            continue
-        header_allowed = False
-        bad = next((c for c, v in enumerate(values, start=1) if v is None), None)
-        if bad is not None:
-            raise InvalidInputError(
-                f"{path} line {number_}: cell {bad} ({excerpt(cells[bad - 1].strip())}) is not a "
-                "number"
+    for number, point in _csv_points(path):
+        size = dimension or (len(rows[0][1]) if rows else len(point))
+        if len(point) != size:
+            why = (
+                f"the task has {dimension} coordinates per point"
+                if dimension
+                else f"line {rows[0][0]} has {size}"
             )
-        array = np.array(values, dtype=float)
-        if not np.all(np.isfinite(array)):
-            raise InvalidInputError(
-                f"{path} line {number_}: "
-                f"{excerpt(cells[int(np.argmin(np.isfinite(array)))].strip())} "
-                "is not a finite number"
-            )
-        _check_reach(array, f"{path} line {number_}", [c.strip() for c in cells])
-        if dimension is not None and len(array) != dimension:
-            raise InvalidInputError(
-                f"{path} line {number_}: {len(array)} values; the task has {dimension} "
-                "coordinates per point"
-            )
-        if rows and len(array) != len(rows[0][1]):
-            raise InvalidInputError(
-                f"{path} line {number_}: {len(array)} values; line {rows[0][0]} has "
-                f"{len(rows[0][1])}"
-            )
-        rows.append((number_, _in_radians(array, tool_angle)))
+            raise InvalidInputError(f"{path} line {number}: {len(point)} values; {why}")
+        rows.append((number, point))
     if not rows:
         raise InvalidInputError(f"{path}: no points; a polyline needs at least two")
-    angles = int(tool_angle)
-    kept = [rows[0]]
-    for line_number, point in rows[1:]:
-        gap = np.linalg.norm((point - kept[-1][1])[: len(point) - angles])
-        if gap > CLOSED:
-            kept.append((line_number, point))
+    first, angles = rows[0][0], int(tool_angle)
+    kept = rows[:1]
+    for row in rows[1:]:
+        if np.linalg.norm((row[1] - kept[-1][1])[: len(row[1]) - angles]) > CLOSED:
+            kept.append(row)
     if len(kept) < 2:
-        where = f"line {rows[0][0]}" if len(rows) == 1 else f"lines {rows[0][0]}-{rows[-1][0]}"
+        where = f"line {first}" if len(rows) == 1 else f"lines {first}-{rows[-1][0]}"
         raise InvalidInputError(
             f"{path}: one point ({where}); a polyline needs at least two distinct points"
         )
-    return Polyline(np.array([p for _, p in kept]), angles)
+    return Polyline(np.array([_in_radians(point, tool_angle) for _, point in kept]), angles)
+
+
+def _csv_points(path: Path):
+    """(line number, point) of each line of a CSV file that holds one: blank lines, comments
+    ("#") and a first line of names (no cell a number) are skipped."""
+    lines = read_text(path, "CSV file").splitlines()
+    names_allowed = True
+    for number, cells in enumerate(csv.reader(lines), start=1):
+        if not "".join(cells).strip() or lines[number - 1].lstrip().startswith("#"):
+            continue
+        values = [_cell(cell) for cell in cells]
+        if names_allowed and all(v is None for v in values):
+            names_allowed = False
+            continue
+        names_allowed = False
+        where = f"{path} line {number}"
+        if None in values:
+            bad = values.index(None)
+            text = excerpt(cells[bad].strip())
+            raise InvalidInputError(f"{where}: cell {bad + 1} ({text}) is not a number")
+        point = np.array(values, dtype=float)
+        if not np.all(np.isfinite(point)):
+            text = excerpt(cells[int(np.argmin(np.isfinite(point)))].strip())
+            raise InvalidInputError(f"{where}: {text} is not a finite number")
+        _check_reach(point, where, [c.strip() for c in cells])
+        yield number, point
+
+
+def _cell(text: str) -> float | None:
+    """The number a CSV cell writes, or None."""
+    try:
+        return decimal(text)
+    except ValueError:
+        return None
 
 
 def checked_path(path: object, name: str = "segment") -> Segment | Chain:
