@@ -3,7 +3,6 @@ Pinocchio's own URDF parser builds; a mimic joint may follow a joint on any bran
 URDF (or what it loads) holds is never quoted beyond an excerpt."""
 
 import re
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -11,9 +10,9 @@ import pinocchio as pin
 import pytest
 import yourdfpy
 from lxml import etree
+from test_intake import quietly, run
 
 from redundancy import RobotDescriptionError, bundled_robots, load_robot
-from redundancy.cli import main
 from redundancy.model.loading import bundled_root
 
 CRANE = bundled_root() / "hiab031"
@@ -57,22 +56,6 @@ SIBLINGS = """<robot name="siblings">
     <mimic joint="boom_joint" multiplier="0.5" offset="-0.2"/></joint>
 </robot>
 """
-
-
-def quietly(path):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return load_robot(path)
-
-
-def run(argv, capsys):
-    """``redundancy ARGV`` in this process: the exit status and stderr's lines, notes aside."""
-    try:
-        status = main(argv)
-    except SystemExit as exit:
-        status = exit.code
-    lines = capsys.readouterr().err.strip().splitlines()
-    return status, [line for line in lines if not line.startswith("redundancy: note:")]
 
 
 def placements(model, q):

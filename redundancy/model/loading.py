@@ -20,7 +20,7 @@ from redundancy.errors import (
     RobotDescriptionError,
     SingularConfigurationError,
 )
-from redundancy.model.actuators import ActuatorSet, driven_joints
+from redundancy.model.actuators import ActuatorSet
 from redundancy.model.hydraulics import Circuit, circuit_from_table, read_hydraulics_file
 from redundancy.model.robot import AXES, Robot, frame_id
 from redundancy.model.schema import Description, Payload, read_toml, validate
@@ -135,31 +135,6 @@ def _lock(model: pin.Model, locked: dict[str, float | None], where: str, source:
     return pin.buildReducedModel(model, [model.getJointId(j) for j in locked], q)
 
 
-def _check_joints(model: pin.Model, source: str) -> None:
-    odd = [
-        f"{name} ({joint.shortname()})"
-        for name, joint in zip(model.names[1:], model.joints[1:])
-        if joint.nv > 0 and (joint.nq != 1 or joint.nv != 1)
-    ]
-    if odd:
-        raise RobotDescriptionError(
-            f"{source}: joints {odd} have more than one coordinate; the toolkit handles "
-            "revolute, continuous, prismatic and mimic joints: lock the others with "
-            "locked_joints in robot.toml"
-        )
-    inverted = [
-        f"{name} [{lower:g}, {upper:g}]"
-        for name, lower, upper in zip(
-            driven_joints(model), model.lowerPositionLimit, model.upperPositionLimit
-        )
-        if not lower <= upper
-    ]
-    if inverted:
-        raise RobotDescriptionError(
-            f"{source}: joint limits must have lower ≤ upper; inverted: {', '.join(inverted)}"
-        )
-
-
 def _add_payload(model: pin.Model, frame: str, payload: float) -> None:
     """A point mass ``payload`` (kg) at the tool frame, carried by the tool's joint."""
     tool = model.frames[frame_id(model, frame)]
@@ -213,18 +188,23 @@ STEP = np.radians(0.25)  # rad: the grid a continuous joint's stroke range is fi
 BISECTIONS = 40  # halvings of a grid step that locate each end of the range (to 1e-14 rad)
 
 
+def _along(robot: Robot, column: int, values: np.ndarray) -> np.ndarray:
+    """Configurations (k, n) with joint ``column`` at ``values`` (k,) and the other joints at
+    rest (0, or the end of their range nearest it)."""
+    q = np.repeat(np.clip(0.0, robot.lower, robot.upper)[None], len(values), axis=0)
+    q[:, column] = values
+    return q
+
+
 def _stroke_arc(robot: Robot, column: int, row: int) -> tuple[float, float] | None:
     """The angles of joint ``column`` (rad) over which actuator ``row`` stays inside its
     stroke, the other joints at zero: sought on a grid over two turns either way, each end then
     located by bisection; of several arcs (a cylinder on either side of the joint axis), the
     one nearest the URDF's zero angle. None where the stroke admits no angle, or every one."""
     actuator = robot.actuators.maps[row]
-    rest = np.clip(0.0, robot.lower, robot.upper)
 
     def inside(theta: np.ndarray) -> np.ndarray:
-        q = np.repeat(rest[None], len(theta), axis=0)
-        q[:, column] = theta
-        x = robot.actuators.evaluate(robot.kinematics(q))[0][:, row]
+        x = actuator.evaluate(robot.kinematics(_along(robot, column, theta)))[0]
         return (x >= actuator.lower) & (x <= actuator.upper)
 
     angles = np.arange(-2 * np.pi, 2 * np.pi + STEP / 2, STEP)
@@ -253,13 +233,11 @@ def _check_arms(robot: Robot, description: Description, source: str, where: str)
     is unbounded), the other joints at rest, |∂x_i/∂q_i| reaches `ARM`. A cylinder with an
     attachment point on (or within `ARM` of) its joint's axis does not: its length barely
     changes with the joint, A is singular everywhere, and one line names it and its table."""
-    rest = np.clip(0.0, robot.lower, robot.upper)
     for actuator in robot.actuators:
         column = actuator.index
         span = np.pi if robot.rotary_joints[column] else 1.0
         lower, upper = np.clip([robot.lower[column], robot.upper[column]], -span, span)
-        q = np.repeat(rest[None], SAMPLES, axis=0)
-        q[:, column] = np.linspace(lower, upper, SAMPLES)
+        q = _along(robot, column, np.linspace(lower, upper, SAMPLES))
         try:
             arm = np.abs(actuator.evaluate(robot.kinematics(q))[1][:, column]).max()
         except SingularConfigurationError:  # a linkage that cannot close there: said in use
@@ -340,7 +318,6 @@ def load_robot(
     locked = dict(locked) if isinstance(locked, dict) else dict.fromkeys(locked)
     model, continuous = build_model(urdf, locked)
     model = _lock(model, locked, where, urdf.source)
-    _check_joints(model, urdf.source)
     for joint in set(continuous) - set(locked):  # unbounded, unless a stroke bounds it (below)
         index = model.joints[model.getJointId(joint)].idx_q
         model.lowerPositionLimit[index], model.upperPositionLimit[index] = -np.inf, np.inf

@@ -32,7 +32,7 @@ from pinocchio import graph
 
 from redundancy.errors import RobotDescriptionError
 from redundancy.model.parameters import number_or_text
-from redundancy.model.schema import excerpt
+from redundancy.model.schema import EXCERPT, excerpt
 
 FREE = ("floating", "planar")  # URDF joint types of a base that moves freely
 LIMITED = ("revolute", "prismatic")  # URDF joint types that must give their <limit>
@@ -114,7 +114,7 @@ def _document(path: Path) -> bytes:
 
 def _check_tree(robot: yourdfpy.Robot, source: str) -> None:
     """Every joint joins two links of the URDF, one link is the root, and a revolute or
-    prismatic joint gives its range."""
+    prismatic joint gives its range, lower ≤ upper."""
     links = {link.name for link in robot.links}
     for joint in robot.joints:
         where = f"{source}: not a valid URDF: joint {excerpt(joint.name)}"
@@ -129,6 +129,15 @@ def _check_tree(robot: yourdfpy.Robot, source: str) -> None:
             raise RobotDescriptionError(
                 f'{where} is {joint.type}: it needs <limit lower="..." upper="..."/> (rad or m)'
             )
+    inverted = [
+        f"{j.name[:EXCERPT]} [{j.limit.lower:g}, {j.limit.upper:g}]"
+        for j in robot.joints
+        if j.type in LIMITED and j.mimic is None and not j.limit.lower <= j.limit.upper
+    ]
+    if inverted:
+        raise RobotDescriptionError(
+            f"{source}: joint limits must have lower ≤ upper; inverted: {', '.join(inverted)}"
+        )
     roots = sorted(links - {joint.child for joint in robot.joints})
     if len(roots) != 1:
         raise RobotDescriptionError(
