@@ -17,9 +17,6 @@ from __future__ import annotations
 import contextlib
 import io
 import math
-import os
-import sys
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -99,7 +96,8 @@ def _document(path: Path) -> bytes:
     import yaml
 
     try:
-        with contextlib.redirect_stdout(sys.stderr), _quiet_stderr():
+        said = io.StringIO()  # xacro's warnings: the error, if any, is said in one line
+        with contextlib.redirect_stdout(said), contextlib.redirect_stderr(said):
             return xacro.process_file(str(path)).toxml().encode()
     except Exception as error:  # xacro raises its own and its parsers' errors
         cause = getattr(error, "exc", None) or error.__cause__ or error.__context__
@@ -348,18 +346,3 @@ def _resolve_meshes(root: etree._Element, folder: Path) -> tuple[str, ...]:
         else:
             mesh.set("filename", str(found))
     return tuple(dict.fromkeys(missing))
-
-
-@contextlib.contextmanager
-def _quiet_stderr() -> Iterator[None]:
-    """Whatever libraries write to the process's stderr during the block (xacro's warnings, and
-    its parsers' echoes of a file) is dropped: the error, if any, is said in one line."""
-    sys.stderr.flush()
-    saved = os.dup(2)
-    with open(os.devnull, "wb") as null:
-        os.dup2(null.fileno(), 2)
-        try:
-            yield
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
