@@ -113,6 +113,37 @@ def test_each_bundled_robots_model_is_pinocchios_own(name):
         np.testing.assert_allclose(robot.mass_matrices(q[None])[0], mass, atol=1e-9)
 
 
+@pytest.mark.parametrize(
+    ("old", "new", "said"),
+    [
+        (
+            '<mimic joint="boom_joint"',
+            '<mimic joint="nope"',
+            "joint 'a_lamp_joint': <mimic joint='nope'> follows no joint of the URDF",
+        ),
+        (
+            '<child link="boom"/>',
+            '<child link="boom"/><mimic joint="stick_joint"/>',
+            "not a valid URDF: Graph - The parent joint of the mimic node is not in the kinematic",
+        ),
+        (
+            '"boom_joint" type="revolute"',
+            '"boom_joint" type="screw"',
+            "joint 'boom_joint': type='screw' must be one of revolute, continuous, prismatic",
+        ),
+        ('<axis xyz="0 0 1"/>', '<axis xyz="0 0 0"/>', "joint 'a_lamp_joint': <axis xyz="),
+        ('<child link="lamp"/>', '<child link="lump"/>', "<child link='lump'> is not a link"),
+    ],
+    ids=["unknown leader", "mimic above its leader", "joint type", "axis", "child"],
+)
+def test_a_bad_joint_is_one_line_naming_it(tmp_path, capsys, old, new, said):
+    assert old in SIBLINGS
+    (tmp_path / "b.urdf").write_text(SIBLINGS.replace(old, new, 1))
+    status, errors = run(["describe", "--robot", str(tmp_path / "b.urdf")], capsys)
+    assert status == 2 and len(errors) == 1, errors
+    assert "b.urdf: " in errors[0] and said in errors[0], errors[0]
+
+
 # -- a cylinder on its joint's axis: one line naming it and its table -----------------------
 
 ROD = '<attachment link="boom1" xyz="0.369583691280232 0 -0.0691657078303828"/>'

@@ -111,8 +111,8 @@ def _document(path: Path) -> bytes:
 
 
 def _check_tree(robot: yourdfpy.Robot, source: str) -> None:
-    """Every joint joins two links of the URDF, one link is the root, and a revolute or
-    prismatic joint gives its range, lower ≤ upper."""
+    """Every joint joins two links of the URDF and a mimic joint follows a joint, one link is
+    the root, and a revolute or prismatic joint gives its range, lower ≤ upper."""
     links = {link.name for link in robot.links}
     for joint in robot.joints:
         where = f"{source}: not a valid URDF: joint {excerpt(joint.name)}"
@@ -136,6 +136,13 @@ def _check_tree(robot: yourdfpy.Robot, source: str) -> None:
         raise RobotDescriptionError(
             f"{source}: joint limits must have lower ≤ upper; inverted: {', '.join(inverted)}"
         )
+    joints = {joint.name for joint in robot.joints}
+    for joint in robot.joints:
+        if joint.mimic is not None and joint.mimic.joint not in joints:
+            raise RobotDescriptionError(
+                f"{source}: not a valid URDF: joint {excerpt(joint.name)}: <mimic joint="
+                f"{excerpt(joint.mimic.joint)}> follows no joint of the URDF"
+            )
     roots = sorted(links - {joint.child for joint in robot.joints})
     if len(roots) != 1:
         raise RobotDescriptionError(
