@@ -178,10 +178,10 @@ def test_a_cylinder_on_its_joints_axis_is_one_line_naming_it(tmp_path, capsys, o
 
 
 def test_a_cylinder_table_on_its_joints_axis_names_the_table(tmp_path):
+    """(The table gives no stroke: a cylinder's is unbounded by default, as a transmission's.)"""
     (tmp_path / "robot.toml").write_text(
         f'urdf = "{CRANE / "hiab031.urdf"}"\ntool_frame = "tool"\ntask_axes = "xz"\n'
         '[actuators.x1]\nkind = "LinearCylinder"\njoint = "boom1_joint"\n'
-        "stroke = [0.8, 1.4]\n"
         'base = {link = "column", xyz = [0.38, 0.0, -0.96]}\n'
         'rod = {link = "boom1", xyz = [0.0, 0.0, 0.0]}\n'
     )

@@ -85,7 +85,7 @@ def _stroke(value: object, kind: type[ActuatorMap], where: str) -> tuple[float, 
             "drive)"
         )
     lower, upper = float(value[0]), float(value[1])
-    if kind.distance and lower < 0:
+    if kind.distance and -math.inf < lower < 0:  # an unbounded end, the default, stays one
         raise RobotDescriptionError(
             f"{where}: a cylinder's length is at least 0; its stroke must be too (m)"
         )
