@@ -23,7 +23,7 @@ from redundancy.errors import (
 from redundancy.model.actuators import ActuatorSet
 from redundancy.model.hydraulics import Circuit, circuit_from_table, read_hydraulics_file
 from redundancy.model.robot import AXES, Robot, frame_id
-from redundancy.model.schema import Description, Payload, read_toml, validate
+from redundancy.model.schema import Description, Overrides, read_toml, validate
 from redundancy.model.transmissions import (
     read_actuator_tables,
     read_cylinders,
@@ -322,7 +322,8 @@ def load_robot(
         index = model.joints[model.getJointId(joint)].idx_q
         model.lowerPositionLimit[index], model.upperPositionLimit[index] = -np.inf, np.inf
     tool_frame = _tool(model, description, where)
-    payload = _payload(payload, description)
+    given = validate(Overrides, {"payload": payload, "task_axes": task_axes}, "load_robot")
+    payload = description.payload if given.payload is None else given.payload
     if payload > 0:
         _add_payload(model, tool_frame, payload)
     actuators = ActuatorSet.bind(
@@ -332,7 +333,7 @@ def load_robot(
         name,
         model,
         tool_frame,
-        _task_axes(description.task_axes if task_axes is None else task_axes),
+        given.task_axes or description.task_axes,
         actuators,
         payload,
         urdf_path,
@@ -351,27 +352,6 @@ def load_robot(
             stacklevel=2,
         )
     return loaded
-
-
-def _task_axes(task_axes: object) -> str:
-    """``task_axes`` checked: distinct letters among x, y, z."""
-    if (
-        not isinstance(task_axes, str)
-        or not task_axes
-        or any(a not in AXES for a in task_axes)
-        or len(set(task_axes)) != len(task_axes)
-    ):
-        raise RobotDescriptionError(
-            f"task_axes {task_axes!r} must be distinct letters among 'x', 'y', 'z'"
-        )
-    return task_axes
-
-
-def _payload(payload: float | None, description: Description) -> float:
-    """The payload given to `load_robot` (checked as robot.toml's), else the description's."""
-    if payload is None:
-        return description.payload
-    return validate(Payload, {"payload": payload}, "load_robot").payload
 
 
 def _circuit(
