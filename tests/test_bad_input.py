@@ -235,7 +235,7 @@ CASES = [
         "robot.toml axes unknown",
         ["describe", "--robot", "r.toml"],
         {"r.toml": _description(task_axes='"xq"')},
-        "task_axes 'xq' must be distinct letters",
+        "r.toml: task_axes = 'xq' must be distinct letters among 'x', 'y', 'z'",
     ),
     (
         "robot.toml unknown key",
@@ -828,7 +828,11 @@ API = [
     ("load_robot payload nan", lambda r: load_robot("hiab031", payload=np.nan), "payload = nan"),
     ("load_robot payload huge", lambda r: load_robot("hiab031", payload=1e18), "payload = 1e+18"),
     ("load_robot robot int", lambda r: load_robot(3), "robot must be a name or a path"),
-    ("load_robot axes", lambda r: load_robot("hiab031", task_axes="xq"), "task_axes 'xq'"),
+    (
+        "load_robot axes",
+        lambda r: load_robot("hiab031", task_axes="xq"),
+        "load_robot: task_axes = 'xq' must be distinct letters",
+    ),
     (
         "forces of a vector",
         lambda r: actuator_space(r, [1.6, 1.0, 0.5]).forces(np.zeros(3)),

@@ -1,36 +1,35 @@
 """Loading robots: bundled names, ``robot.toml`` descriptions and URDFs, with their actuators.
 
-This is the only module that builds Pinocchio models (`load_robot`).
+The URDF itself is read and built into a Pinocchio model by `redundancy.model.urdf`.
 """
 
 from __future__ import annotations
 
-import contextlib
 import importlib.metadata
 import importlib.resources
-import math
 import os
-import sys
-import tempfile
 import warnings
-from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 from lxml import etree
 
-from redundancy.errors import InvalidInputError, RobotDescriptionError
-from redundancy.model.actuators import ActuatorSet, driven_joints
-from redundancy.model.hydraulics import circuit_from_table, read_hydraulics_file
-from redundancy.model.parameters import number_or_text
+from redundancy.errors import (
+    InvalidInputError,
+    RobotDescriptionError,
+    SingularConfigurationError,
+)
+from redundancy.model.actuators import ActuatorSet
+from redundancy.model.hydraulics import Circuit, circuit_from_table, read_hydraulics_file
 from redundancy.model.robot import AXES, Robot, frame_id
-from redundancy.model.schema import Description, Payload, read_toml, validate
+from redundancy.model.schema import Description, Overrides, read_toml, validate
 from redundancy.model.transmissions import (
     read_actuator_tables,
     read_cylinders,
     read_transmissions,
 )
+from redundancy.model.urdf import Urdf, build_model, read_urdf
 
 
 def bundled_root() -> Path:
@@ -109,198 +108,6 @@ def _urdf_path(folder: Path, reference: str) -> Path:
     raise RobotDescriptionError(f"{reference}: no such file in the package {distribution!r}")
 
 
-def _urdf_text(path: Path) -> bytes:
-    """The URDF document of ``path`` (its encoding is the XML's to declare); a ``.xacro`` file
-    is expanded by the xacro package."""
-    if path.suffix != ".xacro":
-        try:
-            return path.read_bytes()
-        except OSError as error:
-            raise RobotDescriptionError(f"{path}: not readable: {error.strerror}") from None
-    import xacro
-
-    try:
-        with contextlib.redirect_stdout(sys.stderr), _captured_stderr():
-            document = xacro.process_file(str(path))
-    except Exception as error:  # xacro raises its own and its parsers' errors
-        reason = str(error).strip().splitlines()[0] if str(error).strip() else ""
-        raise RobotDescriptionError(
-            f"{path}: xacro cannot expand it: {type(error).__name__}: {reason}"
-        ) from error
-    return document.toxml().encode()
-
-
-FREE = ("floating", "planar")  # URDF joint types of a base that moves freely
-
-
-def _intake(
-    document: bytes, source: str, locked: dict[str, float | None]
-) -> tuple[etree._Element, list[str]]:
-    """The URDF's XML root, made ready for Pinocchio, and the continuous joints.
-
-    A continuous joint becomes a revolute one (one coordinate, the angle in rad, instead of
-    Pinocchio's (cos, sin) pair); its range is made unbounded once the model is built. A
-    floating or planar joint is refused unless it is locked, with the fix in the message. A
-    mimic joint following a locked joint is locked too, at multiplier · value + offset (added
-    to ``locked``)."""
-    try:
-        root = etree.fromstring(document)
-    except etree.XMLSyntaxError as error:
-        raise RobotDescriptionError(f"{source}: not readable XML: {error}") from None
-    continuous = []
-    for joint in root.findall("joint"):
-        kind, name = joint.get("type"), joint.get("name")
-        if kind in FREE and name not in locked:
-            raise RobotDescriptionError(
-                f"{source}: joint {name!r} is {kind}, a base that moves freely; the toolkit "
-                f'models machines on a fixed base: add locked_joints = ["{name}"] to '
-                f'robot.toml (the base stays at the joint\'s origin) or make it type="fixed"'
-            )
-        mimic = joint.find("mimic")
-        if mimic is not None and mimic.get("joint") in locked and name not in locked:
-            texts = (mimic.get("multiplier", "1"), mimic.get("offset", "0"))
-            try:
-                multiplier, offset = (float(t) for t in texts)
-            except ValueError:
-                raise RobotDescriptionError(
-                    f"{source}: joint {name!r}: <mimic multiplier={texts[0]!r} "
-                    f"offset={texts[1]!r}> must be numbers"
-                ) from None
-            joint.remove(mimic)
-            locked[name] = multiplier * (locked[mimic.get("joint")] or 0.0) + offset
-        if kind == "continuous":
-            joint.set("type", "revolute")
-            limit = joint.find("limit")
-            if limit is None:
-                limit = etree.SubElement(joint, "limit", effort="0", velocity="0")
-            limit.set("lower", repr(-math.pi))
-            limit.set("upper", repr(math.pi))
-            continuous.append(name)
-    return root, continuous
-
-
-INERTIA = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")  # <inertia>'s attributes, kg·m²
-INERTIA_TOLERANCE = 1e-6  # of the largest principal moment: what a file's rounding may cost
-
-
-def _inertial_values(
-    inertial: etree._Element,
-    tag: str,
-    attributes: tuple[str, ...],
-    where: str,
-    meaning: str,
-    default: str | None = None,
-    lower: float = -math.inf,
-) -> np.ndarray:
-    """The numbers the ``attributes`` of the ``<inertial>``'s child ``tag`` hold, each finite and
-    ≥ ``lower``: one per attribute, or as many as ``default`` holds where it is given (the text
-    of an attribute left out, or of every one where the child is); otherwise one line naming
-    the link (``where``), the child as written and what it must be (``meaning``)."""
-    element = inertial.find(tag)
-    if element is None and default is None:
-        raise RobotDescriptionError(f"{where}: <inertial> has no <{tag}>; it needs one: {meaning}")
-    each = 1 if default is None else len(default.split())
-    given = {} if element is None else dict(element.attrib)
-    texts = [given.get(a, default) or "" for a in attributes]
-    values = [number_or_text(v) for text in texts for v in text.split()]
-    if len(values) != each * len(attributes) or not all(
-        isinstance(v, float) and math.isfinite(v) and v >= lower for v in values
-    ):
-        written = etree.tostring(element, encoding="unicode", with_tail=False)
-        raise RobotDescriptionError(f"{where} {written} must be {meaning}")
-    return np.array(values)
-
-
-def _check_inertials(root: etree._Element, source: str) -> tuple[str, ...]:
-    """Every link's ``<inertial>`` (of the URDF ``source``) holds numbers a body can have: its
-    origin finite, its mass finite and ≥ 0, its inertia finite and a body's rotational inertia
-    (`_check_inertia`). Where urdfdom cannot read one, Pinocchio drops it without a word,
-    leaving the link massless; a negative mass or moment it keeps. Returns the links whose
-    ``<inertial>`` gives a mass of 0."""
-    zero_masses = []
-    for link in root.findall("link"):
-        inertial = link.find("inertial")
-        if inertial is None:
-            continue
-        where = f"{source}: link {link.get('name')!r}"
-        origin = 'xyz="x y z" rpy="r p y", finite numbers (m, rad)'
-        _inertial_values(inertial, "origin", ("xyz", "rpy"), where, origin, "0 0 0")
-        mass = "a finite number ≥ 0 (the link's mass, kg)"
-        if _inertial_values(inertial, "mass", ("value",), where, mass, lower=0.0)[0] == 0:
-            zero_masses.append(link.get("name"))
-        inertia = f"six finite numbers {', '.join(INERTIA)} (kg·m², about the centre of mass)"
-        _check_inertia(
-            inertial, _inertial_values(inertial, "inertia", INERTIA, where, inertia), where
-        )
-    return tuple(zero_masses)
-
-
-def _check_inertia(inertial: etree._Element, entries: np.ndarray, where: str) -> None:
-    """The ``<inertia>`` of ``inertial`` (its ``entries``, ixx ... izz) is a body's rotational
-    inertia: symmetric positive semi-definite, and each principal moment at most the sum of the
-    other two, to `INERTIA_TOLERANCE`; otherwise one line naming the link (``where``), the
-    element as written and its principal moments. (Six entries make a symmetric matrix; with
-    the moments a ≤ b ≤ c, a + b ≥ c gives the other two inequalities and a ≥ c − b ≥ 0.)"""
-    ixx, ixy, ixz, iyy, iyz, izz = entries
-    moments = np.linalg.eigvalsh([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
-    if moments[0] + moments[1] >= moments[2] - INERTIA_TOLERANCE * np.abs(moments).max():
-        return
-    written = etree.tostring(inertial.find("inertia"), encoding="unicode", with_tail=False)
-    raise RobotDescriptionError(
-        f"{where} {written} is not a body's rotational inertia: its principal moments "
-        f"[{', '.join(f'{m:.4g}' for m in moments)}] kg·m² must be ≥ 0 and each at most the "
-        "sum of the other two"
-    )
-
-
-def _package_dirs(folder: Path) -> list[Path]:
-    """Where a mesh named ``package://<package>/...`` is looked for: ``<package>`` in the
-    URDF's folder or one of its ancestors."""
-    return [folder.resolve(), *folder.resolve().parents]
-
-
-def _mesh_path(filename: str, folder: Path) -> Path | None:
-    """The file a URDF mesh reference names (``package://``, ``file://``, absolute or relative
-    to the URDF's folder), or None where no such file exists."""
-    if filename.startswith("package://"):
-        inner = filename[len("package://") :]
-        candidates = [directory / inner for directory in _package_dirs(folder)]
-    else:
-        candidates = [folder / filename.removeprefix("file://")]
-    return next((c.resolve() for c in candidates if c.is_file()), None)
-
-
-def _resolve_meshes(root: etree._Element, folder: Path) -> list[str]:
-    """Point every visual mesh of the URDF at its file, by absolute path, so that the text
-    describes the robot on its own; return the references no file answers."""
-    missing = []
-    for mesh in root.findall("link/visual/geometry/mesh"):
-        filename = mesh.get("filename", "")
-        found = _mesh_path(filename, folder)
-        if found is None:
-            missing.append(filename)
-        else:
-            mesh.set("filename", str(found))
-    return list(dict.fromkeys(missing))
-
-
-def _build_model(root: etree._Element, source: str) -> pin.Model:
-    """The Pinocchio model of the URDF ``root``, mimic joints honoured."""
-    text = etree.tostring(root, encoding="unicode")
-    failure: Exception | None = None
-    with _captured_stderr() as said:
-        try:
-            model = pin.buildModelFromXML(text, mimic=True)
-        except (ValueError, RuntimeError) as error:
-            failure = error
-    if failure is not None:
-        reason = next((line for line in said() if line.strip()), str(failure).splitlines()[0])
-        raise RobotDescriptionError(
-            f"{source}: not a valid URDF: {reason.strip().removeprefix('Error:').strip()}"
-        ) from None
-    return model
-
-
 def _lock(model: pin.Model, locked: dict[str, float | None], where: str, source: str) -> pin.Model:
     """``model`` (of the URDF ``source``) with the ``locked`` joints (from ``where``) fixed at
     their values (neutral where None)."""
@@ -326,49 +133,6 @@ def _lock(model: pin.Model, locked: dict[str, float | None], where: str, source:
     if not locked:
         return model
     return pin.buildReducedModel(model, [model.getJointId(j) for j in locked], q)
-
-
-def _check_joints(model: pin.Model, source: str) -> None:
-    odd = [
-        f"{name} ({joint.shortname()})"
-        for name, joint in zip(model.names[1:], model.joints[1:])
-        if joint.nv > 0 and (joint.nq != 1 or joint.nv != 1)
-    ]
-    if odd:
-        raise RobotDescriptionError(
-            f"{source}: joints {odd} have more than one coordinate; the toolkit handles "
-            "revolute, continuous, prismatic and mimic joints: lock the others with "
-            "locked_joints in robot.toml"
-        )
-    inverted = [
-        f"{name} [{lower:g}, {upper:g}]"
-        for name, lower, upper in zip(
-            driven_joints(model), model.lowerPositionLimit, model.upperPositionLimit
-        )
-        if not lower <= upper
-    ]
-    if inverted:
-        raise RobotDescriptionError(
-            f"{source}: joint limits must have lower ≤ upper; inverted: {', '.join(inverted)}"
-        )
-
-
-@contextlib.contextmanager
-def _captured_stderr() -> Iterator[Callable[[], list[str]]]:
-    """Whatever C++ libraries (urdfdom) write to the process's stderr during the block, held back
-    and given, as lines, by the function the block receives (after the block)."""
-    lines: list[str] = []
-    sys.stderr.flush()
-    saved = os.dup(2)
-    with tempfile.TemporaryFile() as buffer:
-        os.dup2(buffer.fileno(), 2)
-        try:
-            yield lambda: lines
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
-            buffer.seek(0)
-            lines += buffer.read().decode(errors="replace").splitlines()
 
 
 def _add_payload(model: pin.Model, frame: str, payload: float) -> None:
@@ -408,7 +172,7 @@ TOOL_POINT = "tool point"  # the frame of a tool given as a point on a link
 
 
 def _actuators(
-    root: etree._Element, description: Description, source: str, where: str, locked: list[str]
+    root: etree._Element, description: Description, source: str, where: str, locked: dict
 ) -> list:
     """The declared actuators, from the URDF's transmissions and robot.toml's tables, less
     those on locked joints (dropped with a warning)."""
@@ -424,18 +188,23 @@ STEP = np.radians(0.25)  # rad: the grid a continuous joint's stroke range is fi
 BISECTIONS = 40  # halvings of a grid step that locate each end of the range (to 1e-14 rad)
 
 
+def _along(robot: Robot, column: int, values: np.ndarray) -> np.ndarray:
+    """Configurations (k, n) with joint ``column`` at ``values`` (k,) and the other joints at
+    rest (0, or the end of their range nearest it)."""
+    q = np.repeat(np.clip(0.0, robot.lower, robot.upper)[None], len(values), axis=0)
+    q[:, column] = values
+    return q
+
+
 def _stroke_arc(robot: Robot, column: int, row: int) -> tuple[float, float] | None:
     """The angles of joint ``column`` (rad) over which actuator ``row`` stays inside its
     stroke, the other joints at zero: sought on a grid over two turns either way, each end then
     located by bisection; of several arcs (a cylinder on either side of the joint axis), the
     one nearest the URDF's zero angle. None where the stroke admits no angle, or every one."""
     actuator = robot.actuators.maps[row]
-    rest = np.clip(0.0, robot.lower, robot.upper)
 
     def inside(theta: np.ndarray) -> np.ndarray:
-        q = np.repeat(rest[None], len(theta), axis=0)
-        q[:, column] = theta
-        x = robot.actuators.evaluate(robot.kinematics(q))[0][:, row]
+        x = actuator.evaluate(robot.kinematics(_along(robot, column, theta)))[0]
         return (x >= actuator.lower) & (x <= actuator.upper)
 
     angles = np.arange(-2 * np.pi, 2 * np.pi + STEP / 2, STEP)
@@ -453,6 +222,40 @@ def _stroke_arc(robot: Robot, column: int, row: int) -> tuple[float, float] | No
             good, bad = (middle, bad) if inside(np.array([middle]))[0] else (good, middle)
         ends.append(float(good))
     return ends[0], ends[1]
+
+
+ARM = 1e-2  # |∂x_i/∂q_i| (m/rad, or m/m) below which an actuator cannot move its joint
+SAMPLES = 33  # values of a joint over its range at which `_check_arms` reads the arm
+
+
+def _check_arms(robot: Robot, description: Description, source: str, where: str) -> None:
+    """Every actuator moves its joint: somewhere over the joint's range (±π or ±1 m where it
+    is unbounded), the other joints at rest, |∂x_i/∂q_i| reaches `ARM`. A cylinder with an
+    attachment point on (or within `ARM` of) its joint's axis does not: its length barely
+    changes with the joint, A is singular everywhere, and one line names it and its table."""
+    for actuator in robot.actuators:
+        column = actuator.index
+        span = np.pi if robot.rotary_joints[column] else 1.0
+        lower, upper = np.clip([robot.lower[column], robot.upper[column]], -span, span)
+        q = _along(robot, column, np.linspace(lower, upper, SAMPLES))
+        try:
+            arm = np.abs(actuator.evaluate(robot.kinematics(q))[1][:, column]).max()
+        except SingularConfigurationError:  # a linkage that cannot close there: said in use
+            continue
+        if arm >= ARM:
+            continue
+        place = (
+            f"{where}: [actuators.{actuator.name}]"
+            if actuator.name in description.actuators
+            else f"{source}: <transmission name={actuator.name!r}>"
+        )
+        per = "rad" if robot.rotary_joints[column] else "m"
+        raise RobotDescriptionError(
+            f"{place}: {actuator.name} cannot move {actuator.joint}: |∂x/∂q| is at most "
+            f"{arm:.3g} {actuator.unit}/{per} over the joint's range, below {ARM:g} (A is "
+            f"singular): an attachment point lies on or near the joint's axis; attach each "
+            f"at least {ARM * 1000:g} mm off it"
+        )
 
 
 def _bound_by_strokes(robot: Robot, continuous: list[str]) -> None:
@@ -499,52 +302,69 @@ def load_robot(
     ``<inertial>`` that is there must hold numbers a body can have (`_check_inertials`).
     """
     name, folder, description, where = _describe(robot)
-    reference = description.urdf
-    urdf_path = _urdf_path(folder, reference)
+    urdf_path = _urdf_path(folder, description.urdf)
     if not urdf_path.is_file():
-        raise RobotDescriptionError(f"{where}: urdf = {reference!r}: no such file {urdf_path}")
-    source = urdf_path.name
-    locked = description.locked_joints
-    locked = dict(locked) if isinstance(locked, dict) else dict.fromkeys(locked)
-    root, continuous = _intake(_urdf_text(urdf_path), source, locked)
-    zero_masses = _check_inertials(root, source)
-    missing_meshes = _resolve_meshes(root, urdf_path.parent)
-    if missing_meshes:
+        raise RobotDescriptionError(
+            f"{where}: urdf = {description.urdf!r}: no such file {urdf_path}"
+        )
+    urdf = read_urdf(urdf_path)
+    if urdf.missing_meshes:
         warnings.warn(
-            f"{source}: meshes not found, the playback draws rods instead: "
-            f"{', '.join(missing_meshes)}",
+            f"{urdf.source}: meshes not found, the playback draws rods instead: "
+            f"{', '.join(urdf.missing_meshes)}",
             stacklevel=2,
         )
-    model = _lock(_build_model(root, source), locked, where, source)
-    _check_joints(model, source)
-    for joint in continuous:
-        if joint not in locked:  # unbounded, unless its actuator's stroke bounds it (below)
-            index = model.joints[model.getJointId(joint)].idx_q
-            model.lowerPositionLimit[index], model.upperPositionLimit[index] = -np.inf, np.inf
+    locked = description.locked_joints
+    locked = dict(locked) if isinstance(locked, dict) else dict.fromkeys(locked)
+    model, continuous = build_model(urdf, locked)
+    model = _lock(model, locked, where, urdf.source)
+    for joint in set(continuous) - set(locked):  # unbounded, unless a stroke bounds it (below)
+        index = model.joints[model.getJointId(joint)].idx_q
+        model.lowerPositionLimit[index], model.upperPositionLimit[index] = -np.inf, np.inf
     tool_frame = _tool(model, description, where)
-    if task_axes is None:
-        task_axes = description.task_axes
-    if (
-        not isinstance(task_axes, str)
-        or not task_axes
-        or any(a not in AXES for a in task_axes)
-        or len(set(task_axes)) != len(task_axes)
-    ):
-        raise RobotDescriptionError(
-            f"task_axes {task_axes!r} must be distinct letters among 'x', 'y', 'z'"
-        )
-    if payload is None:
-        payload = description.payload
-    else:
-        payload = validate(Payload, {"payload": payload}, "load_robot").payload
+    given = validate(Overrides, {"payload": payload, "task_axes": task_axes}, "load_robot")
+    payload = description.payload if given.payload is None else given.payload
     if payload > 0:
         _add_payload(model, tool_frame, payload)
-    maps = _actuators(root, description, source, where, list(locked))
-    actuators = ActuatorSet.bind(maps, model)
-    task_file = None if description.task is None else folder / description.task
-    actuator_names, rotary = actuators.names, actuators.rotary.tolist()
-    declared = read_cylinders(root, source)
-    table, origin = None, ""
+    actuators = ActuatorSet.bind(
+        _actuators(urdf.root, description, urdf.source, where, locked), model
+    )
+    loaded = Robot(
+        name,
+        model,
+        tool_frame,
+        given.task_axes or description.task_axes,
+        actuators,
+        payload,
+        urdf_path,
+        None if description.task is None else folder / description.task,
+        _circuit(urdf, actuators, description, where, hydraulics),
+        urdf.text,
+        urdf.missing_meshes,
+        urdf.zero_masses,
+    )
+    _check_arms(loaded, description, urdf.source, where)
+    _bound_by_strokes(loaded, [j for j in continuous if j not in locked])
+    if loaded.kinematic_only:
+        warnings.warn(
+            f"{loaded.massless}; the robot is kinematic only (the velocity objective, playback "
+            "and check work; anything needing masses refuses)",
+            stacklevel=2,
+        )
+    return loaded
+
+
+def _circuit(
+    urdf: Urdf,
+    actuators: ActuatorSet,
+    description: Description,
+    where: str,
+    hydraulics: str | Path | None,
+) -> Circuit | None:
+    """The machine's circuit: the ``[hydraulics]`` table of the file ``hydraulics`` if given,
+    else the description's (``where``), with the cylinders the URDF's transmissions declare;
+    None (with a warning where the URDF declares cylinders) without a table."""
+    declared = read_cylinders(urdf.root, urdf.source)
     if hydraulics is not None:
         if not isinstance(hydraulics, str | os.PathLike):
             raise InvalidInputError(
@@ -554,34 +374,13 @@ def load_robot(
         table, origin = read_hydraulics_file(Path(hydraulics)), str(hydraulics)
     elif description.hydraulics is not None:
         table, origin = description.hydraulics, where
-    elif declared:
-        warnings.warn(
-            f"{source} declares cylinders {sorted(declared)} but no [hydraulics] table "
-            "gives the machine's supply; hydraulics are off",
-            stacklevel=2,
-        )
-    circuit = None
-    if table is not None:
-        circuit = circuit_from_table(table, origin, actuator_names, rotary, declared, source)
-    loaded = Robot(
-        name,
-        model,
-        tool_frame,
-        task_axes,
-        actuators,
-        payload,
-        urdf_path,
-        task_file,
-        circuit,
-        etree.tostring(root, encoding="unicode"),
-        tuple(missing_meshes),
-        zero_masses,
-    )
-    _bound_by_strokes(loaded, [j for j in continuous if j not in locked])
-    if loaded.kinematic_only:
-        warnings.warn(
-            f"{loaded.massless}; the robot is kinematic only (the velocity objective, playback "
-            "and check work; anything needing masses refuses)",
-            stacklevel=2,
-        )
-    return loaded
+    else:
+        if declared:
+            warnings.warn(
+                f"{urdf.source} declares cylinders {sorted(declared)} but no [hydraulics] "
+                "table gives the machine's supply; hydraulics are off",
+                stacklevel=3,
+            )
+        return None
+    rotary = actuators.rotary.tolist()
+    return circuit_from_table(table, origin, actuators.names, rotary, declared, urdf.source)

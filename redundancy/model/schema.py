@@ -165,7 +165,15 @@ Xyz = Annotated[
 ]
 
 
-PAYLOAD = quantity("the point mass at the tool", "kg", 0.0, MAX_PAYLOAD, 0.0)
+def _axes(axes: str) -> str:
+    if not axes or any(a not in "xyz" for a in axes) or len(set(axes)) != len(axes):
+        raise PydanticCustomError(DECLARED, "must be distinct letters among 'x', 'y', 'z'")
+    return axes
+
+
+Axes = Annotated[
+    str, AfterValidator(_axes), Field(description="world axes of the task, e.g. 'xz'")
+]  # the task's axes: the tool position's world components
 
 
 class PointOnLink(Table):
@@ -190,13 +198,13 @@ class Description(Table):
         description="the tool's link (None: the last); or tool = {link = ..., xyz = [...]}"
     )
     tool: PointOnLink | None = Field(None, description="the tool point")
-    task_axes: str = Field(description="world axes of the task, e.g. 'xz'")
+    task_axes: Axes
     locked_joints: either(dict[str, float], list[str]) = Field(  # type: ignore[valid-type]
         [],
         description="joints fixed, at their neutral value or at one given in rad or m",
         json_schema_extra={"shape": "a list of names, or a table {joint = value}"},
     )
-    payload: float = PAYLOAD
+    payload: float = quantity("the point mass at the tool", "kg", 0.0, MAX_PAYLOAD, 0.0)
     task: str | None = Field(None, description="the robot's task file")
     actuators: dict[str, dict[str, Any]] = Field({}, description="[actuators.<name>] tables")
     hydraulics: dict[str, Any] | None = Field(None, description="the [hydraulics] table")
@@ -215,10 +223,12 @@ class Description(Table):
         return data
 
 
-class Payload(Table):
-    """A payload given to the API, checked as ``robot.toml``'s."""
+class Overrides(Table):
+    """What `redundancy.model.loading.load_robot` takes besides the description, checked as
+    ``robot.toml``'s keys (None: the description's)."""
 
-    payload: float = PAYLOAD
+    payload: float | None = quantity("the point mass at the tool", "kg", 0.0, MAX_PAYLOAD, None)
+    task_axes: Axes | None = None
 
 
 class CylinderTable(Table):

@@ -85,7 +85,7 @@ def _stroke(value: object, kind: type[ActuatorMap], where: str) -> tuple[float, 
             "drive)"
         )
     lower, upper = float(value[0]), float(value[1])
-    if kind.distance and lower < 0:
+    if kind.distance and -math.inf < lower < 0:  # an unbounded end, the default, stays one
         raise RobotDescriptionError(
             f"{where}: a cylinder's length is at least 0; its stroke must be too (m)"
         )
@@ -167,9 +167,40 @@ def redundancy_transmissions(root: etree._Element) -> list[etree._Element]:
 
 
 def _read_transmission(element: etree._Element, source: str) -> ActuatorMap:
+    """The actuator a ``<transmission>`` of the redundancy types declares (module docstring)."""
     name = element.get("name")
     where = f"{source}: <transmission name={name!r}>"
     kind = _kind((element.findtext("type") or "").strip(), f"{where} <type>", PREFIX)
+    joint = _check_header(element, where)
+    stroke = element.find("actuator/stroke")
+    limits: tuple[float, float] = (-math.inf, math.inf)
+    if stroke is not None:
+        texts = (stroke.get("lower", "-inf"), stroke.get("upper", "inf"))
+        limits = _stroke([number_or_text(t) for t in texts], kind, f"{where} {_written(stroke)}")
+    children = _parameter_elements(element, kind, where)
+    given = {}
+    for parameter in kind.parameters:
+        found = children.get(parameter.element, [])
+        sharing = [p.name for p in kind.parameters if p.element == parameter.element]
+        taken = sharing.index(parameter.name)  # parameters sharing a tag take its elements in turn
+        if taken < len(found):
+            value = parameter.from_attributes(dict(found[taken].attrib))
+            given[parameter.name] = (value, f"{where} {parameter.name} {_written(found[taken])}")
+        else:
+            missing = f"{where}: missing <{parameter.element}> for {parameter.name}"
+            given[parameter.name] = (None, missing)
+    return _declare(kind, str(name), joint, limits, given)
+
+
+def _written(element: etree._Element) -> str:
+    """An element as written in the file, for a message."""
+    return etree.tostring(element, encoding="unicode", with_tail=False)
+
+
+def _check_header(element: etree._Element, where: str) -> str:
+    """The joint a ``<transmission>`` drives, once it has a name, one ``<joint name=...>`` and
+    at most one ``<actuator>``, named as itself or not at all."""
+    name = element.get("name")
     joints = element.findall("joint")
     if not name or len(joints) != 1 or not joints[0].get("name"):
         raise RobotDescriptionError(
@@ -187,12 +218,14 @@ def _read_transmission(element: etree._Element, source: str) -> ActuatorMap:
             f'{where} <actuator name="{actuators[0].get("name")}"> must be named {name!r}: the '
             "actuator is the transmission itself, and takes its name (or none)"
         )
-    stroke = element.find("actuator/stroke")
-    limits: tuple[float, float] = (-math.inf, math.inf)
-    if stroke is not None:
-        texts = (stroke.get("lower", "-inf"), stroke.get("upper", "inf"))
-        written = etree.tostring(stroke, encoding="unicode", with_tail=False)
-        limits = _stroke([number_or_text(t) for t in texts], kind, f"{where} {written}")
+    return str(joints[0].get("name"))
+
+
+def _parameter_elements(
+    element: etree._Element, kind: type[ActuatorMap], where: str
+) -> dict[str, list[etree._Element]]:
+    """A ``<transmission>``'s children that give the kind's parameters, by tag; more of a tag
+    than the kind takes is refused, naming the kind's elements."""
     children: dict[str, list[etree._Element]] = {}
     for child in element:
         if isinstance(child.tag, str) and child.tag not in _COMMON:
@@ -206,20 +239,7 @@ def _read_transmission(element: etree._Element, source: str) -> ActuatorMap:
                 + (f"{len(expected)} ({', '.join(expected)})" if expected else "none")
                 + f"; its elements: {', '.join(f'<{t}>' for t in dict.fromkeys(tags)) or 'none'}"
             )
-    given = {}
-    for parameter in kind.parameters:
-        found = children.get(parameter.element, [])
-        taken = [p.name for p in kind.parameters if p.element == parameter.element].index(
-            parameter.name
-        )
-        if taken < len(found):
-            written = etree.tostring(found[taken], encoding="unicode", with_tail=False)
-            value = parameter.from_attributes(dict(found[taken].attrib))
-            given[parameter.name] = (value, f"{where} {parameter.name} {written}")
-        else:
-            missing = f"{where}: missing <{parameter.element}> for {parameter.name}"
-            given[parameter.name] = (None, missing)
-    return _declare(kind, name, joints[0].get("name"), limits, given)
+    return children
 
 
 def read_transmissions(root: etree._Element, source: str) -> list[ActuatorMap]:

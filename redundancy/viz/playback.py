@@ -164,6 +164,8 @@ def _visual_model(robot):
     import pinocchio as pin
     from lxml import etree
 
+    from redundancy.model.urdf import pinocchio_message
+
     description = etree.fromstring(robot.description.encode())
     if robot.missing_meshes or description.find("link/visual") is None:
         return None
@@ -171,7 +173,7 @@ def _visual_model(robot):
         return pin.buildGeomFromUrdfString(robot.model, robot.description, pin.GeometryType.VISUAL)
     except (ValueError, RuntimeError) as error:
         raise RobotDescriptionError(
-            f"{robot.urdf}: cannot load its visual geometry: {error}"
+            f"{robot.urdf}: cannot load its visual geometry: {pinocchio_message(error)}"
         ) from error
 
 
