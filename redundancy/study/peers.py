@@ -65,7 +65,7 @@ def hydraulics(motion: Trajectory) -> dict:
     constant pressure (kJ), whether a load overran, the circuit's limits passed, and the
     shortest duration of its path within the circuit's limits (s, `shortest_duration`; None
     where TOPP-RA finds no timing)."""
-    circuit, flows = motion.robot.circuit(), motion.flows
+    flows = motion.flows
     violations = motion.hydraulic_violations(0)
     try:
         shortest: float | None = shortest_duration(motion).duration
@@ -74,13 +74,20 @@ def hydraulics(motion: Trajectory) -> dict:
     return {
         "peak_pump_flow_l_min": float(flows.pump_flow[0].max() / LITRES_PER_MINUTE),
         "max_load_pressure_bar": float(flows.load[0].max() / BAR),
-        "ls_energy_kj": float(motion.energy(circuit.load_sensing)[0] / KILOJOULE),
-        "cp_energy_kj": float(motion.energy(circuit.constant_pressure)[0] / KILOJOULE),
+        **pump_energies(motion),
         "overrunning": bool(flows.overrunning[0].any()),
         "within_limits": not violations,
         "violations": [str(v) for v in violations],
         "shortest_duration_s": shortest,
     }
+
+
+def pump_energies(motion: Trajectory) -> dict[str, float]:
+    """The pump energy of the first motion of ``motion`` under load sensing and constant
+    pressure (`Trajectory.energy`), kJ: ``{"ls_energy_kj", "cp_energy_kj"}``."""
+    circuit = motion.robot.circuit()
+    supplies = {"ls_energy_kj": circuit.load_sensing, "cp_energy_kj": circuit.constant_pressure}
+    return {key: float(motion.energy(supply)[0] / KILOJOULE) for key, supply in supplies.items()}
 
 
 def fixed_start_run(

@@ -52,7 +52,7 @@ from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.resolution.laws import GradientProjection, Resolver
 from redundancy.resolution.objectives import ENERGY, VELOCITY, Objective
 from redundancy.study.check import check
-from redundancy.study.cycles import CycleStudy, run_cycle
+from redundancy.study.cycles import CycleStudy, run_cycle, search_report
 from redundancy.study.output import write_atomically
 from redundancy.study.peers import StrategyRun, fixed_start_run
 
@@ -187,19 +187,12 @@ class Study:
     def _segment_report(self, objective: str, segment: str) -> dict:
         search, sweep = self.search(objective, segment), self.sweep(objective, segment)
         bound = self.bound(objective, segment)
-        best = search.best
-        closest = sweep.closest_violation if best is None else None
-        box = search.feasible_box
         return {
             "name": segment,
             "start": search.segment.start.tolist(),
             "end": search.segment.end.tolist(),
             "held_actuator": search.held[0] if len(search.held) == 1 else list(search.held),
-            "feasible_range": None if box is None else (box[0] if len(box) == 1 else box).tolist(),
-            "best": None
-            if best is None
-            else {"value": scalar_or_list(best.values), "peak": search.best_peak},
-            "closest_violation": None if closest is None else str(closest),
+            **search_report(search, sweep),
             "bound": None
             if bound is None
             else {
@@ -210,7 +203,6 @@ class Study:
             },
             "gap_percent": self.gap(objective, segment),
             "bound_failure": (self.bound_failures or {}).get(f"{objective}/{segment}"),
-            "simulations": search.simulations,
             "samples": [
                 {
                     "value": scalar_or_list(s.values),
