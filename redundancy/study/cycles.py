@@ -19,9 +19,7 @@ For one objective (a peak one for the drift-free strategy):
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
@@ -47,7 +45,6 @@ from redundancy.planning.starts import SearchResult, default_start, held_actuato
 from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import VELOCITY, Objective
-from redundancy.study.output import write_atomically
 from redundancy.study.peers import pump_energies
 
 STRATEGIES = ("free", "periodic")
@@ -394,9 +391,3 @@ def run_cycle(
         free_start,
         failures,
     )
-
-
-def write_cycle_report(study: CycleStudy, path: Path) -> None:
-    """The cycle study's JSON report, written atomically."""
-    text = json.dumps(study.report(), indent=1, allow_nan=False)
-    write_atomically(path, lambda p: p.write_text(text + "\n"))

@@ -440,7 +440,7 @@ def cycle_section(
     return found, None
 
 
-def write_report(study: Study, path: Path) -> None:
-    """The study's JSON report, written atomically."""
+def write_report(study: Study | CycleStudy, path: Path) -> None:
+    """The JSON report of a study, or of a cycle study (`run_cycle`), written atomically."""
     text = json.dumps(study.report(), indent=1, allow_nan=False)
     write_atomically(path, lambda p: p.write_text(text + "\n"))
