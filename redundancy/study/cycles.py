@@ -319,23 +319,18 @@ def run_cycle(
         repetitions: dict[str, Repetition] = {}
         firsts: dict[str, Trajectory] = {}
         periodic = None
+
+        def repeated(strategy: str, laws, start: np.ndarray) -> None:
+            """Run ``strategy``'s ``laws`` from ``start`` for ``cycles`` cycles; keep its first."""
+            repetitions[strategy] = repeat(
+                robot, cycle, laws, start, cycles, strategy, held, checked, circuit, objective
+            )
+            firsts[strategy] = repetitions[strategy].motion(1)
+
         if "free" in chosen:
             bar.set_description("cycle: free, repeated")
-            repetitions["free"] = repeat(
-                robot,
-                cycle,
-                objective.resolver,
-                start_q,
-                cycles,
-                "free",
-                held,
-                checked,
-                circuit,
-                objective,
-            )
-            bar.update()
-            firsts["free"] = repetitions["free"].motion(1)
-            bar.update()
+            repeated("free", objective.resolver, start_q)
+            bar.update(2)
         if "periodic" in chosen:
             bar.set_description("cycle: periodic optimum")
             guess = free_motion if free_motion is not None else firsts.get("free")
@@ -354,19 +349,7 @@ def run_cycle(
             bar.update()
             if periodic is not None:
                 bar.set_description("cycle: periodic, repeated")
-                repetitions["periodic"] = repeat(
-                    robot,
-                    cycle,
-                    periodic.laws(),
-                    periodic.start,
-                    cycles,
-                    "periodic",
-                    held,
-                    checked,
-                    circuit,
-                    objective,
-                )
-                firsts["periodic"] = repetitions["periodic"].motion(1)
+                repeated("periodic", periodic.laws(), periodic.start)
             bar.update()
         bar.set_description("cycle: return map")
         mapped = None
