@@ -251,15 +251,7 @@ def map_report(mapped: ReturnMap) -> dict:
         "values": mapped.values.tolist(),
         "next": [None if not np.isfinite(p) else float(p) for p in mapped.following],
         "within_limits": mapped.within.tolist(),
-        "fixed_points": [
-            {
-                "value": p.value,
-                "slope": p.slope,
-                "stable": p.stable,
-                "keeps_the_strokes": p.keeps_the_strokes,
-            }
-            for p in mapped.fixed_points
-        ],
+        "fixed_points": [{**p._asdict(), "stable": p.stable} for p in mapped.fixed_points],
     }
 
 
