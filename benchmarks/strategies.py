@@ -27,7 +27,13 @@ import timeit
 from pathlib import Path
 
 import numpy as np
-from pink_peer import PinkResolver, pink_run  # the script's folder: the pink peer
+from peers import (  # the script's folder: the peers
+    TUNED_GAIN,
+    gradient_projection_run,
+    pseudoinverse_run,
+    tune_gradient_projection,
+)
+from pink_peer import PinkResolver, pink_run
 
 from redundancy import actuator_space, load_robot
 from redundancy.planning.bound import global_optimum
@@ -36,13 +42,7 @@ from redundancy.planning.starts import default_start, improved_start
 from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.laws import GradientProjection
 from redundancy.resolution.objectives import ENERGY, VELOCITY
-from redundancy.study.peers import (
-    TUNED_GAIN,
-    StrategyRun,
-    gradient_projection_run,
-    pseudoinverse_run,
-    tune_gradient_projection,
-)
+from redundancy.study.peers import StrategyRun
 
 SAMPLES = 100  # the paper's sweep
 DENSE = 1000  # the reference sweep for the fast search's targets

@@ -48,7 +48,7 @@ from redundancy.resolution.objectives import OBJECTIVES, Objective, objective
 from redundancy.resolution.state import actuator_space
 from redundancy.study.background import Background
 from redundancy.study.check import check, span
-from redundancy.study.cycles import CHOICES, run_cycle, write_cycle_report
+from redundancy.study.cycles import CHOICES, run_cycle
 from redundancy.study.families import read_family
 from redundancy.study.maps import CONNECT_TIMEOUT, connect, design_map, summary
 from redundancy.study.output import OutputFolder, writable, write_atomically
@@ -121,14 +121,17 @@ def argument(convert: Callable[[str], float], accept: Callable[[float], bool], p
     return parse
 
 
-sample_count = argument(
-    int, lambda v: 1 <= v <= MAX_SAMPLES, f"must be a whole number within [1, {MAX_SAMPLES:,}]"
-)
-worker_count = argument(int, lambda v: 1 <= v <= 4096, "must be a whole number within [1, 4,096]")
-cycle_count = argument(int, lambda v: 0 <= v <= 10_000, "must be a whole number within [0, 10,000]")
-repetition_count = argument(
-    int, lambda v: 1 <= v <= 10_000, "must be a whole number within [1, 10,000]"
-)
+def whole(lower: int, upper: int):
+    """An argument type: a whole number within [lower, upper]."""
+    return argument(
+        int, lambda v: lower <= v <= upper, f"must be a whole number within [{lower}, {upper:,}]"
+    )
+
+
+sample_count = whole(1, MAX_SAMPLES)
+worker_count = whole(1, 4096)
+cycle_count = whole(0, 10_000)
+repetition_count = whole(1, 10_000)
 payload_mass = argument(
     float, lambda v: 0 <= v <= MAX_PAYLOAD, f"must be a mass within [0, {MAX_PAYLOAD:g}] kg"
 )
@@ -202,14 +205,9 @@ def _study_command(args: argparse.Namespace) -> None:
     from tqdm import tqdm
 
     with OutputFolder(args.out) as out:  # committed only if everything below succeeds
-        report = _report(out, args)
-        robot, cycle = _load_task(_robot(args), args.task)
+        report, robot, cycle, options = _searched(out, args)
         chosen = ("velocity", "energy") if args.objective == "both" else (args.objective,)
         objectives = tuple(objective(name) for name in chosen)
-        checked = _checked(robot, args.check)
-        options = dict(
-            samples=args.samples, checked=checked, method=args.method, circuit=args.circuit_limits
-        )
         section = partial(
             _cycle_section, robot, cycle, objectives[0], args.cycles, options, out.staging
         )
@@ -233,17 +231,31 @@ def _study_command(args: argparse.Namespace) -> None:
                 waiting.update()
         study = replace(study, cycle_study=cycle_study, cycle_skipped=skipped)
         print(study_table(study))
-        write_report(study, report)
-        series = [out.final(p) for p in write_series(study, out.staging)]
-        write_index(out.staging, report)
-        figures = [out.final(p) for p in figures + cycle_figures]
-        playbacks = [out.final(p) for p in playbacks + cycle_playbacks]
-    _written(out, args, figures, playbacks, series)
+        written = _publish(out, report, study, figures + cycle_figures, playbacks + cycle_playbacks)
+    _written(out, args, *written)
 
 
-def _report(out: OutputFolder, args: argparse.Namespace) -> Path:
-    """Where the report is written: ``--json``, or report.json in the output folder."""
-    return out / "report.json" if args.json is None else out.beside(Path(args.json), "--json")
+def _searched(out: OutputFolder, args: argparse.Namespace) -> tuple[Path, Robot, WorkCycle, dict]:
+    """What the study and the cycle commands read alike: where the report goes (``--json``, or
+    report.json in the output folder), the robot and its task, and the searches' options."""
+    report = out / "report.json" if args.json is None else out.beside(Path(args.json), "--json")
+    robot, cycle = _load_task(_robot(args), args.task)
+    options = dict(
+        samples=args.samples,
+        checked=_checked(robot, args.check),
+        method=args.method,
+        circuit=args.circuit_limits,
+    )
+    return report, robot, cycle, options
+
+
+def _publish(out: OutputFolder, report: Path, result, figures, playbacks) -> tuple[list, ...]:
+    """Write ``result``'s report, time series and index page beside its staged ``figures`` and
+    ``playbacks``; all of them where they will be once committed."""
+    write_report(result, report)
+    series = write_series(result, out.staging)
+    write_index(out.staging, report)
+    return tuple([out.final(p) for p in paths] for paths in (figures, playbacks, series))
 
 
 def _written(out: OutputFolder, args, figures, playbacks, series) -> None:
@@ -395,29 +407,21 @@ def _check_command(args: argparse.Namespace) -> int:
 
 def _cycle_command(args: argparse.Namespace) -> None:
     with OutputFolder(args.out) as out:  # committed only if everything below succeeds
-        report = _report(out, args)
-        robot, cycle = _load_task(_robot(args), args.task)
-        checked = _checked(robot, args.check)
+        report, robot, cycle, options = _searched(out, args)
         study = run_cycle(
             robot,
             cycle,
             objective(args.objective),
             args.cycles,
             args.strategy,
-            samples=args.samples,
-            checked=checked,
-            method=args.method,
-            circuit=args.circuit_limits,
+            **options,
             speed=args.gap_speed,
             progress=args.progress,
         )
         print(cycle_table(study))
-        write_cycle_report(study, report)
-        figures = [out.final(p) for p in write_cycle_figures(study, out.staging)]
-        playbacks = [out.final(p) for p in write_cycle_playbacks(study, out.staging)]
-        series = [out.final(p) for p in write_series(study, out.staging)]
-        write_index(out.staging, report)
-    _written(out, args, figures, playbacks, series)
+        figures = write_cycle_figures(study, out.staging)
+        written = _publish(out, report, study, figures, write_cycle_playbacks(study, out.staging))
+    _written(out, args, *written)
 
 
 def _robots_command(args: argparse.Namespace) -> None:
@@ -452,9 +456,14 @@ def parser() -> argparse.ArgumentParser:
         action="store_true",
         help="the hydraulic circuit's limits (pressure, pump flow, speeds) count like strokes",
     )
-    written = argparse.ArgumentParser(add_help=False)
+    quiet = argparse.ArgumentParser(add_help=False)
+    quiet.add_argument("--quiet", action="store_true", help="no progress bar")
+    written = argparse.ArgumentParser(add_help=False, parents=[quiet])
     written.add_argument("--json", help="report path (default: OUT/report.json)")
-    written.add_argument("--quiet", action="store_true", help="no progress bar")
+    minimised = argparse.ArgumentParser(add_help=False)
+    minimised.add_argument(
+        "--objective", choices=list(OBJECTIVES), default="velocity", help="what to minimise"
+    )
     main = OneLineParser(
         prog="redundancy",
         description="Redundancy resolution of hydraulic manipulators in actuator coordinates.",
@@ -513,12 +522,9 @@ def parser() -> argparse.ArgumentParser:
         _play_command,
         "play one motion in meshcat: live in a browser, or as an HTML page",
         "--segment 1-2 --best",
-        [robot, task],
+        [robot, task, minimised],
     )
     play.add_argument("--segment", help="segment to play (default: the task's first)")
-    play.add_argument(
-        "--objective", choices=list(OBJECTIVES), default="velocity", help="what to minimise"
-    )
     start = play.add_mutually_exclusive_group()
     start.add_argument(
         "--x3init",
@@ -552,9 +558,9 @@ def parser() -> argparse.ArgumentParser:
         _map_command,
         "a design map: a family of planning problems solved on Dask, to Parquet",
         "workspace.toml --workers 2",
+        [quiet],
     )
     design.add_argument("family", help="map file (TOML; schema in the README)")
-    design.add_argument("--quiet", action="store_true", help="no progress bar")
     where = design.add_mutually_exclusive_group()
     where.add_argument(
         "--workers", type=worker_count, help="local worker processes (default: the core count)"
@@ -574,7 +580,7 @@ def parser() -> argparse.ArgumentParser:
         _cycle_command,
         "the work cycle as a machine runs it: whole-cycle plan, repetition, drift",
         "--strategy periodic --cycles 50",
-        [robot, task, search, written],
+        [robot, task, search, written, minimised],
     )
     cycle.add_argument(
         "--cycles",
@@ -588,9 +594,6 @@ def parser() -> argparse.ArgumentParser:
         default="both",
         help="free: the objective's law from the whole-cycle improved start; periodic: the "
         "drift-free periodic optimum",
-    )
-    cycle.add_argument(
-        "--objective", choices=list(OBJECTIVES), default="velocity", help="what to minimise"
     )
     cycle.add_argument(
         "--gap-speed",

@@ -2,6 +2,7 @@
 findings reproduced, families read with one-line errors."""
 
 import contextlib
+import functools
 import itertools
 import os
 import signal
@@ -371,19 +372,44 @@ def listener(reply: bytes):
             connection.close()
 
 
+@contextlib.contextmanager
+def never_accepting():
+    """A TCP server on a free local port that never accepts, its queue of connections already
+    full, so that a new connection is never even completed; yields its address."""
+    server = socket.create_server(("127.0.0.1", 0), backlog=0)
+    queued = [socket.socket() for _ in range(2)]
+    for client in queued:
+        client.setblocking(False)
+        client.connect_ex(server.getsockname())
+    try:
+        yield f"tcp://127.0.0.1:{server.getsockname()[1]}"
+    finally:
+        for client in queued:
+            client.close()
+        server.close()
+
+
+SILENT = ": no Dask scheduler answered within 1 s; start one"
+
+
 @pytest.mark.parametrize(
-    ("reply", "expected"),
+    ("server", "expected"),
     [
-        (b"", ": no Dask scheduler answered within 1 s; start one"),
-        (b"HTTP/1.1 400 Bad Request\r\n\r\n", " does not answer as a Dask scheduler"),
+        (functools.partial(listener, b""), SILENT),
+        (never_accepting, SILENT),
+        (
+            functools.partial(listener, b"HTTP/1.1 400 Bad Request\r\n\r\n"),
+            " does not answer as a Dask scheduler",
+        ),
     ],
-    ids=["silent", "another protocol"],
+    ids=["silent", "never accepting", "another protocol"],
 )
-def test_a_server_that_is_no_scheduler_is_one_line_within_the_timeout(tmp_path, reply, expected):
-    """The timeout bounds the whole connection, handshake included, and a server speaking
-    another protocol is named as such."""
+def test_a_server_that_is_no_scheduler_is_one_line_within_the_timeout(tmp_path, server, expected):
+    """The timeout bounds the whole connection, handshake included: a server that accepts and
+    stays silent, or never accepts, is one where no scheduler answered (not something else
+    listening), and a server speaking another protocol is named as such."""
     family = write(tmp_path, "ws.toml", WORKSPACE.format(chunk=2, nx=2))
-    with listener(reply) as address:
+    with server() as address:
         began = time.monotonic()
         result = run_cli(
             "map", str(family), "--scheduler", address, "--timeout", "1", cwd=tmp_path, timeout=30

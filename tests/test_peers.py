@@ -6,17 +6,12 @@ import sys
 
 import numpy as np
 import pytest
+from peers import TUNED_GAIN, gradient_projection_run, pseudoinverse_run, tune_gradient_projection
 from pink_peer import PinkResolver, pink_run
 
 from redundancy import RedundancyError, actuator_space, load_robot
 from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
-from redundancy.study.peers import (
-    TUNED_GAIN,
-    gradient_projection_run,
-    pseudoinverse_run,
-    tune_gradient_projection,
-)
 
 SEGMENTS = ["1-2", "2-3", "3-1"]
 STEP = 0.02

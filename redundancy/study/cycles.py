@@ -19,15 +19,12 @@ For one objective (a peak one for the drift-free strategy):
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
 from redundancy.errors import InvalidInputError, UnreachableError
-from redundancy.model.hydraulics import KILOJOULE
 from redundancy.model.robot import Robot
 from redundancy.planning.cycles import (
     CYCLES,
@@ -44,11 +41,11 @@ from redundancy.planning.cycles import (
     return_map,
 )
 from redundancy.planning.integrate import Trajectory
-from redundancy.planning.starts import default_start, held_actuators, scalar_or_list
+from redundancy.planning.starts import SearchResult, default_start, held_actuators, scalar_or_list
 from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import VELOCITY, Objective
-from redundancy.study.output import write_atomically
+from redundancy.study.peers import pump_energies
 
 STRATEGIES = ("free", "periodic")
 CHOICES = (*STRATEGIES, "both")
@@ -77,20 +74,12 @@ class Cost(NamedTuple):
 
 def cost(motion: Trajectory, objective: Objective) -> Cost:
     """The `Cost` of the first motion of ``motion``."""
-    circuit = motion.robot.hydraulics
     return Cost(
         float(motion.score(objective)[0]),
         float(motion.peak_velocity_norm[0]),
         float(motion.max_tracking_error[0]),
         bool(motion.within_limits[0]),
-        *(
-            ()
-            if circuit is None
-            else (
-                float(motion.energy(supply)[0] / KILOJOULE)
-                for supply in (circuit.load_sensing, circuit.constant_pressure)
-            )
-        ),
+        **({} if motion.robot.hydraulics is None else pump_energies(motion)),
     )
 
 
@@ -130,10 +119,7 @@ class CycleStudy:
 
     def report(self) -> dict:
         """The cycle study as JSON-ready data."""
-        plan, search = self.plan, self.plan.search
-        best = search.best
-        box = search.feasible_box
-        closest = search.closest_violation if best is None else None
+        plan = self.plan
         return {
             "robot": self.robot.name,
             "payload": self.robot.payload,
@@ -149,25 +135,10 @@ class CycleStudy:
                 {"name": s.name, "start": s.start.tolist(), "end": s.end.tolist(), **s.describe()}
                 for s in self.cycle.segments
             ],
-            "whole_cycle": {
-                "feasible_range": None
-                if box is None
-                else (box[0] if len(box) == 1 else box).tolist(),
-                "best": None
-                if best is None
-                else {"value": scalar_or_list(best.values), "peak": search.best_peak},
-                "closest_violation": None if closest is None else str(closest),
-                "simulations": search.simulations,
-            },
+            "whole_cycle": search_report(plan.search),
             "per_segment": {
                 "segments": [
-                    {
-                        "name": s.segment.name,
-                        "best": None
-                        if s.best is None
-                        else {"value": scalar_or_list(s.best.values), "peak": s.best_peak},
-                    }
-                    for s in plan.segments
+                    {"name": s.segment.name, "best": best_report(s)} for s in plan.segments
                 ],
                 "corners": [corner_report(c) for c in plan.corners],
                 "self_motion_time_s": plan.gap_time,
@@ -194,6 +165,29 @@ class CycleStudy:
             "return_map": None if self.map is None else map_report(self.map),
             "failures": self.failures,
         }
+
+
+def best_report(search: SearchResult) -> dict | None:
+    """A search's best start, its held values and their peak, as JSON-ready data (None where no
+    start is feasible)."""
+    if search.best is None:
+        return None
+    return {"value": scalar_or_list(search.best.values), "peak": search.best_peak}
+
+
+def search_report(search: SearchResult, violations: SearchResult | None = None) -> dict:
+    """A search as JSON-ready data: the held values' feasible range, the best start, the closest
+    violation where no start is feasible (of ``violations``, by default of the search) and the
+    simulations it ran."""
+    box, closest = search.feasible_box, None
+    if search.best is None:
+        closest = (violations or search).closest_violation
+    return {
+        "feasible_range": None if box is None else (box[0] if len(box) == 1 else box).tolist(),
+        "best": best_report(search),
+        "closest_violation": None if closest is None else str(closest),
+        "simulations": search.simulations,
+    }
 
 
 def corner_report(corner: Corner) -> dict:
@@ -257,15 +251,7 @@ def map_report(mapped: ReturnMap) -> dict:
         "values": mapped.values.tolist(),
         "next": [None if not np.isfinite(p) else float(p) for p in mapped.following],
         "within_limits": mapped.within.tolist(),
-        "fixed_points": [
-            {
-                "value": p.value,
-                "slope": p.slope,
-                "stable": p.stable,
-                "keeps_the_strokes": p.keeps_the_strokes,
-            }
-            for p in mapped.fixed_points
-        ],
+        "fixed_points": [{**p._asdict(), "stable": p.stable} for p in mapped.fixed_points],
     }
 
 
@@ -325,23 +311,18 @@ def run_cycle(
         repetitions: dict[str, Repetition] = {}
         firsts: dict[str, Trajectory] = {}
         periodic = None
+
+        def repeated(strategy: str, laws, start: np.ndarray) -> None:
+            """Run ``strategy``'s ``laws`` from ``start`` for ``cycles`` cycles; keep its first."""
+            repetitions[strategy] = repeat(
+                robot, cycle, laws, start, cycles, strategy, held, checked, circuit, objective
+            )
+            firsts[strategy] = repetitions[strategy].motion(1)
+
         if "free" in chosen:
             bar.set_description("cycle: free, repeated")
-            repetitions["free"] = repeat(
-                robot,
-                cycle,
-                objective.resolver,
-                start_q,
-                cycles,
-                "free",
-                held,
-                checked,
-                circuit,
-                objective,
-            )
-            bar.update()
-            firsts["free"] = repetitions["free"].motion(1)
-            bar.update()
+            repeated("free", objective.resolver, start_q)
+            bar.update(2)
         if "periodic" in chosen:
             bar.set_description("cycle: periodic optimum")
             guess = free_motion if free_motion is not None else firsts.get("free")
@@ -360,19 +341,7 @@ def run_cycle(
             bar.update()
             if periodic is not None:
                 bar.set_description("cycle: periodic, repeated")
-                repetitions["periodic"] = repeat(
-                    robot,
-                    cycle,
-                    periodic.laws(),
-                    periodic.start,
-                    cycles,
-                    "periodic",
-                    held,
-                    checked,
-                    circuit,
-                    objective,
-                )
-                firsts["periodic"] = repetitions["periodic"].motion(1)
+                repeated("periodic", periodic.laws(), periodic.start)
             bar.update()
         bar.set_description("cycle: return map")
         mapped = None
@@ -397,9 +366,3 @@ def run_cycle(
         free_start,
         failures,
     )
-
-
-def write_cycle_report(study: CycleStudy, path: Path) -> None:
-    """The cycle study's JSON report, written atomically."""
-    text = json.dumps(study.report(), indent=1, allow_nan=False)
-    write_atomically(path, lambda p: p.write_text(text + "\n"))

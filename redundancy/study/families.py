@@ -330,12 +330,7 @@ def _variant(
         moved[AXES.index(axis)] = offset
         ends = {"base": cylinder.base, "rod": cylinder.rod, end: (link, moved)}
         maps[i] = LinearCylinder(
-            cylinder.name,
-            cylinder.joint,
-            cylinder.lower,
-            cylinder.upper,
-            ends["base"],
-            ends["rod"],
+            cylinder.name, cylinder.joint, cylinder.lower, cylinder.upper, **ends
         )
     circuit = loaded.hydraulics
     if bore_of is not None and bore is not None and circuit is not None:

@@ -58,13 +58,14 @@ from redundancy.errors import (
     SingularConfigurationError,
     UnreachableError,
 )
-from redundancy.model.hydraulics import KILOJOULE, LITRES_PER_MINUTE
+from redundancy.model.hydraulics import LITRES_PER_MINUTE
 from redundancy.planning.bound import global_optimum
 from redundancy.planning.starts import Starts, default_start, evaluate_starts, improved_starts
 from redundancy.resolution.limits import Limits
 from redundancy.resolution.objectives import OBJECTIVES
 from redundancy.study.families import Design, MapFamily, read_family
 from redundancy.study.output import write_atomically
+from redundancy.study.peers import pump_energies
 
 CONNECT_TIMEOUT = 10.0  # s a scheduler has to answer
 FAMILY_FILE = "family.json"
@@ -167,12 +168,8 @@ def _energy(search) -> dict:
     if search.best is None:
         return {"ls_energy_kj": None, "cp_energy_kj": None, "peak_flow_lpm": None}
     motion = search.best_motion
-    circuit = motion.robot.circuit()
-    return {
-        "ls_energy_kj": float(motion.energy(circuit.load_sensing)[0] / KILOJOULE),
-        "cp_energy_kj": float(motion.energy(circuit.constant_pressure)[0] / KILOJOULE),
-        "peak_flow_lpm": float(motion.flows.pump_flow[0].max() / LITRES_PER_MINUTE),
-    }
+    peak_flow = float(motion.flows.pump_flow[0].max() / LITRES_PER_MINUTE)
+    return {**pump_energies(motion), "peak_flow_lpm": peak_flow}
 
 
 class ChunkStore:

@@ -1,12 +1,8 @@
-"""The peers the improved method is measured against, run on the same robot and task.
-
-- Plain pseudoinverse (Eq. 24) from the documented default start (`default_start`: the held
-  actuator at mid-stroke, or the reachable value nearest it).
-- Gradient projection with actuator-limit avoidance (Eq. 1, `GradientProjection`) from the same
-  start, with its gain tuned on the paper's segments (`tune_gradient_projection`, `TUNED_GAIN`).
-
-A QP-based differential IK as users of Pinocchio pick it, pink, is a peer of the benchmarks
-(benchmarks/pink_peer.py), run from the same start.
+"""The strategies the improved method is compared with, each run from a fixed start on the same
+robot and task: in the study, the baselines from the documented default start (`default_start`:
+the held actuator at mid-stroke, or the reachable value nearest it); in the benchmarks, the plain
+pseudoinverse, gradient projection with its gain tuning (benchmarks/peers.py) and pink's QP
+differential IK (benchmarks/pink_peer.py), run from the same start.
 
 Every run is a `StrategyRun` whose trajectory reports the strokes as they were: a peer that
 leaves a limit is flagged by `Trajectory.within_limits` and `Trajectory.violations`, never
@@ -22,21 +18,14 @@ from functools import cached_property
 
 import numpy as np
 
-from redundancy.errors import InvalidInputError, RedundancyError
+from redundancy.errors import RedundancyError
 from redundancy.model.hydraulics import BAR, KILOJOULE, LITRES_PER_MINUTE
 from redundancy.model.robot import Robot
 from redundancy.planning.integrate import TIME_STEP, Trajectory, simulate
 from redundancy.planning.starts import default_start, scalar_or_list
 from redundancy.planning.tasks import Segment
 from redundancy.planning.time_scaling import shortest_duration
-from redundancy.resolution.laws import TUNED_GAIN, GradientProjection, MinVelocityNorm, Resolver
-
-# The candidates `tune_gradient_projection` tried on the crane's paper segments (velocity
-# objective, every stroke checked, default starts, 0.01 s steps) to choose `TUNED_GAIN`: the gain
-# whose worst peak ẋᵀẋ over the three segments is least among those keeping every stroke inside
-# its limits on all three. Smaller gains let x1 leave its stroke on segment 3-1; larger ones raise
-# the peak at the start of segment 1-2, whose default start lies near the stroke ends.
-GAINS = (0.02, 0.03, 0.05, 0.07, 0.1, 0.15, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 2.0)  # candidates, m²/s
+from redundancy.resolution.laws import Resolver
 
 
 @dataclass(frozen=True)
@@ -76,7 +65,7 @@ def hydraulics(motion: Trajectory) -> dict:
     constant pressure (kJ), whether a load overran, the circuit's limits passed, and the
     shortest duration of its path within the circuit's limits (s, `shortest_duration`; None
     where TOPP-RA finds no timing)."""
-    circuit, flows = motion.robot.circuit(), motion.flows
+    flows = motion.flows
     violations = motion.hydraulic_violations(0)
     try:
         shortest: float | None = shortest_duration(motion).duration
@@ -85,13 +74,20 @@ def hydraulics(motion: Trajectory) -> dict:
     return {
         "peak_pump_flow_l_min": float(flows.pump_flow[0].max() / LITRES_PER_MINUTE),
         "max_load_pressure_bar": float(flows.load[0].max() / BAR),
-        "ls_energy_kj": float(motion.energy(circuit.load_sensing)[0] / KILOJOULE),
-        "cp_energy_kj": float(motion.energy(circuit.constant_pressure)[0] / KILOJOULE),
+        **pump_energies(motion),
         "overrunning": bool(flows.overrunning[0].any()),
         "within_limits": not violations,
         "violations": [str(v) for v in violations],
         "shortest_duration_s": shortest,
     }
+
+
+def pump_energies(motion: Trajectory) -> dict[str, float]:
+    """The pump energy of the first motion of ``motion`` under load sensing and constant
+    pressure (`Trajectory.energy`), kJ: ``{"ls_energy_kj", "cp_energy_kj"}``."""
+    circuit = motion.robot.circuit()
+    supplies = {"ls_energy_kj": circuit.load_sensing, "cp_energy_kj": circuit.constant_pressure}
+    return {key: float(motion.energy(supply)[0] / KILOJOULE) for key, supply in supplies.items()}
 
 
 def fixed_start_run(
@@ -121,66 +117,3 @@ def fixed_start_run(
         circuit=circuit,
     )
     return StrategyRun(segment.name, name, tuple(float(v) for v in values), motion)
-
-
-def pseudoinverse_run(
-    robot: Robot,
-    segment: Segment,
-    held: str = "x3",
-    checked: tuple[str, ...] | None = None,
-    time_step: float = TIME_STEP,
-) -> StrategyRun:
-    """ẋ = J_H⁺ ẏ (Eq. 24) along ``segment`` from the default start."""
-    return fixed_start_run(
-        robot, MinVelocityNorm(), "pseudoinverse", segment, held, None, checked, time_step, "rk4"
-    )
-
-
-def gradient_projection_run(
-    robot: Robot,
-    segment: Segment,
-    gain: float = TUNED_GAIN,
-    held: str = "x3",
-    checked: tuple[str, ...] | None = None,
-    time_step: float = TIME_STEP,
-) -> StrategyRun:
-    """Gradient projection with actuator-limit avoidance, gain α (m²/s), from the default start."""
-    name = f"gradient projection (α = {gain:g} m²/s)"
-    resolver = GradientProjection(gain)
-    return fixed_start_run(robot, resolver, name, segment, held, None, checked, time_step, "rk4")
-
-
-@dataclass(frozen=True)
-class GainTuning:
-    """Gradient projection over candidate gains (g,) on segments (s,): the peaks ẋᵀẋ (g, s)
-    in m²/s², whether every checked stroke held (g, s), and the chosen gain (None if none kept
-    every limit on every segment)."""
-
-    gains: tuple[float, ...]
-    segments: tuple[str, ...]
-    peaks: np.ndarray
-    within: np.ndarray
-    chosen: float | None
-
-
-def tune_gradient_projection(
-    robot: Robot,
-    segments: tuple[Segment, ...],
-    gains: tuple[float, ...] = GAINS,
-    held: str = "x3",
-    checked: tuple[str, ...] | None = None,
-    time_step: float = TIME_STEP,
-) -> GainTuning:
-    """The gain (m²/s) of least worst peak ẋᵀẋ over ``segments`` among ``gains`` keeping every
-    checked stroke inside its limits on all of them, each run from the default start."""
-    if not gains or any(not g > 0 for g in gains):
-        raise InvalidInputError(f"gains must be positive numbers, m²/s; got {gains}")
-    runs = [
-        [gradient_projection_run(robot, s, g, held, checked, time_step) for s in segments]
-        for g in gains
-    ]
-    peaks = np.array([[r.trajectory.peak_velocity_norm[0] for r in row] for row in runs])
-    within = np.array([[bool(r.trajectory.within_limits[0]) for r in row] for row in runs])
-    keeping = np.flatnonzero(within.all(axis=1))
-    chosen = float(gains[keeping[np.argmin(peaks[keeping].max(axis=1))]]) if keeping.size else None
-    return GainTuning(tuple(gains), tuple(s.name for s in segments), peaks, within, chosen)

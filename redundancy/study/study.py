@@ -31,6 +31,7 @@ import json
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 from redundancy.errors import InvalidInputError, UnreachableError
 from redundancy.model.hydraulics import KILOJOULE
@@ -47,11 +48,11 @@ from redundancy.planning.starts import (
     improved_starts,
     scalar_or_list,
 )
-from redundancy.planning.tasks import WorkCycle
+from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.resolution.laws import GradientProjection, Resolver
 from redundancy.resolution.objectives import ENERGY, VELOCITY, Objective
 from redundancy.study.check import check
-from redundancy.study.cycles import CycleStudy, run_cycle
+from redundancy.study.cycles import CycleStudy, run_cycle, search_report
 from redundancy.study.output import write_atomically
 from redundancy.study.peers import StrategyRun, fixed_start_run
 
@@ -186,19 +187,12 @@ class Study:
     def _segment_report(self, objective: str, segment: str) -> dict:
         search, sweep = self.search(objective, segment), self.sweep(objective, segment)
         bound = self.bound(objective, segment)
-        best = search.best
-        closest = sweep.closest_violation if best is None else None
-        box = search.feasible_box
         return {
             "name": segment,
             "start": search.segment.start.tolist(),
             "end": search.segment.end.tolist(),
             "held_actuator": search.held[0] if len(search.held) == 1 else list(search.held),
-            "feasible_range": None if box is None else (box[0] if len(box) == 1 else box).tolist(),
-            "best": None
-            if best is None
-            else {"value": scalar_or_list(best.values), "peak": search.best_peak},
-            "closest_violation": None if closest is None else str(closest),
+            **search_report(search, sweep),
             "bound": None
             if bound is None
             else {
@@ -209,7 +203,6 @@ class Study:
             },
             "gap_percent": self.gap(objective, segment),
             "bound_failure": (self.bound_failures or {}).get(f"{objective}/{segment}"),
-            "simulations": search.simulations,
             "samples": [
                 {
                     "value": scalar_or_list(s.values),
@@ -251,109 +244,166 @@ def run_study(
     """
     from tqdm import tqdm
 
-    held = held_actuators(robot, cycle)
-    method = method or ("fast" if len(held) == 1 else "sweep")
-    if method not in METHODS:
-        raise InvalidInputError(f"unknown method {method!r}; methods: {', '.join(METHODS)}")
-    if energy_bound or circuit:
-        machine = robot.circuit()  # says how to declare one before any work
-    if energy_bound and len(held) != 1:
-        raise InvalidInputError(f"the energy bound holds one actuator; the task holds {held}")
+    plan = _Plan.of(robot, cycle, objectives, samples, checked, method, bound, circuit)
+    plan.refuse_before_work(cycle, energy_bound)
     segments = cycle.segments
-    for segment in segments:  # a path out of reach is refused before any simulation
-        check_path(robot, segment)
-    singular = [line for a in check(robot).actuators for line in a.singular_lines()]
-    if singular:  # J_H = J A⁻¹ is undefined there: motions through it fail, and say so
-        warnings.warn("; ".join(singular), stacklevel=2)
-    # the M_H-weighted law needs masses: a kinematic-only robot is compared without it
-    baselines = [
-        (n, r) for n, r in BASELINES if not (robot.kinematic_only and r is ENERGY.resolver)
-    ]
-    total = len(segments) * (len(baselines) + 3 * len(objectives))
-    bar = tqdm(total=total, unit="task", desc="study", disable=not progress, mininterval=0.5)
-    searches: dict[str, list[SearchResult]] = {o.name: [] for o in objectives}
-    sweeps: dict[str, list[SearchResult]] = {o.name: [] for o in objectives}
-    bounds: dict[str, list[GlobalOptimum | None]] = {o.name: [] for o in objectives}
+    total = len(segments) * (len(plan.baselines) + 3 * len(objectives))
     failures: dict[str, str] = {}  # a bound that failed does not stop the study
-    runs: list[StrategyRun] = []
-    with bar:
-        for segment in segments:
-            start = default_start(robot, segment, held)
-            for name, resolver in baselines:
-                bar.set_description(f"{segment.name}: {name}")
-                runs.append(
-                    fixed_start_run(
-                        robot, resolver, name, segment, held, start, checked, circuit=circuit
-                    )
-                )
-                bar.update()
-            bar.set_description(f"{segment.name}: improved starts")
-            found_sweeps = improved_starts(
-                robot, segment, objectives, held, samples, checked, "sweep", circuit=circuit
-            )
-            bar.update(len(objectives))
-            searched = found_sweeps
-            if method == "fast":
-                searched = improved_starts(
-                    robot, segment, objectives, held, checked=checked, circuit=circuit
-                )
-            bar.update(len(objectives))
-            for objective, sweep, search in zip(objectives, found_sweeps, searched):
-                searches[objective.name].append(search)
-                sweeps[objective.name].append(sweep)
-                best, optimum = search.best, None
-                if best is not None:
-                    runs.append(
-                        StrategyRun(
-                            segment.name,
-                            f"improved, {objective.name} objective",
-                            best.values,
-                            search.best_motion,
-                        )
-                    )
-                    if bound and len(held) == 1 and objective.reduction == "peak":
-                        bar.set_description(f"{segment.name}: bound, {objective.name}")
-                        try:
-                            optimum = global_optimum(
-                                robot, segment, objective, held[0], checked, search=search
-                            )
-                        except (InvalidInputError, UnreachableError) as error:
-                            failures[f"{objective.name}/{segment.name}"] = str(error)
-                bounds[objective.name].append(optimum)
-                bar.update()
+    with tqdm(total=total, unit="task", desc="study", disable=not progress, mininterval=0.5) as bar:
+        found = [plan.segment(segment, bar, failures) for segment in segments]
     energy_bounds = None
     if energy_bound:
-        energy_bounds = {}
-        for segment in tqdm(segments, desc="energy bounds", disable=not progress):
-            found = {}
-            for supply in (machine.load_sensing, machine.constant_pressure):
-                try:
-                    found[supply.name] = energy_optimum(robot, segment, supply, held[0], checked)
-                except (InvalidInputError, UnreachableError) as error:
-                    failures[f"energy bound {supply.name}/{segment.name}"] = str(error)
-            energy_bounds[segment.name] = found
+        shown = tqdm(segments, desc="energy bounds", disable=not progress)
+        energy_bounds = {s.name: plan.energy_bounds(s, failures) for s in shown}
+    runs = tuple(run for f in found for run in f.runs)
     for run in runs:  # every figure a report or table shows is computed here, once
         run.summary()
     cycle_study, skipped = cycle_section(
         robot, cycle, objectives[0], cycles, samples, checked, method, circuit, progress
     )
+
+    def by_objective(field: str) -> dict[str, tuple]:
+        return {
+            o.name: tuple(getattr(f, field)[i] for f in found) for i, o in enumerate(objectives)
+        }
+
     return Study(
         robot,
         cycle,
-        held,
+        plan.held,
         samples,
-        method,
+        plan.method,
         tuple(robot.actuators.names if checked is None else checked),
         circuit,
-        {name: tuple(found) for name, found in searches.items()},
-        {name: tuple(found) for name, found in sweeps.items()},
-        {name: tuple(found) for name, found in bounds.items()},
-        tuple(runs),
+        by_objective("searches"),
+        by_objective("sweeps"),
+        by_objective("bounds"),
+        runs,
         energy_bounds,
         failures,
         cycle_study,
         skipped,
     )
+
+
+class _Segment(NamedTuple):
+    """One segment's part of the study: the strategies' runs, and per objective its search,
+    its sweep and its bound."""
+
+    runs: list[StrategyRun]
+    searches: list[SearchResult]
+    sweeps: list[SearchResult]
+    bounds: list[GlobalOptimum | None]
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """What `run_study` asked for, the same on every segment."""
+
+    robot: Robot
+    objectives: tuple[Objective, ...]
+    held: tuple[str, ...]
+    samples: int
+    checked: tuple[str, ...] | None
+    method: str
+    bound: bool
+    circuit: bool
+
+    @classmethod
+    def of(cls, robot, cycle, objectives, samples, checked, method, bound, circuit) -> _Plan:
+        held = held_actuators(robot, cycle)
+        method = method or ("fast" if len(held) == 1 else "sweep")
+        if method not in METHODS:
+            raise InvalidInputError(f"unknown method {method!r}; methods: {', '.join(METHODS)}")
+        return cls(robot, objectives, held, samples, checked, method, bound, circuit)
+
+    @property
+    def baselines(self) -> list[tuple[str, Resolver]]:
+        """`BASELINES`, less the M_H-weighted law on a kinematic-only robot (it needs
+        masses)."""
+        kinematic = self.robot.kinematic_only
+        return [(n, r) for n, r in BASELINES if not (kinematic and r is ENERGY.resolver)]
+
+    def refuse_before_work(self, cycle: WorkCycle, energy_bound: bool) -> None:
+        """A missing circuit, an energy bound on several held actuators, or a path out of reach
+        is refused before any simulation; a singular actuator is warned of (J_H = J A⁻¹ is
+        undefined there: motions through it fail, and say so)."""
+        if energy_bound or self.circuit:
+            self.robot.circuit()  # says how to declare one
+        if energy_bound and len(self.held) != 1:
+            raise InvalidInputError(
+                f"the energy bound holds one actuator; the task holds {self.held}"
+            )
+        for segment in cycle.segments:
+            check_path(self.robot, segment)
+        singular = [line for a in check(self.robot).actuators for line in a.singular_lines()]
+        if singular:
+            warnings.warn("; ".join(singular), stacklevel=3)
+
+    def segment(self, segment: Segment, bar, failures: dict[str, str]) -> _Segment:
+        """The baselines from the default start, each objective's sweep and improved search, the
+        run from its best start and its bound, on ``segment``; ``bar`` counts them."""
+        robot, held, checked, circuit = self.robot, self.held, self.checked, self.circuit
+        start = default_start(robot, segment, held)
+        runs = []
+        for name, resolver in self.baselines:
+            bar.set_description(f"{segment.name}: {name}")
+            runs.append(
+                fixed_start_run(
+                    robot, resolver, name, segment, held, start, checked, circuit=circuit
+                )
+            )
+            bar.update()
+        bar.set_description(f"{segment.name}: improved starts")
+        sweeps = improved_starts(
+            robot, segment, self.objectives, held, self.samples, checked, "sweep", circuit=circuit
+        )
+        bar.update(len(self.objectives))
+        searches = sweeps
+        if self.method == "fast":
+            searches = improved_starts(
+                robot, segment, self.objectives, held, checked=checked, circuit=circuit
+            )
+        bar.update(len(self.objectives))
+        bounds = []
+        for objective, search in zip(self.objectives, searches):
+            if search.best is not None:
+                strategy = f"improved, {objective.name} objective"
+                runs.append(
+                    StrategyRun(segment.name, strategy, search.best.values, search.best_motion)
+                )
+            bounds.append(self.optimum(segment, objective, search, bar, failures))
+            bar.update()
+        return _Segment(runs, list(searches), list(sweeps), bounds)
+
+    def optimum(self, segment, objective, search, bar, failures) -> GlobalOptimum | None:
+        """The min-max bound of ``objective`` on ``segment``, where it is asked for and defined
+        (one held actuator, a peak objective, a feasible start); a failure is noted in
+        ``failures``."""
+        asked = self.bound and len(self.held) == 1 and objective.reduction == "peak"
+        if not asked or search.best is None:
+            return None
+        bar.set_description(f"{segment.name}: bound, {objective.name}")
+        try:
+            return global_optimum(
+                self.robot, segment, objective, self.held[0], self.checked, search=search
+            )
+        except (InvalidInputError, UnreachableError) as error:
+            failures[f"{objective.name}/{segment.name}"] = str(error)
+            return None
+
+    def energy_bounds(self, segment: Segment, failures: dict[str, str]) -> dict[str, EnergyOptimum]:
+        """The energy bound of ``segment`` under load sensing and constant pressure, by supply;
+        a failure is noted in ``failures``."""
+        machine, found = self.robot.circuit(), {}
+        for supply in (machine.load_sensing, machine.constant_pressure):
+            try:
+                found[supply.name] = energy_optimum(
+                    self.robot, segment, supply, self.held[0], self.checked
+                )
+            except (InvalidInputError, UnreachableError) as error:
+                failures[f"energy bound {supply.name}/{segment.name}"] = str(error)
+        return found
 
 
 def cycle_section(
@@ -390,7 +440,7 @@ def cycle_section(
     return found, None
 
 
-def write_report(study: Study, path: Path) -> None:
-    """The study's JSON report, written atomically."""
+def write_report(study: Study | CycleStudy, path: Path) -> None:
+    """The JSON report of a study, or of a cycle study (`run_cycle`), written atomically."""
     text = json.dumps(study.report(), indent=1, allow_nan=False)
     write_atomically(path, lambda p: p.write_text(text + "\n"))
