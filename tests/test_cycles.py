@@ -87,6 +87,8 @@ def test_the_drift_free_strategy_closes_every_cycle_within_1e_6(arm_runs):
     assert closed.tool_drift.max() <= 1e-6
     assert closed.within.all()
     assert closed.settling.settles and closed.settling.settled_at == 1
+    # in words with its unit: the arm's actuators are its joints, which turn
+    assert repetition_report(closed)["settling"] == "closed (drift below 1e-06 rad) from cycle 1"
     assert periodic.converged
     # the machine runs the plan: its first cycle's peak is the plan's to a per cent
     assert closed.score(VELOCITY) == pytest.approx(periodic.peak, rel=0.01)

@@ -34,7 +34,6 @@ from redundancy.planning.cycles import (
     PeriodicOptimum,
     Repetition,
     ReturnMap,
-    Settling,
     periodic_optimum,
     plan_cycle,
     repeat,
@@ -128,6 +127,7 @@ class CycleStudy:
             "measure": self.objective.label,
             "held_actuator": self.held[0] if len(self.held) == 1 else list(self.held),
             "checked_actuators": list(self.checked),
+            "units": {a.name: a.unit for a in self.robot.actuators},
             "circuit_limits_checked": self.circuit,
             "cycles": self.cycles,
             "duration_s": self.cycle.duration,
@@ -222,20 +222,24 @@ def repetition_report(repetition: Repetition) -> dict:
         "within_limits_per_cycle": repetition.within.tolist(),
         "first_cycle_past_a_limit": None if first is None else first[0],
         "first_violation": None if first is None else first[1],
-        "settling": settling_words(settled),
+        "settling": settling_words(repetition),
         "settles": settled.settles,
         "limit_cycle_value": settled.limit,
         "contraction": settled.contraction,
     }
 
 
-def settling_words(settled: Settling) -> str:
-    """Whether the held actuator settles to a limit cycle, in words."""
+def settling_words(repetition: Repetition) -> str:
+    """Whether the held actuator settles to a limit cycle, in words, each value with its SI
+    unit (the limit cycle in the held actuator's, the drift threshold in each actuator's)."""
+    settled, actuators = repetition.settling, repetition.robot.actuators
     if settled.settled_at is not None:
-        return f"closed (drift below {SETTLED:g} m or rad) from cycle {settled.settled_at}"
+        units = " or ".join(sorted({a.unit for a in actuators}))
+        return f"closed (drift below {SETTLED:g} {units}) from cycle {settled.settled_at}"
     if settled.settles:
+        held = " or ".join(sorted({actuators[name].unit for name in repetition.held}))
         return (
-            f"converging to a limit cycle at {settled.limit:.6g} (drift ratio "
+            f"converging to a limit cycle at {settled.limit:.6g} {held} (drift ratio "
             f"{settled.contraction:.3g} per cycle, closed in about {settled.cycles_to_settle} "
             "more cycles)"
         )

@@ -132,6 +132,7 @@ class Study:
             "samples": self.samples,
             "method": self.method,
             "checked_actuators": list(self.checked),
+            "units": {a.name: a.unit for a in self.robot.actuators},
             "circuit_limits_checked": self.circuit,
             "studies": [
                 {

@@ -20,8 +20,6 @@ from string import Template
 from redundancy.resolution.objectives import OBJECTIVES
 from redundancy.study.output import write_atomically
 
-UNIT = "m, or rad if rotary"  # actuator values: the report gives them in SI units, not which
-
 # What each figure shows and how to read it, by file-name pattern; the first match captions it.
 CAPTIONS = (
     (
@@ -170,6 +168,13 @@ def _unit(objective: str) -> str:
     return OBJECTIVES[objective].unit if objective in OBJECTIVES else ""
 
 
+def _units(report: dict, names: str | list[str] | None = None) -> str:
+    """The SI unit of the actuators ``names`` (all where None), from the report's units."""
+    units = report["units"]
+    chosen = units if names is None else [names] if isinstance(names, str) else names
+    return " or ".join(sorted({units[name] for name in chosen}))
+
+
 def _limits(violations: list[str]) -> str:
     return "held" if not violations else "; ".join(violations)
 
@@ -179,6 +184,7 @@ def _study_page(report: dict) -> tuple[str, str]:
     studies = report["studies"]
     segments = [s["name"] for s in studies[0]["segments"]] if studies else []
     held = _number(studies[0]["segments"][0]["held_actuator"]) if segments else "–"
+    held_unit = _units(report, studies[0]["segments"][0]["held_actuator"]) if segments else ""
     lines = []
     for study in studies:
         unit = _unit(study["objective"])
@@ -202,7 +208,7 @@ def _study_page(report: dict) -> tuple[str, str]:
         f"{_e(' and '.join(s['objective'] for s in studies))}: payload "
         f"{report['payload']:g} kg, {report['samples']} samples, the {_e(report['method'])} "
         f"search, strokes checked: {_e(', '.join(report['checked_actuators']))}. Held values "
-        f"are in {UNIT}.</p><ul>{''.join(lines)}</ul></div>\n"
+        f"are in {held_unit}.</p><ul>{''.join(lines)}</ul></div>\n"
     )
     body = summary + "<h2>Improved start and bound, per segment</h2>\n"
     for study in studies:
@@ -212,8 +218,8 @@ def _study_page(report: dict) -> tuple[str, str]:
             {
                 "segment": s["name"],
                 "held": _number(s["held_actuator"]),
-                f"feasible starts ({UNIT})": _range(s["feasible_range"]),
-                f"best start ({UNIT})": _number(s["best"] and s["best"]["value"]),
+                f"feasible starts ({held_unit})": _range(s["feasible_range"]),
+                f"best start ({held_unit})": _number(s["best"] and s["best"]["value"]),
                 f"peak {measure}": _number(s["best"] and s["best"]["peak"]),
                 f"bound {measure}": _number(s["bound"] and s["bound"]["peak"]),
                 "gap to bound (%)": _percent(s["gap_percent"]),
@@ -228,7 +234,7 @@ def _study_page(report: dict) -> tuple[str, str]:
         {
             "segment": r["segment"],
             "strategy": r["strategy"],
-            f"start ({UNIT})": _number(r["start_value"]),
+            f"start ({held_unit})": _number(r["start_value"]),
             "peak ẋᵀẋ (m²/s²)": _number(r["peak_velocity_norm"]),
             "peak ẋᵀ M_H ẋ (J)": _number(r["peak_kinetic"]),
             "largest tracking error (m)": _number(r.get("max_tracking_error"), 2),
@@ -299,7 +305,7 @@ def _cycle_page(report: dict) -> tuple[str, str]:
 
 def _cycle_body(cycle: dict) -> str:
     """The work cycle: plans, corners, strategies with their drift, the return map."""
-    held = _number(cycle["held_actuator"])
+    held, held_unit = _number(cycle["held_actuator"]), _units(cycle, cycle["held_actuator"])
     unit = _unit(cycle["objective"])
     measure = f"{cycle['measure']} ({unit})"
     whole = cycle["whole_cycle"]
@@ -309,7 +315,7 @@ def _cycle_body(cycle: dict) -> str:
     text = (
         f'<div class="summary"><p>The cycle {_e(path)} ({cycle["duration_s"]:.2f} s) run '
         f"continuously, {cycle['cycles']} cycles, {_e(cycle['objective'])} objective, held "
-        f"actuator {_e(held)} (values in {UNIT}). Whole-cycle improved start: "
+        f"actuator {_e(held)} (values in {held_unit}). Whole-cycle improved start: "
         + (
             f"{held} = {_number(best['value'])} (feasible {_range(whole['feasible_range'])}), peak "
             f"{measure} {best['peak']:.4g}."
@@ -330,17 +336,20 @@ def _cycle_body(cycle: dict) -> str:
     ]
     text += _table(segments, "The cycle's segments.")
     plan = [
-        {"segment": s["name"], f"best start ({UNIT})": _number(s["best"] and s["best"]["value"])}
+        {
+            "segment": s["name"],
+            f"best start ({held_unit})": _number(s["best"] and s["best"]["value"]),
+        }
         | {f"peak {measure}": _number(s["best"] and s["best"]["peak"])}
         for s in per["segments"]
     ]
     text += _table(plan, "The paper's per-segment plan: each segment from its own best start.")
     corners = [
         {"corner": f"{c['after']} → {c['before']}"}
-        | {f"Δ{name} ({UNIT})": _number(d, 3) for name, d in c["delta"].items()}
+        | {f"Δ{name} ({_units(cycle, name)})": _number(d, 3) for name, d in c["delta"].items()}
         | {
             "time (s)": _number(c["time_s"], 3),
-            "held speed (m/s)": _number(c["speed"]),
+            f"held speed ({held_unit}/s)": _number(c["speed"]),
             "self-motion": "keeps the strokes"
             if c["self_motion_within_limits"]
             else (c["reason"] or "passes a limit"),
@@ -363,8 +372,8 @@ def _cycle_body(cycle: dict) -> str:
                 f"peak {measure}": _number(s["objective"]),
                 "LS energy per cycle (kJ)": _number(s.get("ls_energy_kj")),
                 "CP energy per cycle (kJ)": _number(s.get("cp_energy_kj")),
-                f"largest drift, first cycle ({UNIT})": _number(drift[0], 3),
-                f"largest drift, last cycle ({UNIT})": _number(drift[-1], 3),
+                f"largest drift, first cycle ({_units(cycle)})": _number(drift[0], 3),
+                f"largest drift, last cycle ({_units(cycle)})": _number(drift[-1], 3),
                 "tool drift, last cycle (m)": _number(tool[-1], 3),
                 "first cycle past a stroke": _number(repetition.get("first_cycle_past_a_limit")),
                 "settling": repetition.get("settling", "–"),
@@ -380,7 +389,7 @@ def _cycle_body(cycle: dict) -> str:
     mapped = cycle.get("return_map") or {}
     points = [
         {
-            f"limit cycle {held} ({UNIT})": _number(p["value"], 5),
+            f"limit cycle {held} ({held_unit})": _number(p["value"], 5),
             "slope P'": _number(p["slope"], 3),
             "stable": _number(p["stable"]),
             "keeps the strokes": _number(p.get("keeps_the_strokes")),

@@ -230,7 +230,7 @@ def _repetition_table(study: CycleStudy) -> str:
         lines.append(
             f"{NAMES[name]:<34}{repetition.cycles:>7}{first_cycle:>20}{last_cycle:>13}"
             f"{amount(repetition.tool_drift.max(), 'm'):>13}  {passed}; "
-            f"{settling_words(repetition.settling)}"
+            f"{settling_words(repetition)}"
         )
     return "\n".join(lines)
 
