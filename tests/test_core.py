@@ -9,9 +9,10 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from sampling import random_configurations, random_velocities
+from test_searches import GearedCylinder
 
 from redundancy import _core, actuator_space, bundled_robots, global_optimum, load_robot
-from redundancy.model.actuators import ActuatorMap, ActuatorSet
+from redundancy.model.actuators import ActuatorSet
 from redundancy.planning.cycles import repeat
 from redundancy.planning.starts import improved_start
 from redundancy.resolution.laws import SINGULAR_RATIO, Resolver
@@ -111,22 +112,6 @@ def test_the_law_kernel_refuses_mismatched_shapes():
         _core.resolve(np.zeros((1, 2, 3)), np.zeros((1, 2)), np.eye(3), None, SINGULAR_RATIO)
 
 
-class GearedTelescope(ActuatorMap):
-    """A user's own kind: the telescope through a 2:1 gear, x = 2 (q + offset)."""
-
-    def __init__(self, name, joint, lower, upper, offset):
-        super().__init__(name, joint, lower, upper)
-        self.offset = offset
-
-    def evaluate(self, kinematics):
-        row = np.zeros_like(kinematics.q)
-        row[:, self.index] = 2.0
-        return 2.0 * (kinematics.q[:, self.index] + self.offset), row
-
-    def rate(self, kinematics):
-        return np.zeros_like(kinematics.q)
-
-
 class SlowTelescope(Resolver):
     """A user's own law: the telescope's speed weighs 4 times the cylinders', and a small
     null-space pull towards the fold cylinder's mid-stroke."""
@@ -143,10 +128,11 @@ class SlowTelescope(Resolver):
 
 @pytest.fixture(scope="module")
 def geared(crane):
-    """The crane with its telescope geared (`GearedTelescope`), its other actuators as built."""
+    """The crane with its telescope geared (`GearedCylinder`, a user's kind written in the
+    search tests), its other actuators as built."""
     telescope = crane.actuators["x3"]
     maps = [a for a in crane.actuators if a.name != "x3"]
-    maps.append(GearedTelescope("x3", telescope.joint, 0.0, 2 * 1.09, telescope.offset))
+    maps.append(GearedCylinder("x3", telescope.joint, 0.0, 2 * 1.09, telescope.offset))
     robot = load_robot("hiab031")
     robot.actuators = ActuatorSet.bind(maps, robot.model)
     return robot
