@@ -7,7 +7,7 @@ from pathlib import Path
 import redundancy
 
 PACKAGE = Path(redundancy.__file__).parent
-LAYERS = ["errors", "model", "resolution", "planning", "study", "viz", "cli", "__main__"]
+LAYERS = ["_core", "errors", "model", "resolution", "planning", "study", "viz", "cli", "__main__"]
 
 
 def module_name(path: Path) -> str:

@@ -1,11 +1,13 @@
 """Loading robots: bundled files, user-defined actuator kinds, and every bad input named."""
 
 import importlib.util
+import site
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
+import pinocchio as pin
 import pytest
 from declarations import write_transmissions
 from joint_space import fk, mass
@@ -198,10 +200,13 @@ def test_bundled_robots_load_after_a_plain_install_elsewhere(tmp_path):
         "    r = redundancy.load_robot(name)\n"
         "    print(name, r.n, r.m, r.task_file.is_file())\n"
     )
+    # Without site (-S), so that no editable install's import hook runs first: the installed
+    # copy, then the environment's packages and Pinocchio's.
+    paths = [target, *map(Path, site.getsitepackages()), Path(pin.__file__).parents[1]]
     run = subprocess.run(
-        [sys.executable, "-c", code],
+        [sys.executable, "-S", "-c", code],
         cwd=tmp_path,
-        env={"PYTHONPATH": str(target), "PATH": "/usr/bin:/bin"},
+        env={"PYTHONPATH": ":".join(map(str, paths)), "PATH": "/usr/bin:/bin"},
         capture_output=True,
         text=True,
     )

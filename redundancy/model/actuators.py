@@ -19,6 +19,7 @@ from collections.abc import Sequence
 import numpy as np
 import pinocchio as pin
 
+from redundancy import _core
 from redundancy.errors import InvalidInputError, RobotDescriptionError, SingularConfigurationError
 from redundancy.model.kinematics import Kinematics
 from redundancy.model.parameters import Number, Parameter, Point
@@ -165,30 +166,25 @@ def attach_frame(model: pin.Model, owner: str, end: str, link: str, point: np.nd
     return model.addFrame(frame, False)
 
 
-def span(d: np.ndarray, maps: list[ActuatorMap]) -> tuple[np.ndarray, np.ndarray]:
-    """Lengths x = |d| (k, c) and unit vectors u = d/x (k, c, 3) of the spans d (k, c, 3)
-    between the two ends of c cylinders; zero lengths raise, naming the ``maps``."""
-    length = np.sqrt((d * d).sum(2))
+def span(
+    d: np.ndarray,
+    jacobian: np.ndarray,
+    maps: list[ActuatorMap],
+    velocity: np.ndarray | None = None,
+    rate: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Lengths x = |d| (k, c), rows of A = uᵀ ∂d/∂q (k, c, n), u = d / x, and with ḋ (k, c, 3)
+    and the rate of ∂d/∂q (k, c, 3, n) the rows of Ȧ = u̇ᵀ ∂d/∂q + uᵀ d(∂d/∂q)/dt (k, c, n),
+    u̇ = (I − u uᵀ) ḋ / x (else None), of the spans d (k, c, 3) between the two ends of c
+    cylinders with Jacobians ∂d/∂q (k, c, 3, n), by the compiled core. Zero lengths raise,
+    naming the ``maps``."""
+    length, rows, rate_rows = _core.span(d, jacobian, velocity, rate)
     if length.size and length.min() < 1e-12:
         names = [m.name for m, short in zip(maps, np.any(length < 1e-12, axis=0)) if short]
         raise SingularConfigurationError(
             f"cylinders {names} have zero length: their attachment points coincide"
         )
-    return length, d / length[..., None]
-
-
-def span_row(u: np.ndarray, jacobian: np.ndarray) -> np.ndarray:
-    """The rows of A, ∂x/∂q = uᵀ ∂d/∂q (k, c, n), from u (k, c, 3) and ∂d/∂q (k, c, 3, n)."""
-    return (u[:, :, None, :] @ jacobian)[:, :, 0]
-
-
-def span_rate_row(
-    u: np.ndarray, length: np.ndarray, velocity: np.ndarray, jacobian: np.ndarray, rate: np.ndarray
-) -> np.ndarray:
-    """The rows of Ȧ (k, c, n): u̇ᵀ ∂d/∂q + uᵀ d(∂d/∂q)/dt, u̇ = (I − u uᵀ) ḋ / x, from u, the
-    lengths x (k, c), ḋ (k, c, 3), ∂d/∂q and its rate (k, c, 3, n)."""
-    u_dot = (velocity - u * (u * velocity).sum(2)[..., None]) / length[..., None]
-    return (u_dot[:, :, None, :] @ jacobian + u[:, :, None, :] @ rate)[:, :, 0]
+    return length, rows, rate_rows
 
 
 class VectorisedMap(ActuatorMap):
@@ -303,18 +299,22 @@ class LinearCylinder(VectorisedMap):
         ]
 
     @staticmethod
-    def _geometry(maps, kinematics: Kinematics):
-        """Both ends' slots (c,), the unit vectors u (k, c, 3) and lengths x (k, c)."""
+    def _span(maps, kinematics: Kinematics, moving: bool):
+        """`span` of the maps' cylinders, from both ends' tracked motion (rates if ``moving``)."""
         base = [kinematics.slots[m.frames[0]] for m in maps]
         rod = [kinematics.slots[m.frames[1]] for m in maps]
-        positions = kinematics.positions
-        length, u = span(positions.take(rod, 1) - positions.take(base, 1), maps)
-        return base, rod, u, length
 
-    @staticmethod
-    def _relative(points: np.ndarray, base: list[int], rod: list[int]) -> np.ndarray:
-        """The rod end's quantity minus the base end's, for per-frame ``points`` (k, F, ...)."""
-        return points.take(rod, 1) - points.take(base, 1)
+        def relative(points):
+            """The rod end's quantity minus the base end's, of per-frame ``points`` (k, F, ...)."""
+            return points.take(rod, 1) - points.take(base, 1)
+
+        rates = (kinematics.velocities, kinematics.jacobian_rates) if moving else (None, None)
+        return span(
+            relative(kinematics.positions),
+            relative(kinematics.jacobians),
+            maps,
+            *(None if r is None else relative(r) for r in rates),
+        )
 
     def ends(self, kinematics: Kinematics) -> tuple[np.ndarray, np.ndarray]:
         """The base and rod points (k, 3), world, in m."""
@@ -323,19 +323,11 @@ class LinearCylinder(VectorisedMap):
 
     @classmethod
     def evaluate_group(cls, maps, kinematics):
-        base, rod, u, length = cls._geometry(maps, kinematics)
-        return length, span_row(u, cls._relative(kinematics.jacobians, base, rod))
+        return cls._span(maps, kinematics, moving=False)[:2]
 
     @classmethod
     def rate_group(cls, maps, kinematics):
-        base, rod, u, length = cls._geometry(maps, kinematics)
-        return span_rate_row(
-            u,
-            length,
-            cls._relative(kinematics.velocities, base, rod),
-            cls._relative(kinematics.jacobians, base, rod),
-            cls._relative(kinematics.jacobian_rates, base, rod),
-        )
+        return cls._span(maps, kinematics, moving=True)[2]
 
 
 class ActuatorSet:

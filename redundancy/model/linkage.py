@@ -34,14 +34,7 @@ import numpy as np
 import pinocchio as pin
 
 from redundancy.errors import RobotDescriptionError, SingularConfigurationError
-from redundancy.model.actuators import (
-    VectorisedMap,
-    attach_frame,
-    prismatic,
-    span,
-    span_rate_row,
-    span_row,
-)
+from redundancy.model.actuators import VectorisedMap, attach_frame, prismatic, span
 from redundancy.model.kinematics import WORLD, Kinematics
 from redundancy.model.parameters import Arm, Number, Point
 
@@ -172,8 +165,7 @@ class LinkageCylinder(VectorisedMap):
         loop = cls._loop(maps, kinematics)
         base, P = loop[1], loop[5]
         _, J_P, (J_b, *_) = cls._pin_jacobian(loop, kinematics.jacobians)
-        length, u = span(P - base, maps)
-        return length, span_row(u, J_P - J_b)
+        return span(P - base, J_P - J_b, maps)[:2]
 
     @classmethod
     def rate_group(cls, maps, kinematics):
@@ -199,8 +191,7 @@ class LinkageCylinder(VectorisedMap):
             axis=2,
         )
         Jd_P = np.linalg.solve(M, K_dot - M_dot @ J_P)
-        length, u = span(P - base, maps)
-        return span_rate_row(u, length, v_P - v_b, J_P - J_b, Jd_P - Jd_b)
+        return span(P - base, J_P - J_b, maps, v_P - v_b, Jd_P - Jd_b)[2]
 
     def ends(self, kinematics: Kinematics) -> tuple[np.ndarray, np.ndarray]:
         """The cylinder's base point and rod end (the pin P), each (k, 3), world, in m."""

@@ -1,8 +1,10 @@
 """`Robot`: a Pinocchio model with its tool point, task axes, actuators and joint limits.
 
-Every joint-space quantity comes from Pinocchio: the tracked frames' kinematics
+Every joint-space quantity comes from Pinocchio's C++ algorithms, looped over a batch in the
+compiled core (`redundancy._core.Pass`): the tracked frames' kinematics
 (`redundancy.model.kinematics`), the mass matrix M(q) (CRBA), the nonlinear terms
-N(q, v) = V(q, v) + G(q) (RNEA). Robots are built by
+N(q, v) = V(q, v) + G(q) (RNEA). The core holds its own copy of the model, read from
+Pinocchio's serialization of ``Robot.model`` at the first pass. Robots are built by
 `redundancy.model.loading.load_robot`.
 
 Configurations come one at a time, shape (n,), or as a batch, shape (k, n); `configuration`
@@ -17,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from redundancy._core import Pass
 from redundancy.errors import InvalidInputError
 from redundancy.model.actuators import ActuatorSet, driven_joints, prismatic
 from redundancy.model.hydraulics import Circuit
@@ -95,7 +98,6 @@ class Robot:
         self._task_rows = [AXES.index(a) for a in task_axes]
         self._task_frames = [self._tool]  # the frames the task is read from
         self._tracking: dict[tuple[int, ...], Tracking] = {}
-        self._lower_triangle = np.tril_indices(model.nv, -1)
 
     def __repr__(self) -> str:
         return f"Robot({self.name!r}, n={self.n}, m={self.m}, payload={self.payload} kg)"
@@ -165,8 +167,18 @@ class Robot:
         if key not in self._tracking:
             frames = list(dict.fromkeys([*self._task_frames, *key]))
             slots = {f: i for i, f in enumerate(frames)}
-            self._tracking[key] = Tracking(self.model, self.data, frames, slots)
+            self._tracking[key] = Tracking(Pass(self._serialized, frames), frames, slots)
         return track(self._tracking[key], q, v)
+
+    @cached_property
+    def _serialized(self) -> str:
+        """The model in Pinocchio's serialization: what the compiled passes are built from."""
+        return self.model.saveToString()
+
+    @cached_property
+    def _dynamics(self) -> Pass:
+        """The compiled pass that tracks no frame: M(q) and N(q, v)."""
+        return Pass(self._serialized, [])
 
     def tool(self, kinematics: Kinematics) -> PointMotion:
         """Motion of the tool point, all three world components."""
@@ -218,11 +230,7 @@ class Robot:
     def mass_matrices(self, q: np.ndarray) -> np.ndarray:
         """M(q) (k, n, n) for configurations q (k, n) already checked (`configuration`)."""
         self.require_masses("M(q) and the dynamics (M_H, N_H, F_H, the energy objective)")
-        out = np.empty((len(q), self.n, self.n))
-        for i, qi in enumerate(q):
-            out[i] = pin.crba(self.model, self.data, qi)  # the upper triangle is M's
-        lower, upper = self._lower_triangle
-        out[:, lower, upper] = out[:, upper, lower]
+        out = self._dynamics.mass_matrices(q)
         still = np.diagonal(out, axis1=1, axis2=2) <= 0  # a massless link is refused above
         if np.any(still):
             state = int(np.flatnonzero(still.any(axis=1))[0])
@@ -250,4 +258,4 @@ class Robot:
         """N(q, v) = V(q, v) + G(q) (Eq. 20), (k, n) in N·m or N, for states q, v (k, n) already
         checked (`configuration`)."""
         self.require_masses("N(q, v)")
-        return np.array([pin.nonLinearEffects(self.model, self.data, a, b) for a, b in zip(q, v)])
+        return self._dynamics.nonlinear(q, v)

@@ -16,7 +16,8 @@ made scale-free). ẋ then stays finite and bounded, and J_H ẋ departs from �
 integrators report as tracking error; away from singularities the laws are exact.
 
 `Resolver.resolve` serves a batch of states, `Resolver.step` one configuration in a control
-loop; both run the same code (`redundancy.resolution.linalg` keeps a stack of one lean).
+loop; both run the same compiled kernel (`redundancy._core.resolve`), to which a law passes its
+W and z.
 """
 
 from __future__ import annotations
@@ -25,9 +26,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+from redundancy import _core
 from redundancy.errors import InvalidInputError
 from redundancy.model.robot import Robot
-from redundancy.resolution.linalg import solve, solve_conditioned
 from redundancy.resolution.state import ActuatorSpace, check_invertible, evaluate, singular
 
 # The gradient-projection gain α, m²/s, tuned on the paper's segments by
@@ -36,19 +37,6 @@ from redundancy.resolution.state import ActuatorSpace, check_invertible, evaluat
 # benchmarks/results.md).
 TUNED_GAIN = 0.07
 SINGULAR_RATIO = 1e-8  # ε: G counts as near singular below σ_min / σ_max = ε (cond J_H ≈ 1e4)
-
-
-def solve_gram(G: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(G + λ² I)⁻¹ b for G = J_H W⁻¹ J_Hᵀ (k, m, m) and b (k, m, p), λ² zero unless G is near
-    singular (see the module docstring)."""
-    exact = solve_conditioned(G, b, SINGULAR_RATIO)
-    if exact is not None:
-        return exact
-    eigenvalues = np.linalg.eigvalsh(G)
-    threshold = SINGULAR_RATIO * eigenvalues[:, -1]
-    ratio = np.minimum(np.maximum(eigenvalues[:, 0] / threshold, 0.0), 1.0)
-    damping = threshold * (1 - ratio**2)
-    return np.linalg.solve(G + damping[:, None, None] * np.eye(G.shape[-1]), b)
 
 
 class Step(NamedTuple):
@@ -83,14 +71,8 @@ class Resolver:
     def resolve(self, space: ActuatorSpace, y_dot: np.ndarray) -> np.ndarray:
         """ẋ (k, n) for task velocities ẏ (k, m) at the states of ``space``:
         ẋ = J_W⁺ (ẏ − J_H z) + z, the module docstring's law."""
-        J_H = space.J_H
-        J_H_T = J_H.mT
-        W = self.weight(space)
-        W_inv_J_T = J_H_T if W is None else solve(W, J_H_T)
-        z = self.null_space(space)
-        target = y_dot if z is None else y_dot - (J_H @ z[..., None])[..., 0]
-        x_dot = (W_inv_J_T @ solve_gram(J_H @ W_inv_J_T, target[..., None]))[..., 0]
-        return x_dot if z is None else x_dot + z
+        W, z = self.weight(space), self.null_space(space)
+        return _core.resolve(space.J_H, y_dot, W, z, SINGULAR_RATIO)
 
     def resolve_at(self, space: ActuatorSpace, y_dot: np.ndarray, t: np.ndarray) -> np.ndarray:
         """`resolve` at times t (k,) in s along a segment: the integrators call this, so that a
