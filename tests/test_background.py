@@ -79,6 +79,30 @@ def _error_raised_as_itself():
     assert str(raised.value) == "value 3.5 is refused"
 
 
+PROGRESS_AT_THE_FORK = """
+from tqdm import tqdm
+from redundancy.study.background import Background
+
+def counted():
+    return sum(tqdm(range(3), disable=True))
+
+with tqdm.get_lock():  # a bar of this process holds the bars' lock as the child starts
+    print(Background(counted).result())
+"""
+
+
+def test_a_progress_bar_holding_its_lock_at_the_fork_stalls_neither_process():
+    """tqdm's lock is shared across processes: a child that took the parent's would wait for
+    ever on a lock the parent holds while it waits for the child."""
+    done = subprocess.run(
+        [sys.executable, "-c", PROGRESS_AT_THE_FORK],
+        capture_output=True,
+        text=True,
+        timeout=60,  # guards a hang only
+    )
+    assert (done.returncode, done.stdout) == (0, "3\n"), done.stderr
+
+
 def test_an_error_in_the_child_is_raised_here_as_itself():
     _in_a_new_interpreter(_error_raised_as_itself)
 

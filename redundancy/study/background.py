@@ -14,7 +14,10 @@ command succeeds, so nothing a stopped child leaves can be seen half-written.
 Where a fork would not be safe, the function runs in this process, at once: where the POSIX
 ``fork`` start method is missing, and where this process runs other threads (a notebook's
 kernel, a Dask worker), since a forked child inherits the locks those threads hold but not the
-threads that would release them.
+threads that would release them. One lock is shared on purpose, and the child leaves it: the
+progress bars' (tqdm guards its writes by a lock across processes, which a bar of this process
+may hold at the fork, or take and never give back when Ctrl-C cuts its acquisition short); the
+child takes a lock of its own, so that neither process waits for ever on the other's bars.
 """
 
 from __future__ import annotations
@@ -50,6 +53,8 @@ def _run(sender: Connection, parent: int, function: Callable[..., Any], args: tu
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides
     signal.signal(signal.SIGTERM, signal.SIG_DFL)  # `Background.stop`: end quietly, at once
     signal.pthread_sigmask(signal.SIG_UNBLOCK, STOPPING)
+    if "tqdm" in sys.modules:  # a lock of the child's own for its progress bars (see above)
+        sys.modules["tqdm"].tqdm.set_lock(threading.RLock())
     try:
         outcome: tuple[str, Any] = ("result", function(*args))
     except Exception as error:  # sent to the parent, which raises it there
