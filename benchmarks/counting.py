@@ -6,13 +6,17 @@ from dataclasses import dataclass, field
 import numpy as np
 
 import redundancy.model.robot
+from redundancy.model.kinematics import Kinematics
 
 
 @dataclass
 class Evaluations:
-    """States through the one pass (``evaluated``) and the distinct configurations among them."""
+    """States through the one pass (``evaluated``) and the distinct configurations among them;
+    ``moving``: states passed again at their joint velocities for their rates (Ȧ), counted
+    apart since the compiled pass reruns at the same q rather than derive them."""
 
     evaluated: int = 0
+    moving: int = 0
     seen: set[bytes] = field(default_factory=set)
 
     @property
@@ -27,17 +31,24 @@ class Evaluations:
 
 @contextmanager
 def counting():
-    """Count every state `Robot.kinematics` sends through the pass while the block runs."""
+    """Count every state `Robot.kinematics` sends through the pass while the block runs, and
+    every state `Kinematics.moving` passes again."""
     counts = Evaluations()
-    track = redundancy.model.robot.track
+    track, moving = redundancy.model.robot.track, Kinematics.moving
 
     def counted(tracking, q, v=None):
         counts.evaluated += len(q)
         counts.seen.update(row.tobytes() for row in np.ascontiguousarray(q))
         return track(tracking, q, v)
 
+    def counted_moving(kinematics, v):
+        counts.moving += len(v)
+        return moving(kinematics, v)
+
     redundancy.model.robot.track = counted
+    Kinematics.moving = counted_moving  # type: ignore[method-assign]
     try:
         yield counts
     finally:
         redundancy.model.robot.track = track
+        Kinematics.moving = moving  # type: ignore[method-assign]
