@@ -69,6 +69,9 @@ MAX_INTERVALS = 192  # by default, grids twice as fine follow GRIDS until the op
 CANDIDATES = 3  # starts over the reachable range the first grid is also solved from
 ITERATIONS = 400  # SLSQP iterations per grid, at most
 FUNCTION_TOLERANCE = 1e-7  # SLSQP's ftol on the scaled peak
+POLISH_TOLERANCE = 1e-10  # its ftol when polishing the peak alone: near the optimum already,
+# SLSQP then needs a few iterations to bring the peak to 1e-10 of the least (1e-7 left it 1.6e-9
+# above the improved start's own peak where that start is itself the optimum)
 LIMIT_MARGIN = 1e-6  # m: the strokes are kept this far inside their limits, so that solver
 # round-off never puts a node outside them
 SMOOTHING = 1e-4  # weight of mean ṙ² against the peak ẋᵀẋ, beside the peak against its own
@@ -420,7 +423,10 @@ def solve_transcription(
             method="SLSQP",
             bounds=bounds,
             constraints=[{"type": "ineq", "fun": problem.constraints, "jac": problem.jacobian}],
-            options={"maxiter": ITERATIONS, "ftol": FUNCTION_TOLERANCE},
+            options={
+                "maxiter": ITERATIONS,
+                "ftol": FUNCTION_TOLERANCE if tie_break else POLISH_TOLERANCE,
+            },
         )
         z, iterations = solution.x, iterations + solution.nit
     nodes = problem.evaluate(z)
