@@ -179,29 +179,29 @@ def _limits(violations: list[str]) -> str:
     return "held" if not violations else "; ".join(violations)
 
 
+def _headline(study: dict, s: dict, held: str) -> str:
+    """One segment's best start and peak under one objective, as a list item."""
+    if s["best"] is None:
+        return (
+            f"<li>{study['objective']}, segment {_e(s['name'])}: no start keeps the "
+            f"limits; closest: {_e(s['closest_violation'])}</li>"
+        )
+    gap = s["gap_percent"]
+    above = "" if gap is None else f", {_percent(gap)} % above the bound"
+    return (
+        f"<li>{study['objective']}, segment {_e(s['name'])}: improved start {held} = "
+        f"{_number(s['best']['value'])}, peak {study['measure']} "
+        f"{s['best']['peak']:.4g} {_unit(study['objective'])}{above}</li>"
+    )
+
+
 def _study_page(report: dict) -> tuple[str, str]:
     title = f"{report['robot']}: {report['task']}"
     studies = report["studies"]
     segments = [s["name"] for s in studies[0]["segments"]] if studies else []
-    held = _number(studies[0]["segments"][0]["held_actuator"]) if segments else "–"
-    held_unit = _units(report, studies[0]["segments"][0]["held_actuator"]) if segments else ""
-    lines = []
-    for study in studies:
-        unit = _unit(study["objective"])
-        for s in study["segments"]:
-            if s["best"] is None:
-                lines.append(
-                    f"<li>{study['objective']}, segment {_e(s['name'])}: no start keeps the "
-                    f"limits; closest: {_e(s['closest_violation'])}</li>"
-                )
-                continue
-            gap = s["gap_percent"]
-            above = "" if gap is None else f", {_percent(gap)} % above the bound"
-            lines.append(
-                f"<li>{study['objective']}, segment {_e(s['name'])}: improved start {held} = "
-                f"{_number(s['best']['value'])}, peak {study['measure']} "
-                f"{s['best']['peak']:.4g} {unit}{above}</li>"
-            )
+    names = studies[0]["segments"][0]["held_actuator"] if segments else None
+    held, held_unit = (_number(names), _units(report, names)) if names else ("–", "")
+    lines = [_headline(study, s, held) for study in studies for s in study["segments"]]
     summary = (
         f'<div class="summary"><p>The improved start of the held <b>{_e(held)}</b> on '
         f"segments {_e(', '.join(segments))} of the task {_e(report['task'])!r}, objectives "

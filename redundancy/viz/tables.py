@@ -142,25 +142,39 @@ def convergence(bound: Refined) -> str:
 
 def cycle_table(study: CycleStudy) -> str:
     """The cycle study: the plan, the corners, the repetitions, the price."""
-    plan, held = study.plan, study.held
-    unit, label = study.objective.unit, study.objective.label
-    units = [study.robot.actuators[h].unit for h in held]
     route = " → ".join(s.name for s in study.cycle.segments)
     lines = [
         f"work cycle {study.cycle.name!r}: {route} ({study.cycle.duration:.2f} s), "
-        f"{study.objective.name} objective, held {', '.join(held)}"
+        f"{study.objective.name} objective, held {', '.join(study.held)}",
+        *_plan_lines(study),
+        *_corner_lines(study),
+        "",
+        _repetition_table(study),
     ]
+    if study.price() is not None:
+        lines.append(_price_line(study))
+    if study.map is not None:
+        words = fixed_point_words(study.map, study.robot.actuators[study.map.held].unit)
+        lines.append(f"return map of {study.map.held} at the cycle's start: {words}")
+    lines += [f"{name}: {reason}" for name, reason in study.failures.items()]
+    return "\n".join(lines)
+
+
+def _plan_lines(study: CycleStudy) -> list[str]:
+    """The whole-cycle improved start and the per-segment plan's starts."""
+    plan, held = study.plan, study.held
+    unit, label = study.objective.unit, study.objective.label
+    units = [study.robot.actuators[h].unit for h in held]
     search = plan.search
     if search.best is None:
         closest = search.closest_violation
-        lines.append(
-            "whole-cycle improved start: none keeps every stroke over the cycle"
-            + (f"; closest: {closest}" if closest else "")
+        whole = "whole-cycle improved start: none keeps every stroke over the cycle" + (
+            f"; closest: {closest}" if closest else ""
         )
     else:
         box = search.feasible_box  # a best start is feasible: there is a box
         ranges = ", ".join(span(lo, hi, u) for (lo, hi), u in zip(box, units))  # type: ignore[arg-type]
-        lines.append(
+        whole = (
             f"whole-cycle improved start: {named_values(study.robot, held, search.best.values)} "
             f"(feasible {ranges}), peak {label} {search.best_peak:.5g} {unit} "
             f"({search.simulations} motions)"
@@ -170,15 +184,21 @@ def cycle_table(study: CycleStudy) -> str:
         for s in plan.segments
     ]
     peaks = [peak for s in plan.segments if (peak := s.best_peak) is not None]
-    lines.append(
+    per_segment = (
         f"per-segment plan: best starts {' / '.join(starts)}"
         + (f", peak {label} {max(peaks):.5g} {unit}" if peaks else "")
         + ", with a self-motion at every corner:"
     )
-    names = list(study.robot.actuators.names)
-    all_units = [study.robot.actuators[n].unit for n in names]
+    return [whole, per_segment]
+
+
+def _corner_lines(study: CycleStudy) -> list[str]:
+    """The self-motion of every corner of the per-segment plan, and the time they add."""
+    plan, actuators = study.plan, study.robot.actuators
+    names = list(actuators.names)
+    units = [actuators[n].unit for n in names]
     header = f"  {'corner':<18}" + "".join(f"{'Δ' + n:>12}" for n in names)
-    lines.append(header + f"{'time s':>9}  self-motion")
+    lines = [header + f"{'time s':>9}  self-motion"]
     state = {True: "keeps the strokes", False: "passes a stroke", None: "-"}
     for corner in plan.corners:
         delta = corner.delta
@@ -186,33 +206,30 @@ def cycle_table(study: CycleStudy) -> str:
         if delta is None:
             lines.append(row + f"  {corner.reason}")
             continue
-        row += "".join(f"{amount(d, u):>12}" for d, u in zip(delta, all_units))
+        row += "".join(f"{amount(d, u):>12}" for d, u in zip(delta, units))
         lines.append(row + f"{corner.time:>9.2f}  {corner.reason or state[corner.within_limits]}")
     if plan.gap_time is not None and plan.corners:
         lines.append(
             f"  the self-motions add {plan.gap_time:.2f} s per cycle, the held actuator at "
-            f"{plan.corners[0].speed:g} {units[0]}/s"
+            f"{plan.corners[0].speed:g} {actuators[study.held[0]].unit}/s"
         )
-    lines += ["", _repetition_table(study)]
-    price = study.price()
-    if price is not None:
-        free, periodic = study.costs["free"].figures(), study.costs["periodic"].figures()
-        parts = [
-            f"peak {label} {free['objective']:.5g} → {periodic['objective']:.5g} {unit} "
-            f"({price['objective']:+.1f} %)"
-        ]
-        for key, name in (("ls_energy_kj", "LS"), ("cp_energy_kj", "CP")):
-            if key in price:
-                parts.append(
-                    f"{name} pump energy {free[key]:.2f} → {periodic[key]:.2f} kJ "
-                    f"({price[key]:+.1f} %)"
-                )
-        lines.append("drift-free against the free improved cycle: " + "; ".join(parts))
-    if study.map is not None:
-        words = fixed_point_words(study.map, study.robot.actuators[study.map.held].unit)
-        lines.append(f"return map of {study.map.held} at the cycle's start: {words}")
-    lines += [f"{name}: {reason}" for name, reason in study.failures.items()]
-    return "\n".join(lines)
+    return lines
+
+
+def _price_line(study: CycleStudy) -> str:
+    """The drift-free strategy's peak and pump energies against the free improved cycle's."""
+    price, unit, label = study.price() or {}, study.objective.unit, study.objective.label
+    free, periodic = study.costs["free"].figures(), study.costs["periodic"].figures()
+    parts = [
+        f"peak {label} {free['objective']:.5g} → {periodic['objective']:.5g} {unit} "
+        f"({price['objective']:+.1f} %)"
+    ]
+    for key, name in (("ls_energy_kj", "LS"), ("cp_energy_kj", "CP")):
+        if key in price:
+            parts.append(
+                f"{name} pump energy {free[key]:.2f} → {periodic[key]:.2f} kJ ({price[key]:+.1f} %)"
+            )
+    return "drift-free against the free improved cycle: " + "; ".join(parts)
 
 
 def _repetition_table(study: CycleStudy) -> str:
