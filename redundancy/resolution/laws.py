@@ -32,7 +32,7 @@ from redundancy.model.robot import Robot
 from redundancy.resolution.state import ActuatorSpace, check_invertible, evaluate, singular
 
 # The gradient-projection gain α, m²/s, tuned on the paper's segments by
-# `redundancy.study.peers.tune_gradient_projection`: the least worst-case peak ẋᵀẋ among the
+# `tune_gradient_projection` of benchmarks/peers.py: the least worst-case peak ẋᵀẋ among the
 # gains that keep every stroke inside its limits from the default starts (see
 # benchmarks/results.md).
 TUNED_GAIN = 0.07
