@@ -613,6 +613,12 @@ def test_every_axis_of_the_study_figures_names_its_unit(crane):
             if hasattr(actuator, "ends"):
                 ends = np.array([p[0, [0, 2]] for p in actuator.ends(kinematics)])
                 assert any(np.allclose(d, ends, atol=1e-9) for d in drawn), (name, actuator)
+    (cloud,) = [c for c in workspace.collections if len(c.get_offsets())]
+    assert np.array_equal(cloud.get_offsets(), study.reachable[:, :2])  # the study's, as sampled
+    for segment in cycle.segments:  # the paper's task lies inside the sampled reachable area
+        path = segment.outline()
+        gaps = np.linalg.norm(path[:, None] - study.reachable[None, :, :2], axis=-1).min(axis=1)
+        assert gaps.max() < 0.1, segment.name
     optimal, other = (figures[f"fig4{k}_velocity_1-2.png"] for k in ("b_best", "c_nonoptimal"))
     assert optimal.axes[1].get_ylim() == other.axes[1].get_ylim()
     peaks = figures["fig5a_peak_energy.png"].axes[0]
@@ -621,6 +627,23 @@ def test_every_axis_of_the_study_figures_names_its_unit(crane):
     infeasible = [s.segment.name for s in study.sweeps["energy"] if not s.feasible]
     assert infeasible and all(f"segment {n}: no feasible start" in said for n in infeasible)
     assert {"every reachable start", "keeps every stroke", "feasible range"} <= set(said)
+
+
+def test_the_reachable_area_is_the_free_one_less_what_passes_a_stroke(crane):
+    """The same seeded configurations: with every stroke checked, the points are those of the
+    unchecked sample whose actuator values keep their strokes, and the crane's strokes drop some."""
+    from redundancy.resolution.state import evaluate
+    from redundancy.study.check import REACH_SAMPLES, reachable_points
+
+    free = reachable_points(crane, ())
+    kept = reachable_points(crane, tuple(crane.actuators.names))
+    assert len(free) == REACH_SAMPLES and 0 < len(kept) < len(free)
+    lower = np.where(np.isfinite(crane.lower), crane.lower, -np.pi)
+    upper = np.where(np.isfinite(crane.upper), crane.upper, np.pi)
+    q = np.random.default_rng(0).uniform(lower, upper, (REACH_SAMPLES, crane.n))
+    x = evaluate(crane, q).x
+    inside = ((x >= crane.actuators.lower) & (x <= crane.actuators.upper)).all(axis=1)
+    assert np.array_equal(kept, free[inside])
 
 
 def test_a_gauge_names_the_circuit_limit_a_cylinder_passes():

@@ -28,6 +28,7 @@ from redundancy.resolution.limits import Limits, amount
 from redundancy.resolution.state import evaluate
 
 SWEEP = 1441  # joint values per sweep: a quarter degree over a full turn
+REACH_SAMPLES = 20_000  # configurations sampled for the reachable area (the workspace figure)
 HELD_SAMPLES = 9  # held values tried for each task point, with one held actuator
 HELD_BUDGET = 81  # held value combinations tried for each task point, with several
 MISMATCH = 1e-3  # m or rad: a stroke end this far beyond the values reached is a mismatch
@@ -181,3 +182,16 @@ def check(robot: Robot, cycle: WorkCycle | None = None) -> Check:
     if cycle is not None and robot.n > robot.m:  # with no redundancy, the one blocking line
         points, reached_points = _reached(robot, cycle)
     return Check(robot, tuple(actuators), points, reached_points)
+
+
+def reachable_points(robot: Robot, checked: tuple[str, ...], seed: int = 0) -> np.ndarray:
+    """Task points y (k, m) the machine reaches with every ``checked`` stroke kept: y(q) at
+    `REACH_SAMPLES` configurations drawn uniformly over the joint ranges (an unbounded joint
+    over one turn, [−π, π]), those that leave a checked stroke dropped. A sample of the
+    reachable area, seeded so that a study draws the same one every time."""
+    lower = np.where(np.isfinite(robot.lower), robot.lower, -np.pi)
+    upper = np.where(np.isfinite(robot.upper), robot.upper, np.pi)
+    q = np.random.default_rng(seed).uniform(lower, upper, (REACH_SAMPLES, robot.n))
+    space = evaluate(robot, q)
+    kept = Limits.strokes(robot, checked).margin(space.x) >= 0
+    return space.y[kept]

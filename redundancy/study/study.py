@@ -33,6 +33,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import NamedTuple
 
+import numpy as np
+
 from redundancy.errors import InvalidInputError, UnreachableError
 from redundancy.model.hydraulics import KILOJOULE
 from redundancy.model.robot import Robot
@@ -51,7 +53,7 @@ from redundancy.planning.starts import (
 from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.resolution.laws import GradientProjection, Resolver
 from redundancy.resolution.objectives import ENERGY, VELOCITY, Objective
-from redundancy.study.check import check
+from redundancy.study.check import check, reachable_points
 from redundancy.study.cycles import CycleStudy, run_cycle, search_report
 from redundancy.study.output import write_atomically
 from redundancy.study.peers import StrategyRun, fixed_start_run
@@ -88,6 +90,8 @@ class Study:
     # LS/segment", → why it has no bound
     cycle_study: CycleStudy | None = None  # the cycle section (None: not run, see cycle_skipped)
     cycle_skipped: str | None = None  # why the study has no cycle section
+    reachable: np.ndarray | None = None  # (k, m) task points reached with the strokes kept,
+    # sampled (`reachable_points`); None where the task has no plane
 
     def search(self, objective: str, segment: str) -> SearchResult:
         return self.searches[objective][self._segment(segment)]
@@ -268,13 +272,14 @@ def run_study(
             o.name: tuple(getattr(f, field)[i] for f in found) for i, o in enumerate(objectives)
         }
 
+    kept = tuple(robot.actuators.names if checked is None else checked)
     return Study(
         robot,
         cycle,
         plan.held,
         samples,
         plan.method,
-        tuple(robot.actuators.names if checked is None else checked),
+        kept,
         circuit,
         by_objective("searches"),
         by_objective("sweeps"),
@@ -284,6 +289,7 @@ def run_study(
         failures,
         cycle_study,
         skipped,
+        reachable_points(robot, kept) if len(robot.task_axes) >= 2 else None,
     )
 
 

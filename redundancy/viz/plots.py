@@ -293,7 +293,9 @@ def study_figures(study: Study, segment: str | None = None) -> dict:
     if len(study.robot.task_axes) >= 2:  # a task along one axis has no plane to draw
         objective = study.searches[next(iter(study.searches))][0].objective
         figures["workspace.png"] = workspace_figure(
-            study, f"The task and the cylinders at each best start, min {objective.label}"
+            study,
+            "The task, the reachable area and the cylinders at each best start, "
+            f"min {objective.label}",
         )
     if study.cycle_study is not None:
         figures.update(cycle_figures(study.cycle_study))
@@ -304,15 +306,19 @@ def workspace_figure(study: Study, title: str):
     """The task in its plane (the first two task axes, m; a task has two or more): each
     segment's path in its own colour, named at its middle; at each segment's improved start for
     the study's first objective, the machine as its best motion's first state holds it: each
-    cylinder from its base to its rod point (thick, pale) and the tool point (●). Only the
-    tracked points are drawn: the state holds no link's pose, and the study maps no reachable
-    area."""
+    cylinder from its base to its rod point (thick, pale) and the tool point (●); behind them,
+    grey, the reachable area the study sampled (`Study.reachable`: task points of random
+    configurations that keep every checked stroke). Only the tracked points of the machine are
+    drawn: the state holds no link's pose."""
     plt = pyplot()
     robot = study.robot
     rows = [AXES.index(a) for a in robot.task_axes][:2]
-    figure, axes = plt.subplots(figsize=(7, 5.5))
+    figure, axes = plt.subplots(figsize=(9, 5.5))
     first = next(iter(study.searches))
     motions = study.best_motions
+    if study.reachable is not None:
+        axes.scatter(*study.reachable[:, :2].T, s=1, color="0.85", rasterized=True, zorder=0)
+        axes.plot([], [], "s", color="0.85", label="reachable, strokes kept (sampled)")
     for i, segment in enumerate(study.cycle.segments):
         colour = f"C{i}"
         path = segment.outline()[:, : len(rows)]
@@ -333,7 +339,8 @@ def workspace_figure(study: Study, title: str):
     axes.plot([], [], "o", color=grey, label="tool at the best start")
     axes.set_aspect("equal", adjustable="datalim")
     across, up = (f"world {a} (m)" for a in robot.task_axes[:2])
-    return _labelled(figure, title, (up,), across)
+    beside = {"loc": "upper left", "bbox_to_anchor": (1.02, 1), "fontsize": 8}  # off the machine
+    return _labelled(figure, title, (up,), across, beside)
 
 
 def cycle_figure(study: CycleStudy, title: str):
