@@ -613,6 +613,13 @@ def test_every_axis_of_the_study_figures_names_its_unit(crane):
             if hasattr(actuator, "ends"):
                 ends = np.array([p[0, [0, 2]] for p in actuator.ends(kinematics)])
                 assert any(np.allclose(d, ends, atol=1e-9) for d in drawn), (name, actuator)
+    for key, rods in study.best_poses.items():  # the links: a chain ending at the tool
+        tool = crane.tool(crane.kinematics(study.best_motions[key].q[0, :1])).position[0]
+        np.testing.assert_allclose(rods[-1, 1], tool, atol=1e-12)
+        np.testing.assert_allclose(rods[1:, 0], rods[:-1, 1], atol=1e-12)  # a serial crane
+        if key[0] == "velocity":
+            for a, b in rods[:, :, [0, 2]]:
+                assert any(np.allclose(d, [a, b], atol=1e-12) for d in drawn), key
     (cloud,) = [c for c in workspace.collections if len(c.get_offsets())]
     assert np.array_equal(cloud.get_offsets(), study.reachable[:, :2])  # the study's, as sampled
     for segment in cycle.segments:  # the paper's task lies inside the sampled reachable area

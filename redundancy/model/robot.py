@@ -259,3 +259,21 @@ class Robot:
         checked (`configuration`)."""
         self.require_masses("N(q, v)")
         return self._dynamics.nonlinear(q, v)
+
+    def skeleton(self, q: np.ndarray) -> np.ndarray:
+        """The machine as rods at the states q (k, n): (k, R, 2, 3) ends in m, world frame, of
+        a rod from each joint's parent joint's origin (or the world's) to its own, and one from
+        the tool's joint to the tool point. What a figure or a playback draws of the links,
+        whose poses the one pass does not track."""
+        model, data = self.model, self.data
+        pairs = [(int(model.parents[j]), j) for j in range(1, model.njoints)]
+        tool_joint = model.frames[self._tool].parentJoint
+        rods = []
+        for row in q:
+            pin.forwardKinematics(model, data, row)
+            origins = [placement.translation.copy() for placement in data.oMi]
+            tool = pin.updateFramePlacement(model, data, self._tool).translation
+            rods.append(
+                [(origins[a], origins[b]) for a, b in pairs] + [(origins[tool_joint], tool)]
+            )
+        return np.array(rods)

@@ -30,6 +30,7 @@ from __future__ import annotations
 import json
 import warnings
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import NamedTuple
 
@@ -106,6 +107,16 @@ class Study:
             for name, searches in self.searches.items()
             for search in searches
             if search.best is not None
+        }
+
+    @cached_property
+    def best_poses(self) -> dict[tuple[str, str], np.ndarray]:
+        """The machine at each improved start, by (objective, segment), as rods between its
+        joints' origins and to the tool (`Robot.skeleton`, (R, 2, 3) in m): what the workspace
+        figure draws."""
+        return {
+            key: self.robot.skeleton(motion.q[0, :1])[0]
+            for key, motion in self.best_motions.items()
         }
 
     def sweep(self, objective: str, segment: str) -> SearchResult:

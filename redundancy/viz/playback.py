@@ -45,7 +45,7 @@ import numpy as np
 from redundancy.errors import InvalidInputError, RedundancyError, RobotDescriptionError
 from redundancy.model.actuators import LinearCylinder
 from redundancy.model.linkage import LinkageCylinder
-from redundancy.model.robot import AXES, frame_id
+from redundancy.model.robot import AXES
 from redundancy.planning.integrate import Trajectory
 from redundancy.planning.tasks import WorkCycle
 from redundancy.study.cycles import CycleStudy
@@ -200,26 +200,16 @@ class Rods:
     COLOUR = 0xE8A33D
 
     def __init__(self, robot, viewer, size: float) -> None:
-        model = robot.model
-        self.model, self.data, self.viewer = model, model.createData(), viewer
-        self.pairs = [(int(model.parents[j]), j) for j in range(1, model.njoints)]
-        self.tool = frame_id(model, robot.tool_frame)
-        self.tool_joint = model.frames[self.tool].parentJoint
+        self.robot, self.viewer = robot, viewer
         mg = _meshcat().geometry
         material = mg.MeshLambertMaterial(color=self.COLOUR)
-        for i in range(len(self.pairs) + 1):
+        for i in range(robot.model.njoints):  # a rod per joint below the world, and the tool's
             viewer[f"links/rods/{i}"].set_object(mg.Cylinder(1.0, 0.01 * size), material)
 
     def display(self, q: np.ndarray) -> None:
         """Pose the rods at configuration ``q`` (n,)."""
-        import pinocchio as pin
-
-        pin.forwardKinematics(self.model, self.data, q)
-        pin.updateFramePlacements(self.model, self.data)
-        origins = [placement.translation for placement in self.data.oMi]
-        starts = [origins[parent] for parent, _ in self.pairs] + [origins[self.tool_joint]]
-        ends = [origins[child] for _, child in self.pairs] + [self.data.oMf[self.tool].translation]
-        a, b = np.array(starts), np.array(ends)
+        rods = self.robot.skeleton(q[None])[0]
+        a, b = rods[:, 0], rods[:, 1].copy()
         length = np.linalg.norm(b - a, axis=1)
         short = length < 1e-9  # a rod of no length: drawn as a point, not a degenerate frame
         b[short] = a[short] + [0.0, 0.0, 1e-9]

@@ -294,7 +294,7 @@ def study_figures(study: Study, segment: str | None = None) -> dict:
         objective = study.searches[next(iter(study.searches))][0].objective
         figures["workspace.png"] = workspace_figure(
             study,
-            "The task, the reachable area and the cylinders at each best start, "
+            "The task, the reachable area and the machine at each best start, "
             f"min {objective.label}",
         )
     if study.cycle_study is not None:
@@ -306,10 +306,10 @@ def workspace_figure(study: Study, title: str):
     """The task in its plane (the first two task axes, m; a task has two or more): each
     segment's path in its own colour, named at its middle; at each segment's improved start for
     the study's first objective, the machine as its best motion's first state holds it: each
-    cylinder from its base to its rod point (thick, pale) and the tool point (●); behind them,
+    cylinder from its base to its rod point (thick, pale), the links as rods between the joints'
+    origins (`Study.best_poses`, dark) and the tool point (●); behind them,
     grey, the reachable area the study sampled (`Study.reachable`: task points of random
-    configurations that keep every checked stroke). Only the tracked points of the machine are
-    drawn: the state holds no link's pose."""
+    configurations that keep every checked stroke)."""
     plt = pyplot()
     robot = study.robot
     rows = [AXES.index(a) for a in robot.task_axes][:2]
@@ -327,6 +327,8 @@ def workspace_figure(study: Study, title: str):
         motion = motions.get((first, segment.name))
         if motion is None or motion.space is None:
             continue
+        for a, b in study.best_poses[first, segment.name][:, :, rows]:
+            axes.plot(*np.transpose([a, b]), lw=1.5, color="0.25")
         kinematics = motion.space.kinematics
         for actuator in robot.actuators:
             if isinstance(actuator, LinearCylinder | LinkageCylinder):
@@ -337,6 +339,7 @@ def workspace_figure(study: Study, title: str):
     grey = "0.45"
     axes.plot([], [], lw=5, alpha=0.4, color=grey, label="cylinders at the best start")
     axes.plot([], [], "o", color=grey, label="tool at the best start")
+    axes.plot([], [], lw=1.5, color="0.25", label="links at the best start")
     axes.set_aspect("equal", adjustable="datalim")
     across, up = (f"world {a} (m)" for a in robot.task_axes[:2])
     beside = {"loc": "upper left", "bbox_to_anchor": (1.02, 1), "fontsize": 8}  # off the machine
