@@ -21,11 +21,24 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def environment(source: Path) -> tuple[list[str], dict[str, str]]:
+    """The interpreter's command and environment that import the package from ``source``. This
+    checkout's is installed (editable: its import hook comes before PYTHONPATH, and its
+    compiled core is built there); an earlier tree runs without the site hooks (-S), from its
+    folder ahead of the folders this environment's site hooks add (Pinocchio's among them)."""
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
+    if source == ROOT:
+        return [sys.executable], env
+    others = [p for p in filter(None, sys.path) if not ROOT.is_relative_to(p)]  # not this tree
+    env["PYTHONPATH"] = os.pathsep.join([str(source), *others])
+    return [sys.executable, "-S"], env
+
+
 def cost(source: Path, out: Path) -> tuple[float, float]:
     """(CPU seconds, wall seconds) of one `redundancy study --quiet` importing ``source``."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    command = [sys.executable, "-m", "redundancy", "study", "--quiet", "--out", str(out)]
-    env = {**os.environ, "PYTHONPATH": str(source), "OPENBLAS_NUM_THREADS": "1"}
+    python, env = environment(source)
+    command = [*python, "-m", "redundancy", "study", "--quiet", "--out", str(out)]
     wall = -time.perf_counter()
     subprocess.run(command, check=True, capture_output=True, cwd=source, env=env)
     wall += time.perf_counter()
@@ -46,6 +59,19 @@ def main() -> None:
             ["git", "archive", args.against], cwd=ROOT, check=True, capture_output=True
         ).stdout
         subprocess.run(["tar", "-x", "-C", str(earlier)], input=archive, check=True)
+        (earlier / "redundancy" / "robots").symlink_to(earlier / "robots")  # as installed
+        for source in (ROOT, earlier):  # each side imports its own package, or nothing is measured
+            python, env = environment(source)
+            where = subprocess.run(
+                [*python, "-c", "import redundancy; print(redundancy.__file__)"],
+                cwd=source,
+                env=env,
+                check=True,
+                capture_output=True,
+                text=True,
+            ).stdout
+            if not Path(where.strip()).is_relative_to(source):
+                raise SystemExit(f"{source} imports the package from {where.strip()}")
         figures: dict[str, list[tuple[float, float]]] = {"this": [], "earlier": []}
         for run in range(args.runs + 1):  # the first pair warms the caches and is not counted
             for name, source in (("this", ROOT), ("earlier", earlier)):
