@@ -116,6 +116,16 @@ def test_a_map_on_a_dask_cluster_by_address_equals_the_local_run(tmp_path, clien
     assert not (tmp_path / ".r.chunks").exists()  # the chunks go once the map is in place
 
 
+def test_the_map_figure_gives_the_held_actuators_values_their_unit(tmp_path, client):
+    """The crane's telescope is a length: its best initial values are headed in m."""
+    from redundancy.viz.map_figures import map_figure
+
+    family = read_family(write(tmp_path, "ws.toml", WORKSPACE.format(chunk=2, nx=2)))
+    assert family.held_unit == "m"
+    figure = map_figure(design_map(family, client), family, "velocity")
+    assert figure.axes[1].get_title() == f"best initial {family.held[0]} (m)"
+
+
 def test_rows_do_not_depend_on_chunks_or_workers(tmp_path, client):
     one = design_map(write(tmp_path, "a.toml", WORKSPACE.format(chunk=1, nx=2)), workers=1)
     many = design_map(write(tmp_path, "b.toml", WORKSPACE.format(chunk=4, nx=2)), client)

@@ -256,6 +256,12 @@ class MapFamily:
             digest.update(path.read_bytes())
         return digest.hexdigest()[:16]
 
+    @cached_property
+    def held_unit(self) -> str:
+        """The SI unit of the held actuators' values: m, or rad where they turn."""
+        actuators = self.robot_for(Design()).actuators
+        return " or ".join(sorted({actuators[name].unit for name in self.held}))
+
     def robot_for(self, design: Design) -> Robot:
         """The robot with ``design``'s payload, attachment and bore (loaded once per process)."""
         return _variant(

@@ -32,7 +32,7 @@ def map_figure(table, family: MapFamily, objective: str):
     axes_names = axes_of(rows, family) or ["segment"]
     x, y = axes_names[0], (axes_names[1] if len(axes_names) > 1 else None)
     held = family.held[0]
-    panels = (PANELS[0], (f"best_{held}", f"best initial {held} (m; rad if rotary)"), PANELS[1])
+    panels = (PANELS[0], (f"best_{held}", f"best initial {held} ({family.held_unit})"), PANELS[1])
     figure, panes = plt.subplots(1, 3, figsize=(15, 4.6), constrained_layout=True)
     for pane, (column, label) in zip(panes, panels):
         grid = (
