@@ -113,7 +113,7 @@ class PinkResolver(Resolver):
         space = evaluate(robot, q)
         x_dot = (space.A @ v[..., None])[..., 0]
         checked = tuple(robot.actuators.names if checked is None else checked)
-        return Trajectory.single(robot, segment, self, t, q, space.x, x_dot, space.y, checked)
+        return Trajectory.single(robot, segment, self, t, space, x_dot, checked)
 
 
 def pink_run(

@@ -537,10 +537,8 @@ def global_optimum(
         segment,  # type: ignore[arg-type]
         objective.resolver,
         problem.t,
-        nodes.space.q,
-        nodes.space.x,
+        nodes.space,
         nodes.x_dot,
-        nodes.space.y,
         limits.names,
         objective,
         nodes.measure,

@@ -81,39 +81,37 @@ DENSE = RK45.P
 
 @dataclass(frozen=True, eq=False)
 class Trajectory:
-    """k motions along one segment.
+    """k motions along one path: their sample times and the states the integrator computed
+    there.
 
-    t (k, T) sample times, s (a motion with fewer samples repeats its last); q (k, T, n) joints;
-    x, x_dot (k, T, n) actuator strokes (m) and velocities (m/s); y (k, T, m) tool; failed (k,)
-    starts frozen at a singular or non-finite state; stopped (k,) motions a search stopped past
-    their limits; checked: the actuators whose strokes count; measure (k, T) the measure of
-    ``objective`` at the samples, when integrated for one; ``sparse``: sampled at the adaptive
-    steps (see the module docstring), with the strokes' error ``allowance`` (m); ``circuit``:
-    the hydraulic circuit's limits count too (`within_limits`, `violations`). ``space``: the
-    states at the samples as the integrator evaluated them (one flat batch of k·T, motion by
-    motion, v = q̇), which every quantity along the motion is read from (`states`).
-    ``pieces``: a chain's motions as integrated, segment by segment, which `on_grid` samples
-    again.
+    t (k, T) sample times, s (a motion with fewer samples repeats its last); ``space`` the
+    states at the samples as the integrator evaluated them, one flat batch of k·T, motion by
+    motion, v = q̇: q (k, T, n) joints, x (k, T, n) actuator strokes (m) and y (k, T, m) tool
+    are read from it, and so is every quantity along the motion (`states`); x_dot (k, T, n)
+    actuator velocities (m/s); failed (k,) starts frozen at a singular or non-finite state;
+    stopped (k,) motions a search stopped past their limits; checked: the actuators whose
+    strokes count; measure (k, T) the measure of ``objective`` at the samples, when integrated
+    for one; ``sparse``: sampled at the adaptive steps (see the module docstring), with the
+    strokes' error ``allowance`` (m); ``circuit``: the hydraulic circuit's limits count too
+    (`within_limits`, `violations`). ``pieces``: a chain's motions as integrated, segment by
+    segment, which `on_grid` samples again.
     """
 
     robot: Robot = field(repr=False)
-    segment: Segment
+    segment: Segment | Chain
     resolver: Resolver
     t: np.ndarray
-    q: np.ndarray
-    x: np.ndarray
+    space: ActuatorSpace = field(repr=False)
     x_dot: np.ndarray
-    y: np.ndarray
     failed: np.ndarray
-    checked: tuple[str, ...]
     stopped: np.ndarray
+    checked: tuple[str, ...]
     objective: Objective | None = None
     measure: np.ndarray | None = None
     sparse: bool = False
     allowance: float = 0.0
     circuit: bool = False
     steps: Steps | None = field(default=None, repr=False)
-    space: ActuatorSpace | None = field(default=None, repr=False)
     pieces: tuple[Trajectory, ...] = field(default=(), repr=False)
 
     @classmethod
@@ -123,48 +121,71 @@ class Trajectory:
         segment: Segment,
         resolver: Resolver,
         t: np.ndarray,
-        q: np.ndarray,
-        x: np.ndarray,
+        space: ActuatorSpace,
         x_dot: np.ndarray,
-        y: np.ndarray,
         checked: tuple[str, ...],
         objective: Objective | None = None,
         measure: np.ndarray | None = None,
     ) -> Trajectory:
-        """One motion that ran to its end, from its samples t (T,), q, x, ẋ (T, n), y (T, m)
-        and, for ``objective``, its ``measure`` (T,)."""
-        t, q, x, x_dot, y = (a[None] for a in (t, q, x, x_dot, y))
-        measure = None if measure is None else measure[None]
+        """One motion that ran to its end, from its sample times t (T,), the states there
+        (a batch of T) and ẋ (T, n), and, for ``objective``, its ``measure`` (T,)."""
         done = np.zeros(1, dtype=bool)  # neither failed nor stopped
         return cls(
-            robot, segment, resolver, t, q, x, x_dot, y, done, checked, done, objective, measure
+            robot=robot,
+            segment=segment,
+            resolver=resolver,
+            t=t[None],
+            space=space.moving(space.joint_velocities(x_dot)),
+            x_dot=x_dot[None],
+            failed=done,
+            stopped=done,
+            checked=checked,
+            objective=objective,
+            measure=None if measure is None else measure[None],
         )
 
     def __len__(self) -> int:
-        return len(self.q)
+        return len(self.t)
+
+    @property
+    def counts(self) -> np.ndarray:
+        """How many samples each motion has (k,): the rest repeat its last."""
+        return np.array([np.searchsorted(times, times[-1]) + 1 for times in self.t])
+
+    def _motions(self, flat: np.ndarray) -> np.ndarray:
+        """Values at the k·T samples, (k·T, ...), as (k, T, ...)."""
+        return flat.reshape(*self.t.shape, *flat.shape[1:])
+
+    @property
+    def q(self) -> np.ndarray:
+        """Joints q (k, T, n), m or rad."""
+        return self._motions(self.space.q)
+
+    @property
+    def x(self) -> np.ndarray:
+        """Actuator strokes x (k, T, n), m (rad for a rotary actuator)."""
+        return self._motions(self.space.x)
+
+    @property
+    def y(self) -> np.ndarray:
+        """The tool y (k, T, m), m (and rad for the tool's angle)."""
+        return self._motions(self.space.y)
 
     def select(self, rows) -> Trajectory:
         """The motions ``rows`` (distinct indices) alone."""
         rows = np.atleast_1d(rows)
+        T = self.t.shape[1]
         return replace(
             self,
             t=self.t[rows],
-            q=self.q[rows],
-            x=self.x[rows],
+            space=self.space.take((rows[:, None] * T + np.arange(T)).ravel()),
             x_dot=self.x_dot[rows],
-            y=self.y[rows],
             failed=self.failed[rows],
             stopped=self.stopped[rows],
             measure=None if self.measure is None else self.measure[rows],
             steps=None if self.steps is None else self.steps.select(rows, len(self)),
-            space=None if self.space is None else self.space.take(self._flat(rows)),
             pieces=tuple(piece.select(rows) for piece in self.pieces),
         )
-
-    def _flat(self, rows: np.ndarray) -> np.ndarray:
-        """The indices into the flat batch of k·T states of the motions ``rows``."""
-        T = self.q.shape[1]
-        return (np.asarray(rows)[:, None] * T + np.arange(T)).ravel()
 
     def on_grid(self, time_step: float = TIME_STEP) -> Trajectory:
         """These motions sampled on the uniform grid of ``time_step`` by the dense output of the
@@ -176,22 +197,9 @@ class Trajectory:
             return chained(self.segment, pieces)  # type: ignore[arg-type]
         if self.steps is None:
             raise InvalidInputError("only adaptively integrated motions can be sampled again")
-        grid = time_grid(self.segment, time_step)
-        t, q, x, x_dot, y, measure, _, _, space = on_grid(
-            self.steps, grid, self.failed, self.stopped
-        )
-        return replace(
-            self,
-            t=t,
-            q=q,
-            x=x,
-            x_dot=x_dot,
-            y=y,
-            measure=measure,
-            sparse=False,
-            allowance=0.0,
-            space=space,
-        )
+        grid = time_grid(self.segment, time_step)  # type: ignore[arg-type]
+        samples = on_grid(self.steps, grid, self.failed, self.stopped)
+        return replace(self, sparse=False, allowance=0.0, **samples)
 
     def to_frame(self, i: int = 0) -> pd.DataFrame:
         """Motion ``i`` as a table, one row per sample: t, the joints q, per actuator x, ẋ, ẍ
@@ -233,22 +241,18 @@ class Trajectory:
 
     @cached_property
     def states(self) -> ActuatorSpace:
-        """The actuator space at every sample, with q̇ = A⁻¹ ẋ and ẍ (`x_ddot`), as one flat
-        batch of k·T: the integrator's own states, or for motions built from their samples
-        alone, one evaluation of them."""
-        k, T, n = self.q.shape
-        x_ddot = self.x_ddot.reshape(k * T, n)
-        if self.space is not None and self.space.v is not None:
-            return self.space.moving(self.space.v, x_ddot)
-        space = evaluate(self.robot, self.q.reshape(k * T, n))
-        return space.moving(space.joint_velocities(self.x_dot.reshape(k * T, n)), x_ddot)
+        """The states at every sample, with ẍ (`x_ddot`), as one flat batch of k·T."""
+        return self.space.moving(self.space.v, self._flat(self.x_ddot))  # type: ignore[arg-type]
+
+    def _flat(self, values: np.ndarray) -> np.ndarray:
+        """Values at the samples, (k, T, ...), as one flat batch (k·T, ...)."""
+        return values.reshape(-1, *values.shape[2:])
 
     def values(self, objective: Objective) -> np.ndarray:
         """``objective``'s measure at every sample (k, T)."""
         if objective is self.objective and self.measure is not None:
             return self.measure
-        k, T, n = self.q.shape
-        return objective.measure(self.states, self.x_dot.reshape(k * T, n)).reshape(k, T)
+        return self._motions(objective.measure(self.states, self._flat(self.x_dot)))
 
     def score(self, objective: Objective) -> np.ndarray:
         """``objective`` over each motion (k,): its measure's peak or integral."""
@@ -257,8 +261,7 @@ class Trajectory:
     @cached_property
     def M_H(self) -> np.ndarray:
         """M_H (k, T, n, n) along the motion, kg."""
-        k, T, n = self.q.shape
-        return self.states.M_H.reshape(k, T, n, n)
+        return self._motions(self.states.M_H)
 
     @cached_property
     def x_ddot(self) -> np.ndarray:
@@ -269,8 +272,7 @@ class Trajectory:
         if np.all(self.t == self.t[:1]):
             return rate_on_grid(self.x_dot, self.t[0])
         out = np.empty_like(self.x_dot)
-        for i, times in enumerate(self.t):
-            count = int(np.searchsorted(times, times[-1])) + 1
+        for i, (times, count) in enumerate(zip(self.t, self.counts)):
             out[i, :count] = np.gradient(self.x_dot[i, :count], times[:count], axis=0)
             out[i, count:] = out[i, count - 1]
         return out
@@ -278,7 +280,7 @@ class Trajectory:
     @cached_property
     def forces(self) -> np.ndarray:
         """Actuator forces F_H = M_H ẍ + N_H (k, T, n) (Eq. 21), N."""
-        return self.states.F_H.reshape(self.x.shape)
+        return self._motions(self.states.F_H)
 
     @cached_property
     def flows(self) -> Flows:
@@ -315,8 +317,7 @@ class Trajectory:
     @cached_property
     def kinetic(self) -> np.ndarray:
         """ẋᵀ M_H ẋ (k, T) = twice the kinetic energy (Eq. 28), J."""
-        k, T, n = self.q.shape
-        return kinetic(self.states, self.x_dot.reshape(k * T, n)).reshape(k, T)
+        return self._motions(kinetic(self.states, self._flat(self.x_dot)))
 
     @property
     def peak_velocity_norm(self) -> np.ndarray:
@@ -382,14 +383,15 @@ def chained(path: Chain, pieces: Sequence[Trajectory]) -> Trajectory:
     piece's first sample left out (it repeats the corner the one before ended at), each motion
     padded by repeating its last sample. A motion failed or stopped where any piece did."""
     firsts = np.cumsum([0, *(p.t.size for p in pieces)])
-    index = []  # each motion's samples among the pieces' flattened motion by motion
-    for i in range(len(pieces[0])):
-        parts = []
-        for number, (first, piece) in enumerate(zip(firsts, pieces)):
-            times = piece.t[i]
-            count = int(np.searchsorted(times, times[-1])) + 1
-            parts.append(first + i * times.size + np.arange(min(number, 1), count))
-        index.append(np.concatenate(parts))
+    index = [  # each motion's samples among the pieces' flattened motion by motion
+        np.concatenate(
+            [
+                first + i * p.t.shape[1] + np.arange(min(number, 1), p.counts[i])
+                for number, (first, p) in enumerate(zip(firsts, pieces))
+            ]
+        )
+        for i in range(len(pieces[0]))
+    ]
     return _gathered(
         path,
         pieces,
@@ -438,22 +440,13 @@ def _gathered(path, parts: Sequence[Trajectory], index: np.ndarray, shifts, **fi
         arrays = [getattr(p, name) for p in parts]
         return np.concatenate([a.reshape(-1, *a.shape[2:]) for a in arrays])[index]
 
-    t = np.concatenate([p.t.ravel() + shift for p, shift in zip(parts, shifts)])[index]
-    measure = gather("measure") if all(p.measure is not None for p in parts) else None
-    spaces = [p.space for p in parts]
-    space = None
-    if all(s is not None for s in spaces):
-        space = ActuatorSpace.joined(spaces).take(index.ravel())  # type: ignore[arg-type]
     return replace(
         parts[0],
         segment=path,
-        t=t,
-        q=gather("q"),
-        x=gather("x"),
+        t=np.concatenate([p.t.ravel() + shift for p, shift in zip(parts, shifts)])[index],
+        space=ActuatorSpace.joined([p.space for p in parts]).take(index.ravel()),
         x_dot=gather("x_dot"),
-        y=gather("y"),
-        measure=measure,
-        space=space,
+        measure=gather("measure") if all(p.measure is not None for p in parts) else None,
         **fields,
     )
 
@@ -514,22 +507,24 @@ def time_grid(segment: Segment, time_step: float = TIME_STEP) -> np.ndarray:
 
 
 class Rates(NamedTuple):
-    """The law at k states: q̇, ẋ (k, n); the states themselves, at v = q̇ (``space``: x, y,
+    """The law at k states: ẋ (k, n); the states themselves, at v = q̇ (``space``: q, x, y,
     A, J, ...); the objective's measure (k,) or None; bad (k,) where A is singular or the
     state not finite (there q̇ = ẋ = 0)."""
 
-    q_dot: np.ndarray
     x_dot: np.ndarray
     space: ActuatorSpace
     measure: np.ndarray | None
     bad: np.ndarray
 
+    @property
+    def q_dot(self) -> np.ndarray:
+        """q̇ = A⁻¹ ẋ (k, n) (Eq. 11): the states' own v."""
+        return self.space.v  # type: ignore[return-value]
+
     def take(self, rows: np.ndarray) -> Rates:
         """The rates of the states ``rows`` (indices or a mask) alone."""
         measure = None if self.measure is None else self.measure[rows]
-        return Rates(
-            self.q_dot[rows], self.x_dot[rows], self.space.take(rows), measure, self.bad[rows]
-        )
+        return Rates(self.x_dot[rows], self.space.take(rows), measure, self.bad[rows])
 
 
 class Law:
@@ -552,7 +547,7 @@ class Law:
         if bad.any():
             q_dot[bad], x_dot[bad] = 0.0, 0.0
         measure = None if self.objective is None else self.objective.measure(space, x_dot)
-        return Rates(q_dot, x_dot, space.moving(q_dot), measure, bad)
+        return Rates(x_dot, space.moving(q_dot), measure, bad)
 
 
 def simulate(
@@ -619,37 +614,25 @@ def simulate(
         samples, steps = _dormand_prince(
             law, starts, segment.duration, tolerance, grid, sparse, bounds
         )
-    t, q, x, x_dot, y, measure, failed, stopped, space = samples
     return Trajectory(
-        robot,
-        segment,
-        resolver,
-        t,
-        q,
-        x,
-        x_dot,
-        y,
-        failed,
-        limits.names,
-        stopped,
-        objective,
-        measure,
-        sparse,
-        allowance,
-        circuit,
-        steps,
-        space,
+        robot=robot,
+        segment=segment,
+        resolver=resolver,
+        checked=limits.names,
+        objective=objective,
+        sparse=sparse,
+        allowance=allowance,
+        circuit=circuit,
+        steps=steps,
+        **samples,
     )
 
 
 def _runge_kutta(law: Law, starts: np.ndarray, t: np.ndarray):
     """The classical Runge-Kutta method on the grid t (T,); samples at every grid time."""
-    k, n = starts.shape
-    h = t[1] - t[0]
+    k, h, q = len(starts), t[1] - t[0], starts
     failed = np.zeros(k, dtype=bool)
     records = []
-    q = np.empty((k, len(t), n))
-    q[:, 0] = starts
 
     def rates(time, state):
         result = law(np.full(k, time), state)
@@ -657,18 +640,18 @@ def _runge_kutta(law: Law, starts: np.ndarray, t: np.ndarray):
         result.q_dot[failed], result.x_dot[failed] = 0.0, 0.0  # the state's v is q̇ itself
         return result
 
-    for i, time in enumerate(t[:-1]):
-        first = rates(time, q[:, i])
+    for time in t[:-1]:
+        first = rates(time, q)
         records.append(first)
-        k2 = rates(time + h / 2, q[:, i] + h / 2 * first.q_dot).q_dot
-        k3 = rates(time + h / 2, q[:, i] + h / 2 * k2).q_dot
-        k4 = rates(time + h, q[:, i] + h * k3).q_dot
+        k2 = rates(time + h / 2, q + h / 2 * first.q_dot).q_dot
+        k3 = rates(time + h / 2, q + h / 2 * k2).q_dot
+        k4 = rates(time + h, q + h * k3).q_dot
         step = h / 6 * (first.q_dot + 2 * k2 + 2 * k3 + k4)
-        q[:, i + 1] = q[:, i] + np.where(failed[:, None], 0.0, step)
-    records.append(rates(t[-1], q[:, -1]))
+        q = q + np.where(failed[:, None], 0.0, step)
+    records.append(rates(t[-1], q))
     rows = np.repeat(np.arange(k)[None], len(t), axis=0).ravel()
     times = np.repeat(t, k)
-    evaluated = [(rows, times, q.transpose(1, 0, 2).reshape(-1, n), joined(records))]
+    evaluated = [(rows, times, joined(records))]
     return _assemble(k, evaluated, failed.copy(), np.zeros(k, dtype=bool), t)
 
 
@@ -687,7 +670,7 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
     first = law(np.zeros(k), starts)
     t, q, f, failed = np.zeros(k), starts.copy(), first.q_dot.copy(), first.bad.copy()
     past, stopped = np.zeros(k, dtype=bool), np.zeros(k, dtype=bool)
-    evaluated = [(np.arange(k), np.zeros(k), starts, first)]  # samples whose rates are known
+    evaluated = [(np.arange(k), np.zeros(k), first)]  # samples whose rates are known
     # the accepted steps: rows, t0, h, q0 and the stage slopes (p, 7, n)
     accepted = [(np.zeros(0, int), np.zeros(0), np.zeros(0), np.zeros((0, n)), np.zeros((0, 7, n)))]
     scale = tolerance * (1 + np.abs(q))
@@ -713,7 +696,7 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
         t0, h0, q0, q1 = t[done], step[accept, 0], q[done], q_new[accept]
         accepted.append((done, t0, h0, q0, kept.transpose(1, 0, 2)))
         if sparse:
-            evaluated.append((done, t0 + h0, q1, end.take(accept)))
+            evaluated.append((done, t0 + h0, end.take(accept)))
         t[done], q[done], f[done] = t0 + h0, q1, kept[-1]
         growth = np.clip(0.9 * np.maximum(error, 1e-10) ** -0.2, 0.2, 10.0)
         h[rows] = step[:, 0] * np.where(accept, growth, np.minimum(growth, 1.0))
@@ -726,7 +709,7 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
     if not sparse:
         return on_grid(steps, grid, failed, stopped), steps
     rows, times, configurations = steps.midpoints()
-    evaluated.append((rows, times, configurations, law(times, configurations)))
+    evaluated.append((rows, times, law(times, configurations)))
     return _assemble(k, evaluated, failed, stopped, None), steps
 
 
@@ -809,14 +792,13 @@ def on_grid(steps: Steps, grid: np.ndarray, failed, stopped):
     start = steps.start
     k = len(start.bad)
     rows, times, q = steps.dense(grid)
-    evaluated = [(np.arange(k), np.zeros(k), start.space.q, start)]
-    return _assemble(k, [*evaluated, (rows, times, q, steps.law(times, q))], failed, stopped, grid)
+    evaluated = [(np.arange(k), np.zeros(k), start), (rows, times, steps.law(times, q))]
+    return _assemble(k, evaluated, failed, stopped, grid)
 
 
 def joined(parts: list[Rates]) -> Rates:
     """The rates of several batches as one, in order."""
     return Rates(
-        np.concatenate([part.q_dot for part in parts]),
         np.concatenate([part.x_dot for part in parts]),
         ActuatorSpace.joined([part.space for part in parts]),
         join([part.measure for part in parts]),
@@ -824,10 +806,11 @@ def joined(parts: list[Rates]) -> Rates:
     )
 
 
-def _assemble(k, evaluated, failed, stopped, grid):
-    """Samples (rows, times, q, rates) of k motions, in time order per motion, padded by
-    repeating each motion's last sample; on a ``grid``, a motion frozen early stays at rest over
-    the grid's remaining times. The states come as one flat batch of k·T, motion by motion."""
+def _assemble(k, evaluated, failed, stopped, grid) -> dict:
+    """The `Trajectory` fields of the samples (rows, times, rates) of k motions, in time order
+    per motion, padded by repeating each motion's last sample; on a ``grid``, a motion frozen
+    early stays at rest over the grid's remaining times. The states come as one flat batch of
+    k·T, motion by motion."""
     rows = np.concatenate([part[0] for part in evaluated])
     times = np.concatenate([part[1] for part in evaluated])
     order = np.lexsort((times, rows))
@@ -837,16 +820,14 @@ def _assemble(k, evaluated, failed, stopped, grid):
     index = order[start[:, None] + np.minimum(np.arange(length)[None], counts[:, None] - 1)]
     padded = np.arange(length)[None] >= counts[:, None]
 
-    rates = joined([part[3] for part in evaluated]).take(index.ravel())
-    q = np.concatenate([part[2] for part in evaluated])[index]
+    rates = joined([part[2] for part in evaluated]).take(index.ravel())
     x_dot, measure, space = rates.x_dot.reshape(k, length, -1), rates.measure, rates.space
     t = times[index]
     if grid is not None:
         t = np.broadcast_to(grid, (k, length)).copy()
         x_dot[padded] = 0.0
-        space = space.moving(np.where(padded.reshape(-1, 1), 0.0, space.v))
+        space = space.moving(np.where(padded.reshape(-1, 1), 0.0, rates.q_dot))
         if measure is not None:
             measure[padded.ravel()] = 0.0
     measure = None if measure is None else measure.reshape(k, length)
-    x, y = (array.reshape(k, length, -1) for array in (space.x, space.y))
-    return t, q, x, x_dot, y, measure, failed, stopped, space
+    return dict(t=t, space=space, x_dot=x_dot, failed=failed, stopped=stopped, measure=measure)

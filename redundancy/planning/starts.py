@@ -38,7 +38,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from functools import cached_property
+from functools import cached_property, partial
 
 import numpy as np
 
@@ -466,9 +466,15 @@ def improved_starts(
     objectives = tuple(as_objective(o) for o in objectives)
     held = held_names(robot, held)
     method = search_method(held, samples, method)
+
+    def run(objective, starts, stop_past=False):
+        return evaluate_starts(
+            robot, segment, objective, held, starts, checked, TOLERANCE, stop_past, method, circuit
+        )
+
     if len(held) > 1:
         return tuple(
-            _compass(robot, segment, objective, held, samples, checked, circuit)
+            _compass(robot, segment, held, samples, partial(run, objective))
             for objective in objectives
         )
     if method == "fast":
@@ -477,30 +483,13 @@ def improved_starts(
     configurations = Configurations(robot, segment, held[0])
     if method == "fast":
         return tuple(
-            fast_search(
-                configurations,
-                tolerance,
-                lambda starts, stop_past, objective=objective: evaluate_starts(
-                    robot,
-                    segment,
-                    objective,
-                    held,
-                    starts,
-                    checked,
-                    stop_past=stop_past,
-                    method="fast",
-                    circuit=circuit,
-                ),
-            )
+            fast_search(configurations, tolerance, partial(run, objective))
             for objective in objectives
         )
     # one sample is the default start: mid-stroke, or the reachable value nearest it
     values = default_start(robot, segment, held)[0] if samples == 1 else None
     starts = configurations.at(sweep_values(robot, held[0], samples) if values is None else values)
-    return tuple(
-        evaluate_starts(robot, segment, objective, held, starts, checked, circuit=circuit)
-        for objective in objectives
-    )
+    return tuple(run(objective, starts) for objective in objectives)
 
 
 def search_method(held: tuple[str, ...], samples: int, method: str | None) -> str:
@@ -575,16 +564,13 @@ def _merged(first: Starts, second: Starts) -> Starts:
     )
 
 
-def _compass(robot, segment, objective, held, samples, checked, circuit) -> SearchResult:
-    """Halton points over the stroke box, then compass-search refinement (r > 1)."""
+def _compass(robot, segment, held, samples, run) -> SearchResult:
+    """Halton points over the stroke box, then compass-search refinement (r > 1), the held
+    values (k, r) of each batch integrated by ``run``."""
     from scipy.stats import qmc
 
     box = stroke_box(robot, held)
     lower, span = box[:, 0], box[:, 1] - box[:, 0]
-
-    def run(values):
-        return evaluate_starts(robot, segment, objective, held, values, checked, circuit=circuit)
-
     if samples == 1:  # one sample is the default start, as with one held actuator
         result = run(default_start(robot, segment, held)[0][None])
     else:

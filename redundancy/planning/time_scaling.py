@@ -82,7 +82,7 @@ def shortest_duration(motion: Trajectory, row: int = 0, samples: int = SAMPLES) 
     robot = motion.robot
     circuit = robot.circuit()
     t = motion.t[row]
-    last = int(np.searchsorted(t, t[-1])) + 1  # a motion repeats its last sample to pad
+    last = int(motion.counts[row])  # a motion repeats its last sample to pad
     chosen = np.unique(np.linspace(0, last - 1, min(samples, last)).round().astype(int))
     x = motion.x[row, chosen]
     s = t[chosen] / t[last - 1]
