@@ -5,17 +5,21 @@ speed touches both alike.
 
 Run: python benchmarks/study_cost.py --against f72f75b [--runs 5]
 The earlier commit is taken with `git archive` into a temporary folder and imported from there,
-with this environment's packages. Medians and the ratio this / earlier are printed, never asserted.
+with this environment's packages; where it has a compiled core, that core is built from its own
+sources (a minute or two), or copied from this environment's where the sources are the same.
+Medians and the ratio this / earlier are printed, never asserted.
 """
 
 import argparse
 import os
 import resource
+import shutil
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
+from functools import partial
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -32,6 +36,33 @@ def environment(source: Path) -> tuple[list[str], dict[str, str]]:
     others = [p for p in filter(None, sys.path) if not ROOT.is_relative_to(p)]  # not this tree
     env["PYTHONPATH"] = os.pathsep.join([str(source), *others])
     return [sys.executable, "-S"], env
+
+
+def compiled_core(earlier: Path, scratch: Path) -> None:
+    """Put the earlier tree's compiled core, `redundancy._core`, beside its package: this
+    environment's build where its C++ sources and CMake file are this checkout's, else a build
+    of its own sources with CMake against this environment's Pinocchio, Eigen and pybind11."""
+    sources = ["CMakeLists.txt", *(f"src/{p.name}" for p in sorted((earlier / "src").glob("*")))]
+    if not (earlier / "CMakeLists.txt").exists():
+        return  # a tree from before the compiled core
+    import redundancy._core as core
+
+    if all(
+        (ROOT / name).exists() and (ROOT / name).read_bytes() == (earlier / name).read_bytes()
+        for name in sources
+    ):
+        shutil.copy(core.__file__, earlier / "redundancy")
+        return
+    build = scratch / "build"
+    pybind11 = subprocess.run(
+        [sys.executable, "-m", "pybind11", "--cmakedir"], check=True, capture_output=True, text=True
+    ).stdout.strip()
+    configure = [f"-DPython_EXECUTABLE={sys.executable}", f"-Dpybind11_DIR={pybind11}"]
+    run = partial(subprocess.run, check=True, capture_output=True)
+    run(["cmake", "-S", str(earlier), "-B", str(build), "-DCMAKE_BUILD_TYPE=Release", *configure])
+    run(["cmake", "--build", str(build), "-j", str(os.cpu_count())])
+    for built in build.glob("_core*.so"):
+        shutil.copy(built, earlier / "redundancy")
 
 
 def cost(source: Path, out: Path) -> tuple[float, float]:
@@ -60,6 +91,7 @@ def main() -> None:
         ).stdout
         subprocess.run(["tar", "-x", "-C", str(earlier)], input=archive, check=True)
         (earlier / "redundancy" / "robots").symlink_to(earlier / "robots")  # as installed
+        compiled_core(earlier, Path(scratch))
         for source in (ROOT, earlier):  # each side imports its own package, or nothing is measured
             python, env = environment(source)
             where = subprocess.run(
