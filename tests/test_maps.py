@@ -615,7 +615,10 @@ def test_a_scheduler_lost_mid_map_ends_in_one_line_and_keeps_the_finished_chunks
 def test_ctrl_c_to_a_local_maps_process_group_ends_in_one_line(tmp_path):
     """A Ctrl-C at a terminal reaches the command and its local workers alike: the command
     alone answers, in one line, and closes them."""
-    family = write(tmp_path, "ws.toml", WORKSPACE.format(chunk=1, nx=8))
+    # 120 one-problem chunks: the map is still running when its first chunk is seen, however
+    # slowly this test is scheduled (a finished map removes its store, and the signal would
+    # then reach a command that already succeeded)
+    family = write(tmp_path, "ws.toml", WORKSPACE.format(chunk=1, nx=40))
     store = tmp_path / ".out.chunks"
     command = ["map", str(family), "--workers", "2", "--out", str(tmp_path / "out"), "--quiet"]
     process = subprocess.Popen(
@@ -626,6 +629,7 @@ def test_ctrl_c_to_a_local_maps_process_group_ends_in_one_line(tmp_path):
     )
     deadline = time.monotonic() + 120  # guards a hang only
     while not list(store.glob("chunk-*.parquet")) and time.monotonic() < deadline:
+        assert process.poll() is None, "the map ended before its first chunk was seen"
         time.sleep(0.05)
     os.killpg(process.pid, signal.SIGINT)
     _, stderr = process.communicate(timeout=60)
