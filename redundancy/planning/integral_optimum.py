@@ -49,7 +49,7 @@ reads them at rest here for the same reason. The optimum converges as the grid i
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.interpolate import CubicSpline, RegularGridInterpolator
@@ -165,18 +165,16 @@ class Tables:
         actuators = robot.actuators
         count = EXACT if len(rows) == 1 else EXACT_EACH
         self.axes = [np.linspace(actuators.lower[r], actuators.upper[r], count) for r in rows]
-        self.values = np.stack(np.meshgrid(*self.axes, indexing="ij"), -1).reshape(-1, len(rows))
-        q, found = _nodes(robot, segment, rows, self.values, t)
+        values = np.stack(np.meshgrid(*self.axes, indexing="ij"), -1).reshape(-1, len(rows))
+        q, found = _nodes(robot, segment, rows, values, t)
         flat = q.reshape(-1, robot.n)
         space, bad = regularised(evaluate(robot, flat))
         usable = found.ravel() & ~bad & (Limits.joints(robot).margin(flat) >= -TOLERANCE)
         forces = np.where(usable[:, None], space.N_H, 0.0)  # A⁻ᵀ G at rest
-        shape = (len(t), len(self.values), robot.n)
-        self.x, self.forces = space.x.reshape(shape), forces.reshape(shape)
-        self.usable = usable.reshape(shape[:2])
+        self.usable = usable.reshape(len(t), len(values))
         self.strokes, self.n = strokes, robot.n
         self.robot, self.rows, self.points = robot, rows, segment.position(t)
-        tables = np.concatenate([self.x, self.forces, q], axis=2)
+        tables = np.concatenate([space.x, forces, flat], axis=1).reshape(len(t), len(values), -1)
         if len(rows) == 1:  # an interval is used only where both its ends are usable, see `at`
             self.interpolants = [
                 _spline(self.axes[0], table, ok) for table, ok in zip(tables, self.usable)
@@ -218,7 +216,7 @@ class Tables:
         )
         space, bad = regularised(evaluate(robot, flat))
         found = (miss < FOUND) & ~bad & (self.strokes.margin(space.x) >= -TOLERANCE)
-        return space.moving(None, np.zeros_like(space.x)), found.reshape(nodes, count)
+        return replace(space, x_ddot=np.zeros_like(space.x)), found.reshape(nodes, count)
 
 
 def _spline(axis: np.ndarray, table: np.ndarray, usable: np.ndarray):
