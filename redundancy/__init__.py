@@ -59,8 +59,13 @@ if TYPE_CHECKING:
         repeat,
         return_map,
     )
-    from redundancy.planning.energy_bound import EnergyOptimum, energy_optimum
     from redundancy.planning.ik import configuration_at, inverse_kinematics
+    from redundancy.planning.integral_optimum import (
+        EnergyOptimum,
+        IntegralOptimum,
+        energy_optimum,
+        integral_optimum,
+    )
     from redundancy.planning.integrate import Trajectory, simulate
     from redundancy.planning.motions import simulate_path
     from redundancy.planning.starts import (

@@ -44,10 +44,13 @@ SHARED = {
     ("test_global_optimum.py", "bundled_optima"): "bundled robots' optima",
     ("test_output.py", "earlier"): "earlier output",
     ("test_maps.py", "client"): "dask client",
+    ("test_integral_optimum.py", "plain"): "4R integral optima",
+    ("test_integral_optimum.py", "steered"): "4R integral optima",
 }
 # Units that take longest go first (CPU seconds in a 2-worker run, 2026-11-23), so that no
 # worker is left with a long one at the end.
 LONGEST_FIRST = [
+    "4R integral optima",  # 60
     "dask client",  # 13
     "hydraulic baselines and bounds",  # 22
     "tests/test_readme.py::test_a_readme_block_runs_and_prints_what_it_promises[block2]",  # 16

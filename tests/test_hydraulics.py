@@ -20,7 +20,7 @@ from redundancy.errors import (
     UnreachableError,
 )
 from redundancy.model.hydraulics import BAR, LITRES_PER_MINUTE, circuit_from_table
-from redundancy.planning.energy_bound import EXACT, Tables, _nodes, energy_optimum
+from redundancy.planning.integral_optimum import EXACT, Tables, _nodes, energy_optimum
 from redundancy.planning.integrate import MIN_INTERVALS, simulate
 from redundancy.planning.starts import default_start, improved_start
 from redundancy.planning.tasks import Segment, WorkCycle
@@ -222,10 +222,10 @@ def test_splines_between_solved_strokes_match_exact_configurations(crane, cycle)
     mostly below 1e-6 m."""
     segment = cycle["3-1"]
     t = np.linspace(0.0, segment.duration, 6)
-    tables = Tables(crane, segment, 2, Limits.strokes(crane), t)
-    middles = (tables.values[1:] + tables.values[:-1]) / 2
-    q, found = _nodes(crane, segment, 2, middles, t)
-    x, _, usable = tables.at(np.tile(middles, (len(t), 1)))
+    tables = Tables(crane, segment, [2], Limits.strokes(crane), t)
+    middles = (tables.axes[0][1:] + tables.axes[0][:-1]) / 2
+    q, found = _nodes(crane, segment, [2], middles[:, None], t)
+    x, _, _, usable = tables.at(np.tile(middles[:, None], (len(t), 1, 1)))
     exact = actuator_space(crane, q.reshape(-1, crane.n)).x.reshape(x.shape)
     both = found & usable
     assert both.sum() > EXACT

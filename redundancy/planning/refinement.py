@@ -1,7 +1,7 @@
 """Convergence under refinement: an optimum solved on ever finer grids has converged when the
 last refinement moved it by less than `CONVERGED` (relative) and the finest grid's solve
 succeeded. The bound (`redundancy.planning.bound`), the periodic optimum
-(`redundancy.planning.cycles`) and the energy bound (`redundancy.planning.energy_bound`) are
+(`redundancy.planning.cycles`) and the energy bound (`redundancy.planning.integral_optimum`) are
 judged by this one rule.
 """
 

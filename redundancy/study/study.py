@@ -17,7 +17,7 @@ For each segment the comparison holds, with both peaks and whether every limit h
 - the improved method for each objective;
 - with a hydraulic circuit, each motion's peak pump flow, highest load pressure and pump energy
   under load sensing and constant pressure, and, when asked for, how far each lies above the
-  energy bound of each supply (`redundancy.planning.energy_bound`).
+  energy bound of each supply (`redundancy.planning.integral_optimum`).
 
 Where the task is one continuous closed cycle, the study's cycle section runs it as a machine
 does, for the first objective (`redundancy.study.cycles`): the improved start over the whole
@@ -40,8 +40,8 @@ from redundancy.errors import InvalidInputError, UnreachableError
 from redundancy.model.hydraulics import KILOJOULE
 from redundancy.model.robot import Robot
 from redundancy.planning.bound import GlobalOptimum, global_optimum
-from redundancy.planning.energy_bound import EnergyOptimum, energy_optimum
 from redundancy.planning.ik import check_path
+from redundancy.planning.integral_optimum import EnergyOptimum, energy_optimum
 from redundancy.planning.integrate import Trajectory
 from redundancy.planning.starts import (
     METHODS,
@@ -193,7 +193,7 @@ class Study:
                     "change": bound.change,
                     "converged": bound.converged,
                     "grids": [g.intervals for g in bound.grids],
-                    "start": float(bound.r[0]),
+                    "start": scalar_or_list(np.atleast_1d(bound.r[0])),
                 }
                 for supply, bound in bounds.items()
             }
@@ -251,8 +251,8 @@ def run_study(
     (`held_actuators`). ``method`` chooses the improved start: "fast" (the default with one
     held actuator) or "sweep" (``samples`` starts; always with several). The bound is computed
     with one held actuator, where a start is feasible, unless ``bound`` is False. With
-    ``energy_bound`` (one held actuator and a hydraulic circuit), each segment's energy bound
-    under load sensing and constant pressure is computed too. With ``circuit`` the hydraulic
+    ``energy_bound`` (one or two held actuators and a hydraulic circuit), each segment's energy
+    bound under load sensing and constant pressure is computed too. With ``circuit`` the hydraulic
     circuit's limits count wherever strokes do (the searches' feasibility, every run's limits);
     the min-max bound still keeps the strokes alone, so it stays a bound. With ``cycles`` > 0
     and a continuous closed task, the cycle section repeats the cycle that many times for the
@@ -343,14 +343,14 @@ class _Plan:
         return [(n, r) for n, r in BASELINES if not (kinematic and r is ENERGY.resolver)]
 
     def refuse_before_work(self, cycle: WorkCycle, energy_bound: bool) -> None:
-        """A missing circuit, an energy bound on several held actuators, or a path out of reach
-        is refused before any simulation; a singular actuator is warned of (J_H = J A⁻¹ is
-        undefined there: motions through it fail, and say so)."""
+        """A missing circuit, an energy bound on more than two held actuators, or a path out of
+        reach is refused before any simulation; a singular actuator is warned of (J_H = J A⁻¹
+        is undefined there: motions through it fail, and say so)."""
         if energy_bound or self.circuit:
             self.robot.circuit()  # says how to declare one
-        if energy_bound and len(self.held) != 1:
+        if energy_bound and len(self.held) > 2:
             raise InvalidInputError(
-                f"the energy bound holds one actuator; the task holds {self.held}"
+                f"the energy bound holds one or two actuators; the task holds {self.held}"
             )
         for segment in cycle.segments:
             check_path(self.robot, segment)
@@ -417,7 +417,7 @@ class _Plan:
         for supply in (machine.load_sensing, machine.constant_pressure):
             try:
                 found[supply.name] = energy_optimum(
-                    self.robot, segment, supply, self.held[0], self.checked
+                    self.robot, segment, supply, self.held, self.checked
                 )
             except (InvalidInputError, UnreachableError) as error:
                 failures[f"energy bound {supply.name}/{segment.name}"] = str(error)

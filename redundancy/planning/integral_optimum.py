@@ -1,0 +1,438 @@
+"""The global optimum of an integral objective: the motion along a segment that minimises
+∫ c dt over every history of the held actuators, every stroke and every limit kept, by dynamic
+programming over a grid of the held values. The energy bound is this optimum with the pump
+energy ∫ p_P Q_P dt as c, as Nurmi & Mattila (Energies 10(5) 647, 2017) computed it for a
+forestry crane; any objective with an integral measure (`redundancy.resolution.objectives`),
+one of your own included, is another stage cost of the same recursion, as in the redundancy
+resolution by dynamic programming of Ferrentino et al. (Robotics 10(1) 42, 2021).
+
+- nodes t_j = j h, h = t_f / N; at each, the configurations q(r) that solve y(q) = y_d(t_j),
+  x_h(q) = r (Eqs. 6, 10) are found by Newton's method (continued from node to node, seeded
+  afresh where that misses) at `EXACT` held values over the stroke of one held actuator
+  (r = 1), or at `EXACT_EACH` × `EXACT_EACH` over the strokes of two (r = 2), so the task is
+  tracked exactly there; between them x(r), the forces at rest and q(r) are cubic splines in
+  r (r = 1; their error, below 5e-5 m and largest at the ends of the stroke, is measured in
+  tests/test_hydraulics.py) or bilinear in (r₁, r₂) (r = 2). A held value whose neighbours
+  miss the task or leave the joint ranges, or that puts a checked stroke past its limit, is
+  excluded. For an objective's measure, each pass's states are solved again exactly, by Newton's
+  method from the interpolated configurations;
+- a transition from r at t_j to r' at t_j+1 moves every actuator at ẋ = (x_j+1(r') − x_j(r))/h
+  (so J_H ẋ = ẏ_d to first order, Eq. 16). Its cost is the objective's measure c at both
+  nodes' states with that ẋ, by the trapezoidal rule, h (c_j + c_j+1)/2, or for the energy
+  bound h p_P Q_P from the circuit's meter-in model (`redundancy.model.hydraulics`) against the
+  mean of both nodes' forces F_H at rest, A⁻ᵀ G (Eq. 23 without velocity terms), excluded where
+  a load pressure, the pump flow or a cylinder speed passes its limit;
+- actuator speed limits |ẋ| ≤ ẋ_max exclude transitions; an acceleration limit |ẍ| ≤ ẍ_max is
+  checked against the best path into each node (|ẋ' − ẋ| / h), since the recursion's state is
+  the node alone: the path kept always keeps it, and where it binds the optimum is the least
+  over the histories the recursion keeps, no longer over every history;
+- the least cost to each node is the least over its predecessors; start and end are free. The
+  first pass spans the strokes with `SPANNING` values per held actuator (`SPANNING_EACH` for
+  r = 2); each later one spans a band `NARROWING` times as wide around the last path with
+  `VALUES` (`VALUES_EACH`) values (iterative dynamic programming), so the held values end up
+  resolved to a fraction of a millimetre at a cost of G² N per pass.
+
+Why dynamic programming and not the direct transcription of `redundancy.planning.bound`: the
+load-sensing pump pressure is a maximum over the moving cylinders and the overrunning clamp
+is a kink, so the cost is not differentiable where the optimum tends to lie, and the circuit's
+limits cut the feasible set into pieces. The problem is not convex; dynamic programming finds
+the least cost over its grid globally, whatever its shape.
+
+The energy bound's forces leave out inertia and velocity terms (M_H ẍ and the Coriolis part of
+N_H): they would make the stage cost depend on three nodes. On the paper's crane they change
+the pump energy of the strategies by well under 1 % (tests/test_hydraulics.py measures it); the
+strategies' energies are computed with them. A measure that reads the forces (``dynamic``)
+reads them at rest here for the same reason. The optimum converges as the grid is refined:
+`IntegralOptimum.change` is the relative change of the optimum from the previous grid.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.interpolate import CubicSpline, RegularGridInterpolator
+
+from redundancy.errors import InvalidInputError
+from redundancy.model.hydraulics import Supply
+from redundancy.model.robot import Robot
+from redundancy.planning.ik import (
+    CONTINUATION_ITERATIONS,
+    FOUND,
+    ITERATIONS,
+    held_indices,
+    inverse_kinematics,
+    newton,
+)
+from redundancy.planning.refinement import Refined, checked_grids
+from redundancy.planning.tasks import Segment
+from redundancy.resolution.limits import TOLERANCE, Limits, hydraulic_values
+from redundancy.resolution.objectives import Objective
+from redundancy.resolution.objectives import objective as named
+from redundancy.resolution.state import ActuatorSpace, evaluate, regularised
+
+GRIDS = (50, 100)  # intervals N of the successive grids
+EXACT = 81  # held values per node where the configuration is solved for, over the stroke
+SPANNING = 161  # held values per node of the first pass, over the whole stroke
+VALUES = 121  # held values per node of every later pass, over a narrowing band
+EXACT_EACH, SPANNING_EACH, VALUES_EACH = 31, 21, 15  # the same per held actuator, for r = 2
+PASSES = 10  # passes per grid, each on a narrower band around the last pass's path
+NARROWING = 0.35  # each band's half-width is this fraction of the one before
+
+# a stage cost: (node j, step h, the transitions allowed (G, G)) → the cost (G, G) of every
+# transition from t_j to t_j+1 (those not allowed are excluded whatever their cost)
+Stage = Callable[[int, float, np.ndarray], np.ndarray]
+
+
+@dataclass(frozen=True)
+class OptimumGrid:
+    """The least cost on one grid of ``intervals`` × ``values``."""
+
+    intervals: int
+    values: int
+    optimum: float
+    success = True  # dynamic programming has no solver to fail: a grid without a path raises
+
+
+@dataclass(frozen=True)
+class IntegralOptimum(Refined):
+    """The motion of least ∫ c dt on the finest grid: node times t (N + 1,) s and the held
+    values r at them, (N + 1,) for one held actuator, (N + 1, r) for several, every actuator's
+    x (N + 1, n) (m, or rad for a rotary actuator) and the configurations q (N + 1, n) there,
+    and every grid's least cost. ``objective`` names the measure c: the energy bound's is the
+    pump energy under ``supply``, its optimum in J; an objective's optimum is in its measure's
+    unit times s."""
+
+    segment: Segment
+    objective: str
+    held: str | tuple[str, ...]
+    t: np.ndarray
+    r: np.ndarray
+    x: np.ndarray
+    q: np.ndarray
+    grids: tuple[OptimumGrid, ...]
+    supply: Supply | None = None
+
+    @property
+    def energy(self) -> float:
+        """The least pump energy on the finest grid, J (the energy bound)."""
+        return self.optimum
+
+
+EnergyOptimum = IntegralOptimum  # the energy bound's result, by its earlier name
+
+
+def _nodes(robot: Robot, segment: Segment, rows: list[int], values: np.ndarray, t: np.ndarray):
+    """Configurations q (N + 1, G, n) inside the joint ranges reaching y_d(t_j) with the held
+    actuators ``rows`` at each of ``values`` (G, r), and where they were found (N + 1, G):
+    projected Newton steps (`newton`, bounded) from the previous node's configuration, or from
+    `inverse_kinematics`'s spread of seeds where none was found, then, where that misses, from
+    the configuration found at the nearest held values of the same node. Keeping to the joint
+    ranges keeps to one assembly branch: a cylinder's length is the same at q and −q."""
+    held = [robot.actuators.names[row] for row in rows]
+    points = segment.position(t)
+    q = np.empty((len(t), len(values), robot.n))
+    found = np.zeros((len(t), len(values)), dtype=bool)
+    target = np.column_stack([np.empty((len(values), robot.m)), values])
+    for j, point in enumerate(points):
+        target[:, : robot.m] = point
+        if j:
+            q[j], residual, _ = newton(robot, q[j - 1], rows, target, ITERATIONS, bounded=True)
+            found[j] = residual < FOUND
+        if not found[j].any():
+            seeded = inverse_kinematics(robot, point, held, values)
+            q[j], found[j] = seeded.q, seeded.reached
+        missing = np.flatnonzero(~found[j])
+        if missing.size and found[j].any():
+            known = np.flatnonzero(found[j])
+            apart = np.linalg.norm(values[missing, None] - values[known], axis=2)
+            nearest = known[np.argmin(apart, axis=1)]
+            q[j, missing], residual, _ = newton(
+                robot, q[j, nearest], rows, target[missing], ITERATIONS, bounded=True
+            )
+            found[j, missing] = residual < FOUND
+    return q, found
+
+
+class Tables:
+    """Strokes x, forces F_H at rest (A⁻ᵀ G) and configurations q as functions of the held
+    values r at every node: exact at the solved values (`EXACT` over one held stroke, or
+    `EXACT_EACH` over each of two), cubic splines in r (r = 1) or bilinear (r = 2) between
+    usable neighbours."""
+
+    def __init__(self, robot, segment, rows: list[int], strokes: Limits, t: np.ndarray):
+        actuators = robot.actuators
+        count = EXACT if len(rows) == 1 else EXACT_EACH
+        self.axes = [np.linspace(actuators.lower[r], actuators.upper[r], count) for r in rows]
+        values = np.stack(np.meshgrid(*self.axes, indexing="ij"), -1).reshape(-1, len(rows))
+        q, found = _nodes(robot, segment, rows, values, t)
+        flat = q.reshape(-1, robot.n)
+        space, bad = regularised(evaluate(robot, flat))
+        usable = found.ravel() & ~bad & (Limits.joints(robot).margin(flat) >= -TOLERANCE)
+        forces = np.where(usable[:, None], space.N_H, 0.0)  # A⁻ᵀ G at rest
+        self.usable = usable.reshape(len(t), len(values))
+        self.strokes, self.n = strokes, robot.n
+        self.robot, self.rows, self.points = robot, rows, segment.position(t)
+        tables = np.concatenate([space.x, forces, flat], axis=1).reshape(len(t), len(values), -1)
+        if len(rows) == 1:  # an interval is used only where both its ends are usable, see `at`
+            self.interpolants = [
+                _spline(self.axes[0], table, ok) for table, ok in zip(tables, self.usable)
+            ]
+        else:  # a usable node's own value is 1 and bilinear weights sum to 1: all corners usable
+            grid = (count, count, -1)
+            self.interpolants = [
+                RegularGridInterpolator(
+                    self.axes, np.concatenate([table, ok[:, None]], 1).reshape(grid)
+                )
+                for table, ok in zip(tables, self.usable)
+            ]
+
+    def at(self, r: np.ndarray):
+        """x, F_H and q (N + 1, G, n) and where usable (N + 1, G) at held values r
+        (N + 1, G, r)."""
+        n = self.n
+        both = np.stack([table(row) for table, row in zip(self.interpolants, r)])
+        if r.shape[-1] == 1:
+            axis = self.axes[0]
+            index = np.clip(np.searchsorted(axis, r[..., 0]) - 1, 0, len(axis) - 2)
+            node = np.arange(len(r))[:, None]
+            usable = self.usable[node, index] & self.usable[node, index + 1]
+        else:
+            usable = both[..., -1] > 1 - 1e-9
+        x, forces, q = both[..., :n], both[..., n : 2 * n], both[..., 2 * n : 3 * n]
+        usable &= self.strokes.margin(x) >= -TOLERANCE
+        return x, forces, q, usable
+
+    def solved(self, r: np.ndarray, q: np.ndarray):
+        """The states (N + 1) G, node by node, at held values r (N + 1, G, r) solved exactly by
+        Newton's method from the interpolated configurations q (N + 1, G, n), at rest (ẍ = 0:
+        F_H = A⁻ᵀ G), and where they were found inside the joint ranges and the strokes
+        (N + 1, G)."""
+        robot, (nodes, count) = self.robot, r.shape[:2]
+        target = np.concatenate([np.repeat(self.points, count, 0), r.reshape(nodes * count, -1)], 1)
+        flat, miss, _ = newton(
+            robot, q.reshape(-1, robot.n), self.rows, target, CONTINUATION_ITERATIONS, True
+        )
+        space, bad = regularised(evaluate(robot, flat))
+        found = (miss < FOUND) & ~bad & (self.strokes.margin(space.x) >= -TOLERANCE)
+        return replace(space, x_ddot=np.zeros_like(space.x)), found.reshape(nodes, count)
+
+
+def _spline(axis: np.ndarray, table: np.ndarray, usable: np.ndarray):
+    """A cubic spline through the ``usable`` rows of ``table`` at held values ``axis``, as a
+    function of held values (G, 1) (zero where fewer than two are usable)."""
+    if usable.sum() < 2:
+        return lambda r: np.zeros((len(r), table.shape[1]))
+    spline = CubicSpline(axis[usable], table[usable], axis=0)
+    return lambda r: spline(r[:, 0])
+
+
+def _energy_stage(robot: Robot, supply: Supply, x: np.ndarray, forces: np.ndarray) -> Stage:
+    """The pump energy h p_P Q_P of each transition under ``supply`` (J), inf where a load
+    pressure, the pump flow or a cylinder speed passes its limit."""
+    circuit, limits = robot.circuit(), Limits.hydraulic(robot, supply)
+
+    def cost(j: int, h: float, allowed: np.ndarray) -> np.ndarray:
+        x_dot = (x[j + 1][None] - x[j][:, None]) / h  # (from, to, n)
+        force = (forces[j][:, None] + forces[j + 1][None]) / 2
+        flows = circuit.flows(x_dot, force)
+        allowed = limits.margin(hydraulic_values(circuit, x_dot, flows)) >= -TOLERANCE
+        return np.where(allowed, h * flows.power(supply), np.inf)
+
+    return cost
+
+
+def _measure_stage(objective: Objective, space: ActuatorSpace, x: np.ndarray) -> Stage:
+    """The objective's measure at both ends of each transition with its ẋ, by the
+    trapezoidal rule: h (c(s_j, ẋ) + c(s_j+1, ẋ)) / 2. ``space`` holds the (N + 1) G states at
+    the held values, node by node; it is measured on the transitions allowed alone."""
+    count = x.shape[1]
+
+    def cost(j: int, h: float, allowed: np.ndarray) -> np.ndarray:
+        start, end = np.nonzero(allowed)
+        x_dot = (x[j + 1][end] - x[j][start]) / h
+        ends = (space.take(j * count + start), space.take((j + 1) * count + end))
+        found = np.full(allowed.shape, np.inf)
+        found[start, end] = h / 2 * sum(objective.measure(s, x_dot) for s in ends)
+        return found
+
+    return cost
+
+
+def _pass(
+    x: np.ndarray,
+    usable: np.ndarray,
+    stage: Stage,
+    t: np.ndarray,
+    speeds: np.ndarray,
+    accelerations: np.ndarray,
+):
+    """Dynamic programming over the nodes' strokes x (N + 1, G, n) at times t: the least cost
+    (inf where nothing is feasible) and the index of its held values at each node (N + 1,)."""
+    intervals, count = len(t) - 1, x.shape[1]
+    h, fast, quick = t[1], np.isfinite(speeds), np.isfinite(accelerations)  # the limited ones
+    cost = np.where(usable[0], 0.0, np.inf)
+    incoming = np.zeros(x.shape[1:])  # ẋ of the best path into each node
+    choices = np.empty((intervals, count), dtype=int)
+    for j in range(intervals):
+        x_dot = (x[j + 1][None] - x[j][:, None]) / h  # (from, to, n)
+        allowed = np.all(np.abs(x_dot[..., fast]) <= speeds[fast] + TOLERANCE, axis=2)
+        allowed &= np.isfinite(cost)[:, None] & usable[j + 1]
+        if j:
+            change = x_dot[..., quick] - incoming[:, None, quick]
+            allowed &= np.all(np.abs(change) <= h * accelerations[quick], axis=2)
+        total = np.where(allowed, cost[:, None] + stage(j, h, allowed), np.inf)
+        choices[j] = np.argmin(total, axis=0)
+        cost = np.where(usable[j + 1], total[choices[j], np.arange(count)], np.inf)
+        incoming = x_dot[choices[j], np.arange(count)]
+    path = np.empty(intervals + 1, dtype=int)
+    path[-1] = np.argmin(cost)
+    for j in range(intervals - 1, -1, -1):
+        path[j] = choices[j, path[j + 1]]
+    return float(cost[path[-1]]), path
+
+
+def _limit(robot: Robot, value, what: str) -> np.ndarray:
+    """A per-actuator limit (n,) from one number or n (default none), checked."""
+    given = np.inf if value is None else value
+    try:
+        limit = np.broadcast_to(np.asarray(given, dtype=float), (robot.n,))
+    except (TypeError, ValueError):
+        limit = np.full(robot.n, np.nan)
+    if not np.all(limit > 0):
+        raise InvalidInputError(
+            f"{what} must be one number > 0 or {robot.n} (one per actuator: "
+            f"{', '.join(robot.actuators.names)}); got {value!r}"
+        )
+    return limit
+
+
+# builds a pass's stage from the tables and its held values r (N + 1, G, r): the strokes x and
+# configurations q (N + 1, G, n) and where usable (N + 1, G), as the stage reads them, and the
+# stage cost
+Builder = Callable[[Tables, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray, Stage]]
+
+
+def _optimum(
+    robot: Robot,
+    segment: Segment,
+    held: str | Sequence[str],
+    checked: tuple[str, ...] | None,
+    grids: tuple[int, ...],
+    build: Builder,
+    speeds: np.ndarray,
+    accelerations: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, tuple[OptimumGrid, ...]]:
+    """Iterative dynamic programming over the ``held`` actuators' values with the stage costs
+    ``build`` makes (see the module docstring), on each of ``grids`` in turn: the node times t
+    (N + 1,), the held values (N + 1, r), strokes x and configurations q (N + 1, n) on the finest
+    grid's path, and every grid's least cost."""
+    rows = held_indices(robot, held)
+    names = [robot.actuators.names[row] for row in rows]
+    if len(rows) > 2:
+        raise InvalidInputError(
+            f"dynamic programming over the held actuators holds one or two; {robot.name} "
+            f"has {len(rows)} redundant degrees ({', '.join(names)})"
+        )
+    grids = checked_grids(grids, 1)
+    strokes = Limits.strokes(robot, checked)
+    lower, upper = robot.actuators.lower[rows], robot.actuators.upper[rows]
+    if not np.all(np.isfinite(upper - lower)):
+        raise InvalidInputError(f"the held actuators {names} need finite strokes")
+    counts = (SPANNING, VALUES) if len(rows) == 1 else (SPANNING_EACH, VALUES_EACH)
+    found: list[OptimumGrid] = []
+    path: tuple[np.ndarray, np.ndarray] | None = None  # (t, r) of the last pass
+    for intervals in grids:
+        t = np.linspace(0.0, segment.duration, intervals + 1)
+        tables = Tables(robot, segment, rows, strokes, t)
+        if path is None:
+            centre, width = np.tile((lower + upper) / 2, (len(t), 1)), (upper - lower) / 2
+        else:
+            centre = np.column_stack([np.interp(t, path[0], r) for r in path[1].T])
+            width = (upper - lower) / 2 * NARROWING
+        for _ in range(PASSES):
+            each = counts[path is not None]
+            axes = [np.linspace(-w, w, each) for w in width]
+            offsets = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, len(rows))
+            values = np.clip(centre[:, None] + offsets, lower, upper)
+            x, q, usable, stage = build(tables, values)
+            optimum, index = _pass(x, usable, stage, t, speeds, accelerations)
+            if not np.isfinite(optimum):
+                band = " × ".join(f"{w * 1e3:.4g} mm" for w in width)
+                raise InvalidInputError(
+                    f"no motion along segment {segment.name} keeps every stroke and every "
+                    f"limit with {', '.join(names)} within {band} of the path searched "
+                    f"({intervals} intervals)"
+                )
+            nodes = np.arange(len(t))
+            r, x, q = values[nodes, index], x[nodes, index], q[nodes, index]
+            centre, width, path = r, width * NARROWING, (t, r)
+        found.append(OptimumGrid(intervals, each ** len(rows), optimum))
+    return t, r, x, q, tuple(found)
+
+
+def integral_optimum(
+    robot: Robot,
+    segment: Segment,
+    objective: str | Objective,
+    held: str | Sequence[str] = "x3",
+    checked: tuple[str, ...] | None = None,
+    grids: tuple[int, ...] = GRIDS,
+    speeds=None,
+    accelerations=None,
+) -> IntegralOptimum:
+    """The motion along ``segment`` of least ∫ c dt, c the measure of ``objective`` (one with
+    an integral measure, yours included), over every history of the ``held`` actuators (one or
+    two; see the module docstring), on each of ``grids`` (intervals) in turn. ``checked``
+    names the actuators whose strokes bind (default all); ``speeds`` and ``accelerations``
+    limit every actuator's |ẋ| and |ẍ| (one number, or one per actuator; m/s and m/s², rad/s
+    and rad/s² for a rotary one; default none)."""
+    objective = named(objective)
+    if objective.reduction != "integral":
+        raise InvalidInputError(
+            f"objective {objective.name!r} is reduced to its {objective.reduction}; the "
+            "integral optimum needs an integral one (global_optimum bounds a peak)"
+        )
+
+    def build(tables: Tables, values: np.ndarray):
+        x, _, q, usable = tables.at(values)
+        space, found = tables.solved(values, q)
+        x, q = space.x.reshape(x.shape), space.q.reshape(q.shape)
+        return x, q, usable & found, _measure_stage(objective, space, x)
+
+    limits = _limit(robot, speeds, "speeds"), _limit(robot, accelerations, "accelerations")
+    found = _optimum(robot, segment, held, checked, grids, build, *limits)
+    return _result(robot, segment, objective.name, held, *found)
+
+
+def _result(robot, segment, name, held, t, r, x, q, grids, supply=None) -> IntegralOptimum:
+    """The optimum with one held actuator's values as (N + 1,), several as (N + 1, r)."""
+    names = tuple(robot.actuators.names[row] for row in held_indices(robot, held))
+    if len(names) == 1:
+        return IntegralOptimum(segment, name, names[0], t, r[:, 0], x, q, grids, supply)
+    return IntegralOptimum(segment, name, names, t, r, x, q, grids, supply)
+
+
+def energy_optimum(
+    robot: Robot,
+    segment: Segment,
+    supply: Supply | None = None,
+    held: str | Sequence[str] = "x3",
+    checked: tuple[str, ...] | None = None,
+    grids: tuple[int, ...] = GRIDS,
+) -> IntegralOptimum:
+    """The energy bound: the motion along ``segment`` of least pump energy under ``supply``
+    (default the machine's) over every history of the ``held`` actuators (one or two), every
+    stroke and every limit of the hydraulic circuit kept (see the module docstring), on each of
+    ``grids`` (intervals) in turn. ``checked`` names the actuators whose strokes bind (default
+    all)."""
+    supply = supply or robot.circuit().supply
+
+    def build(tables: Tables, values: np.ndarray):
+        x, forces, q, usable = tables.at(values)
+        return x, q, usable, _energy_stage(robot, supply, x, forces)
+
+    free = np.full(robot.n, np.inf)
+    found = _optimum(robot, segment, held, checked, grids, build, free, free)
+    return _result(robot, segment, f"{supply.name} pump energy", held, *found, supply=supply)
