@@ -220,8 +220,11 @@ def actuate(
     each rod ends (k, c, 3), world, m, of c compiled ``maps``, by the core; what it cannot
     evaluate raises (`CompiledMap.refuse`)."""
     rates = (kinematics.v, kinematics.velocities, kinematics.jacobian_rates) if moving else ()
+    known, key = kinematics.tracking.declared, tuple(maps)
+    if key not in known:
+        known[key] = declared(maps, kinematics.slots)
     x, rows, rate_rows, ends, status = _core.actuate(
-        *declared(maps, kinematics.slots),
+        *known[key],
         kinematics.q,
         kinematics.positions,
         kinematics.jacobians,
