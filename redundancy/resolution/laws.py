@@ -223,12 +223,12 @@ def compiled(robot: Robot, law: Resolver, fallback) -> _core.Controller | None:
         MinFlow.weight: CONSTANT,
     }
     own = any(getattr(kind, name) is not getattr(Resolver, name) for name in ("resolve", "step"))
-    null_space = kind.null_space in (Resolver.null_space, GradientProjection.null_space)
+    pulls = kind.null_space is GradientProjection.null_space
     maps = list(robot.actuators)
     if (
         own
         or kind.weight not in weights
-        or not null_space
+        or not (pulls or kind.null_space is Resolver.null_space)
         or type(robot).task_point is not Robot.task_point
         or not all(isinstance(m, CompiledMap) for m in maps)
     ):
@@ -237,7 +237,7 @@ def compiled(robot: Robot, law: Resolver, fallback) -> _core.Controller | None:
     if weight == INERTIA:
         robot.require_masses("M(q) and the dynamics (M_H, the energy law)")
     W = law.constant_weight(robot) if weight == CONSTANT else None  # type: ignore[attr-defined]
-    pull, middle = law.pull(robot) if kind.null_space is not Resolver.null_space else (None, None)  # type: ignore[attr-defined]
+    pull, middle = law.pull(robot) if pulls else (None, None)  # type: ignore[attr-defined]
     tracking = robot.tracking()
     tool, rows = robot.task_rows
     return _core.Controller(
