@@ -1,30 +1,48 @@
-"""The evaluation core's costs against the targets, in one run: one control step beside pink's
-step and two bare Pinocchio calls from Python (the floor of anything that calls Pinocchio per
-step), x, A, J_H and M_H at one state and per state of a batch of 1,000, the law on that batch,
-the improved start and the bound per paper segment, and the whole study as the command runs it.
+"""The evaluation core's costs against the targets, in one table of one run: one control step
+beside pink's step and two bare Pinocchio calls from Python (the floor of anything that calls
+Pinocchio per step), x, A, J_H and M_H at one state and per state of a batch of 1,000, the law on
+that batch, and the improved start per paper segment; this checkout after an earlier tree.
 
-Run: python benchmarks/core.py
-Best-of-N wall times on a machine that may be shared; printed, never asserted. The script uses
-the public API only, so the same file measures an older checkout of the package too (put it
-first on PYTHONPATH).
+Run: python benchmarks/core.py [--before DIR]
+DIR is an earlier tree with its compiled core built beside its sources (e.g. `git archive REV`
+extracted, with the `_core` extension of a build of REV copied into its `redundancy/`); it runs
+without site hooks, as `benchmarks/study_cost.py` runs one. Each side measures itself in a
+process of its own, in turn. Best-of-N wall times on a machine that may be shared; printed,
+never asserted. The measuring half uses the public API only (an earlier tree without a
+`Controller` steps by `Resolver.step`).
 """
 
+import argparse
+import json
 import subprocess
-import sys
-import tempfile
+from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 from strategies import best_time, per_call  # the script's folder: the timing helpers
-
-from redundancy import VELOCITY, actuator_space, global_optimum, improved_start, load_robot
-from redundancy.planning.ik import inverse_kinematics
-from redundancy.planning.tasks import WorkCycle
+from study_cost import environment
 
 BATCH = 1000
+SEGMENTS = ("1-2", "2-3", "3-1")  # the paper's, as the crane's task file names them
+ROWS = [  # key, what, unit, factor from seconds, target
+    ("step", "one control step (min ẋᵀẋ, crane)", "µs", 1e6, 2),
+    ("pink", "pink's control step", "µs", 1e6, None),
+    ("bare", "two bare Pinocchio calls from Python", "µs", 1e6, None),
+    ("one", "x, A, J_H, M_H at one state", "µs", 1e6, 3),
+    ("batch", f"x, A, J_H, M_H, batch of {BATCH}, per state", "µs", 1e6, 1),
+    ("law", f"law on a batch of {BATCH}, per state", "µs", 1e6, None),
+    *((f"start {s}", f"improved start (fast), segment {s}", "ms", 1e3, 10) for s in SEGMENTS),
+]
 
 
-def main() -> None:
+def measure() -> dict[str, float]:
+    """Each row's cost in seconds, with the package this interpreter imports."""
+    import pinocchio as pin
+
+    import redundancy
+    from redundancy import VELOCITY, actuator_space, improved_start, load_robot
+    from redundancy.planning.ik import inverse_kinematics
+    from redundancy.planning.tasks import WorkCycle
+
     robot = load_robot("hiab031")
     cycle = WorkCycle.from_toml(robot.task_file, dimension=robot.m)
     segment = cycle["1-2"]
@@ -32,13 +50,12 @@ def main() -> None:
     rng = np.random.default_rng(0)
     batch = robot.lower + (robot.upper - robot.lower) * rng.uniform(0.2, 0.8, (BATCH, robot.n))
     y_dot = np.tile(segment.velocity, (BATCH, 1))
-
-    def full(states):
-        space = actuator_space(robot, states)
-        return space.x, space.A, space.J_H, space.M_H
-
-    step = per_call(lambda: VELOCITY.resolver.step(robot, q, segment.velocity), 5000)
-    rows = [("one control step (step, min ẋᵀẋ)", step * 1e6, "µs", 2)]
+    law = VELOCITY.resolver
+    if hasattr(redundancy, "Controller"):
+        controller = redundancy.Controller(robot, law)
+        cost = {"step": per_call(lambda: controller.step(q, segment.velocity), 20000)}
+    else:
+        cost = {"step": per_call(lambda: law.step(robot, q, segment.velocity), 5000)}
     model, tool = robot.model, robot.model.getFrameId(robot.tool_frame)
     data = model.createData()
 
@@ -46,39 +63,63 @@ def main() -> None:
         pin.computeJointJacobians(model, data, q)
         return pin.getFrameJacobian(model, data, tool, pin.LOCAL_WORLD_ALIGNED)
 
-    floor = per_call(bare, 5000)
-    ratios = [f"two bare Pinocchio calls from Python: {floor * 1e6:.2f} µs, step / them = "]
-    ratios[0] += f"{step / floor:.1f} (target ≤ 3)"
+    cost["bare"] = per_call(bare, 20000)
     try:
         from pink_peer import PinkResolver
 
         pink = PinkResolver(robot)
         target = actuator_space(robot, q).y[0] + segment.velocity * pink.time_step
-        theirs = per_call(lambda: pink.control_step(q, target), 2000)
-        ratios.append(f"pink's control step: {theirs * 1e6:.1f} µs, {theirs / step:.1f} × ours")
-    except Exception as error:  # pink is an optional peer
-        ratios.append(f"pink's step not measured: {error}")
-    rows.append(("x, A, J_H, M_H at one state", per_call(lambda: full(q), 5000) * 1e6, "µs", 3))
-    each = per_call(lambda: full(batch), 20) / BATCH
-    rows.append((f"x, A, J_H, M_H, batch of {BATCH}, per state", each * 1e6, "µs", 1))
+        cost["pink"] = per_call(lambda: pink.control_step(q, target), 2000)
+    except ImportError:  # pink is an optional peer
+        pass
+
+    def full(states):
+        space = actuator_space(robot, states)
+        return space.x, space.A, space.J_H, space.M_H
+
+    cost["one"] = per_call(lambda: full(q), 5000)
+    cost["batch"] = per_call(lambda: full(batch), 20) / BATCH
     space = actuator_space(robot, batch)
-    law = per_call(lambda: VELOCITY.resolver.resolve(space, y_dot), 50) / BATCH
-    rows.append((f"law on a batch of {BATCH}, per state", law * 1e6, "µs", 1))
-    for s in cycle.segments:
-        cost, search = best_time(lambda s=s: improved_start(robot, s, VELOCITY), 5)
-        rows.append((f"improved start (fast), segment {s.name}", cost * 1e3, "ms", 10))
-        cost, optimum = best_time(lambda s=s, r=search: global_optimum(robot, s, search=r), 3)
-        label = f"bound, segment {s.name} (change {100 * optimum.change:.4f} %)"
-        rows.append((label, cost, "s", 1))
-    with tempfile.TemporaryDirectory() as out:
-        command = [sys.executable, "-m", "redundancy.cli", "study", "--quiet", "--out", out]
-        cost, _ = best_time(lambda: subprocess.run(command, check=True, capture_output=True), 3)
-    rows.append(("redundancy study, defaults (wall, whole command)", cost, "s", 3))
-    width = max(len(r[0]) for r in rows)
-    print(f"{'what':<{width}}  {'measured':>10}  {'target':>8}  ratio")
-    for label, value, unit, goal in rows:
-        print(f"{label:<{width}}  {value:>7.3g} {unit:<2}  {goal:>5} {unit:<2}  {value / goal:.2f}")
-    print("\n".join(ratios))
+    cost["law"] = per_call(lambda: law.resolve(space, y_dot), 50) / BATCH
+    for name in SEGMENTS:
+        start = best_time(lambda s=cycle[name]: improved_start(robot, s, VELOCITY), 5)[0]
+        cost[f"start {name}"] = start
+    return cost
+
+
+def run(source: Path) -> dict[str, float]:
+    """`measure` in a process that imports the package from ``source``."""
+    python, env = environment(source)
+    command = [*python, str(Path(__file__).resolve()), "--measure"]
+    out = subprocess.run(command, cwd=source, env=env, check=True, capture_output=True, text=True)
+    return json.loads(out.stdout)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--before", type=Path, help="an earlier tree, its core built")
+    parser.add_argument("--measure", action="store_true", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.measure:
+        print(json.dumps(measure()))
+        return
+    root = Path(__file__).resolve().parents[1]
+    before = run(args.before.resolve()) if args.before else {}
+    after = run(root)
+    width = max(len(row[1]) for row in ROWS)
+    print(f"{'what':<{width}}  {'before':>8}  {'after':>8}  unit  {'target':>6}  after/target")
+    for key, what, unit, factor, target in ROWS:
+        then, now = (
+            f"{side[key] * factor:8.3g}" if key in side else " " * 8 for side in (before, after)
+        )
+        goal = f"{target:6g}  {after[key] * factor / target:.2f}" if target and key in after else ""
+        print(f"{what:<{width}}  {then}  {now}  {unit:<4}  {goal}")
+    for name, side in (("before", before), ("after", after)):
+        if {"step", "pink", "bare"} <= side.keys():
+            print(
+                f"{name}: pink's step / ours {side['pink'] / side['step']:.1f} (target ≥ 25), "
+                f"ours / two bare Pinocchio calls {side['step'] / side['bare']:.1f} (target ≤ 3)"
+            )
 
 
 if __name__ == "__main__":

@@ -78,6 +78,7 @@ if TYPE_CHECKING:
     from redundancy.planning.tasks import Arc, Line, Polyline, Segment, WorkCycle
     from redundancy.planning.time_scaling import Retimed, shortest_duration
     from redundancy.resolution.laws import (
+        Controller,
         GradientProjection,
         MinFlow,
         MinKineticEnergy,

@@ -11,11 +11,28 @@ import pytest
 from sampling import random_configurations, random_velocities
 from test_searches import GearedCylinder
 
-from redundancy import _core, actuator_space, bundled_robots, global_optimum, load_robot
+from redundancy import (
+    Controller,
+    InvalidInputError,
+    RedundancyError,
+    _core,
+    actuator_space,
+    bundled_robots,
+    global_optimum,
+    load_robot,
+)
 from redundancy.model.actuators import ActuatorSet
 from redundancy.planning.cycles import repeat
 from redundancy.planning.starts import improved_start
-from redundancy.resolution.laws import SINGULAR_RATIO, Resolver
+from redundancy.resolution.laws import (
+    SINGULAR_RATIO,
+    GradientProjection,
+    MinFlow,
+    MinKineticEnergy,
+    MinVelocityNorm,
+    Resolver,
+    Step,
+)
 from redundancy.resolution.objectives import Objective
 
 WORLD = pin.LOCAL_WORLD_ALIGNED
@@ -61,12 +78,23 @@ def test_the_compiled_pass_equals_pinocchios_python_calls(robot):
         assert_equal_relative(N[i], pin.nonLinearEffects(model, data, q[i], v[i]))
 
 
-def test_the_span_kernel_equals_its_closed_form():
-    """x = |d|, A rows uᵀ ∂d/∂q and Ȧ rows u̇ᵀ ∂d/∂q + uᵀ d(∂d/∂q)/dt, u̇ = (I − u uᵀ) ḋ / x."""
+def test_the_cylinder_kind_equals_its_closed_form():
+    """x = |d|, A rows uᵀ ∂d/∂q and Ȧ rows u̇ᵀ ∂d/∂q + uᵀ d(∂d/∂q)/dt, u̇ = (I − u uᵀ) ḋ / x, of
+    cylinders between random tracked points (d the rod's point less the base's)."""
     rng = np.random.default_rng(52)
-    d, d_dot = rng.normal(size=(2, 7, 3, 3))
-    jacobian, rate = rng.normal(size=(2, 7, 3, 3, 4))
-    length, rows, rate_rows = _core.span(d, jacobian, d_dot, rate)
+    positions, velocities = rng.normal(size=(2, 7, 6, 3))
+    jacobians, rates = rng.normal(size=(2, 7, 6, 3, 4))
+    q, v = rng.normal(size=(2, 7, 4))
+    kinds, slots = np.ones(3, np.intc), np.array([[0, 1, 0, 0], [2, 3, 0, 0], [5, 4, 0, 0]])
+    numbers = np.zeros((3, 3))
+    length, rows, rate_rows, ends, status = _core.actuate(
+        kinds, slots, numbers, q, positions, jacobians, v, velocities, rates
+    )
+
+    def relative(points):
+        return points[:, slots[:, 1]] - points[:, slots[:, 0]]
+
+    d, d_dot, jacobian, rate = map(relative, (positions, velocities, jacobians, rates))
     x = np.sqrt((d * d).sum(2))
     u = d / x[..., None]
     u_dot = (d_dot - u * (u * d_dot).sum(2)[..., None]) / x[..., None]
@@ -74,7 +102,45 @@ def test_the_span_kernel_equals_its_closed_form():
     assert_equal_relative(rows, np.einsum("kci,kcij->kcj", u, jacobian))
     expected = np.einsum("kci,kcij->kcj", u_dot, jacobian) + np.einsum("kci,kcij->kcj", u, rate)
     assert_equal_relative(rate_rows, expected)
-    assert _core.span(d, jacobian)[2] is None
+    assert_equal_relative(ends, positions[:, slots[:, 1]])
+    assert not status.any()
+    assert _core.actuate(kinds, slots, numbers, q, positions, jacobians)[2] is None
+
+
+def test_a_joint_driven_directly_is_its_coordinate_plus_its_offset():
+    """x = q_j + offset, A row e_j, Ȧ row 0, whatever the tracked frames."""
+    rng = np.random.default_rng(56)
+    q, v = rng.normal(size=(2, 5, 3))
+    positions, jacobians = rng.normal(size=(5, 1, 3)), rng.normal(size=(5, 1, 3, 3))
+    velocities, rates = rng.normal(size=(5, 1, 3)), rng.normal(size=(5, 1, 3, 3))
+    numbers = np.array([[2, 0.25, 0], [0, -1.5, 0]])
+    x, rows, rate_rows, _, status = _core.actuate(
+        np.zeros(2, np.intc),
+        np.zeros((2, 4), np.intp),
+        numbers,
+        q,
+        positions,
+        jacobians,
+        v,
+        velocities,
+        rates,
+    )
+    assert_equal_relative(x, q[:, [2, 0]] + [0.25, -1.5])
+    assert_equal_relative(rows, np.broadcast_to(np.eye(3)[[2, 0]], rows.shape))
+    assert_equal_relative(rate_rows, np.zeros_like(rows))
+    assert not status.any()
+
+
+def test_the_core_refuses_a_kind_it_does_not_know():
+    with pytest.raises(ValueError, match="actuator 0 is not a kind the core knows"):
+        _core.actuate(
+            np.array([7], np.intc),
+            np.zeros((1, 4), np.intp),
+            np.zeros((1, 3)),
+            np.zeros((1, 3)),
+            np.zeros((1, 1, 3)),
+            np.zeros((1, 1, 3, 3)),
+        )
 
 
 def gram_solution(J_H, W, z, y_dot, ratio):
@@ -158,3 +224,74 @@ def test_a_users_own_kind_and_law_run_through_every_path(crane, geared, paper_cy
     assert optimum.bound <= search.best.peak * (1 + 1e-6)
     cycle = repeat(geared, paper_cycle, law, search.motion().q[0, 0], cycles=1)
     assert np.isfinite(cycle.drift).all()
+
+
+def built_in_laws(robot):
+    """Every law of the toolkit the robot can run: the flow weights need its hydraulics, the
+    kinetic energy its masses."""
+    laws = [MinVelocityNorm(), GradientProjection(gain=2.0)]
+    if not robot.kinematic_only:
+        laws.append(MinKineticEnergy())
+    if robot.hydraulics is not None:
+        laws.append(MinFlow())
+    return laws
+
+
+def test_the_controller_steps_as_the_resolver_on_every_robot_and_law(robot):
+    """One compiled call per step gives `Resolver.step`'s ẋ, q̇ and y to 1e-12 relative, for
+    every built-in law, on every bundled robot (the excavator's linkage, the Panda's joints
+    driven directly) and one with a mimic joint."""
+    q = random_configurations(robot, 10, seed=57, margin=0.05)
+    y_dot = np.random.default_rng(58).normal(scale=0.5, size=(10, robot.m))
+    for law in built_in_laws(robot):
+        controller = Controller(robot, law)
+        assert controller.is_compiled
+        for qi, yi in zip(q, y_dot):
+            ours, theirs = controller.step(qi, yi), law.step(robot, qi, yi)
+            assert isinstance(ours, Step)
+            for mine, reference in zip(ours, theirs):
+                assert_equal_relative(mine, reference)
+
+
+def test_a_users_own_kind_or_law_steps_through_the_controller_in_python(crane, geared):
+    """The geared telescope (a user's kind) or the slow-telescope law (a user's law): the
+    controller runs `Resolver.step`, and says so."""
+    q, y_dot = np.array([1.7, 1.0, 0.7]), np.array([0.3, -0.2])
+    for robot, law in ((geared, MinVelocityNorm()), (crane, SlowTelescope())):
+        controller = Controller(robot, law)
+        assert not controller.is_compiled
+        for mine, reference in zip(controller.step(q, y_dot), law.step(robot, q, y_dot)):
+            assert_equal_relative(mine, reference)
+
+
+STEP_ERRORS = [
+    ([1.7, np.nan, 0.7], [0.3, -0.2], "q contains NaN or infinite values"),
+    ([1.7, 1.0, 0.7], [np.inf, 0.0], "y_dot contains NaN or infinite values"),
+    ([1.7, 1.0, 0.7], [0.0, 0.0, 0.0], "y_dot must have shape (2,)"),
+    ([1.7, 1.0], [0.0, 0.0], "q must have shape (3,)"),
+    ([[1.7, 1.0, 0.7]] * 2, [0.0, 0.0], "a step takes one q (3,) and one y_dot (2,)"),
+    ([0.0, 0.0, 0.0], [1.0, 1.0], "actuator Jacobian A is singular at q = [0.0, 0.0, 0.0]"),
+]
+
+
+@pytest.mark.parametrize("q, y_dot, message", STEP_ERRORS)
+def test_the_controller_refuses_what_the_resolver_refuses_in_the_same_words(
+    crane, q, y_dot, message
+):
+    """A NaN, an infinity, a wrong shape or a singular A: the compiled step refuses it with
+    `Resolver.step`'s one line."""
+    law = MinKineticEnergy()
+    with pytest.raises(RedundancyError) as theirs:
+        law.step(crane, np.array(q), np.array(y_dot))
+    with pytest.raises(RedundancyError) as ours:
+        Controller(crane, law).step(np.array(q), np.array(y_dot))
+    assert type(ours.value) is type(theirs.value)
+    assert str(ours.value) == str(theirs.value)
+    assert message in str(ours.value)
+
+
+def test_the_controller_takes_a_robot_and_a_law(crane):
+    with pytest.raises(InvalidInputError, match="a controller takes a law, a Resolver"):
+        Controller(crane, "velocity")
+    with pytest.raises(InvalidInputError, match="a controller takes a Robot"):
+        Controller("hiab031", MinVelocityNorm())

@@ -166,30 +166,18 @@ def attach_frame(model: pin.Model, owner: str, end: str, link: str, point: np.nd
     return model.addFrame(frame, False)
 
 
-def span(
-    d: np.ndarray,
-    jacobian: np.ndarray,
-    maps: list[ActuatorMap],
-    velocity: np.ndarray | None = None,
-    rate: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-    """Lengths x = |d| (k, c), rows of A = uᵀ ∂d/∂q (k, c, n), u = d / x, and with ḋ (k, c, 3)
-    and the rate of ∂d/∂q (k, c, 3, n) the rows of Ȧ = u̇ᵀ ∂d/∂q + uᵀ d(∂d/∂q)/dt (k, c, n),
-    u̇ = (I − u uᵀ) ḋ / x (else None), of the spans d (k, c, 3) between the two ends of c
-    cylinders with Jacobians ∂d/∂q (k, c, 3, n), by the compiled core. Zero lengths raise,
-    naming the ``maps``."""
-    length, rows, rate_rows = _core.span(d, jacobian, velocity, rate)
-    if length.size and length.min() < 1e-12:
-        names = [m.name for m, short in zip(maps, np.any(length < 1e-12, axis=0)) if short]
-        raise SingularConfigurationError(
-            f"cylinders {names} have zero length: their attachment points coincide"
-        )
-    return length, rows, rate_rows
+class CompiledMap(ActuatorMap):
+    """A built-in kind, computed by the compiled core (`redundancy._core.actuate`, the one
+    implementation its batches and the control step share): it says which of the core's kinds
+    it is (``code``) and what the core reads of it (`declare`). The single-map methods follow
+    from the group methods, which evaluate every compiled map of a set in one call."""
 
+    code: int  # the core's kind: 0 a joint driven directly, 1 a cylinder, 2 a linkage
 
-class VectorisedMap(ActuatorMap):
-    """A kind that evaluates all its maps at once: it implements the group methods, and the
-    single-map methods follow from them."""
+    @abstractmethod
+    def declare(self, slots: dict[int, int]) -> tuple[list[int], list[float]]:
+        """The slots among the tracked frames (``slots``: frame id → slot) the core reads, and
+        the numbers it needs; for each kind, see `redundancy._core`'s `Actuator`."""
 
     def evaluate(self, kinematics: Kinematics) -> tuple[np.ndarray, np.ndarray]:
         x, rows = self.evaluate_group([self], kinematics)
@@ -199,41 +187,70 @@ class VectorisedMap(ActuatorMap):
         return self.rate_group([self], kinematics)[:, 0]
 
     @classmethod
-    @abstractmethod
     def evaluate_group(cls, maps, kinematics):
-        """See `ActuatorMap.evaluate_group`."""
+        return actuate(maps, kinematics)[:2]
 
     @classmethod
-    @abstractmethod
     def rate_group(cls, maps, kinematics):
-        """See `ActuatorMap.rate_group`."""
+        return actuate(maps, kinematics, moving=True)[2]
+
+    def refuse(self, kinematics: Kinematics, state: int, status: int) -> None:
+        """Raise `SingularConfigurationError` for what the core could not do at ``state``: the
+        base's, a cylinder of zero length."""
+        q = np.round(kinematics.q[state], 6).tolist()
+        raise SingularConfigurationError(
+            f"cylinder {self.name!r} has zero length at q = {q}: its attachment points coincide"
+        )
 
 
-class Identity(VectorisedMap):
+def declared(maps: list[CompiledMap], slots: dict[int, int]) -> tuple[np.ndarray, ...]:
+    """The compiled ``maps`` as the core reads them: kinds (c,), slots (c, 4), numbers (c, 3)."""
+    kinds, frames, numbers = np.empty(len(maps), np.intc), np.zeros((len(maps), 4), np.intp), []
+    for row, m in enumerate(maps):
+        read, values = m.declare(slots)
+        kinds[row], frames[row, : len(read)] = m.code, read
+        numbers.append([*values, *[0.0] * (3 - len(values))])
+    return kinds, frames, np.array(numbers, dtype=float).reshape(len(maps), 3)
+
+
+def actuate(
+    maps: list[CompiledMap], kinematics: Kinematics, moving: bool = False
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray]:
+    """x (k, c), rows of A (k, c, n), if ``moving`` rows of Ȧ (k, c, n) (else None) and where
+    each rod ends (k, c, 3), world, m, of c compiled ``maps``, by the core; what it cannot
+    evaluate raises (`CompiledMap.refuse`)."""
+    rates = (kinematics.v, kinematics.velocities, kinematics.jacobian_rates) if moving else ()
+    known, key = kinematics.tracking.declared, tuple(maps)
+    if key not in known:
+        known[key] = declared(maps, kinematics.slots)
+    x, rows, rate_rows, ends, status = _core.actuate(
+        *known[key],
+        kinematics.q,
+        kinematics.positions,
+        kinematics.jacobians,
+        *rates,
+    )
+    if status.any():
+        state, column = np.argwhere(status)[0]
+        maps[column].refuse(kinematics, state, status[state, column])
+    return x, rows, rate_rows, ends
+
+
+class Identity(CompiledMap):
     """An electric or directly driven joint: x_i = q_j + offset, A row = e_j, Ȧ row = 0.
 
     Rotary (rad) on a revolute joint, a length (m) on a prismatic one.
     """
 
+    code = 0
     offset = 0.0
 
     def bind(self, model: pin.Model) -> None:
         super().bind(model)
         self.rotary = not prismatic(model, self.joint)
 
-    @classmethod
-    def evaluate_group(cls, maps, kinematics):
-        q = kinematics.q
-        joints = [m.index for m in maps]
-        rows = np.zeros((len(q), len(maps), q.shape[1]))
-        for row, joint in enumerate(joints):
-            rows[:, row, joint] = 1.0
-        return q.take(joints, 1) + np.array([m.offset for m in maps]), rows
-
-    @classmethod
-    def rate_group(cls, maps, kinematics):
-        q = kinematics.q
-        return np.zeros((len(q), len(maps), q.shape[1]))
+    def declare(self, slots):
+        return [], [self.index, self.offset]
 
 
 class Prismatic(Identity):
@@ -260,7 +277,7 @@ class Prismatic(Identity):
             )
 
 
-class LinearCylinder(VectorisedMap):
+class LinearCylinder(CompiledMap):
     """A cylinder between a point on one link and a point on another: x_i = |p_rod − p_base|.
 
     A row = uᵀ (J_rod − J_base), u = (p_rod − p_base)/x_i; its rate
@@ -270,6 +287,7 @@ class LinearCylinder(VectorisedMap):
     in the link frames.
     """
 
+    code = 1
     distance = True
     parameters = (
         Point("base", "the cylinder's base point", tag="attachment"),
@@ -298,36 +316,13 @@ class LinearCylinder(VectorisedMap):
             for end, (link, point) in zip(("base", "rod"), (self.base, self.rod))
         ]
 
-    @staticmethod
-    def _span(maps, kinematics: Kinematics, moving: bool):
-        """`span` of the maps' cylinders, from both ends' tracked motion (rates if ``moving``)."""
-        base = [kinematics.slots[m.frames[0]] for m in maps]
-        rod = [kinematics.slots[m.frames[1]] for m in maps]
-
-        def relative(points):
-            """The rod end's quantity minus the base end's, of per-frame ``points`` (k, F, ...)."""
-            return points.take(rod, 1) - points.take(base, 1)
-
-        rates = (kinematics.velocities, kinematics.jacobian_rates) if moving else (None, None)
-        return span(
-            relative(kinematics.positions),
-            relative(kinematics.jacobians),
-            maps,
-            *(None if r is None else relative(r) for r in rates),
-        )
+    def declare(self, slots):
+        return [slots[f] for f in self.frames], []
 
     def ends(self, kinematics: Kinematics) -> tuple[np.ndarray, np.ndarray]:
         """The base and rod points (k, 3), world, in m."""
         base, rod = (kinematics.point(f).position for f in self.frames)
         return base, rod
-
-    @classmethod
-    def evaluate_group(cls, maps, kinematics):
-        return cls._span(maps, kinematics, moving=False)[:2]
-
-    @classmethod
-    def rate_group(cls, maps, kinematics):
-        return cls._span(maps, kinematics, moving=True)[2]
 
 
 class ActuatorSet:
@@ -436,8 +431,9 @@ class ActuatorSet:
         """The maps by kind, with their rows (a slice where they are consecutive):
         [(kind, maps, rows)]."""
         kinds: dict[type[ActuatorMap], list[int]] = {}
-        for row, actuator in enumerate(self.maps):
-            kinds.setdefault(type(actuator), []).append(row)
+        for row, actuator in enumerate(self.maps):  # the compiled kinds in one call
+            kind = CompiledMap if isinstance(actuator, CompiledMap) else type(actuator)
+            kinds.setdefault(kind, []).append(row)
         groups = []
         for kind, rows in kinds.items():
             consecutive = rows == list(range(rows[0], rows[-1] + 1))

@@ -14,7 +14,7 @@ which in C++ costs less than deriving the rates from the stored Jacobians in num
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -41,11 +41,13 @@ class PointMotion(NamedTuple):
 @dataclass(frozen=True)
 class Tracking:
     """What a pass reads: the compiled ``core`` over the robot's model and the tracked
-    ``frames`` (ids), ``slots`` (a frame id → its index among them)."""
+    ``frames`` (ids), ``slots`` (a frame id → its index among them); ``declared`` keeps, for
+    groups of actuator maps, how the core reads them from these frames."""
 
     core: Pass
     frames: list[int]
     slots: dict[int, int]
+    declared: dict[tuple, tuple] = field(default_factory=dict, compare=False, repr=False)
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,8 @@ coupler joins P to the pin C on the bucket; the cylinder runs from its base poin
 to P, where rocker, coupler and rod share one pin, as on most excavator buckets. Rocker and
 coupler are not links of the URDF: the chain stays serial, and the loop is closed here.
 
-Loop closure, solved in closed form: P lies in the linkage's plane through R, normal to the
+Loop closure, solved in closed form by the compiled core (`redundancy._core`, which the
+methods below call): P lies in the linkage's plane through R, normal to the
 rocker's pivot axis n (the driven joint's axis), and on the circles |P − R| = r (rocker length)
 and |P − C| = c (coupler length). With w = C − R, h = n·w, w' = w − h n (C's projection on the
 plane, at d = |w'| from R), c'² = c² − h², e1 = w'/d and e2 = n × e1::
@@ -34,12 +35,14 @@ import numpy as np
 import pinocchio as pin
 
 from redundancy.errors import RobotDescriptionError, SingularConfigurationError
-from redundancy.model.actuators import VectorisedMap, attach_frame, prismatic, span
+from redundancy.model.actuators import CompiledMap, actuate, attach_frame, prismatic
 from redundancy.model.kinematics import WORLD, Kinematics
 from redundancy.model.parameters import Arm, Number, Point
 
+OPEN_LOOP = 2  # the core's status where a loop cannot close
 
-class LinkageCylinder(VectorisedMap):
+
+class LinkageCylinder(CompiledMap):
     """A cylinder from ``base`` (a point on a link) to the pin joining a rocker and a coupler.
 
     ``rocker`` = (link, pivot R (3,) m in the link frame, length r m); ``coupler`` = (link,
@@ -48,6 +51,7 @@ class LinkageCylinder(VectorisedMap):
     """
 
     BRANCHES = (1, -1)
+    code = 2
     distance = True
     parameters = (
         Point("base", "the cylinder's base point, on the carrying link"),
@@ -111,94 +115,33 @@ class LinkageCylinder(VectorisedMap):
         self.frames.append(attach_frame(model, self.name, "axis", link, axis_point))
         self.frames.append(attach_frame(model, self.name, "pin", *self.coupler[:2]))
 
-    @staticmethod
-    def _loop(maps, kinematics: Kinematics):
-        """Slots of b, R, R + n, C (each (c,)), the points b, R, C, n and P (each (k, c, 3)).
+    def declare(self, slots):
+        return [slots[f] for f in self.frames], [self.rocker[2], self.coupler[2], self.branch]
 
-        Raises `SingularConfigurationError` where a loop cannot close."""
-        slots = [[kinematics.slots[m.frames[i]] for m in maps] for i in range(4)]
-        base, pivot, axis_tip, pin_ = (kinematics.positions.take(s, 1) for s in slots)
-        axis = axis_tip - pivot
-        r = np.array([m.rocker[2] for m in maps])
-        c = np.array([m.coupler[2] for m in maps])
-        w = pin_ - pivot
-        w_plane = w - (axis * w).sum(2)[..., None] * axis
-        d = np.sqrt((w_plane * w_plane).sum(2))
-        c_plane2 = c**2 - (axis * w).sum(2) ** 2
-        with np.errstate(divide="ignore", invalid="ignore"):
-            a = (r**2 - c_plane2 + d**2) / (2 * d)
-            height2 = r**2 - a**2
-        open_ = ~(height2 >= 0)  # also NaN where d = 0
-        if open_.any():
-            state, which = np.argwhere(open_)[0]
-            m, q = maps[which], np.round(kinematics.q[state], 6).tolist()
-            raise SingularConfigurationError(
-                f"linkage {m.name!r} cannot close at q = {q}: "
-                f"its rocker ({r[which]:g} m) and coupler ({c[which]:g} m) cannot join pivot "
-                f"and pin {d[state, which]:.4g} m apart; keep joint {m.joint!r} where they can"
-            )
-        e1 = w_plane / d[..., None]
-        e2 = np.cross(axis, e1)
-        sigma = np.array([m.branch for m in maps])
-        P = pivot + a[..., None] * e1 + (sigma * np.sqrt(height2))[..., None] * e2
-        return slots, base, pivot, pin_, axis, P
-
-    @staticmethod
-    def _pin_jacobian(loop, jacobians):
-        """M (k, c, 3, 3), J_P (k, c, 3, n), and J_b, J_R, J_C, J_n of the tracked frames."""
-        slots, _, pivot, pin_, axis, P = loop
-        J_b, J_R, J_axis, J_C = (jacobians.take(s, 1) for s in slots)
-        J_n = J_axis - J_R
-        M = np.stack([P - pivot, P - pin_, axis], axis=2)
-        K = np.stack(
-            [
-                ((P - pivot)[..., None] * J_R).sum(2),
-                ((P - pin_)[..., None] * J_C).sum(2),
-                (axis[..., None] * J_R).sum(2) - ((P - pivot)[..., None] * J_n).sum(2),
-            ],
-            axis=2,
+    def refuse(self, kinematics: Kinematics, state: int, status: int) -> None:
+        """A loop that cannot close (the core's status 2) is refused naming the distance of
+        pivot and pin in the linkage's plane; anything else as the base refuses it."""
+        if status != OPEN_LOOP:
+            super().refuse(kinematics, state, status)
+        pivot, tip, pin_ = (
+            kinematics.positions[state, kinematics.slots[f]] for f in self.frames[1:]
         )
-        return M, np.linalg.solve(M, K), (J_b, J_R, J_C, J_n)
-
-    @classmethod
-    def evaluate_group(cls, maps, kinematics):
-        loop = cls._loop(maps, kinematics)
-        base, P = loop[1], loop[5]
-        _, J_P, (J_b, *_) = cls._pin_jacobian(loop, kinematics.jacobians)
-        return span(P - base, J_P - J_b, maps)[:2]
-
-    @classmethod
-    def rate_group(cls, maps, kinematics):
-        loop = cls._loop(maps, kinematics)
-        slots, base, pivot, pin_, axis, P = loop
-        M, J_P, (J_b, J_R, J_C, J_n) = cls._pin_jacobian(loop, kinematics.jacobians)
-        v_b, v_R, v_axis, v_C = (kinematics.velocities.take(s, 1) for s in slots)
-        Jd_b, Jd_R, Jd_axis, Jd_C = (kinematics.jacobian_rates.take(s, 1) for s in slots)
-        v_n, Jd_n = v_axis - v_R, Jd_axis - Jd_R
-        v_P = (J_P @ kinematics.v[:, None, :, None])[..., 0]
-        M_dot = np.stack([v_P - v_R, v_P - v_C, v_n], axis=2)
-
-        def row(vector, jacobian):
-            """vectorᵀ jacobian, (k, c, n), for vector (k, c, 3) and jacobian (k, c, 3, n)."""
-            return (vector[..., None] * jacobian).sum(2)
-
-        K_dot = np.stack(
-            [
-                row(v_P - v_R, J_R) + row(P - pivot, Jd_R),
-                row(v_P - v_C, J_C) + row(P - pin_, Jd_C),
-                row(v_n, J_R) + row(axis, Jd_R) - row(v_P - v_R, J_n) - row(P - pivot, Jd_n),
-            ],
-            axis=2,
+        axis, w = tip - pivot, pin_ - pivot
+        apart = np.linalg.norm(w - (axis @ w) * axis)
+        r, c, q = self.rocker[2], self.coupler[2], np.round(kinematics.q[state], 6).tolist()
+        raise SingularConfigurationError(
+            f"linkage {self.name!r} cannot close at q = {q}: "
+            f"its rocker ({r:g} m) and coupler ({c:g} m) cannot join pivot "
+            f"and pin {apart:.4g} m apart; keep joint {self.joint!r} where they can"
         )
-        Jd_P = np.linalg.solve(M, K_dot - M_dot @ J_P)
-        return span(P - base, J_P - J_b, maps, v_P - v_b, Jd_P - Jd_b)[2]
 
     def ends(self, kinematics: Kinematics) -> tuple[np.ndarray, np.ndarray]:
         """The cylinder's base point and rod end (the pin P), each (k, 3), world, in m."""
-        _, base, _, _, _, P = self._loop([self], kinematics)
-        return base[:, 0], P[:, 0]
+        P = actuate([self], kinematics)[3][:, 0]
+        return kinematics.point(self.frames[0]).position, P
 
     def bars(self, kinematics: Kinematics) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """The rocker (R to P) and the coupler (P to C), each as its two ends (k, 3), in m."""
-        _, _, pivot, pin_, _, P = self._loop([self], kinematics)
-        return {"rocker": (pivot[:, 0], P[:, 0]), "coupler": (P[:, 0], pin_[:, 0])}
+        _, P = self.ends(kinematics)
+        pivot, pin_ = (kinematics.point(self.frames[i]).position for i in (1, 3))
+        return {"rocker": (pivot, P), "coupler": (P, pin_)}

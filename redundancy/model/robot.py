@@ -163,12 +163,23 @@ class Robot:
         """Pinocchio's kinematics at the states (q, v), each (k, n), of the frames the task and
         ``actuators`` (default: all the robot's; a `ActuatorSet.part` for fewer) are read from:
         the fewer the frames, the cheaper the pass."""
+        return track(self.tracking(actuators), q, v)
+
+    def tracking(self, actuators: ActuatorSet | None = None) -> Tracking:
+        """The compiled pass over the frames the task and ``actuators`` (default: all the
+        robot's) are read from, built once per set of frames."""
         key = (self.actuators if actuators is None else actuators).frames
         if key not in self._tracking:
             frames = list(dict.fromkeys([*self._task_frames, *key]))
             slots = {f: i for i, f in enumerate(frames)}
             self._tracking[key] = Tracking(Pass(self._serialized, frames), frames, slots)
-        return track(self._tracking[key], q, v)
+        return self._tracking[key]
+
+    @property
+    def task_rows(self) -> tuple[int, list[int]]:
+        """The tool point's frame and which of its world components (0, 1, 2 for x, y, z) the
+        task y is."""
+        return self._tool, self._task_rows
 
     @cached_property
     def _serialized(self) -> str:

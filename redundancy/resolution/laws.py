@@ -22,14 +22,22 @@ W and z.
 
 from __future__ import annotations
 
+import functools
 from typing import NamedTuple
 
 import numpy as np
 
 from redundancy import _core
 from redundancy.errors import InvalidInputError
+from redundancy.model.actuators import CompiledMap, declared
 from redundancy.model.robot import Robot
-from redundancy.resolution.state import ActuatorSpace, check_invertible, evaluate, singular
+from redundancy.resolution.state import (
+    SINGULAR_TOLERANCE,
+    ActuatorSpace,
+    check_invertible,
+    evaluate,
+    singular,
+)
 
 # The gradient-projection gain α, m²/s, tuned on the paper's segments by
 # `tune_gradient_projection` of benchmarks/peers.py: the least worst-case peak ẋᵀẋ among the
@@ -120,10 +128,15 @@ class MinFlow(Resolver):
     name = "flow-weighted pseudoinverse (min Σ (A_A ẋ)²)"
 
     def weight(self, space: ActuatorSpace) -> np.ndarray:
-        circuit = space.robot.circuit()
-        diagonal = np.ones(space.robot.n)
+        return np.broadcast_to(self.constant_weight(space.robot), space.A.shape)
+
+    @staticmethod
+    def constant_weight(robot: Robot) -> np.ndarray:
+        """W (n, n), the same at every state of ``robot``."""
+        circuit = robot.circuit()
+        diagonal = np.ones(robot.n)
         diagonal[circuit.columns] = circuit.piston_areas**2 / np.mean(circuit.piston_areas**2)
-        return np.broadcast_to(np.diag(diagonal), space.A.shape)
+        return np.diag(diagonal)
 
 
 class GradientProjection(Resolver):
@@ -144,9 +157,103 @@ class GradientProjection(Resolver):
         return f"GradientProjection(gain={self.gain})"
 
     def null_space(self, space: ActuatorSpace) -> np.ndarray:
-        actuators = space.robot.actuators
+        pull, middle = self.pull(space.robot)
+        return pull * (space.x - middle)
+
+    def pull(self, robot: Robot) -> tuple[np.ndarray, np.ndarray]:
+        """z = pull ∘ (x − x̄): pull = −α / Δx² (n,) (0 for an infinite stroke) and x̄ (n,)."""
+        actuators = robot.actuators
         span = actuators.upper - actuators.lower
         finite = np.isfinite(span)
         middle = np.where(finite, (actuators.upper + actuators.lower) / 2, 0.0)
         scale = np.where(finite, 1 / np.where(finite, span, 1.0) ** 2, 0.0)
-        return -self.gain * (space.x - middle) * scale
+        return -self.gain * scale, middle
+
+
+class Controller:
+    """A law bound to a robot for a control loop: ``Controller(robot, law).step(q, y_dot)``.
+
+    The robot, the law and what the law reads of the robot (W for `MinFlow`, the strokes for
+    `GradientProjection`, the masses for `MinKineticEnergy`) are checked once, here. Where the
+    robot's actuators are built-in kinds and the law is one of this module's, each step is one
+    call of the compiled core (`redundancy._core.Controller`): the pass at q, y and J, x and A,
+    J_H = J A⁻¹, W and z, the kernel, q̇ = A⁻¹ ẋ. It checks only that q (n,) and ẏ (m,) are
+    finite float arrays and that A is not singular; anything else (a list, a NaN, a singular
+    A) is answered by `Resolver.step`, which raises the toolkit's one-line errors. A kind or a
+    law of your own (any of ``weight``, ``null_space``, ``resolve``, ``step`` overridden), or a
+    task other than the tool's position, runs `Resolver.step` on every call, as the same object.
+
+    The controller reads the robot as it was when built: build another after changing it.
+    """
+
+    def __init__(self, robot: Robot, law: Resolver):
+        if not isinstance(robot, Robot):
+            raise InvalidInputError(f"a controller takes a Robot (load_robot); got {robot!r}")
+        if not isinstance(law, Resolver):
+            raise InvalidInputError(
+                f"a controller takes a law, a Resolver (e.g. VELOCITY.resolver); got {law!r}"
+            )
+        self.robot, self.law = robot, law
+        self._python = functools.partial(law.step, robot)
+        self._compiled = compiled(robot, law, self._python)
+
+    def __repr__(self) -> str:
+        return f"Controller({self.robot!r}, {self.law!r})"
+
+    @property
+    def is_compiled(self) -> bool:
+        """Whether each step is one call of the compiled core."""
+        return self._compiled is not None
+
+    def step(self, q: np.ndarray, y_dot: np.ndarray) -> Step:
+        """One control step at q (n,) for the task velocity ẏ (m,) m/s: what `Resolver.step`
+        gives, to rounding."""
+        if self._compiled is None:
+            return self._python(q, y_dot)
+        return self._compiled.step(q, y_dot)
+
+
+def compiled(robot: Robot, law: Resolver, fallback) -> _core.Controller | None:
+    """The compiled step of ``law`` on ``robot``, or None where the core cannot run it alone
+    (`Controller`); ``fallback`` is the Python step it calls for what it refuses."""
+    kind = type(law)
+    weights = {
+        Resolver.weight: IDENTITY,
+        MinKineticEnergy.weight: INERTIA,
+        MinFlow.weight: CONSTANT,
+    }
+    own = any(getattr(kind, name) is not getattr(Resolver, name) for name in ("resolve", "step"))
+    pulls = kind.null_space is GradientProjection.null_space
+    maps = list(robot.actuators)
+    if (
+        own
+        or kind.weight not in weights
+        or not (pulls or kind.null_space is Resolver.null_space)
+        or type(robot).task_point is not Robot.task_point
+        or not all(isinstance(m, CompiledMap) for m in maps)
+    ):
+        return None
+    weight = weights[kind.weight]
+    if weight == INERTIA:
+        robot.require_masses("M(q) and the dynamics (M_H, the energy law)")
+    W = law.constant_weight(robot) if weight == CONSTANT else None  # type: ignore[attr-defined]
+    pull, middle = law.pull(robot) if pulls else (None, None)  # type: ignore[attr-defined]
+    tracking = robot.tracking()
+    tool, rows = robot.task_rows
+    return _core.Controller(
+        tracking.core,
+        tracking.slots[tool],
+        rows,
+        *declared(maps, tracking.slots),
+        weight,
+        W,
+        pull,
+        middle,
+        SINGULAR_RATIO,
+        SINGULAR_TOLERANCE,
+        fallback,
+        Step,
+    )
+
+
+IDENTITY, INERTIA, CONSTANT = 0, 1, 2  # the core's weights: I, M_H, a constant W

@@ -17,7 +17,6 @@ torque arm vanishes (its line passes through the joint); `actuator_space` then r
 
 from __future__ import annotations
 
-import contextlib
 from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import Any
@@ -43,15 +42,9 @@ def singular(A: np.ndarray, tolerance: float = SINGULAR_TOLERANCE) -> np.ndarray
 
     |det A| / ‖A‖_F^n bounds σ_min / σ_max from below (|det A| = Π σ_i ≤ σ_min σ_max^(n−1) and
     σ_max ≤ ‖A‖_F), so the singular values are computed only where that bound is not enough.
-    One state (a control step's) takes the bound on Python floats, without numpy's per-call
-    cost.
     """
     n = A.shape[-1]
     with np.errstate(all="ignore"):  # overflow and NaN fall through to the singular values
-        if len(A) == 1:
-            with contextlib.suppress(OverflowError):
-                if abs(float(np.linalg.det(A[0]))) > tolerance * float(np.vdot(A, A)) ** (n / 2):
-                    return np.zeros(1, dtype=bool)
         settled = np.linalg.det(A) ** 2 > tolerance**2 * np.einsum("kij,kij->k", A, A) ** n
     if settled.all():
         return ~settled

@@ -1,0 +1,193 @@
+// The one Pinocchio pass: a copy of the robot's model, its own Data and the tracked frames.
+#pragma once
+
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+
+#include <Eigen/Dense>
+#include <pinocchio/algorithm/crba.hpp>
+#include <pinocchio/algorithm/frames.hpp>
+#include <pinocchio/algorithm/jacobian.hpp>
+#include <pinocchio/algorithm/rnea.hpp>
+#include <pinocchio/multibody.hpp>
+#include <pinocchio/serialization.hpp>
+
+#include <algorithm>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace py = pybind11;
+using Array = py::array_t<double, py::array::c_style | py::array::forcecast>;
+using Matrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+using ConstMatrix = Eigen::Map<const Matrix>;
+using Vector = Eigen::Map<const Eigen::VectorXd>;
+using Point = Eigen::Map<const Eigen::Vector3d>;
+constexpr auto WORLD = pinocchio::LOCAL_WORLD_ALIGNED;
+
+// One state's tracked frames as the actuator kinds read them, laid out as a batch holds each
+// state: positions (F, 3), linear Jacobians (F, 3, n) and, moving, the points' velocities (F, 3)
+// and Jacobian rates (F, 3, n), row-major.
+struct Frames {
+  const double* positions;
+  const double* jacobians;
+  const double* velocities;  // null at rest
+  const double* rates;
+  Eigen::Index n;
+
+  Point position(Eigen::Index f) const { return Point(positions + 3 * f); }
+  ConstMatrix jacobian(Eigen::Index f) const { return ConstMatrix(jacobians + 3 * n * f, 3, n); }
+  Point velocity(Eigen::Index f) const { return Point(velocities + 3 * f); }
+  ConstMatrix rate(Eigen::Index f) const { return ConstMatrix(rates + 3 * n * f, 3, n); }
+  bool moving() const { return velocities != nullptr; }
+};
+
+class Pass {
+ public:
+  Pass(std::string model, std::vector<pinocchio::FrameIndex> frames)
+      : text_(std::move(model)), frames_(std::move(frames)) {
+    model_.loadFromString(text_);
+    // Pinocchio 4.1's serialization does not keep a mimic joint's extended sizes (it reads them
+    // back as −1, and a Data built from them is broken): each is rebuilt from what was kept.
+    for (const auto j : model_.mimicking_joints) {
+      const auto loaded = boost::get<pinocchio::JointModelMimic>(model_.joints[j].toVariant());
+      pinocchio::JointModelMimic mimic(loaded.jmodel(), loaded.scaling(), loaded.offset());
+      mimic.setIndexes(loaded.id(), loaded.idx_q(), loaded.idx_v(), loaded.idx_vExtended());
+      mimic.setMimicIndexes(loaded.jmodel().id(), loaded.idx_q(), loaded.idx_v(),
+                            loaded.jmodel().idx_vExtended());
+      model_.joints[j] = mimic;
+    }
+    data_ = pinocchio::Data(model_);
+    for (auto frame : frames_)
+      if (frame >= model_.frames.size())
+        throw py::value_error("frame " + std::to_string(frame) + " is not in the model");
+    const auto F = frames_.size(), n = std::size_t(model_.nv);
+    six_ = pinocchio::Data::Matrix6x::Zero(6, model_.nv);
+    six_rate_ = six_;
+    positions_.resize(3 * F);
+    linear_.resize(3 * F * n);
+    angular_.resize(3 * F * n);
+    velocities_.resize(3 * F);
+    rates_.resize(3 * F * n);
+  }
+
+  using State = std::pair<std::string, std::vector<pinocchio::FrameIndex>>;
+  State state() const { return {text_, frames_}; }
+  Eigen::Index n() const { return model_.nv; }
+  Eigen::Index size() const { return Eigen::Index(frames_.size()); }
+
+  // The tracked frames at one state q (n), and with v (n) their velocities and Jacobian rates
+  // (Pinocchio's time variation, mimic joints included): what `frames` then reads.
+  void at(const double* q, const double* v) {
+    const auto n = model_.nv;
+    const Vector qi(q, n);
+    if (v)
+      pinocchio::computeJointJacobiansTimeVariation(model_, data_, qi, Vector(v, n));
+    else
+      pinocchio::computeJointJacobians(model_, data_, qi);
+    moving_ = v != nullptr;
+    for (std::size_t f = 0; f < frames_.size(); ++f) {
+      const auto frame = frames_[f];
+      Eigen::Map<Eigen::Vector3d>{&positions_[3 * f]} =
+          pinocchio::updateFramePlacement(model_, data_, frame).translation();
+      six_.setZero();
+      pinocchio::getFrameJacobian(model_, data_, frame, WORLD, six_);
+      Eigen::Map<Matrix>{&linear_[3 * n * f], 3, n} = six_.topRows<3>();
+      Eigen::Map<Matrix>{&angular_[3 * n * f], 3, n} = six_.bottomRows<3>();
+      if (v) {
+        six_rate_.setZero();
+        pinocchio::getFrameJacobianTimeVariation(model_, data_, frame, WORLD, six_rate_);
+        Eigen::Map<Matrix>{&rates_[3 * n * f], 3, n} = six_rate_.topRows<3>();
+        Eigen::Map<Eigen::Vector3d>{&velocities_[3 * f]} = six_.topRows<3>() * Vector(v, n);
+      }
+    }
+  }
+
+  // What the last `at` computed.
+  Frames frames() const {
+    return {positions_.data(), linear_.data(), moving_ ? velocities_.data() : nullptr,
+            moving_ ? rates_.data() : nullptr, model_.nv};
+  }
+
+  // M(q) (n, n) by CRBA, both triangles filled.
+  const Eigen::MatrixXd& mass(const double* q) {
+    pinocchio::crba(model_, data_, Vector(q, model_.nv));
+    data_.M.triangularView<Eigen::StrictlyLower>() = data_.M.transpose();
+    return data_.M;
+  }
+
+  // Positions (k, F, 3), linear and angular world-aligned Jacobians (k, F, 3, n) of the tracked
+  // frames at q (k, n); with v (k, n) also their velocities (k, F, 3) and linear Jacobian rates
+  // (k, F, 3, n).
+  py::tuple kinematics(const Array& q, const std::optional<Array>& v) {
+    const auto k = batch(q, "q");
+    if (v) same_batch(*v, k, "v");
+    const auto F = py::ssize_t(frames_.size()), n = py::ssize_t(model_.nv);
+    Array positions({k, F, py::ssize_t(3)}), linear({k, F, py::ssize_t(3), n}),
+        angular({k, F, py::ssize_t(3), n});
+    py::object velocities = py::none(), rates = py::none();
+    double *pv = nullptr, *jr = nullptr;
+    if (v) {
+      Array velocity({k, F, py::ssize_t(3)}), rate({k, F, py::ssize_t(3), n});
+      pv = velocity.mutable_data();
+      jr = rate.mutable_data();
+      velocities = velocity;
+      rates = rate;
+    }
+    for (py::ssize_t i = 0; i < k; ++i) {
+      at(q.data() + i * n, v ? v->data() + i * n : nullptr);
+      std::copy(positions_.begin(), positions_.end(), positions.mutable_data() + i * 3 * F);
+      std::copy(linear_.begin(), linear_.end(), linear.mutable_data() + i * 3 * F * n);
+      std::copy(angular_.begin(), angular_.end(), angular.mutable_data() + i * 3 * F * n);
+      if (v) {
+        std::copy(velocities_.begin(), velocities_.end(), pv + i * 3 * F);
+        std::copy(rates_.begin(), rates_.end(), jr + i * 3 * F * n);
+      }
+    }
+    return py::make_tuple(positions, linear, angular, velocities, rates);
+  }
+
+  // M(q) (k, n, n) by CRBA, both triangles filled.
+  Array mass_matrices(const Array& q) {
+    const auto k = batch(q, "q");
+    const auto n = py::ssize_t(model_.nv);
+    Array out({k, n, n});
+    for (py::ssize_t i = 0; i < k; ++i)
+      Eigen::Map<Eigen::MatrixXd>(out.mutable_data() + i * n * n, n, n) = mass(q.data() + i * n);
+    return out;
+  }
+
+  // N(q, v) = V(q, v) + G(q) (k, n) by RNEA.
+  Array nonlinear(const Array& q, const Array& v) {
+    const auto k = batch(q, "q");
+    same_batch(v, k, "v");
+    const auto n = py::ssize_t(model_.nv);
+    Array out({k, n});
+    for (py::ssize_t i = 0; i < k; ++i) {
+      Eigen::Map<Eigen::VectorXd>(out.mutable_data() + i * n, n) = pinocchio::nonLinearEffects(
+          model_, data_, Vector(q.data() + i * n, n), Vector(v.data() + i * n, n));
+    }
+    return out;
+  }
+
+ private:
+  py::ssize_t batch(const Array& a, const char* name) const {
+    if (a.ndim() != 2 || a.shape(1) != model_.nv)
+      throw py::value_error(std::string(name) + " must have shape (k, " +
+                            std::to_string(model_.nv) + ")");
+    return a.shape(0);
+  }
+  void same_batch(const Array& a, py::ssize_t k, const char* name) const {
+    if (batch(a, name) != k)
+      throw py::value_error(std::string(name) + " must have as many rows as q");
+  }
+
+  std::string text_;  // the serialized model: what a copy of the pass is rebuilt from
+  pinocchio::Model model_;
+  pinocchio::Data data_;
+  std::vector<pinocchio::FrameIndex> frames_;
+  pinocchio::Data::Matrix6x six_, six_rate_;
+  std::vector<double> positions_, linear_, angular_, velocities_, rates_;  // one state's frames
+  bool moving_ = false;
+};
