@@ -3,6 +3,7 @@ start beside the per-segment plan, repetition and drift, and the drift-free peri
 
 import itertools
 import json
+import math
 from dataclasses import replace
 from pathlib import Path
 
@@ -233,6 +234,26 @@ def test_the_return_map_finds_the_free_cycles_limit_cycle(crane, paper_cycle, cr
     assert np.all(np.sign(np.diff(held)) == np.sign(value - held[:-1]))
     again = return_map(crane, paper_cycle, VELOCITY.resolver, "x3", values=np.array([value]))
     assert again.following[0] == pytest.approx(value, abs=2e-4)
+
+
+def test_the_free_cycle_settles_only_towards_the_return_maps_stable_fixed_point(crane_study):
+    """Three cycles of the crane's free law head for the return map's stable fixed point: the
+    verdict names that point, not a value extrapolated from the drifts. Without the map's
+    fixed points the same three cycles are no verdict of settling."""
+    free = crane_study.repetitions["free"]
+    ((value, slope, _),) = crane_study.map.fixed_points
+    report = crane_study.report()["strategies"]["free"]["repetition"]
+    assert report["settles"] and report["limit_cycle_value"] == value
+    words = f"converging to the return map's stable limit cycle at {value:.6g} m"
+    assert report["settling"].startswith(words)
+    assert words in cycle_table(crane_study)
+    distance = abs(free.held_values[-1, 0] - value)
+    expected = math.ceil(math.log(SETTLED / distance) / math.log(slope))
+    assert free.settling_with(crane_study.map.fixed_points).cycles_to_settle == expected
+    alone = repetition_report(free)
+    assert not alone["settles"] and alone["limit_cycle_value"] is None
+    assert alone["settling"].startswith("not settling after 3 cycles")
+    assert crane_study.report()["strategies"]["free"]["name"] == "free, whole-cycle improved start"
 
 
 def test_a_stroke_passed_on_a_later_cycle_is_reported(circle, arm_runs):

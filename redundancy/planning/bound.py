@@ -247,7 +247,7 @@ class Transcription:
         self.smoothness = smoothness
         self.q = np.array(guess, dtype=float)
         self.space: ActuatorSpace | None = None  # the states at q, once evaluated
-        self.around: tuple[np.ndarray, ActuatorSpace] | None = None  # `shifted`
+        self.around: tuple[np.ndarray, list[ActuatorSpace]] | None = None  # `shifted`
         lower, upper = limits.lower + margin, limits.upper - margin
         span = np.where(np.isfinite(upper - lower), upper - lower, 1.0)
         # each finite end of a stroke is a constraint, a fraction of the stroke (of 1 m or rad
@@ -353,22 +353,20 @@ class Transcription:
         """The states at q + `DIFFERENCE_STEP` dq_k for each held k, then at q − that step,
         (N + 1, n) each, dq (N + 1, n, r) = ∂q/∂r a function of q: a node whose q the last
         iterate had too keeps its states from there."""
-        count = len(q)
-        fresh = np.ones(count, dtype=bool)
+        fresh = np.ones(len(q), dtype=bool)
         if self.around is not None:
             fresh = ~np.all(self.around[0] == q, axis=1)
         step = DIFFERENCE_STEP * np.moveaxis(dq[fresh], -1, 0)  # (r, fresh, n)
-        shifts = len(step) * 2
-        found = evaluate(
-            self.robot, (q[fresh] + np.concatenate([step, -step])).reshape(-1, q.shape[1])
-        )
+        found = [evaluate(self.robot, q[fresh] + shift) for shift in (*step, *-step)]
         if self.around is not None and not fresh.all():
-            # a kept node's among the last iterate's, at its own row of its shift
-            index = np.arange(shifts)[:, None] * count + np.arange(count)
-            index[:, fresh] = shifts * count + np.arange(found.q.shape[0]).reshape(shifts, -1)
-            found = ActuatorSpace.joined([self.around[1], found]).take(index.ravel())
+            index = np.arange(len(q))  # a kept node's among the last iterate's, at its own row
+            index[fresh] = len(q) + np.arange(fresh.sum())
+            found = [
+                ActuatorSpace.joined([last, new]).take(index)
+                for last, new in zip(self.around[1], found)
+            ]
         self.around = (q, found)
-        return [found.take(np.arange(i * count, (i + 1) * count)) for i in range(shifts)]
+        return found
 
     def cost(self, z):
         """σ + ε mean ṙ² / (ẋᵀẋ)₀ + ε₂ mean r̈² / (ẋᵀẋ)₀ and its gradient: the peak σ = s / s₀,
