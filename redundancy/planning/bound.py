@@ -349,6 +349,23 @@ class Transcription:
         self.cache = (key, nodes)
         return nodes
 
+    def continued(self, z: np.ndarray) -> Nodes:
+        """The transcription at z, where Newton's method misses a node from its guess (a guess
+        interpolated from a coarser grid, far between its nodes) started again from the
+        configuration of its nearest reached node, pass after pass while that reaches more."""
+        nodes = self.evaluate(z)
+        while nodes.missed.any() and not nodes.missed.all():
+            reached, missed = np.flatnonzero(~nodes.missed), np.flatnonzero(nodes.missed)
+            nearest = reached[np.abs(missed[:, None] - reached[None]).argmin(axis=1)]
+            self.q = nodes.space.q.copy()
+            self.q[missed] = nodes.space.q[nearest]
+            self.space = self.cache = None
+            again = self.evaluate(z)
+            if again.missed.sum() >= nodes.missed.sum():
+                break
+            nodes = again
+        return nodes
+
     def shifted(self, q: np.ndarray, dq: np.ndarray) -> list[ActuatorSpace]:
         """The states at q + `DIFFERENCE_STEP` dq_k for each held k, then at q − that step,
         (N + 1, n) each, dq (N + 1, n, r) = ∂q/∂r a function of q: a node whose q the last
@@ -431,7 +448,7 @@ def solve_transcription(
     solution is solved again for the peak alone, from there: where the tie-break traded a hair
     of a binding peak for smoothness (1e-9 of it), the peak is the least, and the history stays
     where the peak does not bind (nothing pulls it there)."""
-    start = problem.evaluate(np.append(r0, 0.0))
+    start = problem.continued(np.append(r0, 0.0))
     if start.missed.any():
         raise problem.unreached(r0, start.missed)
     measure = start.measure

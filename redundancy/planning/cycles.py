@@ -546,9 +546,9 @@ def return_map(
     found = _held(robot, cycle, held)
     if len(found) != 1:
         raise InvalidInputError(
-            f"the return map samples one held actuator's value against the next cycle's; "
-            f"{robot.name} on {cycle.name!r} holds {len(found)} ({', '.join(found)}), whose "
-            "map is not sampled: read the repetition's drift"
+            f"it maps one held actuator's value to the next cycle's; {robot.name} on "
+            f"{cycle.name!r} holds {len(found)} ({', '.join(found)}): the repetition's drift "
+            "tells instead"
         )
     name = found[0]
     first = cycle.segments[0]

@@ -209,7 +209,8 @@ def _corner_lines(study: CycleStudy) -> list[str]:
         lines.append(row + f"{corner.time:>9.2f}  {corner.reason or state[corner.within_limits]}")
     if plan.gap_time is not None and plan.corners:
         lines.append(
-            f"  the self-motions add {plan.gap_time:.2f} s per cycle, the held actuator at "
+            f"  the self-motions add {plan.gap_time:.2f} s per cycle, the held "
+            f"{'actuator' if len(study.held) == 1 else 'actuators'} at "
             f"{plan.corners[0].speed:g} {actuators[study.held[0]].unit}/s"
         )
     return lines
