@@ -3,6 +3,7 @@ start beside the per-segment plan, repetition and drift, and the drift-free peri
 
 import itertools
 import json
+import math
 from dataclasses import replace
 from pathlib import Path
 
@@ -20,6 +21,7 @@ from redundancy.planning.bound import (
 )
 from redundancy.planning.cycles import (
     SETTLED,
+    FixedPoint,
     improved_cycle_start,
     periodic_optimum,
     plan_cycle,
@@ -104,13 +106,17 @@ def test_the_periodic_plan_is_periodic_and_keeps_the_strokes(arm_runs, circle):
 
 
 def test_the_drift_is_read_as_a_limit_cycle_or_not():
+    """Settling towards a limit cycle is read from the return map's stable fixed point the
+    repetition heads for, not from the drifts' trend alone."""
     values = 1.0 + 0.5 ** np.arange(12) * 1e-2  # halving steps: converging
     drift = np.diff(values)[:, None]
-    found = settling(values, drift)
+    found = settling(values, drift, [FixedPoint(1.0, 0.5, True)])
     assert found.settles and found.contraction == pytest.approx(0.5)
     assert found.limit == pytest.approx(1.0, abs=1e-9)
+    # 0.5¹¹ 1e-2 = 4.9e-6 from the limit, halved per cycle (P' = 0.5) to 1e-6: 2.3 more cycles
+    assert found.cycles_to_settle == 3
     growing = 1.0 + 1.5 ** np.arange(12) * 1e-3
-    assert not settling(growing, np.diff(growing)[:, None]).settles
+    assert not settling(growing, np.diff(growing)[:, None], [FixedPoint(1.0, 0.5, True)]).settles
     still = np.full(5, 0.3)
     assert settling(still, np.zeros((4, 1))).settled_at == 1
     assert SETTLED == 1e-6
@@ -230,6 +236,26 @@ def test_the_return_map_finds_the_free_cycles_limit_cycle(crane, paper_cycle, cr
     assert again.following[0] == pytest.approx(value, abs=2e-4)
 
 
+def test_the_free_cycle_settles_only_towards_the_return_maps_stable_fixed_point(crane_study):
+    """Three cycles of the crane's free law head for the return map's stable fixed point: the
+    verdict names that point, not a value extrapolated from the drifts. Without the map's
+    fixed points the same three cycles are no verdict of settling."""
+    free = crane_study.repetitions["free"]
+    ((value, slope, _),) = crane_study.map.fixed_points
+    report = crane_study.report()["strategies"]["free"]["repetition"]
+    assert report["settles"] and report["limit_cycle_value"] == value
+    words = f"converging to the return map's stable limit cycle at {value:.6g} m"
+    assert report["settling"].startswith(words)
+    assert words in cycle_table(crane_study)
+    distance = abs(free.held_values[-1, 0] - value)
+    expected = math.ceil(math.log(SETTLED / distance) / math.log(slope))
+    assert free.settling_with(crane_study.map.fixed_points).cycles_to_settle == expected
+    alone = repetition_report(free)
+    assert not alone["settles"] and alone["limit_cycle_value"] is None
+    assert alone["settling"].startswith("not settling after 3 cycles")
+    assert crane_study.report()["strategies"]["free"]["name"] == "free, whole-cycle improved start"
+
+
 def test_a_stroke_passed_on_a_later_cycle_is_reported(circle, arm_runs):
     _, _, free, _, _ = arm_runs
     first = free.first_violation
@@ -318,10 +344,6 @@ def test_the_cycle_command_writes_its_report_figures_and_playback(tmp_path):
         (["--cycles", "-1"], "--cycles: '-1' must be a whole number within [1, 10,000]"),
         (["--cycles", "0"], "--cycles: '0' must be a whole number within [1, 10,000]"),
         (["--strategy", "wander"], "invalid choice: 'wander'"),
-        (
-            ["--robot", "panda", "--strategy", "periodic"],
-            "the periodic strategy holds one actuator; panda's task holds ['panda_joint3', ",
-        ),
         (["--gap-speed", "0"], "--gap-speed: '0' must be a speed within [0.001, 10]"),
         (["--gap-speed", "1e-12"], "--gap-speed: '1e-12' must be a speed within [0.001, 10]"),
     ],

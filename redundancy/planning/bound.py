@@ -36,7 +36,7 @@ second order in h; `GlobalOptimum.change` says how much the last refinement move
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import NamedTuple, cast
 
@@ -49,6 +49,7 @@ from redundancy.planning.ik import (
     CONTINUATION_ITERATIONS,
     FOUND,
     held_indices,
+    held_names,
     inverse_kinematics,
     newton,
 )
@@ -115,15 +116,16 @@ class GlobalOptimum(Refined):
 
     ``motion`` holds the nodes of the finest grid: q, x and y (= y_d to Newton's tolerance),
     and ẋ from the transcribed held rates, so that its peak of the objective is the optimum;
-    its ``resolver`` is the objective's law, whose measure the motion minimises. ``start`` is
-    the held stroke at t = 0 (m).
+    its ``resolver`` is the objective's law, whose measure the motion minimises. ``held`` names
+    the held actuator (the names, with several), ``start`` its stroke at t = 0 (m or rad; the
+    strokes, with several).
     """
 
     segment: Segment | Chain
     objective: Objective
-    held: str
+    held: str | tuple[str, ...]
     motion: Trajectory
-    start: float
+    start: float | tuple[float, ...]
     grids: tuple[GridSolution, ...]
 
     @property
@@ -183,17 +185,18 @@ def node_times(path: Segment | Chain, intervals: int) -> np.ndarray:
 class Transcription:
     """The problem on one grid of ``intervals`` along ``path`` (a segment, or a chain of them
     such as a work cycle): the constraints and their Jacobian with respect to z = (r, σ), the
-    held strokes r at the nodes and σ = s / s₀ the peak against the starting history's, for
-    SLSQP.
+    held strokes r at the nodes ((U, r) for r held actuators, flattened row by row) and
+    σ = s / s₀ the peak against the starting history's, for SLSQP.
 
     Each segment has the nodes of its share of ``intervals`` (`node_intervals`); a corner's two
     nodes (the end of one segment, the start of the next) share one unknown, and ``periodic``
     ties the last node to the first, r(T) = r(0). Held rates are differences within each
     segment (by default `backward_differentiation`), one-sided at its ends, so that they may
-    jump at a corner, as ẏ does at constant speed. ``objective`` gives the measure, ``row`` is
-    the held actuator, ``limits`` the other checked actuators' strokes, kept ``margin`` inside
-    at the nodes; ``guess`` (N, n) the configurations Newton's method starts from at the nodes
-    (`node_times`). ``smoothness`` weighs a second tie-break, mean r̈² inside each segment.
+    jump at a corner, as ẏ does at constant speed. ``objective`` gives the measure, ``rows``
+    the held actuators (one row, or several), ``limits`` the other checked actuators' strokes,
+    kept ``margin`` inside at the nodes (an unbounded end is no constraint); ``guess`` (N, n)
+    the configurations Newton's method starts from at the nodes (`node_times`).
+    ``smoothness`` weighs a second tie-break, mean r̈² inside each segment.
     """
 
     def __init__(
@@ -201,7 +204,7 @@ class Transcription:
         robot: Robot,
         objective: Objective,
         path: Segment | Chain,
-        row: int,
+        rows: int | Sequence[int],
         limits: Limits,
         intervals: int,
         guess: np.ndarray,
@@ -210,7 +213,8 @@ class Transcription:
         smoothness: float = 0.0,
         differences: Callable[[int, float], np.ndarray] = backward_differentiation,
     ):
-        self.robot, self.objective, self.row = robot, objective, row
+        self.robot, self.objective = robot, objective
+        self.rows = [int(rows)] if isinstance(rows, int | np.integer) else list(rows)
         self.columns = limits.columns
         segments = path.segments if isinstance(path, Chain) else (path,)
         counts = node_intervals(path, intervals)
@@ -243,17 +247,23 @@ class Transcription:
         self.smoothness = smoothness
         self.q = np.array(guess, dtype=float)
         self.space: ActuatorSpace | None = None  # the states at q, once evaluated
-        self.around: tuple[np.ndarray, ActuatorSpace, ActuatorSpace] | None = None  # `shifted`
-        self.lower = limits.lower + margin
-        self.upper = limits.upper - margin
-        self.span = self.upper - self.lower  # strokes enter the constraints as fractions of it
+        self.around: tuple[np.ndarray, list[ActuatorSpace]] | None = None  # `shifted`
+        lower, upper = limits.lower + margin, limits.upper - margin
+        span = np.where(np.isfinite(upper - lower), upper - lower, 1.0)
+        # each finite end of a stroke is a constraint, a fraction of the stroke (of 1 m or rad
+        # where the stroke has an open end); an unbounded end is none
+        self.ends = [
+            (np.flatnonzero(np.isfinite(end)), end, sign)
+            for end, sign in ((lower, 1.0), (upper, -1.0))
+        ]
+        self.span = span
         self.cache: tuple[bytes, Nodes] | None = None
         self.scale = 1.0  # s₀: the starting history's peak, in the objective's unit
         self.speed = 1.0  # its peak ẋᵀẋ, m²/s² (rad²/s² for rotary actuators)
         self.tie_break = True  # whether the cost has the tie-breaks, or is the peak alone
 
     def unknown_times(self) -> np.ndarray:
-        """The time of each unknown (its first node), (U,), s."""
+        """The time of each unknown node (its first node), (U,), s."""
         times = np.full(self.D.shape[1], np.inf)
         np.minimum.at(times, self.owner, self.t)
         return times
@@ -263,15 +273,19 @@ class Transcription:
         """(nodes, unknowns): 1 where a node's held stroke is that unknown."""
         return np.eye(self.D.shape[1])[self.owner]
 
+    def held(self, z: np.ndarray) -> np.ndarray:
+        """The held strokes (U, r) of the unknowns z = (r, σ) or r alone."""
+        return z[: self.D.shape[1] * len(self.rows)].reshape(-1, len(self.rows))
+
     def reach(self, r: np.ndarray) -> tuple[ActuatorSpace, np.ndarray]:
-        """The states at every node for the held strokes r (one per unknown), Newton-continued
-        from the last ones that reached every node (evaluated already), and which nodes it did
-        not reach."""
-        target = np.concatenate([self.points, r[self.owner, None]], axis=1)
+        """The states at every node for the held strokes r (U, r), Newton-continued from the
+        last ones that reached every node (evaluated already), and which nodes it did not
+        reach."""
+        target = np.concatenate([self.points, r[self.owner]], axis=1)
         if self.space is None:
             self.space = evaluate(self.robot, self.q)
         solved = newton(
-            self.robot, self.q, [self.row], target, CONTINUATION_ITERATIONS, start=self.space
+            self.robot, self.q, self.rows, target, CONTINUATION_ITERATIONS, start=self.space
         )
         space = cast(ActuatorSpace, solved.space)  # given the states it starts from, Newton's
         missed = solved.miss > FOUND
@@ -280,11 +294,13 @@ class Transcription:
         return space, missed
 
     def unreached(self, r: np.ndarray, missed: np.ndarray) -> InvalidInputError:
-        """The error for held strokes r whose ``missed`` nodes no configuration reaches."""
+        """The error for held strokes r (U, r) whose ``missed`` nodes no configuration
+        reaches."""
         first = int(np.flatnonzero(missed)[0])
+        strokes = ", ".join(f"{v:.4f}" for v in r[self.owner[first]])
         return InvalidInputError(
             f"no configuration reaches the task at t = {self.t[first]:.3f} s "
-            f"with the held stroke {r[self.owner[first]]:.4f}"
+            f"with the held stroke {strokes}"
         )
 
     def configurations(self, r: np.ndarray) -> np.ndarray:
@@ -295,10 +311,10 @@ class Transcription:
         return space.q
 
     def motion(self, space: ActuatorSpace, r_dot: np.ndarray):
-        """At the nodes' states with held rates ṙ (N + 1,): K = [J; A_h] (Eqs. 7, 11),
+        """At the nodes' states with held rates ṙ (N + 1, r): K = [J; A_h] (Eqs. 7, 11),
         ẋ = A q̇ (N + 1, n) with K q̇ = [ẏ_d; ṙ], and the measure."""
-        K = np.concatenate([space.J, space.A[:, [self.row]]], axis=1)
-        rhs = np.concatenate([self.y_dot, r_dot[:, None]], axis=1)
+        K = np.concatenate([space.J, space.A[:, self.rows]], axis=1)
+        rhs = np.concatenate([self.y_dot, r_dot], axis=1)
         x_dot = (space.A @ np.linalg.solve(K, rhs[..., None]))[..., 0]
         return K, x_dot, self.objective.measure(space, x_dot)
 
@@ -308,66 +324,90 @@ class Transcription:
         key = z[:-1].tobytes()
         if self.cache is not None and self.cache[0] == key:
             return self.cache[1]
-        r_dot = self.D @ z[:-1]
-        space, missed = self.reach(z[:-1])
+        r = self.held(z)
+        r_dot = self.D @ r
+        space, missed = self.reach(r)
         K, x_dot, measure = self.motion(space, r_dot)
         measure = np.where(missed, UNREACHED * self.scale, measure)
-        unit = np.zeros((len(space.q), self.robot.n, 1))
-        unit[:, -1] = 1.0
-        dq = np.linalg.solve(K, unit)[..., 0]  # ∂q_j/∂r_j = K⁻¹ e, and ∂q̇_j/∂ṙ_j
-        dx = (space.A @ dq[..., None])[..., 0]  # ∂x_j/∂r_j, and ∂ẋ_j/∂ṙ_j
+        held = len(self.rows)
+        unit = np.zeros((len(space.q), self.robot.n, held))
+        unit[:, self.robot.m :] = np.eye(held)
+        dq = np.linalg.solve(K, unit)  # ∂q_j/∂r_jk = K⁻¹ e_k, and ∂q̇_j/∂ṙ_jk (N + 1, n, r)
+        dx = space.A @ dq  # ∂x_j/∂r_jk, and ∂ẋ_j/∂ṙ_jk (N + 1, n, r)
         measure_of = self.objective.measure
-        ahead = measure_of(space, x_dot + DIFFERENCE_STEP * dx)
-        behind = measure_of(space, x_dot - DIFFERENCE_STEP * dx)
-        rate = (ahead - behind) / (2 * DIFFERENCE_STEP)  # ∂ measure_j / ∂ṙ_j
+        rate, own = np.empty((2, len(space.q), held))  # ∂ measure_j / ∂ṙ_jk, / ∂r_jk
+        for k in range(held):
+            ahead = measure_of(space, x_dot + DIFFERENCE_STEP * dx[..., k])
+            behind = measure_of(space, x_dot - DIFFERENCE_STEP * dx[..., k])
+            rate[:, k] = (ahead - behind) / (2 * DIFFERENCE_STEP)
         # through q_j at fixed ṙ_j: a central difference
-        ahead, behind = (self.motion(s, r_dot)[-1] for s in self.shifted(space.q, dq))
-        own = (ahead - behind) / (2 * DIFFERENCE_STEP)
-        gradient = rate[:, None] * self.D + own[:, None] * self.incidence
-        nodes = Nodes(measure, gradient, space, x_dot, dx, missed)
+        shifted = [self.motion(s, r_dot)[-1] for s in self.shifted(space.q, dq)]
+        for k in range(held):
+            own[:, k] = (shifted[k] - shifted[held + k]) / (2 * DIFFERENCE_STEP)
+        gradient = rate[:, None] * self.D[..., None] + own[:, None] * self.incidence[..., None]
+        nodes = Nodes(measure, gradient.reshape(len(space.q), -1), space, x_dot, dx, missed)
         self.cache = (key, nodes)
         return nodes
 
+    def continued(self, z: np.ndarray) -> Nodes:
+        """The transcription at z, where Newton's method misses a node from its guess (a guess
+        interpolated from a coarser grid, far between its nodes) started again from the
+        configuration of its nearest reached node, pass after pass while that reaches more."""
+        nodes = self.evaluate(z)
+        while nodes.missed.any() and not nodes.missed.all():
+            reached, missed = np.flatnonzero(~nodes.missed), np.flatnonzero(nodes.missed)
+            nearest = reached[np.abs(missed[:, None] - reached[None]).argmin(axis=1)]
+            self.q = nodes.space.q.copy()
+            self.q[missed] = nodes.space.q[nearest]
+            self.space = self.cache = None
+            again = self.evaluate(z)
+            if again.missed.sum() >= nodes.missed.sum():
+                break
+            nodes = again
+        return nodes
+
     def shifted(self, q: np.ndarray, dq: np.ndarray) -> list[ActuatorSpace]:
-        """The states at q ± `DIFFERENCE_STEP` dq (N + 1, n) each, dq = ∂q/∂r a function of q:
-        a node whose q the last iterate had too keeps its states from there."""
+        """The states at q + `DIFFERENCE_STEP` dq_k for each held k, then at q − that step,
+        (N + 1, n) each, dq (N + 1, n, r) = ∂q/∂r a function of q: a node whose q the last
+        iterate had too keeps its states from there."""
         fresh = np.ones(len(q), dtype=bool)
         if self.around is not None:
             fresh = ~np.all(self.around[0] == q, axis=1)
-        step = DIFFERENCE_STEP * dq[fresh]
-        found = [evaluate(self.robot, q[fresh] + sign * step) for sign in (1, -1)]
+        step = DIFFERENCE_STEP * np.moveaxis(dq[fresh], -1, 0)  # (r, fresh, n)
+        found = [evaluate(self.robot, q[fresh] + shift) for shift in (*step, *-step)]
         if self.around is not None and not fresh.all():
             index = np.arange(len(q))  # a kept node's among the last iterate's, at its own row
             index[fresh] = len(q) + np.arange(fresh.sum())
             found = [
                 ActuatorSpace.joined([last, new]).take(index)
-                for last, new in zip(self.around[1:], found)
+                for last, new in zip(self.around[1], found)
             ]
-        ahead, behind = found
-        self.around = (q, ahead, behind)
+        self.around = (q, found)
         return found
 
     def cost(self, z):
         """σ + ε mean ṙ² / (ẋᵀẋ)₀ + ε₂ mean r̈² / (ẋᵀẋ)₀ and its gradient: the peak σ = s / s₀,
         with tie-breaks (ε = `SMOOTHING`, ε₂ = ``smoothness`` in s²) for the smoothest held
         history where many share the least peak."""
-        r_dot, r_ddot = self.D @ z[:-1], self.S @ z[:-1] if len(self.S) else np.zeros(0)
+        r = self.held(z)
+        r_dot = self.D @ r
+        r_ddot = self.S @ r if len(self.S) else np.zeros((0, r.shape[1]))
         weight = SMOOTHING / (len(r_dot) * self.speed) if self.tie_break else 0.0
         second = self.smoothness / (max(len(r_ddot), 1) * self.speed) if self.tie_break else 0.0
         gradient = 2 * weight * (self.D.T @ r_dot)
         if second:
             gradient = gradient + 2 * second * (self.S.T @ r_ddot)
-        value = z[-1] + weight * (r_dot @ r_dot) + second * (r_ddot @ r_ddot)
-        return value, np.append(gradient, 1.0)
+        value = z[-1] + weight * (r_dot**2).sum() + second * (r_ddot**2).sum()
+        return value, np.append(gradient.ravel(), 1.0)
 
     def constraints(self, z):
         nodes = self.evaluate(z)
         strokes = nodes.space.x[:, self.columns]
         return np.concatenate(
-            [
-                z[-1] - nodes.measure / self.scale,
-                ((strokes - self.lower) / self.span).ravel(),
-                ((self.upper - strokes) / self.span).ravel(),
+            [z[-1] - nodes.measure / self.scale]
+            + [
+                (sign * (strokes[:, kept] - end[kept]) / self.span[kept]).ravel()
+                for kept, end, sign in self.ends
             ]
         )
 
@@ -375,19 +415,21 @@ class Transcription:
         nodes = self.evaluate(z)
         count, unknowns = nodes.gradient.shape
         peak = np.concatenate([-nodes.gradient / self.scale, np.ones((count, 1))], axis=1)
-        d_strokes = nodes.dx[:, self.columns]
-        c = d_strokes.shape[1]
-        lower = np.zeros((count, c, unknowns + 1))
-        lower[np.arange(count), :, self.owner] = d_strokes / self.span
-        lower = lower.reshape(count * c, unknowns + 1)
-        return np.concatenate([peak, lower, -lower])
+        d_strokes = nodes.dx[:, self.columns] / self.span[:, None]  # (N + 1, c, r)
+        blocks = [peak]
+        for kept, _, sign in self.ends:
+            block = np.zeros((count, len(kept), self.D.shape[1], len(self.rows)))
+            block[np.arange(count), :, self.owner] = sign * d_strokes[:, kept]
+            block = block.reshape(count * len(kept), unknowns)
+            blocks.append(np.concatenate([block, np.zeros((len(block), 1))], axis=1))
+        return np.concatenate(blocks)
 
 
 class Nodes(NamedTuple):
     """The transcription at one iterate: the measure at each node (N + 1,), its gradient with
-    respect to the unknowns r (N + 1, unknowns), the actuator space, ẋ (N + 1, n),
-    ∂x_j/∂r_j (N + 1, n) and the nodes Newton's method did not reach (N + 1,), whose measure
-    is `UNREACHED` starting peaks."""
+    respect to the unknowns r (N + 1, U r), the actuator space, ẋ (N + 1, n),
+    ∂x_j/∂r_jk (N + 1, n, r) and the nodes Newton's method did not reach (N + 1,), whose
+    measure is `UNREACHED` starting peaks."""
 
     measure: np.ndarray
     gradient: np.ndarray
@@ -398,21 +440,22 @@ class Nodes(NamedTuple):
 
 
 def solve_transcription(
-    problem: Transcription, r0: np.ndarray, box: tuple, intervals: int, polish: bool = False
+    problem: Transcription, r0: np.ndarray, box: list, intervals: int, polish: bool = False
 ):
-    """SLSQP from r0: the grid's solution and the transcription at it. Both r0 and the solution
+    """SLSQP from r0 (U, r) within ``box``, each held actuator's (lower, upper) (None where
+    open): the grid's solution (U, r) and the transcription at it. Both r0 and the solution
     must reach the task at every node; the solver's trial steps need not. With ``polish`` the
     solution is solved again for the peak alone, from there: where the tie-break traded a hair
     of a binding peak for smoothness (1e-9 of it), the peak is the least, and the history stays
     where the peak does not bind (nothing pulls it there)."""
-    start = problem.evaluate(np.append(r0, 0.0))
+    start = problem.continued(np.append(r0, 0.0))
     if start.missed.any():
         raise problem.unreached(r0, start.missed)
     measure = start.measure
     problem.scale = float(measure.max())
     problem.speed = float(np.einsum("ji,ji->j", start.x_dot, start.x_dot).max())
     z = np.append(r0, 1.0)  # σ = s / s₀
-    bounds = [box] * len(r0) + [(0.0, None)]
+    bounds = list(box) * len(r0) + [(0.0, None)]
     iterations = 0
     for tie_break in (True, False) if polish else (True,):
         problem.tie_break = tie_break
@@ -431,7 +474,7 @@ def solve_transcription(
         z, iterations = solution.x, iterations + solution.nit
     nodes = problem.evaluate(z)
     if nodes.missed.any():
-        raise problem.unreached(z[:-1], nodes.missed)
+        raise problem.unreached(problem.held(z), nodes.missed)
     grid = GridSolution(
         intervals,
         float(nodes.measure.max()),
@@ -440,36 +483,43 @@ def solve_transcription(
         str(solution.message),
         float(max(0.0, -problem.constraints(z).min())),
     )
-    return z[:-1], grid, nodes
+    return problem.held(z), grid, nodes
+
+
+def resampled(times: np.ndarray, t: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """``values`` (k, c) sampled at times t (k,), linearly interpolated at ``times``, (T, c)."""
+    return np.stack([np.interp(times, t, column) for column in values.T], axis=1)
 
 
 def global_optimum(
     robot: Robot,
     segment: Segment | Chain,
     objective: Objective = VELOCITY,
-    held: str = "x3",
+    held: str | Sequence[str] = "x3",
     checked: tuple[str, ...] | None = None,
     grids: tuple[int, ...] | None = None,
-    initial: tuple[float, ...] | None = None,
+    initial: Sequence | None = None,
     search: SearchResult | None = None,
 ) -> GlobalOptimum:
     """The motion along ``segment`` (any path: a segment, or a chain of them) of least peak of
-    ``objective`` over every history of the held actuator (see the module docstring), on each
-    of ``grids`` (intervals) in turn; by default `GRIDS`, then grids twice as fine while the
-    last refinement still moves the optimum by `redundancy.planning.refinement.CONVERGED` or
-    more, up to `MAX_INTERVALS`.
+    ``objective`` over every history of the held actuators (one name, or the r names of a
+    task with r held; see the module docstring), on each of ``grids`` (intervals) in turn; by
+    default `GRIDS`, then grids twice as fine while the last refinement still moves the
+    optimum by `redundancy.planning.refinement.CONVERGED` or more, up to `MAX_INTERVALS`.
 
     The problem is not convex: the first grid is solved from the law's motion from each
-    ``initial`` start (held strokes at t = 0, m; by default the best start of the improved
-    method's ``search``, by default the fast search, and `CANDIDATES` starts evenly over the
-    starts it reached, feasible or not: a history is free to leave the law's feasible starts,
-    and the excavator's least kinetic-energy scrape starts outside them), and the least
-    optimum is refined through the later grids, each started from the previous one.
-    ``checked`` names the actuators whose strokes bind (default all). The objective must be a
-    peak objective (its reduction "peak").
+    ``initial`` start (held strokes at t = 0, m or rad, one value each, or (r,) each with
+    several held; by default the best start of the improved method's ``search``, by default
+    its fast search (the sweep with several held), and `CANDIDATES` starts evenly over the
+    box of the starts it reached, feasible or not, where reachable: a history is free to leave
+    the law's feasible starts, and the excavator's least kinetic-energy scrape starts outside
+    them), and the least optimum is refined through the later grids, each started from the
+    previous one. ``checked`` names the actuators whose strokes bind (default all). The
+    objective must be a peak objective (its reduction "peak").
     """
     segment, objective = checked_path(segment), as_objective(objective)
-    row = held_indices(robot, [held])[0]
+    names = held_names(robot, held)
+    rows = held_indices(robot, names)
     refine = grids is None
     grids = checked_grids(GRIDS if grids is None else grids, 3)
     if objective.reduction != "peak":
@@ -480,45 +530,48 @@ def global_optimum(
     limits = Limits.strokes(robot, checked)
     if initial is None:
         if search is None:
-            search = improved_start(robot, segment, objective, held, checked=checked)
+            search = improved_start(robot, segment, objective, names, checked=checked)
         if search.best is None:
             raise InvalidInputError(
                 f"no start on {segment.label} keeps every checked stroke for the "
                 f"{objective.name} objective; the global optimum starts from feasible motions"
             )
-        reachable = [sample.values[0] for sample in search.samples if sample.peak is not None]
-        spread = np.linspace(min(reachable), max(reachable), CANDIDATES).tolist()
-        initial = tuple(dict.fromkeys([search.best.value, *spread]))  # distinct, best first
-    others = [name for name in limits.names if name != held]
-    stroke = robot.actuators[held]
-    box = (stroke.lower, stroke.upper) if held in limits.names else (None, None)
+        reachable = np.array([s.values for s in search.samples if s.peak is not None])
+        spread = np.linspace(reachable.min(0), reachable.max(0), CANDIDATES)
+        # distinct, best first
+        initial = list(dict.fromkeys(map(tuple, [search.best.values, *spread.tolist()])))
+    values = np.array(initial, dtype=float).reshape(len(initial), len(rows))
+    others = Limits.strokes(robot, [name for name in limits.names if name not in names])
+    box = [
+        (robot.actuators[n].lower, robot.actuators[n].upper) if n in limits.names else (None, None)
+        for n in names
+    ]
 
     def solve(intervals: int, t: np.ndarray, r: np.ndarray, t_q: np.ndarray, q: np.ndarray):
-        """The optimum on a grid, from r sampled at times t and q at times t_q; its r, solution,
-        nodes and the problem."""
-        times = node_times(segment, intervals)
-        q = np.stack([np.interp(times, t_q, q[:, i]) for i in range(robot.n)], axis=1)
-        bound = Limits.strokes(robot, others)
-        problem = Transcription(robot, objective, segment, row, bound, intervals, q)
-        r = np.interp(problem.unknown_times(), t, r)
+        """The optimum on a grid, from r (k, r) sampled at times t and q at times t_q; its r,
+        solution, nodes and the problem."""
+        q = resampled(node_times(segment, intervals), t_q, q)
+        problem = Transcription(robot, objective, segment, rows, others, intervals, q)
+        r = resampled(problem.unknown_times(), t, r)
         return (*solve_transcription(problem, r, box, intervals, polish=True), problem)
 
-    starts = inverse_kinematics(robot, segment.start, [held], np.array(initial)[:, None])
+    starts = inverse_kinematics(robot, segment.start, names, values)
     if not starts.reached.any():
         raise UnreachableError(
             f"{robot.name} cannot reach the start {segment.start.tolist()} of {segment.label} "
-            f"with {held} at any of {list(initial)}"
+            f"with {', '.join(names)} at any of {values.tolist()}"
         )
     motions = simulate_path(
         robot, objective.resolver, segment, starts.q[starts.reached], segment.duration / grids[0]
     )
     candidates, failures = [], []
-    for i, value in enumerate(np.array(initial)[starts.reached]):
+    for i, value in enumerate(values[starts.reached]):
         try:
             t = motions.t[i]
-            candidates.append(solve(grids[0], t, motions.x[i, :, row], t, motions.q[i]))
+            candidates.append(solve(grids[0], t, motions.x[i][:, rows], t, motions.q[i]))
         except InvalidInputError as error:  # the solver stepped where the task is out of reach
-            failures.append(f"from {held} = {value:.4g}: {error}")
+            at = ", ".join(f"{n} = {v:.4g}" for n, v in zip(names, value))
+            failures.append(f"from {at}: {error}")
     if not candidates:
         raise InvalidInputError(f"the bound found no optimum; {'; '.join(failures)}")
     r, grid, nodes, problem = min(candidates, key=lambda c: c[1].peak)
@@ -543,4 +596,12 @@ def global_optimum(
         objective,
         nodes.measure,
     )
-    return GlobalOptimum(segment, objective, held, optimum, float(r[0]), tuple(solutions))
+    one = len(names) == 1
+    return GlobalOptimum(
+        segment,
+        objective,
+        names[0] if one else names,
+        optimum,
+        float(r[0, 0]) if one else tuple(r[0].tolist()),
+        tuple(solutions),
+    )

@@ -66,13 +66,10 @@ from redundancy.planning.bound import (
     Transcription,
     differentiation,
     node_times,
+    resampled,
     solve_transcription,
 )
-from redundancy.planning.ik import (
-    FOUND,
-    continue_held,
-    held_names,
-)
+from redundancy.planning.ik import CONTINUATION_ITERATIONS, FOUND, held_names, newton
 from redundancy.planning.integrate import TIME_STEP, Trajectory
 from redundancy.planning.motions import Laws, per_segment, simulate_path
 from redundancy.planning.refinement import Refined, checked_grids
@@ -134,16 +131,6 @@ def improved_cycle_start(
     )
 
 
-def _one_held(robot: Robot, cycle: WorkCycle, held: str | None) -> str:
-    """The one held actuator (``held``, or the task's), or `InvalidInputError`."""
-    found = _held(robot, cycle, held)
-    if len(found) != 1:
-        raise InvalidInputError(
-            f"this holds one actuator; {robot.name} on {cycle.name!r} holds {list(found)}"
-        )
-    return found[0]
-
-
 def _held(robot: Robot, cycle: WorkCycle, held) -> tuple[str, ...]:
     return held_names(robot, held_actuators(robot, cycle) if held is None else held)
 
@@ -153,9 +140,11 @@ class Corner:
     """A corner of the per-segment plan: segment ``after`` ends at ``point`` where ``before``
     starts. The plan's motion along ``after`` ends with the strokes ``end`` (n,); its best start
     of ``before`` has ``start`` (n,). Between them the machine needs a self-motion, the tool held
-    at the point, moving the held actuators at ``speed`` (m/s or rad/s). ``within_limits``
-    says whether that self-motion keeps every checked stroke (None where not followed: several
-    held actuators), ``reason`` why a corner has no gap (a segment without a feasible start)."""
+    at the point, moving the held actuators along a line from end to start, the fastest at
+    ``speed`` (m/s or rad/s). ``within_limits`` says whether that self-motion keeps every
+    checked stroke (None where a segment has no feasible start), ``reason`` why a corner has
+    no gap or its self-motion fails; ``path`` the self-motion's configurations (k, n), as far
+    as it was followed."""
 
     after: str
     before: str
@@ -167,6 +156,7 @@ class Corner:
     speed: float
     within_limits: bool | None = None
     reason: str | None = None
+    path: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def delta(self) -> np.ndarray | None:
@@ -217,31 +207,23 @@ def _corner(
     start_row = int(before.rows[before.samples.index(before.best)])
     start_q = before.trajectory.q[start_row, 0]
     end_x, start_x = motion.x[0, -1], before.trajectory.x[start_row, 0]
-    within, reason = None, None
-    if len(held) == 1:
-        row = names.index(held[0])
-        path = np.linspace(end_x[row], start_x[row], SELF_MOTION_STEPS + 1)
-        q = np.empty((len(path), robot.n))
-        q[0] = end_q
-        for i in range(1, len(path)):  # followed step by step, so it stays on its branch
-            found, residual = continue_held(
-                robot, point, row, (path[i - 1 : i], q[i - 1 : i]), path[i : i + 1]
-            )
-            if residual[0] >= FOUND:
-                return Corner(
-                    *common,
-                    end_x,
-                    start_x,
-                    speed,
-                    False,
-                    f"the self-motion loses the task point at {held[0]} = {path[i]:.4g}",
-                )
-            q[i] = found[0]
-        margin = Limits.strokes(robot, checked).margin(evaluate(robot, q).x).min()
-        within = bool(margin >= -LIMIT_TOLERANCE)
-        if not np.allclose(q[-1], start_q, atol=1e-6):
-            within, reason = False, "the self-motion reaches another configuration (branch)"
-    return Corner(*common, end_x, start_x, speed, within, reason)
+    rows = [names.index(h) for h in held]
+    path = np.linspace(end_x[rows], start_x[rows], SELF_MOTION_STEPS + 1)  # a line in r-space
+    q = np.empty((len(path), robot.n))
+    q[0] = end_q
+    for i in range(1, len(path)):  # followed step by step, so it stays on its branch
+        target = np.concatenate([point, path[i]])[None]
+        solved = newton(robot, q[i - 1 : i], rows, target, CONTINUATION_ITERATIONS)
+        if solved.miss[0] >= FOUND:
+            at = ", ".join(f"{h} = {v:.4g}" for h, v in zip(held, path[i]))
+            reason = f"the self-motion loses the task point at {at}"
+            return Corner(*common, end_x, start_x, speed, False, reason, q[:i])
+        q[i] = solved.q[0]
+    margin = Limits.strokes(robot, checked).margin(evaluate(robot, q).x).min()
+    if not np.allclose(q[-1], start_q, atol=1e-6):
+        reason = "the self-motion reaches another configuration (branch)"
+        return Corner(*common, end_x, start_x, speed, False, reason, q)
+    return Corner(*common, end_x, start_x, speed, bool(margin >= -LIMIT_TOLERANCE), None, q)
 
 
 @dataclass(frozen=True, eq=False)
@@ -315,8 +297,9 @@ class Settling:
 
     ``settled_at``: the first cycle after which every actuator moved less than `SETTLED`; else
     ``contraction``, the ratio of successive drifts of the held actuator over the last cycles
-    (|ρ| < 1: converging geometrically), ``limit`` the value it converges to (extrapolated) and
-    ``cycles_to_settle`` how many more cycles it needs; ``settles`` sums it up."""
+    (None with fewer than three drifts), ``limit`` the stable fixed point of the return
+    map the repetition converges to and ``cycles_to_settle`` how many more cycles it needs;
+    ``settles`` sums it up."""
 
     settles: bool
     settled_at: int | None
@@ -325,24 +308,38 @@ class Settling:
     cycles_to_settle: int | None
 
 
-def settling(values: np.ndarray, drift: np.ndarray) -> Settling:
-    """`Settling` from the held values at each cycle's start (N + 1,) and every actuator's drift
-    per cycle (N, n)."""
+def settling(
+    values: np.ndarray, drift: np.ndarray, fixed_points: Sequence[FixedPoint] = ()
+) -> Settling:
+    """`Settling` from the held values at each cycle's start (N + 1,), every actuator's drift
+    per cycle (N, n) and the return map's ``fixed_points`` (`ReturnMap.fixed_points`, inside
+    the reachable range it samples). Closed where every drift falls below `SETTLED` for good;
+    else settling only towards a stable fixed point v* (|P'| < 1) that the last cycle heads
+    for, in about log(`SETTLED` / |v − v*|) / log |P'| more cycles. A geometric trend of the
+    drifts alone is no verdict: extrapolated from a few cycles, it can point at a value no start
+    reaches while longer runs wander (the contraction is reported all the same)."""
     largest = np.abs(drift).max(axis=1)
     closed = np.flatnonzero(largest <= SETTLED)
     if closed.size and np.all(largest[closed[0] :] <= SETTLED):
         return Settling(True, int(closed[0]) + 1, None, float(values[-1]), 0)
     steps = np.diff(values)
-    if len(steps) < 3 or np.any(steps[-3:] == 0):
-        return Settling(False, None, None, None, None)
-    ratios = steps[-3:][1:] / steps[-3:][:-1]
-    rho = float(np.median(ratios))
-    consistent = np.all(np.abs(ratios - rho) <= 0.1 * max(abs(rho), 1e-3))
-    if not (abs(rho) < 1 and consistent):
+    rho = None
+    if len(steps) >= 3 and np.all(steps[-3:] != 0):
+        ratios = steps[-3:][1:] / steps[-3:][:-1]
+        rho = float(np.median(ratios))
+    heading = [
+        p
+        for p in fixed_points
+        if p.stable and np.sign(p.value - values[-1]) == np.sign(steps[-1]) != 0
+    ]
+    if not heading:
         return Settling(False, None, rho, None, None)
-    limit = float(values[-1] + steps[-1] * rho / (1 - rho))
-    more = math.ceil(math.log(SETTLED / abs(steps[-1])) / math.log(abs(rho))) if rho else 1
-    return Settling(True, None, rho, limit, max(more, 1))
+    target = min(heading, key=lambda p: abs(p.value - values[-1]))
+    distance, slope = abs(target.value - values[-1]), abs(target.slope)
+    more = 1
+    if distance > SETTLED and slope > 0:
+        more = math.ceil(math.log(SETTLED / distance) / math.log(slope))
+    return Settling(True, None, rho, target.value, max(more, 1))
 
 
 @dataclass(frozen=True, eq=False)
@@ -397,7 +394,14 @@ class Repetition:
 
     @property
     def settling(self) -> Settling:
-        return settling(self.held_values[:, 0], self.drift)
+        """Whether the repetition closed; without the return map's fixed points nothing else
+        counts as settling (`settling_with`)."""
+        return self.settling_with(())
+
+    def settling_with(self, fixed_points: Sequence[FixedPoint]) -> Settling:
+        """Whether the repetition closes or converges to one of the return map's stable
+        ``fixed_points`` (`settling`)."""
+        return settling(self.held_values[:, 0], self.drift, fixed_points)
 
     @property
     def peak_velocity_norm(self) -> float:
@@ -531,7 +535,7 @@ def return_map(
     robot: Robot,
     cycle: WorkCycle,
     laws: Laws,
-    held: str | None = None,
+    held: str | Sequence[str] | None = None,
     values: np.ndarray | None = None,
     checked: tuple[str, ...] | None = None,
     count: int = MAP_SAMPLES,
@@ -539,7 +543,14 @@ def return_map(
     """P sampled at ``values`` of the held actuator (default ``count`` evenly over the reachable
     part of its stroke at the cycle's start), all integrated as one batch."""
     cycle.check_continuous(closed=True)
-    name = _one_held(robot, cycle, held)
+    found = _held(robot, cycle, held)
+    if len(found) != 1:
+        raise InvalidInputError(
+            f"it maps one held actuator's value to the next cycle's; {robot.name} on "
+            f"{cycle.name!r} holds {len(found)} ({', '.join(found)}): the repetition's drift "
+            "tells instead"
+        )
+    name = found[0]
     first = cycle.segments[0]
     configurations = Configurations(robot, first, name)
     if values is None and not is_whole(count, 2, MAX_SAMPLES):
@@ -577,48 +588,56 @@ def return_map(
 
 
 class HeldReference(Resolver):
-    """Runs a periodic plan: the held actuator follows the plan's r(t) along one segment (t in
+    """Runs a periodic plan: the held actuators follow the plan's r(t) along one segment (t in
     s from the segment's start), ẋ_h = ṙ(t) + k (r(t) − x_h), and the others resolve the task,
-    J_H ẋ = ẏ: the one ẋ solving [J_H; e_h] ẋ = [ẏ; ẋ_h] (n equations with r = n − m = 1).
-    r(t) is the cubic spline through the plan's nodes (twice differentiable, so the integrator
-    steps over the nodes; ``periodic`` where one segment is the whole cycle)."""
+    J_H ẋ = ẏ: the one ẋ solving [J_H; E_h] ẋ = [ẏ; ẋ_h] (n equations, r = n − m held).
+    r(t) is the cubic spline through the plan's nodes, (N,) or (N, r) (twice differentiable, so
+    the integrator steps over the nodes; ``periodic`` where one segment is the whole cycle)."""
 
-    name = "periodic plan (held actuator follows r(t))"
+    name = "periodic plan (held actuators follow r(t))"
 
     def __init__(
-        self, row: int, t: np.ndarray, r: np.ndarray, gain: float = HELD_GAIN, periodic=False
+        self,
+        rows: int | Sequence[int],
+        t: np.ndarray,
+        r: np.ndarray,
+        gain: float = HELD_GAIN,
+        periodic=False,
     ):
-        self.row, self.gain = row, gain
+        self.rows = [int(rows)] if isinstance(rows, int | np.integer) else list(rows)
+        self.gain = gain
+        r = np.reshape(r, (len(t), len(self.rows)))
         self.reference = CubicSpline(t, r, bc_type="periodic" if periodic else "not-a-knot")
         self.rate = self.reference.derivative()
 
     def __repr__(self) -> str:
-        return f"HeldReference(row={self.row}, gain={self.gain})"
+        return f"HeldReference(rows={self.rows}, gain={self.gain})"
 
     def resolve(self, space: ActuatorSpace, y_dot: np.ndarray) -> np.ndarray:
         raise InvalidInputError("this law follows a plan in time; call resolve_at(space, ẏ, t)")
 
     def resolve_at(self, space: ActuatorSpace, y_dot: np.ndarray, t: np.ndarray) -> np.ndarray:
         t = np.broadcast_to(np.asarray(t, dtype=float), (len(space.x),))
-        held = self.rate(t) + self.gain * (self.reference(t) - space.x[:, self.row])
+        held = self.rate(t) + self.gain * (self.reference(t) - space.x[:, self.rows])
         n = space.x.shape[1]
-        K = np.concatenate([space.J_H, np.eye(n)[self.row][None, None].repeat(len(t), 0)], 1)
-        rhs = np.concatenate([y_dot, held[:, None]], axis=1)
+        K = np.concatenate([space.J_H, np.eye(n)[self.rows][None].repeat(len(t), 0)], 1)
+        rhs = np.concatenate([y_dot, held], axis=1)
         return solve(K, rhs[..., None])[..., 0]
 
 
 @dataclass(frozen=True, eq=False)
 class PeriodicOptimum(Refined):
     """The drift-free strategy (module docstring): the motion of least peak of ``objective``
-    over every periodic history of the held actuator over the whole cycle, on each of its
+    over every periodic history of the held actuators over the whole cycle, on each of its
     ``grids``. At the finest grid's nodes: cycle times t (N,), each node's ``piece`` (segment),
-    its segment time ``local``, q (N, n), the held strokes r (N,) and rates ṙ (N,), the
-    objective's ``measure`` (N,)."""
+    its segment time ``local``, q (N, n), the held strokes r and rates ṙ ((N,) with one held
+    actuator, (N, r) with several, as ``held`` is its name or their names), the objective's
+    ``measure`` (N,)."""
 
     robot: Robot = field(repr=False)
     cycle: WorkCycle
     objective: Objective
-    held: str
+    held: str | tuple[str, ...]
     t: np.ndarray
     piece: np.ndarray
     local: np.ndarray
@@ -640,7 +659,7 @@ class PeriodicOptimum(Refined):
 
     def laws(self, gain: float = HELD_GAIN) -> tuple[HeldReference, ...]:
         """One `HeldReference` per segment: the law a machine runs the plan by."""
-        row = self.robot.actuators.names.index(self.held)
+        row = self.robot.actuators.rows(self.held)
         laws = []
         single = len(self.cycle.segments) == 1
         for i in range(len(self.cycle.segments)):
@@ -654,7 +673,7 @@ def periodic_optimum(
     cycle: WorkCycle,
     guess: Trajectory,
     objective: Objective = VELOCITY,
-    held: str | None = None,
+    held: str | Sequence[str] | None = None,
     checked: tuple[str, ...] | None = None,
     grids: tuple[int, ...] = PERIODIC_GRIDS,
     margin: float = PERIODIC_MARGIN,
@@ -662,49 +681,51 @@ def periodic_optimum(
 ) -> PeriodicOptimum:
     """The periodic global optimum over the whole cycle (module docstring), from the first
     motion of ``guess`` (e.g. the free improved cycle) with its drift taken out linearly in
-    time; ``grids`` are interval counts over the whole cycle, each solved from the last."""
+    time; ``grids`` are interval counts over the whole cycle, each solved from the last.
+    ``held`` names the held actuators (default the task's), one or several."""
     cycle.check_continuous(closed=True)
-    name = _one_held(robot, cycle, held)
+    names = _held(robot, cycle, held)
     if objective.reduction != "peak":
         raise InvalidInputError(
             f"the periodic optimum minimises a peak; objective {objective.name!r} reduces its "
             f"measure by {objective.reduction!r}"
         )
     grids = checked_grids(grids, 2)
-    actuator = robot.actuators[name]
+    actuators = [robot.actuators[name] for name in names]
     for key, value, most, unit in (
         (
             "margin",
             margin,
-            (actuator.upper - actuator.lower) / 4,
-            actuator.unit,
+            min(a.upper - a.lower for a in actuators) / 4,
+            actuators[0].unit,
         ),
         ("smoothness", smoothness, 1.0, "s²"),
     ):
         if not (is_real(value) and 0 <= value <= most):
             raise InvalidInputError(f"{key} must be within [0, {most:g}] {unit}; got {value!r}")
-    row = robot.actuators.names.index(name)
+    rows = robot.actuators.rows(names)
     limits = Limits.strokes(robot, checked)
-    others = Limits.strokes(robot, [n for n in limits.names if n != name])
-    stroke = robot.actuators[name]
-    box = (stroke.lower + margin, stroke.upper - margin) if name in limits.names else (None, None)
+    others = Limits.strokes(robot, [n for n in limits.names if n not in names])
+    box = [
+        (a.lower + margin, a.upper - margin) if a.name in limits.names else (None, None)
+        for a in actuators
+    ]
     whole = guess.select(0)
     period = cycle.duration
-    t0, r0 = whole.t[0], whole.x[0, :, row]
-    closed = r0 - (r0[-1] - r0[0]) * t0 / period  # the free motion with its drift taken out
+    t0, r0 = whole.t[0], whole.x[0][:, rows]
+    closed = r0 - (r0[-1] - r0[0]) * t0[:, None] / period  # the free motion, its drift out
     q0 = whole.q[0]
     solutions = []
     nodes_t, nodes_q = t0, q0  # where the next grid's configurations are interpolated from
     unknown_t, unknown_r = t0, closed  # and its held strokes (periodic in the cycle's time)
     chain = cycle.chain()
     for intervals in grids:
-        times = node_times(chain, intervals)
-        q = np.stack([np.interp(times, nodes_t, nodes_q[:, j]) for j in range(robot.n)], axis=1)
+        q = resampled(node_times(chain, intervals), nodes_t, nodes_q)
         problem = Transcription(
             robot,
             objective,
             chain,
-            row,
+            rows,
             others,
             intervals,
             q,
@@ -713,7 +734,7 @@ def periodic_optimum(
             smoothness=smoothness,
             differences=differentiation,
         )
-        r = np.interp(problem.unknown_times(), unknown_t, unknown_r)
+        r = resampled(problem.unknown_times(), unknown_t, unknown_r)
         try:
             r, grid, nodes = solve_transcription(problem, r, box, intervals)
         except InvalidInputError as error:
@@ -722,28 +743,29 @@ def periodic_optimum(
         nodes_t, nodes_q = problem.t, nodes.space.q
         order = np.argsort(problem.unknown_times())
         unknown_t = np.append(problem.unknown_times()[order], period)
-        unknown_r = np.append(r[order], r[0])
+        unknown_r = np.concatenate([r[order], r[:1]])
     # the peak is taken at the nodes with central differences, blind to a held history that
     # alternates node by node; the plan a machine runs is that history with the alternation
     # filtered out ((1, 2, 1) / 4 inside each segment; the corners, where the held rate may
     # jump, kept), its configurations solved afresh
-    smooth = (np.roll(r, 1) + 2 * r + np.roll(r, -1)) / 4
+    smooth = (np.roll(r, 1, axis=0) + 2 * r + np.roll(r, -1, axis=0)) / 4
     corners = problem.owner[np.flatnonzero(np.diff(problem.piece, prepend=-1))]
     smooth[corners] = r[corners]
     r_nodes = smooth[problem.owner]
     r_dot = problem.D @ smooth
     q = problem.configurations(smooth)
+    one = len(names) == 1
     return PeriodicOptimum(
         robot,
         cycle,
         objective,
-        name,
+        names[0] if one else names,
         problem.t,
         problem.piece,
         problem.local,
         q.copy(),
-        r_nodes,
-        r_dot,
+        r_nodes[:, 0] if one else r_nodes,
+        r_dot[:, 0] if one else r_dot,
         nodes.measure,
         tuple(solutions),
     )

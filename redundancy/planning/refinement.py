@@ -58,3 +58,18 @@ class Refined:
         less than `CONVERGED`."""
         change = self.change
         return bool(self.grids[-1].success) and change is not None and change < CONVERGED
+
+    @property
+    def failure(self) -> str | None:
+        """Why the optimum is no result, in one line (None where it converged): the solver's
+        own message where the finest grid's solve failed, else how much the last refinement
+        moved it."""
+        finest, change = self.grids[-1], self.change
+        if not finest.success:
+            return (
+                f"NOT converged: the solver failed on the grid of {finest.intervals} intervals "
+                f"({finest.message})"
+            )
+        if self.converged:
+            return None
+        return f"NOT converged, change {'-' if change is None else f'{100 * change:.2f} %'}"

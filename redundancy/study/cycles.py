@@ -19,6 +19,7 @@ For one objective (a peak one for the drift-free strategy):
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -31,6 +32,7 @@ from redundancy.planning.cycles import (
     SETTLED,
     Corner,
     CyclePlan,
+    FixedPoint,
     PeriodicOptimum,
     Repetition,
     ReturnMap,
@@ -52,6 +54,33 @@ NAMES = {
     "free": "free, whole-cycle improved start",
     "periodic": "periodic optimum (drift-free)",
 }
+
+
+def free_start_of(search: SearchResult) -> tuple[str, np.ndarray, str]:
+    """The start the free strategy runs from: the whole-cycle improved start; where no start
+    keeps every stroke over the cycle, the closest one (the reached start whose worst excess is
+    least, the one `SearchResult.closest_violation` names); where none was reached, the default
+    start. Returns its kind, its configuration (n,) and its words."""
+    robot, held = search.robot, search.held
+    if search.best is not None:
+        values, q = search.best.values, search.best_motion.q[0, 0]
+        return (
+            "whole-cycle improved start",
+            q,
+            f"whole-cycle improved start {named_values(robot, held, values)}",
+        )
+    missed = [s for s in search.samples if s.violations]
+    if missed:
+        closest = min(missed, key=lambda s: max(v.excess for v in s.violations))
+        q = search.trajectory.q[int(search.rows[search.samples.index(closest)]), 0]
+        words = (
+            f"closest start {named_values(robot, held, closest.values)}: no start keeps every "
+            f"stroke over the cycle; closest: {search.closest_violation}"
+        )
+        return "closest start", q, words
+    values, q = default_start(robot, search.segment, held)
+    words = f"default start {named_values(robot, held, values)}: no start reaches the cycle"
+    return "default start", q, words
 
 
 class Cost(NamedTuple):
@@ -86,8 +115,10 @@ def cost(motion: Trajectory, objective: Objective) -> Cost:
 class CycleStudy:
     """One work cycle planned and repeated (module docstring). ``repetitions`` by strategy
     ("free", "periodic"); ``firsts`` each strategy's first cycle on the grid (for figures and
-    playback) and ``costs`` its `Cost`; ``failures`` why a strategy or the return map did not
-    run."""
+    playback) and ``costs`` its `Cost`; ``free_start`` the start the free strategy ran from,
+    in words, and ``free_kind`` which it is ("whole-cycle improved start", or where none keeps
+    every stroke the "closest start", or the "default start" where no start was reached);
+    ``failures`` why a strategy or the return map did not run."""
 
     robot: Robot = field(repr=False)
     cycle: WorkCycle
@@ -102,11 +133,22 @@ class CycleStudy:
     periodic: PeriodicOptimum | None = field(repr=False)
     map: ReturnMap | None = field(repr=False)
     free_start: str = "whole-cycle improved start"
+    free_kind: str = "whole-cycle improved start"
     failures: dict[str, str] = field(default_factory=dict)
 
     @property
     def held(self) -> tuple[str, ...]:
         return self.plan.held
+
+    @property
+    def names(self) -> dict[str, str]:
+        """Each strategy's name, the free one's with the start it really ran from."""
+        return {**NAMES, "free": f"free, {self.free_kind}"}
+
+    def fixed_points(self, strategy: str) -> list[FixedPoint]:
+        """The return map's fixed points where ``strategy`` is the law the map samples (the
+        free one), else none: the free repetition settles only towards one of them."""
+        return self.map.fixed_points if strategy == "free" and self.map is not None else []
 
     def price(self) -> dict | None:
         """The drift-free strategy against the free improved cycle, per cent (+: costs more)."""
@@ -145,9 +187,11 @@ class CycleStudy:
             },
             "strategies": {
                 name: {
-                    "name": NAMES[name],
+                    "name": self.names[name],
                     **self.costs[name].figures(),
-                    "repetition": repetition_report(self.repetitions[name]),
+                    "repetition": repetition_report(
+                        self.repetitions[name], self.fixed_points(name)
+                    ),
                 }
                 for name in self.repetitions
             },
@@ -156,7 +200,7 @@ class CycleStudy:
             if self.periodic is None
             else {
                 "plan_peak": self.periodic.peak,
-                "start_value": float(self.periodic.r[0]),
+                "start_value": scalar_or_list(np.atleast_1d(self.periodic.r[0])),
                 "change": self.periodic.change,
                 "converged": self.periodic.converged,
                 "grids": [g.intervals for g in self.periodic.grids],
@@ -206,9 +250,11 @@ def corner_report(corner: Corner) -> dict:
     }
 
 
-def repetition_report(repetition: Repetition) -> dict:
-    """A repetition's drift, limits and settling as JSON-ready data."""
-    first, drift, settled = repetition.first_violation, repetition.drift, repetition.settling
+def repetition_report(repetition: Repetition, fixed_points: Sequence[FixedPoint] = ()) -> dict:
+    """A repetition's drift, limits and settling (towards one of the return map's
+    ``fixed_points``, `Repetition.settling_with`) as JSON-ready data."""
+    first, drift = repetition.first_violation, repetition.drift
+    settled = repetition.settling_with(fixed_points)
     held = repetition.held_values
     return {
         "strategy": repetition.strategy,
@@ -222,30 +268,32 @@ def repetition_report(repetition: Repetition) -> dict:
         "within_limits_per_cycle": repetition.within.tolist(),
         "first_cycle_past_a_limit": None if first is None else first[0],
         "first_violation": None if first is None else first[1],
-        "settling": settling_words(repetition),
+        "settling": settling_words(repetition, fixed_points),
         "settles": settled.settles,
         "limit_cycle_value": settled.limit,
         "contraction": settled.contraction,
     }
 
 
-def settling_words(repetition: Repetition) -> str:
-    """Whether the held actuator settles to a limit cycle, in words, each value with its SI
-    unit (the limit cycle in the held actuator's, the drift threshold in each actuator's)."""
-    settled, actuators = repetition.settling, repetition.robot.actuators
+def settling_words(repetition: Repetition, fixed_points: Sequence[FixedPoint] = ()) -> str:
+    """Whether the held actuator settles to a limit cycle (one of the return map's stable
+    ``fixed_points``), in words, each value with its SI unit (the limit cycle in the held
+    actuator's, the drift threshold in each actuator's)."""
+    settled, actuators = repetition.settling_with(fixed_points), repetition.robot.actuators
     if settled.settled_at is not None:
         units = " or ".join(sorted({a.unit for a in actuators}))
         return f"closed (drift below {SETTLED:g} {units}) from cycle {settled.settled_at}"
+    ratio = (
+        "" if settled.contraction is None else f"drift ratio {settled.contraction:.3g} per cycle"
+    )
     if settled.settles:
         held = " or ".join(sorted({actuators[name].unit for name in repetition.held}))
         return (
-            f"converging to a limit cycle at {settled.limit:.6g} {held} (drift ratio "
-            f"{settled.contraction:.3g} per cycle, closed in about {settled.cycles_to_settle} "
-            "more cycles)"
+            f"converging to the return map's stable limit cycle at {settled.limit:.6g} {held} "
+            f"({ratio + ', ' if ratio else ''}closed in about {settled.cycles_to_settle} more "
+            "cycles)"
         )
-    if settled.contraction is None:
-        return "no trend"
-    return f"not settling (drift ratio {settled.contraction:.3g} per cycle)"
+    return f"not settling after {repetition.cycles} cycles" + (f" ({ratio})" if ratio else "")
 
 
 def map_report(mapped: ReturnMap) -> dict:
@@ -289,11 +337,6 @@ def run_cycle(
     cycle.check_continuous(closed=True)
     chosen = STRATEGIES if strategy == "both" else (strategy,)
     held = held_actuators(robot, cycle)
-    if chosen == ("periodic",) and len(held) != 1:
-        raise InvalidInputError(
-            f"the periodic strategy holds one actuator; {robot.name}'s task holds {list(held)}: "
-            "run the free strategy (--strategy free)"
-        )
     if circuit:
         robot.circuit()  # says how to declare one before any work
     steps = 2 + 2 * len(chosen)
@@ -303,15 +346,8 @@ def run_cycle(
         bar.set_description("cycle: plan")
         plan = plan_cycle(robot, cycle, objective, held, samples, checked, method, circuit, speed)
         bar.update()
-        free_start = "whole-cycle improved start"
         free_motion = plan.motion
-        if free_motion is not None:
-            start_q = free_motion.q[0, 0]
-        else:
-            values, start_q = default_start(robot, cycle.chain(), held)
-            free_start = (
-                f"default start {named_values(robot, held, values)}: no start keeps every stroke"
-            )
+        free_kind, start_q, free_start = free_start_of(plan.search)
         repetitions: dict[str, Repetition] = {}
         firsts: dict[str, Trajectory] = {}
         periodic = None
@@ -335,11 +371,7 @@ def run_cycle(
                     robot, cycle, objective.resolver, start_q, 1, "free", held, checked
                 ).motion(1)
             try:
-                if len(held) != 1:
-                    raise InvalidInputError(
-                        f"the periodic optimum holds one actuator; the task holds {list(held)}"
-                    )
-                periodic = periodic_optimum(robot, cycle, guess, objective, held[0], checked)
+                periodic = periodic_optimum(robot, cycle, guess, objective, held, checked)
             except (InvalidInputError, UnreachableError) as error:
                 failures["periodic"] = str(error)
             bar.update()
@@ -349,11 +381,10 @@ def run_cycle(
             bar.update()
         bar.set_description("cycle: return map")
         mapped = None
-        if len(held) == 1:
-            try:
-                mapped = return_map(robot, cycle, objective.resolver, held[0], checked=checked)
-            except (InvalidInputError, UnreachableError) as error:
-                failures["return map"] = str(error)
+        try:
+            mapped = return_map(robot, cycle, objective.resolver, held, checked=checked)
+        except (InvalidInputError, UnreachableError) as error:
+            failures["return map"] = str(error)
     return CycleStudy(
         robot,
         cycle,
@@ -368,5 +399,6 @@ def run_cycle(
         periodic,
         mapped,
         free_start,
+        free_kind,
         failures,
     )

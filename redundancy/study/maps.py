@@ -156,6 +156,8 @@ def _bound(family, robot, segment, objective, search) -> dict:
         optimum = global_optimum(robot, segment, objective, family.held[0], search=search)
     except RedundancyError:
         return row
+    if not optimum.converged:  # not a result: withheld, as in the study
+        return row
     peak = search.best_peak
     row.update(bound_peak=optimum.bound, motion_peak=peak)
     row["gap_pct"] = 100 * (peak - optimum.bound) / optimum.bound

@@ -59,6 +59,9 @@ from redundancy.study.cycles import CycleStudy, run_cycle, search_report
 from redundancy.study.output import write_atomically
 from redundancy.study.peers import StrategyRun, fixed_start_run
 
+ABOVE = 1e-4  # a bound above the improved start's peak by more than this fraction is withheld:
+# below it, the improved motion's 10 ms grid and the bound's nodes sample a peak every history
+# shares (the slewing crane's lift-swing, 1e-5)
 STUDY_CYCLES = 3  # the cycle section's repetitions: enough to show the drift; `redundancy cycle`
 # runs `redundancy.planning.cycles.CYCLES` (20), at about 0.3 s per cycle of the crane
 
@@ -123,7 +126,29 @@ class Study:
         return self.sweeps[objective][self._segment(segment)]
 
     def bound(self, objective: str, segment: str) -> GlobalOptimum | None:
+        """The bound as solved, converged or not (see `result`)."""
         return self.bounds[objective][self._segment(segment)]
+
+    def withheld(self, objective: str, segment: str) -> str | None:
+        """Why ``segment``'s bound of ``objective`` is no result, in one line, or None: the
+        bound failed, did not converge (`Refined.failure`), or lies above the improved start's
+        peak, which a bound cannot (the solver stopped at a local optimum)."""
+        failure = (self.bound_failures or {}).get(f"{objective}/{segment}")
+        bound = self.bound(objective, segment)
+        if failure is not None or bound is None:
+            return failure
+        peak = self.search(objective, segment).best_peak
+        if bound.failure is None and peak is not None and bound.bound > peak * (1 + ABOVE):
+            return (
+                f"the solver's optimum {bound.bound:.5g} lies above the improved start's peak "
+                f"{peak:.5g}: a local optimum, not the least"
+            )
+        return bound.failure
+
+    def result(self, objective: str, segment: str) -> GlobalOptimum | None:
+        """The bound where it is a result (not `withheld`), else None."""
+        withheld = self.withheld(objective, segment)
+        return None if withheld is not None else self.bound(objective, segment)
 
     def _segment(self, name: str) -> int:
         names = [s.name for s in self.cycle.segments]
@@ -133,7 +158,7 @@ class Study:
 
     def gap(self, objective: str, segment: str) -> float | None:
         """(improved peak − bound) / bound, in per cent, or None."""
-        peak, bound = self.search(objective, segment).best_peak, self.bound(objective, segment)
+        peak, bound = self.search(objective, segment).best_peak, self.result(objective, segment)
         if peak is None or bound is None:
             return None
         return 100 * (peak - bound.bound) / bound.bound
@@ -202,7 +227,7 @@ class Study:
 
     def _segment_report(self, objective: str, segment: str) -> dict:
         search, sweep = self.search(objective, segment), self.sweep(objective, segment)
-        bound = self.bound(objective, segment)
+        bound = self.result(objective, segment)
         return {
             "name": segment,
             "start": search.segment.start.tolist(),
@@ -218,7 +243,7 @@ class Study:
                 "converged": bound.converged,
             },
             "gap_percent": self.gap(objective, segment),
-            "bound_failure": (self.bound_failures or {}).get(f"{objective}/{segment}"),
+            "bound_failure": self.withheld(objective, segment),
             "samples": [
                 {
                     "value": scalar_or_list(s.values),
@@ -250,9 +275,9 @@ def run_study(
     The held actuators are the task's ``held`` or, if it names none, the last n − m actuators
     (`held_actuators`). ``method`` chooses the improved start: "fast" (the default with one
     held actuator) or "sweep" (``samples`` starts; always with several). The bound is computed
-    with one held actuator, where a start is feasible, unless ``bound`` is False. With
-    ``energy_bound`` (one or two held actuators and a hydraulic circuit), each segment's energy
-    bound under load sensing and constant pressure is computed too. With ``circuit`` the hydraulic
+    where a start is feasible, unless ``bound`` is False. With ``energy_bound`` (one or two
+    held actuators and a hydraulic circuit), each segment's energy bound under load sensing and
+    constant pressure is computed too. With ``circuit`` the hydraulic
     circuit's limits count wherever strokes do (the searches' feasibility, every run's limits);
     the min-max bound still keeps the strokes alone, so it stays a bound. With ``cycles`` > 0
     and a continuous closed task, the cycle section repeats the cycle that many times for the
@@ -396,15 +421,14 @@ class _Plan:
 
     def optimum(self, segment, objective, search, bar, failures) -> GlobalOptimum | None:
         """The min-max bound of ``objective`` on ``segment``, where it is asked for and defined
-        (one held actuator, a peak objective, a feasible start); a failure is noted in
-        ``failures``."""
-        asked = self.bound and len(self.held) == 1 and objective.reduction == "peak"
+        (a peak objective, a feasible start); a failure is noted in ``failures``."""
+        asked = self.bound and objective.reduction == "peak"
         if not asked or search.best is None:
             return None
         bar.set_description(f"{segment.name}: bound, {objective.name}")
         try:
             return global_optimum(
-                self.robot, segment, objective, self.held[0], self.checked, search=search
+                self.robot, segment, objective, self.held, self.checked, search=search
             )
         except (InvalidInputError, UnreachableError) as error:
             failures[f"{objective.name}/{segment.name}"] = str(error)

@@ -16,7 +16,7 @@ from redundancy.planning.refinement import Refined
 from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import VELOCITY
 from redundancy.study.check import Check, span
-from redundancy.study.cycles import NAMES, CycleStudy, named_values, settling_words
+from redundancy.study.cycles import CycleStudy, named_values, settling_words
 from redundancy.study.peers import StrategyRun
 from redundancy.study.study import Study
 from redundancy.viz.plots import measure_unit
@@ -54,7 +54,7 @@ def study_table(study: Study) -> str:
         unit = measure_unit(searches[0].objective, actuators)
         for search in searches:
             segment = search.segment.name
-            bound, gap = study.bound(name, segment), study.gap(name, segment)
+            bound, gap = study.result(name, segment), study.gap(name, segment)
             if search.best is None:
                 closest = study.sweep(name, segment).closest_violation
                 lines.append(
@@ -63,11 +63,10 @@ def study_table(study: Study) -> str:
                     + (f"; closest: {closest}" if closest else "")
                 )
                 continue
-            failure = (study.bound_failures or {}).get(f"{name}/{segment}")
+            failure = study.withheld(name, segment)
             lines.append(
                 f"{segment:<{names}}{name:<10}{unit:<8}{search.best_peak:>12.5g}"
                 + ("" if bound is None else f"{bound.bound:>12.5g}{gap:>z8.2f}")
-                + ("" if bound is None or bound.converged else f"  {convergence(bound)}")
                 + ("" if failure is None else f"{'-':>12}{'-':>8}  no bound: {failure}")
             )
     if study.robot.hydraulics is not None:
@@ -210,7 +209,8 @@ def _corner_lines(study: CycleStudy) -> list[str]:
         lines.append(row + f"{corner.time:>9.2f}  {corner.reason or state[corner.within_limits]}")
     if plan.gap_time is not None and plan.corners:
         lines.append(
-            f"  the self-motions add {plan.gap_time:.2f} s per cycle, the held actuator at "
+            f"  the self-motions add {plan.gap_time:.2f} s per cycle, the held "
+            f"{'actuator' if len(study.held) == 1 else 'actuators'} at "
             f"{plan.corners[0].speed:g} {actuators[study.held[0]].unit}/s"
         )
     return lines
@@ -245,9 +245,9 @@ def _repetition_table(study: CycleStudy) -> str:
         first = repetition.first_violation
         passed = "none" if first is None else f"cycle {first[0]}: {first[1]}"
         lines.append(
-            f"{NAMES[name]:<34}{repetition.cycles:>7}{first_cycle:>20}{last_cycle:>13}"
+            f"{study.names[name]:<34}{repetition.cycles:>7}{first_cycle:>20}{last_cycle:>13}"
             f"{amount(repetition.tool_drift.max(), 'm'):>13}  {passed}; "
-            f"{settling_words(repetition)}"
+            f"{settling_words(repetition, study.fixed_points(name))}"
         )
     return "\n".join(lines)
 
