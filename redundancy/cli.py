@@ -31,7 +31,7 @@ from redundancy.errors import InvalidInputError, RedundancyError
 from redundancy.model.loading import bundled_robots, load_robot
 from redundancy.model.robot import Robot
 from redundancy.model.values import MAX_PAYLOAD
-from redundancy.planning.angles import task_robot
+from redundancy.planning.angles import task_labels, task_robot
 from redundancy.planning.cycles import CYCLES
 from redundancy.planning.ik import check_path, configuration_at
 from redundancy.planning.integrate import Trajectory, simulate
@@ -47,7 +47,7 @@ from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import OBJECTIVES, Objective, objective
 from redundancy.resolution.state import actuator_space
 from redundancy.study.background import Background
-from redundancy.study.check import check, span
+from redundancy.study.check import check, held_problems, span
 from redundancy.study.cycles import CHOICES, run_cycle
 from redundancy.study.families import read_family
 from redundancy.study.maps import CONNECT_TIMEOUT, connect, design_map, summary
@@ -72,7 +72,8 @@ from redundancy.viz.tables import check_table, cycle_table, study_table
 def describe(robot: Robot) -> str:
     """A summary of a robot: joints, actuators and strokes (mm, degrees), mass, M_H at
     mid-range (where the robot has masses)."""
-    lines = [f"{robot.name}: n = {robot.n} joints, task = tool {robot.task_axes} (m = {robot.m})"]
+    task = " + ".join([robot.task_axes, *task_labels(robot)[len(robot.task_axes) :]])
+    lines = [f"{robot.name}: n = {robot.n} joints, task = tool {task} (m = {robot.m})"]
     lines.append("joints:")
     for name, lo, hi, rotary in zip(
         robot.joint_names, robot.lower, robot.upper, robot.rotary_joints
@@ -102,7 +103,10 @@ def describe(robot: Robot) -> str:
 
 
 def _describe_command(args: argparse.Namespace) -> None:
-    print(describe(_robot(args)))
+    robot = _robot(args)
+    if robot.task_file is not None:  # read on its task: the tool's angle may be a coordinate
+        robot = _load_task(robot, None)[0]
+    print(describe(robot))
 
 
 def argument(convert: Callable[[str], float], accept: Callable[[float], bool], phrase: str):
@@ -189,6 +193,14 @@ def _load_task(robot: Robot, path: str | None) -> tuple[Robot, WorkCycle]:
     return task_robot(robot, cycle), cycle
 
 
+def _holdable(robot: Robot, cycle: WorkCycle, sampled: bool = True) -> None:
+    """Refuse, in the first of its lines, a task whose held actuators cannot be held
+    (`held_problems`)."""
+    problems = held_problems(robot, cycle, sampled)
+    if problems:
+        raise InvalidInputError(problems[0])
+
+
 def _checked(robot: Robot, option: str | None) -> tuple[str, ...] | None:
     """The actuators ``--check`` names (None: every one), each an actuator of ``robot``."""
     if option is None:
@@ -207,6 +219,14 @@ def _study_command(args: argparse.Namespace) -> None:
     with OutputFolder(args.out) as out:  # committed only if everything below succeeds
         report, robot, cycle, options = _searched(out, args)
         chosen = ("velocity", "energy") if args.objective == "both" else (args.objective,)
+        if robot.kinematic_only and args.objective == "both":
+            chosen = ("velocity",)
+            warnings.warn(
+                f"{robot.name} is kinematic only: the study leaves out what needs masses (the "
+                "energy objective, the M_H-weighted law, peak ẋᵀM_Hẋ); give the links "
+                "<inertial>s for them",
+                stacklevel=1,
+            )
         objectives = tuple(objective(name) for name in chosen)
         section = partial(
             _cycle_section, robot, cycle, objectives[0], args.cycles, options, out.staging
@@ -240,6 +260,7 @@ def _searched(out: OutputFolder, args: argparse.Namespace) -> tuple[Path, Robot,
     report.json in the output folder), the robot and its task, and the searches' options."""
     report = out / "report.json" if args.json is None else out.beside(Path(args.json), "--json")
     robot, cycle = _load_task(_robot(args), args.task)
+    _holdable(robot, cycle)
     options = dict(
         samples=args.samples,
         checked=_checked(robot, args.check),
@@ -280,6 +301,7 @@ def _play_motion(
     robot: Robot, cycle: WorkCycle, segment: Segment, chosen: Objective, args: argparse.Namespace
 ) -> tuple[Trajectory, str]:
     """The motion ``play`` shows, from the start the options choose, and that start in words."""
+    _holdable(robot, cycle, sampled=args.start is None and args.x3init is None)
     held = held_actuators(robot, cycle)
     if args.best:
         search = improved_start(robot, segment, chosen, held, args.samples)

@@ -60,6 +60,9 @@ class ActuatorMap(ABC):
     rotary = False
     distance = False  # whether x is a distance between two points (m, ≥ 0), a cylinder's length
     parameters: tuple[Parameter, ...] = ()
+    declared_in = (
+        ""  # where it is declared (file and table), for messages; "" for a joint's default
+    )
 
     @property
     def unit(self) -> str:
@@ -332,6 +335,8 @@ class LinearCylinder(VectorisedMap):
 
 class ActuatorSet:
     """The robot's actuators, one per joint, ordered like the joints: x (k, n), A (k, n, n)."""
+
+    source = ""  # the robot's description (robot.toml, or a bare URDF), where they are declared
 
     def __init__(self, maps: list[ActuatorMap]):
         """``maps`` bound to the robot's model (`bind`)."""

@@ -15,7 +15,7 @@ from redundancy.planning.cycles import ReturnMap
 from redundancy.planning.refinement import Refined
 from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import VELOCITY
-from redundancy.study.check import Check, span
+from redundancy.study.check import Check, span, task_point
 from redundancy.study.cycles import NAMES, CycleStudy, named_values, settling_words
 from redundancy.study.peers import StrategyRun
 from redundancy.study.study import Study
@@ -312,7 +312,7 @@ def check_table(found: Check) -> str:
     if found.points is not None:
         lines.append("task points:")
         lines += [
-            f"  {p.tolist()}: {'reached' if ok else 'NOT reached'}"
+            f"  {task_point(robot, p)}: {'reached' if ok else 'NOT reached'}"
             for p, ok in zip(found.points, found.reached)
         ]
     problems = found.blocking()

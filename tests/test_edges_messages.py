@@ -1,0 +1,117 @@
+"""Machines at their edges, as a new user meets them: every message names the file and the table
+that fix it, `check` reports what a study would refuse, quantities show in their own units, and a
+kinematic-only robot's default study runs what needs no masses."""
+
+import warnings
+from pathlib import Path
+
+import pytest
+
+from redundancy.cli import main
+
+FIXTURES = Path(__file__).parent / "fixtures" / "intake"
+PLANAR = Path(__file__).parent / "data" / "planar4r"
+TASK = """name = "arm test cycle"
+speed = 0.5
+segments = ["1-2"]
+held = {held}
+[points]
+1 = {one}
+2 = {two}
+"""
+
+
+def run(argv, capsys):
+    """``redundancy ARGV`` in this process: the exit status, stdout, and stderr's lines."""
+    with warnings.catch_warnings():
+        try:
+            status = main(argv)
+        except SystemExit as exit:
+            status = exit.code
+    captured = capsys.readouterr()
+    return status, captured.out, captured.err.strip().splitlines()
+
+
+def errors(lines):
+    return [line for line in lines if not line.startswith("redundancy: note:")]
+
+
+def arm(tmp_path, held='["stick_joint"]', axes="xz", one="[2.8, -0.2]", two="[2.8, 1.2]"):
+    """The continuous-joint test arm, its stick joint left without a declaration (driven
+    directly: a continuous joint, so without a stroke), holding ``held`` on its task."""
+    tmp_path = tmp_path / "arm"
+    tmp_path.mkdir()
+    (tmp_path / "arm.urdf").write_bytes((FIXTURES / "continuous" / "arm.urdf").read_bytes())
+    text = (FIXTURES / "continuous" / "robot.toml").read_text()
+    text = text.replace('"../task.toml"', '"task.toml"').replace('"xz"', f'"{axes}"')
+    declared = text[: text.index("[actuators.x2]")] + text[text.index("[actuators.x3]") :]
+    (tmp_path / "robot.toml").write_text(declared)
+    (tmp_path / "task.toml").write_text(TASK.format(held=held, one=one, two=two))
+    return str(tmp_path / "robot.toml")
+
+
+@pytest.mark.parametrize("command", ["study", "cycle", "play"])
+def test_a_held_joint_without_a_stroke_names_the_table_that_gives_it_one(tmp_path, capsys, command):
+    argv = [command, "--robot", arm(tmp_path)]
+    if command == "play":
+        argv += ["--html", str(tmp_path / "p.html")]
+    else:
+        argv += ["--quiet", "--out", str(tmp_path / "out")]
+    status, _, lines = run(argv, capsys)
+    found = errors(lines)
+    assert status == 2 and len(found) == 1, found
+    assert "held actuator stick_joint has no finite stroke to sample, [-∞, ∞]" in found[0]
+    assert (
+        f"{tmp_path / 'arm' / 'robot.toml'}: [actuators.stick_joint] (a table to add, with kind = "
+        "\"Identity\" and joint = 'stick_joint'): stroke = [lower, upper] (rad)" in found[0]
+    ), found[0]
+    assert not (tmp_path / "out").exists()
+
+
+def test_check_reports_a_held_joint_without_a_stroke_instead_of_aborting(tmp_path, capsys):
+    status, out, lines = run(["check", "--robot", arm(tmp_path)], capsys)
+    assert status == 2 and not errors(lines), lines
+    assert "actuators (values over the joint's range" in out  # the whole screen, not one error
+    assert "problems block a study: held actuator stick_joint has no finite stroke" in out
+
+
+def test_a_declared_held_actuator_without_a_stroke_names_its_own_table(tmp_path, capsys):
+    path = arm(tmp_path, held='["x3"]')
+    text = Path(path).read_text().replace("stroke = [0.2, 1.1]\n", "")
+    Path(path).write_text(text)
+    status, _, lines = run(
+        ["study", "--robot", path, "--quiet", "--out", str(tmp_path / "o")], capsys
+    )
+    assert status == 2, lines
+    assert f"give it one in {path}: [actuators.x3]: stroke = [lower, upper] (m)" in errors(lines)[0]
+
+
+def test_too_few_held_actuators_point_at_locked_joints_and_the_joints_to_lock(tmp_path, capsys):
+    """A machine whose undeclared joints move freely (a chassis, say) has more redundant degrees
+    than its task holds: the message names ``locked_joints``, the file and the joints."""
+    path = arm(tmp_path, held='["x3"]', axes="x", one="[2.8]", two="[2.6]")
+    for command in (["study", "--quiet", "--out", str(tmp_path / "o")], ["check"]):
+        status, out, lines = run([command[0], "--robot", path, *command[1:]], capsys)
+        message = errors(lines)[0] if command[0] == "study" else out
+        assert status == 2, lines
+        assert "holds ['x3'], but arm has n − m = 3 − 1 = 2 redundant degrees" in message
+        assert (
+            f"or lock the joints the task does not move with locked_joints in {path} (joints "
+            "without an actuator declaration: stick_joint)" in message
+        ), message
+
+
+def test_describe_gives_the_tasks_m_with_the_tool_angle(capsys):
+    status, out, _ = run(["describe", "--robot", str(PLANAR / "robot.toml")], capsys)
+    assert status == 0
+    assert "n = 4 joints, task = tool xy + angle (m = 3)" in out
+
+
+def test_a_kinematic_only_robots_default_study_runs_what_needs_no_masses(tmp_path, capsys):
+    out = tmp_path / "out"
+    argv = ["study", "--robot", str(FIXTURES / "massless" / "robot.toml"), "--quiet"]
+    status, printed, lines = run([*argv, "--cycles", "0", "--out", str(out)], capsys)
+    assert status == 0, lines
+    left_out = [line for line in lines if "leaves out what needs masses" in line]
+    assert len(left_out) == 1 and "the energy objective" in left_out[0], lines
+    assert "velocity" in printed and (out / "report.json").is_file()
