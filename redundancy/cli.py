@@ -48,7 +48,7 @@ from redundancy.resolution.objectives import OBJECTIVES, Objective, objective
 from redundancy.resolution.state import actuator_space
 from redundancy.study.background import Background
 from redundancy.study.check import check, held_problems, span
-from redundancy.study.cycles import CHOICES, run_cycle
+from redundancy.study.cycles import CHOICES, named_values, run_cycle
 from redundancy.study.families import read_family
 from redundancy.study.maps import CONNECT_TIMEOUT, connect, design_map, summary
 from redundancy.study.output import OutputFolder, writable, write_atomically
@@ -307,7 +307,7 @@ def _play_motion(
         search = improved_start(robot, segment, chosen, held, args.samples)
         motion = search.motion()  # the best; says so when no start keeps the limits
         values = search.best.values  # type: ignore[union-attr]
-        return motion, f"best of {search.simulations} starts, {_held(held, values)}"
+        return motion, f"best of {search.simulations} starts, {named_values(robot, held, values)}"
     given = args.start
     option = "--start"
     if args.x3init is not None:
@@ -335,10 +335,10 @@ def _play_motion(
                 )
         values = [given[h] for h in held]
         q = configuration_at(robot, segment.start, dict(zip(held, values)))
-        label = _held(held, values)
+        label = named_values(robot, held, values)
     else:
         values, q = default_start(robot, segment, held)
-        label = f"default start, {_held(held, values)}"
+        label = f"default start, {named_values(robot, held, values)}"
     return simulate(robot, chosen.resolver, segment, q[None]), label
 
 
@@ -358,10 +358,6 @@ def start_values(text: str) -> dict[str, float]:
             )
         found[name.strip()] = number
     return found
-
-
-def _held(names, values) -> str:
-    return ", ".join(f"{name} = {value:.4g}" for name, value in zip(names, values))
 
 
 def _play_command(args: argparse.Namespace) -> None:

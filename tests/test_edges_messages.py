@@ -2,12 +2,14 @@
 that fix it, `check` reports what a study would refuse, quantities show in their own units, and a
 kinematic-only robot's default study runs what needs no masses."""
 
+import re
 import warnings
 from pathlib import Path
 
 import pytest
 
-from redundancy.cli import main
+from redundancy import VELOCITY, load_robot
+from redundancy.cli import _load_task, _play_motion, main, parser
 
 FIXTURES = Path(__file__).parent / "fixtures" / "intake"
 PLANAR = Path(__file__).parent / "data" / "planar4r"
@@ -115,3 +117,29 @@ def test_a_kinematic_only_robots_default_study_runs_what_needs_no_masses(tmp_pat
     left_out = [line for line in lines if "leaves out what needs masses" in line]
     assert len(left_out) == 1 and "the energy objective" in left_out[0], lines
     assert "velocity" in printed and (out / "report.json").is_file()
+
+
+def test_check_shows_task_points_in_the_units_of_the_task_file(capsys):
+    """The planar arm's task gives its tool angle in degrees: check shows 30°, not 0.5236."""
+    status, out, _ = run(["check", "--robot", str(PLANAR / "robot.toml")], capsys)
+    assert status == 0
+    assert "  [1900 mm, 0 mm, 30°]: reached" in out
+
+
+def test_a_rotary_held_start_is_shown_in_degrees(capsys):
+    """The planar arm holds a turning joint: play names its start in degrees, as every other
+    message does, not in rad beside them."""
+    robot, cycle = _load_task(load_robot(PLANAR / "robot.toml"), None)
+    args = parser().parse_args(["play", "--start", "x1=-0.1336"])
+    _, label = _play_motion(robot, cycle, cycle.segments[0], VELOCITY, args)
+    assert label == "x1 = -7.655°", label
+
+
+def test_the_cycle_of_turning_actuators_gives_its_velocity_peaks_in_rad_per_second(
+    tmp_path, capsys
+):
+    argv = ["cycle", "--robot", str(PLANAR / "robot.toml"), "--cycles", "1", "--quiet"]
+    status, out, lines = run([*argv, "--strategy", "free", "--out", str(tmp_path / "o")], capsys)
+    assert status == 0, lines
+    assert "m²/s²" not in out
+    assert re.search(r"whole-cycle improved start: .*, peak ẋᵀẋ [0-9.]+ rad²/s²", out), out

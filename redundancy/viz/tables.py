@@ -163,7 +163,7 @@ def cycle_table(study: CycleStudy) -> str:
 def _plan_lines(study: CycleStudy) -> list[str]:
     """The whole-cycle improved start and the per-segment plan's starts."""
     plan, held = study.plan, study.held
-    unit, label = study.objective.unit, study.objective.label
+    unit, label = measure_unit(study.objective, study.robot.actuators), study.objective.label
     units = [study.robot.actuators[h].unit for h in held]
     search = plan.search
     if search.best is None:
@@ -218,7 +218,8 @@ def _corner_lines(study: CycleStudy) -> list[str]:
 
 def _price_line(study: CycleStudy) -> str:
     """The drift-free strategy's peak and pump energies against the free improved cycle's."""
-    price, unit, label = study.price() or {}, study.objective.unit, study.objective.label
+    price, label = study.price() or {}, study.objective.label
+    unit = measure_unit(study.objective, study.robot.actuators)
     free, periodic = study.costs["free"].figures(), study.costs["periodic"].figures()
     parts = [
         f"peak {label} {free['objective']:.5g} → {periodic['objective']:.5g} {unit} "
