@@ -6,9 +6,10 @@ import re
 import warnings
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from redundancy import VELOCITY, load_robot
+from redundancy import VELOCITY, GradientProjection, actuator_space, load_robot
 from redundancy.cli import _load_task, _play_motion, main, parser
 
 FIXTURES = Path(__file__).parent / "fixtures" / "intake"
@@ -143,3 +144,16 @@ def test_the_cycle_of_turning_actuators_gives_its_velocity_peaks_in_rad_per_seco
     assert status == 0, lines
     assert "m²/s²" not in out
     assert re.search(r"whole-cycle improved start: .*, peak ẋᵀẋ [0-9.]+ rad²/s²", out), out
+
+
+def test_limit_avoidance_on_an_unbounded_actuator_computes_no_invalid_value(tmp_path):
+    """Gradient projection pulls each actuator toward its mid-stroke; an unbounded one (the
+    arm's continuous stick joint) has none and is left free, without inf − inf on the way (numpy
+    said so in "invalid value encountered in add" notes)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        robot = load_robot(arm(tmp_path))
+    space = actuator_space(robot, np.array([0.3, -0.5, 0.4]))
+    with np.errstate(all="raise"):
+        z = GradientProjection().null_space(space)
+    assert np.all(np.isfinite(z)) and z[0, 1] == 0.0 and z[0, 0] != 0.0
