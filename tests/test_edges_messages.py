@@ -9,8 +9,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from redundancy import VELOCITY, GradientProjection, actuator_space, load_robot
+from redundancy import VELOCITY, GradientProjection, actuator_space, load_robot, run_study
 from redundancy.cli import _load_task, _play_motion, main, parser
+from redundancy.model.hydraulics import BAR
+from redundancy.planning.tasks import WorkCycle
+from redundancy.viz.report import _hydraulics
+from redundancy.viz.tables import hydraulic_table
 
 FIXTURES = Path(__file__).parent / "fixtures" / "intake"
 PLANAR = Path(__file__).parent / "data" / "planar4r"
@@ -157,3 +161,28 @@ def test_limit_avoidance_on_an_unbounded_actuator_computes_no_invalid_value(tmp_
     with np.errstate(all="raise"):
         z = GradientProjection().null_space(space)
     assert np.all(np.isfinite(z)) and z[0, 1] == 0.0 and z[0, 0] != 0.0
+
+
+def test_a_load_pressure_beyond_the_circuits_physics_is_flagged_not_reported(tmp_path):
+    """The excavator's M_H-weighted law lifting to the truck (2-3) leaves the bucket's stroke
+    towards its linkage's toggle, where the quasi-static model asks over 30,000 bar of the stick
+    cylinder: the table and the report page flag it, and print no such pressure."""
+    excavator = load_robot("excavator")
+    text = excavator.task_file.read_text().replace('["1-2", "2-3", "3-1"]', '["2-3"]')
+    (tmp_path / "task.toml").write_text(text)
+    cycle = WorkCycle.from_toml(tmp_path / "task.toml", dimension=excavator.m)
+    study = run_study(
+        excavator, cycle, (VELOCITY,), samples=5, bound=False, progress=False, cycles=0
+    )
+    relief = excavator.circuit().relief / BAR
+    rows = {r["strategy"]: r["hydraulics"] for r in study.report()["comparison"]}
+    weighted = rows["M_H-weighted, default start"]
+    assert weighted["max_load_pressure_bar"] > 2 * relief and weighted["unphysical"]
+    assert not any(
+        r["unphysical"] for name, r in rows.items() if name != "M_H-weighted, default start"
+    )
+    line = next(s for s in hydraulic_table(study).splitlines() if "M_H-weighted" in s)
+    assert "(!) p_L beyond the circuit's physics, over 2 × the relief 300 bar" in line, line
+    assert f"{weighted['max_load_pressure_bar']:.1f}" not in line
+    page = _hydraulics(study.report()["comparison"], None)
+    assert page.count("beyond the circuit's physics") == 1

@@ -267,7 +267,9 @@ def _hydraulics(comparison: list[dict], bounds: dict | None) -> str:
                 "segment": r["segment"],
                 "strategy": r["strategy"],
                 "peak pump flow Q_P (L/min)": _number(h["peak_pump_flow_l_min"], 3),
-                "highest load pressure (bar)": _number(h["max_load_pressure_bar"], 3),
+                "highest load pressure (bar)": "beyond the circuit's physics"
+                if h.get("unphysical")
+                else _number(h["max_load_pressure_bar"], 3),
                 "LS energy (kJ)": _number(h["ls_energy_kj"]),
                 "CP energy (kJ)": _number(h["cp_energy_kj"]),
                 "above LS bound (%)": _percent(above.get("LS")),

@@ -10,7 +10,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from redundancy.model.hydraulics import KILOJOULE
+from redundancy.model.hydraulics import BAR, BEYOND_RELIEF, KILOJOULE
 from redundancy.planning.cycles import ReturnMap
 from redundancy.planning.refinement import Refined
 from redundancy.resolution.limits import amount
@@ -84,15 +84,26 @@ def hydraulic_table(study: Study) -> str:
     duration and, with energy bounds, per cent above them, then the bounds."""
     names = _segment_width(study)
 
+    circuit = study.robot.circuit()
+
     def cells(run: StrategyRun) -> str:
         figures, above = run.summary()["hydraulics"], study.above_energy_bound(run)
         percent = "".join(f"{above[s]:>7.1f}" if s in above else f"{'-':>7}" for s in ("LS", "CP"))
         shortest = figures["shortest_duration_s"]
+        pressure = figures["max_load_pressure_bar"]
+        unphysical = circuit.unphysical(pressure * BAR)
         return (
-            f"{figures['peak_pump_flow_l_min']:>10.1f}{figures['max_load_pressure_bar']:>9.1f}"
-            f"{figures['ls_energy_kj']:>8.2f}{figures['cp_energy_kj']:>8.2f}{percent}"
+            f"{figures['peak_pump_flow_l_min']:>10.1f}"
+            + (f"{'(!)':>9}" if unphysical else f"{pressure:>9.1f}")
+            + f"{figures['ls_energy_kj']:>8.2f}{figures['cp_energy_kj']:>8.2f}{percent}"
             + (f"{'-':>8}" if shortest is None else f"{shortest:>8.2f}")
             + "  "
+            + (
+                f"(!) p_L beyond the circuit's physics, over {BEYOND_RELIEF:g} × the relief "
+                f"{circuit.relief / BAR:g} bar (the model's, where the motion leaves a stroke); "
+                if unphysical
+                else ""
+            )
             + ("held" if figures["within_limits"] else "; ".join(figures["violations"]))
         )
 
