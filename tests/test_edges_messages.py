@@ -6,13 +6,19 @@ import re
 import warnings
 from pathlib import Path
 
+import meshcat
 import numpy as np
+import pinocchio as pin
 import pytest
+import umsgpack
+from scipy.spatial import Delaunay
 
 from redundancy import VELOCITY, GradientProjection, actuator_space, load_robot, run_study
 from redundancy.cli import _load_task, _play_motion, main, parser
 from redundancy.model.hydraulics import BAR
+from redundancy.planning.integrate import simulate
 from redundancy.planning.tasks import WorkCycle
+from redundancy.viz.playback import Playback, Recording
 from redundancy.viz.report import _hydraulics
 from redundancy.viz.tables import hydraulic_table
 
@@ -186,3 +192,63 @@ def test_a_load_pressure_beyond_the_circuits_physics_is_flagged_not_reported(tmp
     assert f"{weighted['max_load_pressure_bar']:.1f}" not in line
     page = _hydraulics(study.report()["comparison"], None)
     assert page.count("beyond the circuit's physics") == 1
+
+
+def test_the_playback_draws_every_link_with_its_cylinders_points_inside_mesh_less_hulls(tmp_path):
+    """The arm whose meshes are missing, its stick joint locked: every URDF link with a visual
+    is in the page's scene, the locked stick among them; a link without a drawable visual is
+    the hull of its origin, the joints it carries and the cylinders' points on it, posed with
+    the link, so that the cylinders sit on their links."""
+    folder = tmp_path / "arm"
+    folder.mkdir()
+    (folder / "arm.urdf").write_bytes((FIXTURES / "meshes" / "arm.urdf").read_bytes())
+    text = (FIXTURES / "meshes" / "robot.toml").read_text().replace('task = "../task.toml"\n', "")
+    locked = text.replace(
+        'task_axes = "xz"', 'task_axes = "xz"\nlocked_joints = {stick_joint = -1.4}'
+    )
+    (folder / "robot.toml").write_text(locked)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        robot = load_robot(folder / "robot.toml")
+    q0 = np.array([0.3, 0.4])
+    y0 = actuator_space(robot, q0).y[0].tolist()
+    (folder / "t.toml").write_text(
+        f'name = "t"\nspeed = 0.2\nsegments = ["1-2"]\n[points]\n1 = {y0}\n'
+        f"2 = {[y0[0], y0[1] + 0.05]}\n"
+    )
+    segment = WorkCycle.from_toml(folder / "t.toml", dimension=2).segments[0]
+    motion = simulate(robot, VELOCITY.resolver, segment, q0[None])
+    recording = Recording()
+    Playback(motion).draw(meshcat.Visualizer(window=recording))
+    commands = [umsgpack.unpackb(c) for c in recording.commands]
+    drawn = {
+        c["path"].rsplit("/links/", 1)[1]: c["object"]["geometries"][0]
+        for c in commands
+        if c["type"] == "set_object" and "/links/" in c["path"]
+    }
+    posed = {
+        c["path"].rsplit("/links/", 1)[1]: np.array(c["matrix"], dtype=float).reshape(4, 4).T
+        for c in commands
+        if c["type"] == "set_transform" and "/links/" in c["path"]
+    }
+    # boom and stick name missing meshes, base has no visual: hulls; the telescope's box
+    assert sorted(drawn) == ["hulls/base", "hulls/boom", "hulls/stick", "visuals/telescope_0"]
+    on_links = {  # the points each hull must hold, in its link's frame (m)
+        "base": [[0, 0, 0], [0, 0, 1], [0.5, 0, 0.4]],  # boom joint, x1's base
+        "boom": [[0, 0, 0], [2, 0, 0], [0.9, 0, -0.2]],  # stick joint, x1's rod (x2 locked)
+        "stick": [[0, 0, 0], [0.7, 0, 0]],  # telescope joint
+    }
+    model, data = robot.model, robot.model.createData()
+    pin.framesForwardKinematics(model, data, q0)
+    for link, points in on_links.items():
+        vertices = np.frombuffer(
+            drawn[f"hulls/{link}"]["data"]["attributes"]["position"]["array"].data, np.float32
+        )
+        inside = Delaunay(vertices.reshape(-1, 3)).find_simplex(np.array(points, dtype=float))
+        assert np.all(inside >= 0), link
+        pose = posed[f"hulls/{link}"]
+        np.testing.assert_allclose(pose, data.oMf[model.getFrameId(link)].homogeneous, atol=1e-9)
+    # the cylinder x1 runs from its base on the base's hull to its rod on the boom's
+    base, rod = robot.actuators["x1"].ends(robot.kinematics(q0[None]))
+    np.testing.assert_allclose(posed["hulls/base"] @ [0.5, 0, 0.4, 1], [*base[0], 1], atol=1e-9)
+    np.testing.assert_allclose(posed["hulls/boom"] @ [0.9, 0, -0.2, 1], [*rod[0], 1], atol=1e-9)

@@ -305,7 +305,7 @@ def load_robot(
     urdf = read_urdf(urdf_path)
     if urdf.missing_meshes:
         warnings.warn(
-            f"{urdf.source}: meshes not found, the playback draws rods instead: "
+            f"{urdf.source}: meshes not found, the playback draws those links as hulls: "
             f"{', '.join(urdf.missing_meshes)}",
             stacklevel=2,
         )

@@ -9,8 +9,8 @@ For each actuator, its joint is swept over the joint's range (the other joints a
   Eq. 14 vanishes). Inside the stroke this blocks a study: J_H = J A⁻¹ is undefined there.
 
 And for the machine: masses (a kinematic-only robot studies the velocity objective only),
-meshes (missing ones are drawn as rods), and whether each task point is reached inside the
-joint ranges with every stroke kept, for some value of the held actuators.
+meshes (links whose meshes are missing are drawn as hulls), and whether each task point is
+reached inside the joint ranges with every stroke kept, for some value of the held actuators.
 """
 
 from __future__ import annotations

@@ -316,7 +316,7 @@ def check_table(found: Check) -> str:
     lines.append(
         "meshes: "
         + (
-            f"not found: {', '.join(robot.missing_meshes)} (drawn as rods)"
+            f"not found: {', '.join(robot.missing_meshes)} (those links drawn as hulls)"
             if robot.missing_meshes
             else "every mesh found"
         )
