@@ -47,7 +47,7 @@ from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import OBJECTIVES, Objective, objective
 from redundancy.resolution.state import actuator_space
 from redundancy.study.background import Background
-from redundancy.study.check import check, held_problems, span
+from redundancy.study.check import check, held_problems, span, task_point
 from redundancy.study.cycles import CHOICES, named_values, run_cycle
 from redundancy.study.families import read_family
 from redundancy.study.maps import CONNECT_TIMEOUT, connect, design_map, summary
@@ -94,8 +94,13 @@ def describe(robot: Robot) -> str:
     else:
         masses = [inertia.mass for inertia in robot.model.inertias]
         lines.append(f"mass: {sum(masses):.1f} kg, of which payload {robot.payload:.1f} kg")
+    joints = [amount(v, "rad" if r else "m") for v, r in zip(q, robot.rotary_joints)]
+    x = [amount(v, a.unit) for v, a in zip(space.x[0], robot.actuators)]
+    lines.append(
+        f"at mid-range q = [{', '.join(joints)}]: x = [{', '.join(x)}], "
+        f"y = {task_point(robot, space.y[0])}"
+    )
     with np.printoptions(precision=4, suppress=True):
-        lines.append(f"at mid-range q = {q}: x = {space.x[0]}, y = {space.y[0]}")
         if not robot.kinematic_only:
             lines.append(f"M_H (kg) =\n{space.M_H[0]}")
             lines.append(f"F_H holding still (N) = {space.forces(np.zeros_like(space.x))[0]}")

@@ -252,3 +252,11 @@ def test_the_playback_draws_every_link_with_its_cylinders_points_inside_mesh_les
     base, rod = robot.actuators["x1"].ends(robot.kinematics(q0[None]))
     np.testing.assert_allclose(posed["hulls/base"] @ [0.5, 0, 0.4, 1], [*base[0], 1], atol=1e-9)
     np.testing.assert_allclose(posed["hulls/boom"] @ [0.9, 0, -0.2, 1], [*rod[0], 1], atol=1e-9)
+
+
+def test_describe_gives_the_mid_range_state_in_degrees_and_mm(capsys):
+    status, out, _ = run(["describe", "--robot", str(PLANAR / "robot.toml")], capsys)
+    assert status == 0
+    assert "at mid-range q = [0°, 0°, 0°, 0°]: x = [0°, 0°, 0°, 0°], y = [2800 mm, 0 mm, 0°]" in out
+    status, out, _ = run(["describe"], capsys)
+    assert "at mid-range q = [98.6°, 74.97°, 725 mm]: x = [1155 mm, 1091 mm, 545 mm]" in out
