@@ -260,3 +260,12 @@ def test_describe_gives_the_mid_range_state_in_degrees_and_mm(capsys):
     assert "at mid-range q = [0°, 0°, 0°, 0°]: x = [0°, 0°, 0°, 0°], y = [2800 mm, 0 mm, 0°]" in out
     status, out, _ = run(["describe"], capsys)
     assert "at mid-range q = [98.6°, 74.97°, 725 mm]: x = [1155 mm, 1091 mm, 545 mm]" in out
+
+
+def test_the_report_page_gives_turning_actuators_velocity_peaks_in_rad_per_second(tmp_path, capsys):
+    argv = ["study", "--robot", str(PLANAR / "robot.toml"), "--objective", "velocity"]
+    argv += ["--cycles", "0", "--samples", "10", "--quiet", "--out", str(tmp_path / "o")]
+    status, out, lines = run(argv, capsys)
+    assert status == 0, lines
+    page = (tmp_path / "o" / "index.html").read_text()
+    assert "peak ẋᵀẋ (rad²/s²)" in page and "m²/s²" not in out
