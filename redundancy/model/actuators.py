@@ -60,9 +60,7 @@ class ActuatorMap(ABC):
     rotary = False
     distance = False  # whether x is a distance between two points (m, ≥ 0), a cylinder's length
     parameters: tuple[Parameter, ...] = ()
-    declared_in = (
-        ""  # where it is declared (file and table), for messages; "" for a joint's default
-    )
+    declared_in = ""  # the file and table that declare it, for messages; "" for a default
 
     @property
     def unit(self) -> str:
