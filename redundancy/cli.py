@@ -31,7 +31,7 @@ from redundancy.errors import InvalidInputError, RedundancyError
 from redundancy.model.loading import bundled_robots, load_robot
 from redundancy.model.robot import Robot
 from redundancy.model.values import MAX_PAYLOAD
-from redundancy.planning.angles import task_robot
+from redundancy.planning.angles import task_labels, task_robot
 from redundancy.planning.cycles import CYCLES
 from redundancy.planning.ik import check_path, configuration_at
 from redundancy.planning.integrate import Trajectory, simulate
@@ -47,8 +47,8 @@ from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import OBJECTIVES, Objective, objective
 from redundancy.resolution.state import actuator_space
 from redundancy.study.background import Background
-from redundancy.study.check import check, span
-from redundancy.study.cycles import CHOICES, run_cycle
+from redundancy.study.check import check, held_problems, span, task_point
+from redundancy.study.cycles import CHOICES, named_values, run_cycle
 from redundancy.study.families import read_family
 from redundancy.study.maps import CONNECT_TIMEOUT, connect, design_map, summary
 from redundancy.study.output import OutputFolder, writable, write_atomically
@@ -72,7 +72,8 @@ from redundancy.viz.tables import check_table, cycle_table, study_table
 def describe(robot: Robot) -> str:
     """A summary of a robot: joints, actuators and strokes (mm, degrees), mass, M_H at
     mid-range (where the robot has masses)."""
-    lines = [f"{robot.name}: n = {robot.n} joints, task = tool {robot.task_axes} (m = {robot.m})"]
+    task = " + ".join([robot.task_axes, *task_labels(robot)[len(robot.task_axes) :]])
+    lines = [f"{robot.name}: n = {robot.n} joints, task = tool {task} (m = {robot.m})"]
     lines.append("joints:")
     for name, lo, hi, rotary in zip(
         robot.joint_names, robot.lower, robot.upper, robot.rotary_joints
@@ -93,8 +94,13 @@ def describe(robot: Robot) -> str:
     else:
         masses = [inertia.mass for inertia in robot.model.inertias]
         lines.append(f"mass: {sum(masses):.1f} kg, of which payload {robot.payload:.1f} kg")
+    joints = [amount(v, "rad" if r else "m") for v, r in zip(q, robot.rotary_joints)]
+    x = [amount(v, a.unit) for v, a in zip(space.x[0], robot.actuators)]
+    lines.append(
+        f"at mid-range q = [{', '.join(joints)}]: x = [{', '.join(x)}], "
+        f"y = {task_point(robot, space.y[0])}"
+    )
     with np.printoptions(precision=4, suppress=True):
-        lines.append(f"at mid-range q = {q}: x = {space.x[0]}, y = {space.y[0]}")
         if not robot.kinematic_only:
             lines.append(f"M_H (kg) =\n{space.M_H[0]}")
             lines.append(f"F_H holding still (N) = {space.forces(np.zeros_like(space.x))[0]}")
@@ -102,7 +108,10 @@ def describe(robot: Robot) -> str:
 
 
 def _describe_command(args: argparse.Namespace) -> None:
-    print(describe(_robot(args)))
+    robot = _robot(args)
+    if robot.task_file is not None:  # read on its task: the tool's angle may be a coordinate
+        robot = _load_task(robot, None)[0]
+    print(describe(robot))
 
 
 def argument(convert: Callable[[str], float], accept: Callable[[float], bool], phrase: str):
@@ -189,6 +198,14 @@ def _load_task(robot: Robot, path: str | None) -> tuple[Robot, WorkCycle]:
     return task_robot(robot, cycle), cycle
 
 
+def _holdable(robot: Robot, cycle: WorkCycle, sampled: bool = True) -> None:
+    """Refuse, in the first of its lines, a task whose held actuators cannot be held
+    (`held_problems`)."""
+    problems = held_problems(robot, cycle, sampled)
+    if problems:
+        raise InvalidInputError(problems[0])
+
+
 def _checked(robot: Robot, option: str | None) -> tuple[str, ...] | None:
     """The actuators ``--check`` names (None: every one), each an actuator of ``robot``."""
     if option is None:
@@ -207,6 +224,14 @@ def _study_command(args: argparse.Namespace) -> None:
     with OutputFolder(args.out) as out:  # committed only if everything below succeeds
         report, robot, cycle, options = _searched(out, args)
         chosen = ("velocity", "energy") if args.objective == "both" else (args.objective,)
+        if robot.kinematic_only and args.objective == "both":
+            chosen = ("velocity",)
+            warnings.warn(
+                f"{robot.name} is kinematic only: the study leaves out what needs masses (the "
+                "energy objective, the M_H-weighted law, peak ẋᵀM_Hẋ); give the links "
+                "<inertial>s for them",
+                stacklevel=1,
+            )
         objectives = tuple(objective(name) for name in chosen)
         section = partial(
             _cycle_section, robot, cycle, objectives[0], args.cycles, options, out.staging
@@ -240,6 +265,7 @@ def _searched(out: OutputFolder, args: argparse.Namespace) -> tuple[Path, Robot,
     report.json in the output folder), the robot and its task, and the searches' options."""
     report = out / "report.json" if args.json is None else out.beside(Path(args.json), "--json")
     robot, cycle = _load_task(_robot(args), args.task)
+    _holdable(robot, cycle)
     options = dict(
         samples=args.samples,
         checked=_checked(robot, args.check),
@@ -280,12 +306,13 @@ def _play_motion(
     robot: Robot, cycle: WorkCycle, segment: Segment, chosen: Objective, args: argparse.Namespace
 ) -> tuple[Trajectory, str]:
     """The motion ``play`` shows, from the start the options choose, and that start in words."""
+    _holdable(robot, cycle, sampled=args.start is None and args.x3init is None)
     held = held_actuators(robot, cycle)
     if args.best:
         search = improved_start(robot, segment, chosen, held, args.samples)
         motion = search.motion()  # the best; says so when no start keeps the limits
         values = search.best.values  # type: ignore[union-attr]
-        return motion, f"best of {search.simulations} starts, {_held(held, values)}"
+        return motion, f"best of {search.simulations} starts, {named_values(robot, held, values)}"
     given = args.start
     option = "--start"
     if args.x3init is not None:
@@ -313,10 +340,10 @@ def _play_motion(
                 )
         values = [given[h] for h in held]
         q = configuration_at(robot, segment.start, dict(zip(held, values)))
-        label = _held(held, values)
+        label = named_values(robot, held, values)
     else:
         values, q = default_start(robot, segment, held)
-        label = f"default start, {_held(held, values)}"
+        label = f"default start, {named_values(robot, held, values)}"
     return simulate(robot, chosen.resolver, segment, q[None]), label
 
 
@@ -336,10 +363,6 @@ def start_values(text: str) -> dict[str, float]:
             )
         found[name.strip()] = number
     return found
-
-
-def _held(names, values) -> str:
-    return ", ".join(f"{name} = {value:.4g}" for name, value in zip(names, values))
 
 
 def _play_command(args: argparse.Namespace) -> None:

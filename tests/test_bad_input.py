@@ -386,7 +386,7 @@ CASES = [
     ),
     (
         "no masses",
-        ["study", "--robot", "m.toml"],
+        ["study", "--robot", "m.toml", "--objective", "energy"],
         {
             "m.urdf": re.sub(r"<inertial>.*?</inertial>", "", URDF, flags=re.S),
             "m.toml": _description(urdf='"m.urdf"', payload="0"),

@@ -220,7 +220,7 @@ def test_locked_joints_hold_their_chosen_values_and_drop_their_actuators(tmp_pat
     np.testing.assert_allclose(fk(neutral, [0.3, -1.0]), arm_tool([0.3, -1.0, 0.0]), atol=1e-12)
 
 
-def test_missing_meshes_are_named_once_and_drawn_as_rods_between_joint_origins():
+def test_missing_meshes_are_named_once_and_their_links_drawn_as_hulls_through_their_joints():
     with pytest.warns(UserWarning) as said:
         robot = load_robot(FIXTURES / "meshes" / "robot.toml")
     meshes = [str(w.message) for w in said if "meshes not found" in str(w.message)]
@@ -239,10 +239,10 @@ def test_missing_meshes_are_named_once_and_drawn_as_rods_between_joint_origins()
     poses = {
         c["path"].rsplit("/", 1)[-1]: np.array(c["matrix"], dtype=float).reshape(4, 4).T
         for c in commands
-        if c["type"] == "set_transform" and "/links/rods/" in c["path"]
+        if c["type"] == "set_transform" and "/links/hulls/" in c["path"]
     }
-    # rods from the world origin to the boom joint, boom to stick, stick to telescope, and the
-    # telescope's joint to the tool: each unit rod (local y from −1/2 to 1/2) spans its ends
+    # the links without a drawable visual (base; boom and stick, whose meshes are missing) are
+    # hulls posed with their links: each link's frame at its joint's origin, turned with it
     q = motion.q[0, 0]
     boom, stick, telescope = q
     joints = [
@@ -254,17 +254,21 @@ def test_missing_meshes_are_named_once_and_drawn_as_rods_between_joint_origins()
         joints[2] + (0.7 + telescope) * np.array([np.cos(boom + stick), 0, np.sin(boom + stick)])
     )
     tool = arm_tool(q)
-    ends = [
-        (joints[0], joints[1]),
-        (joints[1], joints[2]),
-        (joints[2], joints[3]),
-        (joints[3], np.array([tool[0], 0.0, tool[1]])),
-    ]
-    assert sorted(poses) == ["0", "1", "2", "3"]
-    for i, (a, b) in enumerate(ends):  # world coordinates, below the scene's root node
-        T = poses[str(i)]
-        np.testing.assert_allclose(T[:3, :3] @ [0, -0.5, 0] + T[:3, 3], a, atol=1e-9)
-        np.testing.assert_allclose(T[:3, :3] @ [0, 0.5, 0] + T[:3, 3], b, atol=1e-9)
+    assert sorted(poses) == ["base", "boom", "stick"]
+    along = np.array([np.cos(boom + stick), 0.0, np.sin(boom + stick)])
+    carried = {  # each link's origin, and the origin of the joint it carries in its own frame
+        "base": (joints[0], [0, 0, 1], joints[1]),
+        "boom": (joints[1], [2, 0, 0], joints[2]),
+        "stick": (joints[2], [0.7, 0, 0], joints[2] + 0.7 * along),
+    }
+    for link, (origin, local, world) in carried.items():  # world coordinates, below the root
+        T = poses[link]
+        np.testing.assert_allclose(T[:3, 3], origin, atol=1e-9)
+        np.testing.assert_allclose(T[:3, :3] @ local + T[:3, 3], world, atol=1e-9)
+    T = poses["stick"]  # the tool, 0.7 + telescope + 0.8 m out along the stick
+    np.testing.assert_allclose(
+        T[:3, :3] @ [0.7 + telescope + 0.8, 0, 0] + T[:3, 3], [tool[0], 0.0, tool[1]], atol=1e-9
+    )
 
 
 def test_a_robot_without_inertias_is_kinematic_only(capsys):
@@ -492,7 +496,7 @@ def test_play_starts_from_the_held_values_given_for_two_held_actuators(tmp_path,
     args = parser().parse_args([*argv, "--html", str(tmp_path / "p.html")])
     motion, label = _play_motion(robot, cycle, cycle.segments[0], VELOCITY, args)
     np.testing.assert_allclose(motion.x[0, 0, 1:], [1.1, 0.5], atol=1e-9)
-    assert label == "x2 = 1.1, x3 = 0.5"
+    assert label == "x2 = 1100 mm, x3 = 500 mm"
     assert main([*argv, "--html", str(tmp_path / "p.html")]) == 0
     capsys.readouterr()
     status, errors = run([*argv[:-1], "x3=0.5", "--html", str(tmp_path / "p.html")], capsys)

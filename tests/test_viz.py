@@ -200,7 +200,7 @@ def test_the_animation_keys_each_frame_as_the_scene_shows_it(crane, motion):
     names = crane.actuators.names
     for frame in range(0, len(playback.samples), 7):
         poses = posed(playback, playback.q[playback.samples[frame]])
-        assert len(poses) == 8  # 4 links, 2 cylinders of 2 parts
+        assert len(poses) == 9  # 4 links, the column (a hull), 2 cylinders of 2 parts
         for path, T in poses.items():
             keys = {t["name"]: t["keys"][frame]["value"] for t in clips[path]["tracks"]}
             np.testing.assert_allclose(keys[".position"], T[:3, 3], rtol=0, atol=1e-12)

@@ -60,6 +60,7 @@ class ActuatorMap(ABC):
     rotary = False
     distance = False  # whether x is a distance between two points (m, ≥ 0), a cylinder's length
     parameters: tuple[Parameter, ...] = ()
+    declared_in = ""  # the file and table that declare it, for messages; "" for a default
 
     @property
     def unit(self) -> str:
@@ -327,6 +328,8 @@ class LinearCylinder(CompiledMap):
 
 class ActuatorSet:
     """The robot's actuators, one per joint, ordered like the joints: x (k, n), A (k, n, n)."""
+
+    source = ""  # the robot's description (robot.toml, or a bare URDF), where they are declared
 
     def __init__(self, maps: list[ActuatorMap]):
         """``maps`` bound to the robot's model (`bind`)."""

@@ -143,6 +143,9 @@ class Flows:
         return self.power(supply) - self.useful_power
 
 
+BEYOND_RELIEF = 2.0  # × the relief pressure: a load pressure beyond it no circuit bears
+
+
 @dataclass(frozen=True, eq=False)
 class Circuit:
     """A machine's hydraulics: ``cylinders`` by actuator name (in actuator order) with their
@@ -159,6 +162,13 @@ class Circuit:
     relief: float
     pump_flow: float
     tank: float
+
+    def unphysical(self, load_pressure: float) -> bool:
+        """Whether a load pressure (Pa) is beyond the circuit's physics: above `BEYOND_RELIEF` ×
+        the relief pressure, the valve opens long before. Such a value is the quasi-static
+        model's where a motion leaves its strokes (a linkage near its toggle), not the
+        machine's: it is flagged, never reported as a result."""
+        return load_pressure > BEYOND_RELIEF * self.relief
 
     @property
     def piston_areas(self) -> np.ndarray:

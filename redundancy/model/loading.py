@@ -228,7 +228,7 @@ ARM = 1e-2  # |∂x_i/∂q_i| (m/rad, or m/m) below which an actuator cannot mov
 SAMPLES = 33  # values of a joint over its range at which `_check_arms` reads the arm
 
 
-def _check_arms(robot: Robot, description: Description, source: str, where: str) -> None:
+def _check_arms(robot: Robot) -> None:
     """Every actuator moves its joint: somewhere over the joint's range (±π or ±1 m where it
     is unbounded), the other joints at rest, |∂x_i/∂q_i| reaches `ARM`. A cylinder with an
     attachment point on (or within `ARM` of) its joint's axis does not: its length barely
@@ -244,15 +244,10 @@ def _check_arms(robot: Robot, description: Description, source: str, where: str)
             continue
         if arm >= ARM:
             continue
-        place = (
-            f"{where}: [actuators.{actuator.name}]"
-            if actuator.name in description.actuators
-            else f"{source}: <transmission name={actuator.name!r}>"
-        )
         per = "rad" if robot.rotary_joints[column] else "m"
         raise RobotDescriptionError(
-            f"{place}: {actuator.name} cannot move {actuator.joint}: |∂x/∂q| is at most "
-            f"{arm:.3g} {actuator.unit}/{per} over the joint's range, below {ARM:g} (A is "
+            f"{actuator.declared_in}: {actuator.name} cannot move {actuator.joint}: |∂x/∂q| is "
+            f"at most {arm:.3g} {actuator.unit}/{per} over the joint's range, below {ARM:g} (A is "
             f"singular): an attachment point lies on or near the joint's axis; attach each "
             f"at least {ARM * 1000:g} mm off it"
         )
@@ -310,7 +305,7 @@ def load_robot(
     urdf = read_urdf(urdf_path)
     if urdf.missing_meshes:
         warnings.warn(
-            f"{urdf.source}: meshes not found, the playback draws rods instead: "
+            f"{urdf.source}: meshes not found, the playback draws those links as hulls: "
             f"{', '.join(urdf.missing_meshes)}",
             stacklevel=2,
         )
@@ -329,6 +324,7 @@ def load_robot(
     actuators = ActuatorSet.bind(
         _actuators(urdf.root, description, urdf.source, where, locked), model
     )
+    actuators.source = where
     loaded = Robot(
         name,
         model,
@@ -343,7 +339,7 @@ def load_robot(
         urdf.missing_meshes,
         urdf.zero_masses,
     )
-    _check_arms(loaded, description, urdf.source, where)
+    _check_arms(loaded)
     _bound_by_strokes(loaded, [j for j in continuous if j not in locked])
     if loaded.kinematic_only:
         warnings.warn(

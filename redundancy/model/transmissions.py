@@ -104,10 +104,12 @@ def _declare(
     joint: str,
     stroke: tuple[float, float],
     given: dict[str, tuple[object, str]],
+    declared: str,
 ) -> ActuatorMap:
     """An actuator of ``kind`` from its parameters' declared values: ``given`` maps a
     parameter's name to its value in the TOML shape (None where it is absent) and a text
-    naming the file, the actuator and the value as written (or, where absent, saying so)."""
+    naming the file, the actuator and the value as written (or, where absent, saying so);
+    ``declared`` names the file and the table or element that declares it."""
     values: dict[str, Any] = {}
     for parameter in kind.parameters:
         value, where = given[parameter.name]
@@ -117,7 +119,9 @@ def _declare(
             raise RobotDescriptionError(f"{where} ({parameter.meaning})")
         else:
             values[parameter.name] = parameter.default
-    return kind(name, joint, stroke[0], stroke[1], **values)
+    actuator = kind(name, joint, stroke[0], stroke[1], **values)
+    actuator.declared_in = declared
+    return actuator
 
 
 @functools.cache
@@ -154,7 +158,7 @@ def read_actuator_tables(tables: dict[str, dict], source: str) -> list[ActuatorM
             )
             for p in kind.parameters
         }
-        maps.append(_declare(kind, name, joint.joint, limits, given))  # type: ignore[attr-defined]
+        maps.append(_declare(kind, name, joint.joint, limits, given, where))  # type: ignore[attr-defined]
     return maps
 
 
@@ -189,7 +193,7 @@ def _read_transmission(element: etree._Element, source: str) -> ActuatorMap:
         else:
             missing = f"{where}: missing <{parameter.element}> for {parameter.name}"
             given[parameter.name] = (None, missing)
-    return _declare(kind, str(name), joint, limits, given)
+    return _declare(kind, str(name), joint, limits, given, where)
 
 
 def _written(element: etree._Element) -> str:

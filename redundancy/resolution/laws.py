@@ -165,7 +165,9 @@ class GradientProjection(Resolver):
         actuators = robot.actuators
         span = actuators.upper - actuators.lower
         finite = np.isfinite(span)
-        middle = np.where(finite, (actuators.upper + actuators.lower) / 2, 0.0)
+        middle = (
+            np.where(finite, actuators.upper, 0.0) + np.where(finite, actuators.lower, 0.0)
+        ) / 2
         scale = np.where(finite, 1 / np.where(finite, span, 1.0) ** 2, 0.0)
         return -self.gain * scale, middle
 

@@ -9,8 +9,8 @@ For each actuator, its joint is swept over the joint's range (the other joints a
   Eq. 14 vanishes). Inside the stroke this blocks a study: J_H = J A⁻¹ is undefined there.
 
 And for the machine: masses (a kinematic-only robot studies the velocity objective only),
-meshes (missing ones are drawn as rods), and whether each task point is reached inside the
-joint ranges with every stroke kept, for some value of the held actuators.
+meshes (links whose meshes are missing are drawn as hulls), and whether each task point is
+reached inside the joint ranges with every stroke kept, for some value of the held actuators.
 """
 
 from __future__ import annotations
@@ -20,7 +20,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from redundancy.errors import InvalidInputError
 from redundancy.model.robot import Robot
+from redundancy.planning.angles import task_labels
 from redundancy.planning.ik import inverse_kinematics
 from redundancy.planning.starts import held_actuators, stroke_box
 from redundancy.planning.tasks import WorkCycle
@@ -92,6 +94,7 @@ class Check:
     actuators: tuple[ActuatorCheck, ...]
     points: np.ndarray | None
     reached: tuple[bool, ...]
+    held: tuple[str, ...] = ()  # why the task's held actuators cannot be held (`held_problems`)
 
     def blocking(self) -> list[str]:
         """What stops a study, one line each (empty when the robot is ready)."""
@@ -106,13 +109,70 @@ class Check:
             if a.unreachable:
                 found.append(f"{a.name}: no value of its stroke is reached over {a.joint}'s range")
             found += a.singular_lines()
+        found += self.held
         if self.points is not None:
             found += [
-                f"task point {p.tolist()} is not reached inside the joint ranges and strokes"
+                f"task point {task_point(robot, p)} is not reached inside the joint ranges and "
+                "strokes"
                 for p, ok in zip(self.points, self.reached)
                 if not ok
             ]
         return found
+
+
+def held_problems(robot: Robot, cycle: WorkCycle, sampled: bool = True) -> list[str]:
+    """Why ``cycle``'s held actuators cannot be held, one line each naming the file and table
+    that fix it: the task must hold as many actuators as the robot has redundant degrees, n − m
+    (a machine whose undeclared joints move freely, a chassis say, has too many: lock them), and
+    each held actuator needs a finite stroke where its values are ``sampled`` (a search, the
+    default start)."""
+    source = robot.actuators.source
+    if not source.endswith(".toml"):
+        source = f"a robot.toml beside {source or 'the URDF'}"
+    try:
+        held = held_actuators(robot, cycle)
+        robot.actuators.rows(held)
+    except InvalidInputError as error:  # no redundancy, or actuators the robot does not have
+        return [str(error)]
+    redundant = robot.n - robot.m
+    if len(held) != redundant:
+        line = (
+            f"task {cycle.name!r} holds {list(held)}, but {robot.name} has n − m = "
+            f"{robot.n} − {robot.m} = {redundant} redundant degrees: hold that many actuators"
+        )
+        free = [a.joint for a in robot.actuators if not a.declared_in]
+        if redundant > len(held) and free:
+            line += (
+                f", or lock the joints the task does not move with locked_joints in {source} "
+                f"(joints without an actuator declaration: {', '.join(free)})"
+            )
+        return [line]
+    problems = []
+    for name in held if sampled else ():
+        actuator = robot.actuators[name]
+        if np.isfinite(actuator.lower) and np.isfinite(actuator.upper):
+            continue
+        place = actuator.declared_in or (
+            f'{source}: [actuators.{name}] (a table to add, with kind = "Identity" and joint '
+            f"= {actuator.joint!r})"
+        )
+        syntax = (
+            '<stroke lower=".." upper=".."/>'
+            if "<transmission" in place
+            else "stroke = [lower, upper]"
+        )
+        problems.append(
+            f"held actuator {name} has no finite stroke to sample, "
+            f"{span(actuator.lower, actuator.upper, actuator.unit)}: give it one in {place}: "
+            f"{syntax} ({actuator.unit})"
+        )
+    return problems
+
+
+def task_point(robot: Robot, point: np.ndarray) -> str:
+    """A task point (m,) as messages show it: positions in mm, the tool's angle in degrees."""
+    units = ["rad" if label == "angle" else "m" for label in task_labels(robot)]
+    return f"[{', '.join(amount(v, unit) for v, unit in zip(point, units))}]"
 
 
 def span(lower: float, upper: float, unit: str) -> str:
@@ -179,9 +239,12 @@ def check(robot: Robot, cycle: WorkCycle | None = None) -> Check:
         )
     points: np.ndarray | None = None
     reached_points: tuple[bool, ...] = ()
+    held: list[str] = []
     if cycle is not None and robot.n > robot.m:  # with no redundancy, the one blocking line
-        points, reached_points = _reached(robot, cycle)
-    return Check(robot, tuple(actuators), points, reached_points)
+        held = held_problems(robot, cycle)
+        if not held:
+            points, reached_points = _reached(robot, cycle)
+    return Check(robot, tuple(actuators), points, reached_points, tuple(held))
 
 
 def reachable_points(robot: Robot, checked: tuple[str, ...], seed: int = 0) -> np.ndarray:

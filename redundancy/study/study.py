@@ -37,7 +37,7 @@ from typing import NamedTuple
 import numpy as np
 
 from redundancy.errors import InvalidInputError, UnreachableError
-from redundancy.model.hydraulics import KILOJOULE
+from redundancy.model.hydraulics import BAR, KILOJOULE
 from redundancy.model.robot import Robot
 from redundancy.planning.bound import GlobalOptimum, global_optimum
 from redundancy.planning.ik import check_path
@@ -208,6 +208,9 @@ class Study:
         above = self.above_energy_bound(run)
         if above:
             summary["hydraulics"]["above_energy_bound_percent"] = above
+        if "hydraulics" in summary:  # a pressure the relief valve never lets build is flagged
+            pressure = summary["hydraulics"]["max_load_pressure_bar"] * BAR
+            summary["hydraulics"]["unphysical"] = self.robot.circuit().unphysical(pressure)
         return summary
 
     def _energy_report(self) -> dict:

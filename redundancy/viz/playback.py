@@ -1,9 +1,10 @@
 """Playback of a motion in meshcat: live in a browser, or as one self-contained HTML page.
 
-What is drawn: the links (Pinocchio's meshcat visualizer, from the URDF's visual geometry, or,
-where the URDF has no visual geometry or names meshes no file answers, `Rods` between the joint
-origins); every `LinearCylinder` and `LinkageCylinder` as a barrel from its base point and a rod
-ending at its rod point, red while its length is at or past a stroke limit; each linkage's
+What is drawn: every link of the URDF, locked links included (Pinocchio's meshcat visualizer,
+from the URDF's visual geometry; a link without any, or whose meshes no file answers, as the
+convex hull of its origin, the joints it carries and the actuators' points on it, `Hulls`);
+every `LinearCylinder` and `LinkageCylinder` as a barrel from its base point and a rod ending at
+its rod point, red while its length is at or past a stroke limit; each linkage's
 rocker and coupler as bars between their pins; the desired path, the path the tool traced (in
 front of it), the task points, and a grid behind the machine whose spacing the page states. The
 camera looks at the task plane (for the crane, world x–z, from −y) and frames every link's
@@ -158,65 +159,127 @@ def at_stroke_limit(x: np.ndarray, lower, upper) -> np.ndarray:
     return np.minimum(x - lower, upper - x) <= LIMIT_MARGIN
 
 
+def _urdf(robot):
+    """yourdfpy's parse of the URDF the robot was built from (its text: a xacro expanded, the
+    meshes found by absolute path)."""
+    import yourdfpy
+
+    text = io.BytesIO(robot.description.encode())
+    return yourdfpy.URDF.load(text, build_scene_graph=False, load_meshes=False).robot
+
+
+def _drawn(visual, missing: tuple[str, ...]) -> bool:
+    """Whether a link's ``visual`` can be drawn: a box, cylinder or sphere, or a mesh that a file
+    answers."""
+    mesh = visual.geometry.mesh
+    return mesh is None or mesh.filename not in missing
+
+
 def _visual_model(robot):
-    """Pinocchio's model of the URDF's visual geometry, or None where it has none or some of
-    its meshes are missing."""
+    """Pinocchio's model of the URDF's visual geometry (the visuals whose meshes are found), or
+    None where there is none."""
     import pinocchio as pin
     from lxml import etree
 
     from redundancy.model.urdf import pinocchio_message
 
     description = etree.fromstring(robot.description.encode())
-    if robot.missing_meshes or description.find("link/visual") is None:
+    for visual in description.findall("link/visual"):
+        mesh = visual.find("geometry/mesh")
+        if mesh is not None and mesh.get("filename", "") in robot.missing_meshes:
+            visual.getparent().remove(visual)
+    if description.find("link/visual") is None:
         return None
     try:  # the description names every mesh by its absolute path
-        return pin.buildGeomFromUrdfString(robot.model, robot.description, pin.GeometryType.VISUAL)
+        text = etree.tostring(description, encoding="unicode")
+        return pin.buildGeomFromUrdfString(robot.model, text, pin.GeometryType.VISUAL)
     except (ValueError, RuntimeError) as error:
         raise RobotDescriptionError(
             f"{robot.urdf}: cannot load its visual geometry: {pinocchio_message(error)}"
         ) from error
 
 
-def _links(robot, visuals, root, size: float):
-    """The drawing of the links under the node ``root``: Pinocchio's meshcat visualizer of the
-    ``visuals`` (`_visual_model`), or `Rods` where there are none. Both pose the links with
-    ``display(q)`` on the node their ``viewer`` attribute names."""
-    from pinocchio.visualize import MeshcatVisualizer
+def link_points(robot) -> dict[str, np.ndarray]:
+    """The points fixed on each link without a drawable visual, (P, 3) in m in the link's own
+    frame: its origin, the origins of the joints it carries and the actuators' points on it
+    (a cylinder's base and rod, a linkage's pins), locked links included. A link is drawn as
+    their convex hull, so that the cylinders sit on it."""
+    from redundancy.model.parameters import Point
 
-    if visuals is None:
-        return Rods(robot, root, size)
-    links = MeshcatVisualizer(robot.model, None, visuals)
-    links.initViewer(viewer=root)
-    links.loadViewerModel(rootNodeName="links")
-    return links
+    parse = _urdf(robot)
+    points = {
+        link.name: [np.zeros(3)]
+        for link in parse.links
+        if not any(_drawn(v, robot.missing_meshes) for v in link.visuals)
+    }
+    for joint in parse.joints:
+        if joint.parent in points and joint.origin is not None:
+            points[joint.parent].append(np.asarray(joint.origin)[:3, 3])
+    for actuator in robot.actuators:
+        for parameter in actuator.parameters:
+            if isinstance(parameter, Point):
+                link, xyz = getattr(actuator, parameter.name)[:2]
+                if link in points:
+                    points[link].append(np.asarray(xyz, dtype=float))
+    return {link: np.unique(found, axis=0) for link, found in points.items() if len(found) > 1}
 
 
-class Rods:
-    """The links drawn without their meshes: a rod from each joint's origin to its parent
-    joint's (or the world's) origin, and one from the tool's joint to the tool point, of radius
-    1% of the scene's ``size`` (m). Like Pinocchio's visualizer, `display` poses them on the
-    node ``viewer``."""
+def hull(points: np.ndarray, thickness: float) -> tuple[np.ndarray, np.ndarray]:
+    """The convex hull of ``points`` (P, 3), each grown into a cube of side ``thickness`` (m) so
+    that points on a line or in a plane still enclose a body: vertices (V, 3) and triangles
+    (F, 3) of vertex indices."""
+    from scipy.spatial import ConvexHull
+
+    corners = np.array([[i >> k & 1 for k in range(3)] for i in range(8)]) - 0.5
+    grown = (points[:, None, :] + thickness * corners).reshape(-1, 3)
+    found = ConvexHull(grown)
+    used = np.unique(found.simplices)
+    return grown[used], np.searchsorted(used, found.simplices)
+
+
+class Hulls:
+    """The links without a drawable visual: each the convex hull of `link_points`, ``size`` /
+    50 thick (m). Like Pinocchio's visualizer, `display` poses them on the node ``viewer``."""
 
     COLOUR = 0xE8A33D
 
     def __init__(self, robot, viewer, size: float) -> None:
+        from redundancy.model.robot import frame_id
+
         self.robot, self.viewer = robot, viewer
+        self.points = link_points(robot)
+        self.frames = {link: frame_id(robot.model, link) for link in self.points}
         mg = _meshcat().geometry
         material = mg.MeshLambertMaterial(color=self.COLOUR)
-        for i in range(robot.model.njoints):  # a rod per joint below the world, and the tool's
-            viewer[f"links/rods/{i}"].set_object(mg.Cylinder(1.0, 0.01 * size), material)
+        for link, points in self.points.items():
+            vertices, faces = hull(points, size / 50)
+            viewer[f"links/hulls/{link}"].set_object(
+                mg.TriangularMeshGeometry(vertices, faces), material
+            )
 
     def display(self, q: np.ndarray) -> None:
-        """Pose the rods at configuration ``q`` (n,)."""
-        rods = self.robot.skeleton(q[None])[0]
-        a, b = rods[:, 0], rods[:, 1].copy()
-        length = np.linalg.norm(b - a, axis=1)
-        short = length < 1e-9  # a rod of no length: drawn as a point, not a degenerate frame
-        b[short] = a[short] + [0.0, 0.0, 1e-9]
-        poses = _between(a, b)
-        poses[:, :3, 1] *= np.maximum(length, 1e-9)[:, None]  # the unit rod stretched to length
-        for i, pose in enumerate(poses):
-            self.viewer[f"links/rods/{i}"].set_transform(pose)
+        """Pose the hulls at configuration ``q`` (n,)."""
+        import pinocchio as pin
+
+        model, data = self.robot.model, self.robot.data
+        pin.framesForwardKinematics(model, data, q)
+        for link, frame in self.frames.items():
+            self.viewer[f"links/hulls/{link}"].set_transform(data.oMf[frame].homogeneous)
+
+
+def _links(robot, visuals, root, size: float) -> list:
+    """The drawings of the links under the node ``root``: Pinocchio's meshcat visualizer of the
+    ``visuals`` (`_visual_model`, where there are any), and the `Hulls` of the links without.
+    Each poses its links with ``display(q)`` on the node its ``viewer`` attribute names."""
+    from pinocchio.visualize import MeshcatVisualizer
+
+    drawings: list = [Hulls(robot, root, size)]
+    if visuals is not None:
+        links = MeshcatVisualizer(robot.model, None, visuals)
+        links.initViewer(viewer=root)
+        links.loadViewerModel(rootNodeName="links")
+        drawings.append(links)
+    return drawings
 
 
 class Playback:
@@ -272,21 +335,22 @@ class Playback:
             for bar, (a, b) in actuator.bars(kinematics).items()
         ]
         self._fit_camera(np.concatenate([self._extent(), self.traced, self.points]))
-        self._links: Any = None  # Pinocchio's meshcat visualizer, once drawn
+        self._links: list = []  # the links' drawings (`_links`), once drawn
 
     def _extent(self) -> np.ndarray:
-        """Points the view must hold at every shown sample, (P, 3) in m: the corners of each
-        visual geometry's bounding box, or without visuals every Pinocchio frame's origin."""
+        """Points the view must hold at every shown sample, (P, 3) in m: every Pinocchio
+        frame's origin (the hulls' links and points among them) and the corners of each visual
+        geometry's bounding box."""
         import pinocchio as pin
 
         model = self.robot.model
         data = model.createData()
         found: list[np.ndarray] = []
+        for q in self.q[self.samples]:
+            pin.framesForwardKinematics(model, data, q)
+            found.append(np.array([frame.translation for frame in data.oMf]))
         if self.visuals is None:
-            for q in self.q[self.samples]:
-                pin.framesForwardKinematics(model, data, q)
-                found.extend(frame.translation.copy() for frame in data.oMf)
-            return np.array(found)
+            return np.concatenate(found)
         boxes = []
         for item in self.visuals.geometryObjects:
             item.geometry.computeLocalAABB()
@@ -406,14 +470,15 @@ class Playback:
         ``q`` (k, n): their transforms (k, 4, 4) by node path below the scene's root, in the
         order the scene first poses them, and which cylinders are at or past a stroke limit,
         (k, C) bool. One kinematics pass serves the whole batch."""
-        if self._links is None:
+        if not self._links:
             raise InvalidInputError("draw the playback into a visualizer first")
         # Pinocchio's visualizer poses the links on its viewer's nodes, one configuration at a
         # time; a stand-in in its place keeps those poses.
         poses = Poses()
-        self._links.viewer = poses
-        for qi in q:
-            self._links.display(qi)
+        for drawing in self._links:
+            drawing.viewer = poses
+            for qi in q:
+                drawing.display(qi)
         placed = {path: np.array(kept) for path, kept in poses.kept.items()}
         kinematics = self.robot.kinematics(q)
         for actuator, bar, _ in self.bars:

@@ -231,12 +231,13 @@ def _study_page(report: dict) -> tuple[str, str]:
         ]
         body += f"<h3>{_e(study['objective'])} objective: min {_e(study['measure'])}</h3>\n"
         body += _table(rows)
+    squared = "rad²/s²" if set(report["units"].values()) == {"rad"} else "m²/s²"
     rows = [
         {
             "segment": r["segment"],
             "strategy": r["strategy"],
             f"start ({held_unit})": _number(r["start_value"]),
-            "peak ẋᵀẋ (m²/s²)": _number(r["peak_velocity_norm"]),
+            f"peak ẋᵀẋ ({squared})": _number(r["peak_velocity_norm"]),
             "peak ẋᵀ M_H ẋ (J)": _number(r["peak_kinetic"]),
             "largest tracking error (m)": _number(r.get("max_tracking_error"), 2),
             "limits": _limits(r["violations"]),
@@ -267,7 +268,9 @@ def _hydraulics(comparison: list[dict], bounds: dict | None) -> str:
                 "segment": r["segment"],
                 "strategy": r["strategy"],
                 "peak pump flow Q_P (L/min)": _number(h["peak_pump_flow_l_min"], 3),
-                "highest load pressure (bar)": _number(h["max_load_pressure_bar"], 3),
+                "highest load pressure (bar)": "beyond the circuit's physics"
+                if h.get("unphysical")
+                else _number(h["max_load_pressure_bar"], 3),
                 "LS energy (kJ)": _number(h["ls_energy_kj"]),
                 "CP energy (kJ)": _number(h["cp_energy_kj"]),
                 "above LS bound (%)": _percent(above.get("LS")),

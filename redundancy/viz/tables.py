@@ -10,12 +10,12 @@ from collections.abc import Callable
 
 import numpy as np
 
-from redundancy.model.hydraulics import KILOJOULE
+from redundancy.model.hydraulics import BAR, BEYOND_RELIEF, KILOJOULE
 from redundancy.planning.cycles import ReturnMap
 from redundancy.planning.refinement import Refined
 from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import VELOCITY
-from redundancy.study.check import Check, span
+from redundancy.study.check import Check, span, task_point
 from redundancy.study.cycles import CycleStudy, named_values, settling_words
 from redundancy.study.peers import StrategyRun
 from redundancy.study.study import Study
@@ -83,15 +83,26 @@ def hydraulic_table(study: Study) -> str:
     duration and, with energy bounds, per cent above them, then the bounds."""
     names = _segment_width(study)
 
+    circuit = study.robot.circuit()
+
     def cells(run: StrategyRun) -> str:
         figures, above = run.summary()["hydraulics"], study.above_energy_bound(run)
         percent = "".join(f"{above[s]:>7.1f}" if s in above else f"{'-':>7}" for s in ("LS", "CP"))
         shortest = figures["shortest_duration_s"]
+        pressure = figures["max_load_pressure_bar"]
+        unphysical = circuit.unphysical(pressure * BAR)
         return (
-            f"{figures['peak_pump_flow_l_min']:>10.1f}{figures['max_load_pressure_bar']:>9.1f}"
-            f"{figures['ls_energy_kj']:>8.2f}{figures['cp_energy_kj']:>8.2f}{percent}"
+            f"{figures['peak_pump_flow_l_min']:>10.1f}"
+            + (f"{'(!)':>9}" if unphysical else f"{pressure:>9.1f}")
+            + f"{figures['ls_energy_kj']:>8.2f}{figures['cp_energy_kj']:>8.2f}{percent}"
             + (f"{'-':>8}" if shortest is None else f"{shortest:>8.2f}")
             + "  "
+            + (
+                f"(!) p_L beyond the circuit's physics, over {BEYOND_RELIEF:g} × the relief "
+                f"{circuit.relief / BAR:g} bar (the model's, where the motion leaves a stroke); "
+                if unphysical
+                else ""
+            )
             + ("held" if figures["within_limits"] else "; ".join(figures["violations"]))
         )
 
@@ -162,7 +173,7 @@ def cycle_table(study: CycleStudy) -> str:
 def _plan_lines(study: CycleStudy) -> list[str]:
     """The whole-cycle improved start and the per-segment plan's starts."""
     plan, held = study.plan, study.held
-    unit, label = study.objective.unit, study.objective.label
+    unit, label = measure_unit(study.objective, study.robot.actuators), study.objective.label
     units = [study.robot.actuators[h].unit for h in held]
     search = plan.search
     if search.best is None:
@@ -218,7 +229,8 @@ def _corner_lines(study: CycleStudy) -> list[str]:
 
 def _price_line(study: CycleStudy) -> str:
     """The drift-free strategy's peak and pump energies against the free improved cycle's."""
-    price, unit, label = study.price() or {}, study.objective.unit, study.objective.label
+    price, label = study.price() or {}, study.objective.label
+    unit = measure_unit(study.objective, study.robot.actuators)
     free, periodic = study.costs["free"].figures(), study.costs["periodic"].figures()
     parts = [
         f"peak {label} {free['objective']:.5g} → {periodic['objective']:.5g} {unit} "
@@ -304,7 +316,7 @@ def check_table(found: Check) -> str:
     lines.append(
         "meshes: "
         + (
-            f"not found: {', '.join(robot.missing_meshes)} (drawn as rods)"
+            f"not found: {', '.join(robot.missing_meshes)} (those links drawn as hulls)"
             if robot.missing_meshes
             else "every mesh found"
         )
@@ -312,7 +324,7 @@ def check_table(found: Check) -> str:
     if found.points is not None:
         lines.append("task points:")
         lines += [
-            f"  {p.tolist()}: {'reached' if ok else 'NOT reached'}"
+            f"  {task_point(robot, p)}: {'reached' if ok else 'NOT reached'}"
             for p, ok in zip(found.points, found.reached)
         ]
     problems = found.blocking()

@@ -1,0 +1,271 @@
+"""Machines at their edges, as a new user meets them: every message names the file and the table
+that fix it, `check` reports what a study would refuse, quantities show in their own units, and a
+kinematic-only robot's default study runs what needs no masses."""
+
+import re
+import warnings
+from pathlib import Path
+
+import meshcat
+import numpy as np
+import pinocchio as pin
+import pytest
+import umsgpack
+from scipy.spatial import Delaunay
+
+from redundancy import VELOCITY, GradientProjection, actuator_space, load_robot, run_study
+from redundancy.cli import _load_task, _play_motion, main, parser
+from redundancy.model.hydraulics import BAR
+from redundancy.planning.integrate import simulate
+from redundancy.planning.tasks import WorkCycle
+from redundancy.viz.playback import Playback, Recording
+from redundancy.viz.report import _hydraulics
+from redundancy.viz.tables import hydraulic_table
+
+FIXTURES = Path(__file__).parent / "fixtures" / "intake"
+PLANAR = Path(__file__).parent / "data" / "planar4r"
+TASK = """name = "arm test cycle"
+speed = 0.5
+segments = ["1-2"]
+held = {held}
+[points]
+1 = {one}
+2 = {two}
+"""
+
+
+def run(argv, capsys):
+    """``redundancy ARGV`` in this process: the exit status, stdout, and stderr's lines."""
+    with warnings.catch_warnings():
+        try:
+            status = main(argv)
+        except SystemExit as exit:
+            status = exit.code
+    captured = capsys.readouterr()
+    return status, captured.out, captured.err.strip().splitlines()
+
+
+def errors(lines):
+    return [line for line in lines if not line.startswith("redundancy: note:")]
+
+
+def arm(tmp_path, held='["stick_joint"]', axes="xz", one="[2.8, -0.2]", two="[2.8, 1.2]"):
+    """The continuous-joint test arm, its stick joint left without a declaration (driven
+    directly: a continuous joint, so without a stroke), holding ``held`` on its task."""
+    tmp_path = tmp_path / "arm"
+    tmp_path.mkdir()
+    (tmp_path / "arm.urdf").write_bytes((FIXTURES / "continuous" / "arm.urdf").read_bytes())
+    text = (FIXTURES / "continuous" / "robot.toml").read_text()
+    text = text.replace('"../task.toml"', '"task.toml"').replace('"xz"', f'"{axes}"')
+    declared = text[: text.index("[actuators.x2]")] + text[text.index("[actuators.x3]") :]
+    (tmp_path / "robot.toml").write_text(declared)
+    (tmp_path / "task.toml").write_text(TASK.format(held=held, one=one, two=two))
+    return str(tmp_path / "robot.toml")
+
+
+@pytest.mark.parametrize("command", ["study", "cycle", "play"])
+def test_a_held_joint_without_a_stroke_names_the_table_that_gives_it_one(tmp_path, capsys, command):
+    argv = [command, "--robot", arm(tmp_path)]
+    if command == "play":
+        argv += ["--html", str(tmp_path / "p.html")]
+    else:
+        argv += ["--quiet", "--out", str(tmp_path / "out")]
+    status, _, lines = run(argv, capsys)
+    found = errors(lines)
+    assert status == 2 and len(found) == 1, found
+    assert "held actuator stick_joint has no finite stroke to sample, [-∞, ∞]" in found[0]
+    assert (
+        f"{tmp_path / 'arm' / 'robot.toml'}: [actuators.stick_joint] (a table to add, with kind = "
+        "\"Identity\" and joint = 'stick_joint'): stroke = [lower, upper] (rad)" in found[0]
+    ), found[0]
+    assert not (tmp_path / "out").exists()
+
+
+def test_check_reports_a_held_joint_without_a_stroke_instead_of_aborting(tmp_path, capsys):
+    status, out, lines = run(["check", "--robot", arm(tmp_path)], capsys)
+    assert status == 2 and not errors(lines), lines
+    assert "actuators (values over the joint's range" in out  # the whole screen, not one error
+    assert "problems block a study: held actuator stick_joint has no finite stroke" in out
+
+
+def test_a_declared_held_actuator_without_a_stroke_names_its_own_table(tmp_path, capsys):
+    path = arm(tmp_path, held='["x3"]')
+    text = Path(path).read_text().replace("stroke = [0.2, 1.1]\n", "")
+    Path(path).write_text(text)
+    status, _, lines = run(
+        ["study", "--robot", path, "--quiet", "--out", str(tmp_path / "o")], capsys
+    )
+    assert status == 2, lines
+    assert f"give it one in {path}: [actuators.x3]: stroke = [lower, upper] (m)" in errors(lines)[0]
+
+
+def test_too_few_held_actuators_point_at_locked_joints_and_the_joints_to_lock(tmp_path, capsys):
+    """A machine whose undeclared joints move freely (a chassis, say) has more redundant degrees
+    than its task holds: the message names ``locked_joints``, the file and the joints."""
+    path = arm(tmp_path, held='["x3"]', axes="x", one="[2.8]", two="[2.6]")
+    for command in (["study", "--quiet", "--out", str(tmp_path / "o")], ["check"]):
+        status, out, lines = run([command[0], "--robot", path, *command[1:]], capsys)
+        message = errors(lines)[0] if command[0] == "study" else out
+        assert status == 2, lines
+        assert "holds ['x3'], but arm has n − m = 3 − 1 = 2 redundant degrees" in message
+        assert (
+            f"or lock the joints the task does not move with locked_joints in {path} (joints "
+            "without an actuator declaration: stick_joint)" in message
+        ), message
+
+
+def test_describe_gives_the_tasks_m_with_the_tool_angle(capsys):
+    status, out, _ = run(["describe", "--robot", str(PLANAR / "robot.toml")], capsys)
+    assert status == 0
+    assert "n = 4 joints, task = tool xy + angle (m = 3)" in out
+
+
+def test_a_kinematic_only_robots_default_study_runs_what_needs_no_masses(tmp_path, capsys):
+    out = tmp_path / "out"
+    argv = ["study", "--robot", str(FIXTURES / "massless" / "robot.toml"), "--quiet"]
+    status, printed, lines = run([*argv, "--cycles", "0", "--out", str(out)], capsys)
+    assert status == 0, lines
+    left_out = [line for line in lines if "leaves out what needs masses" in line]
+    assert len(left_out) == 1 and "the energy objective" in left_out[0], lines
+    assert "velocity" in printed and (out / "report.json").is_file()
+
+
+def test_check_shows_task_points_in_the_units_of_the_task_file(capsys):
+    """The planar arm's task gives its tool angle in degrees: check shows 30°, not 0.5236."""
+    status, out, _ = run(["check", "--robot", str(PLANAR / "robot.toml")], capsys)
+    assert status == 0
+    assert "  [1900 mm, 0 mm, 30°]: reached" in out
+
+
+def test_a_rotary_held_start_is_shown_in_degrees(capsys):
+    """The planar arm holds a turning joint: play names its start in degrees, as every other
+    message does, not in rad beside them."""
+    robot, cycle = _load_task(load_robot(PLANAR / "robot.toml"), None)
+    args = parser().parse_args(["play", "--start", "x1=-0.1336"])
+    _, label = _play_motion(robot, cycle, cycle.segments[0], VELOCITY, args)
+    assert label == "x1 = -7.655°", label
+
+
+def test_the_cycle_of_turning_actuators_gives_its_velocity_peaks_in_rad_per_second(
+    tmp_path, capsys
+):
+    argv = ["cycle", "--robot", str(PLANAR / "robot.toml"), "--cycles", "1", "--quiet"]
+    status, out, lines = run([*argv, "--strategy", "free", "--out", str(tmp_path / "o")], capsys)
+    assert status == 0, lines
+    assert "m²/s²" not in out
+    assert re.search(r"whole-cycle improved start: .*, peak ẋᵀẋ [0-9.]+ rad²/s²", out), out
+
+
+def test_limit_avoidance_on_an_unbounded_actuator_computes_no_invalid_value(tmp_path):
+    """Gradient projection pulls each actuator toward its mid-stroke; an unbounded one (the
+    arm's continuous stick joint) has none and is left free, without inf − inf on the way (numpy
+    said so in "invalid value encountered in add" notes)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        robot = load_robot(arm(tmp_path))
+    space = actuator_space(robot, np.array([0.3, -0.5, 0.4]))
+    with np.errstate(all="raise"):
+        z = GradientProjection().null_space(space)
+    assert np.all(np.isfinite(z)) and z[0, 1] == 0.0 and z[0, 0] != 0.0
+
+
+def test_a_load_pressure_beyond_the_circuits_physics_is_flagged_not_reported(tmp_path):
+    """The excavator's M_H-weighted law lifting to the truck (2-3) leaves the bucket's stroke
+    towards its linkage's toggle, where the quasi-static model asks over 30,000 bar of the stick
+    cylinder: the table and the report page flag it, and print no such pressure."""
+    excavator = load_robot("excavator")
+    text = excavator.task_file.read_text().replace('["1-2", "2-3", "3-1"]', '["2-3"]')
+    (tmp_path / "task.toml").write_text(text)
+    cycle = WorkCycle.from_toml(tmp_path / "task.toml", dimension=excavator.m)
+    study = run_study(
+        excavator, cycle, (VELOCITY,), samples=5, bound=False, progress=False, cycles=0
+    )
+    relief = excavator.circuit().relief / BAR
+    rows = {r["strategy"]: r["hydraulics"] for r in study.report()["comparison"]}
+    weighted = rows["M_H-weighted, default start"]
+    assert weighted["max_load_pressure_bar"] > 2 * relief and weighted["unphysical"]
+    assert not any(
+        r["unphysical"] for name, r in rows.items() if name != "M_H-weighted, default start"
+    )
+    line = next(s for s in hydraulic_table(study).splitlines() if "M_H-weighted" in s)
+    assert "(!) p_L beyond the circuit's physics, over 2 × the relief 300 bar" in line, line
+    assert f"{weighted['max_load_pressure_bar']:.1f}" not in line
+    page = _hydraulics(study.report()["comparison"], None)
+    assert page.count("beyond the circuit's physics") == 1
+
+
+def test_the_playback_draws_every_link_with_its_cylinders_points_inside_mesh_less_hulls(tmp_path):
+    """The arm whose meshes are missing, its stick joint locked: every URDF link with a visual
+    is in the page's scene, the locked stick among them; a link without a drawable visual is
+    the hull of its origin, the joints it carries and the cylinders' points on it, posed with
+    the link, so that the cylinders sit on their links."""
+    folder = tmp_path / "arm"
+    folder.mkdir()
+    (folder / "arm.urdf").write_bytes((FIXTURES / "meshes" / "arm.urdf").read_bytes())
+    text = (FIXTURES / "meshes" / "robot.toml").read_text().replace('task = "../task.toml"\n', "")
+    locked = text.replace(
+        'task_axes = "xz"', 'task_axes = "xz"\nlocked_joints = {stick_joint = -1.4}'
+    )
+    (folder / "robot.toml").write_text(locked)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        robot = load_robot(folder / "robot.toml")
+    q0 = np.array([0.3, 0.4])
+    y0 = actuator_space(robot, q0).y[0].tolist()
+    (folder / "t.toml").write_text(
+        f'name = "t"\nspeed = 0.2\nsegments = ["1-2"]\n[points]\n1 = {y0}\n'
+        f"2 = {[y0[0], y0[1] + 0.05]}\n"
+    )
+    segment = WorkCycle.from_toml(folder / "t.toml", dimension=2).segments[0]
+    motion = simulate(robot, VELOCITY.resolver, segment, q0[None])
+    recording = Recording()
+    Playback(motion).draw(meshcat.Visualizer(window=recording))
+    commands = [umsgpack.unpackb(c) for c in recording.commands]
+    drawn = {
+        c["path"].rsplit("/links/", 1)[1]: c["object"]["geometries"][0]
+        for c in commands
+        if c["type"] == "set_object" and "/links/" in c["path"]
+    }
+    posed = {
+        c["path"].rsplit("/links/", 1)[1]: np.array(c["matrix"], dtype=float).reshape(4, 4).T
+        for c in commands
+        if c["type"] == "set_transform" and "/links/" in c["path"]
+    }
+    # boom and stick name missing meshes, base has no visual: hulls; the telescope's box
+    assert sorted(drawn) == ["hulls/base", "hulls/boom", "hulls/stick", "visuals/telescope_0"]
+    on_links = {  # the points each hull must hold, in its link's frame (m)
+        "base": [[0, 0, 0], [0, 0, 1], [0.5, 0, 0.4]],  # boom joint, x1's base
+        "boom": [[0, 0, 0], [2, 0, 0], [0.9, 0, -0.2]],  # stick joint, x1's rod (x2 locked)
+        "stick": [[0, 0, 0], [0.7, 0, 0]],  # telescope joint
+    }
+    model, data = robot.model, robot.model.createData()
+    pin.framesForwardKinematics(model, data, q0)
+    for link, points in on_links.items():
+        vertices = np.frombuffer(
+            drawn[f"hulls/{link}"]["data"]["attributes"]["position"]["array"].data, np.float32
+        )
+        inside = Delaunay(vertices.reshape(-1, 3)).find_simplex(np.array(points, dtype=float))
+        assert np.all(inside >= 0), link
+        pose = posed[f"hulls/{link}"]
+        np.testing.assert_allclose(pose, data.oMf[model.getFrameId(link)].homogeneous, atol=1e-9)
+    # the cylinder x1 runs from its base on the base's hull to its rod on the boom's
+    base, rod = robot.actuators["x1"].ends(robot.kinematics(q0[None]))
+    np.testing.assert_allclose(posed["hulls/base"] @ [0.5, 0, 0.4, 1], [*base[0], 1], atol=1e-9)
+    np.testing.assert_allclose(posed["hulls/boom"] @ [0.9, 0, -0.2, 1], [*rod[0], 1], atol=1e-9)
+
+
+def test_describe_gives_the_mid_range_state_in_degrees_and_mm(capsys):
+    status, out, _ = run(["describe", "--robot", str(PLANAR / "robot.toml")], capsys)
+    assert status == 0
+    assert "at mid-range q = [0°, 0°, 0°, 0°]: x = [0°, 0°, 0°, 0°], y = [2800 mm, 0 mm, 0°]" in out
+    status, out, _ = run(["describe"], capsys)
+    assert "at mid-range q = [98.6°, 74.97°, 725 mm]: x = [1155 mm, 1091 mm, 545 mm]" in out
+
+
+def test_the_report_page_gives_turning_actuators_velocity_peaks_in_rad_per_second(tmp_path, capsys):
+    argv = ["study", "--robot", str(PLANAR / "robot.toml"), "--objective", "velocity"]
+    argv += ["--cycles", "0", "--samples", "10", "--quiet", "--out", str(tmp_path / "o")]
+    status, out, lines = run(argv, capsys)
+    assert status == 0, lines
+    page = (tmp_path / "o" / "index.html").read_text()
+    assert "peak ẋᵀẋ (rad²/s²)" in page and "m²/s²" not in out
