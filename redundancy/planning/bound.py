@@ -529,17 +529,7 @@ def global_optimum(
         )
     limits = Limits.strokes(robot, checked)
     if initial is None:
-        if search is None:
-            search = improved_start(robot, segment, objective, names, checked=checked)
-        if search.best is None:
-            raise InvalidInputError(
-                f"no start on {segment.label} keeps every checked stroke for the "
-                f"{objective.name} objective; the global optimum starts from feasible motions"
-            )
-        reachable = np.array([s.values for s in search.samples if s.peak is not None])
-        spread = np.linspace(reachable.min(0), reachable.max(0), CANDIDATES)
-        # distinct, best first
-        initial = list(dict.fromkeys(map(tuple, [search.best.values, *spread.tolist()])))
+        initial = _initial(robot, segment, objective, names, checked, search)
     values = np.array(initial, dtype=float).reshape(len(initial), len(rows))
     others = Limits.strokes(robot, [name for name in limits.names if name not in names])
     box = [
@@ -555,25 +545,7 @@ def global_optimum(
         r = resampled(problem.unknown_times(), t, r)
         return (*solve_transcription(problem, r, box, intervals, polish=True), problem)
 
-    starts = inverse_kinematics(robot, segment.start, names, values)
-    if not starts.reached.any():
-        raise UnreachableError(
-            f"{robot.name} cannot reach the start {segment.start.tolist()} of {segment.label} "
-            f"with {', '.join(names)} at any of {values.tolist()}"
-        )
-    motions = simulate_path(
-        robot, objective.resolver, segment, starts.q[starts.reached], segment.duration / grids[0]
-    )
-    candidates, failures = [], []
-    for i, value in enumerate(values[starts.reached]):
-        try:
-            t = motions.t[i]
-            candidates.append(solve(grids[0], t, motions.x[i][:, rows], t, motions.q[i]))
-        except InvalidInputError as error:  # the solver stepped where the task is out of reach
-            at = ", ".join(f"{n} = {v:.4g}" for n, v in zip(names, value))
-            failures.append(f"from {at}: {error}")
-    if not candidates:
-        raise InvalidInputError(f"the bound found no optimum; {'; '.join(failures)}")
+    candidates = _from_each_start(robot, segment, objective, names, values, grids[0], solve)
     r, grid, nodes, problem = min(candidates, key=lambda c: c[1].peak)
     solutions = [grid]
     finer = list(grids[1:])
@@ -605,3 +577,46 @@ def global_optimum(
         float(r[0, 0]) if one else tuple(r[0].tolist()),
         tuple(solutions),
     )
+
+
+def _initial(robot, segment, objective, names, checked, search) -> list[tuple]:
+    """The bound's default starts, distinct and best first: the best start of the improved
+    method's ``search`` (by default its fast search; the sweep with several held), then
+    `CANDIDATES` starts evenly over the box of the starts it reached, feasible or not."""
+    if search is None:
+        search = improved_start(robot, segment, objective, names, checked=checked)
+    if search.best is None:
+        raise InvalidInputError(
+            f"no start on {segment.label} keeps every checked stroke for the "
+            f"{objective.name} objective; the global optimum starts from feasible motions"
+        )
+    reachable = np.array([s.values for s in search.samples if s.peak is not None])
+    spread = np.linspace(reachable.min(0), reachable.max(0), CANDIDATES)
+    return list(dict.fromkeys(map(tuple, [search.best.values, *spread.tolist()])))
+
+
+def _from_each_start(robot, segment, objective, names, values, intervals, solve) -> list:
+    """``solve`` on the first grid of ``intervals`` from the law's motion from each start of
+    ``values`` (k, r) that reaches the path's start; the solutions, or one line naming why
+    each start failed."""
+    rows = held_indices(robot, names)
+    starts = inverse_kinematics(robot, segment.start, names, values)
+    if not starts.reached.any():
+        raise UnreachableError(
+            f"{robot.name} cannot reach the start {segment.start.tolist()} of {segment.label} "
+            f"with {', '.join(names)} at any of {values.tolist()}"
+        )
+    motions = simulate_path(
+        robot, objective.resolver, segment, starts.q[starts.reached], segment.duration / intervals
+    )
+    candidates, failures = [], []
+    for i, value in enumerate(values[starts.reached]):
+        try:
+            t = motions.t[i]
+            candidates.append(solve(intervals, t, motions.x[i][:, rows], t, motions.q[i]))
+        except InvalidInputError as error:  # the solver stepped where the task is out of reach
+            at = ", ".join(f"{n} = {v:.4g}" for n, v in zip(names, value))
+            failures.append(f"from {at}: {error}")
+    if not candidates:
+        raise InvalidInputError(f"the bound found no optimum; {'; '.join(failures)}")
+    return candidates
