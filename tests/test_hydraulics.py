@@ -5,6 +5,7 @@ import dataclasses
 import json
 import math
 import re
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -20,13 +21,20 @@ from redundancy.errors import (
     UnreachableError,
 )
 from redundancy.model.hydraulics import BAR, LITRES_PER_MINUTE, circuit_from_table
-from redundancy.planning.integral_optimum import EXACT, Tables, _nodes, energy_optimum
+from redundancy.planning.integral_optimum import (
+    EXACT,
+    Tables,
+    _nodes,
+    energy_optimum,
+    integral_optimum,
+)
 from redundancy.planning.integrate import MIN_INTERVALS, simulate
+from redundancy.planning.refinement import CONVERGED
 from redundancy.planning.starts import default_start, improved_start
 from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.planning.time_scaling import shortest_duration
 from redundancy.resolution.laws import MinFlow
-from redundancy.resolution.limits import Limits
+from redundancy.resolution.limits import TOLERANCE, Limits, hydraulic_values
 from redundancy.resolution.objectives import CP_ENERGY, ENERGY, FLOW, LS_ENERGY, VELOCITY
 from redundancy.resolution.state import actuator_space
 from redundancy.study import peers
@@ -234,8 +242,53 @@ def test_splines_between_solved_strokes_match_exact_configurations(crane, cycle)
 
 
 @pytest.fixture(scope="module")
+def reach():
+    """r = 2 on a circuit: the crane's tool reach alone (world x, m = 1) from 3.5 to 2 m at
+    0.5 m/s, the fold cylinder x2 and the telescope x3 held."""
+    robot = load_robot("hiab031", task_axes="x")
+    return robot, Segment("in", np.array([3.5]), np.array([2.0]), 0.5), ("x2", "x3")
+
+
+def test_two_held_cylinders_get_an_energy_bound_within_the_circuit(reach):
+    """The energy bound over both held cylinders' histories keeps their strokes and, on every
+    transition, the circuit's limits (load pressures, pump flow, cylinder speeds) with the
+    flows the bound prices; its energy is the LS pump energy of those transitions."""
+    robot, segment, held = reach
+    bound = energy_optimum(robot, segment, None, held, grids=(10, 20))
+    assert bound.held == held and bound.r.shape == (21, 2)
+    assert np.abs(bound.r - bound.x[:, robot.actuators.rows(held)]).max() < 1e-9
+    strokes = robot.actuators
+    assert np.all((bound.x >= strokes.lower - 1e-9) & (bound.x <= strokes.upper + 1e-9))
+    assert _circuit_margin(robot, bound).min() >= -TOLERANCE
+    assert bound.converged == (bound.change < CONVERGED)
+
+
+def test_the_integral_optimum_keeps_the_circuit_s_limits_when_given_a_supply(cycle):
+    """The least ∫ ẋᵀẋ dt along segment 1-2 moves the fold cylinder at 0.135 m/s; on a circuit
+    that limits it to 0.12 m/s (tests/data/slow_fold.toml) the optimum given the circuit's
+    supply keeps that limit and the load pressures and pump flow on every transition."""
+    robot = load_robot("hiab031", hydraulics=Path(__file__).parent / "data" / "slow_fold.toml")
+    travel = dataclasses.replace(VELOCITY, name="travel", reduction="integral")
+    circuit, segment = robot.circuit(), cycle["1-2"]
+    free = integral_optimum(robot, segment, travel, "x3", grids=(10,))
+    kept = integral_optimum(robot, segment, travel, "x3", grids=(10,), supply=circuit.supply)
+    assert _circuit_margin(robot, free).min() < 0 < _circuit_margin(robot, kept).min()
+    assert kept.optimum > free.optimum
+
+
+def _circuit_margin(robot, found):
+    """How far inside the circuit's limits each transition of ``found`` keeps, with the forces
+    at rest at its nodes (N, 2c + 1)."""
+    circuit, h = robot.circuit(), found.t[1]
+    forces = actuator_space(robot, found.q).N_H
+    x_dot = np.diff(found.x, axis=0) / h
+    flows = circuit.flows(x_dot, (forces[1:] + forces[:-1]) / 2)
+    return Limits.hydraulic(robot).margin(hydraulic_values(circuit, x_dot, flows))
+
+
+@pytest.fixture(scope="module")
 def bounds(crane, cycle):
-    return {s.name: energy_optimum(crane, s) for s in cycle.segments}
+    return {s.name: energy_optimum(crane, s, None, "x3") for s in cycle.segments}
 
 
 def test_energy_bound_converges_and_is_below_every_strategy(crane, cycle, motions, bounds):
