@@ -24,7 +24,13 @@ import pytest
 from redundancy import load_robot
 from redundancy.errors import InvalidInputError
 from redundancy.planning.angles import task_robot
-from redundancy.planning.integral_optimum import _measure_stage, _pass, integral_optimum
+from redundancy.planning.integral_optimum import (
+    _measure_stage,
+    _optimum,
+    _pass,
+    _result,
+    integral_optimum,
+)
 from redundancy.planning.refinement import CONVERGED
 from redundancy.planning.starts import improved_start
 from redundancy.planning.tasks import Arc, Segment, WorkCycle
@@ -219,3 +225,29 @@ def test_the_integral_optimum_refuses_a_peak_objective_and_bad_limits(arm):
         integral_optimum(robot, circle, "velocity", "x1")
     with pytest.raises(InvalidInputError, match=r"speeds must be one number > 0 or 4 .*got -1"):
         integral_optimum(robot, circle, SQUARED, "x1", speeds=-1)
+
+
+def test_no_path_found_says_why_and_a_finer_grid_without_one_keeps_the_coarser(arm):
+    """An acceleration limit the circle's timing cannot keep prunes every history: the error
+    says the recursion found none, not that none exists. A finer grid without a path after a
+    coarser one with a path keeps the coarser one's motion, marked not converged, with why."""
+    _, robot, circle = arm
+    pruned = "dynamic programming found no motion along segment circle .* pruned every history"
+    with pytest.raises(InvalidInputError, match=pruned):
+        integral_optimum(robot, circle, SQUARED, "x1", grids=(5,), accelerations=1e-3)
+
+    def build(tables, values):  # no path on grids finer than 5 intervals
+        x, _, q, usable = tables.at(values)
+        return x, q, usable & (len(values) <= 6), _table(np.zeros((len(values), 1, 1)))
+
+    free = np.full(robot.n, np.inf)
+    found = _result(
+        robot,
+        circle,
+        "zero",
+        "x1",
+        *_optimum(robot, circle, "x1", None, (5, 10), build, free, free),
+    )
+    assert [g.success for g in found.grids] == [True, False] and len(found.t) == 6
+    assert found.optimum == 0.0 and not found.converged
+    assert "no motion along segment circle" in found.failure
