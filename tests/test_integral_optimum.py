@@ -219,8 +219,10 @@ def test_two_held_actuators_get_a_global_optimum(arm):
     assert found.optimum < search.best_peak
 
 
-def test_the_integral_optimum_refuses_a_peak_objective_and_bad_limits(arm):
+def test_the_integral_optimum_refuses_a_peak_objective_and_bad_limits(arm, plain):
     _, robot, circle = arm
+    with pytest.raises(InvalidInputError, match="'joint_speeds' is no energy bound"):
+        plain.optimum.energy  # noqa: B018 - the property raises
     with pytest.raises(InvalidInputError, match="reduced to its peak; the integral optimum"):
         integral_optimum(robot, circle, "velocity", "x1")
     with pytest.raises(InvalidInputError, match=r"speeds must be one number > 0 or 4 .*got -1"):
