@@ -432,7 +432,8 @@ def _optimum(
             x, q, usable, stage = build(tables, values)
             optimum, index, free = _pass(x, usable, stage, t, speeds, accelerations, rest)
             if not np.isfinite(optimum):
-                band = " × ".join(f"{w * 1e3:.4g} mm" for w in width)
+                units = (robot.actuators.maps[row].unit for row in rows)
+                band = " × ".join(f"{w:.4g} {unit}" for w, unit in zip(width, units))
                 message = (
                     f"dynamic programming found no motion along segment {segment.name} that "
                     f"keeps every stroke and every limit with {', '.join(names)} within {band} "
