@@ -1,10 +1,12 @@
-"""The global optimum of an integral objective: the motion along a segment that minimises
-∫ c dt over every history of the held actuators, every stroke and every limit kept, by dynamic
-programming over a grid of the held values. The energy bound is this optimum with the pump
-energy ∫ p_P Q_P dt as c, as Nurmi & Mattila (Energies 10(5) 647, 2017) computed it for a
-forestry crane; any objective with an integral measure (`redundancy.resolution.objectives`),
-one of your own included, is another stage cost of the same recursion, as in the redundancy
-resolution by dynamic programming of Ferrentino et al. (Robotics 10(1) 42, 2021).
+"""The optimum of an integral objective by dynamic programming: the motion along a segment that
+minimises ∫ c dt over the histories of the held actuators on a grid of their values, every
+stroke and every actuator speed limit kept, and, where asked, the hydraulic circuit's limits and
+actuator acceleration limits (see below for what the latter do to the optimum). The energy bound
+is this optimum with the pump energy ∫ p_P Q_P dt as c, within the circuit's limits, as Nurmi &
+Mattila (Energies 10(5) 647, 2017) computed it for a forestry crane; any objective with an
+integral measure (`redundancy.resolution.objectives`), one of your own included, is another
+stage cost of the same recursion, as in the redundancy resolution by dynamic programming of
+Ferrentino et al. (Robotics 10(1) 42, 2021).
 
 - nodes t_j = j h, h = t_f / N; at each, the configurations q(r) that solve y(q) = y_d(t_j),
   x_h(q) = r (Eqs. 6, 10) are found by Newton's method (continued from node to node, seeded
@@ -12,20 +14,29 @@ resolution by dynamic programming of Ferrentino et al. (Robotics 10(1) 42, 2021)
   (r = 1), or at `EXACT_EACH` × `EXACT_EACH` over the strokes of two (r = 2), so the task is
   tracked exactly there; between them x(r), the forces at rest and q(r) are cubic splines in
   r (r = 1; their error, below 5e-5 m and largest at the ends of the stroke, is measured in
-  tests/test_hydraulics.py) or bilinear in (r₁, r₂) (r = 2). A held value whose neighbours
-  miss the task or leave the joint ranges, or that puts a checked stroke past its limit, is
-  excluded. For an objective's measure, each pass's states are solved again exactly, by Newton's
-  method from the interpolated configurations;
+  tests/test_hydraulics.py) or bilinear in (r₁, r₂) (r = 2). Neighbouring solved values are
+  taken to lie on one branch: where the task has two solutions inside the joint ranges (the
+  crane's reach alone with the fold and the telescope held: the lift up or down), the seeds
+  may pick either, and a cell between branches interpolates across them.
+  A held value whose neighbours miss the task or leave the joint ranges, or that puts a checked
+  stroke past its limit, is excluded. For an objective's measure, each pass's states are solved
+  again exactly, by Newton's method from the interpolated configurations;
 - a transition from r at t_j to r' at t_j+1 moves every actuator at ẋ = (x_j+1(r') − x_j(r))/h
   (so J_H ẋ = ẏ_d to first order, Eq. 16). Its cost is the objective's measure c at both
   nodes' states with that ẋ, by the trapezoidal rule, h (c_j + c_j+1)/2, or for the energy
   bound h p_P Q_P from the circuit's meter-in model (`redundancy.model.hydraulics`) against the
-  mean of both nodes' forces F_H at rest, A⁻ᵀ G (Eq. 23 without velocity terms), excluded where
-  a load pressure, the pump flow or a cylinder speed passes its limit;
-- actuator speed limits |ẋ| ≤ ẋ_max exclude transitions; an acceleration limit |ẍ| ≤ ẍ_max is
-  checked against the best path into each node (|ẋ' − ẋ| / h), since the recursion's state is
-  the node alone: the path kept always keeps it, and where it binds the optimum is the least
-  over the histories the recursion keeps, no longer over every history;
+  mean of both nodes' forces F_H at rest, A⁻ᵀ G (Eq. 23 without velocity terms). The circuit's
+  limits (`Limits.hydraulic`: each load pressure, the pump flow, each cylinder speed) exclude
+  transitions, with the same flows, for the energy bound always and for an objective where a
+  supply is given;
+- actuator speed limits |ẋ| ≤ ẋ_max exclude transitions. An acceleration limit |ẍ| ≤ ẍ_max is
+  checked against the best path into each node alone (|ẋ' − ẋ| / h), since the recursion's
+  state is the node alone, as in Ferrentino et al.'s heuristic: the path kept always keeps the
+  limit, but where the limit binds (`IntegralOptimum.acceleration_binds`: the least cost
+  without it is lower) the optimum is the least over the histories the recursion keeps, no
+  longer the grid's global optimum, and the recursion may find no path where one exists. Where
+  the segment starts (ends) at rest, the first (last) transition's acceleration is checked
+  from (to) ẋ = 0; a segment that starts moving has no acceleration at its start to check;
 - the least cost to each node is the least over its predecessors; start and end are free. The
   first pass spans the strokes with `SPANNING` values per held actuator (`SPANNING_EACH` for
   r = 2); each later one spans a band `NARROWING` times as wide around the last path with
@@ -35,15 +46,16 @@ resolution by dynamic programming of Ferrentino et al. (Robotics 10(1) 42, 2021)
 Why dynamic programming and not the direct transcription of `redundancy.planning.bound`: the
 load-sensing pump pressure is a maximum over the moving cylinders and the overrunning clamp
 is a kink, so the cost is not differentiable where the optimum tends to lie, and the circuit's
-limits cut the feasible set into pieces. The problem is not convex; dynamic programming finds
-the least cost over its grid globally, whatever its shape.
+limits cut the feasible set into pieces. The problem is not convex; without acceleration limits
+dynamic programming finds the least cost over its grid globally, whatever its shape.
 
 The energy bound's forces leave out inertia and velocity terms (M_H ẍ and the Coriolis part of
 N_H): they would make the stage cost depend on three nodes. On the paper's crane they change
 the pump energy of the strategies by well under 1 % (tests/test_hydraulics.py measures it); the
 strategies' energies are computed with them. A measure that reads the forces (``dynamic``)
 reads them at rest here for the same reason. The optimum converges as the grid is refined:
-`IntegralOptimum.change` is the relative change of the optimum from the previous grid.
+`IntegralOptimum.change` is the relative change of the optimum from the previous grid; where a
+finer grid finds no path, the coarser grid's result is kept and marked not converged.
 """
 
 from __future__ import annotations
@@ -87,22 +99,26 @@ Stage = Callable[[int, float, np.ndarray], np.ndarray]
 
 @dataclass(frozen=True)
 class OptimumGrid:
-    """The least cost on one grid of ``intervals`` × ``values``."""
+    """The least cost on one grid of ``intervals`` × ``values``, whether the recursion found a
+    path there (``success``; why not, ``message``; the cost then nan) and whether the
+    acceleration limit raised the cost (``acceleration_binds``)."""
 
     intervals: int
     values: int
     optimum: float
-    success = True  # dynamic programming has no solver to fail: a grid without a path raises
+    success: bool = True
+    message: str = ""
+    acceleration_binds: bool = False
 
 
 @dataclass(frozen=True)
 class IntegralOptimum(Refined):
-    """The motion of least ∫ c dt on the finest grid: node times t (N + 1,) s and the held
-    values r at them, (N + 1,) for one held actuator, (N + 1, r) for several, every actuator's
-    x (N + 1, n) (m, or rad for a rotary actuator) and the configurations q (N + 1, n) there,
-    and every grid's least cost. ``objective`` names the measure c: the energy bound's is the
-    pump energy under ``supply``, its optimum in J; an objective's optimum is in its measure's
-    unit times s."""
+    """The motion of least ∫ c dt on the finest grid where the recursion found a path: node
+    times t (N + 1,) s and the held values r at them, (N + 1,) for one held actuator, (N + 1, r)
+    for several, every actuator's x (N + 1, n) (m, or rad for a rotary actuator) and the
+    configurations q (N + 1, n) there, and every grid's least cost. ``objective`` names the
+    measure c: the energy bound's is the pump energy under ``supply``, its optimum in J; an
+    objective's optimum is in its measure's unit times s."""
 
     segment: Segment
     objective: str
@@ -115,8 +131,28 @@ class IntegralOptimum(Refined):
     supply: Supply | None = None
 
     @property
+    def searched(self) -> OptimumGrid:
+        """The finest grid where the recursion found a path: the motion's own."""
+        return next(grid for grid in reversed(self.grids) if grid.success)
+
+    @property
+    def optimum(self) -> float:
+        """The least cost on the finest grid where the recursion found a path."""
+        return self.searched.optimum
+
+    @property
+    def acceleration_binds(self) -> bool:
+        """Whether the acceleration limit raised the motion's cost: the optimum is then the
+        least over the histories the recursion keeps, not the grid's global optimum."""
+        return self.searched.acceleration_binds
+
+    @property
     def energy(self) -> float:
         """The least pump energy on the finest grid, J (the energy bound)."""
+        if self.supply is None:
+            raise InvalidInputError(
+                f"the optimum of {self.objective!r} is no energy bound: read its optimum"
+            )
         return self.optimum
 
 
@@ -228,19 +264,38 @@ def _spline(axis: np.ndarray, table: np.ndarray, usable: np.ndarray):
     return lambda r: spline(r[:, 0])
 
 
+def _circuit(robot: Robot, supply: Supply, x: np.ndarray, forces: np.ndarray):
+    """The circuit's meter-in model on the transitions from t_j to t_j+1 between the nodes'
+    strokes x and forces at rest (N + 1, G, n): (j, h) → the flows (G, G) and where they keep
+    the circuit's limits under ``supply`` (G, G)."""
+    circuit, limits = robot.circuit(), Limits.hydraulic(robot, supply)
+
+    def transitions(j: int, h: float):
+        x_dot = (x[j + 1][None] - x[j][:, None]) / h  # (from, to, n)
+        flows = circuit.flows(x_dot, (forces[j][:, None] + forces[j + 1][None]) / 2)
+        return flows, limits.margin(hydraulic_values(circuit, x_dot, flows)) >= -TOLERANCE
+
+    return transitions
+
+
 def _energy_stage(robot: Robot, supply: Supply, x: np.ndarray, forces: np.ndarray) -> Stage:
     """The pump energy h p_P Q_P of each transition under ``supply`` (J), inf where a load
     pressure, the pump flow or a cylinder speed passes its limit."""
-    circuit, limits = robot.circuit(), Limits.hydraulic(robot, supply)
+    transitions = _circuit(robot, supply, x, forces)
 
     def cost(j: int, h: float, allowed: np.ndarray) -> np.ndarray:
-        x_dot = (x[j + 1][None] - x[j][:, None]) / h  # (from, to, n)
-        force = (forces[j][:, None] + forces[j + 1][None]) / 2
-        flows = circuit.flows(x_dot, force)
-        allowed = limits.margin(hydraulic_values(circuit, x_dot, flows)) >= -TOLERANCE
-        return np.where(allowed, h * flows.power(supply), np.inf)
+        flows, within = transitions(j, h)
+        return np.where(allowed & within, h * flows.power(supply), np.inf)
 
     return cost
+
+
+def _within_circuit(
+    stage: Stage, robot: Robot, supply: Supply, x: np.ndarray, forces: np.ndarray
+) -> Stage:
+    """``stage`` on the transitions that keep the circuit's limits under ``supply`` as well."""
+    transitions = _circuit(robot, supply, x, forces)
+    return lambda j, h, allowed: stage(j, h, allowed & transitions(j, h)[1])
 
 
 def _measure_stage(objective: Objective, space: ActuatorSpace, x: np.ndarray) -> Stage:
@@ -267,30 +322,44 @@ def _pass(
     t: np.ndarray,
     speeds: np.ndarray,
     accelerations: np.ndarray,
+    rest: tuple[bool, bool] = (False, False),
 ):
     """Dynamic programming over the nodes' strokes x (N + 1, G, n) at times t: the least cost
-    (inf where nothing is feasible) and the index of its held values at each node (N + 1,)."""
+    (inf where the recursion found no path), the index of its held values at each node
+    (N + 1,), and the least cost without the acceleration limit (the same where it does not
+    bind). Where ``rest`` (at the start, at the end), the first (last) transition's
+    acceleration is checked from (to) ẋ = 0."""
     intervals, count = len(t) - 1, x.shape[1]
     h, fast, quick = t[1], np.isfinite(speeds), np.isfinite(accelerations)  # the limited ones
+    reach = h * (accelerations[quick] + TOLERANCE)  # the largest change of ẋ in one step
+
+    def steady(change: np.ndarray) -> np.ndarray:
+        return np.all(np.abs(change[..., quick]) <= reach, axis=-1)
+
     cost = np.where(usable[0], 0.0, np.inf)
+    free = cost  # the same recursion without the acceleration limit
     incoming = np.zeros(x.shape[1:])  # ẋ of the best path into each node
     choices = np.empty((intervals, count), dtype=int)
     for j in range(intervals):
         x_dot = (x[j + 1][None] - x[j][:, None]) / h  # (from, to, n)
         allowed = np.all(np.abs(x_dot[..., fast]) <= speeds[fast] + TOLERANCE, axis=2)
-        allowed &= np.isfinite(cost)[:, None] & usable[j + 1]
-        if j:
-            change = x_dot[..., quick] - incoming[:, None, quick]
-            allowed &= np.all(np.abs(change) <= h * accelerations[quick], axis=2)
-        total = np.where(allowed, cost[:, None] + stage(j, h, allowed), np.inf)
+        allowed &= usable[j + 1]
+        kept = allowed & np.isfinite(cost)[:, None]
+        if j or rest[0]:
+            kept &= steady(x_dot - incoming[:, None])
+        steps = stage(j, h, allowed & np.isfinite(free)[:, None])
+        free = np.min(free[:, None] + steps, axis=0)
+        total = np.where(kept, cost[:, None] + steps, np.inf)
         choices[j] = np.argmin(total, axis=0)
-        cost = np.where(usable[j + 1], total[choices[j], np.arange(count)], np.inf)
+        cost = total[choices[j], np.arange(count)]
         incoming = x_dot[choices[j], np.arange(count)]
+    if rest[1]:
+        cost = np.where(steady(incoming), cost, np.inf)
     path = np.empty(intervals + 1, dtype=int)
     path[-1] = np.argmin(cost)
     for j in range(intervals - 1, -1, -1):
         path[j] = choices[j, path[j + 1]]
-    return float(cost[path[-1]]), path
+    return float(cost[path[-1]]), path, float(free.min())
 
 
 def _limit(robot: Robot, value, what: str) -> np.ndarray:
@@ -326,8 +395,9 @@ def _optimum(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, tuple[OptimumGrid, ...]]:
     """Iterative dynamic programming over the ``held`` actuators' values with the stage costs
     ``build`` makes (see the module docstring), on each of ``grids`` in turn: the node times t
-    (N + 1,), the held values (N + 1, r), strokes x and configurations q (N + 1, n) on the finest
-    grid's path, and every grid's least cost."""
+    (N + 1,), the held values (N + 1, r), strokes x and configurations q (N + 1, n) on the path
+    of the finest grid where the recursion found one, and every grid's least cost (a grid
+    without a path after one with a path ends the refinement, marked failed)."""
     rows = held_indices(robot, held)
     names = [robot.actuators.names[row] for row in rows]
     if len(rows) > 2:
@@ -341,8 +411,11 @@ def _optimum(
     if not np.all(np.isfinite(upper - lower)):
         raise InvalidInputError(f"the held actuators {names} need finite strokes")
     counts = (SPANNING, VALUES) if len(rows) == 1 else (SPANNING_EACH, VALUES_EACH)
+    last = counts[1] ** len(rows)  # held values per node of every grid's last pass
+    start, end = segment.velocity_at(np.array([0.0, segment.duration]))
+    rest = (not np.any(start), not np.any(end))  # the task at rest there
     found: list[OptimumGrid] = []
-    path: tuple[np.ndarray, np.ndarray] | None = None  # (t, r) of the last pass
+    path: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None  # t, r, x, q
     for intervals in grids:
         t = np.linspace(0.0, segment.duration, intervals + 1)
         tables = Tables(robot, segment, rows, strokes, t)
@@ -351,43 +424,57 @@ def _optimum(
         else:
             centre = np.column_stack([np.interp(t, path[0], r) for r in path[1].T])
             width = (upper - lower) / 2 * NARROWING
-        for _ in range(PASSES):
-            each = counts[path is not None]
+        for done in range(PASSES):
+            each = counts[path is not None or done > 0]
             axes = [np.linspace(-w, w, each) for w in width]
             offsets = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, len(rows))
             values = np.clip(centre[:, None] + offsets, lower, upper)
             x, q, usable, stage = build(tables, values)
-            optimum, index = _pass(x, usable, stage, t, speeds, accelerations)
+            optimum, index, free = _pass(x, usable, stage, t, speeds, accelerations, rest)
             if not np.isfinite(optimum):
-                band = " × ".join(f"{w * 1e3:.4g} mm" for w in width)
-                raise InvalidInputError(
-                    f"no motion along segment {segment.name} keeps every stroke and every "
-                    f"limit with {', '.join(names)} within {band} of the path searched "
-                    f"({intervals} intervals)"
+                units = (robot.actuators.maps[row].unit for row in rows)
+                band = " × ".join(f"{w:.4g} {unit}" for w, unit in zip(width, units))
+                message = (
+                    f"dynamic programming found no motion along segment {segment.name} that "
+                    f"keeps every stroke and every limit with {', '.join(names)} within {band} "
+                    f"of the path searched ({intervals} intervals)"
                 )
+                if np.isfinite(free):
+                    message += (
+                        "; the acceleration limit, checked against the best path into each "
+                        "node alone, pruned every history, so one may still exist"
+                    )
+                if path is None:
+                    raise InvalidInputError(message)
+                found.append(OptimumGrid(intervals, last, np.nan, False, message))
+                return *path, tuple(found)
             nodes = np.arange(len(t))
             r, x, q = values[nodes, index], x[nodes, index], q[nodes, index]
-            centre, width, path = r, width * NARROWING, (t, r)
-        found.append(OptimumGrid(intervals, each ** len(rows), optimum))
-    return t, r, x, q, tuple(found)
+            centre, width = r, width * NARROWING
+        path = (t, r, x, q)
+        found.append(OptimumGrid(intervals, last, optimum, acceleration_binds=free < optimum))
+    assert path is not None  # checked_grids gives one grid at least
+    return *path, tuple(found)
 
 
 def integral_optimum(
     robot: Robot,
     segment: Segment,
     objective: str | Objective,
-    held: str | Sequence[str] = "x3",
+    held: str | Sequence[str],
     checked: tuple[str, ...] | None = None,
     grids: tuple[int, ...] = GRIDS,
     speeds=None,
     accelerations=None,
+    supply: Supply | None = None,
 ) -> IntegralOptimum:
     """The motion along ``segment`` of least ∫ c dt, c the measure of ``objective`` (one with
-    an integral measure, yours included), over every history of the ``held`` actuators (one or
+    an integral measure, yours included), over the histories of the ``held`` actuators (one or
     two; see the module docstring), on each of ``grids`` (intervals) in turn. ``checked``
     names the actuators whose strokes bind (default all); ``speeds`` and ``accelerations``
     limit every actuator's |ẋ| and |ẍ| (one number, or one per actuator; m/s and m/s², rad/s
-    and rad/s² for a rotary one; default none)."""
+    and rad/s² for a rotary one; default none); a ``supply`` of the robot's circuit keeps the
+    circuit's limits under it (default none kept)."""
     objective = named(objective)
     if objective.reduction != "integral":
         raise InvalidInputError(
@@ -399,7 +486,10 @@ def integral_optimum(
         x, _, q, usable = tables.at(values)
         space, found = tables.solved(values, q)
         x, q = space.x.reshape(x.shape), space.q.reshape(q.shape)
-        return x, q, usable & found, _measure_stage(objective, space, x)
+        stage = _measure_stage(objective, space, x)
+        if supply is not None:
+            stage = _within_circuit(stage, robot, supply, x, space.N_H.reshape(x.shape))
+        return x, q, usable & found, stage
 
     limits = _limit(robot, speeds, "speeds"), _limit(robot, accelerations, "accelerations")
     found = _optimum(robot, segment, held, checked, grids, build, *limits)
@@ -417,13 +507,13 @@ def _result(robot, segment, name, held, t, r, x, q, grids, supply=None) -> Integ
 def energy_optimum(
     robot: Robot,
     segment: Segment,
-    supply: Supply | None = None,
-    held: str | Sequence[str] = "x3",
+    supply: Supply | None,
+    held: str | Sequence[str],
     checked: tuple[str, ...] | None = None,
     grids: tuple[int, ...] = GRIDS,
 ) -> IntegralOptimum:
     """The energy bound: the motion along ``segment`` of least pump energy under ``supply``
-    (default the machine's) over every history of the ``held`` actuators (one or two), every
+    (None: the machine's) over every history of the ``held`` actuators (one or two), every
     stroke and every limit of the hydraulic circuit kept (see the module docstring), on each of
     ``grids`` (intervals) in turn. ``checked`` names the actuators whose strokes bind (default
     all)."""

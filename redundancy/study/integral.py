@@ -1,8 +1,11 @@
 """An integral objective three ways, side by side: the objective's law from the documented
 default start (for the velocity objective of directly driven joints, the local pseudoinverse of
 least q̇ᵀq̇), the improved start (the toolkit's search of the held actuators' start under the
-same objective) and the global optimum over every history of the held actuators
-(`redundancy.planning.integral_optimum`). Result data only; docs/integral.md shows the table.
+same objective) and the optimum by dynamic programming over the held actuators' histories
+(`redundancy.planning.integral_optimum`): the global optimum on its grid, or, where an
+acceleration limit binds, the least over the histories the recursion keeps (it checks the
+limit against the best path into each node alone). Result data only; docs/integral.md shows
+the table.
 """
 
 from __future__ import annotations
@@ -15,11 +18,13 @@ import numpy as np
 from redundancy.model.robot import Robot
 from redundancy.planning.integral_optimum import GRIDS, IntegralOptimum, integral_optimum
 from redundancy.planning.integrate import simulate
-from redundancy.planning.starts import default_start, improved_start
+from redundancy.planning.starts import SearchResult, default_start, improved_start
 from redundancy.planning.tasks import Segment
 from redundancy.resolution.objectives import Objective
 from redundancy.resolution.objectives import objective as named
 from redundancy.resolution.state import evaluate
+
+LIMITED = "DP optimum (acceleration checked on kept paths)"  # where the acceleration limit binds
 
 
 @dataclass(frozen=True)
@@ -37,11 +42,13 @@ class Figures:
 
 @dataclass(frozen=True)
 class Comparison:
-    """The local law, the improved start and the global optimum (``figures``, in that order),
-    and the optimum itself (its grids, its convergence)."""
+    """The local law, the improved start and the optimum by dynamic programming (``figures``,
+    in that order), the improved start's search and the optimum itself (its grids, its
+    convergence)."""
 
     objective: Objective
     figures: tuple[Figures, ...]
+    search: SearchResult
     optimum: IntegralOptimum
 
 
@@ -55,13 +62,14 @@ def compare(
     grids: tuple[int, ...] = GRIDS,
 ) -> Comparison:
     """``objective`` (an integral one) along ``segment`` by the three strategies of the module
-    docstring. ``speeds`` and ``accelerations`` bind the global optimum (see
+    docstring. ``speeds`` and ``accelerations`` bind the optimum (see
     `integral_optimum`); the local motions are reported with what they reach."""
     objective = named(objective)
     start = default_start(robot, segment, held)[1][None]
+    search = improved_start(robot, segment, objective, held)
     motions = {
         "local law, default start": simulate(robot, objective.resolver, segment, start),
-        "improved start": improved_start(robot, segment, objective, held).motion(),
+        "improved start": search.best_motion,
     }
     figures = [
         Figures(
@@ -81,11 +89,11 @@ def compare(
     steps = np.diff(optimum.x, axis=0) / h
     figures.append(
         Figures(
-            "global optimum",
+            LIMITED if optimum.acceleration_binds else "global optimum",
             optimum.optimum,
             float(objective.measure(evaluate(robot, optimum.q), x_dot).max()),
             float(np.abs(steps).max()),
             float(np.abs(np.diff(steps, axis=0)).max() / h),
         )
     )
-    return Comparison(objective, tuple(figures), optimum)
+    return Comparison(objective, tuple(figures), search, optimum)
