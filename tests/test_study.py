@@ -254,7 +254,8 @@ def test_the_table_flags_a_bound_that_has_not_converged(study):
 def test_an_energy_bound_is_a_result_only_where_it_converged(study, crane):
     """An energy bound that refining its grid (10 → 20 intervals) still moved by over 0.5 % is
     withheld: its table row says "no bound" and why, the report gives null and the reason, and
-    no motion is measured against it; a converged one is printed."""
+    no motion is measured against it; a converged one is printed, and one whose solve raised is
+    named with the reason."""
     moved = energy_optimum(crane, study.cycle["1-2"], grids=(10, 20))
     assert not moved.converged
     steady = dataclasses.replace(moved, grids=(moved.grids[-1], moved.grids[-1]))
@@ -275,6 +276,13 @@ def test_an_energy_bound_is_a_result_only_where_it_converged(study, crane):
     assert printed.endswith(f"{steady.energy / KILOJOULE:.2f}")
     runs = [run for run in energetic.runs if run.segment == "1-2" and "hydraulics" in run.summary()]
     assert runs and all(set(energetic.above_energy_bound(run)) == {"CP"} for run in runs)
+    failures = {"energy bound CP/1-2": "no path keeps every limit"}
+    raised = dataclasses.replace(
+        energetic, energy_bounds={"1-2": {"LS": steady}}, bound_failures=failures
+    )
+    ls, cp = [row for row in study_table(raised).splitlines() if "energy bound" in row]
+    assert ls.endswith(f"{steady.energy / KILOJOULE:.2f}")
+    assert cp.endswith("no bound: no path keeps every limit")
 
 
 def test_every_reported_motion_is_a_csv_that_reads_back_to_its_arrays(study, tmp_path):

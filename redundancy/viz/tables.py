@@ -110,15 +110,14 @@ def hydraulic_table(study: Study) -> str:
         f"{'t_min s':>8}  circuit"
     )
     lines = _per_run(study, columns, cells)
-    for segment, bounds in (study.energy_bounds or {}).items():
-        for supply, bound in bounds.items():
+    for segment in study.energy_bounds or {}:
+        for supply in ("LS", "CP"):  # a bound whose solve raised is named with its reason too
             failure = study.energy_withheld(segment, supply)
-            energy = f"{'-' if failure else f'{bound.energy / KILOJOULE:.2f}':>8}"
-            lines.append(
-                f"{segment:<{names}}{f'energy bound, {supply}':<36}{'':>19}"
-                + (f"{energy}{'':>8}" if supply == "LS" else f"{'':>8}{energy}")
-                + ("" if failure is None else f"{'':>22}  no bound: {failure}")
-            )
+            bound = study.energy_result(segment, supply)
+            energy = "-" if bound is None else f"{bound.energy / KILOJOULE:.2f}"
+            ls, cp = (energy, "") if supply == "LS" else ("", energy)
+            row = f"{segment:<{names}}{f'energy bound, {supply}':<36}{'':>19}{ls:>8}{cp:>8}"
+            lines.append(row.rstrip() if failure is None else f"{row}{'':>22}  no bound: {failure}")
     return "\n".join(lines)
 
 
