@@ -75,6 +75,18 @@ def test_every_segment_and_strategy_of_the_report_appears_in_a_table(study, rend
         assert any(row[0] == f"{corner['after']} → {corner['before']}" for row in shown)
 
 
+def test_a_withheld_energy_bound_shows_its_reason_not_a_number(study, tmp_path):
+    """An energy bound that did not converge is no result: its row has no energy, and why."""
+    report = json.loads((study / "report.json").read_text())
+    reason = "NOT converged, change 2.22 %"
+    withheld = {"energy_kj": None, "change": 0.0222, "converged": False, "grids": [10, 20]}
+    report["energy_bounds"] = {"1-2": {"LS": {**withheld, "start": None, "failure": reason}}}
+    (tmp_path / "report.json").write_text(json.dumps(report))
+    page = html.fromstring(write_index(tmp_path).read_text())
+    row = next(row for row in rows(page) if row[:2] == ["1-2", "LS"])
+    assert row[2] == "–" and row[-1] == reason
+
+
 def test_every_table_heading_of_a_quantity_names_its_unit(rendered):
     words = ("peak", "bound (", "energy", "pressure", "flow", "duration", "drift", "length", "Δ")
     words += ("start", "limit cycle")

@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 from commands import run_cli
 
+from redundancy.model.hydraulics import KILOJOULE
 from redundancy.model.robot import Robot
+from redundancy.planning.integral_optimum import energy_optimum
 from redundancy.planning.tasks import WorkCycle
 from redundancy.study.output import MARKER, OutputFolder, write_atomically
 from redundancy.study.study import run_study
@@ -247,6 +249,40 @@ def test_the_table_flags_a_bound_that_has_not_converged(study):
     flagged = [row for row in rows if "NOT converged" in row]
     assert len(rows) == 3 and len(flagged) == 1
     assert flagged[0].startswith("2-3") and flagged[0].endswith("NOT converged, change 2.00 %")
+
+
+def test_an_energy_bound_is_a_result_only_where_it_converged(study, crane):
+    """An energy bound that refining its grid (10 → 20 intervals) still moved by over 0.5 % is
+    withheld: its table row says "no bound" and why, the report gives null and the reason, and
+    no motion is measured against it; a converged one is printed, and one whose solve raised is
+    named with the reason."""
+    moved = energy_optimum(crane, study.cycle["1-2"], grids=(10, 20))
+    assert not moved.converged
+    steady = dataclasses.replace(moved, grids=(moved.grids[-1], moved.grids[-1]))
+    energetic = dataclasses.replace(study, energy_bounds={"1-2": {"LS": moved, "CP": steady}})
+    reason = f"NOT converged, change {100 * moved.change:.2f} %"
+    assert energetic.energy_withheld("1-2", "LS") == reason
+    assert energetic.energy_result("1-2", "LS") is None
+    assert energetic.energy_result("1-2", "CP") is steady
+    report = json.loads(json.dumps(energetic.report(), allow_nan=False))["energy_bounds"]["1-2"]
+    assert report["LS"]["energy_kj"] is None and report["LS"]["failure"] == reason
+    assert report["CP"]["energy_kj"] == steady.energy / KILOJOULE
+    assert report["CP"]["failure"] is None
+    withheld, printed = [
+        row for row in study_table(energetic).splitlines() if "energy bound" in row
+    ]
+    assert withheld.endswith(f"no bound: {reason}")
+    assert f"{moved.energy / KILOJOULE:.2f}" not in withheld
+    assert printed.endswith(f"{steady.energy / KILOJOULE:.2f}")
+    runs = [run for run in energetic.runs if run.segment == "1-2" and "hydraulics" in run.summary()]
+    assert runs and all(set(energetic.above_energy_bound(run)) == {"CP"} for run in runs)
+    failures = {"energy bound CP/1-2": "no path keeps every limit"}
+    raised = dataclasses.replace(
+        energetic, energy_bounds={"1-2": {"LS": steady}}, bound_failures=failures
+    )
+    ls, cp = [row for row in study_table(raised).splitlines() if "energy bound" in row]
+    assert ls.endswith(f"{steady.energy / KILOJOULE:.2f}")
+    assert cp.endswith("no bound: no path keeps every limit")
 
 
 def test_every_reported_motion_is_a_csv_that_reads_back_to_its_arrays(study, tmp_path):

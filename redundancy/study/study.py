@@ -150,6 +150,18 @@ class Study:
         withheld = self.withheld(objective, segment)
         return None if withheld is not None else self.bound(objective, segment)
 
+    def energy_withheld(self, segment: str, supply: str) -> str | None:
+        """Why ``segment``'s energy bound under ``supply`` is no result, in one line, or None:
+        the bound failed or did not converge (`Refined.failure`)."""
+        failure = (self.bound_failures or {}).get(f"energy bound {supply}/{segment}")
+        bound = (self.energy_bounds or {}).get(segment, {}).get(supply)
+        return failure if failure is not None or bound is None else bound.failure
+
+    def energy_result(self, segment: str, supply: str) -> EnergyOptimum | None:
+        """The energy bound where it is a result (not `energy_withheld`), else None."""
+        bound = (self.energy_bounds or {}).get(segment, {}).get(supply)
+        return None if self.energy_withheld(segment, supply) is not None else bound
+
     def _segment(self, name: str) -> int:
         names = [s.name for s in self.cycle.segments]
         if name not in names:
@@ -193,14 +205,15 @@ class Study:
         }
 
     def above_energy_bound(self, run: StrategyRun) -> dict[str, float]:
-        """How far ``run``'s pump energy lies above the energy bound of each supply, per cent
-        (empty without energy bounds)."""
+        """How far ``run``'s pump energy lies above the energy bound of each supply where that
+        bound is a result, per cent (empty without energy bounds)."""
         if self.energy_bounds is None or run.segment not in self.energy_bounds:
             return {}
         energies = run.summary()["hydraulics"]
         return {
             supply: 100 * (energies[f"{supply.lower()}_energy_kj"] * KILOJOULE / b.energy - 1)
-            for supply, b in self.energy_bounds[run.segment].items()
+            for supply in self.energy_bounds[run.segment]
+            if (b := self.energy_result(run.segment, supply)) is not None
         }
 
     def _run_report(self, run: StrategyRun) -> dict:
@@ -217,13 +230,15 @@ class Study:
         return {
             segment: {
                 supply: {
-                    "energy_kj": bound.energy / KILOJOULE,
+                    "energy_kj": None if failure else bound.energy / KILOJOULE,
                     "change": bound.change,
                     "converged": bound.converged,
                     "grids": [g.intervals for g in bound.grids],
-                    "start": scalar_or_list(np.atleast_1d(bound.r[0])),
+                    "start": None if failure else scalar_or_list(np.atleast_1d(bound.r[0])),
+                    "failure": failure,
                 }
                 for supply, bound in bounds.items()
+                for failure in [self.energy_withheld(segment, supply)]
             }
             for segment, bounds in (self.energy_bounds or {}).items()
         }

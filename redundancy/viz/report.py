@@ -295,6 +295,7 @@ def _hydraulics(comparison: list[dict], bounds: dict | None) -> str:
             "energy bound (kJ)": _number(b["energy_kj"]),
             "last refinement's change": _number(b["change"], 2),
             "converged": _number(b["converged"]),
+            "note": b.get("failure") or "",
         }
         for segment, supplies in (bounds or {}).items()
         for supply, b in supplies.items()

@@ -12,7 +12,6 @@ import numpy as np
 
 from redundancy.model.hydraulics import BAR, BEYOND_RELIEF, KILOJOULE
 from redundancy.planning.cycles import ReturnMap
-from redundancy.planning.refinement import Refined
 from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import VELOCITY
 from redundancy.study.check import Check, span, task_point
@@ -111,17 +110,14 @@ def hydraulic_table(study: Study) -> str:
         f"{'t_min s':>8}  circuit"
     )
     lines = _per_run(study, columns, cells)
-    for segment, bounds in (study.energy_bounds or {}).items():
-        for supply, bound in bounds.items():
-            lines.append(
-                f"{segment:<{names}}{f'energy bound, {supply}':<36}{'':>19}"
-                + (
-                    f"{bound.energy / KILOJOULE:>8.2f}{'':>8}"
-                    if supply == "LS"
-                    else f"{'':>8}{bound.energy / KILOJOULE:>8.2f}"
-                )
-                + f"{'':>22}  {convergence(bound)}"
-            )
+    for segment in study.energy_bounds or {}:
+        for supply in ("LS", "CP"):  # a bound whose solve raised is named with its reason too
+            failure = study.energy_withheld(segment, supply)
+            bound = study.energy_result(segment, supply)
+            energy = "-" if bound is None else f"{bound.energy / KILOJOULE:.2f}"
+            ls, cp = (energy, "") if supply == "LS" else ("", energy)
+            row = f"{segment:<{names}}{f'energy bound, {supply}':<36}{'':>19}{ls:>8}{cp:>8}"
+            lines.append(row.rstrip() if failure is None else f"{row}{'':>22}  no bound: {failure}")
     return "\n".join(lines)
 
 
@@ -141,13 +137,6 @@ def _per_run(study: Study, columns: str, cells: Callable[[StrategyRun], str]) ->
 def _segment_width(study: Study) -> int:
     """The width of the tables' segment column."""
     return max(8, *(len(s.name) + 2 for s in study.cycle.segments))
-
-
-def convergence(bound: Refined) -> str:
-    """A bound's convergence in words: whether it converged, and how much the last refinement
-    of its grid moved it."""
-    change = "-" if bound.change is None else f"{100 * bound.change:.2f} %"
-    return f"{'converged' if bound.converged else 'NOT converged'}, change {change}"
 
 
 def cycle_table(study: CycleStudy) -> str:
