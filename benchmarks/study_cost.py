@@ -19,7 +19,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from functools import partial
+import zipfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -41,7 +41,7 @@ def environment(source: Path) -> tuple[list[str], dict[str, str]]:
 def compiled_core(earlier: Path, scratch: Path) -> None:
     """Put the earlier tree's compiled core, `redundancy._core`, beside its package: this
     environment's build where its C++ sources and CMake file are this checkout's, else a build
-    of its own sources with CMake against this environment's Pinocchio, Eigen and pybind11."""
+    of its own sources, as pip builds the package."""
     sources = ["CMakeLists.txt", *(f"src/{p.name}" for p in sorted((earlier / "src").glob("*")))]
     if not (earlier / "CMakeLists.txt").exists():
         return  # a tree from before the compiled core
@@ -53,16 +53,17 @@ def compiled_core(earlier: Path, scratch: Path) -> None:
     ):
         shutil.copy(core.__file__, earlier / "redundancy")
         return
-    build = scratch / "build"
-    pybind11 = subprocess.run(
-        [sys.executable, "-m", "pybind11", "--cmakedir"], check=True, capture_output=True, text=True
-    ).stdout.strip()
-    configure = [f"-DPython_EXECUTABLE={sys.executable}", f"-Dpybind11_DIR={pybind11}"]
-    run = partial(subprocess.run, check=True, capture_output=True)
-    run(["cmake", "-S", str(earlier), "-B", str(build), "-DCMAKE_BUILD_TYPE=Release", *configure])
-    run(["cmake", "--build", str(build), "-j", str(os.cpu_count())])
-    for built in build.glob("_core*.so"):
-        shutil.copy(built, earlier / "redundancy")
+    # built as pip builds it, then its extension taken out of the wheel; its run path finds
+    # Boost.Serialization beside the package, as installed, through a link to this environment's
+    subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(scratch), str(earlier)],
+        check=True,
+        capture_output=True,
+    )
+    with zipfile.ZipFile(next(scratch.glob("redundancy-*.whl"))) as wheel:
+        (name,) = (n for n in wheel.namelist() if n.startswith("redundancy/_core"))
+        (earlier / name).write_bytes(wheel.read(name))
+    (earlier / "cmeel.prefix").symlink_to(Path(core.__file__).parents[1] / "cmeel.prefix")
 
 
 def cost(source: Path, out: Path) -> tuple[float, float]:

@@ -48,6 +48,9 @@ class Controller {
       pull_ = Vector(pull->data(), n);
       middle_ = Vector(middle->data(), n);
     }
+    if (!PyType_Check(result_.ptr()) ||
+        !PyType_IsSubtype(reinterpret_cast<PyTypeObject*>(result_.ptr()), &PyTuple_Type))
+      throw py::value_error("a controller's result is a tuple type (x_dot, q_dot, y)");
     A_.resize(n, n);
     J_.resize(Eigen::Index(rows_.size()), n);
   }
@@ -84,7 +87,7 @@ class Controller {
     const Eigen::VectorXd x_dot = law(J_H, Eigen::VectorXd(Vector(yi, m)), W, z ? &*z : nullptr,
                                       ratio_);
     const Eigen::VectorXd q_dot = A_.partialPivLu().solve(x_dot);
-    return result_(vector(x_dot), vector(q_dot), vector(y));
+    return result(vector(x_dot), vector(q_dot), vector(y));
   }
 
  private:
@@ -107,6 +110,18 @@ class Controller {
     const Eigen::VectorXd sigma = Eigen::JacobiSVD<Eigen::MatrixXd>(A_).singularValues();
     return sigma[sigma.size() - 1] / std::max(sigma[0], std::numeric_limits<double>::min()) <
            tolerance_;
+  }
+
+  // The result type's tuple of the three, filled as tuple's own constructor fills a subtype's
+  // (the type adds no field), without a call into Python.
+  py::object result(Array x_dot, Array q_dot, Array y) const {
+    auto* type = reinterpret_cast<PyTypeObject*>(result_.ptr());
+    PyObject* out = type->tp_alloc(type, 3);
+    if (!out) throw py::error_already_set();
+    PyTuple_SET_ITEM(out, 0, x_dot.release().ptr());
+    PyTuple_SET_ITEM(out, 1, q_dot.release().ptr());
+    PyTuple_SET_ITEM(out, 2, y.release().ptr());
+    return py::reinterpret_steal<py::object>(out);
   }
 
   static Array vector(const Eigen::VectorXd& values) {

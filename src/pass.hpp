@@ -63,9 +63,15 @@ class Pass {
       if (frame >= model_.frames.size())
         throw py::value_error("frame " + std::to_string(frame) + " is not in the model");
     const auto F = frames_.size(), n = std::size_t(model_.nv);
+    positions_.resize(3 * F);
+    for (std::size_t f = 0; f < F; ++f) {  // a frame on the ground: placed once, J = 0
+      const auto& frame = model_.frames[frames_[f]];
+      moving_frames_.push_back(frame.parentJoint != 0);
+      if (frame.parentJoint == 0)
+        Eigen::Map<Eigen::Vector3d>{&positions_[3 * f]} = frame.placement.translation();
+    }
     six_ = pinocchio::Data::Matrix6x::Zero(6, model_.nv);
     six_rate_ = six_;
-    positions_.resize(3 * F);
     linear_.resize(3 * F * n);
     angular_.resize(3 * F * n);
     velocities_.resize(3 * F);
@@ -88,6 +94,7 @@ class Pass {
       pinocchio::computeJointJacobians(model_, data_, qi);
     moving_ = v != nullptr;
     for (std::size_t f = 0; f < frames_.size(); ++f) {
+      if (!moving_frames_[f]) continue;  // on the ground: as the constructor placed it
       const auto frame = frames_[f];
       Eigen::Map<Eigen::Vector3d>{&positions_[3 * f]} =
           pinocchio::updateFramePlacement(model_, data_, frame).translation();
@@ -187,6 +194,7 @@ class Pass {
   pinocchio::Model model_;
   pinocchio::Data data_;
   std::vector<pinocchio::FrameIndex> frames_;
+  std::vector<bool> moving_frames_;  // per tracked frame: not fixed to the ground
   pinocchio::Data::Matrix6x six_, six_rate_;
   std::vector<double> positions_, linear_, angular_, velocities_, rates_;  // one state's frames
   bool moving_ = false;
