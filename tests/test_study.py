@@ -256,7 +256,7 @@ def test_an_energy_bound_is_a_result_only_where_it_converged(study, crane):
     withheld: its table row says "no bound" and why, the report gives null and the reason, and
     no motion is measured against it; a converged one is printed, and one whose solve raised is
     named with the reason."""
-    moved = energy_optimum(crane, study.cycle["1-2"], grids=(10, 20))
+    moved = energy_optimum(crane, study.cycle["1-2"], None, "x3", grids=(10, 20))
     assert not moved.converged
     steady = dataclasses.replace(moved, grids=(moved.grids[-1], moved.grids[-1]))
     energetic = dataclasses.replace(study, energy_bounds={"1-2": {"LS": moved, "CP": steady}})
