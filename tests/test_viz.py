@@ -466,7 +466,7 @@ def test_live_playback_answers_on_localhost_and_leaves_nothing_behind(stop):
     else:
         status, word = (130, "interrupted") if stop == signal.SIGINT else (143, "terminated")
         assert run.returncode == status and word in errors and "Traceback" not in errors
-    deadline = time.monotonic() + 2.0
+    deadline = time.monotonic() + 120  # guards a hang only: the server's reaping may lag
     while Path(f"/proc/{servers[0]}").exists() and time.monotonic() < deadline:
         time.sleep(0.02)
     state = Path(f"/proc/{servers[0]}/stat")
