@@ -50,13 +50,8 @@ def bracket_probes(values, margins, inside, tolerance) -> list[float]:
 
 def clusters(values: list[float], tolerance: float) -> list[float]:
     """The means of runs of sorted ``values`` less than ``tolerance`` apart."""
-    runs: list[list[float]] = []
-    for value in values:
-        if runs and value - runs[-1][-1] < tolerance:
-            runs[-1].append(value)
-        else:
-            runs.append([value])
-    return [sum(run) / len(run) for run in runs]
+    breaks = np.flatnonzero(np.diff(values) >= tolerance) + 1
+    return [float(run.mean()) for run in np.split(np.array(values), breaks)] if values else []
 
 
 def new_probes(probes: list[float], values: np.ndarray, tolerance: float) -> np.ndarray:

@@ -171,15 +171,6 @@ def _seeds(robot: Robot, count: int) -> np.ndarray:
     return lower + (upper - lower) * (0.05 + 0.9 * unit)
 
 
-def _point(robot: Robot, point) -> np.ndarray:
-    point = np.asarray(point, dtype=float)
-    if point.shape != (robot.m,) or not np.all(np.isfinite(point)):
-        raise InvalidInputError(
-            f"task point must be {robot.m} finite numbers (axes {robot.task_axes}); got {point}"
-        )
-    return point
-
-
 def inverse_kinematics(
     robot: Robot,
     point: np.ndarray,
@@ -193,7 +184,11 @@ def inverse_kinematics(
         raise InvalidInputError(
             f"seeds must be a whole number within [1, {MOST_SEEDS}]; got {seeds!r}"
         )
-    point = _point(robot, point)
+    point = np.asarray(point, dtype=float)
+    if point.shape != (robot.m,) or not np.all(np.isfinite(point)):
+        raise InvalidInputError(
+            f"task point must be {robot.m} finite numbers (axes {robot.task_axes}); got {point}"
+        )
     rows = held_indices(robot, held)
     given = values
     try:
@@ -214,9 +209,8 @@ def inverse_kinematics(
     lower, upper = robot.span
     distance = np.linalg.norm((per_seed - (lower + upper) / 2) / (upper - lower), axis=2)
     choice = np.argmin(np.where(converged, distance, 1e6 + error), axis=1)
-    picked = np.arange(k)
-    reached = np.any(converged, axis=1)
-    return InverseKinematics(per_seed[picked, choice], reached, error.min(axis=1))
+    picked = per_seed[np.arange(k), choice]
+    return InverseKinematics(picked, np.any(converged, axis=1), error.min(axis=1))
 
 
 def continue_held(
@@ -325,15 +319,13 @@ def check_path(robot: Robot, segment: Segment, seeds: int = 8) -> None:
     seed misses by more than `PATH_TOLERANCE` is refused, and so is a start where the tool
     cannot move along some task direction (`_check_mobility`)."""
     times = np.linspace(0.0, segment.duration, PATH_POINTS)
-    fresh = _seeds(robot, seeds)
-    q = fresh
+    fresh = q = _seeds(robot, seeds)
     for i, (t, point) in enumerate(zip(times, segment.position(times))):
-        q, miss, _ = newton(
-            robot, q, [], np.broadcast_to(point, q.shape[:1] + point.shape), ITERATIONS, True
-        )
-        if not miss.min() < FOUND:
-            target = np.broadcast_to(point, (len(fresh), robot.m))
-            q, miss, _ = newton(robot, fresh, [], target, ITERATIONS, True)
+        for guess in (q, fresh):  # the seeds again wherever continuation misses
+            target = np.broadcast_to(point, (len(guess), robot.m))
+            q, miss, _ = newton(robot, guess, [], target, ITERATIONS, True)
+            if miss.min() < FOUND:
+                break
         if not miss.min() < PATH_TOLERANCE:
             best = q[np.argmin(miss)][None]
             error = robot.task_point(robot.kinematics(best))[0][0] - point

@@ -17,29 +17,18 @@ A work cycle is its segments travelled one after another; a cycle a machine repe
 continuous (each segment starts where the one before ends) and closed (the last ends where the
 first starts): `WorkCycle.check_continuous`.
 
-A task file (TOML), its whole schema::
-
-    name = "paper work cycle"
-    speed = 0.5                 # m/s of the tool along every segment (at most 10); default 0.5
-    profile = "constant"        # or "trapezoidal"; default "constant"
-    acceleration = 1.0          # m/s², the trapezoidal profile's maximum (required with it)
-    tool_angle = false          # true: every point has one more coordinate, the tool's angle
-                                # about the task plane's normal, in degrees (a planar task only)
-    held = ["x3"]               # actuators the improved search holds (optional)
-    segments = [
-      "1-2",                                              # straight, "<from>-<to>"
-      { from = "2", to = "3", via = "4" },                # arc from 2 through 4 to 3
-      { from = "3", to = "1", centre = "c", direction = "ccw" },  # arc about c
-      { from = "1", to = "1", centre = "c", direction = "cw" },   # closed circle about c
-      { csv = "recorded.csv", name = "dig" },             # polyline, path beside this file
-    ]
-    [points]
-    1 = [3.5, -0.5]             # one value per task axis of the robot, m (and degrees)
-
-A table may also give its own ``name``, ``speed``, ``profile`` and ``acceleration``; names must
-be distinct (a line or arc is named "<from>-<to>" by default, a polyline after its file).
-``direction`` is "ccw" (from the first task axis towards the second) or "cw"; an arc about a
-centre needs a planar position (two task axes), and its ends at one distance from the centre.
+A task file (TOML; an example of every key in docs/machines.md) gives ``name`` (default: the
+file's), ``speed`` (m/s of the tool, ≤ 10; default 0.5), ``profile`` ("constant", the default, or
+"trapezoidal" with ``acceleration``, m/s²), ``tool_angle`` (true: every point has one more
+value, the tool's angle about the task plane's normal in degrees; a planar task only), ``held``
+(the actuators the improved search holds; optional), ``segments`` and ``[points]`` (name = one
+value per task coordinate, m, and degrees). A segment is "<from>-<to>", a line, or a table:
+``from`` and ``to`` alone (a line), with ``via`` (an arc through that point), or with ``centre``
+and ``direction`` (an arc about it, "ccw" from the first task axis towards the second or "cw";
+a closed circle where from = to; a planar position, its ends at one distance from the centre);
+or ``csv`` alone (a polyline, the file beside the task file). A table may give its own ``name``,
+``speed``, ``profile`` and ``acceleration``; names must differ (a line or arc is "<from>-<to>"
+by default, a polyline its file's name).
 
 A CSV polyline holds one point per line, its cells separated by commas: one value per task
 coordinate (the angle in degrees). Blank lines and lines starting with "#" are skipped, and so
