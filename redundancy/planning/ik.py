@@ -5,12 +5,8 @@ With r held actuators and m task coordinates, r = n − m makes the system squar
 
     h1(q) = y*   (Eq. 6, m equations)      x_h(q) = x_h*   (Eq. 10, r equations)
 
-One routine solves it (`newton`): damped Gauss-Newton steps on the residual, for a batch at
-once, optionally projected onto the joint limits. `inverse_kinematics` runs it from several
-seeds spread over the joint-limit box and keeps, of the solutions inside the limits, the branch
-nearest the middle of the joint ranges; `continue_held` runs it from configurations already
-found at nearby held values (continuation along the held stroke), where the limits do not bind,
-so that a start beyond them is found there.
+One routine solves it, for a batch at once (`newton`); `inverse_kinematics` runs it from seeds
+spread over the joint-limit box, `continue_held` from configurations found at nearby held values.
 """
 
 from __future__ import annotations

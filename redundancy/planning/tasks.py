@@ -415,11 +415,6 @@ class Segment:
     def timing(self) -> Profile:
         return Profile(self.profile, self.speed, self.shape.length, self.acceleration)
 
-    @property
-    def length(self) -> float:
-        """Length of the tool position's path, m."""
-        return self.shape.length
-
     @cached_property
     def duration(self) -> float:
         """t_f, in s: |Q − P| / speed for a line at constant speed."""
