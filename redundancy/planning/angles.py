@@ -24,6 +24,7 @@ bounds) reads its task through it and needs no change.
 
 from __future__ import annotations
 
+import inspect
 import math
 
 import numpy as np
@@ -73,19 +74,9 @@ class ToolAngleRobot(Robot):
         frame = model.frames[tool]
         placement = frame.placement * pin.SE3(np.eye(3), np.eye(3)[column])
         model.addFrame(pin.Frame(PROBE, frame.parentJoint, tool, placement, pin.FrameType.OP_FRAME))
+        given = list(inspect.signature(Robot.__init__).parameters)[1:]  # stored as themselves
         super().__init__(
-            base.name,
-            model,
-            base.tool_frame,
-            base.task_axes,
-            base.actuators,
-            base.payload,
-            base.urdf,
-            base.task_file,
-            base.hydraulics,
-            base.description,
-            base.missing_meshes,
-            base.zero_masses,
+            **{key: getattr(base, key) for key in given if key != "model"}, model=model
         )
         self.base = base
         self.centre = float(centre)
@@ -109,8 +100,9 @@ class ToolAngleRobot(Robot):
         """The task coordinates' names."""
         return [*self.task_axes, "angle"]
 
-    def _angle(self, kinematics: Kinematics):
-        """φ (k,), J_φ (k, n) and, with velocities, φ̇ (k,) and J̇_φ (k, n)."""
+    def _angle(self, kinematics: Kinematics, rates: bool = True) -> tuple:
+        """φ (k,), J_φ (k, n) and, with ``rates`` and velocities, φ̇ (k,) and J̇_φ (k, n) (else
+        None)."""
         tool, probe = kinematics.point(self._tool), kinematics.point(self._probe)
         a, b = self._plane
         d = probe.position - tool.position
@@ -119,7 +111,7 @@ class ToolAngleRobot(Robot):
         raw = np.arctan2(d[:, b], d[:, a])
         angle = self.centre + np.mod(raw - self.centre + math.pi, 2 * math.pi) - math.pi
         jacobian = (d[:, a, None] * dJ[:, b] - d[:, b, None] * dJ[:, a]) / rho2[:, None]
-        if probe.velocity is None or tool.velocity is None:
+        if not rates or probe.velocity is None or tool.velocity is None:
             return angle, jacobian, None, None
         dd = probe.velocity - tool.velocity
         dJ_dot = probe.jacobian_rate - tool.jacobian_rate  # type: ignore[operator]
@@ -135,25 +127,20 @@ class ToolAngleRobot(Robot):
         return angle, jacobian, rate, jacobian_rate
 
     def task_point(self, kinematics: Kinematics) -> tuple[np.ndarray, np.ndarray]:
-        y, J = super().task_point(kinematics)
-        angle, jacobian, _, _ = self._angle(kinematics)
-        return np.concatenate([y, angle[:, None]], axis=1), np.concatenate(
-            [J, jacobian[:, None]], axis=1
-        )
+        y, J = _stacked(super().task_point(kinematics), self._angle(kinematics, False))
+        return y, J  # type: ignore[return-value]
 
     def task(self, kinematics: Kinematics) -> PointMotion:
-        motion = super().task(kinematics)
-        angle, jacobian, rate, jacobian_rate = self._angle(kinematics)
-        return PointMotion(
-            np.concatenate([motion.position, angle[:, None]], axis=1),
-            np.concatenate([motion.jacobian, jacobian[:, None]], axis=1),
-            None
-            if rate is None or motion.velocity is None
-            else np.concatenate([motion.velocity, rate[:, None]], axis=1),
-            None
-            if jacobian_rate is None or motion.jacobian_rate is None
-            else np.concatenate([motion.jacobian_rate, jacobian_rate[:, None]], axis=1),
-        )
+        return PointMotion(*_stacked(super().task(kinematics), self._angle(kinematics)))
+
+
+def _stacked(task: tuple, angle: tuple) -> list:
+    """The task's arrays (k, m − 1, ...) with the angle's (k, ...) as their last row; None
+    where either is None."""
+    return [
+        None if t is None or a is None else np.concatenate([t, a[:, None]], axis=1)
+        for t, a in zip(task, angle)
+    ]
 
 
 def with_tool_angle(robot: Robot, centre: float = 0.0, axis: str | None = None) -> Robot:

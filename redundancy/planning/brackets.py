@@ -3,15 +3,9 @@
 The fast improved search (`redundancy.planning.starts`) samples the margin μ(v) of a start v (its
 least distance to a limit over the whole motion: continuous in v, so the ends of the feasible set
 are its zeros) and the objective's peak. These helpers choose the next values to sample:
-
-- `bracket_probes`: for every bracket (neighbours on either side of a zero), the zeros in it of
-  the line through its ends, of the parabolas through its ends and either next value, and of the
-  lines through each side's own two nearest values (μ may have a kink at its zero, where the
-  binding limit changes, and then a side's own line is the accurate one), each probed 0.45 of a
-  tolerance either side, so that a zero that close closes the bracket; and the bracket's midpoint
-  where those zeros disagree.
-- `vertex_probe`: the vertex of the parabola through the least peak and its neighbours.
-- `new_probes`: the probes not already sampled.
+`bracket_probes` near each zero (μ may have a kink at its zero, where the binding limit changes,
+and then a side's own line through its two nearest values is the accurate fit), `vertex_probe`
+near the least peak, and `new_probes` of those, the ones not sampled already.
 """
 
 from __future__ import annotations
@@ -20,11 +14,12 @@ import numpy as np
 
 
 def bracket_probes(values, margins, inside, tolerance) -> list[float]:
-    """Probes for every bracket of ``inside`` (k,) wider than ``tolerance`` (see the module
-    docstring): the zeros, in the bracket, of the line through its ends, of the parabolas
-    through its ends and either next value, and of each side's own line through its two nearest
-    values, at 0.45 of a tolerance either side of each; and the bracket's midpoint where those
-    zeros disagree by more than a quarter of it."""
+    """Probes for every bracket of ``inside`` (k,) (neighbours on either side of a zero of
+    ``margins``) wider than ``tolerance``: the zeros, in the bracket, of the line through its
+    ends, of the parabolas through its ends and either next value, and of each side's own line
+    through its two nearest values, at 0.45 of a tolerance either side of each (so that a zero
+    that close closes the bracket); and the bracket's midpoint where those zeros disagree by
+    more than a quarter of it."""
     probes: list[float] = []
     usable = np.isfinite(margins)
     for i in np.flatnonzero(inside[:-1] != inside[1:]):
@@ -50,13 +45,8 @@ def bracket_probes(values, margins, inside, tolerance) -> list[float]:
 
 def clusters(values: list[float], tolerance: float) -> list[float]:
     """The means of runs of sorted ``values`` less than ``tolerance`` apart."""
-    runs: list[list[float]] = []
-    for value in values:
-        if runs and value - runs[-1][-1] < tolerance:
-            runs[-1].append(value)
-        else:
-            runs.append([value])
-    return [sum(run) / len(run) for run in runs]
+    breaks = np.flatnonzero(np.diff(values) >= tolerance) + 1
+    return [float(run.mean()) for run in np.split(np.array(values), breaks)] if values else []
 
 
 def new_probes(probes: list[float], values: np.ndarray, tolerance: float) -> np.ndarray:

@@ -5,12 +5,8 @@ With r held actuators and m task coordinates, r = n − m makes the system squar
 
     h1(q) = y*   (Eq. 6, m equations)      x_h(q) = x_h*   (Eq. 10, r equations)
 
-One routine solves it (`newton`): damped Gauss-Newton steps on the residual, for a batch at
-once, optionally projected onto the joint limits. `inverse_kinematics` runs it from several
-seeds spread over the joint-limit box and keeps, of the solutions inside the limits, the branch
-nearest the middle of the joint ranges; `continue_held` runs it from configurations already
-found at nearby held values (continuation along the held stroke), where the limits do not bind,
-so that a start beyond them is found there.
+One routine solves it, for a batch at once (`newton`); `inverse_kinematics` runs it from seeds
+spread over the joint-limit box, `continue_held` from configurations found at nearby held values.
 """
 
 from __future__ import annotations
@@ -171,15 +167,6 @@ def _seeds(robot: Robot, count: int) -> np.ndarray:
     return lower + (upper - lower) * (0.05 + 0.9 * unit)
 
 
-def _point(robot: Robot, point) -> np.ndarray:
-    point = np.asarray(point, dtype=float)
-    if point.shape != (robot.m,) or not np.all(np.isfinite(point)):
-        raise InvalidInputError(
-            f"task point must be {robot.m} finite numbers (axes {robot.task_axes}); got {point}"
-        )
-    return point
-
-
 def inverse_kinematics(
     robot: Robot,
     point: np.ndarray,
@@ -193,7 +180,11 @@ def inverse_kinematics(
         raise InvalidInputError(
             f"seeds must be a whole number within [1, {MOST_SEEDS}]; got {seeds!r}"
         )
-    point = _point(robot, point)
+    point = np.asarray(point, dtype=float)
+    if point.shape != (robot.m,) or not np.all(np.isfinite(point)):
+        raise InvalidInputError(
+            f"task point must be {robot.m} finite numbers (axes {robot.task_axes}); got {point}"
+        )
     rows = held_indices(robot, held)
     given = values
     try:
@@ -214,9 +205,8 @@ def inverse_kinematics(
     lower, upper = robot.span
     distance = np.linalg.norm((per_seed - (lower + upper) / 2) / (upper - lower), axis=2)
     choice = np.argmin(np.where(converged, distance, 1e6 + error), axis=1)
-    picked = np.arange(k)
-    reached = np.any(converged, axis=1)
-    return InverseKinematics(per_seed[picked, choice], reached, error.min(axis=1))
+    picked = per_seed[np.arange(k), choice]
+    return InverseKinematics(picked, np.any(converged, axis=1), error.min(axis=1))
 
 
 def continue_held(
@@ -325,15 +315,13 @@ def check_path(robot: Robot, segment: Segment, seeds: int = 8) -> None:
     seed misses by more than `PATH_TOLERANCE` is refused, and so is a start where the tool
     cannot move along some task direction (`_check_mobility`)."""
     times = np.linspace(0.0, segment.duration, PATH_POINTS)
-    fresh = _seeds(robot, seeds)
-    q = fresh
+    fresh = q = _seeds(robot, seeds)
     for i, (t, point) in enumerate(zip(times, segment.position(times))):
-        q, miss, _ = newton(
-            robot, q, [], np.broadcast_to(point, q.shape[:1] + point.shape), ITERATIONS, True
-        )
-        if not miss.min() < FOUND:
-            target = np.broadcast_to(point, (len(fresh), robot.m))
-            q, miss, _ = newton(robot, fresh, [], target, ITERATIONS, True)
+        for guess in (q, fresh):  # the seeds again wherever continuation misses
+            target = np.broadcast_to(point, (len(guess), robot.m))
+            q, miss, _ = newton(robot, guess, [], target, ITERATIONS, True)
+            if miss.min() < FOUND:
+                break
         if not miss.min() < PATH_TOLERANCE:
             best = q[np.argmin(miss)][None]
             error = robot.task_point(robot.kinematics(best))[0][0] - point

@@ -3,7 +3,7 @@
 A segment is a path (its geometry) and a speed profile (its timing):
 
 - paths (`Line`, `Arc`, `Polyline`) are parametrised by the arc length s of the tool's position
-  over [0, length]. A straight line P→Q (Eq. 33), a circular arc (through a third point, or about
+  over [0, length]: a straight line P→Q (Eq. 33), a circular arc (through a third point, or about
   a centre; a closed circle is an arc about a centre that ends where it starts), or a polyline
   through recorded points (a CSV file: an operator's path). Where the task has the tool's angle
   as its last coordinate, the angle changes linearly with s from its value at the start to its
@@ -17,29 +17,18 @@ A work cycle is its segments travelled one after another; a cycle a machine repe
 continuous (each segment starts where the one before ends) and closed (the last ends where the
 first starts): `WorkCycle.check_continuous`.
 
-A task file (TOML), its whole schema::
-
-    name = "paper work cycle"
-    speed = 0.5                 # m/s of the tool along every segment (at most 10); default 0.5
-    profile = "constant"        # or "trapezoidal"; default "constant"
-    acceleration = 1.0          # m/s², the trapezoidal profile's maximum (required with it)
-    tool_angle = false          # true: every point has one more coordinate, the tool's angle
-                                # about the task plane's normal, in degrees (a planar task only)
-    held = ["x3"]               # actuators the improved search holds (optional)
-    segments = [
-      "1-2",                                              # straight, "<from>-<to>"
-      { from = "2", to = "3", via = "4" },                # arc from 2 through 4 to 3
-      { from = "3", to = "1", centre = "c", direction = "ccw" },  # arc about c
-      { from = "1", to = "1", centre = "c", direction = "cw" },   # closed circle about c
-      { csv = "recorded.csv", name = "dig" },             # polyline, path beside this file
-    ]
-    [points]
-    1 = [3.5, -0.5]             # one value per task axis of the robot, m (and degrees)
-
-A table may also give its own ``name``, ``speed``, ``profile`` and ``acceleration``; names must
-be distinct (a line or arc is named "<from>-<to>" by default, a polyline after its file).
-``direction`` is "ccw" (from the first task axis towards the second) or "cw"; an arc about a
-centre needs a planar position (two task axes), and its ends at one distance from the centre.
+A task file (TOML; an example of every key in docs/machines.md) gives ``name`` (default: the
+file's), ``speed`` (m/s of the tool, ≤ 10; default 0.5), ``profile`` ("constant", the default, or
+"trapezoidal" with ``acceleration``, m/s²), ``tool_angle`` (true: every point has one more
+value, the tool's angle about the task plane's normal in degrees; a planar task only), ``held``
+(the actuators the improved search holds; optional), ``segments`` and ``[points]`` (name = one
+value per task coordinate, m, and degrees). A segment is "<from>-<to>", a line, or a table:
+``from`` and ``to`` alone (a line), with ``via`` (an arc through that point), or with ``centre``
+and ``direction`` (an arc about it, "ccw" from the first task axis towards the second or "cw";
+a closed circle where from = to; a planar position, its ends at one distance from the centre);
+or ``csv`` alone (a polyline, the file beside the task file). A table may give its own ``name``,
+``speed``, ``profile`` and ``acceleration``; names must differ (a line or arc is "<from>-<to>"
+by default, a polyline its file's name).
 
 A CSV polyline holds one point per line, its cells separated by commas: one value per task
 coordinate (the angle in degrees). Blank lines and lines starting with "#" are skipped, and so
@@ -52,6 +41,8 @@ from __future__ import annotations
 import csv
 import math
 from abc import ABC, abstractmethod
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -62,7 +53,6 @@ from redundancy.errors import InvalidInputError
 from redundancy.model.schema import (
     SegmentTable,
     TaskFile,
-    Timing,
     excerpt,
     read_text,
     read_toml,
@@ -79,6 +69,24 @@ MAX_DURATION = 600.0  # s a segment may take: a work cycle's moves take seconds 
 # a motion on the 10 ms grid holds 60,000 samples at this
 ARC_MISMATCH = 1e-6  # relative: an arc's ends must lie this close to one circle about its centre
 OUTLINE = 64  # points per full turn when a curved path is drawn
+TIMING = ("speed", "profile", "acceleration")  # the keys a task file and a segment's table share
+ARC_KEYS = ("from", "to", "via", "centre", "center", "direction")  # a line's or an arc's keys
+
+
+@contextmanager
+def _prefixed(prefix: str) -> Iterator[None]:
+    """Re-raise an `InvalidInputError` from inside with ``prefix`` (where it happened) first."""
+    try:
+        yield
+    except InvalidInputError as error:
+        raise InvalidInputError(f"{prefix}: {error}") from None
+
+
+def _piece(edges: np.ndarray, x) -> tuple[np.ndarray, np.ndarray]:
+    """``x`` (...,) as floats and the piece i of each, edges[i] ≤ x < edges[i + 1], the first
+    and last pieces extended beyond the ends."""
+    x = np.asarray(x, dtype=float)
+    return x, np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 2)
 
 
 class Shape(ABC):
@@ -89,6 +97,7 @@ class Shape(ABC):
     end: np.ndarray
     angles: int
     kind: str = "path"
+    kinks: tuple[float, ...] = ()  # arc lengths inside the path where its tangent jumps
 
     @property
     @abstractmethod
@@ -103,31 +112,9 @@ class Shape(ABC):
     def tangent(self, s: np.ndarray) -> np.ndarray:
         """dy/ds (..., m): a unit vector in the position, and the angle's rate per metre."""
 
-    @property
-    def kinks(self) -> tuple[float, ...]:
-        """Arc lengths inside the path where its tangent jumps."""
-        return ()
-
+    @abstractmethod
     def outline(self) -> np.ndarray:
         """Points (P, m) that draw the path as straight pieces."""
-        count = 2 if self.kind == "line" else max(8, int(OUTLINE * self.turn) + 1)
-        return self.point(np.linspace(0.0, self.length, count))
-
-    @property
-    def turn(self) -> float:
-        """The fraction of a full turn the path sweeps (0 for straight paths)."""
-        return 0.0
-
-    def _angle(self, s: np.ndarray) -> np.ndarray:
-        """The angle coordinates at s (..., angles), linear in s between the ends."""
-        p = len(self.start) - self.angles
-        fraction = np.asarray(s, dtype=float)[..., None] / self.length
-        return self.start[p:] + fraction * (self.end[p:] - self.start[p:])
-
-    def _angle_rate(self, s: np.ndarray) -> np.ndarray:
-        p = len(self.start) - self.angles
-        rate = (self.end[p:] - self.start[p:]) / self.length
-        return np.zeros((*np.shape(s), self.angles)) + rate
 
 
 def _position(y: np.ndarray, angles: int) -> np.ndarray:
@@ -135,35 +122,68 @@ def _position(y: np.ndarray, angles: int) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class Line(Shape):
-    """The straight line from ``start`` to ``end`` (m,) (Eq. 33)."""
+class Polyline(Shape):
+    """Straight pieces through ``points`` (K, m), K ≥ 2, consecutive ones at distinct
+    positions; beyond its ends it goes on along its first and last pieces."""
 
-    start: np.ndarray
-    end: np.ndarray
+    points: np.ndarray
     angles: int = 0
-    kind: str = field(default="line", init=False)
+    kind = "polyline"
 
     def __post_init__(self) -> None:
-        if not self.length > 0:
-            raise InvalidInputError(
-                "start and end coincide" + (" in position" if self.angles else "")
-            )
+        if len(self.points) < 2:
+            raise InvalidInputError("a polyline needs at least two points")
+        if not np.all(np.diff(self.cumulative) > 0):
+            what = "start and end" if self.kind == "line" else "consecutive points of a polyline"
+            raise InvalidInputError(f"{what} coincide in position")
+
+    @property
+    def start(self) -> np.ndarray:  # type: ignore[override]
+        return self.points[0]
+
+    @property
+    def end(self) -> np.ndarray:  # type: ignore[override]
+        return self.points[-1]
 
     @cached_property
+    def cumulative(self) -> np.ndarray:
+        """Arc length at each point, (K,)."""
+        p = self.points.shape[1] - self.angles
+        legs = np.linalg.norm(np.diff(self.points[:, :p], axis=0), axis=1)
+        return np.concatenate([[0.0], np.cumsum(legs)])
+
+    @cached_property
+    def slopes(self) -> np.ndarray:
+        """dy/ds along each piece, (K − 1, m)."""
+        return np.diff(self.points, axis=0) / np.diff(self.cumulative)[:, None]
+
+    @property
     def length(self) -> float:
-        return float(np.linalg.norm(_position(self.end - self.start, self.angles)))
+        return float(self.cumulative[-1])
+
+    @property
+    def kinks(self) -> tuple[float, ...]:  # type: ignore[override]
+        return tuple(float(s) for s in self.cumulative[1:-1])
 
     def point(self, s):
-        fraction = np.asarray(s, dtype=float)[..., None] / self.length
-        return self.start + fraction * (self.end - self.start)
+        s, leg = _piece(self.cumulative, s)
+        return self.points[leg] + (s - self.cumulative[leg])[..., None] * self.slopes[leg]
 
     def tangent(self, s):
-        return np.zeros((*np.shape(s), len(self.start))) + self.direction
+        return self.slopes[_piece(self.cumulative, s)[1]]
 
-    @cached_property
-    def direction(self) -> np.ndarray:
-        """(Q − P) / |Q − P|, the constant tangent (m,)."""
-        return (self.end - self.start) / self.length
+    def outline(self) -> np.ndarray:
+        return self.points
+
+
+class Line(Polyline):
+    """The straight line from ``start`` to ``end`` (m,) (Eq. 33): y(s) = P + s (Q − P) / |Q − P|
+    in the position."""
+
+    kind = "line"
+
+    def __init__(self, start: np.ndarray, end: np.ndarray, angles: int = 0) -> None:
+        super().__init__(np.array([start, end], dtype=float), angles)
 
 
 @dataclass(frozen=True)
@@ -180,7 +200,7 @@ class Arc(Shape):
     radius: float
     sweep: float
     angles: int = 0
-    kind: str = field(default="arc", init=False)
+    kind = "arc"
 
     @property
     def closed(self) -> bool:
@@ -190,19 +210,26 @@ class Arc(Shape):
     def length(self) -> float:
         return self.radius * self.sweep
 
-    @property
-    def turn(self) -> float:
-        return self.sweep / (2 * math.pi)
+    @cached_property
+    def rate(self) -> np.ndarray:
+        """The angle coordinates' change per metre, (angles,)."""
+        return (self.end - self.start)[len(self.centre) :] / self.length
 
     def point(self, s):
-        phi = np.asarray(s, dtype=float)[..., None] / self.radius
+        s = np.asarray(s, dtype=float)[..., None]
+        phi = s / self.radius
         position = self.centre + self.radius * (np.cos(phi) * self.e1 + np.sin(phi) * self.e2)
-        return np.concatenate([position, self._angle(s)], axis=-1)
+        return np.concatenate([position, self.start[len(self.centre) :] + s * self.rate], -1)
 
     def tangent(self, s):
         phi = np.asarray(s, dtype=float)[..., None] / self.radius
         direction = -np.sin(phi) * self.e1 + np.cos(phi) * self.e2
-        return np.concatenate([direction, self._angle_rate(s)], axis=-1)
+        rate = np.broadcast_to(self.rate, (*phi.shape[:-1], self.angles))
+        return np.concatenate([direction, rate], axis=-1)
+
+    def outline(self) -> np.ndarray:
+        count = max(8, int(OUTLINE * self.sweep / (2 * math.pi)) + 1)
+        return self.point(np.linspace(0.0, self.length, count))
 
     @classmethod
     def through(cls, start, via, end, angles: int = 0) -> Arc:
@@ -213,20 +240,16 @@ class Arc(Shape):
         determinant = uu * vv - uv * uv
         if len(a) < 2 or determinant <= 1e-12 * max(uu * vv, 1e-300):
             raise InvalidInputError("its three points lie on one line (or coincide)")
-        alpha = vv * (uu - uv) / (2 * determinant)
-        beta = uu * (vv - uv) / (2 * determinant)
-        centre = a + alpha * u + beta * v
+        centre = a + (vv * (uu - uv) * u + uu * (vv - uv) * v) / (2 * determinant)
         radius = float(np.linalg.norm(a - centre))
         e1 = (a - centre) / radius
         side = (b - centre) - ((b - centre) @ e1) * e1
         e2 = side / np.linalg.norm(side)  # the via point lies at an angle in (0, π] or beyond
+        if _angle_of(b - centre, e1, e2) > _angle_of(c - centre, e1, e2):
+            e2 = -e2  # via beyond the end: go round the other way
         sweep = _angle_of(c - centre, e1, e2)
-        if _angle_of(b - centre, e1, e2) > sweep:  # via beyond the end: go round the other way
-            e2 = -e2
-            sweep = _angle_of(c - centre, e1, e2)
-        return cls(
-            np.asarray(start, float), np.asarray(end, float), centre, e1, e2, radius, sweep, angles
-        )
+        start, end = np.asarray(start, float), np.asarray(end, float)
+        return cls(start, end, centre, e1, e2, radius, sweep, angles)
 
     @classmethod
     def about(cls, start, end, centre, direction: str, angles: int = 0) -> Arc:
@@ -245,13 +268,13 @@ class Arc(Shape):
             raise InvalidInputError(
                 f"direction = {direction!r} must be one of {', '.join(DIRECTIONS)}"
             )
-        radius = float(np.linalg.norm(a - centre))
+        radius, far = float(np.linalg.norm(a - centre)), float(np.linalg.norm(c - centre))
         if not radius > 0:
             raise InvalidInputError("its start lies on its centre")
-        if abs(np.linalg.norm(c - centre) - radius) > ARC_MISMATCH * radius:
+        if abs(far - radius) > ARC_MISMATCH * radius:
             raise InvalidInputError(
-                f"its ends lie {radius:.6g} m and {np.linalg.norm(c - centre):.6g} m from the "
-                "centre; an arc's ends lie at one distance"
+                f"its ends lie {radius:.6g} m and {far:.6g} m from the centre; an arc's ends lie "
+                "at one distance"
             )
         e1 = (a - centre) / radius
         e2 = np.array([-e1[1], e1[0]]) * (1 if direction == "ccw" else -1)
@@ -267,66 +290,6 @@ def _angle_of(d: np.ndarray, e1: np.ndarray, e2: np.ndarray) -> float:
     """The angle of d in the plane (e1, e2), in [0, 2π)."""
     angle = math.atan2(float(d @ e2), float(d @ e1))
     return angle + 2 * math.pi if angle < -1e-12 else max(angle, 0.0)
-
-
-@dataclass(frozen=True)
-class Polyline(Shape):
-    """Straight pieces through ``points`` (K, m), K ≥ 2, consecutive ones at distinct
-    positions."""
-
-    points: np.ndarray
-    angles: int = 0
-    kind: str = field(default="polyline", init=False)
-
-    def __post_init__(self) -> None:
-        if len(self.points) < 2:
-            raise InvalidInputError("a polyline needs at least two points")
-        if not np.all(np.diff(self.cumulative) > 0):
-            raise InvalidInputError("consecutive points of a polyline must differ in position")
-
-    @property
-    def start(self) -> np.ndarray:  # type: ignore[override]
-        return self.points[0]
-
-    @property
-    def end(self) -> np.ndarray:  # type: ignore[override]
-        return self.points[-1]
-
-    @cached_property
-    def cumulative(self) -> np.ndarray:
-        """Arc length at each point, (K,)."""
-        p = self.points.shape[1] - self.angles
-        legs = np.linalg.norm(np.diff(self.points[:, :p], axis=0), axis=1)
-        return np.concatenate([[0.0], np.cumsum(legs)])
-
-    @property
-    def length(self) -> float:
-        return float(self.cumulative[-1])
-
-    @property
-    def kinks(self) -> tuple[float, ...]:
-        return tuple(float(s) for s in self.cumulative[1:-1])
-
-    def _leg(self, s):
-        s = np.clip(np.asarray(s, dtype=float), 0.0, self.length)
-        leg = np.clip(
-            np.searchsorted(self.cumulative, s, side="right") - 1, 0, len(self.points) - 2
-        )
-        return s, leg
-
-    def point(self, s):
-        s, leg = self._leg(s)
-        a, b = self.points[leg], self.points[leg + 1]
-        span = (self.cumulative[leg + 1] - self.cumulative[leg])[..., None]
-        return a + (s - self.cumulative[leg])[..., None] / span * (b - a)
-
-    def tangent(self, s):
-        _, leg = self._leg(s)
-        span = (self.cumulative[leg + 1] - self.cumulative[leg])[..., None]
-        return (self.points[leg + 1] - self.points[leg]) / span
-
-    def outline(self) -> np.ndarray:
-        return self.points
 
 
 @dataclass(frozen=True)
@@ -351,8 +314,8 @@ class Profile:
             is_real(acceleration) and 0 < acceleration <= MAX_ACCELERATION  # type: ignore[operator]
         ):
             raise InvalidInputError(
-                f"a trapezoidal profile needs an acceleration > 0 and ≤ {MAX_ACCELERATION:g} "
-                f"m/s²; got {acceleration!r}"
+                f"a trapezoidal profile needs acceleration > 0 and ≤ {MAX_ACCELERATION:g} m/s² "
+                f"(the tool's maximum); got {acceleration!r}"
             )
         if not self.duration <= MAX_DURATION:
             pace = f"speed {self.speed:g} m/s" + (
@@ -365,51 +328,39 @@ class Profile:
             )
 
     @cached_property
-    def ramp(self) -> float:
-        """Duration of the acceleration (and of the deceleration), s; 0 at constant speed."""
+    def peak(self) -> float:
+        """The highest speed reached, m/s: √(length · acceleration) where the path is too short
+        to reach the ``speed``."""
         if self.kind == "constant":
-            return 0.0
-        a = self.acceleration
-        return min(self.speed / a, math.sqrt(self.length / a))  # type: ignore[operator]
+            return self.speed
+        return min(self.speed, math.sqrt(self.length * self.acceleration))  # type: ignore[operator]
 
     @cached_property
-    def peak(self) -> float:
-        """The highest speed reached, m/s."""
-        return self.speed if self.kind == "constant" else self.acceleration * self.ramp  # type: ignore[operator]
+    def ramp(self) -> float:
+        """Duration of the acceleration (and of the deceleration), s; 0 at constant speed."""
+        return 0.0 if self.kind == "constant" else self.peak / self.acceleration  # type: ignore[operator]
 
     @cached_property
     def duration(self) -> float:
-        if self.kind == "constant":
-            return self.length / self.speed
-        return 2 * self.ramp + (self.length - self.peak * self.ramp) / self.peak
+        return self.length / self.peak + self.ramp
 
     def progress(self, t) -> tuple[np.ndarray, np.ndarray]:
-        """Arc length s and its rate ṡ at times t (...,) in s, both (...,); t is clipped to
-        [0, duration] (at rest outside for the trapezoidal profile)."""
+        """Arc length s and its rate ṡ at times t (...,) in s, both (...,); for the trapezoidal
+        profile t is clipped to [0, duration] (at rest outside), and with a = acceleration,
+        t_a = ramp, T = duration, v = peak: s = v (t − t_a/2) + a/2 (max(t_a − t, 0)² −
+        max(t − T + t_a, 0)²), ṡ = min(v, a t, a (T − t))."""
         t = np.asarray(t, dtype=float)
         if self.kind == "constant":
             return self.speed * t, np.full(t.shape, self.speed)
         a, ramp, peak, end = float(self.acceleration or 0.0), self.ramp, self.peak, self.duration
         t = np.clip(t, 0.0, end)
-        rising, falling = t < ramp, t > end - ramp
-        s = np.where(
-            rising,
-            0.5 * a * t**2,
-            np.where(
-                falling,
-                self.length - 0.5 * a * (end - t) ** 2,
-                0.5 * peak * ramp + peak * (t - ramp),
-            ),
-        )
-        rate = np.where(rising, a * t, np.where(falling, a * (end - t), peak))
-        return s, rate
+        late = np.maximum(t - end + ramp, 0.0)
+        s = peak * (t - ramp / 2) + a / 2 * (np.maximum(ramp - t, 0.0) ** 2 - late**2)
+        return s, np.minimum(peak, a * np.minimum(t, end - t))
 
     def describe(self) -> dict:
-        return {
-            "profile": self.kind,
-            "speed": self.speed,
-            **({} if self.kind == "constant" else {"acceleration": self.acceleration}),
-        }
+        found = {"profile": self.kind, "speed": self.speed}
+        return found if self.kind == "constant" else {**found, "acceleration": self.acceleration}
 
 
 @dataclass(frozen=True)
@@ -427,32 +378,26 @@ class Segment:
     acceleration: float | None = None
 
     def __post_init__(self) -> None:
-        for end in ("start", "end"):
-            try:
-                point = np.asarray(getattr(self, end), dtype=float)
-            except (TypeError, ValueError):
-                point = np.array([np.nan])
-            if point.ndim != 1 or not np.all(np.isfinite(point)):
-                raise InvalidInputError(
-                    f"segment {self.name}: {end} must be finite task coordinates, shape (m,); "
-                    f"got {getattr(self, end)!r}"
-                )
-            object.__setattr__(self, end, point)
-        if np.shape(self.start) != np.shape(self.end):
-            raise InvalidInputError(f"segment {self.name}: start and end differ in dimension")
-        if self.shape is None:
-            try:
+        with _prefixed(f"segment {self.name}"):
+            for end in ("start", "end"):
+                try:
+                    point = np.asarray(getattr(self, end), dtype=float)
+                except (TypeError, ValueError):
+                    point = np.array([np.nan])
+                if point.ndim != 1 or not np.all(np.isfinite(point)):
+                    raise InvalidInputError(
+                        f"{end} must be finite task coordinates, shape (m,); got "
+                        f"{getattr(self, end)!r}"
+                    )
+                object.__setattr__(self, end, point)
+            if np.shape(self.start) != np.shape(self.end):
+                raise InvalidInputError("start and end differ in dimension")
+            if self.shape is None:
                 object.__setattr__(self, "shape", Line(self.start, self.end))
-            except InvalidInputError as error:
-                raise InvalidInputError(f"segment {self.name}: {error}") from None
-        elif np.any(np.abs(self.shape.start - self.start) > CLOSED) or np.any(
-            np.abs(self.shape.end - self.end) > CLOSED
-        ):
-            raise InvalidInputError(f"segment {self.name}: its path's ends are not its own")
-        try:
+            ends = [self.shape.start, self.shape.end]
+            if not np.allclose(ends, [self.start, self.end], rtol=0, atol=CLOSED):
+                raise InvalidInputError("its path's ends are not its own")
             self.timing  # noqa: B018 - checks the profile
-        except InvalidInputError as error:
-            raise InvalidInputError(f"segment {self.name}: {error}") from None
 
     @classmethod
     def along(
@@ -469,11 +414,6 @@ class Segment:
     @cached_property
     def timing(self) -> Profile:
         return Profile(self.profile, self.speed, self.shape.length, self.acceleration)
-
-    @property
-    def length(self) -> float:
-        """Length of the tool position's path, m."""
-        return self.shape.length
 
     @cached_property
     def duration(self) -> float:
@@ -521,7 +461,7 @@ class Segment:
                 radius_m=shape.radius,
                 sweep_deg=math.degrees(shape.sweep),
             )
-        if isinstance(shape, Polyline):
+        if isinstance(shape, Polyline) and shape.kind == "polyline":
             found["points"] = len(shape.points)
         return {**found, **self.timing.describe()}
 
@@ -551,15 +491,8 @@ class Chain:
     def duration(self) -> float:
         return float(self.offsets[-1])
 
-    def _pieces(self, t):
-        t = np.asarray(t, dtype=float)
-        piece = np.clip(
-            np.searchsorted(self.offsets, t, side="right") - 1, 0, len(self.segments) - 1
-        )
-        return t, piece
-
     def _each(self, t, method):
-        t, piece = self._pieces(t)
+        t, piece = _piece(self.offsets, t)
         out = np.empty((*t.shape, len(self.start)))
         for i, segment in enumerate(self.segments):
             inside = piece == i
@@ -660,9 +593,9 @@ class WorkCycle:
                 )
             _check_reach(np.array(value), where, [repr(v) for v in value])
             found[name] = _in_radians(np.array(value), task.tool_angle)
-        defaults = _timing(task, str(path), None)
+        timing = {"speed": 0.5, **task.model_dump(include=set(TIMING), exclude_none=True)}
         segments = [
-            _segment(entry, found, defaults, task.tool_angle, size, path, f"{path}: segments[{i}]")
+            _segment(entry, found, timing, task.tool_angle, size, path, f"{path}: segments[{i}]")
             for i, entry in enumerate(task.segments)
         ]
         if not segments:
@@ -691,40 +624,24 @@ def _check_reach(point: np.ndarray, where: str, shown: list[str]) -> None:
         )
 
 
-def _in_radians(point: np.ndarray, tool_angle: bool) -> np.ndarray:
-    if tool_angle:
-        point = point.copy()
-        point[-1] = math.radians(point[-1])
-    return point
-
-
-def _timing(table: Timing, where: str, defaults: tuple | None) -> tuple:
-    """(speed, profile, acceleration) of a task file or of one segment's ``table``, which
-    takes the file's ``defaults`` where it gives none."""
-    speed, profile, acceleration = defaults or (0.5, "constant", None)
-    speed = speed if table.speed is None else table.speed
-    profile = table.profile or profile
-    acceleration = acceleration if table.acceleration is None else table.acceleration
-    if profile == "trapezoidal" and acceleration is None:
-        raise InvalidInputError(
-            f"{where}: a trapezoidal profile needs acceleration (m/s², the tool's maximum)"
-        )
-    return speed, profile, acceleration
-
-
-ARC_KEYS = ("from", "to", "via", "centre", "center", "direction")  # a line's or an arc's keys
+def _in_radians(points: np.ndarray, tool_angle: bool) -> np.ndarray:
+    """``points`` (..., m) with the last coordinate, where it is the tool's angle, in rad."""
+    if not tool_angle:
+        return points
+    return np.concatenate([points[..., :-1], np.radians(points[..., -1:])], axis=-1)
 
 
 def _segment(
     entry: SegmentTable | str,
     points: dict,
-    defaults: tuple,
+    timing: dict,
     tool_angle: bool,
     size: int | None,
     path: Path,
     where: str,
 ) -> Segment:
-    """One entry of a task file's ``segments``: "<from>-<to>" or a table (module docstring)."""
+    """One entry of a task file's ``segments``: "<from>-<to>" or a table (module docstring),
+    at the file's ``timing`` where it gives none of its own."""
     known = ", ".join(points)
 
     def point(name: str | None, key: str) -> np.ndarray:
@@ -741,7 +658,7 @@ def _segment(
                 f"{path}: segment {excerpt(entry)} must be '<from>-<to>' with points among {known}"
             )
         entry = SegmentTable.model_validate({"from": ends[0], "to": ends[1], "name": entry})
-    speed, profile, acceleration = _timing(entry, where, defaults)
+    timing = {**timing, **entry.model_dump(include=set(TIMING), exclude_none=True)}
     if entry.csv is not None:
         given = entry.model_dump(by_alias=True, exclude_none=True)
         clash = [key for key in ARC_KEYS if key in given]
@@ -753,11 +670,10 @@ def _segment(
     else:
         start, end = point(entry.start, "from"), point(entry.to, "to")
         name = f"{entry.start}-{entry.to}" if entry.name is None else entry.name
-        try:
+        with _prefixed(f"{where} ({name})"):
             shape = _curve(entry, start, end, point, int(tool_angle))
-        except InvalidInputError as error:
-            raise InvalidInputError(f"{where} ({name}): {error}") from None
-    return Segment.along(name, shape, speed, profile, acceleration)
+    with _prefixed(where):
+        return Segment.along(name, shape, **timing)
 
 
 def _curve(entry: SegmentTable, start, end, point, angles: int) -> Shape:
@@ -784,7 +700,7 @@ def read_polyline(path: Path | str, dimension: int | None, tool_angle: bool = Fa
     path = Path(path)
     rows: list[tuple[int, np.ndarray]] = []
     for number, point in _csv_points(path):
-        size = dimension or (len(rows[0][1]) if rows else len(point))
+        size = dimension or len(rows[0][1] if rows else point)
         if len(point) != size:
             why = (
                 f"the task has {dimension} coordinates per point"
@@ -795,17 +711,18 @@ def read_polyline(path: Path | str, dimension: int | None, tool_angle: bool = Fa
         rows.append((number, point))
     if not rows:
         raise InvalidInputError(f"{path}: no points; a polyline needs at least two")
-    first, angles = rows[0][0], int(tool_angle)
-    kept = rows[:1]
-    for row in rows[1:]:
-        if np.linalg.norm((row[1] - kept[-1][1])[: len(row[1]) - angles]) > CLOSED:
-            kept.append(row)
+    angles = int(tool_angle)
+    kept = [rows[0][1]]
+    for _, point in rows[1:]:
+        if np.linalg.norm(_position(point - kept[-1], angles)) > CLOSED:
+            kept.append(point)
     if len(kept) < 2:
+        first = rows[0][0]
         where = f"line {first}" if len(rows) == 1 else f"lines {first}-{rows[-1][0]}"
         raise InvalidInputError(
             f"{path}: one point ({where}); a polyline needs at least two distinct points"
         )
-    return Polyline(np.array([_in_radians(point, tool_angle) for _, point in kept]), angles)
+    return Polyline(_in_radians(np.array(kept), tool_angle), angles)
 
 
 def _csv_points(path: Path):

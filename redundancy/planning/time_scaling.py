@@ -75,9 +75,7 @@ def shortest_duration(motion: Trajectory, row: int = 0, samples: int = SAMPLES) 
             f"motion {row} along segment {motion.segment.name} failed (A turned singular): it "
             "has no path to time"
         )
-    import toppra
-    import toppra.algorithm
-    import toppra.constraint
+    import toppra  # its algorithms and constraints come with it
 
     robot = motion.robot
     circuit = robot.circuit()
