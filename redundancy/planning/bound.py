@@ -1,37 +1,30 @@
 """The bound: the motion along a segment whose whole history of the held actuator is optimised.
 
-The paper's improved method chooses only where the motion starts; from there the pseudoinverse
-law decides every instant. Here the held actuator's stroke r(t) is free at every instant, and
-the motion that tracks the task exactly, keeps every checked stroke and has the least peak of
-the objective is found by direct transcription:
+The paper's improved method chooses only where the motion starts; here the held stroke r(t) is
+free at every instant, and the motion that tracks the task exactly, keeps every checked stroke
+and has the least peak of the objective is found by direct transcription:
 
 - unknowns: r_j = x_h(t_j) at N + 1 nodes t_j = j h, h = t_f / N, and the peak s;
-- at each node the configuration q_j solves y(q_j) = y_d(t_j), x_h(q_j) = r_j (Eqs. 6, 10) by
-  Newton's method from the previous iterate: the task is tracked exactly at every node;
-- the held rates ṙ = D r (second-order backward differences, `backward_differentiation`)
-  fix the velocities: K_j q̇_j = [ẏ_d; ṙ_j] with K = [J; A_h] (Eqs. 7, 11) and ẋ_j = A_j q̇_j,
-  so that J_H ẋ_j = ẏ_d (Eq. 16); node j takes the objective's measure of its state and ẋ_j
-  (ẋᵀẋ, ẋᵀ M_H ẋ, or a user's own). Central differences would not do: they give node j a rate
-  without its own stroke r_j, so a history alternating node by node, r_j + (−1)ʲ c, has the
-  rates of r_j alone, and the solver would place every node's configuration freely at rates
-  no motion through those strokes has (a "bound" whose history, refined, peaks several times
-  higher). Backward differences see every stroke they difference: only a constant has no
-  rate;
-- minimise s, with a tie-break `SMOOTHING` on mean ṙ², subject to s ≥ the measure and
-  lower ≤ x(q_j) ≤ upper for every checked actuator at every node (the held one through the
-  bounds on r). The unknown is the peak against the starting history's, σ = s / s₀, and the
-  tie-break counts ṙ² against that history's peak ẋᵀẋ, so that the problem is the same
-  whatever the objective's unit (ẋᵀẋ in m²/s², ẋᵀ M_H ẋ in J). With s itself the unknown and
-  the tie-break against s₀, the solver's path depended on the unit, and for a measure of
-  hundreds of joules the tie-break fell below its tolerance: the optimum's history zigzagged
-  node by node where the peak does not bind, and stopped at local optima far above others.
+- at each node q_j solves y(q_j) = y_d(t_j), x_h(q_j) = r_j (Eqs. 6, 10) by Newton's method
+  from the previous iterate: the task is tracked exactly at every node;
+- the held rates ṙ = D r (second-order backward differences, `backward_differentiation`) fix
+  the velocities: K_j q̇_j = [ẏ_d; ṙ_j] with K = [J; A_h] (Eqs. 7, 11) and ẋ_j = A_j q̇_j, so
+  that J_H ẋ_j = ẏ_d (Eq. 16); node j takes the objective's measure of its state and ẋ_j
+  (ẋᵀẋ, ẋᵀ M_H ẋ, or a user's own). Central differences would not do: blind to a history
+  alternating node by node, r_j + (−1)ʲ c, they let the solver place every node's
+  configuration freely at rates no motion through those strokes has. Backward differences see
+  every stroke they difference: only a constant has no rate;
+- minimise σ = s / s₀ (the peak against the starting history's, so that the problem is the
+  same whatever the objective's unit) with a tie-break `SMOOTHING` on mean ṙ² against that
+  history's peak ẋᵀẋ, subject to σ ≥ the measure / s₀ and lower ≤ x(q_j) ≤ upper for every
+  checked actuator at every node (the held one through the bounds on r).
 
 Gradients: ∂q_j/∂r_j = K_j⁻¹ e and ∂x_j/∂r_j = A_j ∂q_j/∂r_j; the measure's derivative through
 ṙ_j is a central difference along ∂ẋ_j/∂ṙ_j = A_j K_j⁻¹ e (exact for a quadratic measure), and
-through q_j at fixed ṙ_j a central difference along ∂q_j/∂r_j. SciPy's
-SLSQP solves the problem on a sequence of grids: the first from several pseudoinverse motions
-(the problem is not convex), each later one from the previous optimum. The optimum converges at
-second order in h; `GlobalOptimum.change` says how much the last refinement moved it.
+through q_j at fixed ṙ_j a central difference along ∂q_j/∂r_j. SciPy's SLSQP solves the problem
+on a sequence of grids: the first from several pseudoinverse motions (the problem is not
+convex), each later one from the previous optimum. The optimum converges at second order in h;
+`GlobalOptimum.change` says how much the last refinement moved it.
 """
 
 from __future__ import annotations
@@ -41,6 +34,7 @@ from dataclasses import dataclass
 from typing import NamedTuple, cast
 
 import numpy as np
+from scipy.linalg import block_diag
 from scipy.optimize import minimize
 
 from redundancy.errors import InvalidInputError, UnreachableError
@@ -70,14 +64,12 @@ MAX_INTERVALS = 192  # by default, grids twice as fine follow GRIDS until the op
 CANDIDATES = 3  # starts over the reachable range the first grid is also solved from
 ITERATIONS = 400  # SLSQP iterations per grid, at most
 FUNCTION_TOLERANCE = 1e-7  # SLSQP's ftol on the scaled peak
-POLISH_TOLERANCE = 1e-10  # its ftol when polishing the peak alone: near the optimum already,
-# SLSQP then needs a few iterations to bring the peak to 1e-10 of the least (1e-7 left it 1.6e-9
-# above the improved start's own peak where that start is itself the optimum)
+POLISH_TOLERANCE = 1e-10  # its ftol polishing the peak alone, near the optimum: brings the
+# peak to 1e-10 of the least (1e-7 left it 1.6e-9 above a start that is itself the optimum)
 LIMIT_MARGIN = 1e-6  # m: the strokes are kept this far inside their limits, so that solver
 # round-off never puts a node outside them
-SMOOTHING = 1e-4  # weight of mean ṙ² against the peak ẋᵀẋ, beside the peak against its own
-# start: picks one optimum where many share the peak, and moves the peak by less than this
-# fraction
+SMOOTHING = 1e-4  # weight of mean ṙ² against the peak ẋᵀẋ: picks one optimum where many share
+# the peak, and moves the peak by less than this fraction
 DIFFERENCE_STEP = 1e-6  # m (and m/s): step of the central differences through q and ṙ
 UNREACHED = 1e3  # the measure at a node Newton's method does not reach, in starting peaks: a
 # trial step of the solver into strokes the task cannot be tracked with is a step it backs out of
@@ -213,7 +205,7 @@ class Transcription:
         smoothness: float = 0.0,
         differences: Callable[[int, float], np.ndarray] = backward_differentiation,
     ):
-        self.robot, self.objective = robot, objective
+        self.robot, self.objective, self.smoothness = robot, objective, smoothness
         self.rows = [int(rows)] if isinstance(rows, int | np.integer) else list(rows)
         self.columns = limits.columns
         segments = path.segments if isinstance(path, Chain) else (path,)
@@ -221,42 +213,26 @@ class Transcription:
         self.piece = np.repeat(np.arange(len(segments)), [c + 1 for c in counts])  # segments
         self.t = node_times(path, intervals)
         self.local = self.t - np.cumsum([0.0] + [s.duration for s in segments])[self.piece]
-        self.points = np.concatenate(
-            [s.position(self.local[self.piece == i]) for i, s in enumerate(segments)]
-        )
-        self.y_dot = np.concatenate(
-            [s.velocity_at(self.local[self.piece == i]) for i, s in enumerate(segments)]
-        )
-        firsts = np.cumsum([0, *counts[:-1]])
-        # the unknown r_i each node's held stroke is
-        self.owner = np.concatenate([f + np.arange(c + 1) for f, c in zip(firsts, counts)])
+        local = [self.local[self.piece == i] for i in range(len(segments))]
+        self.points = np.concatenate([s.position(t) for s, t in zip(segments, local)])
+        self.y_dot = np.concatenate([s.velocity_at(t) for s, t in zip(segments, local)])
+        self.owner = np.arange(len(self.t)) - self.piece  # each node's unknown, one per corner
         if periodic:
             self.owner[-1] = 0
-        unknowns = sum(counts) + (0 if periodic else 1)
-        self.D = np.zeros((len(self.t), unknowns))
-        second = []  # second differences of the held strokes inside each segment, per s²
-        for i, count in enumerate(counts):
-            nodes = np.flatnonzero(self.piece == i)
-            owner, h = self.owner[nodes], self.local[nodes[1]]
-            np.add.at(self.D, (nodes[:, None], owner[None, :]), differences(count, h))
-            for j in range(1, count):
-                difference = np.zeros(unknowns)
-                np.add.at(difference, owner[j - 1 : j + 2], np.array([1.0, -2.0, 1.0]) / h**2)
-                second.append(difference)
-        self.S = np.array(second)
-        self.smoothness = smoothness
+        self.incidence = np.eye(self.owner.max() + 1)[self.owner]  # (nodes, unknowns)
+        steps = [t[1] for t in local]
+        self.D = block_diag(*map(differences, counts, steps)) @ self.incidence
+        # the second differences of the held strokes inside each segment, per s²
+        second = [np.diff(np.eye(c + 1), 2, axis=0) / h**2 for c, h in zip(counts, steps)]
+        self.S = block_diag(*second) @ self.incidence
         self.q = np.array(guess, dtype=float)
         self.space: ActuatorSpace | None = None  # the states at q, once evaluated
         self.around: tuple[np.ndarray, list[ActuatorSpace]] | None = None  # `shifted`
         lower, upper = limits.lower + margin, limits.upper - margin
-        span = np.where(np.isfinite(upper - lower), upper - lower, 1.0)
         # each finite end of a stroke is a constraint, a fraction of the stroke (of 1 m or rad
         # where the stroke has an open end); an unbounded end is none
-        self.ends = [
-            (np.flatnonzero(np.isfinite(end)), end, sign)
-            for end, sign in ((lower, 1.0), (upper, -1.0))
-        ]
-        self.span = span
+        self.span = np.where(np.isfinite(upper - lower), upper - lower, 1.0)
+        self.ends = [(np.flatnonzero(np.isfinite(e)), e, s) for e, s in ((lower, 1), (upper, -1))]
         self.cache: tuple[bytes, Nodes] | None = None
         self.scale = 1.0  # s₀: the starting history's peak, in the objective's unit
         self.speed = 1.0  # its peak ẋᵀẋ, m²/s² (rad²/s² for rotary actuators)
@@ -264,14 +240,7 @@ class Transcription:
 
     def unknown_times(self) -> np.ndarray:
         """The time of each unknown node (its first node), (U,), s."""
-        times = np.full(self.D.shape[1], np.inf)
-        np.minimum.at(times, self.owner, self.t)
-        return times
-
-    @property
-    def incidence(self) -> np.ndarray:
-        """(nodes, unknowns): 1 where a node's held stroke is that unknown."""
-        return np.eye(self.D.shape[1])[self.owner]
+        return self.t[np.unique(self.owner, return_index=True)[1]]
 
     def held(self, z: np.ndarray) -> np.ndarray:
         """The held strokes (U, r) of the unknowns z = (r, σ) or r alone."""
@@ -334,16 +303,12 @@ class Transcription:
         unit[:, self.robot.m :] = np.eye(held)
         dq = np.linalg.solve(K, unit)  # ∂q_j/∂r_jk = K⁻¹ e_k, and ∂q̇_j/∂ṙ_jk (N + 1, n, r)
         dx = space.A @ dq  # ∂x_j/∂r_jk, and ∂ẋ_j/∂ṙ_jk (N + 1, n, r)
-        measure_of = self.objective.measure
-        rate, own = np.empty((2, len(space.q), held))  # ∂ measure_j / ∂ṙ_jk, / ∂r_jk
-        for k in range(held):
-            ahead = measure_of(space, x_dot + DIFFERENCE_STEP * dx[..., k])
-            behind = measure_of(space, x_dot - DIFFERENCE_STEP * dx[..., k])
-            rate[:, k] = (ahead - behind) / (2 * DIFFERENCE_STEP)
-        # through q_j at fixed ṙ_j: a central difference
-        shifted = [self.motion(s, r_dot)[-1] for s in self.shifted(space.q, dq)]
-        for k in range(held):
-            own[:, k] = (shifted[k] - shifted[held + k]) / (2 * DIFFERENCE_STEP)
+        step = DIFFERENCE_STEP * np.moveaxis(dx, -1, 0)  # (r, N + 1, n)
+        measured = [self.objective.measure(space, x_dot + s) for s in (*step, *-step)]
+        measured += [self.motion(s, r_dot)[-1] for s in self.shifted(space.q, dq)]
+        ahead, behind = np.reshape(measured, (2, 2, held, -1)).swapaxes(0, 1)
+        # ∂ measure_j / ∂ṙ_jk along ∂ẋ_j/∂ṙ_jk, and ∂ measure_j / ∂r_jk through q_j at fixed ṙ_j
+        rate, own = np.swapaxes(ahead - behind, 1, 2) / (2 * DIFFERENCE_STEP)  # (N + 1, r) each
         gradient = rate[:, None] * self.D[..., None] + own[:, None] * self.incidence[..., None]
         nodes = Nodes(measure, gradient.reshape(len(space.q), -1), space, x_dot, dx, missed)
         self.cache = (key, nodes)
@@ -390,13 +355,10 @@ class Transcription:
         with tie-breaks (ε = `SMOOTHING`, ε₂ = ``smoothness`` in s²) for the smoothest held
         history where many share the least peak."""
         r = self.held(z)
-        r_dot = self.D @ r
-        r_ddot = self.S @ r if len(self.S) else np.zeros((0, r.shape[1]))
+        r_dot, r_ddot = self.D @ r, self.S @ r
         weight = SMOOTHING / (len(r_dot) * self.speed) if self.tie_break else 0.0
         second = self.smoothness / (max(len(r_ddot), 1) * self.speed) if self.tie_break else 0.0
-        gradient = 2 * weight * (self.D.T @ r_dot)
-        if second:
-            gradient = gradient + 2 * second * (self.S.T @ r_ddot)
+        gradient = 2 * weight * (self.D.T @ r_dot) + 2 * second * (self.S.T @ r_ddot)
         value = z[-1] + weight * (r_dot**2).sum() + second * (r_ddot**2).sum()
         return value, np.append(gradient.ravel(), 1.0)
 
@@ -451,8 +413,7 @@ def solve_transcription(
     start = problem.continued(np.append(r0, 0.0))
     if start.missed.any():
         raise problem.unreached(r0, start.missed)
-    measure = start.measure
-    problem.scale = float(measure.max())
+    problem.scale = float(start.measure.max())
     problem.speed = float(np.einsum("ji,ji->j", start.x_dot, start.x_dot).max())
     z = np.append(r0, 1.0)  # σ = s / s₀
     bounds = list(box) * len(r0) + [(0.0, None)]
@@ -508,14 +469,13 @@ def global_optimum(
     optimum by `redundancy.planning.refinement.CONVERGED` or more, up to `MAX_INTERVALS`.
 
     The problem is not convex: the first grid is solved from the law's motion from each
-    ``initial`` start (held strokes at t = 0, m or rad, one value each, or (r,) each with
-    several held; by default the best start of the improved method's ``search``, by default
-    its fast search (the sweep with several held), and `CANDIDATES` starts evenly over the
-    box of the starts it reached, feasible or not, where reachable: a history is free to leave
-    the law's feasible starts, and the excavator's least kinetic-energy scrape starts outside
-    them), and the least optimum is refined through the later grids, each started from the
-    previous one. ``checked`` names the actuators whose strokes bind (default all). The
-    objective must be a peak objective (its reduction "peak").
+    ``initial`` start (held strokes at t = 0, m or rad, one value or (r,) each; by default the
+    best start of the improved method's ``search``, by default its fast search or with several
+    held its sweep, and `CANDIDATES` starts evenly over the box of the starts it reached,
+    feasible or not: the excavator's least kinetic-energy scrape starts outside the feasible
+    ones), and the least optimum is refined through the later grids, each from the previous
+    one. ``checked`` names the actuators whose strokes bind (default all). The objective must
+    be a peak objective (its reduction "peak").
     """
     segment, objective = checked_path(segment), as_objective(objective)
     names = held_names(robot, held)
@@ -550,10 +510,10 @@ def global_optimum(
     solutions = [grid]
     finer = list(grids[1:])
     while finer:
-        intervals = finer.pop(0)
-        order = np.argsort(problem.unknown_times())
-        t = problem.unknown_times()[order]
-        r, grid, nodes, problem = solve(intervals, t, r[order], problem.t, nodes.space.q)
+        intervals = finer.pop(0)  # a path's unknowns are in time order: it is not periodic
+        r, grid, nodes, problem = solve(
+            intervals, problem.unknown_times(), r, problem.t, nodes.space.q
+        )
         solutions.append(grid)
         if refine and not finer and not Grids(tuple(solutions)).converged:
             finer = [2 * intervals] if 2 * intervals <= MAX_INTERVALS else []
@@ -580,9 +540,7 @@ def global_optimum(
 
 
 def _initial(robot, segment, objective, names, checked, search) -> list[tuple]:
-    """The bound's default starts, distinct and best first: the best start of the improved
-    method's ``search`` (by default its fast search; the sweep with several held), then
-    `CANDIDATES` starts evenly over the box of the starts it reached, feasible or not."""
+    """The bound's default starts of `global_optimum`, distinct and best first."""
     if search is None:
         search = improved_start(robot, segment, objective, names, checked=checked)
     if search.best is None:

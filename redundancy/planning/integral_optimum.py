@@ -1,61 +1,51 @@
 """The optimum of an integral objective by dynamic programming: the motion along a segment that
 minimises ∫ c dt over the histories of the held actuators on a grid of their values, every
 stroke and every actuator speed limit kept, and, where asked, the hydraulic circuit's limits and
-actuator acceleration limits (see below for what the latter do to the optimum). The energy bound
-is this optimum with the pump energy ∫ p_P Q_P dt as c, within the circuit's limits, as Nurmi &
-Mattila (Energies 10(5) 647, 2017) computed it for a forestry crane; any objective with an
-integral measure (`redundancy.resolution.objectives`), one of your own included, is another
-stage cost of the same recursion, as in the redundancy resolution by dynamic programming of
-Ferrentino et al. (Robotics 10(1) 42, 2021).
+actuator acceleration limits. The energy bound is this optimum with the pump energy ∫ p_P Q_P dt
+as c, within the circuit's limits, as Nurmi & Mattila (Energies 10(5) 647, 2017) computed it
+for a forestry crane; any objective with an integral measure, yours included, is another stage
+cost of the same recursion, as in Ferrentino et al. (Robotics 10(1) 42, 2021).
 
 - nodes t_j = j h, h = t_f / N; at each, the configurations q(r) that solve y(q) = y_d(t_j),
   x_h(q) = r (Eqs. 6, 10) are found by Newton's method (continued from node to node, seeded
   afresh where that misses) at `EXACT` held values over the stroke of one held actuator
-  (r = 1), or at `EXACT_EACH` × `EXACT_EACH` over the strokes of two (r = 2), so the task is
-  tracked exactly there; between them x(r), the forces at rest and q(r) are cubic splines in
-  r (r = 1; their error, below 5e-5 m and largest at the ends of the stroke, is measured in
-  tests/test_hydraulics.py) or bilinear in (r₁, r₂) (r = 2). Neighbouring solved values are
-  taken to lie on one branch: where the task has two solutions inside the joint ranges (the
-  crane's reach alone with the fold and the telescope held: the lift up or down), the seeds
-  may pick either, and a cell between branches interpolates across them.
-  A held value whose neighbours miss the task or leave the joint ranges, or that puts a checked
-  stroke past its limit, is excluded. For an objective's measure, each pass's states are solved
-  again exactly, by Newton's method from the interpolated configurations;
+  (r = 1), or at `EXACT_EACH` × `EXACT_EACH` over the strokes of two (r = 2); between them
+  x(r), the forces at rest and q(r) are cubic splines in r (r = 1; error below 5e-5 m, largest
+  at the stroke's ends) or bilinear in (r₁, r₂) (r = 2). Neighbouring solved values are taken
+  to lie on one branch: where the task has two solutions inside the joint ranges (the crane's
+  reach alone with the fold and the telescope held: the lift up or down), the seeds may pick
+  either, and a cell between branches interpolates across them. A held value whose neighbours
+  miss the task or leave the joint ranges, or that puts a checked stroke past its limit, is
+  excluded. For an objective's measure, each pass's states are solved again exactly, by
+  Newton's method from the interpolated configurations;
 - a transition from r at t_j to r' at t_j+1 moves every actuator at ẋ = (x_j+1(r') − x_j(r))/h
-  (so J_H ẋ = ẏ_d to first order, Eq. 16). Its cost is the objective's measure c at both
-  nodes' states with that ẋ, by the trapezoidal rule, h (c_j + c_j+1)/2, or for the energy
-  bound h p_P Q_P from the circuit's meter-in model (`redundancy.model.hydraulics`) against the
-  mean of both nodes' forces F_H at rest, A⁻ᵀ G (Eq. 23 without velocity terms). The circuit's
-  limits (`Limits.hydraulic`: each load pressure, the pump flow, each cylinder speed) exclude
-  transitions, with the same flows, for the energy bound always and for an objective where a
-  supply is given;
+  (J_H ẋ = ẏ_d to first order, Eq. 16). Its cost is the measure c at both nodes with that ẋ,
+  by the trapezoidal rule, h (c_j + c_j+1)/2, or for the energy bound h p_P Q_P from the
+  circuit's meter-in model against the mean of both nodes' forces at rest, A⁻ᵀ G (Eq. 23
+  without velocity terms). The circuit's limits (`Limits.hydraulic`) exclude transitions, for
+  the energy bound always and for an objective where a supply is given;
 - actuator speed limits |ẋ| ≤ ẋ_max exclude transitions. An acceleration limit |ẍ| ≤ ẍ_max is
-  checked against the best path into each node alone (|ẋ' − ẋ| / h), since the recursion's
-  state is the node alone, as in Ferrentino et al.'s heuristic: the path kept always keeps the
-  limit, but where the limit binds (`IntegralOptimum.acceleration_binds`: the least cost
-  without it is lower) the optimum is the least over the histories the recursion keeps, no
-  longer the grid's global optimum, and the recursion may find no path where one exists. Where
-  the segment starts (ends) at rest, the first (last) transition's acceleration is checked
-  from (to) ẋ = 0; a segment that starts moving has no acceleration at its start to check;
+  checked against the best path into each node alone (|ẋ' − ẋ| / h), the recursion's state
+  being the node, as in Ferrentino et al.'s heuristic: the path kept keeps the limit, but
+  where it binds (`IntegralOptimum.acceleration_binds`) the optimum is the least over the
+  histories the recursion keeps, no longer the grid's global optimum, and the recursion may
+  find no path where one exists. Where the segment starts (ends) at rest, the first (last)
+  transition's acceleration is checked from (to) ẋ = 0;
 - the least cost to each node is the least over its predecessors; start and end are free. The
   first pass spans the strokes with `SPANNING` values per held actuator (`SPANNING_EACH` for
-  r = 2); each later one spans a band `NARROWING` times as wide around the last path with
-  `VALUES` (`VALUES_EACH`) values (iterative dynamic programming), so the held values end up
-  resolved to a fraction of a millimetre at a cost of G² N per pass.
+  r = 2); each later one a band `NARROWING` times as wide around the last path with `VALUES`
+  (`VALUES_EACH`) values (iterative dynamic programming), at a cost of G² N per pass.
 
-Why dynamic programming and not the direct transcription of `redundancy.planning.bound`: the
-load-sensing pump pressure is a maximum over the moving cylinders and the overrunning clamp
-is a kink, so the cost is not differentiable where the optimum tends to lie, and the circuit's
-limits cut the feasible set into pieces. The problem is not convex; without acceleration limits
-dynamic programming finds the least cost over its grid globally, whatever its shape.
-
-The energy bound's forces leave out inertia and velocity terms (M_H ẍ and the Coriolis part of
-N_H): they would make the stage cost depend on three nodes. On the paper's crane they change
-the pump energy of the strategies by well under 1 % (tests/test_hydraulics.py measures it); the
-strategies' energies are computed with them. A measure that reads the forces (``dynamic``)
-reads them at rest here for the same reason. The optimum converges as the grid is refined:
-`IntegralOptimum.change` is the relative change of the optimum from the previous grid; where a
-finer grid finds no path, the coarser grid's result is kept and marked not converged.
+Dynamic programming and not the transcription of `redundancy.planning.bound`: the load-sensing
+pump pressure is a maximum over the moving cylinders and the overrunning clamp a kink, so the
+cost is not differentiable where the optimum tends to lie, and the circuit's limits cut the
+feasible set into pieces; without acceleration limits the recursion finds the least cost over
+its grid globally. The forces leave out inertia and velocity terms (M_H ẍ and the Coriolis part
+of N_H), which would make the stage cost depend on three nodes: on the paper's crane they change
+the strategies' pump energy by well under 1 % (tests/test_hydraulics.py); a ``dynamic`` measure
+reads them at rest too. `IntegralOptimum.change` is the optimum's relative change from the
+previous grid; where a finer grid finds no path, the coarser grid's result is kept and marked
+not converged.
 """
 
 from __future__ import annotations
@@ -264,38 +254,24 @@ def _spline(axis: np.ndarray, table: np.ndarray, usable: np.ndarray):
     return lambda r: spline(r[:, 0])
 
 
-def _circuit(robot: Robot, supply: Supply, x: np.ndarray, forces: np.ndarray):
-    """The circuit's meter-in model on the transitions from t_j to t_j+1 between the nodes'
-    strokes x and forces at rest (N + 1, G, n): (j, h) → the flows (G, G) and where they keep
-    the circuit's limits under ``supply`` (G, G)."""
+def _circuit_stage(
+    robot: Robot, supply: Supply, x: np.ndarray, forces: np.ndarray, stage: Stage | None = None
+) -> Stage:
+    """``stage`` (by default the pump energy h p_P Q_P, J) on the transitions from t_j to t_j+1
+    between the nodes' strokes x and forces at rest (N + 1, G, n) whose meter-in flows under
+    ``supply`` keep the circuit's limits: each load pressure, the pump flow, each cylinder
+    speed; inf on the others."""
     circuit, limits = robot.circuit(), Limits.hydraulic(robot, supply)
 
-    def transitions(j: int, h: float):
+    def cost(j: int, h: float, allowed: np.ndarray) -> np.ndarray:
         x_dot = (x[j + 1][None] - x[j][:, None]) / h  # (from, to, n)
         flows = circuit.flows(x_dot, (forces[j][:, None] + forces[j + 1][None]) / 2)
-        return flows, limits.margin(hydraulic_values(circuit, x_dot, flows)) >= -TOLERANCE
-
-    return transitions
-
-
-def _energy_stage(robot: Robot, supply: Supply, x: np.ndarray, forces: np.ndarray) -> Stage:
-    """The pump energy h p_P Q_P of each transition under ``supply`` (J), inf where a load
-    pressure, the pump flow or a cylinder speed passes its limit."""
-    transitions = _circuit(robot, supply, x, forces)
-
-    def cost(j: int, h: float, allowed: np.ndarray) -> np.ndarray:
-        flows, within = transitions(j, h)
-        return np.where(allowed & within, h * flows.power(supply), np.inf)
+        within = limits.margin(hydraulic_values(circuit, x_dot, flows)) >= -TOLERANCE
+        if stage is None:
+            return np.where(allowed & within, h * flows.power(supply), np.inf)
+        return stage(j, h, allowed & within)
 
     return cost
-
-
-def _within_circuit(
-    stage: Stage, robot: Robot, supply: Supply, x: np.ndarray, forces: np.ndarray
-) -> Stage:
-    """``stage`` on the transitions that keep the circuit's limits under ``supply`` as well."""
-    transitions = _circuit(robot, supply, x, forces)
-    return lambda j, h, allowed: stage(j, h, allowed & transitions(j, h)[1])
 
 
 def _measure_stage(objective: Objective, space: ActuatorSpace, x: np.ndarray) -> Stage:
@@ -488,7 +464,7 @@ def integral_optimum(
         x, q = space.x.reshape(x.shape), space.q.reshape(q.shape)
         stage = _measure_stage(objective, space, x)
         if supply is not None:
-            stage = _within_circuit(stage, robot, supply, x, space.N_H.reshape(x.shape))
+            stage = _circuit_stage(robot, supply, x, space.N_H.reshape(x.shape), stage)
         return x, q, usable & found, stage
 
     limits = _limit(robot, speeds, "speeds"), _limit(robot, accelerations, "accelerations")
@@ -521,7 +497,7 @@ def energy_optimum(
 
     def build(tables: Tables, values: np.ndarray):
         x, forces, q, usable = tables.at(values)
-        return x, q, usable, _energy_stage(robot, supply, x, forces)
+        return x, q, usable, _circuit_stage(robot, supply, x, forces)
 
     free = np.full(robot.n, np.inf)
     found = _optimum(robot, segment, held, checked, grids, build, free, free)

@@ -1,11 +1,9 @@
 """An integral objective three ways, side by side: the objective's law from the documented
 default start (for the velocity objective of directly driven joints, the local pseudoinverse of
-least q̇ᵀq̇), the improved start (the toolkit's search of the held actuators' start under the
-same objective) and the optimum by dynamic programming over the held actuators' histories
-(`redundancy.planning.integral_optimum`): the global optimum on its grid, or, where an
-acceleration limit binds, the least over the histories the recursion keeps (it checks the
-limit against the best path into each node alone). Result data only; docs/integral.md shows
-the table.
+least q̇ᵀq̇), the improved start (the search of the held actuators' start under the same
+objective) and the optimum by dynamic programming over the held actuators' histories
+(`redundancy.planning.integral_optimum`), `LIMITED` where an acceleration limit binds. Result
+data only; docs/integral.md shows the table.
 """
 
 from __future__ import annotations
@@ -62,8 +60,8 @@ def compare(
     grids: tuple[int, ...] = GRIDS,
 ) -> Comparison:
     """``objective`` (an integral one) along ``segment`` by the three strategies of the module
-    docstring. ``speeds`` and ``accelerations`` bind the optimum (see
-    `integral_optimum`); the local motions are reported with what they reach."""
+    docstring. ``speeds`` and ``accelerations`` bind the optimum (see `integral_optimum`); the
+    local motions are reported with what they reach."""
     objective = named(objective)
     start = default_start(robot, segment, held)[1][None]
     search = improved_start(robot, segment, objective, held)
