@@ -45,6 +45,7 @@ import numpy as np
 
 from redundancy.errors import InvalidInputError, RedundancyError, RobotDescriptionError
 from redundancy.model.actuators import LinearCylinder
+from redundancy.model.kinematics import Kinematics
 from redundancy.model.linkage import LinkageCylinder
 from redundancy.model.robot import AXES
 from redundancy.planning.integrate import Trajectory
@@ -148,31 +149,11 @@ class Cylinder:
         u = (rod - base) / np.linalg.norm(rod - base, axis=1, keepdims=True)
         return _between(base, base + self.part * u), _between(rod - self.part * u, rod)
 
-    def at_limit(self, length: np.ndarray) -> np.ndarray:
-        """Whether each length (k,) in m is within `LIMIT_MARGIN` of a stroke limit or past it."""
-        return at_stroke_limit(length, self.actuator.lower, self.actuator.upper)
-
 
 def at_stroke_limit(x: np.ndarray, lower, upper) -> np.ndarray:
     """Whether each actuator value x (..., n) (or (k,) of one actuator) is within `LIMIT_MARGIN`
     (m or rad) of its stroke's ``lower`` or ``upper`` end (n,), or past it."""
     return np.minimum(x - lower, upper - x) <= LIMIT_MARGIN
-
-
-def _urdf(robot):
-    """yourdfpy's parse of the URDF the robot was built from (its text: a xacro expanded, the
-    meshes found by absolute path)."""
-    import yourdfpy
-
-    text = io.BytesIO(robot.description.encode())
-    return yourdfpy.URDF.load(text, build_scene_graph=False, load_meshes=False).robot
-
-
-def _drawn(visual, missing: tuple[str, ...]) -> bool:
-    """Whether a link's ``visual`` can be drawn: a box, cylinder or sphere, or a mesh that a file
-    answers."""
-    mesh = visual.geometry.mesh
-    return mesh is None or mesh.filename not in missing
 
 
 def _visual_model(robot):
@@ -204,13 +185,21 @@ def link_points(robot) -> dict[str, np.ndarray]:
     frame: its origin, the origins of the joints it carries and the actuators' points on it
     (a cylinder's base and rod, a linkage's pins), locked links included. A link is drawn as
     their convex hull, so that the cylinders sit on it."""
+    import yourdfpy
+
     from redundancy.model.parameters import Point
 
-    parse = _urdf(robot)
-    points = {
+    # the robot's URDF text: a xacro expanded, the meshes found by absolute path
+    text = io.BytesIO(robot.description.encode())
+    parse = yourdfpy.URDF.load(text, build_scene_graph=False, load_meshes=False).robot
+    missing = robot.missing_meshes
+    points = {  # the links none of whose visuals is a shape or a mesh that a file answers
         link.name: [np.zeros(3)]
         for link in parse.links
-        if not any(_drawn(v, robot.missing_meshes) for v in link.visuals)
+        if all(
+            v.geometry.mesh is not None and v.geometry.mesh.filename in missing
+            for v in link.visuals
+        )
     }
     for joint in parse.joints:
         if joint.parent in points and joint.origin is not None:
@@ -267,21 +256,6 @@ class Hulls:
             self.viewer[f"links/hulls/{link}"].set_transform(data.oMf[frame].homogeneous)
 
 
-def _links(robot, visuals, root, size: float) -> list:
-    """The drawings of the links under the node ``root``: Pinocchio's meshcat visualizer of the
-    ``visuals`` (`_visual_model`, where there are any), and the `Hulls` of the links without.
-    Each poses its links with ``display(q)`` on the node its ``viewer`` attribute names."""
-    from pinocchio.visualize import MeshcatVisualizer
-
-    drawings: list = [Hulls(robot, root, size)]
-    if visuals is not None:
-        links = MeshcatVisualizer(robot.model, None, visuals)
-        links.initViewer(viewer=root)
-        links.loadViewerModel(rootNodeName="links")
-        drawings.append(links)
-    return drawings
-
-
 class Playback:
     """The drawing of one motion (a `Trajectory` of one) and its poses over time.
 
@@ -304,7 +278,7 @@ class Playback:
         self.t = motion.t[0]
         step = math.ceil(1 / (FRAME_RATE * (self.t[1] - self.t[0])) - 1e-9)
         self.samples = np.unique(np.append(np.arange(0, len(self.t), step), len(self.t) - 1))
-        kinematics = robot.kinematics(self.q)
+        kinematics = motion.space.kinematics  # the motion's own, as the integrator evaluated it
         self.traced = robot.tool(kinematics).position
         rows = [AXES.index(a) for a in robot.task_axes]
 
@@ -335,7 +309,7 @@ class Playback:
             for bar, (a, b) in actuator.bars(kinematics).items()
         ]
         self._fit_camera(np.concatenate([self._extent(), self.traced, self.points]))
-        self._links: list = []  # the links' drawings (`_links`), once drawn
+        self._links: list = []  # the links' drawings, once drawn
 
     def _extent(self) -> np.ndarray:
         """Points the view must hold at every shown sample, (P, 3) in m: every Pinocchio
@@ -399,7 +373,16 @@ class Playback:
         root = vis[ROOT]
         root.set_transform(meshcat.transformations.translation_matrix(-self.centre))
 
-        self._links = _links(self.robot, self.visuals, root, self.size)
+        # the links' drawings, each posing its links with ``display(q)`` on the node its
+        # ``viewer`` names: the hulls, and Pinocchio's visualizer of the visual geometry
+        self._links = [Hulls(self.robot, root, self.size)]
+        if self.visuals is not None:
+            from pinocchio.visualize import MeshcatVisualizer
+
+            links = MeshcatVisualizer(self.robot.model, None, self.visuals)
+            links.initViewer(viewer=root)
+            links.loadViewerModel(rootNodeName="links")
+            self._links.append(links)
 
         for cylinder in self.cylinders:
             for part, radius in zip(PARTS, (0.06, 0.035)):
@@ -435,7 +418,9 @@ class Playback:
             )
             node.set_transform(meshcat.transformations.translation_matrix(point))
         # the first pose; the animation colours a cylinder red at a stroke limit
-        for path, poses in self.placements(self.q[:1])[0].items():
+        for path, poses in self.placements(self.q[:1], self.motion.space.kinematics.take([0]))[
+            0
+        ].items():
             root[path].set_transform(poses[0])
 
     @property
@@ -465,11 +450,14 @@ class Playback:
                 pieces += [base + middle - half * across, base + middle + half * across]
         return np.array(pieces)
 
-    def placements(self, q: np.ndarray) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    def placements(
+        self, q: np.ndarray, kinematics: Kinematics | None = None
+    ) -> tuple[dict[str, np.ndarray], np.ndarray]:
         """The poses of the drawn links, linkage bars and cylinders at the configurations
         ``q`` (k, n): their transforms (k, 4, 4) by node path below the scene's root, in the
         order the scene first poses them, and which cylinders are at or past a stroke limit,
-        (k, C) bool. One kinematics pass serves the whole batch."""
+        (k, C) bool. The bars and cylinders are read from ``kinematics`` at ``q`` (the motion's
+        own, where ``q`` are its samples), else from one pass over the batch."""
         if not self._links:
             raise InvalidInputError("draw the playback into a visualizer first")
         # Pinocchio's visualizer poses the links on its viewer's nodes, one configuration at a
@@ -480,7 +468,8 @@ class Playback:
             for qi in q:
                 drawing.display(qi)
         placed = {path: np.array(kept) for path, kept in poses.kept.items()}
-        kinematics = self.robot.kinematics(q)
+        if kinematics is None:
+            kinematics = self.robot.kinematics(q)
         for actuator, bar, _ in self.bars:
             a, b = actuator.bars(kinematics)[bar]
             placed[f"linkages/{actuator.name}/{bar}"] = _between(a, b)
@@ -489,7 +478,10 @@ class Playback:
             base, rod = cylinder.actuator.ends(kinematics)
             for part, pose in zip(PARTS, cylinder.poses(base, rod)):
                 placed[f"cylinders/{cylinder.name}/{part}"] = pose
-            limited[:, column] = cylinder.at_limit(np.linalg.norm(rod - base, axis=1))
+            length = np.linalg.norm(rod - base, axis=1)
+            limited[:, column] = at_stroke_limit(
+                length, cylinder.actuator.lower, cylinder.actuator.upper
+            )
         return placed, limited
 
     def alarms(self) -> np.ndarray:
@@ -541,7 +533,9 @@ class Playback:
         and each cylinder part's colour."""
         animation = _meshcat().animation
         frames = (self.t[self.samples] * FRAME_RATE).tolist()
-        placed, limited = self.placements(self.q[self.samples])
+        placed, limited = self.placements(
+            self.q[self.samples], self.motion.space.kinematics.take(self.samples)
+        )
         root = vis[ROOT]
 
         def clip(path: str, *tracks: tuple[str, str, list]) -> tuple[Any, Any]:

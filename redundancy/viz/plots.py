@@ -19,7 +19,7 @@ from redundancy.model.robot import AXES
 from redundancy.planning.cycles import ReturnMap
 from redundancy.planning.integrate import Trajectory
 from redundancy.planning.starts import SearchResult
-from redundancy.study.cycles import CycleStudy
+from redundancy.study.cycles import CycleStudy, named_values
 from redundancy.study.output import write_atomically
 from redundancy.study.study import Study
 
@@ -236,14 +236,6 @@ def nonoptimal_sample(search: SearchResult):
     return min(candidates, key=lambda s: s.values)
 
 
-def _start(study: Study, values) -> str:
-    """The held actuators' start ``values`` in words, each in its unit."""
-    actuators = study.robot.actuators
-    return ", ".join(
-        f"{name} = {value:.3f} {actuators[name].unit}" for name, value in zip(study.held, values)
-    )
-
-
 def write_figures(study: Study, folder: Path, segment: str | None = None) -> list[Path]:
     """Write `study_figures` into ``folder``; return their paths."""
     return _write(study_figures(study, segment), folder)
@@ -270,7 +262,7 @@ def study_figures(study: Study, segment: str | None = None) -> dict:
         search = study.search(name, segment)
         if search.best is not None:
             best = search.best_motion  # as the study ran it
-            start = _start(study, search.best.values)
+            start = named_values(study.robot, study.held, search.best.values)
             figures[f"fig{number}b_best_{name}_{segment}.png"] = motion_figure(
                 best, f"min {objective.label}, segment {segment}, optimal start {start}"
             )
@@ -284,7 +276,7 @@ def study_figures(study: Study, segment: str | None = None) -> dict:
             nonoptimal = motion_figure(
                 sweep.motion(other),
                 f"min {objective.label}, segment {segment}, non-optimal start "
-                f"{_start(study, other.values)}",
+                f"{named_values(study.robot, study.held, other.values)}",
             )
             figures[f"fig4c_nonoptimal_{name}_{segment}.png"] = nonoptimal
             optimal = figures.get(f"fig4b_best_{name}_{segment}.png")
