@@ -66,7 +66,7 @@ from redundancy.viz.plots import write_cycle_figures, write_figures
 from redundancy.viz.report import write_index
 from redundancy.viz.series import write_series
 from redundancy.viz.server import LOCALHOST
-from redundancy.viz.tables import check_table, cycle_table, study_table
+from redundancy.viz.tables import check_table, cycle_table, joint_lines, study_table
 
 
 def describe(robot: Robot) -> str:
@@ -74,12 +74,7 @@ def describe(robot: Robot) -> str:
     mid-range (where the robot has masses)."""
     task = " + ".join([robot.task_axes, *task_labels(robot)[len(robot.task_axes) :]])
     lines = [f"{robot.name}: n = {robot.n} joints, task = tool {task} (m = {robot.m})"]
-    lines.append("joints:")
-    for name, lo, hi, rotary in zip(
-        robot.joint_names, robot.lower, robot.upper, robot.rotary_joints
-    ):
-        lines.append(f"  {name:<20} {span(lo, hi, 'rad' if rotary else 'm')}")
-    lines.append("actuators:")
+    lines += [*joint_lines(robot), "actuators:"]
     for actuator in robot.actuators:
         stroke = span(actuator.lower, actuator.upper, actuator.unit)
         lines.append(
