@@ -453,8 +453,11 @@ def parser() -> argparse.ArgumentParser:
     )
     task = argparse.ArgumentParser(add_help=False)
     task.add_argument("--task", help="task file (TOML); default: the robot's own")
-    search = argparse.ArgumentParser(add_help=False)
-    search.add_argument("--samples", type=sample_count, default=100, help="starts per sweep")
+    sampled = argparse.ArgumentParser(add_help=False)
+    sampled.add_argument(
+        "--samples", type=sample_count, default=100, help="starts per sweep (play: with --best)"
+    )
+    search = argparse.ArgumentParser(add_help=False, parents=[sampled])
     search.add_argument(
         "--method",
         choices=METHODS,
@@ -535,7 +538,7 @@ def parser() -> argparse.ArgumentParser:
         _play_command,
         "play one motion in meshcat: live in a browser, or as an HTML page",
         "--segment 1-2 --best",
-        [robot, task, minimised],
+        [robot, task, minimised, sampled],
     )
     play.add_argument("--segment", help="segment to play (default: the task's first)")
     start = play.add_mutually_exclusive_group()
@@ -554,7 +557,6 @@ def parser() -> argparse.ArgumentParser:
     start.add_argument(
         "--best", action="store_true", help="start from the improved initial configuration"
     )
-    play.add_argument("--samples", type=sample_count, default=100, help="starts searched by --best")
     play.add_argument(
         "--html", metavar="FILE", help="write a self-contained page instead of serving one"
     )
