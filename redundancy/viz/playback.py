@@ -399,10 +399,9 @@ class Playback:
             )
             node.set_transform(meshcat.transformations.translation_matrix(point))
         # the first pose; the animation colours a cylinder red at a stroke limit
-        for path, poses in self._placed(
-            {path: poses[:1] for path, poses in self._poses.items()},
-            self.motion.space.kinematics.take([0]),  # the first sample's
-        )[0].items():
+        first = {path: poses[:1] for path, poses in self._poses.items()}
+        placed, _ = self._placed(first, self.motion.space.kinematics.take(np.zeros(1, dtype=int)))
+        for path, poses in placed.items():
             root[path].set_transform(poses[0])
 
     @property
@@ -452,8 +451,8 @@ class Playback:
             for part, pose in zip(PARTS, cylinder.poses(base, rod)):
                 placed[f"cylinders/{cylinder.name}/{part}"] = pose
             length = np.linalg.norm(rod - base, axis=1)
-            actuator = cylinder.actuator
-            limited[:, column] = at_stroke_limit(length, actuator.lower, actuator.upper)
+            stroke = cylinder.actuator
+            limited[:, column] = at_stroke_limit(length, stroke.lower, stroke.upper)
         return placed, limited
 
     def alarms(self) -> np.ndarray:
