@@ -238,7 +238,7 @@ def nonoptimal_sample(search: SearchResult):
 
 def write_figures(study: Study, folder: Path, segment: str | None = None) -> list[Path]:
     """Write `study_figures` into ``folder``; return their paths."""
-    return _write(study_figures(study, segment), folder)
+    return write_pngs(study_figures(study, segment), folder)
 
 
 def study_figures(study: Study, segment: str | None = None) -> dict:
@@ -521,11 +521,12 @@ def cycle_figures(study: CycleStudy) -> dict:
 
 def write_cycle_figures(study: CycleStudy, folder: Path) -> list[Path]:
     """Write the cycle's figures into ``folder``; return their paths."""
-    return _write(cycle_figures(study), folder)
+    return write_pngs(cycle_figures(study), folder)
 
 
-def _write(figures: dict, folder: Path) -> list[Path]:
-    """Write each figure as a PNG at `DPI` through its Agg canvas: `savefig` would draw it once
+def write_pngs(figures: dict, folder: Path, dpi: float = DPI) -> list[Path]:
+    """Write each figure (by file name) into ``folder`` as a PNG at ``dpi``, through its Agg
+    canvas, and close it; return their paths. Through the canvas: `savefig` would draw it once
     more, to redo the layout its `tight_layout` already fixed; the files are the same. At zlib's
     fastest level (`PNG_COMPRESSION`) a figure is written in two thirds of the time PIL's
     default level takes, into a file about a quarter larger."""
@@ -533,7 +534,7 @@ def _write(figures: dict, folder: Path) -> list[Path]:
     paths = []
     for filename, figure in figures.items():
         path = folder / filename
-        figure.set_dpi(DPI)
+        figure.set_dpi(dpi)
         write = partial(figure.canvas.print_png, pil_kwargs={"compress_level": PNG_COMPRESSION})
         write_atomically(path, write)
         plt.close(figure)
