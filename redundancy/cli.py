@@ -66,7 +66,7 @@ from redundancy.viz.plots import write_cycle_figures, write_figures
 from redundancy.viz.report import write_index
 from redundancy.viz.series import write_series
 from redundancy.viz.server import LOCALHOST
-from redundancy.viz.tables import check_table, cycle_table, study_table
+from redundancy.viz.tables import check_table, cycle_table, joint_lines, study_table
 
 
 def describe(robot: Robot) -> str:
@@ -74,12 +74,7 @@ def describe(robot: Robot) -> str:
     mid-range (where the robot has masses)."""
     task = " + ".join([robot.task_axes, *task_labels(robot)[len(robot.task_axes) :]])
     lines = [f"{robot.name}: n = {robot.n} joints, task = tool {task} (m = {robot.m})"]
-    lines.append("joints:")
-    for name, lo, hi, rotary in zip(
-        robot.joint_names, robot.lower, robot.upper, robot.rotary_joints
-    ):
-        lines.append(f"  {name:<20} {span(lo, hi, 'rad' if rotary else 'm')}")
-    lines.append("actuators:")
+    lines += [*joint_lines(robot), "actuators:"]
     for actuator in robot.actuators:
         stroke = span(actuator.lower, actuator.upper, actuator.unit)
         lines.append(
@@ -218,79 +213,93 @@ def _checked(robot: Robot, option: str | None) -> tuple[str, ...] | None:
     return checked
 
 
-def _study_command(args: argparse.Namespace) -> None:
+def _study_command(args: argparse.Namespace, out: OutputFolder, robot, cycle, options) -> tuple:
     from tqdm import tqdm
 
-    with OutputFolder(args.out) as out:  # committed only if everything below succeeds
-        report, robot, cycle, options = _searched(out, args)
-        chosen = ("velocity", "energy") if args.objective == "both" else (args.objective,)
-        if robot.kinematic_only and args.objective == "both":
-            chosen = ("velocity",)
-            warnings.warn(
-                f"{robot.name} is kinematic only: the study leaves out what needs masses (the "
-                "energy objective, the M_H-weighted law, peak ẋᵀM_Hẋ); give the links "
-                "<inertial>s for them",
-                stacklevel=1,
-            )
-        objectives = tuple(objective(name) for name in chosen)
-        section = partial(
-            _cycle_section, robot, cycle, objectives[0], args.cycles, options, out.staging
+    chosen = ("velocity", "energy") if args.objective == "both" else (args.objective,)
+    if robot.kinematic_only and args.objective == "both":
+        chosen = ("velocity",)
+        warnings.warn(
+            f"{robot.name} is kinematic only: the study leaves out what needs masses (the "
+            "energy objective, the M_H-weighted law, peak ẋᵀM_Hẋ); give the links "
+            "<inertial>s for them",
+            stacklevel=1,
         )
-        # the cycle section and its outputs are computed in a second process meanwhile
-        with Background(section) as pending:
-            study = run_study(
-                robot,
-                cycle,
-                objectives,
-                **options,
-                progress=args.progress,
-                energy_bound=args.energy_bound,
-                cycles=0,
-            )
-            figures = write_figures(study, out.staging)
-            playbacks = write_playbacks(study, out.staging)
-            for run in study.runs:  # each run's figures for the table and report, kept by the
-                run.summary()  # run: computed while the cycle section still runs, not after
-            with tqdm(total=1, desc="cycle section", disable=not args.progress) as waiting:
-                cycle_study, skipped, cycle_figures, cycle_playbacks = pending.result()
-                waiting.update()
-        study = replace(study, cycle_study=cycle_study, cycle_skipped=skipped)
-        print(study_table(study))
-        written = _publish(out, report, study, figures + cycle_figures, playbacks + cycle_playbacks)
-    _written(out, args, *written)
-
-
-def _searched(out: OutputFolder, args: argparse.Namespace) -> tuple[Path, Robot, WorkCycle, dict]:
-    """What the study and the cycle commands read alike: where the report goes (``--json``, or
-    report.json in the output folder), the robot and its task, and the searches' options."""
-    report = out / "report.json" if args.json is None else out.beside(Path(args.json), "--json")
-    robot, cycle = _load_task(_robot(args), args.task)
-    _holdable(robot, cycle)
-    options = dict(
-        samples=args.samples,
-        checked=_checked(robot, args.check),
-        method=args.method,
-        circuit=args.circuit_limits,
+    objectives = tuple(objective(name) for name in chosen)
+    section = partial(
+        _cycle_section, robot, cycle, objectives[0], args.cycles, options, out.staging
     )
-    return report, robot, cycle, options
+    # the cycle section and its outputs are computed in a second process meanwhile
+    with Background(section) as pending:
+        study = run_study(
+            robot,
+            cycle,
+            objectives,
+            **options,
+            progress=args.progress,
+            energy_bound=args.energy_bound,
+            cycles=0,
+        )
+        figures = write_figures(study, out.staging)
+        playbacks = write_playbacks(study, out.staging)
+        for run in study.runs:  # each run's figures for the table and report, kept by the
+            run.summary()  # run: computed while the cycle section still runs, not after
+        with tqdm(total=1, desc="cycle section", disable=not args.progress) as waiting:
+            cycle_study, skipped, cycle_figures, cycle_playbacks = pending.result()
+            waiting.update()
+    study = replace(study, cycle_study=cycle_study, cycle_skipped=skipped)
+    print(study_table(study))
+    return study, figures + cycle_figures, playbacks + cycle_playbacks
 
 
-def _publish(out: OutputFolder, report: Path, result, figures, playbacks) -> tuple[list, ...]:
-    """Write ``result``'s report, time series and index page beside its staged ``figures`` and
-    ``playbacks``; all of them where they will be once committed."""
-    write_report(result, report)
-    series = write_series(result, out.staging)
-    write_index(out.staging, report)
-    return tuple([out.final(p) for p in paths] for paths in (figures, playbacks, series))
+def _cycle_command(args: argparse.Namespace, out: OutputFolder, robot, cycle, options) -> tuple:
+    study = run_cycle(
+        robot,
+        cycle,
+        objective(args.objective),
+        args.cycles,
+        args.strategy,
+        **options,
+        speed=args.gap_speed,
+        progress=args.progress,
+    )
+    print(cycle_table(study))
+    figures = write_cycle_figures(study, out.staging)
+    return study, figures, write_cycle_playbacks(study, out.staging)
 
 
-def _written(out: OutputFolder, args, figures, playbacks, series) -> None:
-    """What the run wrote, a line for the report, the figures, the playback pages and the
-    time series."""
-    print(f"report: {args.json or out.target / 'report.json'}")
-    print(f"figures: {', '.join(str(p) for p in figures)}")
-    print(f"time series (CSV): {', '.join(str(p) for p in series)}")
-    print(f"playbacks: {', '.join(str(p) for p in playbacks)}")
+def _searched(run: Callable[..., tuple]) -> Callable[[argparse.Namespace], None]:
+    """The study and the cycle commands: ``run(args, out, robot, cycle, options)`` on the robot,
+    its task and the searches' options gives (result, figure paths, playback paths); its
+    report (``--json``, or report.json in the output folder), time series and index page are
+    written beside them, all committed together, and what was written is listed."""
+
+    def command(args: argparse.Namespace) -> None:
+        with OutputFolder(args.out) as out:  # committed only if everything below succeeds
+            report = (
+                out / "report.json" if args.json is None else out.beside(Path(args.json), "--json")
+            )
+            robot, cycle = _load_task(_robot(args), args.task)
+            _holdable(robot, cycle)
+            options = dict(
+                samples=args.samples,
+                checked=_checked(robot, args.check),
+                method=args.method,
+                circuit=args.circuit_limits,
+            )
+            result, figures, playbacks = run(args, out, robot, cycle, options)
+            write_report(result, report)
+            written = {
+                "figures": figures,
+                "time series (CSV)": write_series(result, out.staging),
+                "playbacks": playbacks,
+            }
+            write_index(out.staging, report)
+        print(f"report: {args.json or out.target / 'report.json'}")
+        for label, paths in written.items():
+            print(f"{label}: {', '.join(str(out.final(p)) for p in paths)}")
+
+    return command
 
 
 def _cycle_section(robot, cycle, chosen, cycles, options, folder):
@@ -428,25 +437,6 @@ def _check_command(args: argparse.Namespace) -> int:
     return 2 if found.blocking() else 0
 
 
-def _cycle_command(args: argparse.Namespace) -> None:
-    with OutputFolder(args.out) as out:  # committed only if everything below succeeds
-        report, robot, cycle, options = _searched(out, args)
-        study = run_cycle(
-            robot,
-            cycle,
-            objective(args.objective),
-            args.cycles,
-            args.strategy,
-            **options,
-            speed=args.gap_speed,
-            progress=args.progress,
-        )
-        print(cycle_table(study))
-        figures = write_cycle_figures(study, out.staging)
-        written = _publish(out, report, study, figures, write_cycle_playbacks(study, out.staging))
-    _written(out, args, *written)
-
-
 def _robots_command(args: argparse.Namespace) -> None:
     for name in bundled_robots():
         robot = load_robot(name)
@@ -463,8 +453,11 @@ def parser() -> argparse.ArgumentParser:
     )
     task = argparse.ArgumentParser(add_help=False)
     task.add_argument("--task", help="task file (TOML); default: the robot's own")
-    search = argparse.ArgumentParser(add_help=False)
-    search.add_argument("--samples", type=sample_count, default=100, help="starts per sweep")
+    sampled = argparse.ArgumentParser(add_help=False)
+    sampled.add_argument(
+        "--samples", type=sample_count, default=100, help="starts per sweep (play: with --best)"
+    )
+    search = argparse.ArgumentParser(add_help=False, parents=[sampled])
     search.add_argument(
         "--method",
         choices=METHODS,
@@ -517,7 +510,7 @@ def parser() -> argparse.ArgumentParser:
     )
     study = command(
         "study",
-        _study_command,
+        _searched(_study_command),
         "the paper's study: improved initial configurations and strategies compared",
         "--objective velocity --check x1,x2 --out results",
         [robot, task, search, written],
@@ -545,7 +538,7 @@ def parser() -> argparse.ArgumentParser:
         _play_command,
         "play one motion in meshcat: live in a browser, or as an HTML page",
         "--segment 1-2 --best",
-        [robot, task, minimised],
+        [robot, task, minimised, sampled],
     )
     play.add_argument("--segment", help="segment to play (default: the task's first)")
     start = play.add_mutually_exclusive_group()
@@ -564,7 +557,6 @@ def parser() -> argparse.ArgumentParser:
     start.add_argument(
         "--best", action="store_true", help="start from the improved initial configuration"
     )
-    play.add_argument("--samples", type=sample_count, default=100, help="starts searched by --best")
     play.add_argument(
         "--html", metavar="FILE", help="write a self-contained page instead of serving one"
     )
@@ -600,7 +592,7 @@ def parser() -> argparse.ArgumentParser:
     design.add_argument("--out", help="output folder (default: maps/<map file name>)")
     cycle = command(
         "cycle",
-        _cycle_command,
+        _searched(_cycle_command),
         "the work cycle as a machine runs it: whole-cycle plan, repetition, drift",
         "--strategy periodic --cycles 50",
         [robot, task, search, written, minimised],

@@ -9,13 +9,11 @@ Figures read the table; they compute nothing of their own.
 
 from __future__ import annotations
 
-from functools import partial
 from pathlib import Path
 
 from redundancy.study.families import MapFamily
 from redundancy.study.maps import axes_of
-from redundancy.study.output import write_atomically
-from redundancy.viz.plots import pyplot
+from redundancy.viz.plots import pyplot, write_pngs
 
 PANELS = (("gain_pct", "gain over the default start (%)"), ("feasible", "feasible share"))
 # The unit of each axis a map can vary over: the workspace starts and the design parameters.
@@ -71,12 +69,5 @@ def _tick(value) -> str:
 
 def write_map_figures(table, family: MapFamily, folder: Path) -> list[Path]:
     """Write one heatmap figure per objective into ``folder``; return their paths."""
-    plt = pyplot()
-    paths = []
-    for objective in family.objectives:
-        figure = map_figure(table, family, objective)
-        path = folder / f"map_{objective}.png"
-        write_atomically(path, partial(figure.savefig, dpi=100, format="png"))
-        plt.close(figure)
-        paths.append(path)
-    return paths
+    figures = {f"map_{o}.png": map_figure(table, family, o) for o in family.objectives}
+    return write_pngs(figures, folder, dpi=100)

@@ -2,7 +2,7 @@
 
 What is drawn: every link of the URDF, locked links included (Pinocchio's meshcat visualizer,
 from the URDF's visual geometry; a link without any, or whose meshes no file answers, as the
-convex hull of its origin, the joints it carries and the actuators' points on it, `Hulls`);
+convex hull of its origin, the joints it carries and the actuators' points on it, `hull`);
 every `LinearCylinder` and `LinkageCylinder` as a barrel from its base point and a rod ending at
 its rod point, red while its length is at or past a stroke limit; each linkage's
 rocker and coupler as bars between their pins; the desired path, the path the tool traced (in
@@ -45,8 +45,9 @@ import numpy as np
 
 from redundancy.errors import InvalidInputError, RedundancyError, RobotDescriptionError
 from redundancy.model.actuators import LinearCylinder
+from redundancy.model.kinematics import Kinematics
 from redundancy.model.linkage import LinkageCylinder
-from redundancy.model.robot import AXES
+from redundancy.model.robot import AXES, frame_id
 from redundancy.planning.integrate import Trajectory
 from redundancy.planning.tasks import WorkCycle
 from redundancy.study.cycles import CycleStudy
@@ -73,6 +74,7 @@ COLOURS = {
     "traced": 0x1F4FB4,
     "points": 0x202020,
     "grid": 0xB4BAC4,
+    "hull": 0xE8A33D,
 }
 BACKGROUND = [0.93, 0.94, 0.96]  # RGB, 0-1: light, yet light links stand out
 
@@ -148,31 +150,11 @@ class Cylinder:
         u = (rod - base) / np.linalg.norm(rod - base, axis=1, keepdims=True)
         return _between(base, base + self.part * u), _between(rod - self.part * u, rod)
 
-    def at_limit(self, length: np.ndarray) -> np.ndarray:
-        """Whether each length (k,) in m is within `LIMIT_MARGIN` of a stroke limit or past it."""
-        return at_stroke_limit(length, self.actuator.lower, self.actuator.upper)
-
 
 def at_stroke_limit(x: np.ndarray, lower, upper) -> np.ndarray:
     """Whether each actuator value x (..., n) (or (k,) of one actuator) is within `LIMIT_MARGIN`
     (m or rad) of its stroke's ``lower`` or ``upper`` end (n,), or past it."""
     return np.minimum(x - lower, upper - x) <= LIMIT_MARGIN
-
-
-def _urdf(robot):
-    """yourdfpy's parse of the URDF the robot was built from (its text: a xacro expanded, the
-    meshes found by absolute path)."""
-    import yourdfpy
-
-    text = io.BytesIO(robot.description.encode())
-    return yourdfpy.URDF.load(text, build_scene_graph=False, load_meshes=False).robot
-
-
-def _drawn(visual, missing: tuple[str, ...]) -> bool:
-    """Whether a link's ``visual`` can be drawn: a box, cylinder or sphere, or a mesh that a file
-    answers."""
-    mesh = visual.geometry.mesh
-    return mesh is None or mesh.filename not in missing
 
 
 def _visual_model(robot):
@@ -204,13 +186,21 @@ def link_points(robot) -> dict[str, np.ndarray]:
     frame: its origin, the origins of the joints it carries and the actuators' points on it
     (a cylinder's base and rod, a linkage's pins), locked links included. A link is drawn as
     their convex hull, so that the cylinders sit on it."""
+    import yourdfpy
+
     from redundancy.model.parameters import Point
 
-    parse = _urdf(robot)
-    points = {
+    # the robot's URDF text: a xacro expanded, the meshes found by absolute path
+    text = io.BytesIO(robot.description.encode())
+    parse = yourdfpy.URDF.load(text, build_scene_graph=False, load_meshes=False).robot
+    missing = robot.missing_meshes
+    points = {  # the links none of whose visuals is a shape or a mesh that a file answers
         link.name: [np.zeros(3)]
         for link in parse.links
-        if not any(_drawn(v, robot.missing_meshes) for v in link.visuals)
+        if all(
+            v.geometry.mesh is not None and v.geometry.mesh.filename in missing
+            for v in link.visuals
+        )
     }
     for joint in parse.joints:
         if joint.parent in points and joint.origin is not None:
@@ -237,51 +227,6 @@ def hull(points: np.ndarray, thickness: float) -> tuple[np.ndarray, np.ndarray]:
     return grown[used], np.searchsorted(used, found.simplices)
 
 
-class Hulls:
-    """The links without a drawable visual: each the convex hull of `link_points`, ``size`` /
-    50 thick (m). Like Pinocchio's visualizer, `display` poses them on the node ``viewer``."""
-
-    COLOUR = 0xE8A33D
-
-    def __init__(self, robot, viewer, size: float) -> None:
-        from redundancy.model.robot import frame_id
-
-        self.robot, self.viewer = robot, viewer
-        self.points = link_points(robot)
-        self.frames = {link: frame_id(robot.model, link) for link in self.points}
-        mg = _meshcat().geometry
-        material = mg.MeshLambertMaterial(color=self.COLOUR)
-        for link, points in self.points.items():
-            vertices, faces = hull(points, size / 50)
-            viewer[f"links/hulls/{link}"].set_object(
-                mg.TriangularMeshGeometry(vertices, faces), material
-            )
-
-    def display(self, q: np.ndarray) -> None:
-        """Pose the hulls at configuration ``q`` (n,)."""
-        import pinocchio as pin
-
-        model, data = self.robot.model, self.robot.data
-        pin.framesForwardKinematics(model, data, q)
-        for link, frame in self.frames.items():
-            self.viewer[f"links/hulls/{link}"].set_transform(data.oMf[frame].homogeneous)
-
-
-def _links(robot, visuals, root, size: float) -> list:
-    """The drawings of the links under the node ``root``: Pinocchio's meshcat visualizer of the
-    ``visuals`` (`_visual_model`, where there are any), and the `Hulls` of the links without.
-    Each poses its links with ``display(q)`` on the node its ``viewer`` attribute names."""
-    from pinocchio.visualize import MeshcatVisualizer
-
-    drawings: list = [Hulls(robot, root, size)]
-    if visuals is not None:
-        links = MeshcatVisualizer(robot.model, None, visuals)
-        links.initViewer(viewer=root)
-        links.loadViewerModel(rootNodeName="links")
-        drawings.append(links)
-    return drawings
-
-
 class Playback:
     """The drawing of one motion (a `Trajectory` of one) and its poses over time.
 
@@ -304,7 +249,7 @@ class Playback:
         self.t = motion.t[0]
         step = math.ceil(1 / (FRAME_RATE * (self.t[1] - self.t[0])) - 1e-9)
         self.samples = np.unique(np.append(np.arange(0, len(self.t), step), len(self.t) - 1))
-        kinematics = robot.kinematics(self.q)
+        kinematics = motion.space.kinematics  # the motion's own, as the integrator evaluated it
         self.traced = robot.tool(kinematics).position
         rows = [AXES.index(a) for a in robot.task_axes]
 
@@ -334,36 +279,43 @@ class Playback:
             if isinstance(actuator, LinkageCylinder)
             for bar, (a, b) in actuator.bars(kinematics).items()
         ]
-        self._fit_camera(np.concatenate([self._extent(), self.traced, self.points]))
-        self._links: list = []  # the links' drawings (`_links`), once drawn
+        self.hulls = link_points(robot)  # the links without a drawable visual, drawn as hulls
+        self.frames = {link: frame_id(robot.model, link) for link in self.hulls}
+        self._poses, extent = self._link_poses(self.q[self.samples])  # the links' at the samples
+        self._fit_camera(np.concatenate([extent, self.traced, self.points]))
 
-    def _extent(self) -> np.ndarray:
-        """Points the view must hold at every shown sample, (P, 3) in m: every Pinocchio
-        frame's origin (the hulls' links and points among them) and the corners of each visual
-        geometry's bounding box."""
+    def _link_poses(self, q: np.ndarray) -> tuple[dict[str, np.ndarray], np.ndarray]:
+        """The links' poses at the configurations ``q`` (k, n), from one Pinocchio pass each (the
+        compiled pass tracks points, not orientations): each hull's link frame and each visual's
+        placement, scaled as Pinocchio's visualizer scales its mesh, (k, 4, 4) by node path
+        below the scene's root; and the points the view must hold, (P, 3) in m: every frame's
+        origin and the corners of each visual's bounding box."""
         import pinocchio as pin
 
-        model = self.robot.model
-        data = model.createData()
-        found: list[np.ndarray] = []
-        for q in self.q[self.samples]:
-            pin.framesForwardKinematics(model, data, q)
-            found.append(np.array([frame.translation for frame in data.oMf]))
-        if self.visuals is None:
-            return np.concatenate(found)
+        model, data = self.robot.model, self.robot.data
+        items = [] if self.visuals is None else self.visuals.geometryObjects
+        geometry = None if self.visuals is None else self.visuals.createData()
         boxes = []
-        for item in self.visuals.geometryObjects:
+        for item in items:
             item.geometry.computeLocalAABB()
             low, high = item.geometry.aabb_local.min_, item.geometry.aabb_local.max_
             boxes.append(
                 np.array([[(low, high)[b >> k & 1][k] for k in range(3)] for b in range(8)])
             )
-        geometry = self.visuals.createData()
-        for q in self.q[self.samples]:
-            pin.updateGeometryPlacements(model, data, self.visuals, geometry, q)
-            for corners, placed in zip(boxes, geometry.oMg):
-                found.append(corners @ placed.rotation.T + placed.translation)
-        return np.concatenate(found)
+        poses: dict[str, list[np.ndarray]] = {}
+        found = []
+        for row in q:
+            pin.framesForwardKinematics(model, data, row)
+            found.append(np.array([frame.translation for frame in data.oMf]))
+            for link, frame in self.frames.items():
+                poses.setdefault(f"links/hulls/{link}", []).append(data.oMf[frame].homogeneous)
+            if geometry is not None:
+                pin.updateGeometryPlacements(model, data, self.visuals, geometry)
+                for item, corners, placed in zip(items, boxes, geometry.oMg):
+                    found.append(corners @ placed.rotation.T + placed.translation)
+                    scaled = placed.homogeneous @ np.diag([*item.meshScale, 1.0])
+                    poses.setdefault(f"links/visuals/{item.name}", []).append(scaled)
+        return {path: np.array(kept) for path, kept in poses.items()}, np.concatenate(found)
 
     def _fit_camera(self, points: np.ndarray) -> None:
         axes = "".join(sorted(self.robot.task_axes))
@@ -399,7 +351,19 @@ class Playback:
         root = vis[ROOT]
         root.set_transform(meshcat.transformations.translation_matrix(-self.centre))
 
-        self._links = _links(self.robot, self.visuals, root, self.size)
+        # the links: the hulls, ``size`` / 50 thick (m), and the visual geometry as
+        # Pinocchio's visualizer loads it; both posed by `placements`
+        material = mg.MeshLambertMaterial(color=COLOURS["hull"])
+        for link, points in self.hulls.items():
+            vertices, faces = hull(points, self.size / 50)
+            mesh = mg.TriangularMeshGeometry(vertices, faces)
+            root[f"links/hulls/{link}"].set_object(mesh, material)
+        if self.visuals is not None:
+            from pinocchio.visualize import MeshcatVisualizer
+
+            links = MeshcatVisualizer(self.robot.model, None, self.visuals)
+            links.initViewer(viewer=root)
+            links.loadViewerModel(rootNodeName="links")
 
         for cylinder in self.cylinders:
             for part, radius in zip(PARTS, (0.06, 0.035)):
@@ -435,7 +399,9 @@ class Playback:
             )
             node.set_transform(meshcat.transformations.translation_matrix(point))
         # the first pose; the animation colours a cylinder red at a stroke limit
-        for path, poses in self.placements(self.q[:1])[0].items():
+        first = {path: poses[:1] for path, poses in self._poses.items()}
+        placed, _ = self._placed(first, self.motion.space.kinematics.take(np.zeros(1, dtype=int)))
+        for path, poses in placed.items():
             root[path].set_transform(poses[0])
 
     @property
@@ -470,26 +436,23 @@ class Playback:
         ``q`` (k, n): their transforms (k, 4, 4) by node path below the scene's root, in the
         order the scene first poses them, and which cylinders are at or past a stroke limit,
         (k, C) bool. One kinematics pass serves the whole batch."""
-        if not self._links:
-            raise InvalidInputError("draw the playback into a visualizer first")
-        # Pinocchio's visualizer poses the links on its viewer's nodes, one configuration at a
-        # time; a stand-in in its place keeps those poses.
-        poses = Poses()
-        for drawing in self._links:
-            drawing.viewer = poses
-            for qi in q:
-                drawing.display(qi)
-        placed = {path: np.array(kept) for path, kept in poses.kept.items()}
-        kinematics = self.robot.kinematics(q)
+        return self._placed(self._link_poses(q)[0], self.robot.kinematics(q))
+
+    def _placed(self, links: dict, kinematics: Kinematics) -> tuple[dict, np.ndarray]:
+        """`placements`, from the links' poses ``links`` (`_link_poses`) and the tracked
+        frames' ``kinematics`` at the same configurations."""
+        placed = dict(links)
         for actuator, bar, _ in self.bars:
             a, b = actuator.bars(kinematics)[bar]
             placed[f"linkages/{actuator.name}/{bar}"] = _between(a, b)
-        limited = np.empty((len(q), len(self.cylinders)), dtype=bool)
+        limited = np.empty((len(kinematics.q), len(self.cylinders)), dtype=bool)
         for column, cylinder in enumerate(self.cylinders):
             base, rod = cylinder.actuator.ends(kinematics)
             for part, pose in zip(PARTS, cylinder.poses(base, rod)):
                 placed[f"cylinders/{cylinder.name}/{part}"] = pose
-            limited[:, column] = cylinder.at_limit(np.linalg.norm(rod - base, axis=1))
+            length = np.linalg.norm(rod - base, axis=1)
+            stroke = cylinder.actuator
+            limited[:, column] = at_stroke_limit(length, stroke.lower, stroke.upper)
         return placed, limited
 
     def alarms(self) -> np.ndarray:
@@ -541,7 +504,7 @@ class Playback:
         and each cylinder part's colour."""
         animation = _meshcat().animation
         frames = (self.t[self.samples] * FRAME_RATE).tolist()
-        placed, limited = self.placements(self.q[self.samples])
+        placed, limited = self._placed(self._poses, self.motion.space.kinematics.take(self.samples))
         root = vis[ROOT]
 
         def clip(path: str, *tracks: tuple[str, str, list]) -> tuple[Any, Any]:
@@ -566,21 +529,6 @@ class Playback:
                 path = f"cylinders/{cylinder.name}/{part}/<object>"
                 clips.append(clip(path, ("material.color", "color", colours)))
         return animation.Animation(dict(clips), default_framerate=FRAME_RATE)
-
-
-class Poses:
-    """A stand-in for a meshcat node that keeps the transforms set on the nodes below it:
-    ``kept`` maps each node's path (below this one) to its transforms (4, 4), in order."""
-
-    def __init__(self, kept: dict[str, list[np.ndarray]] | None = None, path: str = "") -> None:
-        self.kept = {} if kept is None else kept
-        self.path = path
-
-    def __getitem__(self, name: str) -> Poses:
-        return Poses(self.kept, f"{self.path}/{name}" if self.path else name)
-
-    def set_transform(self, matrix: np.ndarray) -> None:
-        self.kept.setdefault(self.path, []).append(matrix)
 
 
 class Recording:

@@ -19,7 +19,7 @@ from redundancy.model.robot import AXES
 from redundancy.planning.cycles import ReturnMap
 from redundancy.planning.integrate import Trajectory
 from redundancy.planning.starts import SearchResult
-from redundancy.study.cycles import CycleStudy
+from redundancy.study.cycles import CycleStudy, named_values
 from redundancy.study.output import write_atomically
 from redundancy.study.study import Study
 
@@ -236,17 +236,9 @@ def nonoptimal_sample(search: SearchResult):
     return min(candidates, key=lambda s: s.values)
 
 
-def _start(study: Study, values) -> str:
-    """The held actuators' start ``values`` in words, each in its unit."""
-    actuators = study.robot.actuators
-    return ", ".join(
-        f"{name} = {value:.3f} {actuators[name].unit}" for name, value in zip(study.held, values)
-    )
-
-
 def write_figures(study: Study, folder: Path, segment: str | None = None) -> list[Path]:
     """Write `study_figures` into ``folder``; return their paths."""
-    return _write(study_figures(study, segment), folder)
+    return write_pngs(study_figures(study, segment), folder)
 
 
 def study_figures(study: Study, segment: str | None = None) -> dict:
@@ -270,7 +262,7 @@ def study_figures(study: Study, segment: str | None = None) -> dict:
         search = study.search(name, segment)
         if search.best is not None:
             best = search.best_motion  # as the study ran it
-            start = _start(study, search.best.values)
+            start = named_values(study.robot, study.held, search.best.values)
             figures[f"fig{number}b_best_{name}_{segment}.png"] = motion_figure(
                 best, f"min {objective.label}, segment {segment}, optimal start {start}"
             )
@@ -284,7 +276,7 @@ def study_figures(study: Study, segment: str | None = None) -> dict:
             nonoptimal = motion_figure(
                 sweep.motion(other),
                 f"min {objective.label}, segment {segment}, non-optimal start "
-                f"{_start(study, other.values)}",
+                f"{named_values(study.robot, study.held, other.values)}",
             )
             figures[f"fig4c_nonoptimal_{name}_{segment}.png"] = nonoptimal
             optimal = figures.get(f"fig4b_best_{name}_{segment}.png")
@@ -529,11 +521,12 @@ def cycle_figures(study: CycleStudy) -> dict:
 
 def write_cycle_figures(study: CycleStudy, folder: Path) -> list[Path]:
     """Write the cycle's figures into ``folder``; return their paths."""
-    return _write(cycle_figures(study), folder)
+    return write_pngs(cycle_figures(study), folder)
 
 
-def _write(figures: dict, folder: Path) -> list[Path]:
-    """Write each figure as a PNG at `DPI` through its Agg canvas: `savefig` would draw it once
+def write_pngs(figures: dict, folder: Path, dpi: float = DPI) -> list[Path]:
+    """Write each figure (by file name) into ``folder`` as a PNG at ``dpi``, through its Agg
+    canvas, and close it; return their paths. Through the canvas: `savefig` would draw it once
     more, to redo the layout its `tight_layout` already fixed; the files are the same. At zlib's
     fastest level (`PNG_COMPRESSION`) a figure is written in two thirds of the time PIL's
     default level takes, into a file about a quarter larger."""
@@ -541,7 +534,7 @@ def _write(figures: dict, folder: Path) -> list[Path]:
     paths = []
     for filename, figure in figures.items():
         path = folder / filename
-        figure.set_dpi(DPI)
+        figure.set_dpi(dpi)
         write = partial(figure.canvas.print_png, pil_kwargs={"compress_level": PNG_COMPRESSION})
         write_atomically(path, write)
         plt.close(figure)

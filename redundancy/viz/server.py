@@ -12,20 +12,12 @@ meshcat's ``zmq_url=`` and ``web_url=`` lines.
 from __future__ import annotations
 
 import sys
+from functools import partial
+from types import SimpleNamespace
 
 from redundancy.study.background import die_with_parent
 
 LOCALHOST = "127.0.0.1"
-
-
-class Listening:
-    """A tornado application that listens on one address: all meshcat's server asks of it."""
-
-    def __init__(self, application, address: str):
-        self.application, self.address = application, address
-
-    def listen(self, port: int, **options):
-        return self.application.listen(port, self.address, **options)
 
 
 def main() -> None:
@@ -47,7 +39,8 @@ def main() -> None:
             # a host's rules come before the application's own, so this one page replaces
             # meshcat's at web_url while its scripts and its socket stay as they are
             application.add_handlers(r".*", [(r"/static/", Page)])
-            return Listening(application, web)
+            # all meshcat's server asks of its application: to listen, here on ``web`` alone
+            return SimpleNamespace(listen=partial(application.listen, address=web))
 
     bridge = Bridge(host=LOCALHOST)
     print(f"zmq_url={bridge.zmq_url}\nweb_url={bridge.web_url}", flush=True)

@@ -267,14 +267,19 @@ def fixed_point_words(mapped: ReturnMap, unit: str) -> str:
     )
 
 
+def joint_lines(robot) -> list[str]:
+    """The robot's joints and their ranges (mm, degrees), under a heading."""
+    ranges = zip(robot.joint_names, robot.lower, robot.upper, robot.rotary_joints)
+    return ["joints:"] + [
+        f"  {name:<20} {span(lo, hi, 'rad' if rotary else 'm')}" for name, lo, hi, rotary in ranges
+    ]
+
+
 def check_table(found: Check) -> str:
     """The one-screen check of a robot: lengths in mm, angles in degrees."""
     robot = found.robot
-    lines = [f"{robot.name}: n = {robot.n}, m = {robot.m} (task {robot.task_axes})", "joints:"]
-    for name, lo, hi, rotary in zip(
-        robot.joint_names, robot.lower, robot.upper, robot.rotary_joints
-    ):
-        lines.append(f"  {name:<20} {span(lo, hi, 'rad' if rotary else 'm')}")
+    lines = [f"{robot.name}: n = {robot.n}, m = {robot.m} (task {robot.task_axes})"]
+    lines += joint_lines(robot)
     lines.append("actuators (values over the joint's range against the stroke):")
     for a in found.actuators:
         unit = "rad" if a.rotary else "m"
