@@ -1,7 +1,5 @@
-"""Loading robots: bundled names, ``robot.toml`` descriptions and URDFs, with their actuators.
-
-The URDF itself is read and built into a Pinocchio model by `redundancy.model.urdf`.
-"""
+"""Loading robots: bundled names, ``robot.toml`` descriptions and URDFs (read and built by
+`redundancy.model.urdf`), with their actuators."""
 
 from __future__ import annotations
 
@@ -15,20 +13,12 @@ import numpy as np
 import pinocchio as pin
 from lxml import etree
 
-from redundancy.errors import (
-    InvalidInputError,
-    RobotDescriptionError,
-    SingularConfigurationError,
-)
-from redundancy.model.actuators import ActuatorSet
+from redundancy.errors import InvalidInputError, RobotDescriptionError, SingularConfigurationError
+from redundancy.model.actuators import ActuatorSet, attach_frame
 from redundancy.model.hydraulics import Circuit, circuit_from_table, read_hydraulics_file
 from redundancy.model.robot import AXES, Robot, frame_id
 from redundancy.model.schema import Description, Overrides, read_toml, validate
-from redundancy.model.transmissions import (
-    read_actuator_tables,
-    read_cylinders,
-    read_transmissions,
-)
+from redundancy.model.transmissions import read_actuator_tables, read_cylinders, read_transmissions
 from redundancy.model.urdf import Urdf, build_model, read_urdf
 
 
@@ -44,9 +34,8 @@ def bundled_robots() -> list[str]:
 
 def _read_description(path: Path) -> Description:
     """The robot description ``path`` (a ``robot.toml``), checked."""
-    return validate(
-        Description, read_toml(path, "robot description"), str(path), error=RobotDescriptionError
-    )
+    table = read_toml(path, "robot description")
+    return validate(Description, table, str(path), error=RobotDescriptionError)
 
 
 URDF_SUFFIXES = (".urdf", ".xacro")
@@ -145,21 +134,12 @@ def _add_payload(model: pin.Model, frame: str, payload: float) -> None:
 def _tool(model: pin.Model, description: Description, where: str) -> str:
     """The tool frame: ``tool_frame``, a link, or ``tool = {link = "...", xyz = [...]}``, a
     point on a link, added to ``model`` as the frame "tool point"; by default the last link."""
-    bodies = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
     tool = description.tool
     if tool is not None:
-        if tool.link not in bodies:
-            raise RobotDescriptionError(
-                f"{where} tool.link = {tool.link!r} is not a link of the URDF; links: {bodies}"
-            )
-        parent_id = model.getFrameId(tool.link, pin.FrameType.BODY)
-        parent = model.frames[parent_id]
-        placement = parent.placement * pin.SE3(np.eye(3), np.array(tool.xyz))
-        frame = pin.Frame(
-            TOOL_POINT, parent.parentJoint, parent_id, placement, pin.FrameType.OP_FRAME
-        )
-        model.addFrame(frame, False)
+        refused = f"{where} tool.link = {{link!r}} is not a link of the URDF; links: {{links}}"
+        attach_frame(model, TOOL_POINT, tool.link, np.array(tool.xyz), refused)
         return TOOL_POINT
+    bodies = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
     tool_frame = description.tool_frame or bodies[-1]
     if tool_frame not in bodies:
         raise RobotDescriptionError(

@@ -1,7 +1,5 @@
-"""Actuator declarations, read in both forms with one schema.
-
-An actuator is declared beside an untouched URDF, as an ``[actuators.<name>]`` table of
-``robot.toml``::
+"""Actuator declarations, read in both forms with one schema (docs/machines.md): an
+``[actuators.<name>]`` table of ``robot.toml``::
 
     [actuators.x1]
     kind = "LinearCylinder"                  # an ActuatorMap subclass, by class name
@@ -10,8 +8,9 @@ An actuator is declared beside an untouched URDF, as an ``[actuators.<name>]`` t
     base = {link = "column", xyz = [0.383, 0, -0.964]}   # the kind's own parameters
     rod = {link = "boom1", xyz = [0.370, 0, -0.069]}
 
-or, equivalently, as a ``<transmission>`` element of the URDF (URDF parsers, urdfdom under
-Pinocchio and yourdfpy alike, drop transmissions, so they are read here with lxml)::
+or a URDF ``<transmission>`` of type ``redundancy/<kind>`` (read here with lxml: URDF parsers
+drop transmissions), whose one ``<actuator>``, named as the transmission or not at all, holds
+the stroke and any ``<cylinder>`` (hydraulic data, as ``[hydraulics.cylinders.<name>]``)::
 
     <transmission name="x1">
       <type>redundancy/LinearCylinder</type>
@@ -24,16 +23,8 @@ Pinocchio and yourdfpy alike, drop transmissions, so they are read here with lxm
       <attachment link="boom1" xyz="0.370 0 -0.069"/>
     </transmission>
 
-The transmission is the actuator: its one ``<actuator>`` child, which holds the stroke and any
-cylinder data, takes the transmission's name or none (another name is refused, not ignored).
-The kind's own parameters are those it lists in ``parameters``
-(`redundancy.model.parameters`): ``Prismatic`` takes ``offset`` (x = q + offset), ``Identity``
-nothing more, ``LinkageCylinder`` (`redundancy.model.linkage`) ``base``, ``rocker`` and
-``coupler`` (a point and, for the last two, a length) and ``branch``. Transmissions of other
-types (e.g. ROS ``transmission_interface/SimpleTransmission``) are left alone. A ``<cylinder>`` in
-the ``<actuator>`` gives the cylinder's hydraulic data, as a ``[hydraulics.cylinders.<name>]``
-table of ``robot.toml`` does (`redundancy.model.hydraulics`; the machine's supply stays in the
-TOML).
+Transmissions of other types (e.g. ROS ``transmission_interface/SimpleTransmission``) are left
+alone.
 """
 
 from __future__ import annotations
@@ -51,8 +42,7 @@ from redundancy.model.linkage import LinkageCylinder
 from redundancy.model.parameters import REQUIRED, number_or_text
 from redundancy.model.schema import MAX_OFFSET, CylinderTable, Table, excerpt, validate
 
-# The kinds are found by class name among ActuatorMap's subclasses: the bundled ones beyond
-# actuators.py are defined by importing their modules.
+# Kinds are found among ActuatorMap's subclasses: importing a module defines its kinds.
 BUNDLED_KINDS = (LinkageCylinder,)
 
 PREFIX = "redundancy/"

@@ -113,19 +113,20 @@ def _document(path: Path) -> bytes:
 def _check_tree(robot: yourdfpy.Robot, source: str) -> None:
     """Every joint joins two links of the URDF and a mimic joint follows a joint, one link is
     the root, and a revolute or prismatic joint gives its range, lower ≤ upper."""
-    links = {link.name for link in robot.links}
+    links, joints = {link.name for link in robot.links}, {joint.name for joint in robot.joints}
     for joint in robot.joints:
         where = f"{source}: not a valid URDF: joint {excerpt(joint.name)}"
-        for end in ("parent", "child"):
-            if getattr(joint, end) not in links:
-                raise RobotDescriptionError(
-                    f"{where}: <{end} link={excerpt(getattr(joint, end))}> is not a link of "
-                    "the URDF"
-                )
+        for end, name in (("parent", joint.parent), ("child", joint.child)):
+            if name not in links:
+                raise RobotDescriptionError(f"{where}: <{end} link={excerpt(name)}> is not a link")
         limit = joint.limit
         if joint.type in LIMITED and (limit is None or None in (limit.lower, limit.upper)):
             raise RobotDescriptionError(
                 f'{where} is {joint.type}: it needs <limit lower="..." upper="..."/> (rad or m)'
+            )
+        if joint.mimic is not None and joint.mimic.joint not in joints:
+            raise RobotDescriptionError(
+                f"{where}: <mimic joint={excerpt(joint.mimic.joint)}> follows no joint of the URDF"
             )
     inverted = [
         f"{j.name[:EXCERPT]} [{j.limit.lower:g}, {j.limit.upper:g}]"
@@ -136,13 +137,6 @@ def _check_tree(robot: yourdfpy.Robot, source: str) -> None:
         raise RobotDescriptionError(
             f"{source}: joint limits must have lower ≤ upper; inverted: {', '.join(inverted)}"
         )
-    joints = {joint.name for joint in robot.joints}
-    for joint in robot.joints:
-        if joint.mimic is not None and joint.mimic.joint not in joints:
-            raise RobotDescriptionError(
-                f"{source}: not a valid URDF: joint {excerpt(joint.name)}: <mimic joint="
-                f"{excerpt(joint.mimic.joint)}> follows no joint of the URDF"
-            )
     roots = sorted(links - {joint.child for joint in robot.joints})
     if len(roots) != 1:
         raise RobotDescriptionError(
@@ -264,10 +258,10 @@ def _inertial_values(
     default: str | None = None,
     lower: float = -math.inf,
 ) -> np.ndarray:
-    """The numbers the ``attributes`` of the ``<inertial>``'s child ``tag`` hold, each finite and
-    ≥ ``lower``: one per attribute, or as many as ``default`` holds where it is given (the text
-    of an attribute left out, or of every one where the child is); otherwise one line naming
-    the link (``where``), the child as written and what it must be (``meaning``)."""
+    """The finite numbers ≥ ``lower`` the ``attributes`` of the ``<inertial>``'s child ``tag``
+    hold, one each (as many as ``default`` holds where given: the text of an attribute left
+    out, or of all where the child is); else one line: the link (``where``), the child as
+    written and what it must be (``meaning``)."""
     element = inertial.find(tag)
     if element is None and default is None:
         raise RobotDescriptionError(f"{where}: <inertial> has no <{tag}>; it needs one: {meaning}")
@@ -278,17 +272,21 @@ def _inertial_values(
     if len(values) != each * len(attributes) or not all(
         isinstance(v, float) and math.isfinite(v) and v >= lower for v in values
     ):
-        written = etree.tostring(element, encoding="unicode", with_tail=False)
-        raise RobotDescriptionError(f"{where} {written} must be {meaning}")
+        raise RobotDescriptionError(f"{where} {_written(element)} must be {meaning}")
     return np.array(values)
 
 
+def _written(element: etree._Element | None) -> str:
+    return etree.tostring(element, encoding="unicode", with_tail=False)
+
+
 def _check_inertials(root: etree._Element, source: str) -> tuple[str, ...]:
-    """Every link's ``<inertial>`` (of the URDF ``source``) holds numbers a body can have: its
-    origin finite, its mass finite and ≥ 0, its inertia finite and a body's rotational inertia
-    (`_check_inertia`). (A parser that cannot read one may drop it without a word, leaving the
-    link massless, or keep a negative mass or moment.) Returns the links whose ``<inertial>``
-    gives a mass of 0."""
+    """Every link's ``<inertial>`` holds numbers a body can have (a parser may drop one it
+    cannot read without a word, or keep a negative mass): its origin finite, its mass finite
+    and ≥ 0, its inertia a body's rotational inertia, symmetric positive semi-definite with
+    each principal moment at most the sum of the other two (six entries make it symmetric;
+    with the moments a ≤ b ≤ c, a + b ≥ c gives the rest), to `INERTIA_TOLERANCE`. Returns
+    the links whose mass is 0."""
     zero_masses = []
     for link in root.findall("link"):
         inertial = link.find("inertial")
@@ -301,28 +299,15 @@ def _check_inertials(root: etree._Element, source: str) -> tuple[str, ...]:
         if _inertial_values(inertial, "mass", ("value",), where, mass, lower=0.0)[0] == 0:
             zero_masses.append(link.get("name"))
         inertia = f"six finite numbers {', '.join(INERTIA)} (kg·m², about the centre of mass)"
-        _check_inertia(
-            inertial, _inertial_values(inertial, "inertia", INERTIA, where, inertia), where
-        )
+        entries = _inertial_values(inertial, "inertia", INERTIA, where, inertia)
+        moments = np.linalg.eigvalsh(entries[[[0, 1, 2], [1, 3, 4], [2, 4, 5]]])
+        if moments[0] + moments[1] < moments[2] - INERTIA_TOLERANCE * np.abs(moments).max():
+            raise RobotDescriptionError(
+                f"{where} {_written(inertial.find('inertia'))} is not a body's rotational "
+                f"inertia: its principal moments [{', '.join(f'{m:.4g}' for m in moments)}] "
+                "kg·m² must be ≥ 0 and each at most the sum of the other two"
+            )
     return tuple(zero_masses)
-
-
-def _check_inertia(inertial: etree._Element, entries: np.ndarray, where: str) -> None:
-    """The ``<inertia>`` of ``inertial`` (its ``entries``, ixx ... izz) is a body's rotational
-    inertia: symmetric positive semi-definite, and each principal moment at most the sum of the
-    other two, to `INERTIA_TOLERANCE`; otherwise one line naming the link (``where``), the
-    element as written and its principal moments. (Six entries make a symmetric matrix; with
-    the moments a ≤ b ≤ c, a + b ≥ c gives the other two inequalities and a ≥ c − b ≥ 0.)"""
-    ixx, ixy, ixz, iyy, iyz, izz = entries
-    moments = np.linalg.eigvalsh([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
-    if moments[0] + moments[1] >= moments[2] - INERTIA_TOLERANCE * np.abs(moments).max():
-        return
-    written = etree.tostring(inertial.find("inertia"), encoding="unicode", with_tail=False)
-    raise RobotDescriptionError(
-        f"{where} {written} is not a body's rotational inertia: its principal moments "
-        f"[{', '.join(f'{m:.4g}' for m in moments)}] kg·m² must be ≥ 0 and each at most the "
-        "sum of the other two"
-    )
 
 
 def _mesh_file(filename: str, folder: Path) -> Path | None:
