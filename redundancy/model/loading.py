@@ -51,21 +51,21 @@ def _file_name(path: Path) -> str:
 
 def _describe(robot: str | Path) -> tuple[str, Path, Description, str]:
     """Name, folder, description (robot.toml contents) and where the description came from, of
-    a bundled name or a file path. A robot loaded from a path is named after its folder (a
-    ``robot.toml``) or its file (a URDF or xacro). Paths a file names are relative to the folder
-    the file itself is in: reached through a symbolic link, the folder the link points into."""
+    a bundled name or a file path (named after its folder, a ``robot.toml``'s, or its file, a
+    URDF's; paths it names are relative to the folder the file, not a link to it, is in)."""
     if not isinstance(robot, str | Path):
         raise InvalidInputError(f"robot must be a name or a path; got {robot!r}")
     path = Path(robot)
-    if path.suffix in URDF_SUFFIXES:
+    urdf = path.suffix in URDF_SUFFIXES
+    if urdf or path.suffix == ".toml":
         if not path.is_file():
-            raise RobotDescriptionError(f"no URDF file at {path}")
-        bare = Description(urdf=path.name, tool_frame=None, task_axes=AXES)
-        return _file_name(path), path.resolve().parent, bare, str(path)
-    if path.suffix == ".toml":
-        if not path.is_file():
-            raise RobotDescriptionError(f"no robot description at {path}")
+            raise RobotDescriptionError(
+                f"no {'URDF file' if urdf else 'robot description'} at {path}"
+            )
         folder = path.resolve().parent
+        if urdf:
+            bare = Description(urdf=path.name, tool_frame=None, task_axes=AXES)
+            return _file_name(path), folder, bare, str(path)
         return folder.name, folder, _read_description(path), str(path)
     names = bundled_robots()
     if str(robot) not in names:
@@ -107,12 +107,9 @@ def _lock(model: pin.Model, locked: dict[str, float | None], where: str, source:
             f"{where}: locked joints {unknown} are not joints of {source}; joints: {joints}"
         )
     q = pin.neutral(model)
-    for name, value in locked.items():
+    for name, value in ((n, v) for n, v in locked.items() if v is not None):
         joint = model.joints[model.getJointId(name)]
-        if value is None:
-            continue
-        lower = model.lowerPositionLimit[joint.idx_q]
-        upper = model.upperPositionLimit[joint.idx_q]
+        lower, upper = model.lowerPositionLimit[joint.idx_q], model.upperPositionLimit[joint.idx_q]
         if joint.nq != 1 or not lower <= value <= upper:
             raise RobotDescriptionError(
                 f"{where}: locked_joints {name} = {value:g} must be within the joint's range "
@@ -256,25 +253,13 @@ def load_robot(
     hydraulics: str | Path | None = None,
 ) -> Robot:
     """Load a bundled robot by name, or a robot from a ``robot.toml``, ``.urdf`` or ``.xacro``
-    path.
-
-    A ``robot.toml`` names the URDF (``urdf``: a URDF or xacro file beside it, or
-    ``package://<distribution>/<path>``), the tool (``tool_frame``, a link, or ``tool = {link
-    = "...", xyz = [...]}``, a point on a link in m), the task axes (``task_axes``: world
-    components of the tool position, e.g. "xz"), and optionally the actuators
-    (``[actuators.<name>]`` tables, `redundancy.model.transmissions`), joints to lock
-    (``locked_joints``: a list, at their neutral value, or a table {joint = value}, rad or m),
-    a default payload in kg (``payload``) and the robot's task file (``task``, see
-    `redundancy.planning.tasks`). A bare URDF or xacro takes its last link as the tool and the
-    full position "xyz" as the task. ``payload`` (kg, ≥ 0) is a point mass at the tool frame,
-    None taking the description's default, or 0; ``task_axes`` overrides the description's. The
-    hydraulic circuit comes from the ``[hydraulics]`` table of the TOML file ``hydraulics`` if
-    given, else from the description's (schema in the README).
-
-    What the URDF lacks is said, not fatal: meshes no file answers are named in one warning
-    (the playback then draws the links as rods between joint origins), and links without
-    inertia in another (the robot is kinematic only: anything needing masses refuses). An
-    ``<inertial>`` that is there must hold numbers a body can have (`_check_inertials`).
+    path (the schema of ``robot.toml``: docs/machines.md). A bare URDF or xacro takes its last
+    link as the tool and "xyz" as the task axes. ``payload`` (kg, ≥ 0) is a point mass at the
+    tool frame (None: the description's, or 0); ``task_axes`` overrides the description's. The
+    circuit is the ``[hydraulics]`` table of the TOML file ``hydraulics`` if given, else the
+    description's. Meshes no file answers and links without inertia (a kinematic-only robot:
+    anything needing masses refuses) are each named in one warning; an ``<inertial>`` that is
+    there must hold numbers a body can have.
     """
     name, folder, description, where = _describe(robot)
     urdf_path = _urdf_path(folder, description.urdf)

@@ -41,6 +41,7 @@ from redundancy.model.actuators import ActuatorMap
 from redundancy.model.linkage import LinkageCylinder
 from redundancy.model.parameters import REQUIRED, number_or_text
 from redundancy.model.schema import MAX_OFFSET, CylinderTable, Table, excerpt, validate
+from redundancy.model.urdf import written
 
 # Kinds are found among ActuatorMap's subclasses: importing a module defines its kinds.
 BUNDLED_KINDS = (LinkageCylinder,)
@@ -170,7 +171,7 @@ def _read_transmission(element: etree._Element, source: str) -> ActuatorMap:
     limits: tuple[float, float] = (-math.inf, math.inf)
     if stroke is not None:
         texts = (stroke.get("lower", "-inf"), stroke.get("upper", "inf"))
-        limits = _stroke([number_or_text(t) for t in texts], kind, f"{where} {_written(stroke)}")
+        limits = _stroke([number_or_text(t) for t in texts], kind, f"{where} {written(stroke)}")
     children = _parameter_elements(element, kind, where)
     given = {}
     for parameter in kind.parameters:
@@ -179,16 +180,11 @@ def _read_transmission(element: etree._Element, source: str) -> ActuatorMap:
         taken = sharing.index(parameter.name)  # parameters sharing a tag take its elements in turn
         if taken < len(found):
             value = parameter.from_attributes(dict(found[taken].attrib))
-            given[parameter.name] = (value, f"{where} {parameter.name} {_written(found[taken])}")
+            given[parameter.name] = (value, f"{where} {parameter.name} {written(found[taken])}")
         else:
             missing = f"{where}: missing <{parameter.element}> for {parameter.name}"
             given[parameter.name] = (None, missing)
     return _declare(kind, str(name), joint, limits, given, where)
-
-
-def _written(element: etree._Element) -> str:
-    """An element as written in the file, for a message."""
-    return etree.tostring(element, encoding="unicode", with_tail=False)
 
 
 def _check_header(element: etree._Element, where: str) -> str:

@@ -1,15 +1,11 @@
 """The URDF front end: a URDF (or xacro) file read, checked, and built into a Pinocchio model.
 
-yourdfpy parses the document into links (inertials, visual meshes) and joints (type, origin,
-axis, limits, mimic); Pinocchio's model graph builds the model from that parse, so the joint
-order is the toolkit's to choose: the branch holding a joint that a mimic joint follows comes
-first, and a mimic joint may follow a joint on any branch (URDF parsers that walk the tree in
-the order of the joints' names refuse one on a branch visited later).
-
-What a file must hold is said in one line naming the file, the element as written (at most an
-excerpt of a name) and what it must be. A continuous joint is one coordinate, the angle in rad,
-without bounds (instead of Pinocchio's (cos, sin) pair); a floating or planar joint is refused
-unless it is locked; a mimic joint following a locked joint is locked too, where it follows.
+yourdfpy parses the document; Pinocchio's model graph builds the model from that parse, the
+branch holding a joint that a mimic joint follows first, so that a mimic joint may follow a
+joint on any branch. A bad element is said in one line: the file, the element as written and
+what it must be. A continuous joint is one unbounded angle (rad), not Pinocchio's (cos, sin)
+pair; a floating or planar joint is refused unless locked; a mimic joint following a locked
+joint is locked too, where it follows.
 """
 
 from __future__ import annotations
@@ -57,9 +53,8 @@ class Urdf:
 
 
 def read_urdf(path: Path) -> Urdf:
-    """The URDF of ``path`` (a ``.xacro`` file expanded by the xacro package), checked: XML, a
-    ``<robot>`` yourdfpy reads, one root link, joints between links, limits where a joint needs
-    them, and every ``<inertial>`` a body's (`_check_inertials`)."""
+    """The URDF of ``path`` (a ``.xacro`` file expanded by xacro), checked: XML, a ``<robot>``
+    yourdfpy reads, `_check_tree` and `_check_inertials`."""
     source = path.name
     try:
         root = etree.fromstring(_document(path))
@@ -147,10 +142,8 @@ def _check_tree(robot: yourdfpy.Robot, source: str) -> None:
 
 def build_model(urdf: Urdf, locked: dict[str, float | None]) -> tuple[pin.Model, list[str]]:
     """The Pinocchio model of ``urdf`` and its continuous joints (one coordinate each, rad, in
-    [−π, π] where a value is chosen to lock them; the caller unbounds the others). A floating
-    or planar joint not in ``locked`` is refused with the fix; a mimic joint following a
-    ``locked`` joint is an ordinary joint, added to ``locked`` at multiplier · value + offset.
-    The branches holding joints that mimic joints follow are built first (`_leads`)."""
+    [−π, π] where a value is chosen to lock them; the caller unbounds the others). A mimic joint
+    following a ``locked`` joint is added to ``locked`` at multiplier · value + offset."""
     robot, model_graph = urdf.parse, graph.ModelGraph()
     for link in robot.links:
         model_graph.addBody(link.name, _inertia(link.inertial))
@@ -272,11 +265,12 @@ def _inertial_values(
     if len(values) != each * len(attributes) or not all(
         isinstance(v, float) and math.isfinite(v) and v >= lower for v in values
     ):
-        raise RobotDescriptionError(f"{where} {_written(element)} must be {meaning}")
+        raise RobotDescriptionError(f"{where} {written(element)} must be {meaning}")
     return np.array(values)
 
 
-def _written(element: etree._Element | None) -> str:
+def written(element: etree._Element | None) -> str:
+    """An element as written in the file, for a message."""
     return etree.tostring(element, encoding="unicode", with_tail=False)
 
 
@@ -303,7 +297,7 @@ def _check_inertials(root: etree._Element, source: str) -> tuple[str, ...]:
         moments = np.linalg.eigvalsh(entries[[[0, 1, 2], [1, 3, 4], [2, 4, 5]]])
         if moments[0] + moments[1] < moments[2] - INERTIA_TOLERANCE * np.abs(moments).max():
             raise RobotDescriptionError(
-                f"{where} {_written(inertial.find('inertia'))} is not a body's rotational "
+                f"{where} {written(inertial.find('inertia'))} is not a body's rotational "
                 f"inertia: its principal moments [{', '.join(f'{m:.4g}' for m in moments)}] "
                 "kg·m² must be ≥ 0 and each at most the sum of the other two"
             )
