@@ -356,8 +356,7 @@ class ActuatorSet:
                 stacklevel=3,
             )
         for joint in undriven:
-            index = model.getJointId(joint)
-            j = model.joints[index].idx_q
+            j = model.joints[model.getJointId(joint)].idx_q
             actuator = Identity(
                 joint, joint, model.lowerPositionLimit[j], model.upperPositionLimit[j]
             )

@@ -14,7 +14,7 @@ import pinocchio as pin
 from lxml import etree
 
 from redundancy.errors import InvalidInputError, RobotDescriptionError, SingularConfigurationError
-from redundancy.model.actuators import ActuatorSet, attach_frame
+from redundancy.model.actuators import ActuatorMap, ActuatorSet, attach_frame
 from redundancy.model.hydraulics import Circuit, circuit_from_table, read_hydraulics_file
 from redundancy.model.robot import AXES, Robot, frame_id
 from redundancy.model.schema import Description, Overrides, read_toml, validate
@@ -173,12 +173,11 @@ def _along(robot: Robot, column: int, values: np.ndarray) -> np.ndarray:
     return q
 
 
-def _stroke_arc(robot: Robot, column: int, row: int) -> tuple[float, float] | None:
-    """The angles of joint ``column`` (rad) over which actuator ``row`` stays inside its
-    stroke, the other joints at zero: sought on a grid over two turns either way, each end then
-    located by bisection; of several arcs (a cylinder on either side of the joint axis), the
-    one nearest the URDF's zero angle. None where the stroke admits no angle, or every one."""
-    actuator = robot.actuators.maps[row]
+def _stroke_arc(robot: Robot, column: int, actuator: ActuatorMap) -> tuple[float, float] | None:
+    """The angles of joint ``column`` (rad) over which ``actuator`` stays inside its stroke, the
+    other joints at zero: sought on a grid over two turns either way, each end then located by
+    bisection; of several arcs (a cylinder on either side of the joint axis), the one nearest
+    the URDF's zero angle. None where the stroke admits no angle, or every one."""
 
     def inside(theta: np.ndarray) -> np.ndarray:
         x = actuator.evaluate(robot.kinematics(_along(robot, column, theta)))[0]
@@ -237,13 +236,11 @@ def _bound_by_strokes(robot: Robot, continuous: list[str]) -> None:
     joint stays unbounded (and `redundancy check` says so)."""
     for joint in continuous:
         column = robot.joint_names.index(joint)
-        row = next(i for i, a in enumerate(robot.actuators) if a.index == column)
-        stroke = robot.actuators.maps[row]
-        arc = None
-        if np.isfinite(stroke.lower) or np.isfinite(stroke.upper):
-            arc = _stroke_arc(robot, column, row)
-        if arc is not None:
-            robot.model.lowerPositionLimit[column], robot.model.upperPositionLimit[column] = arc
+        actuator = next(a for a in robot.actuators if a.index == column)
+        if np.isfinite([actuator.lower, actuator.upper]).any():
+            arc = _stroke_arc(robot, column, actuator)
+            if arc is not None:
+                robot.model.lowerPositionLimit[column], robot.model.upperPositionLimit[column] = arc
 
 
 def load_robot(

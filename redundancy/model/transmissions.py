@@ -97,10 +97,9 @@ def _declare(
     given: dict[str, tuple[object, str]],
     declared: str,
 ) -> ActuatorMap:
-    """An actuator of ``kind`` from its parameters' declared values: ``given`` maps a
-    parameter's name to its value in the TOML shape (None where it is absent) and a text
-    naming the file, the actuator and the value as written (or, where absent, saying so);
-    ``declared`` names the file and the table or element that declares it."""
+    """An actuator of ``kind``: ``given`` maps each parameter's name to its value in the TOML
+    shape (None where absent) and a text naming the file, the actuator and the value as
+    written (or saying it is missing); ``declared`` names the declaring table or element."""
     values: dict[str, Any] = {}
     for parameter in kind.parameters:
         value, where = given[parameter.name]
@@ -117,8 +116,8 @@ def _declare(
 
 @functools.cache
 def _table(kind: type[ActuatorMap]) -> type[Table]:
-    """The ``[actuators.<name>]`` table of ``kind``: its keys, and the joint a name; the stroke
-    and the kind's parameters are read by `_stroke` and `Parameter.read`, as in a URDF."""
+    """The ``[actuators.<name>]`` table of ``kind``: its keys, the joint a name (the stroke and
+    the parameters are read as in a URDF)."""
     names = ["stroke", *(parameter.name for parameter in kind.parameters)]
     keys: dict[str, Any] = dict.fromkeys(names, (Any, None))
     return create_model(
