@@ -1,12 +1,8 @@
 """Actuator maps: joint space → hydraulic coordinates, x = h2(q) (Eq. 9), A = ∂x/∂q (Eq. 11).
 
-Each actuator coordinate x_i is one `ActuatorMap`. A kind of your own is a subclass: implement
-`evaluate` and `rate`, and list its parameters once in `ActuatorMap.parameters`; it can then be
-declared both in ``robot.toml`` and in a URDF (`redundancy.model.transmissions`). Subclasses are
-found by class name; there is no registry.
-
-Maps are declarations (names of joints and links); `ActuatorSet.bind` resolves them against a
-Pinocchio model, on copies, so one declaration can serve several robots.
+Each actuator coordinate x_i is one `ActuatorMap`; a kind of your own is a subclass, found by
+class name (no registry). Maps are declarations (names of joints and links); `ActuatorSet.bind`
+resolves copies of them against a Pinocchio model, so one declaration serves several robots.
 """
 
 from __future__ import annotations
@@ -34,14 +30,11 @@ def driven_joints(model: pin.Model) -> list[str]:
 class ActuatorMap(ABC):
     """One actuator coordinate x_i(q) with its stroke limits [lower, upper] (m or rad).
 
-    ``joint`` names the joint the actuator drives; the set orders actuators like their joints.
-    ``rotary`` says whether x_i is an angle (rad) rather than a length (m).
-
-    A kind declares its own parameters once, in ``parameters`` (`redundancy.model.parameters`:
-    `Number`, `Point`, `Choice`); each is a keyword of the kind's constructor and an attribute
-    of the same name on its instances. That one list reads both declaration forms,
-    an ``[actuators.<name>]`` table of ``robot.toml`` and a URDF ``<transmission>``. A kind of
-    your own::
+    ``joint`` names the joint it drives; ``rotary``: x_i is an angle (rad), not a length (m).
+    A kind lists its parameters once, in ``parameters`` (`redundancy.model.parameters`), each a
+    keyword of its constructor and an attribute of its instances; that list reads both an
+    ``[actuators.<name>]`` table of ``robot.toml`` and a URDF ``<transmission>``. A kind of your
+    own::
 
         class GearedMotor(ActuatorMap):
             parameters = (Number("ratio", "motor turns per joint turn"),)
@@ -89,12 +82,10 @@ class ActuatorMap(ABC):
     def kinds(cls) -> dict[str, type[ActuatorMap]]:
         """Every concrete kind defined so far, including users' subclasses, by class name."""
         found: dict[str, type[ActuatorMap]] = {}
-        pending = list(cls.__subclasses__())
-        while pending:
-            kind = pending.pop()
-            pending.extend(kind.__subclasses__())
+        for kind in cls.__subclasses__():
             if not getattr(kind, "__abstractmethods__", None):
                 found[kind.__name__] = kind
+            found |= kind.kinds()
         return found
 
     def bind(self, model: pin.Model) -> None:
@@ -144,22 +135,17 @@ def prismatic(model: pin.Model, joint: str) -> bool:
     return "Prismatic" in kind or kind.startswith("JointModelP")
 
 
-def attach_frame(model: pin.Model, owner: str, end: str, link: str, point: np.ndarray) -> int:
-    """Add to ``model`` a frame named ``<owner>/<end>`` at ``point`` (3,) m in ``link``'s frame,
-    or move it there if the model has it already (an actuator bound again, e.g. redesigned),
-    and return its id; `RobotDescriptionError` names the links if ``link`` is not one."""
+def attach_frame(model: pin.Model, name: str, link: str, point: np.ndarray, refused: str) -> int:
+    """Add to ``model`` a frame ``name`` at ``point`` (3,) m in ``link``'s frame, or move it there
+    if the model has it already (an actuator bound again, e.g. redesigned), and return its id;
+    where ``link`` is none, `RobotDescriptionError`: ``refused`` with ``link`` and the links."""
     links = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
     if link not in links:
-        raise RobotDescriptionError(
-            f"actuator {owner!r} is attached to link {link!r}, which does not "
-            f"exist; links: {', '.join(links)}"
-        )
+        raise RobotDescriptionError(refused.format(link=link, links=", ".join(links)))
     parent_id = model.getFrameId(link, pin.FrameType.BODY)
     parent = model.frames[parent_id]
     placement = parent.placement * pin.SE3(np.eye(3), np.asarray(point, dtype=float))
-    frame = pin.Frame(
-        f"{owner}/{end}", parent.parentJoint, parent_id, placement, pin.FrameType.OP_FRAME
-    )
+    frame = pin.Frame(name, parent.parentJoint, parent_id, placement, pin.FrameType.OP_FRAME)
     if model.existFrame(frame.name, pin.FrameType.OP_FRAME):  # bound before: the point moves
         frame_id = model.getFrameId(frame.name, pin.FrameType.OP_FRAME)  # to where it is declared
         model.frames[frame_id] = frame
@@ -179,6 +165,11 @@ class CompiledMap(ActuatorMap):
     def declare(self, slots: dict[int, int]) -> tuple[list[int], list[float]]:
         """The slots among the tracked frames (``slots``: frame id → slot) the core reads, and
         the numbers it needs; for each kind, see `redundancy._core`'s `Actuator`."""
+
+    def attach(self, model: pin.Model, end: str, link: str, point: np.ndarray) -> int:
+        """`attach_frame` of the frame ``<name>/<end>``."""
+        refused = f"actuator {self.name!r} is attached to link {{link!r}}, which does not exist; "
+        return attach_frame(model, f"{self.name}/{end}", link, point, refused + "links: {links}")
 
     def evaluate(self, kinematics: Kinematics) -> tuple[np.ndarray, np.ndarray]:
         x, rows = self.evaluate_group([self], kinematics)
@@ -312,10 +303,7 @@ class LinearCylinder(CompiledMap):
         """Resolve the links and add a Pinocchio frame at each attachment point (a frame this
         actuator added to ``model`` before is moved to the point now declared)."""
         super().bind(model)
-        self.frames = [
-            attach_frame(model, self.name, end, link, point)
-            for end, (link, point) in zip(("base", "rod"), (self.base, self.rod))
-        ]
+        self.frames = [self.attach(model, "base", *self.base), self.attach(model, "rod", *self.rod)]
 
     def declare(self, slots):
         return [slots[f] for f in self.frames], []
@@ -368,8 +356,7 @@ class ActuatorSet:
                 stacklevel=3,
             )
         for joint in undriven:
-            index = model.getJointId(joint)
-            j = model.joints[index].idx_q
+            j = model.joints[model.getJointId(joint)].idx_q
             actuator = Identity(
                 joint, joint, model.lowerPositionLimit[j], model.upperPositionLimit[j]
             )

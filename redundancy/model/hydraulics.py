@@ -170,25 +170,15 @@ class Circuit:
         machine's: it is flagged, never reported as a result."""
         return load_pressure > BEYOND_RELIEF * self.relief
 
-    @property
-    def piston_areas(self) -> np.ndarray:
-        """A_A (c,), m²."""
-        return np.array([c.piston_area for c in self.cylinders])
+    def _each(self, name: str) -> np.ndarray:
+        return np.array([getattr(c, name) for c in self.cylinders])
 
-    @property
-    def rod_side_areas(self) -> np.ndarray:
-        """A_B (c,), m²."""
-        return np.array([c.rod_side_area for c in self.cylinders])
-
-    @property
-    def max_speeds(self) -> np.ndarray:
-        """Maximum cylinder speeds (c,), m/s."""
-        return np.array([c.max_speed for c in self.cylinders])
-
-    @property
-    def max_accelerations(self) -> np.ndarray:
-        """Maximum cylinder accelerations (c,), m/s²."""
-        return np.array([c.max_acceleration for c in self.cylinders])
+    piston_areas = property(lambda self: self._each("piston_area"), doc="A_A (c,), m².")
+    rod_side_areas = property(lambda self: self._each("rod_side_area"), doc="A_B (c,), m².")
+    max_speeds = property(lambda self: self._each("max_speed"), doc="Maximum speeds (c,), m/s.")
+    max_accelerations = property(
+        lambda self: self._each("max_acceleration"), doc="Maximum accelerations (c,), m/s²."
+    )
 
     def cylinder_flows(self, v: np.ndarray) -> np.ndarray:
         """Q (..., c) m³/s for cylinder velocities v (..., c): A_A v extending, A_B |v|

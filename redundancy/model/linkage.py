@@ -35,7 +35,7 @@ import numpy as np
 import pinocchio as pin
 
 from redundancy.errors import RobotDescriptionError, SingularConfigurationError
-from redundancy.model.actuators import CompiledMap, actuate, attach_frame, prismatic
+from redundancy.model.actuators import CompiledMap, actuate, prismatic
 from redundancy.model.kinematics import WORLD, Kinematics
 from redundancy.model.parameters import Arm, Number, Point
 
@@ -102,8 +102,8 @@ class LinkageCylinder(CompiledMap):
                 "drives a revolute joint"
             )
         link, pivot, _ = self.rocker
-        self.frames = [attach_frame(model, self.name, "base", *self.base)]
-        self.frames.append(attach_frame(model, self.name, "pivot", link, pivot))
+        self.frames = [self.attach(model, "base", *self.base)]
+        self.frames += [self.attach(model, "pivot", link, pivot)]
         data = model.createData()
         q = pin.neutral(model)
         pin.computeJointJacobians(model, data, q)
@@ -112,8 +112,8 @@ class LinkageCylinder(CompiledMap):
         axis = pin.getJointJacobian(model, data, joint, WORLD)[3:, model.joints[joint].idx_v]
         rotation = data.oMf[self.frames[1]].rotation
         axis_point = pivot + rotation.T @ (axis / np.linalg.norm(axis))
-        self.frames.append(attach_frame(model, self.name, "axis", link, axis_point))
-        self.frames.append(attach_frame(model, self.name, "pin", *self.coupler[:2]))
+        self.frames += [self.attach(model, "axis", link, axis_point)]
+        self.frames += [self.attach(model, "pin", *self.coupler[:2])]
 
     def declare(self, slots):
         return [slots[f] for f in self.frames], [self.rocker[2], self.coupler[2], self.branch]

@@ -1,7 +1,5 @@
-"""Loading robots: bundled names, ``robot.toml`` descriptions and URDFs, with their actuators.
-
-The URDF itself is read and built into a Pinocchio model by `redundancy.model.urdf`.
-"""
+"""Loading robots: bundled names, ``robot.toml`` descriptions and URDFs (read and built by
+`redundancy.model.urdf`), with their actuators."""
 
 from __future__ import annotations
 
@@ -15,20 +13,12 @@ import numpy as np
 import pinocchio as pin
 from lxml import etree
 
-from redundancy.errors import (
-    InvalidInputError,
-    RobotDescriptionError,
-    SingularConfigurationError,
-)
-from redundancy.model.actuators import ActuatorSet
+from redundancy.errors import InvalidInputError, RobotDescriptionError, SingularConfigurationError
+from redundancy.model.actuators import ActuatorMap, ActuatorSet, attach_frame
 from redundancy.model.hydraulics import Circuit, circuit_from_table, read_hydraulics_file
 from redundancy.model.robot import AXES, Robot, frame_id
 from redundancy.model.schema import Description, Overrides, read_toml, validate
-from redundancy.model.transmissions import (
-    read_actuator_tables,
-    read_cylinders,
-    read_transmissions,
-)
+from redundancy.model.transmissions import read_actuator_tables, read_cylinders, read_transmissions
 from redundancy.model.urdf import Urdf, build_model, read_urdf
 
 
@@ -44,9 +34,8 @@ def bundled_robots() -> list[str]:
 
 def _read_description(path: Path) -> Description:
     """The robot description ``path`` (a ``robot.toml``), checked."""
-    return validate(
-        Description, read_toml(path, "robot description"), str(path), error=RobotDescriptionError
-    )
+    table = read_toml(path, "robot description")
+    return validate(Description, table, str(path), error=RobotDescriptionError)
 
 
 URDF_SUFFIXES = (".urdf", ".xacro")
@@ -62,21 +51,21 @@ def _file_name(path: Path) -> str:
 
 def _describe(robot: str | Path) -> tuple[str, Path, Description, str]:
     """Name, folder, description (robot.toml contents) and where the description came from, of
-    a bundled name or a file path. A robot loaded from a path is named after its folder (a
-    ``robot.toml``) or its file (a URDF or xacro). Paths a file names are relative to the folder
-    the file itself is in: reached through a symbolic link, the folder the link points into."""
+    a bundled name or a file path (named after its folder, a ``robot.toml``'s, or its file, a
+    URDF's; paths it names are relative to the folder the file, not a link to it, is in)."""
     if not isinstance(robot, str | Path):
         raise InvalidInputError(f"robot must be a name or a path; got {robot!r}")
     path = Path(robot)
-    if path.suffix in URDF_SUFFIXES:
+    urdf = path.suffix in URDF_SUFFIXES
+    if urdf or path.suffix == ".toml":
         if not path.is_file():
-            raise RobotDescriptionError(f"no URDF file at {path}")
-        bare = Description(urdf=path.name, tool_frame=None, task_axes=AXES)
-        return _file_name(path), path.resolve().parent, bare, str(path)
-    if path.suffix == ".toml":
-        if not path.is_file():
-            raise RobotDescriptionError(f"no robot description at {path}")
+            raise RobotDescriptionError(
+                f"no {'URDF file' if urdf else 'robot description'} at {path}"
+            )
         folder = path.resolve().parent
+        if urdf:
+            bare = Description(urdf=path.name, tool_frame=None, task_axes=AXES)
+            return _file_name(path), folder, bare, str(path)
         return folder.name, folder, _read_description(path), str(path)
     names = bundled_robots()
     if str(robot) not in names:
@@ -118,12 +107,9 @@ def _lock(model: pin.Model, locked: dict[str, float | None], where: str, source:
             f"{where}: locked joints {unknown} are not joints of {source}; joints: {joints}"
         )
     q = pin.neutral(model)
-    for name, value in locked.items():
+    for name, value in ((n, v) for n, v in locked.items() if v is not None):
         joint = model.joints[model.getJointId(name)]
-        if value is None:
-            continue
-        lower = model.lowerPositionLimit[joint.idx_q]
-        upper = model.upperPositionLimit[joint.idx_q]
+        lower, upper = model.lowerPositionLimit[joint.idx_q], model.upperPositionLimit[joint.idx_q]
         if joint.nq != 1 or not lower <= value <= upper:
             raise RobotDescriptionError(
                 f"{where}: locked_joints {name} = {value:g} must be within the joint's range "
@@ -145,21 +131,12 @@ def _add_payload(model: pin.Model, frame: str, payload: float) -> None:
 def _tool(model: pin.Model, description: Description, where: str) -> str:
     """The tool frame: ``tool_frame``, a link, or ``tool = {link = "...", xyz = [...]}``, a
     point on a link, added to ``model`` as the frame "tool point"; by default the last link."""
-    bodies = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
     tool = description.tool
     if tool is not None:
-        if tool.link not in bodies:
-            raise RobotDescriptionError(
-                f"{where} tool.link = {tool.link!r} is not a link of the URDF; links: {bodies}"
-            )
-        parent_id = model.getFrameId(tool.link, pin.FrameType.BODY)
-        parent = model.frames[parent_id]
-        placement = parent.placement * pin.SE3(np.eye(3), np.array(tool.xyz))
-        frame = pin.Frame(
-            TOOL_POINT, parent.parentJoint, parent_id, placement, pin.FrameType.OP_FRAME
-        )
-        model.addFrame(frame, False)
+        refused = f"{where} tool.link = {{link!r}} is not a link of the URDF; links: {{links}}"
+        attach_frame(model, TOOL_POINT, tool.link, np.array(tool.xyz), refused)
         return TOOL_POINT
+    bodies = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
     tool_frame = description.tool_frame or bodies[-1]
     if tool_frame not in bodies:
         raise RobotDescriptionError(
@@ -196,12 +173,11 @@ def _along(robot: Robot, column: int, values: np.ndarray) -> np.ndarray:
     return q
 
 
-def _stroke_arc(robot: Robot, column: int, row: int) -> tuple[float, float] | None:
-    """The angles of joint ``column`` (rad) over which actuator ``row`` stays inside its
-    stroke, the other joints at zero: sought on a grid over two turns either way, each end then
-    located by bisection; of several arcs (a cylinder on either side of the joint axis), the
-    one nearest the URDF's zero angle. None where the stroke admits no angle, or every one."""
-    actuator = robot.actuators.maps[row]
+def _stroke_arc(robot: Robot, column: int, actuator: ActuatorMap) -> tuple[float, float] | None:
+    """The angles of joint ``column`` (rad) over which ``actuator`` stays inside its stroke, the
+    other joints at zero: sought on a grid over two turns either way, each end then located by
+    bisection; of several arcs (a cylinder on either side of the joint axis), the one nearest
+    the URDF's zero angle. None where the stroke admits no angle, or every one."""
 
     def inside(theta: np.ndarray) -> np.ndarray:
         x = actuator.evaluate(robot.kinematics(_along(robot, column, theta)))[0]
@@ -260,13 +236,11 @@ def _bound_by_strokes(robot: Robot, continuous: list[str]) -> None:
     joint stays unbounded (and `redundancy check` says so)."""
     for joint in continuous:
         column = robot.joint_names.index(joint)
-        row = next(i for i, a in enumerate(robot.actuators) if a.index == column)
-        stroke = robot.actuators.maps[row]
-        arc = None
-        if np.isfinite(stroke.lower) or np.isfinite(stroke.upper):
-            arc = _stroke_arc(robot, column, row)
-        if arc is not None:
-            robot.model.lowerPositionLimit[column], robot.model.upperPositionLimit[column] = arc
+        actuator = next(a for a in robot.actuators if a.index == column)
+        if np.isfinite([actuator.lower, actuator.upper]).any():
+            arc = _stroke_arc(robot, column, actuator)
+            if arc is not None:
+                robot.model.lowerPositionLimit[column], robot.model.upperPositionLimit[column] = arc
 
 
 def load_robot(
@@ -276,25 +250,13 @@ def load_robot(
     hydraulics: str | Path | None = None,
 ) -> Robot:
     """Load a bundled robot by name, or a robot from a ``robot.toml``, ``.urdf`` or ``.xacro``
-    path.
-
-    A ``robot.toml`` names the URDF (``urdf``: a URDF or xacro file beside it, or
-    ``package://<distribution>/<path>``), the tool (``tool_frame``, a link, or ``tool = {link
-    = "...", xyz = [...]}``, a point on a link in m), the task axes (``task_axes``: world
-    components of the tool position, e.g. "xz"), and optionally the actuators
-    (``[actuators.<name>]`` tables, `redundancy.model.transmissions`), joints to lock
-    (``locked_joints``: a list, at their neutral value, or a table {joint = value}, rad or m),
-    a default payload in kg (``payload``) and the robot's task file (``task``, see
-    `redundancy.planning.tasks`). A bare URDF or xacro takes its last link as the tool and the
-    full position "xyz" as the task. ``payload`` (kg, ≥ 0) is a point mass at the tool frame,
-    None taking the description's default, or 0; ``task_axes`` overrides the description's. The
-    hydraulic circuit comes from the ``[hydraulics]`` table of the TOML file ``hydraulics`` if
-    given, else from the description's (schema in the README).
-
-    What the URDF lacks is said, not fatal: meshes no file answers are named in one warning
-    (the playback then draws the links as rods between joint origins), and links without
-    inertia in another (the robot is kinematic only: anything needing masses refuses). An
-    ``<inertial>`` that is there must hold numbers a body can have (`_check_inertials`).
+    path (the schema of ``robot.toml``: docs/machines.md). A bare URDF or xacro takes its last
+    link as the tool and "xyz" as the task axes. ``payload`` (kg, ≥ 0) is a point mass at the
+    tool frame (None: the description's, or 0); ``task_axes`` overrides the description's. The
+    circuit is the ``[hydraulics]`` table of the TOML file ``hydraulics`` if given, else the
+    description's. Meshes no file answers and links without inertia (a kinematic-only robot:
+    anything needing masses refuses) are each named in one warning; an ``<inertial>`` that is
+    there must hold numbers a body can have.
     """
     name, folder, description, where = _describe(robot)
     urdf_path = _urdf_path(folder, description.urdf)

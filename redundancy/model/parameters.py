@@ -1,9 +1,8 @@
 """An actuator kind's parameters: one schema for both ways of declaring an actuator.
 
-An actuator is declared either as an ``[actuators.<name>]`` table of ``robot.toml`` or as a
-``<transmission>`` element of the URDF (`redundancy.model.transmissions`). A kind lists its
-parameters once (`redundancy.model.actuators.ActuatorMap.parameters`), and each parameter knows
-its value's shape in both forms:
+A kind lists its parameters once (`redundancy.model.actuators.ActuatorMap.parameters`); each
+knows its value's shape as an ``[actuators.<name>]`` key and as a ``<transmission>`` child
+(`redundancy.model.transmissions`):
 
 - `Number`: ``offset = -0.18`` and ``<offset value="-0.18"/>``;
 - `Point`: ``base = {link = "column", xyz = [0, 0, 1]}`` and
@@ -12,18 +11,16 @@ its value's shape in both forms:
 - `Arm`: a point and a length from it, ``rocker = {link = "stick", xyz = [1.5, 0, 0.07],
   length = 0.45}`` and ``<rocker link="stick" xyz="1.5 0 0.07" length="0.45"/>``.
 
-A parameter's child element is named after it unless it gives a ``tag``; parameters sharing a
-tag take that tag's elements in the order they are listed (a cylinder's two ``<attachment>``s:
-base, then rod). A value read from either form is checked by the one `Parameter.read`, so both
-forms give the same one-line errors, each naming the value as written.
+A child is named after its parameter unless it gives a ``tag``; parameters sharing a tag take
+its elements in the order they are listed (a cylinder's two ``<attachment>``s: base, then rod).
+Both forms are checked by the one `Parameter.read`, so they give the same one-line errors.
 """
 
 from __future__ import annotations
 
 import functools
-from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
 import numpy as np
 from pydantic import AfterValidator, AllowInfNan, Strict, TypeAdapter, ValidationError
@@ -36,37 +33,28 @@ REQUIRED = object()  # the default of a parameter that must be given
 
 
 @dataclass(frozen=True)
-class Parameter(ABC):
-    """One parameter of an actuator kind: its ``name`` (the TOML key and the attribute of the
-    kind's instances, and the constructor's keyword), what it means (with its unit), its
-    ``default`` (`REQUIRED` when it must be given) and its ``<transmission>`` child's ``tag``
-    (the name when empty). Its value's schema is its ``annotation`` (pydantic's), described in
-    words by its ``shape``."""
+class Parameter:
+    """One parameter of an actuator kind: its ``name`` (the TOML key, the constructor's keyword
+    and the instances' attribute), what it means (with its unit), its ``default`` (`REQUIRED`
+    when it must be given) and its ``<transmission>`` child's ``tag`` (the name when empty).
+    A kind's value is checked by its pydantic ``annotation`` and described by its ``shape``."""
 
     name: str
     meaning: str
     default: object = REQUIRED
     tag: str = ""
+    annotation: ClassVar[Any] = None  # Number and Choice set their own on creation
+    shape: ClassVar[str] = ""
 
     @property
     def element(self) -> str:
         """The tag of its ``<transmission>`` child."""
         return self.tag or self.name
 
-    @property
-    @abstractmethod
-    def annotation(self) -> Any:
-        """The value's type in its TOML shape, which checks it."""
-
-    @property
-    @abstractmethod
-    def shape(self) -> str:
-        """What the value must be, in words."""
-
     def read(self, value: object, where: str) -> Any:
-        """The value from its TOML shape (or an element's attributes turned into that shape),
-        as the kind's constructor takes it; ``where`` names the file, the actuator and the
-        value as written, for the message."""
+        """The value from its TOML shape (or an element's attributes in that shape), as the
+        kind's constructor takes it; ``where`` names the file, the actuator and the value as
+        written, for the message."""
         try:
             return self.convert(_adapter(self.annotation).validate_python(value))
         except ValidationError:
@@ -76,10 +64,10 @@ class Parameter(ABC):
         """The checked value as the kind's constructor takes it."""
         return value
 
-    @abstractmethod
     def from_attributes(self, attributes: dict[str, str]) -> object:
         """A ``<transmission>`` child's attributes in the TOML shape, unchecked: text that is
         not a number stays text, so that `read` names it."""
+        return number_or_text(attributes.get("value", ""))
 
 
 @functools.cache
@@ -102,25 +90,16 @@ class Number(Parameter):
 
     allowed: tuple[float, ...] = ()
 
-    @property
-    def annotation(self) -> Any:
-        if self.allowed:
-            return Annotated[float, Strict(), AfterValidator(self._allowed)]
-        return Annotated[float, Strict(), AllowInfNan(False)]
+    def __post_init__(self) -> None:
+        check = AfterValidator(self._allowed) if self.allowed else AllowInfNan(False)
+        object.__setattr__(self, "annotation", Annotated[float, Strict(), check])
+        shape = f"one of {', '.join(f'{a:g}' for a in self.allowed)}"
+        object.__setattr__(self, "shape", shape if self.allowed else "a finite number")
 
     def _allowed(self, value: float) -> float:
         if value not in self.allowed:
             raise ValueError(value)
         return value
-
-    @property
-    def shape(self) -> str:
-        if self.allowed:
-            return f"one of {', '.join(f'{a:g}' for a in self.allowed)}"
-        return "a finite number"
-
-    def from_attributes(self, attributes: dict[str, str]) -> object:
-        return number_or_text(attributes.get("value", ""))
 
 
 @dataclass(frozen=True)
@@ -129,13 +108,9 @@ class Choice(Parameter):
 
     choices: tuple[str, ...] = ()
 
-    @property
-    def annotation(self) -> Any:
-        return Literal[self.choices]
-
-    @property
-    def shape(self) -> str:
-        return f"one of {', '.join(map(repr, self.choices))}"
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "annotation", Literal[self.choices])
+        object.__setattr__(self, "shape", f"one of {', '.join(map(repr, self.choices))}")
 
     def from_attributes(self, attributes: dict[str, str]) -> object:
         return attributes.get("value", "")
@@ -146,10 +121,10 @@ class Point(Parameter):
     """A point fixed on a link: ``(link, xyz)`` with xyz (3,) in m in the link's frame;
     ``{link = "...", xyz = [x, y, z]}`` in TOML, ``<tag link="..." xyz="x y z"/>`` in a URDF."""
 
-    annotation = PointOnLink
+    annotation: ClassVar[Any] = PointOnLink
     shape = (
-        f'{{link = "<a link>", xyz = [x, y, z]}} with three numbers within ±{MAX_OFFSET:g} m '
-        "(in m: 1 m = 1000 mm)"
+        f'{{link = "<a link>", xyz = [x, y, z]}} with three numbers within '
+        f"±{MAX_OFFSET:g} m (in m: 1 m = 1000 mm)"
     )
 
     def convert(self, value: PointOnLink) -> tuple[str, np.ndarray]:
@@ -171,7 +146,7 @@ class Arm(Point):
     ``<tag link="..." xyz="x y z" length="l"/>`` in a URDF (a linkage's rocker: its pivot and
     its length to the rod's pin)."""
 
-    annotation = ArmOnLink  # type: ignore[assignment]
+    annotation: ClassVar[Any] = ArmOnLink
     shape = (
         f'{{link = "<a link>", xyz = [x, y, z], length = l}} with numbers within '
         f"±{MAX_OFFSET:g} m, l > 0 (in m: 1 m = 1000 mm)"

@@ -25,7 +25,6 @@ import typing
 from pathlib import Path
 from typing import Annotated, Any, ClassVar, Literal, TypeVar, Union
 
-import annotated_types
 from pydantic import (
     AfterValidator,
     BaseModel,
@@ -497,21 +496,13 @@ def _is_table(annotation: Any) -> bool:
 
 
 def _bounds(info: FieldInfo | None) -> tuple[float, float, bool] | None:
-    if info is None:
+    """A field's range [lower, upper] and whether its lower end is open; None without one."""
+    metadata = info.metadata if info is not None else []
+    rules = {k: getattr(r, k) for r in metadata for k in ("ge", "gt", "le") if hasattr(r, k)}
+    lower = rules.get("ge", rules.get("gt"))
+    if lower is None or "le" not in rules:
         return None
-    lower: float | None = None
-    upper: float | None = None
-    open_lower = False
-    for rule in info.metadata:
-        if isinstance(rule, annotated_types.Ge):
-            lower = float(rule.ge)  # type: ignore[arg-type]
-        elif isinstance(rule, annotated_types.Gt):
-            lower, open_lower = float(rule.gt), True  # type: ignore[arg-type]
-        elif isinstance(rule, annotated_types.Le):
-            upper = float(rule.le)  # type: ignore[arg-type]
-    if lower is None or upper is None:
-        return None
-    return lower, upper, open_lower
+    return float(lower), float(rules["le"]), "gt" in rules
 
 
 def _shape(annotation: Any, info: FieldInfo | None = None) -> str:

@@ -1,7 +1,5 @@
-"""Actuator declarations, read in both forms with one schema.
-
-An actuator is declared beside an untouched URDF, as an ``[actuators.<name>]`` table of
-``robot.toml``::
+"""Actuator declarations, read in both forms with one schema (docs/machines.md): an
+``[actuators.<name>]`` table of ``robot.toml``::
 
     [actuators.x1]
     kind = "LinearCylinder"                  # an ActuatorMap subclass, by class name
@@ -10,8 +8,9 @@ An actuator is declared beside an untouched URDF, as an ``[actuators.<name>]`` t
     base = {link = "column", xyz = [0.383, 0, -0.964]}   # the kind's own parameters
     rod = {link = "boom1", xyz = [0.370, 0, -0.069]}
 
-or, equivalently, as a ``<transmission>`` element of the URDF (URDF parsers, urdfdom under
-Pinocchio and yourdfpy alike, drop transmissions, so they are read here with lxml)::
+or a URDF ``<transmission>`` of type ``redundancy/<kind>`` (read here with lxml: URDF parsers
+drop transmissions), whose one ``<actuator>``, named as the transmission or not at all, holds
+the stroke and any ``<cylinder>`` (hydraulic data, as ``[hydraulics.cylinders.<name>]``)::
 
     <transmission name="x1">
       <type>redundancy/LinearCylinder</type>
@@ -24,16 +23,8 @@ Pinocchio and yourdfpy alike, drop transmissions, so they are read here with lxm
       <attachment link="boom1" xyz="0.370 0 -0.069"/>
     </transmission>
 
-The transmission is the actuator: its one ``<actuator>`` child, which holds the stroke and any
-cylinder data, takes the transmission's name or none (another name is refused, not ignored).
-The kind's own parameters are those it lists in ``parameters``
-(`redundancy.model.parameters`): ``Prismatic`` takes ``offset`` (x = q + offset), ``Identity``
-nothing more, ``LinkageCylinder`` (`redundancy.model.linkage`) ``base``, ``rocker`` and
-``coupler`` (a point and, for the last two, a length) and ``branch``. Transmissions of other
-types (e.g. ROS ``transmission_interface/SimpleTransmission``) are left alone. A ``<cylinder>`` in
-the ``<actuator>`` gives the cylinder's hydraulic data, as a ``[hydraulics.cylinders.<name>]``
-table of ``robot.toml`` does (`redundancy.model.hydraulics`; the machine's supply stays in the
-TOML).
+Transmissions of other types (e.g. ROS ``transmission_interface/SimpleTransmission``) are left
+alone.
 """
 
 from __future__ import annotations
@@ -50,9 +41,9 @@ from redundancy.model.actuators import ActuatorMap
 from redundancy.model.linkage import LinkageCylinder
 from redundancy.model.parameters import REQUIRED, number_or_text
 from redundancy.model.schema import MAX_OFFSET, CylinderTable, Table, excerpt, validate
+from redundancy.model.urdf import written
 
-# The kinds are found by class name among ActuatorMap's subclasses: the bundled ones beyond
-# actuators.py are defined by importing their modules.
+# Kinds are found among ActuatorMap's subclasses: importing a module defines its kinds.
 BUNDLED_KINDS = (LinkageCylinder,)
 
 PREFIX = "redundancy/"
@@ -106,10 +97,9 @@ def _declare(
     given: dict[str, tuple[object, str]],
     declared: str,
 ) -> ActuatorMap:
-    """An actuator of ``kind`` from its parameters' declared values: ``given`` maps a
-    parameter's name to its value in the TOML shape (None where it is absent) and a text
-    naming the file, the actuator and the value as written (or, where absent, saying so);
-    ``declared`` names the file and the table or element that declares it."""
+    """An actuator of ``kind``: ``given`` maps each parameter's name to its value in the TOML
+    shape (None where absent) and a text naming the file, the actuator and the value as
+    written (or saying it is missing); ``declared`` names the declaring table or element."""
     values: dict[str, Any] = {}
     for parameter in kind.parameters:
         value, where = given[parameter.name]
@@ -126,8 +116,8 @@ def _declare(
 
 @functools.cache
 def _table(kind: type[ActuatorMap]) -> type[Table]:
-    """The ``[actuators.<name>]`` table of ``kind``: its keys, and the joint a name; the stroke
-    and the kind's parameters are read by `_stroke` and `Parameter.read`, as in a URDF."""
+    """The ``[actuators.<name>]`` table of ``kind``: its keys, the joint a name (the stroke and
+    the parameters are read as in a URDF)."""
     names = ["stroke", *(parameter.name for parameter in kind.parameters)]
     keys: dict[str, Any] = dict.fromkeys(names, (Any, None))
     return create_model(
@@ -180,7 +170,7 @@ def _read_transmission(element: etree._Element, source: str) -> ActuatorMap:
     limits: tuple[float, float] = (-math.inf, math.inf)
     if stroke is not None:
         texts = (stroke.get("lower", "-inf"), stroke.get("upper", "inf"))
-        limits = _stroke([number_or_text(t) for t in texts], kind, f"{where} {_written(stroke)}")
+        limits = _stroke([number_or_text(t) for t in texts], kind, f"{where} {written(stroke)}")
     children = _parameter_elements(element, kind, where)
     given = {}
     for parameter in kind.parameters:
@@ -189,16 +179,11 @@ def _read_transmission(element: etree._Element, source: str) -> ActuatorMap:
         taken = sharing.index(parameter.name)  # parameters sharing a tag take its elements in turn
         if taken < len(found):
             value = parameter.from_attributes(dict(found[taken].attrib))
-            given[parameter.name] = (value, f"{where} {parameter.name} {_written(found[taken])}")
+            given[parameter.name] = (value, f"{where} {parameter.name} {written(found[taken])}")
         else:
             missing = f"{where}: missing <{parameter.element}> for {parameter.name}"
             given[parameter.name] = (None, missing)
     return _declare(kind, str(name), joint, limits, given, where)
-
-
-def _written(element: etree._Element) -> str:
-    """An element as written in the file, for a message."""
-    return etree.tostring(element, encoding="unicode", with_tail=False)
 
 
 def _check_header(element: etree._Element, where: str) -> str:

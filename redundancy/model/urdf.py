@@ -1,15 +1,11 @@
 """The URDF front end: a URDF (or xacro) file read, checked, and built into a Pinocchio model.
 
-yourdfpy parses the document into links (inertials, visual meshes) and joints (type, origin,
-axis, limits, mimic); Pinocchio's model graph builds the model from that parse, so the joint
-order is the toolkit's to choose: the branch holding a joint that a mimic joint follows comes
-first, and a mimic joint may follow a joint on any branch (URDF parsers that walk the tree in
-the order of the joints' names refuse one on a branch visited later).
-
-What a file must hold is said in one line naming the file, the element as written (at most an
-excerpt of a name) and what it must be. A continuous joint is one coordinate, the angle in rad,
-without bounds (instead of Pinocchio's (cos, sin) pair); a floating or planar joint is refused
-unless it is locked; a mimic joint following a locked joint is locked too, where it follows.
+yourdfpy parses the document; Pinocchio's model graph builds the model from that parse, the
+branch holding a joint that a mimic joint follows first, so that a mimic joint may follow a
+joint on any branch. A bad element is said in one line: the file, the element as written and
+what it must be. A continuous joint is one unbounded angle (rad), not Pinocchio's (cos, sin)
+pair; a floating or planar joint is refused unless locked; a mimic joint following a locked
+joint is locked too, where it follows.
 """
 
 from __future__ import annotations
@@ -57,9 +53,8 @@ class Urdf:
 
 
 def read_urdf(path: Path) -> Urdf:
-    """The URDF of ``path`` (a ``.xacro`` file expanded by the xacro package), checked: XML, a
-    ``<robot>`` yourdfpy reads, one root link, joints between links, limits where a joint needs
-    them, and every ``<inertial>`` a body's (`_check_inertials`)."""
+    """The URDF of ``path`` (a ``.xacro`` file expanded by xacro), checked: XML, a ``<robot>``
+    yourdfpy reads, `_check_tree` and `_check_inertials`."""
     source = path.name
     try:
         root = etree.fromstring(_document(path))
@@ -113,19 +108,20 @@ def _document(path: Path) -> bytes:
 def _check_tree(robot: yourdfpy.Robot, source: str) -> None:
     """Every joint joins two links of the URDF and a mimic joint follows a joint, one link is
     the root, and a revolute or prismatic joint gives its range, lower ≤ upper."""
-    links = {link.name for link in robot.links}
+    links, joints = {link.name for link in robot.links}, {joint.name for joint in robot.joints}
     for joint in robot.joints:
         where = f"{source}: not a valid URDF: joint {excerpt(joint.name)}"
-        for end in ("parent", "child"):
-            if getattr(joint, end) not in links:
-                raise RobotDescriptionError(
-                    f"{where}: <{end} link={excerpt(getattr(joint, end))}> is not a link of "
-                    "the URDF"
-                )
+        for end, name in (("parent", joint.parent), ("child", joint.child)):
+            if name not in links:
+                raise RobotDescriptionError(f"{where}: <{end} link={excerpt(name)}> is not a link")
         limit = joint.limit
         if joint.type in LIMITED and (limit is None or None in (limit.lower, limit.upper)):
             raise RobotDescriptionError(
                 f'{where} is {joint.type}: it needs <limit lower="..." upper="..."/> (rad or m)'
+            )
+        if joint.mimic is not None and joint.mimic.joint not in joints:
+            raise RobotDescriptionError(
+                f"{where}: <mimic joint={excerpt(joint.mimic.joint)}> follows no joint of the URDF"
             )
     inverted = [
         f"{j.name[:EXCERPT]} [{j.limit.lower:g}, {j.limit.upper:g}]"
@@ -136,13 +132,6 @@ def _check_tree(robot: yourdfpy.Robot, source: str) -> None:
         raise RobotDescriptionError(
             f"{source}: joint limits must have lower ≤ upper; inverted: {', '.join(inverted)}"
         )
-    joints = {joint.name for joint in robot.joints}
-    for joint in robot.joints:
-        if joint.mimic is not None and joint.mimic.joint not in joints:
-            raise RobotDescriptionError(
-                f"{source}: not a valid URDF: joint {excerpt(joint.name)}: <mimic joint="
-                f"{excerpt(joint.mimic.joint)}> follows no joint of the URDF"
-            )
     roots = sorted(links - {joint.child for joint in robot.joints})
     if len(roots) != 1:
         raise RobotDescriptionError(
@@ -153,10 +142,8 @@ def _check_tree(robot: yourdfpy.Robot, source: str) -> None:
 
 def build_model(urdf: Urdf, locked: dict[str, float | None]) -> tuple[pin.Model, list[str]]:
     """The Pinocchio model of ``urdf`` and its continuous joints (one coordinate each, rad, in
-    [−π, π] where a value is chosen to lock them; the caller unbounds the others). A floating
-    or planar joint not in ``locked`` is refused with the fix; a mimic joint following a
-    ``locked`` joint is an ordinary joint, added to ``locked`` at multiplier · value + offset.
-    The branches holding joints that mimic joints follow are built first (`_leads`)."""
+    [−π, π] where a value is chosen to lock them; the caller unbounds the others). A mimic joint
+    following a ``locked`` joint is added to ``locked`` at multiplier · value + offset."""
     robot, model_graph = urdf.parse, graph.ModelGraph()
     for link in robot.links:
         model_graph.addBody(link.name, _inertia(link.inertial))
@@ -264,10 +251,10 @@ def _inertial_values(
     default: str | None = None,
     lower: float = -math.inf,
 ) -> np.ndarray:
-    """The numbers the ``attributes`` of the ``<inertial>``'s child ``tag`` hold, each finite and
-    ≥ ``lower``: one per attribute, or as many as ``default`` holds where it is given (the text
-    of an attribute left out, or of every one where the child is); otherwise one line naming
-    the link (``where``), the child as written and what it must be (``meaning``)."""
+    """The finite numbers ≥ ``lower`` the ``attributes`` of the ``<inertial>``'s child ``tag``
+    hold, one each (as many as ``default`` holds where given: the text of an attribute left
+    out, or of all where the child is); else one line: the link (``where``), the child as
+    written and what it must be (``meaning``)."""
     element = inertial.find(tag)
     if element is None and default is None:
         raise RobotDescriptionError(f"{where}: <inertial> has no <{tag}>; it needs one: {meaning}")
@@ -278,17 +265,22 @@ def _inertial_values(
     if len(values) != each * len(attributes) or not all(
         isinstance(v, float) and math.isfinite(v) and v >= lower for v in values
     ):
-        written = etree.tostring(element, encoding="unicode", with_tail=False)
-        raise RobotDescriptionError(f"{where} {written} must be {meaning}")
+        raise RobotDescriptionError(f"{where} {written(element)} must be {meaning}")
     return np.array(values)
 
 
+def written(element: etree._Element | None) -> str:
+    """An element as written in the file, for a message."""
+    return etree.tostring(element, encoding="unicode", with_tail=False)
+
+
 def _check_inertials(root: etree._Element, source: str) -> tuple[str, ...]:
-    """Every link's ``<inertial>`` (of the URDF ``source``) holds numbers a body can have: its
-    origin finite, its mass finite and ≥ 0, its inertia finite and a body's rotational inertia
-    (`_check_inertia`). (A parser that cannot read one may drop it without a word, leaving the
-    link massless, or keep a negative mass or moment.) Returns the links whose ``<inertial>``
-    gives a mass of 0."""
+    """Every link's ``<inertial>`` holds numbers a body can have (a parser may drop one it
+    cannot read without a word, or keep a negative mass): its origin finite, its mass finite
+    and ≥ 0, its inertia a body's rotational inertia, symmetric positive semi-definite with
+    each principal moment at most the sum of the other two (six entries make it symmetric;
+    with the moments a ≤ b ≤ c, a + b ≥ c gives the rest), to `INERTIA_TOLERANCE`. Returns
+    the links whose mass is 0."""
     zero_masses = []
     for link in root.findall("link"):
         inertial = link.find("inertial")
@@ -301,28 +293,15 @@ def _check_inertials(root: etree._Element, source: str) -> tuple[str, ...]:
         if _inertial_values(inertial, "mass", ("value",), where, mass, lower=0.0)[0] == 0:
             zero_masses.append(link.get("name"))
         inertia = f"six finite numbers {', '.join(INERTIA)} (kg·m², about the centre of mass)"
-        _check_inertia(
-            inertial, _inertial_values(inertial, "inertia", INERTIA, where, inertia), where
-        )
+        entries = _inertial_values(inertial, "inertia", INERTIA, where, inertia)
+        moments = np.linalg.eigvalsh(entries[[[0, 1, 2], [1, 3, 4], [2, 4, 5]]])
+        if moments[0] + moments[1] < moments[2] - INERTIA_TOLERANCE * np.abs(moments).max():
+            raise RobotDescriptionError(
+                f"{where} {written(inertial.find('inertia'))} is not a body's rotational "
+                f"inertia: its principal moments [{', '.join(f'{m:.4g}' for m in moments)}] "
+                "kg·m² must be ≥ 0 and each at most the sum of the other two"
+            )
     return tuple(zero_masses)
-
-
-def _check_inertia(inertial: etree._Element, entries: np.ndarray, where: str) -> None:
-    """The ``<inertia>`` of ``inertial`` (its ``entries``, ixx ... izz) is a body's rotational
-    inertia: symmetric positive semi-definite, and each principal moment at most the sum of the
-    other two, to `INERTIA_TOLERANCE`; otherwise one line naming the link (``where``), the
-    element as written and its principal moments. (Six entries make a symmetric matrix; with
-    the moments a ≤ b ≤ c, a + b ≥ c gives the other two inequalities and a ≥ c − b ≥ 0.)"""
-    ixx, ixy, ixz, iyy, iyz, izz = entries
-    moments = np.linalg.eigvalsh([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
-    if moments[0] + moments[1] >= moments[2] - INERTIA_TOLERANCE * np.abs(moments).max():
-        return
-    written = etree.tostring(inertial.find("inertia"), encoding="unicode", with_tail=False)
-    raise RobotDescriptionError(
-        f"{where} {written} is not a body's rotational inertia: its principal moments "
-        f"[{', '.join(f'{m:.4g}' for m in moments)}] kg·m² must be ≥ 0 and each at most the "
-        "sum of the other two"
-    )
 
 
 def _mesh_file(filename: str, folder: Path) -> Path | None:
