@@ -454,19 +454,14 @@ class ReturnMap:
     @property
     def fixed_points(self) -> list[FixedPoint]:
         """Where P(v) − v changes sign between two samples (linear in between)."""
-        found = []
         v, p = self.values, self.following
         g = p - v
-        for i in range(len(v) - 1):
-            if not (np.isfinite(g[i]) and np.isfinite(g[i + 1])) or g[i] * g[i + 1] > 0:
-                continue
-            if g[i] == g[i + 1]:
-                continue
-            root = v[i] - g[i] * (v[i + 1] - v[i]) / (g[i + 1] - g[i])
-            slope = (p[i + 1] - p[i]) / (v[i + 1] - v[i])
-            kept = bool(self.within[i] and self.within[i + 1])
-            found.append(FixedPoint(float(root), float(slope), kept))
-        return found
+        a, b = g[:-1], g[1:]
+        i = np.flatnonzero(np.isfinite(a) & np.isfinite(b) & (a * b <= 0) & (a != b))
+        root = v[i] - g[i] * (v[i + 1] - v[i]) / (g[i + 1] - g[i])
+        slope = (p[i + 1] - p[i]) / (v[i + 1] - v[i])
+        kept = self.within[i] & self.within[i + 1]
+        return [FixedPoint(float(r), float(s), bool(k)) for r, s, k in zip(root, slope, kept)]
 
 
 class FixedPoint(NamedTuple):
@@ -605,13 +600,11 @@ class PeriodicOptimum(Refined):
 
     def laws(self, gain: float = HELD_GAIN) -> tuple[HeldReference, ...]:
         """One `HeldReference` per segment: the law a machine runs the plan by."""
-        row = self.robot.actuators.rows(self.held)
-        laws = []
-        single = len(self.cycle.segments) == 1
-        for i in range(len(self.cycle.segments)):
-            nodes = self.piece == i
-            laws.append(HeldReference(row, self.local[nodes], self.r[nodes], gain, single))
-        return tuple(laws)
+        row, single = self.robot.actuators.rows(self.held), len(self.cycle.segments) == 1
+        return tuple(
+            HeldReference(row, self.local[self.piece == i], self.r[self.piece == i], gain, single)
+            for i in range(len(self.cycle.segments))
+        )
 
 
 def periodic_optimum(
@@ -638,15 +631,9 @@ def periodic_optimum(
         )
     grids = checked_grids(grids, 2)
     actuators = [robot.actuators[name] for name in names]
-    for key, value, most, unit in (
-        (
-            "margin",
-            margin,
-            min(a.upper - a.lower for a in actuators) / 4,
-            actuators[0].unit,
-        ),
-        ("smoothness", smoothness, 1.0, "s²"),
-    ):
+    largest = min(a.upper - a.lower for a in actuators) / 4
+    bounds = (("margin", margin, largest, actuators[0].unit), ("smoothness", smoothness, 1.0, "s²"))
+    for key, value, most, unit in bounds:
         if not (is_real(value) and 0 <= value <= most):
             raise InvalidInputError(f"{key} must be within [0, {most:g}] {unit}; got {value!r}")
     rows = robot.actuators.rows(names)
@@ -656,15 +643,11 @@ def periodic_optimum(
         (a.lower + margin, a.upper - margin) if a.name in limits.names else (None, None)
         for a in actuators
     ]
-    whole = guess.select(0)
-    period = cycle.duration
-    t0, r0 = whole.t[0], whole.x[0][:, rows]
-    closed = r0 - (r0[-1] - r0[0]) * t0[:, None] / period  # the free motion, its drift out
-    q0 = whole.q[0]
-    solutions = []
-    nodes_t, nodes_q = t0, q0  # where the next grid's configurations are interpolated from
-    unknown_t, unknown_r = t0, closed  # and its held strokes (periodic in the cycle's time)
-    chain = cycle.chain()
+    period, chain, solutions = cycle.duration, cycle.chain(), []
+    t0, r0 = guess.t[0], guess.x[0][:, rows]
+    nodes_t, nodes_q = t0, guess.q[0]  # where the next grid's configurations are interpolated from
+    # and its held strokes (periodic in the cycle's time): the free motion's, its drift out
+    unknown_t, unknown_r = t0, r0 - (r0[-1] - r0[0]) * t0[:, None] / period
     for intervals in grids:
         q = resampled(node_times(chain, intervals), nodes_t, nodes_q)
         problem = Transcription(

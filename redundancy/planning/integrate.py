@@ -646,12 +646,6 @@ def _runge_kutta(law: Law, starts: np.ndarray, t: np.ndarray):
     return _assemble(k, evaluated, failed.copy(), np.zeros(k, dtype=bool), t)
 
 
-def _combine(weights: np.ndarray, slopes: np.ndarray) -> np.ndarray:
-    """Σ_s w_s K_s (k, n) of the first len(w) stage slopes K (S, k, n): one product."""
-    count = len(weights)
-    return (weights @ slopes[:count].reshape(count, -1)).reshape(slopes.shape[1:])
-
-
 def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
     """Dormand-Prince 5(4) with error control, every start with its own step size (see the
     module docstring); samples on ``grid`` (T,) or, ``sparse``, at the steps and midpoints,
@@ -673,15 +667,16 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
         if not rows.size:
             break
         step = np.minimum(h[rows], duration - t[rows])[:, None]
-        slopes = np.empty((len(STAGES) + 1, len(rows), q.shape[1]))  # the stages' q̇
+        slopes = np.empty((len(STAGES) + 1, len(rows), n))  # the stages' q̇, K (7, rows, n)
         slopes[0] = f[rows]
-        for stage, (node, weights) in enumerate(zip(NODES, STAGES), 1):
-            end = law(t[rows] + node * step[:, 0], q[rows] + step * _combine(weights, slopes))
+        for stage, (node, weights) in enumerate(zip(NODES, STAGES), 1):  # Σ_s w_s K_s
+            increment = np.tensordot(weights, slopes[:stage], axes=1)
+            end = law(t[rows] + node * step[:, 0], q[rows] + step * increment)
             slopes[stage] = end.q_dot
             failed[rows[end.bad]] = True
-        q_new = q[rows] + step * _combine(STAGES[-1], slopes)
+        q_new = q[rows] + step * increment
         scale = tolerance * (1 + np.maximum(np.abs(q[rows]), np.abs(q_new)))
-        error = np.sqrt(np.mean((step * _combine(ERROR, slopes) / scale) ** 2, axis=1))
+        error = np.sqrt(np.mean((step * np.tensordot(ERROR, slopes, axes=1) / scale) ** 2, axis=1))
         accept = (error <= 1) & ~failed[rows]
         done, kept = rows[accept], slopes[:, accept]
         t0, h0, q0, q1 = t[done], step[accept, 0], q[done], q_new[accept]
@@ -732,25 +727,19 @@ class Steps:
         number = np.full(count, -1)
         number[rows] = np.arange(len(rows))
         kept = number[self.rows] >= 0
-        return Steps(
-            self.law,
-            self.start.take(np.asarray(rows)),
-            number[self.rows[kept]],
-            self.t0[kept],
-            self.h[kept],
-            self.q0[kept],
-            self.slopes[kept],
-        )
+        start = self.start.take(np.asarray(rows))
+        return Steps(self.law, start, number[self.rows[kept]], *(a[kept] for a in self._arrays))
+
+    @property
+    def _arrays(self) -> tuple[np.ndarray, ...]:
+        return self.t0, self.h, self.q0, self.slopes
 
     def joined(self, other: Steps, offset: int) -> Steps:
         """These steps and ``other``'s, whose motions are numbered from ``offset`` on."""
         return Steps.gathered(
             self.law,
             joined([self.start, other.start]),
-            [
-                (self.rows, self.t0, self.h, self.q0, self.slopes),
-                (other.rows + offset, other.t0, other.h, other.q0, other.slopes),
-            ],
+            [(self.rows, *self._arrays), (other.rows + offset, *other._arrays)],
         )
 
     def dense(self, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

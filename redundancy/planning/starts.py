@@ -187,17 +187,17 @@ class SearchResult:
         row = int(self.rows[self.samples.index(sample)])
         if row < 0:
             raise InvalidInputError(f"the start {sample.values} of {self.held} is unreachable")
-        motion = self.trajectory.select(row)
+        searched = self.trajectory
         return simulate_path(
             self.robot,
             self.objective.resolver,
             self.segment,
-            motion.q[:, 0],
+            searched.q[row : row + 1, 0],
             time_step,
-            checked=motion.checked,
+            checked=searched.checked,
             tolerance=REPORT_TOLERANCE,
             objective=self.objective,
-            circuit=motion.circuit,
+            circuit=searched.circuit,
         )
 
     def extended(self, other: SearchResult) -> SearchResult:
@@ -233,7 +233,7 @@ def stroke_box(robot: Robot, held: tuple[str, ...]) -> np.ndarray:
     return box
 
 
-def unreachable(robot: Robot, path, how: str, miss: float | None = None) -> UnreachableError:
+def _unreachable(robot: Robot, path, how: str, miss: float | None = None) -> UnreachableError:
     """The error saying ``robot`` cannot reach the start of ``path`` ``how`` (and by how much
     the closest configuration ``miss``es it, m)."""
     closest = (
@@ -294,7 +294,7 @@ class Configurations:
     def __init__(self, robot: Robot, segment: Segment | Chain, held: str):
         point = segment.start
         self.robot, self.point, self.held, self.segment = robot, point, held, segment
-        self._reach: dict[float, Starts] = {}
+        self._reach: dict[float, np.ndarray] = {}
         self.row = held_indices(robot, [held])[0]
         self.joints = Limits.joints(robot)
         scan = sweep_values(robot, held, REACH_GRID)
@@ -305,14 +305,14 @@ class Configurations:
         found = anchor.reached
         if not found.any():
             how = f"with {held} anywhere in its stroke inside its joint limits"
-            raise unreachable(robot, segment, how, anchor.miss.min())
+            raise _unreachable(robot, segment, how, anchor.miss.min())
         values = scan[order[:1]] if len(anchor.q) == 1 else scan
         self.known = (values[found], anchor.q[found])
 
-    def reach(self, tolerance: float) -> Starts:
-        """`REACH_GRID` starts over the stroke with the ends of the reachable ones located to
-        ``tolerance`` by bisection of the joint margin: no integration, so one scan serves
-        every objective's search (kept per tolerance)."""
+    def reachable(self, tolerance: float) -> np.ndarray:
+        """The reachable held values, in order, of `REACH_GRID` starts over the stroke with the
+        ends of the reachable ones located to ``tolerance`` by bisection of the joint margin: no
+        integration, so one scan serves every objective's search (kept per tolerance)."""
         if tolerance not in self._reach:
             reach = self.at(sweep_values(self.robot, self.held, REACH_GRID))
             for _ in range(ROUNDS):
@@ -325,16 +325,11 @@ class Configurations:
                 if not probes.size:
                     break
                 reach = reach.merged(self.at(probes))
-            self._reach[tolerance] = reach
-        return self._reach[tolerance]
-
-    def reachable(self, tolerance: float) -> np.ndarray:
-        """The reachable held values of `reach` (``tolerance``), in order."""
-        reach = self.reach(tolerance)
-        if not reach.reachable.any():
+            self._reach[tolerance] = reach.values[reach.reachable, 0]
+        if not self._reach[tolerance].size:
             how = f"inside its joint limits with {self.held} anywhere in its stroke"
-            raise unreachable(self.robot, self.segment, how)
-        return reach.values[reach.reachable, 0]
+            raise _unreachable(self.robot, self.segment, how)
+        return self._reach[tolerance]
 
     def at(self, values: np.ndarray) -> Starts:
         """Starts at held ``values`` (k,)."""
@@ -382,7 +377,7 @@ def evaluate_starts(
     if not reachable.size:
         miss = starts.miss[starts.miss > 0]
         how = f"from any of the {len(starts.values)} sampled values of {', '.join(held)}"
-        raise unreachable(robot, path, how, miss.min() if miss.size else None)
+        raise _unreachable(robot, path, how, miss.min() if miss.size else None)
     motions = simulate_path(
         robot,
         objective.resolver,
@@ -552,14 +547,12 @@ def fast_search(configurations: Configurations, tolerance: float | None, evaluat
 def _compass(robot, segment, held, samples, run) -> SearchResult:
     """Halton points over the stroke box, then compass-search refinement (r > 1), the held
     values (k, r) of each batch integrated by ``run``."""
-    from scipy.stats import qmc
-
     box = stroke_box(robot, held)
-    lower, span = box[:, 0], box[:, 1] - box[:, 0]
+    span = box[:, 1] - box[:, 0]
     if samples == 1:  # one sample is the default start, as with one held actuator
         result = run(default_start(robot, segment, held)[0][None])
     else:
-        result = run(lower + span * qmc.Halton(len(held), seed=1).random(samples))
+        result = run(_halton(box, samples, seed=1))
     leaders = sorted(result.feasible, key=lambda s: s.peak)[:REFINED_AROUND]  # type: ignore[arg-type,return-value]
     step = 1 / samples ** (1 / len(held))  # fraction of each stroke
     directions = np.concatenate([np.eye(len(held)), -np.eye(len(held))])
@@ -582,6 +575,13 @@ def _compass(robot, segment, held, samples, run) -> SearchResult:
     return result
 
 
+def _halton(box: np.ndarray, count: int, seed: int) -> np.ndarray:
+    """``count`` scrambled Halton points over the stroke ``box`` (r, 2), (count, r)."""
+    from scipy.stats import qmc
+
+    return qmc.scale(qmc.Halton(len(box), seed=seed).random(count), box[:, 0], box[:, 1])
+
+
 def default_start(robot: Robot, segment: Segment | Chain, held: str | Sequence[str] = "x3"):
     """The documented default start: the held actuators at mid-stroke or, where the segment's
     start is out of reach there, the reachable candidate nearest mid-stroke (candidates: 101
@@ -594,10 +594,7 @@ def default_start(robot: Robot, segment: Segment | Chain, held: str | Sequence[s
     if len(held) == 1:
         candidates = sweep_values(robot, held[0], 101)[:, None]
     else:
-        from scipy.stats import qmc
-
-        unit = qmc.Halton(len(held), seed=3).random(256)
-        candidates = box[:, 0] + (box[:, 1] - box[:, 0]) * unit
+        candidates = _halton(box, 256, seed=3)
     middle = box.mean(axis=1)
     distance = np.linalg.norm((candidates - middle) / (box[:, 1] - box[:, 0]), axis=1)
     ordered = candidates[np.argsort(distance, kind="stable")]
@@ -609,7 +606,7 @@ def default_start(robot: Robot, segment: Segment | Chain, held: str | Sequence[s
             first = int(np.argmax(ik.reached))
             return batch[first], ik.q[first]
         tried, miss = tried + len(batch), min(miss, float(ik.miss.min()))
-    raise unreachable(robot, segment, f"with {', '.join(held)} anywhere in their strokes", miss)
+    raise _unreachable(robot, segment, f"with {', '.join(held)} anywhere in their strokes", miss)
 
 
 def scalar_or_list(values):
