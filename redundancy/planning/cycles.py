@@ -167,13 +167,11 @@ class Corner:
 def gap_speed(robot: Robot, held: tuple[str, ...]) -> float:
     """The held actuators' speed in a corner's self-motion: the slowest maximum speed of the
     held cylinders in the robot's circuit, else `GAP_SPEED`."""
-    if robot.hydraulics is None:
-        return GAP_SPEED
     circuit = robot.hydraulics
-    speeds = [
-        float(circuit.max_speeds[list(circuit.names).index(h)]) for h in held if h in circuit.names
-    ]
-    return min(speeds) if speeds else GAP_SPEED
+    if circuit is None:
+        return GAP_SPEED
+    speeds = [float(s) for name, s in zip(circuit.names, circuit.max_speeds) if name in held]
+    return min(speeds, default=GAP_SPEED)
 
 
 def _corner(robot, after, end, before, start, held, speed, checked) -> Corner:

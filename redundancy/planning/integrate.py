@@ -640,9 +640,7 @@ def _runge_kutta(law: Law, starts: np.ndarray, t: np.ndarray):
         step = h / 6 * (first.q_dot + 2 * k2 + 2 * k3 + k4)
         q = q + np.where(failed[:, None], 0.0, step)
     records.append(rates(t[-1], q))
-    rows = np.repeat(np.arange(k)[None], len(t), axis=0).ravel()
-    times = np.repeat(t, k)
-    evaluated = [(rows, times, joined(records))]
+    evaluated = [(np.tile(np.arange(k), len(t)), np.repeat(t, k), joined(records))]
     return _assemble(k, evaluated, failed.copy(), np.zeros(k, dtype=bool), t)
 
 
