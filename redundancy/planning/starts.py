@@ -275,7 +275,8 @@ class Starts:
         both = [
             np.concatenate([getattr(self, f.name), getattr(other, f.name)]) for f in fields(self)
         ]
-        return Starts(*(values[np.argsort(both[0][:, 0], kind="stable")] for values in both))
+        order = np.argsort(both[0][:, 0], kind="stable")
+        return Starts(*(values[order] for values in both))
 
     def reason(self, i: int) -> str:
         """Why start i is unreachable."""
