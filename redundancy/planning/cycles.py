@@ -1,51 +1,38 @@
 """Work cycles as a machine runs them: one continuous motion through every corner, again and
 again.
 
-The paper plans each segment on its own, from its own best start. A machine runs its cycle
-1 → 2 → 3 → 1 continuously: the end of one segment is the start of the next, and the end of
-the cycle the start of the next cycle. Here:
+The paper plans each segment on its own, from its own best start; a machine runs its cycle
+1 → 2 → 3 → 1 continuously, each segment (and each cycle) starting where the last ended. A cycle
+is a path like any other, its `Chain` (`simulate_path`), so:
 
-- a cycle is a path like any other, its `Chain`: `simulate_path` integrates a law over it,
-  segment after segment, each from where the one before ended (so q is continuous at every
-  corner), into one `Trajectory` in cycle time.
-- `improved_cycle_start`: the improved initial configuration over the whole cycle, the start
-  of the held actuators at the cycle's first point whose motion keeps every stroke over the
-  full cycle with the least peak (or integral) of the objective: `improved_start` along the
-  chain.
-- `plan_cycle` puts it beside the paper's per-segment plan, whose every corner would need a
-  self-motion (the task point held still) from where one segment's best motion ends to where
-  the next one's best start begins: `Corner` gives the Δ of every actuator, the held one's,
-  the time it takes at a stated speed, and whether the self-motion keeps the strokes.
-- `repeat` runs N cycles from one start, each from where the last ended: `Repetition` reports
-  every actuator's and the tool's drift per cycle, the first cycle that passes a stroke, and
-  whether the held actuator's sequence of values at the cycle's start settles to a limit cycle
-  (`Settling`); `return_map` samples the map P from that value to the next cycle's, whose
-  fixed points are the limit cycles (stable where |P'| < 1).
+- `improved_cycle_start` is `improved_start` along the chain: the held actuators' start at the
+  cycle's first point whose motion keeps every stroke over the whole cycle with the least peak
+  (or integral) of the objective;
+- `plan_cycle` puts it beside the per-segment plan, whose every corner needs a self-motion (the
+  task point held still) from where one segment's best motion ends to where the next one's best
+  start begins (`Corner`: every actuator's Δ, the time at a stated speed, the strokes kept);
+- `repeat` runs N cycles, each from where the last ended (`Repetition`: drift per cycle, the
+  first cycle past a limit, whether the held value at the cycle's start settles, `Settling`);
+  `return_map` samples the map P from that value to the next cycle's, whose fixed points are
+  the limit cycles (stable where |P'| < 1).
 
-Pseudoinverse control is in general not repeatable on a closed path (Roberts & Maciejewski, IJRR
-13(1), 1994): the self-motion is not integrable, so each cycle ends a little away from where it
-began. The drift-free strategy here is the periodic global optimum (`periodic_optimum`), not a
-null-space term steering the self-motion back. Why:
+Pseudoinverse control is not repeatable on a closed path in general (Roberts & Maciejewski, IJRR
+13(1), 1994): the self-motion is not integrable, so each cycle ends a little away from its
+start. The drift-free strategy is the periodic global optimum (`periodic_optimum`):
 
-- it closes exactly: the unknowns are the held actuators' strokes r(t) at the nodes of the
-  whole cycle with r(T) = r(0) one unknown, and the configuration at each node solves
-  y(q) = y_d(t), x_h(q) = r(t), so the motion is a function of the time in the cycle: every
-  cycle is the same motion, not one that converges to it. A null-space return term
-  z = −k ∇‖x − x*‖² only contracts towards a periodic motion (the drift falls by a factor per
-  cycle set by k and the cycle), so closing within 1e-6 from the first cycle needs a stiff k,
-  whose self-motion then costs velocity at every instant and raises the very peak the improved
-  method lowers;
-- it is the best drift-free motion, not one of many: the least peak over every periodic history
-  of the held actuators, every checked stroke kept at every node, the same problem as the
-  segment's bound (`redundancy.planning.bound`, whose transcription it reuses with the nodes of
-  all segments and the periodic unknown), so its price against the free improved cycle is a
-  measured optimum, and a free cycle whose start makes it periodic is inside its feasible set;
-- a machine runs it as a law in time (`HeldReference`): the held actuators follow the plan's
-  r(t) (feedforward ṙ and feedback gain `HELD_GAIN`), the others resolve the task exactly,
-  J_H ẋ = ẏ, so tracking stays closed-loop and the plan is computed once per cycle, offline.
+- it closes exactly: the unknowns are the held strokes r(t) at the nodes of the whole cycle with
+  r(T) = r(0) one unknown, each node's configuration solving y(q) = y_d(t), x_h(q) = r(t), so
+  every cycle is the same motion. A null-space return term z = −k ∇‖x − x*‖² only contracts
+  towards a periodic motion, by a factor per cycle set by k: closing within 1e-6 from the first
+  cycle needs a stiff k, whose self-motion costs velocity at every instant and raises the peak;
+- it is the least peak over every periodic history of the held actuators with every checked
+  stroke kept at every node: the segment's bound (`redundancy.planning.bound`, whose
+  transcription it reuses) over all segments with the periodic unknown, so its price against
+  the free improved cycle is a measured optimum;
+- a machine runs it as a law in time (`HeldReference`): the held actuators follow r(t)
+  (feedforward ṙ, feedback `HELD_GAIN`), the others resolve the task, J_H ẋ = ẏ, in closed loop.
 
-Its cost: seconds of planning (a transcription over the whole cycle, `benchmarks/cycles.py`)
-and a peak objective only (the periodic optimum minimises a peak, as the bound does).
+It costs seconds of planning (`benchmarks/cycles.py`) and minimises a peak objective only.
 """
 
 from __future__ import annotations
@@ -53,12 +40,13 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import cached_property, partial
 from typing import NamedTuple
 
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from redundancy.errors import InvalidInputError, UnreachableError
+from redundancy.errors import InvalidInputError
 from redundancy.model.robot import Robot
 from redundancy.model.values import is_real, is_whole
 from redundancy.planning.bound import (
@@ -77,11 +65,11 @@ from redundancy.planning.starts import (
     MAX_SAMPLES,
     Configurations,
     SearchResult,
+    end_tolerance,
     held_actuators,
     improved_start,
-    sweep_values,
 )
-from redundancy.planning.tasks import WorkCycle
+from redundancy.planning.tasks import Chain, Segment, WorkCycle
 from redundancy.resolution.laws import Resolver
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
 from redundancy.resolution.limits import Limits
@@ -179,51 +167,40 @@ class Corner:
 def gap_speed(robot: Robot, held: tuple[str, ...]) -> float:
     """The held actuators' speed in a corner's self-motion: the slowest maximum speed of the
     held cylinders in the robot's circuit, else `GAP_SPEED`."""
-    if robot.hydraulics is None:
-        return GAP_SPEED
     circuit = robot.hydraulics
-    speeds = [
-        float(circuit.max_speeds[list(circuit.names).index(h)]) for h in held if h in circuit.names
-    ]
-    return min(speeds) if speeds else GAP_SPEED
+    if circuit is None:
+        return GAP_SPEED
+    speeds = [float(s) for name, s in zip(circuit.names, circuit.max_speeds) if name in held]
+    return min(speeds, default=GAP_SPEED)
 
 
-def _corner(
-    robot: Robot,
-    after: SearchResult,
-    motion: Trajectory | None,
-    before: SearchResult,
-    held: tuple[str, ...],
-    speed: float,
-    checked: tuple[str, ...] | None,
-) -> Corner:
+def _corner(robot, after, end, before, start, held, speed, checked) -> Corner:
+    """The corner where segment ``after`` ends and ``before`` starts, between the end of the
+    best motion ``end`` along one and the start of the best motion ``start`` along the other
+    (None where a segment has no feasible start)."""
     names = tuple(robot.actuators.names)
-    point = after.segment.end
-    common = (after.segment.name, before.segment.name, point, names, held)
-    if motion is None or before.best is None:
-        missing = after.segment.name if motion is None else before.segment.name
-        return Corner(*common, None, None, speed, None, f"segment {missing} has no feasible start")
-    end_q = motion.q[0, -1]
-    start_row = int(before.rows[before.samples.index(before.best)])
-    start_q = before.trajectory.q[start_row, 0]
-    end_x, start_x = motion.x[0, -1], before.trajectory.x[start_row, 0]
+    corner = partial(Corner, after.name, before.name, after.end, names, held)
+    if end is None or start is None:
+        missing = after.name if end is None else before.name
+        return corner(None, None, speed, None, f"segment {missing} has no feasible start")
+    end_x, start_x = end.x[0, -1], start.x[0, 0]
+    found = partial(corner, end_x, start_x, speed)
     rows = [names.index(h) for h in held]
     path = np.linspace(end_x[rows], start_x[rows], SELF_MOTION_STEPS + 1)  # a line in r-space
     q = np.empty((len(path), robot.n))
-    q[0] = end_q
+    q[0] = end.q[0, -1]
     for i in range(1, len(path)):  # followed step by step, so it stays on its branch
-        target = np.concatenate([point, path[i]])[None]
+        target = np.concatenate([after.end, path[i]])[None]
         solved = newton(robot, q[i - 1 : i], rows, target, CONTINUATION_ITERATIONS)
         if solved.miss[0] >= FOUND:
             at = ", ".join(f"{h} = {v:.4g}" for h, v in zip(held, path[i]))
-            reason = f"the self-motion loses the task point at {at}"
-            return Corner(*common, end_x, start_x, speed, False, reason, q[:i])
+            return found(False, f"the self-motion loses the task point at {at}", q[:i])
         q[i] = solved.q[0]
-    margin = Limits.strokes(robot, checked).margin(evaluate(robot, q).x).min()
-    if not np.allclose(q[-1], start_q, atol=1e-6):
+    if not np.allclose(q[-1], start.q[0, 0], atol=1e-6):
         reason = "the self-motion reaches another configuration (branch)"
-        return Corner(*common, end_x, start_x, speed, False, reason, q)
-    return Corner(*common, end_x, start_x, speed, bool(margin >= -LIMIT_TOLERANCE), None, q)
+        return found(False, reason, q)
+    margin = Limits.strokes(robot, checked).margin(evaluate(robot, q).x).min()
+    return found(bool(margin >= -LIMIT_TOLERANCE), None, q)
 
 
 @dataclass(frozen=True, eq=False)
@@ -268,27 +245,20 @@ def plan_cycle(
     speed = gap_speed(robot, held) if speed is None else speed
     if not speed > 0:
         raise InvalidInputError(f"the self-motion's speed must be > 0; got {speed}")
-    search = improved_cycle_start(robot, cycle, objective, held, samples, checked, method, circuit)
-    motion = search.best_motion if search.best is not None else None
-    searches = tuple(
-        improved_start(robot, s, objective, held, samples, checked, method, circuit=circuit)
-        for s in cycle.segments
+    paths: list[Segment | Chain] = [cycle.chain(), *cycle.segments]
+    search, *searches = (
+        improved_start(robot, path, objective, held, samples, checked, method, circuit=circuit)
+        for path in paths
     )
-    motions = tuple(s.best_motion if s.best is not None else None for s in searches)
-    pairs = list(range(len(searches) - 1)) + ([len(searches) - 1] if cycle.closed else [])
+    motion, *motions = (s.best_motion if s.best is not None else None for s in (search, *searches))
+    count, segments = len(searches), cycle.segments
     corners = tuple(
-        _corner(
-            robot,
-            searches[i],
-            motions[i],
-            searches[(i + 1) % len(searches)],
-            held,
-            speed,
-            checked,
-        )
-        for i in pairs
+        _corner(robot, segments[i], motions[i], segments[j], motions[j], held, speed, checked)
+        for i, j in ((i, (i + 1) % count) for i in range(count if cycle.closed else count - 1))
     )
-    return CyclePlan(robot, cycle, objective, held, search, motion, searches, motions, corners)
+    return CyclePlan(
+        robot, cycle, objective, held, search, motion, tuple(searches), tuple(motions), corners
+    )
 
 
 @dataclass(frozen=True)
@@ -357,10 +327,6 @@ class Repetition:
     held: tuple[str, ...]
     laws: tuple[Resolver, ...] = field(repr=False)
     motions: tuple[Trajectory, ...] = field(repr=False)
-    x: np.ndarray
-    y: np.ndarray
-    within: np.ndarray
-    first_violation: tuple[int, str] | None
     circuit: bool = False
     gain: float = TASK_GAIN
     tolerance: float = REPEAT_TOLERANCE
@@ -376,6 +342,28 @@ class Repetition:
     def cycles(self) -> int:
         return len(self.motions)
 
+    @cached_property
+    def x(self) -> np.ndarray:
+        return np.array([m.x[0, 0] for m in self.motions] + [self.motions[-1].x[0, -1]])
+
+    @cached_property
+    def y(self) -> np.ndarray:
+        return np.array([m.y[0, 0] for m in self.motions] + [self.motions[-1].y[0, -1]])
+
+    @cached_property
+    def within(self) -> np.ndarray:
+        return np.array([bool(m.within_limits[0]) for m in self.motions])
+
+    @cached_property
+    def first_violation(self) -> tuple[int, str] | None:
+        for number, motion in enumerate(self.motions, start=1):
+            found = motion.violations(0)
+            if found:
+                return number, str(found[0])
+            if not motion.within_limits[0]:
+                return number, "the motion failed (singular actuator Jacobian)"
+        return None
+
     @property
     def drift(self) -> np.ndarray:
         """Each actuator's drift per cycle (N, n): stroke at its end − at its start, m or rad."""
@@ -389,8 +377,7 @@ class Repetition:
     @property
     def held_values(self) -> np.ndarray:
         """The held actuators at each cycle's start (N + 1, r)."""
-        names = self.robot.actuators.names
-        return self.x[:, [names.index(h) for h in self.held]]
+        return self.x[:, self.robot.actuators.rows(self.held)]
 
     @property
     def settling(self) -> Settling:
@@ -441,51 +428,13 @@ def repeat(
             f"start must be one configuration ({robot.n},): repetitions run one after another; "
             f"got shape {np.shape(start)}"
         )
+    run = partial(simulate_path, robot, laws, cycle.chain(), checked=checked, sparse=True)
     motions = []
     for _ in range(cycles):
-        motion = simulate_path(
-            robot,
-            laws,
-            cycle.chain(),
-            q,
-            checked=checked,
-            objective=objective,
-            sparse=True,
-            circuit=circuit,
-            gain=gain,
-            tolerance=tolerance,
-        )
-        motions.append(motion)
-        q = motion.q[:, -1]
-    x = np.array([m.x[0, 0] for m in motions] + [motions[-1].x[0, -1]])
-    y = np.array([m.y[0, 0] for m in motions] + [motions[-1].y[0, -1]])
-    within = np.array([bool(m.within_limits[0]) for m in motions])
-    return Repetition(
-        robot,
-        cycle,
-        strategy,
-        held,
-        per_segment(cycle.chain(), laws),
-        tuple(motions),
-        x,
-        y,
-        within,
-        _first_violation(motions),
-        circuit,
-        gain,
-        tolerance,
-    )
-
-
-def _first_violation(motions: Sequence[Trajectory]) -> tuple[int, str] | None:
-    """The first cycle (1-based) that passes a limit, and the first limit it passes."""
-    for number, motion in enumerate(motions, start=1):
-        found = motion.violations(0)
-        if found:
-            return number, str(found[0])
-        if not motion.within_limits[0]:
-            return number, "the motion failed (singular actuator Jacobian)"
-    return None
+        motions.append(run(q, objective=objective, circuit=circuit, gain=gain, tolerance=tolerance))
+        q = motions[-1].q[:, -1]
+    laws = per_segment(cycle.chain(), laws)
+    return Repetition(robot, cycle, strategy, held, laws, tuple(motions), circuit, gain, tolerance)
 
 
 @dataclass(frozen=True)
@@ -503,19 +452,14 @@ class ReturnMap:
     @property
     def fixed_points(self) -> list[FixedPoint]:
         """Where P(v) − v changes sign between two samples (linear in between)."""
-        found = []
         v, p = self.values, self.following
         g = p - v
-        for i in range(len(v) - 1):
-            if not (np.isfinite(g[i]) and np.isfinite(g[i + 1])) or g[i] * g[i + 1] > 0:
-                continue
-            if g[i] == g[i + 1]:
-                continue
-            root = v[i] - g[i] * (v[i + 1] - v[i]) / (g[i + 1] - g[i])
-            slope = (p[i + 1] - p[i]) / (v[i + 1] - v[i])
-            kept = bool(self.within[i] and self.within[i + 1])
-            found.append(FixedPoint(float(root), float(slope), kept))
-        return found
+        a, b = g[:-1], g[1:]
+        i = np.flatnonzero(np.isfinite(a) & np.isfinite(b) & (a * b <= 0) & (a != b))
+        root = v[i] - g[i] * (v[i + 1] - v[i]) / (g[i + 1] - g[i])
+        slope = (p[i + 1] - p[i]) / (v[i + 1] - v[i])
+        kept = self.within[i] & self.within[i + 1]
+        return [FixedPoint(float(r), float(s), bool(k)) for r, s, k in zip(root, slope, kept)]
 
 
 class FixedPoint(NamedTuple):
@@ -551,18 +495,14 @@ def return_map(
             "tells instead"
         )
     name = found[0]
-    first = cycle.segments[0]
-    configurations = Configurations(robot, first, name)
-    if values is None and not is_whole(count, 2, MAX_SAMPLES):
-        raise InvalidInputError(
-            f"count must be a whole number within [2, {MAX_SAMPLES:,}]; got {count!r}"
-        )
+    configurations = Configurations(robot, cycle.chain(), name)
     if values is None:
-        scan = configurations.at(sweep_values(robot, name, 4 * count))
-        reachable = scan.values[scan.reachable, 0]
-        if not reachable.size:
-            raise UnreachableError(f"{robot.name} cannot reach the start of {cycle.name!r}")
-        values = np.linspace(reachable.min(), reachable.max(), count)
+        if not is_whole(count, 2, MAX_SAMPLES):
+            raise InvalidInputError(
+                f"count must be a whole number within [2, {MAX_SAMPLES:,}]; got {count!r}"
+            )
+        reachable = configurations.reachable(end_tolerance(robot, name, None))
+        values = np.linspace(reachable[0], reachable[-1], count)
     given = values
     try:
         values = np.asarray(values, dtype=float)
@@ -580,8 +520,7 @@ def return_map(
         motions = simulate_path(
             robot, laws, cycle.chain(), starts.q[ok], checked=checked, sparse=True, gain=TASK_GAIN
         )
-        column = robot.actuators.names.index(name)
-        end = motions.x[:, -1, column]
+        end = motions.x[:, -1, robot.actuators.rows(name)[0]]
         following[ok] = np.where(motions.failed, np.nan, end)
         within[ok] = motions.within_limits
     return ReturnMap(name, values, following, within)
@@ -659,13 +598,11 @@ class PeriodicOptimum(Refined):
 
     def laws(self, gain: float = HELD_GAIN) -> tuple[HeldReference, ...]:
         """One `HeldReference` per segment: the law a machine runs the plan by."""
-        row = self.robot.actuators.rows(self.held)
-        laws = []
-        single = len(self.cycle.segments) == 1
-        for i in range(len(self.cycle.segments)):
-            nodes = self.piece == i
-            laws.append(HeldReference(row, self.local[nodes], self.r[nodes], gain, single))
-        return tuple(laws)
+        row, single = self.robot.actuators.rows(self.held), len(self.cycle.segments) == 1
+        return tuple(
+            HeldReference(row, self.local[self.piece == i], self.r[self.piece == i], gain, single)
+            for i in range(len(self.cycle.segments))
+        )
 
 
 def periodic_optimum(
@@ -692,15 +629,9 @@ def periodic_optimum(
         )
     grids = checked_grids(grids, 2)
     actuators = [robot.actuators[name] for name in names]
-    for key, value, most, unit in (
-        (
-            "margin",
-            margin,
-            min(a.upper - a.lower for a in actuators) / 4,
-            actuators[0].unit,
-        ),
-        ("smoothness", smoothness, 1.0, "s²"),
-    ):
+    largest = min(a.upper - a.lower for a in actuators) / 4
+    bounds = (("margin", margin, largest, actuators[0].unit), ("smoothness", smoothness, 1.0, "s²"))
+    for key, value, most, unit in bounds:
         if not (is_real(value) and 0 <= value <= most):
             raise InvalidInputError(f"{key} must be within [0, {most:g}] {unit}; got {value!r}")
     rows = robot.actuators.rows(names)
@@ -710,15 +641,11 @@ def periodic_optimum(
         (a.lower + margin, a.upper - margin) if a.name in limits.names else (None, None)
         for a in actuators
     ]
-    whole = guess.select(0)
-    period = cycle.duration
-    t0, r0 = whole.t[0], whole.x[0][:, rows]
-    closed = r0 - (r0[-1] - r0[0]) * t0[:, None] / period  # the free motion, its drift out
-    q0 = whole.q[0]
-    solutions = []
-    nodes_t, nodes_q = t0, q0  # where the next grid's configurations are interpolated from
-    unknown_t, unknown_r = t0, closed  # and its held strokes (periodic in the cycle's time)
-    chain = cycle.chain()
+    period, chain, solutions = cycle.duration, cycle.chain(), []
+    t0, r0 = guess.t[0], guess.x[0][:, rows]
+    nodes_t, nodes_q = t0, guess.q[0]  # where the next grid's configurations are interpolated from
+    # and its held strokes (periodic in the cycle's time): the free motion's, its drift out
+    unknown_t, unknown_r = t0, r0 - (r0[-1] - r0[0]) * t0[:, None] / period
     for intervals in grids:
         q = resampled(node_times(chain, intervals), nodes_t, nodes_q)
         problem = Transcription(

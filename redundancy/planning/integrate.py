@@ -1,29 +1,22 @@
 """Integration of a law along a segment, for a batch of starting configurations at once.
 
-The joint state follows q̇ = A⁻¹ ẋ (Eq. 11), with ẋ from the law (`Resolver.resolve`) for the
-task velocity, with closed-loop correction of the tracking error where a gain K (1/s) is given,
-
-    ẏ = ẏ_d + K (y_d(t) − y(q)).
-
+The joint state follows q̇ = A⁻¹ ẋ (Eq. 11), ẋ from the law (`Resolver.resolve`) for the task
+velocity, with closed-loop correction where a gain K (1/s) is given: ẏ = ẏ_d + K (y_d(t) − y(q)).
 Two methods, one result type (`Trajectory`):
 
-- "adaptive" (the default): Dormand-Prince 5(4) steps with error control on q (relative and
-  absolute ``tolerance``), every start with its own step size, each stage one batched
-  evaluation of the starts still running. scipy's `solve_ivp` integrates one system with one
-  step size: a batch of starts as one system would step all of them at the pace of the
-  hardest, and one call per start would evaluate the law state by state. So the loop is
-  written here, around scipy's RK45 tableau. The method controls its own error, so it runs open
-  loop (K = 0) unless a gain is given. The motion is sampled on the uniform grid of
-  ``time_step`` by the method's 4th-order dense output (Shampine's), or, with ``sparse``, at
-  the accepted steps and their midpoints only: fewer samples for a search, between which strokes
-  follow the cubic Hermite interpolant through x and ẋ, so that a limit passed between samples
-  still counts. Such a motion's strokes count `ALLOWANCE` × ``tolerance`` closer to their limits
-  (the start itself is exact), so that a start found feasible from sparse samples is feasible
-  on the grid too. The accepted steps are kept (`Steps`: each step's start, size and stage
-  slopes), so a motion sampled sparsely is sampled on a grid later from the same steps
-  (`Trajectory.on_grid`): one batched evaluation of the law, no integration again.
-- "rk4": the classical Runge-Kutta method on the uniform grid of ``time_step``, closed loop with
-  K = `GAIN` by default (the paper's fixed-step simulation).
+- "adaptive" (the default): Dormand-Prince 5(4) with error control on q (relative and absolute
+  ``tolerance``), open loop (K = 0) unless a gain is given, on scipy's RK45 tableau. The loop is
+  written here because every start keeps its own step size while each stage is one batched
+  evaluation of the starts still running: `solve_ivp` steps one system at one size (a batch as
+  one system moves at the pace of its hardest start; one call per start evaluates the law state
+  by state). Samples lie on the uniform grid of ``time_step`` by the 4th-order dense output
+  (Shampine's) or, with ``sparse``, at the accepted steps and their midpoints: strokes between
+  them follow the cubic Hermite interpolant through x and ẋ, and count `ALLOWANCE` ×
+  ``tolerance`` closer to their limits (the start itself exact), so a start feasible on sparse
+  samples is feasible on the grid too. The accepted steps are kept (`Steps`), so a sparse motion
+  is put on a grid later by one batched evaluation (`Trajectory.on_grid`), not integrated again.
+- "rk4": classical Runge-Kutta on the grid of ``time_step``, closed loop with K = `GAIN` by
+  default (the paper's fixed-step simulation).
 
 A start whose actuator Jacobian turns singular or whose state stops being finite is frozen there
 and flagged (`Trajectory.failed`), so one bad start never spoils the batch.
@@ -48,7 +41,7 @@ from redundancy.planning.tasks import Chain, Segment
 from redundancy.resolution.laws import Resolver
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
 from redundancy.resolution.limits import Limits, Violation, hydraulic_values
-from redundancy.resolution.objectives import Objective, integral, kinetic
+from redundancy.resolution.objectives import ENERGY, VELOCITY, Objective, integral
 from redundancy.resolution.state import ActuatorSpace, evaluate, regularised
 
 if TYPE_CHECKING:
@@ -312,24 +305,24 @@ class Trajectory:
     @property
     def velocity_norm(self) -> np.ndarray:
         """ẋᵀẋ (k, T), m²/s²."""
-        return np.sum(self.x_dot**2, axis=2)
+        return self.values(VELOCITY)
 
-    @cached_property
+    @property
     def kinetic(self) -> np.ndarray:
         """ẋᵀ M_H ẋ (k, T) = twice the kinetic energy (Eq. 28), J."""
-        return self._motions(kinetic(self.states, self._flat(self.x_dot)))
+        return self.values(ENERGY)
 
     @property
     def peak_velocity_norm(self) -> np.ndarray:
         """max_t ẋᵀẋ (k,), m²/s²."""
-        return self.velocity_norm.max(axis=1)
+        return self.score(VELOCITY)
 
     @property
     def peak_kinetic(self) -> np.ndarray:
         """max_t ẋᵀ M_H ẋ (k,), J."""
-        return self.kinetic.max(axis=1)
+        return self.score(ENERGY)
 
-    @cached_property
+    @property
     def tracking_error(self) -> np.ndarray:
         """|y(t) − y_d(t)| (k, T), in m."""
         return np.linalg.norm(self.y - self.segment.position(self.t), axis=2)
@@ -380,8 +373,8 @@ class Trajectory:
 def chained(path: Chain, pieces: Sequence[Trajectory]) -> Trajectory:
     """k motions along each segment of ``path`` in turn (each piece starting where the one
     before ended) as k motions along the whole chain: times from the chain's start, each later
-    piece's first sample left out (it repeats the corner the one before ended at), each motion
-    padded by repeating its last sample. A motion failed or stopped where any piece did."""
+    piece's first sample left out (it repeats the corner the one before ended at). A motion
+    failed or stopped where any piece did."""
     firsts = np.cumsum([0, *(p.t.size for p in pieces)])
     index = [  # each motion's samples among the pieces' flattened motion by motion
         np.concatenate(
@@ -395,7 +388,7 @@ def chained(path: Chain, pieces: Sequence[Trajectory]) -> Trajectory:
     return _gathered(
         path,
         pieces,
-        padded(index),
+        index,
         path.offsets,
         failed=np.any([p.failed for p in pieces], axis=0),
         stopped=np.any([p.stopped for p in pieces], axis=0),
@@ -404,47 +397,45 @@ def chained(path: Chain, pieces: Sequence[Trajectory]) -> Trajectory:
     )
 
 
-def padded(arrays: Sequence[np.ndarray]) -> np.ndarray:
-    """Arrays (T_i, ...) as one (k, max T_i, ...), each padded by repeating its last row."""
-    length = max(len(a) for a in arrays)
-    return np.stack([np.concatenate([a, np.repeat(a[-1:], length - len(a), 0)]) for a in arrays])
-
-
 def concatenated(first: Trajectory, second: Trajectory) -> Trajectory:
-    """Two batches of motions on one path as one, padded to the longer by repetition."""
-    rows = [
+    """Two batches of motions on one path as one."""
+    index = [
         offset + i * part.t.shape[1] + np.arange(part.t.shape[1])
         for offset, part in ((0, first), (first.t.size, second))
         for i in range(len(part))
     ]
+    steps = None
+    if first.steps is not None and second.steps is not None:
+        steps = first.steps.joined(second.steps, len(first))
+    pieces = tuple(concatenated(a, b) for a, b in zip(first.pieces, second.pieces))
     return _gathered(
         first.segment,
         (first, second),
-        padded(rows),
+        index,
         (0.0, 0.0),
         failed=np.concatenate([first.failed, second.failed]),
         stopped=np.concatenate([first.stopped, second.stopped]),
-        steps=None
-        if first.steps is None or second.steps is None
-        else first.steps.joined(second.steps, len(first)),
-        pieces=tuple(concatenated(a, b) for a, b in zip(first.pieces, second.pieces)),
+        steps=steps,
+        pieces=pieces,
     )
 
 
-def _gathered(path, parts: Sequence[Trajectory], index: np.ndarray, shifts, **fields):
-    """The samples ``index`` (k, T) among the ``parts``' samples flattened motion by motion
-    (each part's times shifted by its ``shifts``, s) as k motions along ``path``; the other
-    ``fields`` given."""
+def _gathered(path, parts: Sequence[Trajectory], index: list[np.ndarray], shifts, **fields):
+    """k motions along ``path``, motion i the samples index[i] among the ``parts``' samples
+    flattened motion by motion (each part's times shifted by its ``shifts``, s), padded to the
+    longest by repeating its last; the other ``fields`` given."""
+    length = max(len(i) for i in index)
+    rows = np.stack([np.concatenate([i, np.repeat(i[-1:], length - len(i))]) for i in index])
 
     def gather(name: str) -> np.ndarray:
         arrays = [getattr(p, name) for p in parts]
-        return np.concatenate([a.reshape(-1, *a.shape[2:]) for a in arrays])[index]
+        return np.concatenate([a.reshape(-1, *a.shape[2:]) for a in arrays])[rows]
 
     return replace(
         parts[0],
         segment=path,
-        t=np.concatenate([p.t.ravel() + shift for p, shift in zip(parts, shifts)])[index],
-        space=ActuatorSpace.joined([p.space for p in parts]).take(index.ravel()),
+        t=np.concatenate([p.t.ravel() + shift for p, shift in zip(parts, shifts)])[rows],
+        space=ActuatorSpace.joined([p.space for p in parts]).take(rows.ravel()),
         x_dot=gather("x_dot"),
         measure=gather("measure") if all(p.measure is not None for p in parts) else None,
         **fields,
@@ -649,16 +640,8 @@ def _runge_kutta(law: Law, starts: np.ndarray, t: np.ndarray):
         step = h / 6 * (first.q_dot + 2 * k2 + 2 * k3 + k4)
         q = q + np.where(failed[:, None], 0.0, step)
     records.append(rates(t[-1], q))
-    rows = np.repeat(np.arange(k)[None], len(t), axis=0).ravel()
-    times = np.repeat(t, k)
-    evaluated = [(rows, times, joined(records))]
+    evaluated = [(np.tile(np.arange(k), len(t)), np.repeat(t, k), joined(records))]
     return _assemble(k, evaluated, failed.copy(), np.zeros(k, dtype=bool), t)
-
-
-def _combine(weights: np.ndarray, slopes: np.ndarray) -> np.ndarray:
-    """Σ_s w_s K_s (k, n) of the first len(w) stage slopes K (S, k, n): one product."""
-    count = len(weights)
-    return (weights @ slopes[:count].reshape(count, -1)).reshape(slopes.shape[1:])
 
 
 def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
@@ -682,15 +665,16 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
         if not rows.size:
             break
         step = np.minimum(h[rows], duration - t[rows])[:, None]
-        slopes = np.empty((len(STAGES) + 1, len(rows), q.shape[1]))  # the stages' q̇
+        slopes = np.empty((len(STAGES) + 1, len(rows), n))  # the stages' q̇, K (7, rows, n)
         slopes[0] = f[rows]
-        for stage, (node, weights) in enumerate(zip(NODES, STAGES), 1):
-            end = law(t[rows] + node * step[:, 0], q[rows] + step * _combine(weights, slopes))
+        for stage, (node, weights) in enumerate(zip(NODES, STAGES), 1):  # Σ_s w_s K_s
+            increment = np.tensordot(weights, slopes[:stage], axes=1)
+            end = law(t[rows] + node * step[:, 0], q[rows] + step * increment)
             slopes[stage] = end.q_dot
             failed[rows[end.bad]] = True
-        q_new = q[rows] + step * _combine(STAGES[-1], slopes)
+        q_new = q[rows] + step * increment
         scale = tolerance * (1 + np.maximum(np.abs(q[rows]), np.abs(q_new)))
-        error = np.sqrt(np.mean((step * _combine(ERROR, slopes) / scale) ** 2, axis=1))
+        error = np.sqrt(np.mean((step * np.tensordot(ERROR, slopes, axes=1) / scale) ** 2, axis=1))
         accept = (error <= 1) & ~failed[rows]
         done, kept = rows[accept], slopes[:, accept]
         t0, h0, q0, q1 = t[done], step[accept, 0], q[done], q_new[accept]
@@ -741,25 +725,19 @@ class Steps:
         number = np.full(count, -1)
         number[rows] = np.arange(len(rows))
         kept = number[self.rows] >= 0
-        return Steps(
-            self.law,
-            self.start.take(np.asarray(rows)),
-            number[self.rows[kept]],
-            self.t0[kept],
-            self.h[kept],
-            self.q0[kept],
-            self.slopes[kept],
-        )
+        start = self.start.take(np.asarray(rows))
+        return Steps(self.law, start, number[self.rows[kept]], *(a[kept] for a in self._arrays))
+
+    @property
+    def _arrays(self) -> tuple[np.ndarray, ...]:
+        return self.t0, self.h, self.q0, self.slopes
 
     def joined(self, other: Steps, offset: int) -> Steps:
         """These steps and ``other``'s, whose motions are numbered from ``offset`` on."""
         return Steps.gathered(
             self.law,
             joined([self.start, other.start]),
-            [
-                (self.rows, self.t0, self.h, self.q0, self.slopes),
-                (other.rows + offset, other.t0, other.h, other.q0, other.slopes),
-            ],
+            [(self.rows, *self._arrays), (other.rows + offset, *other._arrays)],
         )
 
     def dense(self, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -3,41 +3,34 @@ configuration.
 
 The improved method (section 2, steps i-v): sample the held actuators (the crane's x3init) over
 their strokes; for each sample find the initial configuration by inverse kinematics, integrate
-the objective's law along the segment, keep the samples whose motion stays inside the actuator
-limits the whole way, and return the one with the lowest peak (or integral) of the objective.
-The segment may be any path: a work cycle's `Chain` is searched as one (its start at the cycle's
-first point, feasible where every stroke holds through every segment). Every sample, whichever
-search asks for it, is evaluated by `evaluate_starts`: the same configurations, integration and
-definition of feasible (margin ≥ −`TOLERANCE`, see `redundancy.resolution.limits`).
+the objective's law along the path (a segment, or a work cycle's `Chain`, searched as one), keep
+the samples whose motion stays inside the actuator limits the whole way, and return the one
+with the lowest peak (or integral) of the objective. Every sample, whichever search asks for it,
+is evaluated by `evaluate_starts`: feasible where its margin is ≥ −`TOLERANCE`
+(`redundancy.resolution.limits`). Methods:
 
-Methods:
+- "fast" (r = 1, the default): the margin μ(v) of a start v, the least distance of a checked
+  stroke to its limits over the motion and of the start to its joint limits, is continuous in
+  v, so the ends of the feasible set are its zeros. The reachable starts are located first by
+  continuation along v (no integration); `GRID` of them are integrated, and each round
+  integrates the probes of every bracket of the feasible set (`redundancy.planning.brackets`)
+  and of the least peak, until every end is located to ``tolerance``.
+- "sweep": the paper's uniform sweep of ``samples`` values (r = 1); for r > 1, ``samples``
+  scrambled Halton points over the stroke box (a grid would cost samples^r), the best feasible
+  ones then refined by compass search: each round tries every leader ± h along every held
+  actuator (one batch), moves a leader to its best feasible improvement, and halves h when none
+  improved, from h = stroke / samples^(1/r) down to stroke / 1000.
 
-- "fast" (r = 1, the default): few samples, placed where they matter. The margin μ(v) of a start
-  v is the least distance of a checked actuator to its stroke limits over the motion, and of the
-  start configuration to its joint limits; it is continuous in v, so the ends of the feasible set
-  are its zeros. The reachable starts are located first, by continuation of the start
-  configuration along v alone (no integration); `GRID` starts over them are integrated, and each
-  round integrates the probes of every bracket of the feasible set (`redundancy.planning.
-  brackets`) and of the least peak, until every end is located to ``tolerance``.
-- "sweep": the paper's uniform sweep of ``samples`` values (r = 1); with r > 1 a uniform grid
-  would cost samples^r, so ``samples`` scrambled Halton points are spread over the stroke box,
-  then the best feasible ones are refined by compass search: each round tries every leader ± h
-  along every held actuator (clipped to the strokes, one batch), moves a leader to its best
-  feasible improvement, and halves h when no leader improved, from h = stroke / samples^(1/r)
-  down to stroke / 1000.
-
-All samples of a round are integrated as one batch, adaptively, sampled sparsely (see
-`redundancy.planning.integrate`); `SearchResult.motion` samples one start's motion on the
-grid from the steps the search took. The samples rank the starts; the figure a search reports
-for its best start, `SearchResult.best_peak`, is taken over that start's motion on the grid: a
-motion's peak can fall between its sparse samples (1 % above them on the slewing crane's
-lift-swing).
+Each round's samples are integrated as one batch, adaptively and sampled sparsely
+(`redundancy.planning.integrate`); they rank the starts. The best start's figure,
+`SearchResult.best_peak`, is taken over its motion on the grid (`SearchResult.motion`): a peak
+can fall between sparse samples (1 % above them on the slewing crane's lift-swing).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from functools import cached_property, partial
 
 import numpy as np
@@ -194,17 +187,17 @@ class SearchResult:
         row = int(self.rows[self.samples.index(sample)])
         if row < 0:
             raise InvalidInputError(f"the start {sample.values} of {self.held} is unreachable")
-        motion = self.trajectory.select(row)
+        searched = self.trajectory
         return simulate_path(
             self.robot,
             self.objective.resolver,
             self.segment,
-            motion.q[:, 0],
+            searched.q[row : row + 1, 0],
             time_step,
-            checked=motion.checked,
+            checked=searched.checked,
             tolerance=REPORT_TOLERANCE,
             objective=self.objective,
-            circuit=motion.circuit,
+            circuit=searched.circuit,
         )
 
     def extended(self, other: SearchResult) -> SearchResult:
@@ -240,6 +233,17 @@ def stroke_box(robot: Robot, held: tuple[str, ...]) -> np.ndarray:
     return box
 
 
+def _unreachable(robot: Robot, path, how: str, miss: float | None = None) -> UnreachableError:
+    """The error saying ``robot`` cannot reach the start of ``path`` ``how`` (and by how much
+    the closest configuration ``miss``es it, m)."""
+    closest = (
+        "" if miss is None else f"; the closest configuration misses it by {amount(miss, 'm')}"
+    )
+    return UnreachableError(
+        f"{robot.name} cannot reach the start {path.start.tolist()} of {path.label} {how}{closest}"
+    )
+
+
 def sweep_values(robot: Robot, held: str, samples: int) -> np.ndarray:
     """``samples`` values evenly over one held actuator's stroke (step iii), (samples,)."""
     if samples < 1:
@@ -266,6 +270,14 @@ class Starts:
     def reachable(self) -> np.ndarray:
         return self.joint_margins >= -LIMIT_TOLERANCE
 
+    def merged(self, other: Starts) -> Starts:
+        """These starts and ``other`` in order of their held value."""
+        both = [
+            np.concatenate([getattr(self, f.name), getattr(other, f.name)]) for f in fields(self)
+        ]
+        order = np.argsort(both[0][:, 0], kind="stable")
+        return Starts(*(values[order] for values in both))
+
     def reason(self, i: int) -> str:
         """Why start i is unreachable."""
         if self.miss[i] > 0:
@@ -283,7 +295,7 @@ class Configurations:
     def __init__(self, robot: Robot, segment: Segment | Chain, held: str):
         point = segment.start
         self.robot, self.point, self.held, self.segment = robot, point, held, segment
-        self._reach: dict[float, Starts] = {}
+        self._reach: dict[float, np.ndarray] = {}
         self.row = held_indices(robot, [held])[0]
         self.joints = Limits.joints(robot)
         scan = sweep_values(robot, held, REACH_GRID)
@@ -293,18 +305,15 @@ class Configurations:
             anchor = inverse_kinematics(robot, point, [held], scan[:, None])
         found = anchor.reached
         if not found.any():
-            raise UnreachableError(
-                f"{robot.name} cannot reach the start {point.tolist()} of {segment.label} "
-                f"with {held} anywhere in its stroke inside its joint limits; the "
-                f"closest configuration misses it by {amount(anchor.miss.min(), 'm')}"
-            )
+            how = f"with {held} anywhere in its stroke inside its joint limits"
+            raise _unreachable(robot, segment, how, anchor.miss.min())
         values = scan[order[:1]] if len(anchor.q) == 1 else scan
         self.known = (values[found], anchor.q[found])
 
-    def reach(self, tolerance: float) -> Starts:
-        """`REACH_GRID` starts over the stroke with the ends of the reachable ones located to
-        ``tolerance`` by bisection of the joint margin: no integration, so one scan serves
-        every objective's search (kept per tolerance)."""
+    def reachable(self, tolerance: float) -> np.ndarray:
+        """The reachable held values, in order, of `REACH_GRID` starts over the stroke with the
+        ends of the reachable ones located to ``tolerance`` by bisection of the joint margin: no
+        integration, so one scan serves every objective's search (kept per tolerance)."""
         if tolerance not in self._reach:
             reach = self.at(sweep_values(self.robot, self.held, REACH_GRID))
             for _ in range(ROUNDS):
@@ -316,8 +325,11 @@ class Configurations:
                 )
                 if not probes.size:
                     break
-                reach = _merged(reach, self.at(probes))
-            self._reach[tolerance] = reach
+                reach = reach.merged(self.at(probes))
+            self._reach[tolerance] = reach.values[reach.reachable, 0]
+        if not self._reach[tolerance].size:
+            how = f"inside its joint limits with {self.held} anywhere in its stroke"
+            raise _unreachable(self.robot, self.segment, how)
         return self._reach[tolerance]
 
     def at(self, values: np.ndarray) -> Starts:
@@ -331,13 +343,6 @@ class Configurations:
             np.concatenate([self.known[1], q[inside]]),
         )
         return Starts(values[:, None], q, margins, np.zeros(len(values)))
-
-
-def _ik_starts(robot: Robot, path: Segment | Chain, held: tuple[str, ...], values) -> Starts:
-    """Starts by multi-seed inverse kinematics at held ``values`` (k, r)."""
-    ik = inverse_kinematics(robot, path.start, held, values)
-    margins = np.where(ik.reached, 0.0, -np.inf)
-    return Starts(values, ik.q, margins, np.where(ik.reached, 0.0, ik.miss))
 
 
 def evaluate_starts(
@@ -361,24 +366,19 @@ def evaluate_starts(
     ``circuit`` also the hydraulic circuit's (its margin stays the strokes')."""
     path, objective = checked_path(path, "path"), as_objective(objective)
     held = held_names(robot, held)
-    if not isinstance(values, Starts):
-        values = np.asarray(values, dtype=float).reshape(-1, len(held))
-        values = _ik_starts(robot, path, held, values)
     starts = values
+    if not isinstance(starts, Starts):  # by multi-seed inverse kinematics
+        values = np.asarray(values, dtype=float).reshape(-1, len(held))
+        ik = inverse_kinematics(robot, path.start, held, values)
+        margins = np.where(ik.reached, 0.0, -np.inf)
+        starts = Starts(values, ik.q, margins, np.where(ik.reached, 0.0, ik.miss))
     reachable = np.flatnonzero(starts.reachable)
     rows = np.full(len(starts.values), -1)
     rows[reachable] = np.arange(reachable.size)
     if not reachable.size:
         miss = starts.miss[starts.miss > 0]
-        raise UnreachableError(
-            f"{robot.name} cannot reach the start {path.start.tolist()} of {path.label} from "
-            f"any of the {len(starts.values)} sampled values of {', '.join(held)}"
-            + (
-                f"; the closest configuration misses it by {amount(miss.min(), 'm')}"
-                if miss.size
-                else ""
-            )
-        )
+        how = f"from any of the {len(starts.values)} sampled values of {', '.join(held)}"
+        raise _unreachable(robot, path, how, miss.min() if miss.size else None)
     motions = simulate_path(
         robot,
         objective.resolver,
@@ -524,16 +524,9 @@ def fast_search(configurations: Configurations, tolerance: float | None, evaluat
     ``configurations`` of a path: ``evaluate(starts, stop_past)`` integrates `Starts` along it
     and returns a search of their samples that can be ``extended``. The reachable scan is the
     configurations' own, shared by every search that uses them."""
-    robot, segment, held = configurations.robot, configurations.segment, configurations.held
-    tolerance = end_tolerance(robot, held, tolerance)
-    reach = configurations.reach(tolerance)
-    reachable = reach.values[reach.reachable, 0]
-    if not reachable.size:
-        raise UnreachableError(
-            f"{robot.name} cannot reach the start {segment.start.tolist()} of {segment.label} "
-            f"inside its joint limits with {held} anywhere in its stroke"
-        )
-    grid = configurations.at(np.linspace(reachable.min(), reachable.max(), GRID))
+    tolerance = end_tolerance(configurations.robot, configurations.held, tolerance)
+    reachable = configurations.reachable(tolerance)
+    grid = configurations.at(np.linspace(reachable[0], reachable[-1], GRID))
     search = evaluate(grid, True)
     for _ in range(ROUNDS):
         order = np.argsort(search.values[:, 0], kind="stable")
@@ -552,29 +545,15 @@ def fast_search(configurations: Configurations, tolerance: float | None, evaluat
     return search
 
 
-def _merged(first: Starts, second: Starts) -> Starts:
-    """Both sets of starts in order of their held value."""
-    values = np.concatenate([first.values, second.values])
-    order = np.argsort(values[:, 0], kind="stable")
-    return Starts(
-        values[order],
-        np.concatenate([first.q, second.q])[order],
-        np.concatenate([first.joint_margins, second.joint_margins])[order],
-        np.concatenate([first.miss, second.miss])[order],
-    )
-
-
 def _compass(robot, segment, held, samples, run) -> SearchResult:
     """Halton points over the stroke box, then compass-search refinement (r > 1), the held
     values (k, r) of each batch integrated by ``run``."""
-    from scipy.stats import qmc
-
     box = stroke_box(robot, held)
-    lower, span = box[:, 0], box[:, 1] - box[:, 0]
+    span = box[:, 1] - box[:, 0]
     if samples == 1:  # one sample is the default start, as with one held actuator
         result = run(default_start(robot, segment, held)[0][None])
     else:
-        result = run(lower + span * qmc.Halton(len(held), seed=1).random(samples))
+        result = run(_halton(box, samples, seed=1))
     leaders = sorted(result.feasible, key=lambda s: s.peak)[:REFINED_AROUND]  # type: ignore[arg-type,return-value]
     step = 1 / samples ** (1 / len(held))  # fraction of each stroke
     directions = np.concatenate([np.eye(len(held)), -np.eye(len(held))])
@@ -597,6 +576,13 @@ def _compass(robot, segment, held, samples, run) -> SearchResult:
     return result
 
 
+def _halton(box: np.ndarray, count: int, seed: int) -> np.ndarray:
+    """``count`` scrambled Halton points over the stroke ``box`` (r, 2), (count, r)."""
+    from scipy.stats import qmc
+
+    return qmc.scale(qmc.Halton(len(box), seed=seed).random(count), box[:, 0], box[:, 1])
+
+
 def default_start(robot: Robot, segment: Segment | Chain, held: str | Sequence[str] = "x3"):
     """The documented default start: the held actuators at mid-stroke or, where the segment's
     start is out of reach there, the reachable candidate nearest mid-stroke (candidates: 101
@@ -609,10 +595,7 @@ def default_start(robot: Robot, segment: Segment | Chain, held: str | Sequence[s
     if len(held) == 1:
         candidates = sweep_values(robot, held[0], 101)[:, None]
     else:
-        from scipy.stats import qmc
-
-        unit = qmc.Halton(len(held), seed=3).random(256)
-        candidates = box[:, 0] + (box[:, 1] - box[:, 0]) * unit
+        candidates = _halton(box, 256, seed=3)
     middle = box.mean(axis=1)
     distance = np.linalg.norm((candidates - middle) / (box[:, 1] - box[:, 0]), axis=1)
     ordered = candidates[np.argsort(distance, kind="stable")]
@@ -624,11 +607,7 @@ def default_start(robot: Robot, segment: Segment | Chain, held: str | Sequence[s
             first = int(np.argmax(ik.reached))
             return batch[first], ik.q[first]
         tried, miss = tried + len(batch), min(miss, float(ik.miss.min()))
-    raise UnreachableError(
-        f"{robot.name} cannot reach the start {segment.start.tolist()} of {segment.label} "
-        f"with {', '.join(held)} anywhere in their strokes; the closest "
-        f"configuration misses it by {amount(miss, 'm')}"
-    )
+    raise _unreachable(robot, segment, f"with {', '.join(held)} anywhere in their strokes", miss)
 
 
 def scalar_or_list(values):
