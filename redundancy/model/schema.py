@@ -319,7 +319,8 @@ class SegmentTable(Timing):
 
 
 class TaskFile(Timing):
-    """A task file (schema in `redundancy.planning.tasks`)."""
+    """A task file (read by `redundancy.planning.tasks.WorkCycle.from_toml`; its keys are listed
+    in docs/machines.md, under "Checking a new machine")."""
 
     name: str | None = None
     tool_angle: bool = False
