@@ -114,7 +114,8 @@ def _retire(folder: Path, into: Path, manifest: dict) -> None:
     yet committed (files None) goes whole. What cannot be carried (its name taken in ``into``)
     stays, with the marker, so that it is never taken for the run's."""
     for staged, _ in manifest.get("beside", []):
-        Path(staged).unlink(missing_ok=True)
+        with contextlib.suppress(OSError):
+            Path(staged).unlink()
     if manifest["files"] is None:
         shutil.rmtree(folder, ignore_errors=True)
         return
@@ -286,7 +287,8 @@ class OutputFolder:
         if hasattr(self, "staging"):
             shutil.rmtree(self.staging, ignore_errors=True)
         for staged, _ in self.others:
-            staged.unlink(missing_ok=True)
+            with contextlib.suppress(OSError):  # never made, or its folder not either
+                staged.unlink()
         for folder in reversed(self.created):
             with contextlib.suppress(OSError):
                 folder.rmdir()
