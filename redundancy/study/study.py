@@ -30,7 +30,7 @@ from __future__ import annotations
 import json
 import warnings
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, partial
 from pathlib import Path
 
 import numpy as np
@@ -295,92 +295,107 @@ def run_study(
     from tqdm import tqdm
 
     held = held_actuators(robot, cycle)
-    method = method or ("fast" if len(held) == 1 else "sweep")
-    if method not in METHODS:
-        raise InvalidInputError(f"unknown method {method!r}; methods: {', '.join(METHODS)}")
+    searched = method or ("fast" if len(held) == 1 else "sweep")
+    if searched not in METHODS:
+        raise InvalidInputError(f"unknown method {searched!r}; methods: {', '.join(METHODS)}")
     _refuse_before_work(robot, cycle, held, energy_bound, circuit)
     baselines = [
         (n, r) for n, r in BASELINES if not (robot.kinematic_only and r is ENERGY.resolver)
     ]
-    names = [o.name for o in objectives]
-    searches: dict[str, list] = {n: [] for n in names}
-    sweeps: dict[str, list] = {n: [] for n in names}
-    bounds: dict[str, list] = {n: [] for n in names}
-    runs: list[StrategyRun] = []
+    study = partial(_on_segment, robot, objectives, held, samples, checked, circuit, baselines)
     failures: dict[str, str] = {}
     total = len(cycle.segments) * (len(baselines) + 3 * len(objectives))
     with tqdm(total=total, unit="task", desc="study", disable=not progress, mininterval=0.5) as bar:
-        for segment in cycle.segments:
-            start = default_start(robot, segment, held)
-            for name, resolver in baselines:
-                bar.set_description(f"{segment.name}: {name}")
-                runs.append(
-                    fixed_start_run(
-                        robot, resolver, name, segment, held, start, checked, circuit=circuit
-                    )
-                )
-                bar.update()
-            bar.set_description(f"{segment.name}: improved starts")
-            swept = improved_starts(
-                robot, segment, objectives, held, samples, checked, "sweep", circuit=circuit
-            )
-            found = swept
-            if method == "fast":
-                found = improved_starts(
-                    robot, segment, objectives, held, checked=checked, circuit=circuit
-                )
-            bar.update(2 * len(objectives))
-            for objective, search, sweep in zip(objectives, found, swept):
-                searches[objective.name].append(search)
-                sweeps[objective.name].append(sweep)
-                if search.best is not None:
-                    strategy = f"improved, {objective.name} objective"
-                    runs.append(
-                        StrategyRun(segment.name, strategy, search.best.values, search.best_motion)
-                    )
-                optimum = None
-                if bound and objective.reduction == "peak" and search.best is not None:
-                    bar.set_description(f"{segment.name}: bound, {objective.name}")
-                    with noted(failures, f"{objective.name}/{segment.name}"):
-                        optimum = global_optimum(
-                            robot, segment, objective, held, checked, search=search
-                        )
-                bounds[objective.name].append(optimum)
-                bar.update()
+        parts = [study(segment, searched, bound, bar, failures) for segment in cycle.segments]
     energy_bounds: dict[str, dict[str, EnergyOptimum]] | None = None
     if energy_bound:
         machine, energy_bounds = robot.circuit(), {}
         for segment in tqdm(cycle.segments, desc="energy bounds", disable=not progress):
-            found_bounds = energy_bounds[segment.name] = {}
+            found = energy_bounds[segment.name] = {}
             for supply in (machine.load_sensing, machine.constant_pressure):
                 with noted(failures, f"energy bound {supply.name}/{segment.name}"):
-                    found_bounds[supply.name] = energy_optimum(
-                        robot, segment, supply, held, checked
-                    )
+                    found[supply.name] = energy_optimum(robot, segment, supply, held, checked)
+    runs = tuple(run for part in parts for run in part[0])
     for run in runs:  # every figure a report or table shows is computed here, once
         run.summary()
     cycle_study, skipped = cycle_section(
         robot, cycle, objectives[0], cycles, samples, checked, method, circuit, progress
     )
     kept = tuple(robot.actuators.names if checked is None else checked)
+
+    def by_objective(k: int) -> dict[str, tuple]:
+        return {o.name: tuple(part[k][i] for part in parts) for i, o in enumerate(objectives)}
+
     return Study(
         robot,
         cycle,
         held,
         samples,
-        method,
+        searched,
         kept,
         circuit,
-        {n: tuple(v) for n, v in searches.items()},
-        {n: tuple(v) for n, v in sweeps.items()},
-        {n: tuple(v) for n, v in bounds.items()},
-        tuple(runs),
+        by_objective(1),
+        by_objective(2),
+        by_objective(3),
+        runs,
         energy_bounds,
         failures,
         cycle_study,
         skipped,
         reachable_points(robot, kept) if len(robot.task_axes) >= 2 else None,
     )
+
+
+def _on_segment(
+    robot,
+    objectives,
+    held,
+    samples,
+    checked,
+    circuit,
+    baselines,
+    segment,
+    method,
+    bound,
+    bar,
+    failures,
+) -> tuple[list[StrategyRun], list[SearchResult], list[SearchResult], list]:
+    """One segment's part of the study: the runs (the ``baselines`` from the default start, the
+    improved starts'), and per objective its search, its sweep and its bound (a failure noted
+    in ``failures``); ``bar`` counts them."""
+    start = default_start(robot, segment, held)
+    runs = []
+    for name, resolver in baselines:
+        bar.set_description(f"{segment.name}: {name}")
+        runs.append(
+            fixed_start_run(robot, resolver, name, segment, held, start, checked, circuit=circuit)
+        )
+        bar.update()
+    bar.set_description(f"{segment.name}: improved starts")
+    sweeps = improved_starts(
+        robot, segment, objectives, held, samples, checked, "sweep", circuit=circuit
+    )
+    searches = sweeps
+    if method == "fast":
+        searches = improved_starts(
+            robot, segment, objectives, held, checked=checked, circuit=circuit
+        )
+    bar.update(2 * len(objectives))
+    bounds = []
+    for objective, search in zip(objectives, searches):
+        optimum = None
+        if search.best is not None:
+            strategy = f"improved, {objective.name} objective"
+            runs.append(StrategyRun(segment.name, strategy, search.best.values, search.best_motion))
+            if bound and objective.reduction == "peak":
+                bar.set_description(f"{segment.name}: bound, {objective.name}")
+                with noted(failures, f"{objective.name}/{segment.name}"):
+                    optimum = global_optimum(
+                        robot, segment, objective, held, checked, search=search
+                    )
+        bounds.append(optimum)
+        bar.update()
+    return runs, list(searches), list(sweeps), bounds
 
 
 def _refuse_before_work(robot, cycle, held, energy_bound: bool, circuit: bool) -> None:
