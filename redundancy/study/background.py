@@ -1,23 +1,20 @@
-"""A computation run in a second process while this one goes on: the main job keeps both cores
-of a machine busy.
+"""A computation run in a second, forked process while this one goes on: the study command's
+cycle section, about 45 % of the command's processor time, computed on a second core.
 
 `Background(function, *args)` forks a process that calls ``function(*args)`` and sends back its
 result, or the exception it raised, through a pipe; `result()` waits for it and returns it, or
 raises that exception here. Leaving the ``with`` block stops the process if its result was never
 collected (an error or Ctrl-C in this process), so no computation outlives the command. The child
-ignores Ctrl-C, which the terminal sends to both: this process decides; stopped, it ends at
-once, whatever handlers it inherited. It dies with this process however that ends, SIGKILL
-included (`die_with_parent`). What the child writes goes where its caller says: the
-study's child writes only into the output's staging folder, which is kept only if the whole
-command succeeds, so nothing a stopped child leaves can be seen half-written.
+ignores Ctrl-C, which the terminal sends to both (this process decides); stopped, it ends at once;
+it dies with this process however that ends, SIGKILL included (`die_with_parent`). The study's
+child writes only into the output's staging folder, kept only if the whole command succeeds.
 
 Where a fork would not be safe, the function runs in this process, at once: where the POSIX
 ``fork`` start method is missing, and where this process runs other threads (a notebook's
 kernel, a Dask worker), since a forked child inherits the locks those threads hold but not the
-threads that would release them. One lock is shared on purpose, and the child leaves it: the
-progress bars' (tqdm guards its writes by a lock across processes, which a bar of this process
-may hold at the fork, or take and never give back when Ctrl-C cuts its acquisition short); the
-child takes a lock of its own, so that neither process waits for ever on the other's bars.
+threads that would release them. The progress bars' lock is shared across processes on purpose
+(tqdm's): the child sets its own (`tqdm.set_lock`), so that neither process waits for ever on a
+lock the other holds.
 """
 
 from __future__ import annotations
@@ -45,21 +42,23 @@ def die_with_parent(parent: int) -> None:
         os._exit(0)
 
 
+def _outcome(function: Callable[..., Any], args: tuple) -> tuple[str, Any]:
+    try:
+        return "result", function(*args)
+    except Exception as error:  # raised where the result is collected
+        return "error", error
+
+
 def _run(sender: Connection, parent: int, function: Callable[..., Any], args: tuple) -> None:
-    """In the child: call ``function(*args)``, send ("result", value) or ("error", e), and end
-    at once (`os._exit`: no clean-up inherited from the parent runs, no buffered output of the
-    parent's is written twice). It starts with `STOPPING` blocked (see `Background`)."""
+    """In the child, started with `STOPPING` blocked: send ``function(*args)``'s `_outcome`,
+    and end at once (`os._exit`: no clean-up or buffered output of the parent's runs twice)."""
     die_with_parent(parent)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent decides
     signal.signal(signal.SIGTERM, signal.SIG_DFL)  # `Background.stop`: end quietly, at once
     signal.pthread_sigmask(signal.SIG_UNBLOCK, STOPPING)
-    if "tqdm" in sys.modules:  # a lock of the child's own for its progress bars (see above)
+    if "tqdm" in sys.modules:
         sys.modules["tqdm"].tqdm.set_lock(threading.RLock())
-    try:
-        outcome: tuple[str, Any] = ("result", function(*args))
-    except Exception as error:  # sent to the parent, which raises it there
-        outcome = ("error", error)
-    sender.send(outcome)
+    sender.send(_outcome(function, args))
     sender.close()
     os._exit(0)
 
@@ -70,31 +69,25 @@ class Background:
     def __init__(self, function: Callable[..., Any], *args: Any) -> None:
         self._outcome: tuple[str, Any] | None = None
         self._process = None
-        forkable = "fork" in multiprocessing.get_all_start_methods()
-        if not forkable or threading.active_count() > 1:
-            try:
-                self._outcome = ("result", function(*args))
-            except Exception as error:
-                self._outcome = ("error", error)
+        if "fork" not in multiprocessing.get_all_start_methods() or threading.active_count() > 1:
+            self._outcome = _outcome(function, args)
             return
         context = multiprocessing.get_context("fork")
         self._receiver, sender = context.Pipe(duplex=False)
         self._process = context.Process(
             target=_run, args=(sender, os.getpid(), function, args), daemon=True
         )
-        # a Ctrl-C at the fork would reach a child still running this process's handlers: it
+        # a signal at the fork would reach a child still running this process's handlers: it
         # waits, blocked, for the child's own, and is handled here once the child is started
-        # (should it stop this constructor, the child is stopped; at the latest, as a daemon,
-        # when this process exits)
         blocked = signal.pthread_sigmask(signal.SIG_BLOCK, STOPPING)
         try:
             self._process.start()
             sender.close()
-            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
         except BaseException:
-            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
             self.stop()
             raise
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
 
     def result(self) -> Any:
         """The function's value, once it is computed; the exception it raised is raised here."""
@@ -108,8 +101,7 @@ class Background:
                     f"(exit code {self._process.exitcode})"
                 ) from None
             self._process.join()
-        assert self._outcome is not None
-        kind, value = self._outcome
+        kind, value = self._outcome  # type: ignore[misc]
         if kind == "error":
             raise value
         return value

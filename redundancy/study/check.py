@@ -65,11 +65,6 @@ class ActuatorCheck:
             or (np.isfinite(upper) and upper > self.reached[1] + MISMATCH)
         )
 
-    @property
-    def singular_in_stroke(self) -> list[int]:
-        """Which of the singular configurations lie inside the stroke."""
-        return [i for i, x in enumerate(self.singular_x) if self.stroke[0] <= x <= self.stroke[1]]
-
     def joint_value(self, value: float) -> str:
         """A value of the actuator's joint, in mm or degrees."""
         return amount(value, "rad" if self.joint_rotary else "m")
@@ -79,9 +74,10 @@ class ActuatorCheck:
         the actuator's value there."""
         unit = "rad" if self.rotary else "m"
         return [
-            f"{self.name}: A is singular at {self.joint} = {self.joint_value(self.singular[i])} "
-            f"({self.name} = {amount(self.singular_x[i], unit)}, inside its stroke)"
-            for i in self.singular_in_stroke
+            f"{self.name}: A is singular at {self.joint} = {self.joint_value(joint)} "
+            f"({self.name} = {amount(x, unit)}, inside its stroke)"
+            for joint, x in zip(self.singular, self.singular_x)
+            if self.stroke[0] <= x <= self.stroke[1]
         ]
 
 
@@ -189,16 +185,13 @@ def _sweep(robot: Robot, column: int, row: int) -> tuple[tuple, tuple, tuple]:
     q = np.repeat(((lower + upper) / 2)[None], SWEEP, axis=0)
     q[:, column] = np.linspace(lower[column], upper[column], SWEEP)
     space = evaluate(robot, q)
-    x = space.x[:, row]
-    det = np.linalg.det(space.A)
-    scale = np.abs(det).max()
-    crossings = np.flatnonzero((np.sign(det[:-1]) * np.sign(det[1:]) < 0) | (det[:-1] == 0))
-    singular, singular_x = [], []
-    for i in crossings:
-        weight = 0.0 if det[i] == 0 or scale == 0 else det[i] / (det[i] - det[i + 1])
-        singular.append(float(q[i, column] + weight * (q[i + 1, column] - q[i, column])))
-        singular_x.append(float(x[i] + weight * (x[i + 1] - x[i])))
-    return (float(x.min()), float(x.max())), tuple(singular), tuple(singular_x)
+    x, det = space.x[:, row], np.linalg.det(space.A)
+    i = np.flatnonzero((np.sign(det[:-1]) * np.sign(det[1:]) < 0) | (det[:-1] == 0))
+    step = det[i] - det[i + 1]  # nonzero where the sign changes
+    weight = np.divide(det[i], step, out=np.zeros_like(step), where=det[i] != 0)
+    singular = q[i, column] + weight * (q[i + 1, column] - q[i, column])
+    singular_x = x[i] + weight * (x[i + 1] - x[i])
+    return (float(x.min()), float(x.max())), tuple(singular.tolist()), tuple(singular_x.tolist())
 
 
 def _reached(robot: Robot, cycle: WorkCycle) -> tuple[np.ndarray, tuple[bool, ...]]:
@@ -221,22 +214,17 @@ def _reached(robot: Robot, cycle: WorkCycle) -> tuple[np.ndarray, tuple[bool, ..
 
 def check(robot: Robot, cycle: WorkCycle | None = None) -> Check:
     """Check ``robot`` (and the points of ``cycle``, where given) for a study."""
-    actuators = []
-    for row, actuator in enumerate(robot.actuators):
-        column = actuator.index
-        reached, singular, singular_x = _sweep(robot, column, row)
-        actuators.append(
-            ActuatorCheck(
-                actuator.name,
-                actuator.joint,
-                bool(actuator.rotary),
-                bool(robot.rotary_joints[column]),
-                (actuator.lower, actuator.upper),
-                reached,
-                singular,
-                singular_x,
-            )
+    actuators = tuple(
+        ActuatorCheck(
+            a.name,
+            a.joint,
+            bool(a.rotary),
+            bool(robot.rotary_joints[a.index]),
+            (a.lower, a.upper),
+            *_sweep(robot, a.index, row),
         )
+        for row, a in enumerate(robot.actuators)
+    )
     points: np.ndarray | None = None
     reached_points: tuple[bool, ...] = ()
     held: list[str] = []
@@ -244,7 +232,7 @@ def check(robot: Robot, cycle: WorkCycle | None = None) -> Check:
         held = held_problems(robot, cycle)
         if not held:
             points, reached_points = _reached(robot, cycle)
-    return Check(robot, tuple(actuators), points, reached_points, tuple(held))
+    return Check(robot, actuators, points, reached_points, tuple(held))
 
 
 def reachable_points(robot: Robot, checked: tuple[str, ...], seed: int = 0) -> np.ndarray:

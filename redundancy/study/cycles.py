@@ -19,7 +19,8 @@ For one objective (a peak one for the drift-free strategy):
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import contextlib
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -61,26 +62,23 @@ def free_start_of(search: SearchResult) -> tuple[str, np.ndarray, str]:
     keeps every stroke over the cycle, the closest one (the reached start whose worst excess is
     least, the one `SearchResult.closest_violation` names); where none was reached, the default
     start. Returns its kind, its configuration (n,) and its words."""
-    robot, held = search.robot, search.held
-    if search.best is not None:
-        values, q = search.best.values, search.best_motion.q[0, 0]
-        return (
-            "whole-cycle improved start",
-            q,
-            f"whole-cycle improved start {named_values(robot, held, values)}",
-        )
+    robot, held, why = search.robot, search.held, ""
     missed = [s for s in search.samples if s.violations]
-    if missed:
-        closest = min(missed, key=lambda s: max(v.excess for v in s.violations))
-        q = search.trajectory.q[int(search.rows[search.samples.index(closest)]), 0]
-        words = (
-            f"closest start {named_values(robot, held, closest.values)}: no start keeps every "
-            f"stroke over the cycle; closest: {search.closest_violation}"
+    if search.best is not None:
+        kind, values, q = (
+            "whole-cycle improved start",
+            search.best.values,
+            search.best_motion.q[0, 0],
         )
-        return "closest start", q, words
-    values, q = default_start(robot, search.segment, held)
-    words = f"default start {named_values(robot, held, values)}: no start reaches the cycle"
-    return "default start", q, words
+    elif missed:
+        closest = min(missed, key=lambda s: max(v.excess for v in s.violations))
+        kind, values = "closest start", closest.values
+        q = search.trajectory.q[int(search.rows[search.samples.index(closest)]), 0]
+        why = f": no start keeps every stroke over the cycle; closest: {search.closest_violation}"
+    else:
+        kind, why = "default start", ": no start reaches the cycle"
+        values, q = default_start(robot, search.segment, held)
+    return kind, q, f"{kind} {named_values(robot, held, values)}{why}"
 
 
 class Cost(NamedTuple):
@@ -162,15 +160,10 @@ class CycleStudy:
         """The cycle study as JSON-ready data."""
         plan = self.plan
         return {
-            "robot": self.robot.name,
-            "payload": self.robot.payload,
-            "task": self.cycle.name,
+            **report_header(self.robot, self.cycle, self.checked, self.circuit),
             "objective": self.objective.name,
             "measure": self.objective.label,
             "held_actuator": self.held[0] if len(self.held) == 1 else list(self.held),
-            "checked_actuators": list(self.checked),
-            "units": {a.name: a.unit for a in self.robot.actuators},
-            "circuit_limits_checked": self.circuit,
             "cycles": self.cycles,
             "duration_s": self.cycle.duration,
             "segments": [
@@ -209,6 +202,19 @@ class CycleStudy:
             "return_map": None if self.map is None else map_report(self.map),
             "failures": self.failures,
         }
+
+
+def report_header(robot: Robot, cycle: WorkCycle, checked: tuple[str, ...], circuit: bool) -> dict:
+    """What a study's and a cycle study's reports open with: the robot, the task, the
+    actuators whose limits count, each actuator's SI unit."""
+    return {
+        "robot": robot.name,
+        "payload": robot.payload,
+        "task": cycle.name,
+        "checked_actuators": list(checked),
+        "units": {a.name: a.unit for a in robot.actuators},
+        "circuit_limits_checked": circuit,
+    }
 
 
 def best_report(search: SearchResult) -> dict | None:
@@ -312,6 +318,16 @@ def named_values(robot: Robot, held, values) -> str:
     return ", ".join(f"{h} = {amount(v, robot.actuators[h].unit)}" for h, v in zip(held, values))
 
 
+@contextlib.contextmanager
+def noted(failures: dict[str, str], key: str) -> Iterator[None]:
+    """A part of a study that fails in the block for its input (a bound that does not solve, a
+    task it cannot follow) does not stop the study: why is noted in ``failures[key]``."""
+    try:
+        yield
+    except (InvalidInputError, UnreachableError) as error:
+        failures[key] = str(error)
+
+
 def run_cycle(
     robot: Robot,
     cycle: WorkCycle,
@@ -370,10 +386,8 @@ def run_cycle(
                 guess = repeat(
                     robot, cycle, objective.resolver, start_q, 1, "free", held, checked
                 ).motion(1)
-            try:
+            with noted(failures, "periodic"):
                 periodic = periodic_optimum(robot, cycle, guess, objective, held, checked)
-            except (InvalidInputError, UnreachableError) as error:
-                failures["periodic"] = str(error)
             bar.update()
             if periodic is not None:
                 bar.set_description("cycle: periodic, repeated")
@@ -381,10 +395,8 @@ def run_cycle(
             bar.update()
         bar.set_description("cycle: return map")
         mapped = None
-        try:
+        with noted(failures, "return map"):
             mapped = return_map(robot, cycle, objective.resolver, held, checked=checked)
-        except (InvalidInputError, UnreachableError) as error:
-            failures["return map"] = str(error)
     return CycleStudy(
         robot,
         cycle,

@@ -419,16 +419,6 @@ def _workspace(
     return axes, table.length * direction / np.linalg.norm(direction), table.speed
 
 
-def _workspace_segments(
-    axes: list[tuple[float, ...]], step: np.ndarray, speed: float
-) -> tuple[Segment, ...]:
-    """A segment from every point of the grid ``axes`` to that point + ``step``."""
-    return tuple(
-        Segment(f"start {i}", np.array(start), np.array(start) + step, speed)
-        for i, start in enumerate(itertools.product(*axes))
-    )
-
-
 def _check_size(segments: int, grid: tuple[tuple[str, tuple], ...], where: str) -> None:
     """Refuse a family of more than `MAX_PROBLEMS` problems, counted from its ``segments``
     and the design ``grid``'s sizes before any of them is built."""
@@ -476,7 +466,10 @@ def read_family(path: Path | str) -> MapFamily:
     if family.workspace is not None:
         axes, step, speed = _workspace(robot, family.workspace, f"{where}: [workspace]")
         _check_size(math.prod(len(values) for values in axes), grid, where)
-        segments = _workspace_segments(axes, step, speed)
+        segments = tuple(  # from every point of the grid to that point + step
+            Segment(f"start {i}", np.array(start), np.array(start) + step, speed)
+            for i, start in enumerate(itertools.product(*axes))
+        )
         cycle = WorkCycle("workspace", segments[:1], held)
     else:
         segments, cycle = _task_segments(robot, family.task, folder, where)  # type: ignore[arg-type]

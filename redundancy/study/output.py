@@ -1,11 +1,11 @@
 """All-or-nothing output: a run's files appear together or not at all, and nothing else is lost.
 
-`OutputFolder` stages a run's output folder in a hidden folder beside the target,
+`OutputFolder` stages a run's output in a hidden folder beside the target,
 ``.NAME.partial-PID-*``, made before any computing so that an unwritable target fails at once.
-Its commit writes the manifest of the files staged into the folder's marker file (`MARKER`),
-flushes them to the disk, and exchanges the staged folder with the target in one rename (Linux's
-``renameat2``): whenever the run is killed, either the old or the new complete folder sits at
-the target. SIGINT and SIGTERM wait for the end of the commit; a run that fails or is
+Its commit writes the manifest of the staged files into the folder's marker file (`MARKER`),
+flushes them to the disk and exchanges the staged folder with the target in one rename (Linux's
+``renameat2``): killed at any instant, the old or the new complete folder sits at the target.
+SIGINT and SIGTERM wait for the end of the commit (`deferred`); a run that fails or is
 interrupted before it removes what it staged, and the folders it made for it.
 
 A folder is the toolkit's only if it carries the marker, and only the files its manifest names
@@ -15,12 +15,11 @@ earlier output (a user's notes, folders) is carried into the new one, with a not
 appears while the run computes is left as it is. A new run removes the staging folders of runs
 that died (by the pid in their name), with a note.
 
-Files kept outside the folder (``--json``, `beside`) are staged beside their targets and renamed
-over them just after the exchange. The manifest names them, so that where a run was killed in
-between, the next run into the same folder finishes those renames first, with a note. A target
-that is a symbolic link stays one: what it names is written.
-
-`write_atomically` writes one file the same way: to a temporary file beside it, then one rename.
+Files kept outside the folder (``--json``, `OutputFolder.beside`) are staged beside their
+targets and renamed over them just after the exchange. The manifest names them, so that where a
+run was killed in between, the next run into the same folder finishes those renames first, with
+a note. A target that is a symbolic link stays one: what it names is written.
+`write_atomically` writes one file the same way: a temporary file beside it, then `os.replace`.
 """
 
 from __future__ import annotations
@@ -28,7 +27,6 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import errno
-import fnmatch
 import glob
 import itertools
 import json
@@ -42,8 +40,6 @@ from redundancy.errors import InvalidInputError
 from redundancy.study.signals import deferred
 
 MARKER = ".redundancy-output"  # names the folder as one this toolkit wrote; holds its manifest
-_EARLIER_MARKER = "written by redundancy\n"  # before manifests: the files were known by name
-_EARLIER_FILES = ("report.json", "map.parquet", "summary.json", "*.png", "*.html")
 RENAME_NOREPLACE, RENAME_EXCHANGE = 1, 2  # renameat2 flags, <linux/fs.h>
 
 
@@ -58,20 +54,8 @@ def _note(message: str) -> None:
 
 
 def _followed(path: Path) -> Path:
-    """``path``, or the path it links to where it is a symbolic link (dangling or not): the
-    link stays, and what it names is written."""
+    """What the symbolic link ``path`` names (dangling or not), or ``path``."""
     return Path(os.path.realpath(path)) if path.is_symlink() else path
-
-
-def _make_parent(path: Path, option: str) -> list[Path]:
-    """Create ``path``'s folder, and return the folders that made, outermost first; one line
-    naming the option where a file stands in its way."""
-    missing = list(itertools.takewhile(lambda p: not p.exists(), path.parents))
-    blocking = path.parents[len(missing)] if len(missing) < len(path.parents) else None
-    if blocking is not None and not blocking.is_dir():
-        raise InvalidInputError(f"{option} {path}: {blocking} is a file, not a folder")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    return missing[::-1]
 
 
 def _hidden(path: Path, kind: str) -> Path:
@@ -79,10 +63,14 @@ def _hidden(path: Path, kind: str) -> Path:
     return path.parent / f".{path.name}.{kind}-{os.getpid()}-{os.urandom(4).hex()}"
 
 
-def _overlapping(a: Path, b: Path) -> bool:
-    """Whether ``a`` and ``b`` are the same path or one lies inside the other."""
-    a, b = Path(os.path.abspath(a)), Path(os.path.abspath(b))
-    return a == b or a in b.parents or b in a.parents
+def _make_parent(path: Path, option: str) -> list[Path]:
+    """Create ``path``'s folder; the folders that made, outermost first. One line naming the
+    option where a file stands in its way."""
+    missing = list(itertools.takewhile(lambda p: not p.exists(), path.parents))
+    if len(missing) < len(path.parents) and not (blocking := path.parents[len(missing)]).is_dir():
+        raise InvalidInputError(f"{option} {path}: {blocking} is a file, not a folder")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return missing[::-1]
 
 
 def _rename(source: Path, target: Path, flags: int) -> None:
@@ -97,55 +85,41 @@ def _rename(source: Path, target: Path, flags: int) -> None:
         number = ctypes.get_errno()
         if number not in (errno.EINVAL, errno.ENOSYS):
             raise OSError(number, os.strerror(number), str(source), None, str(target))
-    if flags == RENAME_NOREPLACE:
-        if os.path.lexists(target):
-            raise FileExistsError(errno.EEXIST, os.strerror(errno.EEXIST), str(target))
+    if flags == RENAME_EXCHANGE:
+        aside = _hidden(target, "old")
+        os.replace(target, aside)
+        os.replace(source, target)
+        os.replace(aside, source)
+    elif os.path.lexists(target):
+        raise FileExistsError(errno.EEXIST, os.strerror(errno.EEXIST), str(target))
+    else:
         os.rename(source, target)
-        return
-    aside = _hidden(target, "old")
-    os.replace(target, aside)
-    os.replace(source, target)
-    os.replace(aside, source)
 
 
 def _manifest(folder: Path) -> dict | None:
     """The marker of ``folder``, read: ``{"files": [...], "beside": [[staged, final], ...]}``,
-    with files None for a folder still staging (everything in it is the run's); None for a
-    folder without the marker, which is not the toolkit's."""
+    files None for a folder still staging (everything in it is the run's); None for a folder
+    without the marker, which is not the toolkit's."""
     try:
-        text = (folder / MARKER).read_text()
-        if text == _EARLIER_MARKER:
-            own = [e.name for e in folder.iterdir() if e.is_file()]
-            return {"files": [n for n in own if any(fnmatch.fnmatch(n, p) for p in _EARLIER_FILES)]}
-        found = json.loads(text)
+        found = json.loads((folder / MARKER).read_text())
     except (OSError, ValueError):
         return None
     return found if isinstance(found, dict) and "files" in found else None
-
-
-def _finish_beside(folder: Path) -> None:
-    """Rename the files kept outside ``folder`` (its manifest's ``beside``) that a killed run
-    left staged, over their targets."""
-    for staged, final in (_manifest(folder) or {}).get("beside", []):
-        if os.path.exists(staged):
-            os.replace(staged, final)
-            _note(f"{final}: finished writing it, as the run that wrote {folder} was stopped first")
 
 
 def _retire(folder: Path, into: Path, manifest: dict) -> None:
     """Remove an earlier output (or a dead run's staging folder) ``folder`` of ``manifest``:
     anything the manifest does not name is first carried into ``into``, with a note; then the
     files it names and stages beside go, the marker last, and the folder. A staging folder not
-    yet committed (files None) is the run's alone, and goes whole. What cannot be carried (its
-    name taken in ``into``) stays, with the marker, so that it is never taken for the run's."""
+    yet committed (files None) goes whole. What cannot be carried (its name taken in ``into``)
+    stays, with the marker, so that it is never taken for the run's."""
     for staged, _ in manifest.get("beside", []):
         with contextlib.suppress(OSError):
             Path(staged).unlink()
-    files = manifest["files"]
-    if files is None:
+    if manifest["files"] is None:
         shutil.rmtree(folder, ignore_errors=True)
         return
-    own = {Path(name).parts[0] for name in files} | {MARKER}
+    own = {Path(name).parts[0] for name in manifest["files"]} | {MARKER}
     carried, left = [], []
     for entry in sorted(folder.iterdir()):
         if entry.name not in own:
@@ -156,7 +130,7 @@ def _retire(folder: Path, into: Path, manifest: dict) -> None:
                 left.append(entry.name)
     if carried:
         _note(f"{into}: kept {', '.join(carried)}, which redundancy did not write")
-    for name in files:
+    for name in manifest["files"]:
         (folder / name).unlink(missing_ok=True)
         for parent in Path(name).parents[:-1]:
             with contextlib.suppress(OSError):
@@ -169,24 +143,28 @@ def _retire(folder: Path, into: Path, manifest: dict) -> None:
         folder.rmdir()
 
 
-def _dead(folder: Path, target: Path) -> bool:
-    """Whether the run that staged ``folder`` (``.NAME.partial-PID-*`` beside ``target``) has
-    ended."""
-    pid = folder.name.removeprefix(f".{target.name}.partial-").partition("-")[0]
+def _alive(pid: str) -> bool:
+    """Whether the process ``pid`` runs (a name that is no pid, or another user's process,
+    counts as running)."""
     try:
         os.kill(int(pid), 0)
     except ProcessLookupError:
-        return True
-    except (ValueError, PermissionError):  # not a pid; another user's process
+        return False
+    except (ValueError, PermissionError):
         pass
-    return False
+    return True
 
 
-def _remove_dead_staging(target: Path) -> None:
-    """Remove (`_retire`) the staging folders beside ``target`` of runs that died, with a
-    note."""
-    found = sorted(target.parent.glob(f".{glob.escape(target.name)}.partial-*"))
-    dead = [folder for folder in found if _dead(folder, target)]
+def _clean_up_after_killed_runs(target: Path) -> None:
+    """Finish the renames beside ``target`` that a killed run's commit left, and remove
+    (`_retire`) the staging folders of runs that died; a note for each."""
+    for staged, final in (_manifest(target) or {}).get("beside", []):
+        if os.path.exists(staged):
+            os.replace(staged, final)
+            _note(f"{final}: finished writing it, as the run that wrote {target} was stopped first")
+    prefix = f".{target.name}.partial-"
+    found = sorted(target.parent.glob(f"{glob.escape(prefix)}*"))
+    dead = [f for f in found if not _alive(f.name.removeprefix(prefix).partition("-")[0])]
     for folder in dead:
         _retire(folder, target, _manifest(folder) or {"files": None})
     if dead:
@@ -208,8 +186,7 @@ class OutputFolder:
                 raise InvalidInputError(f"{option} {target}: give a folder by its own name")
             self._check_target()
             self.created = _make_parent(self.target, option)
-            _finish_beside(self.target)
-            _remove_dead_staging(self.target)
+            _clean_up_after_killed_runs(self.target)
             self.staging = _hidden(self.target, "partial")
             self.staging.mkdir()
             self._mark(None)
@@ -256,22 +233,22 @@ class OutputFolder:
         hidden file beside it, named in the staging folder's marker before it is made, renamed
         over it at `commit`. ``path`` may not be the folder, lie inside it or hold it."""
         path = _followed(path)
-        if _overlapping(path, self.target):
+        a, b = Path(os.path.abspath(path)), Path(os.path.abspath(self.target))
+        if a == b or a in b.parents or b in a.parents:
             raise InvalidInputError(
                 f"{option} {path} overlaps {self.option} {self.target}; give a file outside "
                 f"that folder (it holds its own report.json)"
             )
-        staged = (
-            path.parent / f".{path.name}{self.staging.name.removeprefix(f'.{self.target.name}')}"
-        )
+        suffix = self.staging.name.removeprefix(f".{self.target.name}")
+        staged = path.parent / f".{path.name}{suffix}"
         self.others.append((staged, path))
         self._mark(None)
         self.created += _create_beside(path, staged, option)
         return staged
 
     def _mark(self, files: list[str] | None) -> None:
-        """Write the marker (in one rename: a run killed meanwhile leaves the old or the new):
-        the manifest of ``files`` (None: still staging) and of the files staged beside."""
+        """Write the marker, atomically: the manifest of ``files`` (None: still staging) and of
+        the files staged beside."""
         beside = [[str(staged), str(final)] for staged, final in self.others]
         text = json.dumps({"files": files, "beside": beside}, indent=1) + "\n"
         write_atomically(self.staging / MARKER, lambda path: path.write_text(text))
@@ -288,9 +265,8 @@ class OutputFolder:
             while True:  # until the rename finds the target as checked just before
                 exists = self._check_target(writing)
                 try:
-                    _rename(
-                        self.staging, self.target, RENAME_EXCHANGE if exists else RENAME_NOREPLACE
-                    )
+                    flags = RENAME_EXCHANGE if exists else RENAME_NOREPLACE
+                    _rename(self.staging, self.target, flags)
                     break
                 except (FileExistsError, FileNotFoundError):
                     if not self.staging.is_dir():
@@ -344,23 +320,18 @@ def _sync(path: Path) -> None:
         os.close(descriptor)
 
 
-def _check_file(path: Path, option: str) -> None:
-    """One line naming the option where ``path`` is a folder, or anything else but a regular
-    file (a device or a pipe, which the rename of a written file would replace)."""
-    if path.is_dir() or path.name in ("", ".", ".."):
-        raise InvalidInputError(f"{option} {path} is a folder; give a file path")
-    if path.exists() and not path.is_file():
-        raise InvalidInputError(
-            f"{option} {path} is not a regular file (a device, pipe or socket); give a file path"
-        )
-
-
 def _create_beside(path: Path, staged: Path, option: str) -> list[Path]:
-    """Create the empty file ``staged`` beside the file ``path``; the folders made to hold it
-    (`_make_parent`). One line naming the option where ``path`` cannot be written (or is no
-    file, `_check_file`)."""
+    """Create the empty file ``staged`` beside the file ``path``; the folders made to hold it.
+    One line naming the option where ``path`` cannot be written, or is a folder or anything
+    else but a regular file (a device or a pipe, which the rename would replace)."""
     try:
-        _check_file(path, option)
+        if path.is_dir() or path.name in ("", ".", ".."):
+            raise InvalidInputError(f"{option} {path} is a folder; give a file path")
+        if path.exists() and not path.is_file():
+            raise InvalidInputError(
+                f"{option} {path} is not a regular file (a device, pipe or socket); give a "
+                "file path"
+            )
         created = _make_parent(path, option)
         staged.open("x").close()
     except OSError as error:

@@ -62,9 +62,10 @@ class StrategyRun:
 def hydraulics(motion: Trajectory) -> dict:
     """The hydraulic figures of the first motion of ``motion`` in the units the field uses:
     peak pump flow (L/min), highest load pressure (bar), pump energy under load sensing and
-    constant pressure (kJ), whether a load overran, the circuit's limits passed, and the
+    constant pressure (kJ), whether a load overran, the circuit's limits passed, the
     shortest duration of its path within the circuit's limits (s, `shortest_duration`; None
-    where TOPP-RA finds no timing)."""
+    where TOPP-RA finds no timing), and whether the highest load pressure is one the relief
+    valve never lets build (`Circuit.unphysical`)."""
     flows = motion.flows
     violations = motion.hydraulic_violations(0)
     try:
@@ -79,6 +80,7 @@ def hydraulics(motion: Trajectory) -> dict:
         "within_limits": not violations,
         "violations": [str(v) for v in violations],
         "shortest_duration_s": shortest,
+        "unphysical": motion.robot.circuit().unphysical(float(flows.load[0].max())),
     }
 
 

@@ -4,10 +4,10 @@ Until the command runs (`caught`), while the libraries load and nothing needs cl
 signal ends the process at once: one line, exit status 130 (interrupted) or 143 (terminated),
 and no exception that an import could turn into another or print half-way. Within `caught` it
 raises KeyboardInterrupt, or `Terminated` for SIGTERM, where the program is, so that clean-ups
-run (a staging folder removed, a background process stopped, a server taken down) and the
-command ends with that line and status. `received` keeps the signals for where a library turned
-the exception into another, or Python could only ignore it (raised in a weakref callback; that
-report is silenced). `deferred` holds them back through a block that must not be cut short.
+run (a staging folder removed, a server taken down) and the command ends with that line and
+status. `received` keeps the signals for where a library turned the exception into another, or
+Python could only ignore it (raised in a weakref callback; that report is silenced). Within
+`deferred` it only notes them, for the end of a block that must not be cut short.
 
 A command started with SIGINT ignored (a shell's background job: a Ctrl-C meant for the
 foreground leaves it running) keeps ignoring it, unless ``interrupt=True`` (play's loop).
@@ -21,8 +21,10 @@ import signal
 import sys
 from collections.abc import Iterator
 
+STOPPING = (signal.SIGINT, signal.SIGTERM)
 received: list[int] = []  # the signals received, whatever a library made of their exceptions
 _raising = False  # within `caught`: raise where the program is; before it, end at once
+_held: list[int] | None = None  # within `deferred`: the signals noted, handled at its end
 
 
 class Terminated(BaseException):
@@ -36,6 +38,9 @@ def ending(number: int) -> tuple[str, int]:
 
 def stop(number: int, frame) -> None:
     """The handler of SIGINT and SIGTERM (see the module docstring)."""
+    if _held is not None:
+        _held.append(number)
+        return
     received.append(number)
     if not _raising:
         word, status = ending(number)
@@ -77,21 +82,20 @@ def _unraisable(report) -> None:
 
 @contextlib.contextmanager
 def deferred() -> Iterator[None]:
-    """SIGINT and SIGTERM only noted during the block, then handled as they would have been.
-
-    Python runs signal handlers in the main thread, whichever thread the kernel delivered the
-    signal to, so swapping the handlers (rather than masking one thread) covers them all."""
-    noted: list[int] = []
-    numbers = (signal.SIGINT, signal.SIGTERM)
-    previous = {n: signal.signal(n, lambda number, frame: noted.append(number)) for n in numbers}
+    """SIGINT and SIGTERM only noted (by `stop`) during the block, then handled as the handlers
+    in place before it would have: Python runs handlers in the main thread, whichever thread
+    the kernel delivered the signal to, so a handler (not a thread's mask) covers them all."""
+    global _held
+    outer, _held = _held, []
+    previous = {number: signal.signal(number, stop) for number in STOPPING}
     try:
         yield
     finally:
+        noted, _held = _held, outer
         for number, handler in previous.items():
             signal.signal(number, handler)
-        for noted_number in noted:
-            handler = previous[signal.Signals(noted_number)]
-            if callable(handler):
-                handler(noted_number, None)
+        for late in noted:
+            if callable(handler := previous[signal.Signals(late)]):
+                handler(late, None)
             elif handler == signal.SIG_DFL:
-                signal.raise_signal(noted_number)
+                signal.raise_signal(late)

@@ -30,14 +30,13 @@ from __future__ import annotations
 import json
 import warnings
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, partial
 from pathlib import Path
-from typing import NamedTuple
 
 import numpy as np
 
-from redundancy.errors import InvalidInputError, UnreachableError
-from redundancy.model.hydraulics import BAR, KILOJOULE
+from redundancy.errors import InvalidInputError
+from redundancy.model.hydraulics import KILOJOULE
 from redundancy.model.robot import Robot
 from redundancy.planning.bound import GlobalOptimum, global_optimum
 from redundancy.planning.ik import check_path
@@ -51,11 +50,11 @@ from redundancy.planning.starts import (
     improved_starts,
     scalar_or_list,
 )
-from redundancy.planning.tasks import Segment, WorkCycle
+from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.laws import GradientProjection, Resolver
 from redundancy.resolution.objectives import ENERGY, VELOCITY, Objective
 from redundancy.study.check import check, reachable_points
-from redundancy.study.cycles import CycleStudy, run_cycle, search_report
+from redundancy.study.cycles import CycleStudy, noted, report_header, run_cycle, search_report
 from redundancy.study.output import write_atomically
 from redundancy.study.peers import StrategyRun, fixed_start_run
 
@@ -178,14 +177,9 @@ class Study:
     def report(self) -> dict:
         """The study as JSON-ready data."""
         return {
-            "robot": self.robot.name,
-            "payload": self.robot.payload,
-            "task": self.cycle.name,
+            **report_header(self.robot, self.cycle, self.checked, self.circuit),
             "samples": self.samples,
             "method": self.method,
-            "checked_actuators": list(self.checked),
-            "units": {a.name: a.unit for a in self.robot.actuators},
-            "circuit_limits_checked": self.circuit,
             "studies": [
                 {
                     "objective": name,
@@ -218,12 +212,8 @@ class Study:
 
     def _run_report(self, run: StrategyRun) -> dict:
         summary = run.summary()
-        above = self.above_energy_bound(run)
-        if above:
+        if above := self.above_energy_bound(run):
             summary["hydraulics"]["above_energy_bound_percent"] = above
-        if "hydraulics" in summary:  # a pressure the relief valve never lets build is flagged
-            pressure = summary["hydraulics"]["max_load_pressure_bar"] * BAR
-            summary["hydraulics"]["unphysical"] = self.robot.circuit().unphysical(pressure)
         return summary
 
     def _energy_report(self) -> dict:
@@ -299,45 +289,54 @@ def run_study(
     circuit's limits count wherever strokes do (the searches' feasibility, every run's limits);
     the min-max bound still keeps the strokes alone, so it stays a bound. With ``cycles`` > 0
     and a continuous closed task, the cycle section repeats the cycle that many times for the
-    first objective (`run_cycle`); 0 leaves it out.
+    first objective (`run_cycle`); 0 leaves it out. A bound that fails does not stop the study:
+    why is kept in `Study.bound_failures`.
     """
     from tqdm import tqdm
 
-    plan = _Plan.of(robot, cycle, objectives, samples, checked, method, bound, circuit)
-    plan.refuse_before_work(cycle, energy_bound)
-    segments = cycle.segments
-    total = len(segments) * (len(plan.baselines) + 3 * len(objectives))
-    failures: dict[str, str] = {}  # a bound that failed does not stop the study
+    held = held_actuators(robot, cycle)
+    searched = method or ("fast" if len(held) == 1 else "sweep")
+    if searched not in METHODS:
+        raise InvalidInputError(f"unknown method {searched!r}; methods: {', '.join(METHODS)}")
+    _refuse_before_work(robot, cycle, held, energy_bound, circuit)
+    baselines = [
+        (n, r) for n, r in BASELINES if not (robot.kinematic_only and r is ENERGY.resolver)
+    ]
+    study = partial(_on_segment, robot, objectives, held, samples, checked, circuit, baselines)
+    failures: dict[str, str] = {}
+    total = len(cycle.segments) * (len(baselines) + 3 * len(objectives))
     with tqdm(total=total, unit="task", desc="study", disable=not progress, mininterval=0.5) as bar:
-        found = [plan.segment(segment, bar, failures) for segment in segments]
-    energy_bounds = None
+        parts = [study(segment, searched, bound, bar, failures) for segment in cycle.segments]
+    energy_bounds: dict[str, dict[str, EnergyOptimum]] | None = None
     if energy_bound:
-        shown = tqdm(segments, desc="energy bounds", disable=not progress)
-        energy_bounds = {s.name: plan.energy_bounds(s, failures) for s in shown}
-    runs = tuple(run for f in found for run in f.runs)
+        machine, energy_bounds = robot.circuit(), {}
+        for segment in tqdm(cycle.segments, desc="energy bounds", disable=not progress):
+            found = energy_bounds[segment.name] = {}
+            for supply in (machine.load_sensing, machine.constant_pressure):
+                with noted(failures, f"energy bound {supply.name}/{segment.name}"):
+                    found[supply.name] = energy_optimum(robot, segment, supply, held, checked)
+    runs = tuple(run for part in parts for run in part[0])
     for run in runs:  # every figure a report or table shows is computed here, once
         run.summary()
     cycle_study, skipped = cycle_section(
         robot, cycle, objectives[0], cycles, samples, checked, method, circuit, progress
     )
-
-    def by_objective(field: str) -> dict[str, tuple]:
-        return {
-            o.name: tuple(getattr(f, field)[i] for f in found) for i, o in enumerate(objectives)
-        }
-
     kept = tuple(robot.actuators.names if checked is None else checked)
+
+    def by_objective(k: int) -> dict[str, tuple]:
+        return {o.name: tuple(part[k][i] for part in parts) for i, o in enumerate(objectives)}
+
     return Study(
         robot,
         cycle,
-        plan.held,
+        held,
         samples,
-        plan.method,
+        searched,
         kept,
         circuit,
-        by_objective("searches"),
-        by_objective("sweeps"),
-        by_objective("bounds"),
+        by_objective(1),
+        by_objective(2),
+        by_objective(3),
         runs,
         energy_bounds,
         failures,
@@ -347,123 +346,73 @@ def run_study(
     )
 
 
-class _Segment(NamedTuple):
-    """One segment's part of the study: the strategies' runs, and per objective its search,
-    its sweep and its bound."""
-
-    runs: list[StrategyRun]
-    searches: list[SearchResult]
-    sweeps: list[SearchResult]
-    bounds: list[GlobalOptimum | None]
-
-
-@dataclass(frozen=True)
-class _Plan:
-    """What `run_study` asked for, the same on every segment."""
-
-    robot: Robot
-    objectives: tuple[Objective, ...]
-    held: tuple[str, ...]
-    samples: int
-    checked: tuple[str, ...] | None
-    method: str
-    bound: bool
-    circuit: bool
-
-    @classmethod
-    def of(cls, robot, cycle, objectives, samples, checked, method, bound, circuit) -> _Plan:
-        held = held_actuators(robot, cycle)
-        method = method or ("fast" if len(held) == 1 else "sweep")
-        if method not in METHODS:
-            raise InvalidInputError(f"unknown method {method!r}; methods: {', '.join(METHODS)}")
-        return cls(robot, objectives, held, samples, checked, method, bound, circuit)
-
-    @property
-    def baselines(self) -> list[tuple[str, Resolver]]:
-        """`BASELINES`, less the M_H-weighted law on a kinematic-only robot (it needs
-        masses)."""
-        kinematic = self.robot.kinematic_only
-        return [(n, r) for n, r in BASELINES if not (kinematic and r is ENERGY.resolver)]
-
-    def refuse_before_work(self, cycle: WorkCycle, energy_bound: bool) -> None:
-        """A missing circuit, an energy bound on more than two held actuators, or a path out of
-        reach is refused before any simulation; a singular actuator is warned of (J_H = J A⁻¹
-        is undefined there: motions through it fail, and say so)."""
-        if energy_bound or self.circuit:
-            self.robot.circuit()  # says how to declare one
-        if energy_bound and len(self.held) > 2:
-            raise InvalidInputError(
-                f"the energy bound holds one or two actuators; the task holds {self.held}"
-            )
-        for segment in cycle.segments:
-            check_path(self.robot, segment)
-        singular = [line for a in check(self.robot).actuators for line in a.singular_lines()]
-        if singular:
-            warnings.warn("; ".join(singular), stacklevel=3)
-
-    def segment(self, segment: Segment, bar, failures: dict[str, str]) -> _Segment:
-        """The baselines from the default start, each objective's sweep and improved search, the
-        run from its best start and its bound, on ``segment``; ``bar`` counts them."""
-        robot, held, checked, circuit = self.robot, self.held, self.checked, self.circuit
-        start = default_start(robot, segment, held)
-        runs = []
-        for name, resolver in self.baselines:
-            bar.set_description(f"{segment.name}: {name}")
-            runs.append(
-                fixed_start_run(
-                    robot, resolver, name, segment, held, start, checked, circuit=circuit
-                )
-            )
-            bar.update()
-        bar.set_description(f"{segment.name}: improved starts")
-        sweeps = improved_starts(
-            robot, segment, self.objectives, held, self.samples, checked, "sweep", circuit=circuit
+def _on_segment(
+    robot,
+    objectives,
+    held,
+    samples,
+    checked,
+    circuit,
+    baselines,
+    segment,
+    method,
+    bound,
+    bar,
+    failures,
+) -> tuple[list[StrategyRun], list[SearchResult], list[SearchResult], list]:
+    """One segment's part of the study: the runs (the ``baselines`` from the default start, the
+    improved starts'), and per objective its search, its sweep and its bound (a failure noted
+    in ``failures``); ``bar`` counts them."""
+    start = default_start(robot, segment, held)
+    runs = []
+    for name, resolver in baselines:
+        bar.set_description(f"{segment.name}: {name}")
+        runs.append(
+            fixed_start_run(robot, resolver, name, segment, held, start, checked, circuit=circuit)
         )
-        bar.update(len(self.objectives))
-        searches = sweeps
-        if self.method == "fast":
-            searches = improved_starts(
-                robot, segment, self.objectives, held, checked=checked, circuit=circuit
-            )
-        bar.update(len(self.objectives))
-        bounds = []
-        for objective, search in zip(self.objectives, searches):
-            if search.best is not None:
-                strategy = f"improved, {objective.name} objective"
-                runs.append(
-                    StrategyRun(segment.name, strategy, search.best.values, search.best_motion)
-                )
-            bounds.append(self.optimum(segment, objective, search, bar, failures))
-            bar.update()
-        return _Segment(runs, list(searches), list(sweeps), bounds)
+        bar.update()
+    bar.set_description(f"{segment.name}: improved starts")
+    sweeps = improved_starts(
+        robot, segment, objectives, held, samples, checked, "sweep", circuit=circuit
+    )
+    searches = sweeps
+    if method == "fast":
+        searches = improved_starts(
+            robot, segment, objectives, held, checked=checked, circuit=circuit
+        )
+    bar.update(2 * len(objectives))
+    bounds = []
+    for objective, search in zip(objectives, searches):
+        optimum = None
+        if search.best is not None:
+            strategy = f"improved, {objective.name} objective"
+            runs.append(StrategyRun(segment.name, strategy, search.best.values, search.best_motion))
+            if bound and objective.reduction == "peak":
+                bar.set_description(f"{segment.name}: bound, {objective.name}")
+                with noted(failures, f"{objective.name}/{segment.name}"):
+                    optimum = global_optimum(
+                        robot, segment, objective, held, checked, search=search
+                    )
+        bounds.append(optimum)
+        bar.update()
+    return runs, list(searches), list(sweeps), bounds
 
-    def optimum(self, segment, objective, search, bar, failures) -> GlobalOptimum | None:
-        """The min-max bound of ``objective`` on ``segment``, where it is asked for and defined
-        (a peak objective, a feasible start); a failure is noted in ``failures``."""
-        asked = self.bound and objective.reduction == "peak"
-        if not asked or search.best is None:
-            return None
-        bar.set_description(f"{segment.name}: bound, {objective.name}")
-        try:
-            return global_optimum(
-                self.robot, segment, objective, self.held, self.checked, search=search
-            )
-        except (InvalidInputError, UnreachableError) as error:
-            failures[f"{objective.name}/{segment.name}"] = str(error)
-            return None
 
-    def energy_bounds(self, segment: Segment, failures: dict[str, str]) -> dict[str, EnergyOptimum]:
-        """The energy bound of ``segment`` under load sensing and constant pressure, by supply;
-        a failure is noted in ``failures``."""
-        machine, found = self.robot.circuit(), {}
-        for supply in (machine.load_sensing, machine.constant_pressure):
-            try:
-                found[supply.name] = energy_optimum(
-                    self.robot, segment, supply, self.held, self.checked
-                )
-            except (InvalidInputError, UnreachableError) as error:
-                failures[f"energy bound {supply.name}/{segment.name}"] = str(error)
-        return found
+def _refuse_before_work(robot, cycle, held, energy_bound: bool, circuit: bool) -> None:
+    """A missing circuit, an energy bound on more than two held actuators, or a path out of
+    reach is refused before any simulation; a singular actuator is warned of (J_H = J A⁻¹
+    is undefined there: motions through it fail, and say so)."""
+    if energy_bound or circuit:
+        robot.circuit()  # says how to declare one
+    if energy_bound and len(held) > 2:
+        raise InvalidInputError(
+            f"the energy bound holds one or two actuators; the task holds {held}"
+        )
+    for segment in cycle.segments:
+        check_path(robot, segment)
+    singular = [line for a in check(robot).actuators for line in a.singular_lines()]
+    if singular:
+        warnings.warn("; ".join(singular), stacklevel=3)
 
 
 def cycle_section(
