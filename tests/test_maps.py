@@ -87,7 +87,7 @@ def dask_cluster(folder: Path, workers: int):
         from distributed import Client
 
         with Client(address, timeout=30, set_as_default=False) as probe:
-            probe.wait_for_workers(workers, timeout=60)
+            probe.wait_for_workers(workers, timeout=600)
             assert len(probe.scheduler_info()["workers"]) == workers
         yield address, started
     finally:
@@ -152,11 +152,11 @@ def test_an_interrupted_map_keeps_its_finished_chunks_and_solves_only_the_rest(t
         text=True,
         start_new_session=True,
     )
-    deadline = time.monotonic() + 120
+    deadline = time.monotonic() + 600
     while len(list(store.glob("chunk-*.parquet"))) < 3 and time.monotonic() < deadline:
         time.sleep(0.05)
     os.killpg(process.pid, signal.SIGTERM)
-    _, stderr = process.communicate(timeout=60)
+    _, stderr = process.communicate(timeout=600)
     assert process.returncode == 143, stderr
     assert stderr.strip().splitlines()[-1] == "redundancy: terminated"
     assert not (tmp_path / "out").exists()
@@ -594,11 +594,11 @@ def test_a_scheduler_lost_mid_map_ends_in_one_line_and_keeps_the_finished_chunks
             stderr=subprocess.PIPE,
             text=True,
         )
-        deadline = time.monotonic() + 120  # guards a hang only
+        deadline = time.monotonic() + 600  # guards a hang only
         while len(list(store.glob("chunk-*.parquet"))) < 2 and time.monotonic() < deadline:
             time.sleep(0.05)
         started[0].kill()  # the scheduler
-        _, stderr = process.communicate(timeout=120)
+        _, stderr = process.communicate(timeout=600)
     assert process.returncode == 2, stderr
     lines = stderr.strip().splitlines()
     assert len(lines) == 1, stderr
@@ -627,12 +627,12 @@ def test_ctrl_c_to_a_local_maps_process_group_ends_in_one_line(tmp_path):
         text=True,
         start_new_session=True,
     )
-    deadline = time.monotonic() + 120  # guards a hang only
+    deadline = time.monotonic() + 600  # guards a hang only
     while not list(store.glob("chunk-*.parquet")) and time.monotonic() < deadline:
         assert process.poll() is None, "the map ended before its first chunk was seen"
         time.sleep(0.05)
     os.killpg(process.pid, signal.SIGINT)
-    _, stderr = process.communicate(timeout=60)
+    _, stderr = process.communicate(timeout=600)
     assert process.returncode == 130, stderr
     assert stderr == "redundancy: interrupted\n"
     assert list(store.glob("chunk-*.parquet"))
