@@ -422,6 +422,23 @@ def test_a_bad_sidecar_is_one_line(tmp_path, capsys, old, new, fragment):
     assert fragment in errors[0], errors[0]
 
 
+def test_braces_in_a_folder_or_an_actuator_name_stay_text_in_the_one_line(tmp_path, capsys):
+    """An unknown link is named in one line where the robot's folder or the actuator's name
+    holds braces, which the message quotes as written (not as a format field)."""
+    braced = tmp_path / "run_{v2}"
+    braced.mkdir()
+    toml = sidecar(braced, replace=[('tool = {link = "telescope"', 'tool = {link = "nope"')])
+    status, errors = run(["describe", "--robot", str(toml)], capsys)
+    assert status == 2 and len(errors) == 1, errors
+    assert "run_{v2}" in errors[0] and "tool.link = 'nope' is not a link of the URDF" in errors[0]
+    toml = sidecar(tmp_path, replace=[("[actuators.x1]", '[actuators."x{1}"]')])
+    text = toml.read_text().replace('link = "boom"', 'link = "nope"', 1)
+    toml.write_text(text)
+    status, errors = run(["describe", "--robot", str(toml)], capsys)
+    assert status == 2 and len(errors) == 1, errors
+    assert "actuator 'x{1}' is attached to link 'nope', which does not exist" in errors[0]
+
+
 def test_a_broken_xacro_is_one_line(tmp_path, capsys):
     toml = sidecar(tmp_path, "xacro")
     xacro = toml.parent / "arm.urdf.xacro"

@@ -10,7 +10,7 @@ from __future__ import annotations
 import copy
 import warnings
 from abc import ABC, abstractmethod
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import pinocchio as pin
@@ -135,13 +135,15 @@ def prismatic(model: pin.Model, joint: str) -> bool:
     return "Prismatic" in kind or kind.startswith("JointModelP")
 
 
-def attach_frame(model: pin.Model, name: str, link: str, point: np.ndarray, refused: str) -> int:
+def attach_frame(
+    model: pin.Model, name: str, link: str, point: np.ndarray, refused: Callable[[str], str]
+) -> int:
     """Add to ``model`` a frame ``name`` at ``point`` (3,) m in ``link``'s frame, or move it there
     if the model has it already (an actuator bound again, e.g. redesigned), and return its id;
-    where ``link`` is none, `RobotDescriptionError`: ``refused`` with ``link`` and the links."""
+    where ``link`` is none, `RobotDescriptionError` ``refused(links)``, given the links."""
     links = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
     if link not in links:
-        raise RobotDescriptionError(refused.format(link=link, links=", ".join(links)))
+        raise RobotDescriptionError(refused(", ".join(links)))
     parent_id = model.getFrameId(link, pin.FrameType.BODY)
     parent = model.frames[parent_id]
     placement = parent.placement * pin.SE3(np.eye(3), np.asarray(point, dtype=float))
@@ -168,8 +170,12 @@ class CompiledMap(ActuatorMap):
 
     def attach(self, model: pin.Model, end: str, link: str, point: np.ndarray) -> int:
         """`attach_frame` of the frame ``<name>/<end>``."""
-        refused = f"actuator {self.name!r} is attached to link {{link!r}}, which does not exist; "
-        return attach_frame(model, f"{self.name}/{end}", link, point, refused + "links: {links}")
+
+        def refused(links: str) -> str:
+            exists = f"actuator {self.name!r} is attached to link {link!r}, which does not exist"
+            return f"{exists}; links: {links}"
+
+        return attach_frame(model, f"{self.name}/{end}", link, point, refused)
 
     def evaluate(self, kinematics: Kinematics) -> tuple[np.ndarray, np.ndarray]:
         x, rows = self.evaluate_group([self], kinematics)

@@ -133,7 +133,10 @@ def _tool(model: pin.Model, description: Description, where: str) -> str:
     point on a link, added to ``model`` as the frame "tool point"; by default the last link."""
     tool = description.tool
     if tool is not None:
-        refused = f"{where} tool.link = {{link!r}} is not a link of the URDF; links: {{links}}"
+
+        def refused(links: str) -> str:
+            return f"{where} tool.link = {tool.link!r} is not a link of the URDF; links: {links}"
+
         attach_frame(model, TOOL_POINT, tool.link, np.array(tool.xyz), refused)
         return TOOL_POINT
     bodies = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
