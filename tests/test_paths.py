@@ -218,7 +218,12 @@ def test_a_task_file_declares_arcs_circles_polylines_angles_and_profiles(tmp_pat
         ),
         (
             'profile = "trapezoidal"\nsegments = ["a-b"]\n[points]\na = [0, 0]\nb = [1, 0]\n',
-            "needs acceleration",
+            "toml: profile = 'trapezoidal' needs acceleration",
+        ),
+        (
+            'segments = [{ from = "a", to = "b", profile = "trapezoidal" }]\n[points]\n'
+            "a = [0, 0]\nb = [1, 0]\n",
+            r"segments\[0\]: segment a-b: a trapezoidal profile needs acceleration",
         ),
         (
             'profile = "smooth"\nsegments = ["a-b"]\n[points]\na = [0, 0]\nb = [1, 0]\n',

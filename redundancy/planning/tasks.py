@@ -594,6 +594,10 @@ class WorkCycle:
             _check_reach(np.array(value), where, [repr(v) for v in value])
             found[name] = _in_radians(np.array(value), task.tool_angle)
         timing = {"speed": 0.5, **task.model_dump(include=set(TIMING), exclude_none=True)}
+        if timing.get("profile") == "trapezoidal" and "acceleration" not in timing:
+            raise InvalidInputError(
+                f"{path}: profile = 'trapezoidal' needs acceleration (m/s², the tool's maximum)"
+            )
         segments = [
             _segment(entry, found, timing, task.tool_angle, size, path, f"{path}: segments[{i}]")
             for i, entry in enumerate(task.segments)
