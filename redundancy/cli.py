@@ -455,7 +455,10 @@ def parser() -> argparse.ArgumentParser:
     task.add_argument("--task", help="task file (TOML); default: the robot's own")
     sampled = argparse.ArgumentParser(add_help=False)
     sampled.add_argument(
-        "--samples", type=sample_count, default=100, help="starts per sweep (play: with --best)"
+        "--samples",
+        type=sample_count,
+        default=100,
+        help="starts sampled per sweep of the held stroke (play reads it with --best only)",
     )
     search = argparse.ArgumentParser(add_help=False, parents=[sampled])
     search.add_argument(
