@@ -11,13 +11,14 @@ cost of the same recursion, as in Ferrentino et al. (Robotics 10(1) 42, 2021).
   afresh where that misses) at `EXACT` held values over the stroke of one held actuator
   (r = 1), or at `EXACT_EACH` × `EXACT_EACH` over the strokes of two (r = 2); between them
   x(r), the forces at rest and q(r) are cubic splines in r (r = 1; error below 5e-5 m, largest
-  at the stroke's ends) or bilinear in (r₁, r₂) (r = 2). Neighbouring solved values are taken
-  to lie on one branch: where the task has two solutions inside the joint ranges (the crane's
-  reach alone with the fold and the telescope held: the lift up or down), the seeds may pick
-  either, and a cell between branches interpolates across them. A held value whose neighbours
-  miss the task or leave the joint ranges, or that puts a checked stroke past its limit, is
-  excluded. For an objective's measure, each pass's states are solved again exactly, by
-  Newton's method from the interpolated configurations;
+  at the stroke's ends) or bilinear in (r₁, r₂) (r = 2). Where the task has two solutions
+  inside the joint ranges (the crane's reach alone with the fold and the telescope held: the
+  lift up or down), the seeds may pick either; a cell whose corners lie on both sides of the
+  fold (det [J; A_h] of both signs) would interpolate across them and is excluded, as is a held
+  value whose neighbours miss the task or leave the joint ranges, or that puts a checked stroke
+  past its limit. The tables hold one branch per held value and node, so a motion that crosses
+  the fold is searched only where they hold its branch at each node. For an objective's
+  measure, each pass's states are solved again exactly from the interpolated configurations;
 - a transition from r at t_j to r' at t_j+1 moves every actuator at ẋ = (x_j+1(r') − x_j(r))/h
   (J_H ẋ = ẏ_d to first order, Eq. 16). Its cost is the measure c at both nodes with that ẋ,
   by the trapezoidal rule, h (c_j + c_j+1)/2, or for the energy bound h p_P Q_P from the
@@ -185,7 +186,10 @@ class Tables:
     """Strokes x, forces F_H at rest (A⁻ᵀ G) and configurations q as functions of the held
     values r at every node: exact at the solved values (`EXACT` over one held stroke, or
     `EXACT_EACH` over each of two), cubic splines in r (r = 1) or bilinear (r = 2) between
-    usable neighbours."""
+    them. A cell of solved values (an interval, r = 1) is used only where its corners are all
+    usable and on one branch: det K, K = [J; A_h] (Eqs. 7, 11), of one sign at all of them. A
+    cell whose corners lie on both sides of a fold (K singular, where the task's two solutions
+    meet) would interpolate across both."""
 
     def __init__(self, robot, segment, rows: list[int], strokes: Limits, t: np.ndarray):
         actuators = robot.actuators
@@ -198,37 +202,36 @@ class Tables:
         usable = found.ravel() & ~bad & (Limits.joints(robot).margin(flat) >= -TOLERANCE)
         forces = np.where(usable[:, None], space.N_H, 0.0)  # A⁻ᵀ G at rest
         self.usable = usable.reshape(len(t), len(values))
+        branch = np.sign(np.linalg.det(np.concatenate([space.J, space.A[:, rows]], axis=1)))
+        grid = (len(t), *(count,) * len(rows))
+        sides = [(usable & (branch == side)).reshape(grid) for side in (-1, 1)]
+        self.cells = _cells(sides[0]) | _cells(sides[1])  # (N + 1, G − 1[, G − 1])
         self.strokes, self.n = strokes, robot.n
         self.robot, self.rows, self.points = robot, rows, segment.position(t)
         tables = np.concatenate([space.x, forces, flat], axis=1).reshape(len(t), len(values), -1)
-        if len(rows) == 1:  # an interval is used only where both its ends are usable, see `at`
+        if len(rows) == 1:
             self.interpolants = [
                 _spline(self.axes[0], table, ok) for table, ok in zip(tables, self.usable)
             ]
-        else:  # a usable node's own value is 1 and bilinear weights sum to 1: all corners usable
-            grid = (count, count, -1)
+        else:
+            shape = (count, count, -1)
             self.interpolants = [
-                RegularGridInterpolator(
-                    self.axes, np.concatenate([table, ok[:, None]], 1).reshape(grid)
-                )
-                for table, ok in zip(tables, self.usable)
+                RegularGridInterpolator(self.axes, table.reshape(shape)) for table in tables
             ]
 
     def at(self, r: np.ndarray):
         """x, F_H and q (N + 1, G, n) and where usable (N + 1, G) at held values r
-        (N + 1, G, r)."""
+        (N + 1, G, r): in a usable cell, every stroke within its limits."""
         n = self.n
         both = np.stack([table(row) for table, row in zip(self.interpolants, r)])
-        if r.shape[-1] == 1:
-            axis = self.axes[0]
-            index = np.clip(np.searchsorted(axis, r[..., 0]) - 1, 0, len(axis) - 2)
-            node = np.arange(len(r))[:, None]
-            usable = self.usable[node, index] & self.usable[node, index + 1]
-        else:
-            usable = both[..., -1] > 1 - 1e-9
-        x, forces, q = both[..., :n], both[..., n : 2 * n], both[..., 2 * n : 3 * n]
-        usable &= self.strokes.margin(x) >= -TOLERANCE
-        return x, forces, q, usable
+        x, forces, q = both[..., :n], both[..., n : 2 * n], both[..., 2 * n :]
+        # the cell the interpolation reads, as `RegularGridInterpolator` finds it
+        cell = [
+            np.clip(np.searchsorted(a, r[..., k]) - 1, 0, len(a) - 2)
+            for k, a in enumerate(self.axes)
+        ]
+        usable = self.cells[(np.arange(len(r))[:, None], *cell)]
+        return x, forces, q, usable & (self.strokes.margin(x) >= -TOLERANCE)
 
     def solved(self, r: np.ndarray, q: np.ndarray):
         """The states (N + 1) G, node by node, at held values r (N + 1, G, r) solved exactly by
@@ -243,6 +246,14 @@ class Tables:
         space, bad = regularised(evaluate(robot, flat))
         found = (miss < FOUND) & ~bad & (self.strokes.margin(space.x) >= -TOLERANCE)
         return replace(space, x_ddot=np.zeros_like(space.x)), found.reshape(nodes, count)
+
+
+def _cells(corners: np.ndarray) -> np.ndarray:
+    """Where all corners are true, (N + 1, G − 1[, G − 1]), of cells between solved held values
+    marked ``corners`` (N + 1, G[, G])."""
+    for axis in range(1, corners.ndim):
+        corners = np.delete(corners, -1, axis) & np.delete(corners, 0, axis)
+    return corners
 
 
 def _spline(axis: np.ndarray, table: np.ndarray, usable: np.ndarray):
