@@ -300,7 +300,10 @@ def test_two_held_tables_use_no_cell_between_the_tasks_two_branches(reach_cells)
 def test_two_held_cylinders_get_an_energy_bound_within_the_circuit(reach):
     """The energy bound over both held cylinders' histories keeps their strokes and, on every
     transition, the circuit's limits (load pressures, pump flow, cylinder speeds) with the
-    flows the bound prices; its energy is the LS pump energy of those transitions."""
+    flows the bound prices; its energy is the LS pump energy of those transitions. Its tables
+    leave out the cells across the reach's fold, so a motion that crosses it (the improved
+    start's, 3376 J, below the optimum's 4460 J) is not searched: the optimum converges yet is
+    withheld as no bound, and says why."""
     robot, segment, held = reach
     bound = energy_optimum(robot, segment, None, held, grids=(10, 20))
     assert bound.held == held and bound.r.shape == (21, 2)
@@ -308,7 +311,9 @@ def test_two_held_cylinders_get_an_energy_bound_within_the_circuit(reach):
     strokes = robot.actuators
     assert np.all((bound.x >= strokes.lower - 1e-9) & (bound.x <= strokes.upper + 1e-9))
     assert _circuit_margin(robot, bound).min() >= -TOLERANCE
-    assert bound.converged == (bound.change < CONVERGED)
+    assert bound.change < CONVERGED and bound.folded > 0 and not bound.converged
+    assert bound.failure.startswith("no bound: the tables left out ")
+    assert "across the task's fold" in bound.failure
 
 
 def test_the_integral_optimum_keeps_the_circuit_s_limits_when_given_a_supply(cycle):

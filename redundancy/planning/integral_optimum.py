@@ -91,8 +91,9 @@ Stage = Callable[[int, float, np.ndarray], np.ndarray]
 @dataclass(frozen=True)
 class OptimumGrid:
     """The least cost on one grid of ``intervals`` × ``values``, whether the recursion found a
-    path there (``success``; why not, ``message``; the cost then nan) and whether the
-    acceleration limit raised the cost (``acceleration_binds``)."""
+    path there (``success``; why not, ``message``; the cost then nan), whether the
+    acceleration limit raised the cost (``acceleration_binds``) and how many cells of the
+    tables were left out for lying across the task's fold (``folded``, see `Tables`)."""
 
     intervals: int
     values: int
@@ -100,6 +101,7 @@ class OptimumGrid:
     success: bool = True
     message: str = ""
     acceleration_binds: bool = False
+    folded: int = 0
 
 
 @dataclass(frozen=True)
@@ -136,6 +138,29 @@ class IntegralOptimum(Refined):
         """Whether the acceleration limit raised the motion's cost: the optimum is then the
         least over the histories the recursion keeps, not the grid's global optimum."""
         return self.searched.acceleration_binds
+
+    @property
+    def folded(self) -> int:
+        """The most cells any grid's tables left out for lying across the task's fold."""
+        return max(grid.folded for grid in self.grids)
+
+    @property
+    def converged(self) -> bool:
+        """Converged (`Refined.converged`) on tables that left out no cell across the fold."""
+        return super().converged and not self.folded
+
+    @property
+    def failure(self) -> str | None:
+        """Why the optimum is no result (`Refined.failure`), or that its tables left out cells
+        across the task's fold: a motion that crosses it is not searched, so the optimum may
+        lie above a feasible motion's cost and is no bound."""
+        if not self.folded:
+            return super().failure
+        return (
+            f"no bound: the tables left out {self.folded} cells across the task's fold (det "
+            f"[J; A_h] of both signs at their corners), so a motion that crosses it is not "
+            "searched"
+        )
 
     @property
     def energy(self) -> float:
@@ -206,6 +231,8 @@ class Tables:
         grid = (len(t), *(count,) * len(rows))
         sides = [(usable & (branch == side)).reshape(grid) for side in (-1, 1)]
         self.cells = _cells(sides[0]) | _cells(sides[1])  # (N + 1, G − 1[, G − 1])
+        # cells left out for lying across the fold alone: a motion through them is not searched
+        self.folded = int((_cells(self.usable.reshape(grid)) & ~self.cells).sum())
         self.strokes, self.n = strokes, robot.n
         self.robot, self.rows, self.points = robot, rows, segment.position(t)
         tables = np.concatenate([space.x, forces, flat], axis=1).reshape(len(t), len(values), -1)
@@ -433,13 +460,15 @@ def _optimum(
                     )
                 if path is None:
                     raise InvalidInputError(message)
-                found.append(OptimumGrid(intervals, last, np.nan, False, message))
+                found.append(
+                    OptimumGrid(intervals, last, np.nan, False, message, False, tables.folded)
+                )
                 return *path, tuple(found)
             nodes = np.arange(len(t))
             r, x, q = values[nodes, index], x[nodes, index], q[nodes, index]
             centre, width = r, width * NARROWING
         path = (t, r, x, q)
-        found.append(OptimumGrid(intervals, last, optimum, acceleration_binds=free < optimum))
+        found.append(OptimumGrid(intervals, last, optimum, True, "", free < optimum, tables.folded))
     assert path is not None  # checked_grids gives one grid at least
     return *path, tuple(found)
 
