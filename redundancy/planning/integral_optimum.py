@@ -16,8 +16,10 @@ cost of the same recursion, as in Ferrentino et al. (Robotics 10(1) 42, 2021).
   lift up or down), the seeds may pick either; a cell whose corners lie on both sides of the
   fold (det [J; A_h] of both signs) would interpolate across them and is excluded, as is a held
   value whose neighbours miss the task or leave the joint ranges, or that puts a checked stroke
-  past its limit. The tables hold one branch per held value and node, so a motion that crosses
-  the fold is searched only where they hold its branch at each node. For an objective's
+  past its limit. The tables hold one branch per held value and node and leave out the region
+  next to the fold, so a motion that crosses the fold is not searched: an optimum whose tables
+  left out a cell across it (`IntegralOptimum.folded`) may lie above a feasible motion's cost
+  and is withheld as no bound (not converged; `failure` says why). For an objective's
   measure, each pass's states are solved again exactly from the interpolated configurations;
 - a transition from r at t_j to r' at t_j+1 moves every actuator at ẋ = (x_j+1(r') − x_j(r))/h
   (J_H ẋ = ẏ_d to first order, Eq. 16). Its cost is the measure c at both nodes with that ẋ,
