@@ -25,6 +25,8 @@ from redundancy import load_robot
 from redundancy.errors import InvalidInputError
 from redundancy.planning.angles import task_robot
 from redundancy.planning.integral_optimum import (
+    IntegralOptimum,
+    OptimumGrid,
     _measure_stage,
     _optimum,
     _pass,
@@ -253,3 +255,22 @@ def test_no_path_found_says_why_and_a_finer_grid_without_one_keeps_the_coarser(a
     assert [g.success for g in found.grids] == [True, False] and len(found.t) == 6
     assert found.optimum == 0.0 and not found.converged
     assert "no motion along segment circle" in found.failure
+
+
+def test_an_optimum_whose_tables_left_out_cells_across_the_fold_is_withheld(arm):
+    """Tables that leave out cells across the task's fold cannot follow a motion that crosses
+    it, so the optimum may lie above a feasible motion's cost: however well it converged, it is
+    no result, and its failure says why; without such cells the refinement rule alone
+    decides."""
+    _, _, circle = arm
+    nodes = np.zeros((3, 4))
+
+    def found(*folded):
+        grids = tuple(OptimumGrid(2 * k + 2, 9, 1.0, folded=f) for k, f in enumerate(folded))
+        return IntegralOptimum(circle, "zero", "x1", nodes[:, 0], nodes[:, 0], nodes, nodes, grids)
+
+    assert found(0, 0).converged and found(0, 0).failure is None and found(0, 0).folded == 0
+    for withheld in (found(5, 0), found(0, 7)):
+        assert withheld.change == 0.0 and not withheld.converged and withheld.folded > 0
+        assert withheld.failure.startswith("no bound: the tables left out ")
+        assert "so a motion that crosses it is not searched" in withheld.failure

@@ -11,13 +11,16 @@ cost of the same recursion, as in Ferrentino et al. (Robotics 10(1) 42, 2021).
   afresh where that misses) at `EXACT` held values over the stroke of one held actuator
   (r = 1), or at `EXACT_EACH` × `EXACT_EACH` over the strokes of two (r = 2); between them
   x(r), the forces at rest and q(r) are cubic splines in r (r = 1; error below 5e-5 m, largest
-  at the stroke's ends) or bilinear in (r₁, r₂) (r = 2). Neighbouring solved values are taken
-  to lie on one branch: where the task has two solutions inside the joint ranges (the crane's
-  reach alone with the fold and the telescope held: the lift up or down), the seeds may pick
-  either, and a cell between branches interpolates across them. A held value whose neighbours
-  miss the task or leave the joint ranges, or that puts a checked stroke past its limit, is
-  excluded. For an objective's measure, each pass's states are solved again exactly, by
-  Newton's method from the interpolated configurations;
+  at the stroke's ends) or bilinear in (r₁, r₂) (r = 2). Where the task has two solutions
+  inside the joint ranges (the crane's reach alone with the fold and the telescope held: the
+  lift up or down), the seeds may pick either; a cell whose corners lie on both sides of the
+  fold (det [J; A_h] of both signs) would interpolate across them and is excluded, as is a held
+  value whose neighbours miss the task or leave the joint ranges, or that puts a checked stroke
+  past its limit. The tables hold one branch per held value and node and leave out the region
+  next to the fold, so a motion that crosses the fold is not searched: an optimum whose tables
+  left out a cell across it (`IntegralOptimum.folded`) may lie above a feasible motion's cost
+  and is withheld as no bound (not converged; `failure` says why). For an objective's
+  measure, each pass's states are solved again exactly from the interpolated configurations;
 - a transition from r at t_j to r' at t_j+1 moves every actuator at ẋ = (x_j+1(r') − x_j(r))/h
   (J_H ẋ = ẏ_d to first order, Eq. 16). Its cost is the measure c at both nodes with that ẋ,
   by the trapezoidal rule, h (c_j + c_j+1)/2, or for the energy bound h p_P Q_P from the
@@ -90,8 +93,9 @@ Stage = Callable[[int, float, np.ndarray], np.ndarray]
 @dataclass(frozen=True)
 class OptimumGrid:
     """The least cost on one grid of ``intervals`` × ``values``, whether the recursion found a
-    path there (``success``; why not, ``message``; the cost then nan) and whether the
-    acceleration limit raised the cost (``acceleration_binds``)."""
+    path there (``success``; why not, ``message``; the cost then nan), whether the
+    acceleration limit raised the cost (``acceleration_binds``) and how many cells of the
+    tables were left out for lying across the task's fold (``folded``, see `Tables`)."""
 
     intervals: int
     values: int
@@ -99,6 +103,7 @@ class OptimumGrid:
     success: bool = True
     message: str = ""
     acceleration_binds: bool = False
+    folded: int = 0
 
 
 @dataclass(frozen=True)
@@ -135,6 +140,29 @@ class IntegralOptimum(Refined):
         """Whether the acceleration limit raised the motion's cost: the optimum is then the
         least over the histories the recursion keeps, not the grid's global optimum."""
         return self.searched.acceleration_binds
+
+    @property
+    def folded(self) -> int:
+        """The most cells any grid's tables left out for lying across the task's fold."""
+        return max(grid.folded for grid in self.grids)
+
+    @property
+    def converged(self) -> bool:
+        """Converged (`Refined.converged`) on tables that left out no cell across the fold."""
+        return super().converged and not self.folded
+
+    @property
+    def failure(self) -> str | None:
+        """Why the optimum is no result (`Refined.failure`), or that its tables left out cells
+        across the task's fold: a motion that crosses it is not searched, so the optimum may
+        lie above a feasible motion's cost and is no bound."""
+        if not self.folded:
+            return super().failure
+        return (
+            f"no bound: the tables left out {self.folded} cells across the task's fold (det "
+            f"[J; A_h] of both signs at their corners), so a motion that crosses it is not "
+            "searched"
+        )
 
     @property
     def energy(self) -> float:
@@ -185,7 +213,10 @@ class Tables:
     """Strokes x, forces F_H at rest (A⁻ᵀ G) and configurations q as functions of the held
     values r at every node: exact at the solved values (`EXACT` over one held stroke, or
     `EXACT_EACH` over each of two), cubic splines in r (r = 1) or bilinear (r = 2) between
-    usable neighbours."""
+    them. A cell of solved values (an interval, r = 1) is used only where its corners are all
+    usable and on one branch: det K, K = [J; A_h] (Eqs. 7, 11), of one sign at all of them. A
+    cell whose corners lie on both sides of a fold (K singular, where the task's two solutions
+    meet) would interpolate across both."""
 
     def __init__(self, robot, segment, rows: list[int], strokes: Limits, t: np.ndarray):
         actuators = robot.actuators
@@ -198,37 +229,38 @@ class Tables:
         usable = found.ravel() & ~bad & (Limits.joints(robot).margin(flat) >= -TOLERANCE)
         forces = np.where(usable[:, None], space.N_H, 0.0)  # A⁻ᵀ G at rest
         self.usable = usable.reshape(len(t), len(values))
+        branch = np.sign(np.linalg.det(np.concatenate([space.J, space.A[:, rows]], axis=1)))
+        grid = (len(t), *(count,) * len(rows))
+        sides = [(usable & (branch == side)).reshape(grid) for side in (-1, 1)]
+        self.cells = _cells(sides[0]) | _cells(sides[1])  # (N + 1, G − 1[, G − 1])
+        # cells left out for lying across the fold alone: a motion through them is not searched
+        self.folded = int((_cells(self.usable.reshape(grid)) & ~self.cells).sum())
         self.strokes, self.n = strokes, robot.n
         self.robot, self.rows, self.points = robot, rows, segment.position(t)
         tables = np.concatenate([space.x, forces, flat], axis=1).reshape(len(t), len(values), -1)
-        if len(rows) == 1:  # an interval is used only where both its ends are usable, see `at`
+        if len(rows) == 1:
             self.interpolants = [
                 _spline(self.axes[0], table, ok) for table, ok in zip(tables, self.usable)
             ]
-        else:  # a usable node's own value is 1 and bilinear weights sum to 1: all corners usable
-            grid = (count, count, -1)
+        else:
+            shape = (count, count, -1)
             self.interpolants = [
-                RegularGridInterpolator(
-                    self.axes, np.concatenate([table, ok[:, None]], 1).reshape(grid)
-                )
-                for table, ok in zip(tables, self.usable)
+                RegularGridInterpolator(self.axes, table.reshape(shape)) for table in tables
             ]
 
     def at(self, r: np.ndarray):
         """x, F_H and q (N + 1, G, n) and where usable (N + 1, G) at held values r
-        (N + 1, G, r)."""
+        (N + 1, G, r): in a usable cell, every stroke within its limits."""
         n = self.n
         both = np.stack([table(row) for table, row in zip(self.interpolants, r)])
-        if r.shape[-1] == 1:
-            axis = self.axes[0]
-            index = np.clip(np.searchsorted(axis, r[..., 0]) - 1, 0, len(axis) - 2)
-            node = np.arange(len(r))[:, None]
-            usable = self.usable[node, index] & self.usable[node, index + 1]
-        else:
-            usable = both[..., -1] > 1 - 1e-9
-        x, forces, q = both[..., :n], both[..., n : 2 * n], both[..., 2 * n : 3 * n]
-        usable &= self.strokes.margin(x) >= -TOLERANCE
-        return x, forces, q, usable
+        x, forces, q = both[..., :n], both[..., n : 2 * n], both[..., 2 * n :]
+        # the cell the interpolation reads, as `RegularGridInterpolator` finds it
+        cell = [
+            np.clip(np.searchsorted(a, r[..., k]) - 1, 0, len(a) - 2)
+            for k, a in enumerate(self.axes)
+        ]
+        usable = self.cells[(np.arange(len(r))[:, None], *cell)]
+        return x, forces, q, usable & (self.strokes.margin(x) >= -TOLERANCE)
 
     def solved(self, r: np.ndarray, q: np.ndarray):
         """The states (N + 1) G, node by node, at held values r (N + 1, G, r) solved exactly by
@@ -243,6 +275,14 @@ class Tables:
         space, bad = regularised(evaluate(robot, flat))
         found = (miss < FOUND) & ~bad & (self.strokes.margin(space.x) >= -TOLERANCE)
         return replace(space, x_ddot=np.zeros_like(space.x)), found.reshape(nodes, count)
+
+
+def _cells(corners: np.ndarray) -> np.ndarray:
+    """Where all corners are true, (N + 1, G − 1[, G − 1]), of cells between solved held values
+    marked ``corners`` (N + 1, G[, G])."""
+    for axis in range(1, corners.ndim):
+        corners = np.delete(corners, -1, axis) & np.delete(corners, 0, axis)
+    return corners
 
 
 def _spline(axis: np.ndarray, table: np.ndarray, usable: np.ndarray):
@@ -422,13 +462,15 @@ def _optimum(
                     )
                 if path is None:
                     raise InvalidInputError(message)
-                found.append(OptimumGrid(intervals, last, np.nan, False, message))
+                found.append(
+                    OptimumGrid(intervals, last, np.nan, False, message, False, tables.folded)
+                )
                 return *path, tuple(found)
             nodes = np.arange(len(t))
             r, x, q = values[nodes, index], x[nodes, index], q[nodes, index]
             centre, width = r, width * NARROWING
         path = (t, r, x, q)
-        found.append(OptimumGrid(intervals, last, optimum, acceleration_binds=free < optimum))
+        found.append(OptimumGrid(intervals, last, optimum, True, "", free < optimum, tables.folded))
     assert path is not None  # checked_grids gives one grid at least
     return *path, tuple(found)
 
