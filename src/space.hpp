@@ -148,7 +148,8 @@ struct Actuation {
 };
 
 // A robot's states in actuator coordinates, one call per batch: the pass, x and A of the
-// built-in kinds (all the robot's actuators), y and J, J_H, and where A is singular.
+// built-in kinds (all the robot's actuators), y and J, J_H, and where A is singular or q not
+// finite.
 class Evaluator {
  public:
   Evaluator(const Pass& pass, Eigen::Index tool, std::vector<Eigen::Index> rows,
@@ -165,10 +166,10 @@ class Evaluator {
   }
 
   // At q (k, n) or (n,) and v like q or None: (q, v) as batches, positions, jacobians, angular,
-  // velocities, rates (`Pass.kinematics`), x, A, y, J, J_H, where A is singular (k,) bool, and
-  // None or the first (state, actuator, status) a kind refused (the batch ends there). None
-  // where q or v is not a float64 array of that shape (finite too, if `finite`): Python then
-  // checks them.
+  // velocities, rates (`Pass.kinematics`), x, A, y, J, J_H, where A is singular or q not finite
+  // (k,) bool, and None or the first (state, actuator, status) a kind refused (the batch ends
+  // there). None where q or v is not a float64 array of that shape (finite too, if `finite`):
+  // Python then checks them.
   py::object evaluate(const py::object& q, const py::object& v, bool finite) {
     const auto n = pass_.n();
     const auto qa = batch(q, n, finite);
@@ -196,7 +197,7 @@ class Evaluator {
         break;
       }
       const auto Ai = at(A, i, n, n);
-      bad.mutable_data()[i] = singular(Ai, tolerance_);
+      bad.mutable_data()[i] = singular(Ai, tolerance_) || !Vector(qi, n).allFinite();
       at(J_H, i, m, n) = task_jacobian(Factor(Ai.transpose()), at(J, i, m, n));
     }
     return py::make_tuple(*qa, Pass::maybe(va), positions, linear, angular,

@@ -43,7 +43,7 @@ def singular(A: np.ndarray, tolerance: float = SINGULAR_TOLERANCE) -> np.ndarray
 
 def check_invertible(space: ActuatorSpace) -> None:
     """Raise `SingularConfigurationError` where A is singular to working precision."""
-    bad = np.flatnonzero(space._singular)
+    bad = np.flatnonzero(space._bad)
     if bad.size:
         i = bad[0]
         weakest = space.robot.actuators.names[int(np.argmin(np.linalg.norm(space.A[i], axis=1)))]
@@ -92,8 +92,9 @@ class ActuatorSpace:
         return self.robot.actuators.rate(kinematics)
 
     def _derive(self) -> np.ndarray:
-        """J_H and where A is singular, derived in one call of the core; J_H."""
-        J_H, vars(self)["_singular"] = _core.derive(self.A, self.J, SINGULAR_TOLERANCE)
+        """J_H, derived in one call of the core with where A is singular; ``_bad`` kept."""
+        J_H, singular_A = _core.derive(self.A, self.J, SINGULAR_TOLERANCE)
+        vars(self)["_bad"] = singular_A | ~np.isfinite(self.q).all(axis=1)
         return J_H
 
     @cached_property
@@ -102,10 +103,10 @@ class ActuatorSpace:
         return self._derive()
 
     @cached_property
-    def _singular(self) -> np.ndarray:
-        """Where A is singular to working precision (`singular`), (k,) bool."""
+    def _bad(self) -> np.ndarray:
+        """Where A is singular to working precision (`singular`) or q is not finite, (k,)."""
         vars(self)["J_H"] = self._derive()
-        return vars(self)["_singular"]
+        return vars(self)["_bad"]
 
     @cached_property
     def M(self) -> np.ndarray:
@@ -179,14 +180,14 @@ class ActuatorSpace:
 
 
 ARRAYS = ("q", "v", "x", "A", "y", "J", "x_ddot")  # the batch's own arrays, batch axis first
-KEPT = {"J_H", "_singular", "M", "M_H"}  # derived from q alone: unchanged by v or ẍ
+KEPT = {"J_H", "_bad", "M", "M_H"}  # derived from q alone: unchanged by v or ẍ
 
 
 def regularised(space: ActuatorSpace) -> tuple[ActuatorSpace, np.ndarray]:
     """``space`` with A replaced by I where it is singular or the state is not finite, so that
     every derived quantity is defined on the whole batch, and where that was, (k,) bool. What is
     derived there is meaningless: callers freeze or exclude those states."""
-    bad = space._singular | ~np.isfinite(space.q).all(axis=1)
+    bad = space._bad
     if bad.any():
         eye = np.eye(space.A.shape[-1])
         space = replace(space, A=np.where(bad[:, None, None], eye, space.A))
@@ -208,10 +209,10 @@ def _evaluated(robot: Robot, q: np.ndarray, v: np.ndarray | None) -> ActuatorSpa
 
 
 def _compiled(robot: Robot, q, v, finite: bool) -> ActuatorSpace | None:
-    """`evaluate` in one call of the core (`Robot.evaluator`), J_H and where A is singular
-    included; None where it does not serve: a kind or task of your own, q or v not a float
-    array of shape (n,) or (k, n) (and finite, if ``finite``), an actuator that cannot
-    evaluate (Python raises its error)."""
+    """`evaluate` in one call of the core (`Robot.evaluator`), J_H and where A is singular or
+    q not finite included; None where it does not serve: a kind or task of your own, q or v
+    not a float array of shape (n,) or (k, n) (and finite, if ``finite``), an actuator that
+    cannot evaluate (Python raises its error)."""
     evaluator = robot.evaluator()
     found = None if evaluator is None else evaluator.evaluate(q, v, finite)
     if found is None or found[-1] is not None:
@@ -240,7 +241,7 @@ def _compiled(robot: Robot, q, v, finite: bool) -> ActuatorSpace | None:
         J=J,
         x_ddot=None,
         J_H=J_H,
-        _singular=bad,
+        _bad=bad,
     )
 
 
@@ -266,6 +267,6 @@ def actuator_space(robot: Robot, q, v=None, check: bool = True) -> ActuatorSpace
         if vb is not None and vb.shape != qb.shape:
             raise InvalidInputError(f"v has shape {vb.shape}; q has {qb.shape}")
         space = evaluate(robot, qb, vb)
-    if check and space._singular.any():
+    if check and space._bad.any():
         check_invertible(space)
     return space
