@@ -20,7 +20,7 @@ weakest actuator, and the integrators freeze such states.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from functools import cached_property
 from typing import Any
 
@@ -217,41 +217,23 @@ def _compiled(robot: Robot, q, v, finite: bool) -> ActuatorSpace | None:
     found = None if evaluator is None else evaluator.evaluate(q, v, finite)
     if found is None or found[-1] is not None:
         return None
-    q, v, positions, jacobians, angular, velocities, rates, x, A, y, J, J_H, bad, _ = found
-    kinematics = _made(
-        Kinematics,
-        tracking=robot.tracking(),
-        q=q,
-        positions=positions,
-        jacobians=jacobians,
-        angular=angular,
-        v=v,
-        velocities=velocities,
-        jacobian_rates=rates,
-    )
-    return _made(
-        ActuatorSpace,
-        robot=robot,
-        kinematics=kinematics,
-        q=q,
-        v=v,
-        x=x,
-        A=A,
-        y=y,
-        J=J,
-        x_ddot=None,
-        J_H=J_H,
-        _bad=bad,
-    )
+    q, v, *frames, x, A, y, J, J_H, bad, _ = found
+    kinematics = _made(Kinematics, robot.tracking(), q, *frames[:3], v, *frames[3:])
+    space = _made(ActuatorSpace, robot, kinematics, q, v, x, A, y, J, None)
+    vars(space).update(J_H=J_H, _bad=bad)
+    return space
 
 
-def _made(cls: type[Any], **fields: Any) -> Any:
-    """An instance of the frozen dataclass ``cls`` with ``fields`` (every field, and derived
-    values to keep): a frozen dataclass's __init__ sets each field through object.__setattr__,
-    which would cost a one-state evaluation more than the core's call."""
+def _made(cls: type[Any], *values: Any) -> Any:
+    """An instance of the frozen dataclass ``cls`` with its fields' ``values``, in order: its
+    __init__ sets each field through object.__setattr__, which would cost a one-state
+    evaluation more than the core's call."""
     made = object.__new__(cls)
-    vars(made).update(fields)
+    vars(made).update(zip(FIELDS[cls], values))
     return made
+
+
+FIELDS = {cls: [f.name for f in fields(cls)] for cls in (Kinematics, ActuatorSpace)}
 
 
 def actuator_space(robot: Robot, q, v=None, check: bool = True) -> ActuatorSpace:
