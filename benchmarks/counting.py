@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 import redundancy.model.robot
+import redundancy.resolution.state
 from redundancy.model.kinematics import Kinematics
 
 
@@ -31,24 +32,37 @@ class Evaluations:
 
 @contextmanager
 def counting():
-    """Count every state `Robot.kinematics` sends through the pass while the block runs, and
-    every state `Kinematics.moving` passes again."""
+    """Count every state `Robot.kinematics` or the compiled evaluation (`Robot.evaluator`)
+    sends through the pass while the block runs, and every state `Kinematics.moving` passes
+    again."""
     counts = Evaluations()
-    track, moving = redundancy.model.robot.track, Kinematics.moving
+    state = redundancy.resolution.state
+    track, compiled, moving = redundancy.model.robot.track, state._compiled, Kinematics.moving
 
-    def counted(tracking, q, v=None):
+    def seen(q):
         counts.evaluated += len(q)
         counts.seen.update(row.tobytes() for row in np.ascontiguousarray(q))
+
+    def counted(tracking, q, v=None):
+        seen(q)
         return track(tracking, q, v)
+
+    def counted_compiled(robot, q, v, finite):
+        space = compiled(robot, q, v, finite)
+        if space is not None:
+            seen(space.q)
+        return space
 
     def counted_moving(kinematics, v):
         counts.moving += len(v)
         return moving(kinematics, v)
 
     redundancy.model.robot.track = counted
+    state._compiled = counted_compiled
     Kinematics.moving = counted_moving  # type: ignore[method-assign]
     try:
         yield counts
     finally:
         redundancy.model.robot.track = track
+        state._compiled = compiled
         Kinematics.moving = moving  # type: ignore[method-assign]

@@ -5,8 +5,8 @@
 #include <optional>
 #include <vector>
 
-#include "actuators.hpp"
 #include "law.hpp"
+#include "space.hpp"
 
 class Controller {
  public:
@@ -24,17 +24,16 @@ class Controller {
              const std::optional<Array>& pull, const std::optional<Array>& middle, double ratio,
              double tolerance, py::object fallback, py::object result)
       : pass_(pass),
-        tool_(tool),
-        rows_(std::move(rows)),
-        actuators_(declared(kinds, slots, numbers, pass.size(), pass.n())),
+        actuation_{tool, std::move(rows), declared(kinds, slots, numbers, pass.size(), pass.n())},
         weight_(Weight(weight)),
         ratio_(ratio),
         tolerance_(tolerance),
         fallback_(std::move(fallback)),
         result_(std::move(result)) {
     const auto n = pass_.n();
-    if (tool_ < 0 || tool_ >= pass_.size() || Eigen::Index(actuators_.size()) != n ||
-        std::any_of(rows_.begin(), rows_.end(), [](auto r) { return r < 0 || r > 2; }))
+    const auto& task = actuation_.rows;
+    if (tool < 0 || tool >= pass_.size() || Eigen::Index(actuation_.actuators.size()) != n ||
+        std::any_of(task.begin(), task.end(), [](auto r) { return r < 0 || r > 2; }))
       throw py::value_error("a controller takes the tool's slot, its task rows and n actuators");
     if (weight_ == CONSTANT) {
       if (!W || W->ndim() != 2 || W->shape(0) != n || W->shape(1) != n)
@@ -52,42 +51,35 @@ class Controller {
         !PyType_IsSubtype(reinterpret_cast<PyTypeObject*>(result_.ptr()), &PyTuple_Type))
       throw py::value_error("a controller's result is a tuple type (x_dot, q_dot, y)");
     A_.resize(n, n);
-    J_.resize(Eigen::Index(rows_.size()), n);
+    J_.resize(Eigen::Index(task.size()), n);
+    x_.resize(n);
+    y_.resize(Eigen::Index(task.size()));
   }
 
   py::object step(const py::object& q, const py::object& y_dot) {
-    const auto n = pass_.n(), m = Eigen::Index(rows_.size());
+    const auto n = pass_.n(), m = Eigen::Index(actuation_.rows.size());
     const double *qi = finite(q, n), *yi = finite(y_dot, m);
     if (!qi || !yi) return fallback_(q, y_dot);
     pass_.at(qi, nullptr);
-    const Frames s = pass_.frames();
-    Eigen::VectorXd x(n), y(m);
-    Eigen::Vector3d end;
-    for (Eigen::Index j = 0; j < n; ++j)
-      if (actuate(actuators_[j], s, qi, nullptr, x[j], RowOut(A_.row(j).data(), n), nullptr,
-                  end) != OK)
-        return fallback_(q, y_dot);
-    for (Eigen::Index r = 0; r < m; ++r) {
-      y[r] = s.position(tool_)[rows_[r]];
-      J_.row(r) = s.jacobian(tool_).row(rows_[r]);
-    }
-    if (singular()) return fallback_(q, y_dot);
-    const auto transposed = A_.transpose().partialPivLu();
-    const Eigen::MatrixXd J_H = transposed.solve(J_.transpose()).transpose();
-    const Eigen::MatrixXd* W = weight_ == CONSTANT ? &W_ : nullptr;
+    if (actuation_(pass_.frames(), qi, nullptr, x_.data(), A_.data(), y_.data(), J_.data())
+            .second != OK ||
+        singular(A_, tolerance_))
+      return fallback_(q, y_dot);
+    const Factor transposed(A_.transpose());
+    const Dense J_H = task_jacobian(transposed, J_);
+    const Dense* W = weight_ == CONSTANT ? &W_ : nullptr;
     if (weight_ == INERTIA) {
-      const Eigen::MatrixXd& M = pass_.mass(qi);
+      const Dense& M = pass_.mass(qi);
       if (!(M.diagonal().array() > 0).all()) return fallback_(q, y_dot);
-      const Eigen::MatrixXd half = transposed.solve(transposed.solve(M).transpose());
-      M_H_ = (half + half.transpose()) / 2;
+      M_H_ = inertia(transposed, M);
       W = &M_H_;
     }
     std::optional<Eigen::VectorXd> z;
-    if (pull_.size()) z = pull_.cwiseProduct(x - middle_);
+    if (pull_.size()) z = pull_.cwiseProduct(x_ - middle_);
     const Eigen::VectorXd x_dot = law(J_H, Eigen::VectorXd(Vector(yi, m)), W, z ? &*z : nullptr,
                                       ratio_);
     const Eigen::VectorXd q_dot = A_.partialPivLu().solve(x_dot);
-    return result(vector(x_dot), vector(q_dot), vector(y));
+    return result(vector(x_dot), vector(q_dot), vector(y_));
   }
 
  private:
@@ -99,17 +91,6 @@ class Controller {
       return nullptr;
     const auto* data = static_cast<const double*>(array.data());
     return Vector(data, size).allFinite() ? data : nullptr;
-  }
-
-  // Whether A is singular to working precision, as `redundancy.resolution.state.singular`:
-  // |det A| / ‖A‖_F^n bounds σ_min / σ_max from below; below the tolerance, the singular values.
-  bool singular() const {
-    if (!A_.allFinite()) return true;
-    const double n = double(A_.rows());
-    if (std::abs(A_.determinant()) > tolerance_ * std::pow(A_.squaredNorm(), n / 2)) return false;
-    const Eigen::VectorXd sigma = Eigen::JacobiSVD<Eigen::MatrixXd>(A_).singularValues();
-    return sigma[sigma.size() - 1] / std::max(sigma[0], std::numeric_limits<double>::min()) <
-           tolerance_;
   }
 
   // The result type's tuple of the three, filled as tuple's own constructor fills a subtype's
@@ -131,12 +112,11 @@ class Controller {
   }
 
   Pass pass_;
-  Eigen::Index tool_;
-  std::vector<Eigen::Index> rows_;
-  std::vector<Actuator> actuators_;
+  Actuation actuation_;
   Weight weight_;
-  Eigen::MatrixXd W_, M_H_, J_;
-  Matrix A_;  // row-major: each actuator writes its row in place
+  Dense W_, M_H_;
+  Matrix A_, J_;  // row-major, as `Actuation` writes them
+  Eigen::VectorXd x_, y_;
   Eigen::VectorXd pull_, middle_;
   double ratio_, tolerance_;
   py::object fallback_, result_;

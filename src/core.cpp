@@ -1,6 +1,7 @@
 // redundancy._core: the one Pinocchio pass over a batch of states, the built-in actuator kinds'
-// x with their rows of A and Ȧ, the resolution laws' kernel, and a control step that runs all of
-// them in one call.
+// x with their rows of A and Ȧ, the state's derivation in actuator coordinates (J_H, M_H, N_H,
+// q̇), the resolution laws' kernel, and the evaluation of a batch and a control step that run
+// them in one call each.
 //
 // A `Pass` holds a copy of the robot's Pinocchio model (handed over as Pinocchio's own text
 // serialization, so that mimic joints, locked joints and added frames arrive exactly as Python
@@ -12,6 +13,7 @@
 #include "controller.hpp"
 #include "law.hpp"
 #include "pass.hpp"
+#include "space.hpp"
 
 PYBIND11_MODULE(_core, m) {
   m.doc() =
@@ -33,6 +35,17 @@ PYBIND11_MODULE(_core, m) {
         py::arg("velocities") = py::none(), py::arg("rates") = py::none());
   m.def("resolve", &resolve, py::arg("J_H"), py::arg("y_dot"), py::arg("W") = py::none(),
         py::arg("z") = py::none(), py::arg("ratio"));
+  m.def("derive", &derive, py::arg("A"), py::arg("J"), py::arg("tolerance"));
+  m.def("inertias", &inertias, py::arg("A"), py::arg("M"));
+  m.def("biases", &biases, py::arg("A"), py::arg("N"), py::arg("M_H"), py::arg("A_dot"),
+        py::arg("v"));
+  m.def("solve", &solve, py::arg("A"), py::arg("B"));
+  py::class_<Evaluator>(m, "Evaluator")
+      .def(py::init<const Pass&, Eigen::Index, std::vector<Eigen::Index>, const py::array_t<int>&,
+                    const py::array_t<Eigen::Index>&, const Array&, double>(),
+           py::arg("tracking"), py::arg("tool"), py::arg("rows"), py::arg("kinds"),
+           py::arg("slots"), py::arg("numbers"), py::arg("tolerance"))
+      .def("evaluate", &Evaluator::evaluate, py::arg("q"), py::arg("v"), py::arg("finite"));
   py::class_<Controller>(m, "Controller")
       .def(py::init<const Pass&, Eigen::Index, std::vector<Eigen::Index>,
                     const py::array_t<int>&, const py::array_t<Eigen::Index>&, const Array&, int,

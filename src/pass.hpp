@@ -15,6 +15,7 @@
 #include <algorithm>
 #include <optional>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -124,35 +125,57 @@ class Pass {
     return data_.M;
   }
 
+  // The arrays of a batch of k states' tracked frames: positions (k, F, 3), linear and angular
+  // world-aligned Jacobians (k, F, 3, n) and, `moving`, their velocities (k, F, 3) and linear
+  // Jacobian rates (k, F, 3, n) (else None).
+  using Outputs = std::tuple<Array, Array, Array, std::optional<Array>, std::optional<Array>>;
+  Outputs outputs(py::ssize_t k, bool moving) const {
+    const auto F = py::ssize_t(frames_.size()), n = py::ssize_t(model_.nv), three = py::ssize_t(3);
+    std::optional<Array> velocities, rates;
+    if (moving) {
+      velocities = Array({k, F, three});
+      rates = Array({k, F, three, n});
+    }
+    return {Array({k, F, three}), Array({k, F, three, n}), Array({k, F, three, n}), velocities,
+            rates};
+  }
+
+  // `at` q (n) and v (n) or null, written as state i of the `outputs` arrays; what the actuator
+  // kinds read of it.
+  Frames write(const double* q, const double* v, py::ssize_t i, Array& positions, Array& linear,
+               Array& angular, std::optional<Array>& velocities, std::optional<Array>& rates) {
+    at(q, v);
+    const auto F = py::ssize_t(frames_.size()), n = py::ssize_t(model_.nv);
+    double* p = positions.mutable_data() + i * 3 * F;
+    double* J = linear.mutable_data() + i * 3 * F * n;
+    std::copy(positions_.begin(), positions_.end(), p);
+    std::copy(linear_.begin(), linear_.end(), J);
+    std::copy(angular_.begin(), angular_.end(), angular.mutable_data() + i * 3 * F * n);
+    if (!v) return {p, J, nullptr, nullptr, n};
+    double* pv = velocities->mutable_data() + i * 3 * F;
+    double* Jv = rates->mutable_data() + i * 3 * F * n;
+    std::copy(velocities_.begin(), velocities_.end(), pv);
+    std::copy(rates_.begin(), rates_.end(), Jv);
+    return {p, J, pv, Jv, n};
+  }
+
   // Positions (k, F, 3), linear and angular world-aligned Jacobians (k, F, 3, n) of the tracked
   // frames at q (k, n); with v (k, n) also their velocities (k, F, 3) and linear Jacobian rates
   // (k, F, 3, n).
   py::tuple kinematics(const Array& q, const std::optional<Array>& v) {
     const auto k = batch(q, "q");
     if (v) same_batch(*v, k, "v");
-    const auto F = py::ssize_t(frames_.size()), n = py::ssize_t(model_.nv);
-    Array positions({k, F, py::ssize_t(3)}), linear({k, F, py::ssize_t(3), n}),
-        angular({k, F, py::ssize_t(3), n});
-    py::object velocities = py::none(), rates = py::none();
-    double *pv = nullptr, *jr = nullptr;
-    if (v) {
-      Array velocity({k, F, py::ssize_t(3)}), rate({k, F, py::ssize_t(3), n});
-      pv = velocity.mutable_data();
-      jr = rate.mutable_data();
-      velocities = velocity;
-      rates = rate;
-    }
-    for (py::ssize_t i = 0; i < k; ++i) {
-      at(q.data() + i * n, v ? v->data() + i * n : nullptr);
-      std::copy(positions_.begin(), positions_.end(), positions.mutable_data() + i * 3 * F);
-      std::copy(linear_.begin(), linear_.end(), linear.mutable_data() + i * 3 * F * n);
-      std::copy(angular_.begin(), angular_.end(), angular.mutable_data() + i * 3 * F * n);
-      if (v) {
-        std::copy(velocities_.begin(), velocities_.end(), pv + i * 3 * F);
-        std::copy(rates_.begin(), rates_.end(), jr + i * 3 * F * n);
-      }
-    }
-    return py::make_tuple(positions, linear, angular, velocities, rates);
+    const auto n = py::ssize_t(model_.nv);
+    auto [positions, linear, angular, velocities, rates] = outputs(k, v.has_value());
+    for (py::ssize_t i = 0; i < k; ++i)
+      write(q.data() + i * n, v ? v->data() + i * n : nullptr, i, positions, linear, angular,
+            velocities, rates);
+    return py::make_tuple(positions, linear, angular, maybe(velocities), maybe(rates));
+  }
+
+  // An optional array as Python has it: the array or None.
+  static py::object maybe(const std::optional<Array>& a) {
+    return a ? py::object(*a) : py::none();
   }
 
   // M(q) (k, n, n) by CRBA, both triangles filled.

@@ -34,6 +34,7 @@ from redundancy.resolution.laws import (
     Step,
 )
 from redundancy.resolution.objectives import Objective
+from redundancy.resolution.state import _evaluated, evaluate
 
 WORLD = pin.LOCAL_WORLD_ALIGNED
 MIMIC = Path(__file__).parent / "fixtures" / "intake" / "mimic" / "robot.toml"
@@ -76,6 +77,36 @@ def test_the_compiled_pass_equals_pinocchios_python_calls(robot):
         upper = pin.crba(model, data, q[i])
         assert_equal_relative(M[i], np.triu(upper) + np.triu(upper, 1).T)
         assert_equal_relative(N[i], pin.nonLinearEffects(model, data, q[i], v[i]))
+
+
+def test_the_compiled_evaluation_equals_python_s_and_the_closed_forms(robot):
+    """One call of the core per batch (`Robot.evaluator`) gives what the pass, each group of
+    kinds and the task point give through Python, and J_H = J A⁻¹, M_H = A⁻ᵀ M A⁻¹ and
+    N_H = A⁻ᵀ N − M_H Ȧ q̇ as numpy's inverses give them, on every bundled robot."""
+    q = random_configurations(robot, 6, seed=59, margin=0.05)
+    v = random_velocities(robot, 6, seed=60)
+    ours, theirs = evaluate(robot, q, v), _evaluated(robot, q, v)
+    assert robot.evaluator() is not None and "J_H" in vars(ours) and "J_H" not in vars(theirs)
+    for name in ("x", "A", "y", "J", "J_H", "x_dot", "A_dot"):
+        assert_equal_relative(getattr(ours, name), getattr(theirs, name))
+    for name in ("positions", "jacobians", "angular", "velocities", "jacobian_rates"):
+        assert_equal_relative(getattr(ours.kinematics, name), getattr(theirs.kinematics, name))
+    A_inv = np.linalg.inv(ours.A)
+    assert_equal_relative(ours.J_H, ours.J @ A_inv)
+    assert_equal_relative(ours.joint_velocities(ours.x_dot), v)
+    if robot.kinematic_only:
+        return
+    M_H = A_inv.mT @ ours.M @ A_inv
+    assert_equal_relative(ours.M_H, M_H)
+    N = robot.nonlinear(q, v)
+    expected = (A_inv.mT @ N[..., None] - M_H @ ours.A_dot @ v[..., None])[..., 0]
+    assert_equal_relative(ours.N_H, expected)
+    assert_equal_relative(theirs.N_H, expected)
+
+
+def test_the_core_s_solve_refuses_a_singular_matrix_as_numpy_does():
+    with pytest.raises(np.linalg.LinAlgError, match="Singular matrix"):
+        _core.solve(np.zeros((1, 3, 3)), np.ones((1, 3)))
 
 
 def test_the_cylinder_kind_equals_its_closed_form():
@@ -209,8 +240,10 @@ def test_a_users_own_kind_and_law_run_through_every_path(crane, geared, paper_cy
     with the least ẋᵀ W ẋ about z), the fast search, the bound and a cycle."""
     law = SlowTelescope()
     q = random_configurations(geared, 6, seed=54, margin=0.05)
+    assert geared.evaluator() is None  # evaluated through Python, derived by the core
     space = actuator_space(geared, q)
     assert_equal_relative(space.x[:, 2], 2 * actuator_space(crane, q).x[:, 2])
+    assert_equal_relative(space.J_H, space.J @ np.linalg.inv(space.A))
     y_dot = np.random.default_rng(55).normal(size=(6, 2))
     x_dot = law.resolve(space, y_dot)
     assert_equal_relative((space.J_H @ x_dot[..., None])[..., 0], y_dot)

@@ -215,7 +215,7 @@ def test_the_tables_and_the_report_evaluate_no_state(study, monkeypatch):
     def refused(*args, **kwargs):
         raise AssertionError("a table or the report evaluated a state")
 
-    for name in ("kinematics", "mass_matrices", "nonlinear"):
+    for name in ("kinematics", "evaluator", "mass_matrices", "nonlinear"):
         monkeypatch.setattr(Robot, name, refused)
     assert study.robot.hydraulics is not None  # the hydraulic table and the energies too
     table = study_table(study)

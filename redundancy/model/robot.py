@@ -19,13 +19,14 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from redundancy._core import Pass
+from redundancy._core import Evaluator, Pass
 from redundancy.errors import InvalidInputError
-from redundancy.model.actuators import ActuatorSet, driven_joints, prismatic
+from redundancy.model.actuators import ActuatorSet, CompiledMap, declared, driven_joints, prismatic
 from redundancy.model.hydraulics import Circuit
 from redundancy.model.kinematics import Kinematics, PointMotion, Tracking, track
 
 AXES = "xyz"
+SINGULAR_TOLERANCE = 1e-9  # A counts as singular below σ_min / σ_max = 1e-9
 
 
 def frame_id(model: pin.Model, name: str) -> int:
@@ -98,6 +99,12 @@ class Robot:
         self._task_rows = [AXES.index(a) for a in task_axes]
         self._task_frames = [self._tool]  # the frames the task is read from
         self._tracking: dict[tuple[int, ...], Tracking] = {}
+        self._evaluators: dict[ActuatorSet, Evaluator | None] = {}
+
+    def __getstate__(self) -> dict:
+        """What a copy sent to a worker process is rebuilt from; its evaluators are built there
+        again, when first asked for."""
+        return {**vars(self), "_evaluators": {}}
 
     def __repr__(self) -> str:
         return f"Robot({self.name!r}, n={self.n}, m={self.m}, payload={self.payload} kg)"
@@ -174,6 +181,28 @@ class Robot:
             slots = {f: i for i, f in enumerate(frames)}
             self._tracking[key] = Tracking(Pass(self._serialized, frames), frames, slots)
         return self._tracking[key]
+
+    def evaluator(self) -> Evaluator | None:
+        """The compiled evaluation of states in actuator coordinates
+        (`redundancy.resolution.state.evaluate`), built once per set of actuators; None where
+        an actuator is a kind of your own or the task is not the tool's position (`task_point`
+        overridden): Python then evaluates them."""
+        actuators = self.actuators
+        if actuators not in self._evaluators:
+            maps, tracking = list(actuators), self.tracking()
+            own = type(self).task_point is not Robot.task_point
+            self._evaluators[actuators] = (
+                None
+                if own or not all(isinstance(m, CompiledMap) for m in maps)
+                else Evaluator(
+                    tracking.core,
+                    tracking.slots[self._tool],
+                    self._task_rows,
+                    *declared(maps, tracking.slots),  # type: ignore[arg-type]
+                    SINGULAR_TOLERANCE,
+                )
+            )
+        return self._evaluators[actuators]
 
     @property
     def task_rows(self) -> tuple[int, list[int]]:

@@ -29,14 +29,13 @@ import numpy as np
 
 from redundancy import _core
 from redundancy.errors import InvalidInputError
-from redundancy.model.actuators import CompiledMap, declared
+from redundancy.model.actuators import declared
 from redundancy.model.robot import Robot
 from redundancy.resolution.state import (
     SINGULAR_TOLERANCE,
     ActuatorSpace,
     check_invertible,
     evaluate,
-    singular,
 )
 
 # The gradient-projection gain α, m²/s, tuned on the paper's segments by
@@ -100,8 +99,7 @@ class Resolver:
                 f"{np.shape(q)} and {np.shape(y_dot)}"
             )
         space = evaluate(robot, states)
-        if singular(space.A)[0]:
-            check_invertible(space.A, states, robot.actuators.names)
+        check_invertible(space)
         x_dot = self.resolve(space, velocities)
         return Step(x_dot[0], space.joint_velocities(x_dot)[0], space.y[0])
 
@@ -226,13 +224,11 @@ def compiled(robot: Robot, law: Resolver, fallback) -> _core.Controller | None:
     }
     own = any(getattr(kind, name) is not getattr(Resolver, name) for name in ("resolve", "step"))
     pulls = kind.null_space is GradientProjection.null_space
-    maps = list(robot.actuators)
     if (
         own
         or kind.weight not in weights
         or not (pulls or kind.null_space is Resolver.null_space)
-        or type(robot).task_point is not Robot.task_point
-        or not all(isinstance(m, CompiledMap) for m in maps)
+        or robot.evaluator() is None  # a kind or a task of your own
     ):
         return None
     weight = weights[kind.weight]
@@ -246,7 +242,7 @@ def compiled(robot: Robot, law: Resolver, fallback) -> _core.Controller | None:
         tracking.core,
         tracking.slots[tool],
         rows,
-        *declared(maps, tracking.slots),
+        *declared(list(robot.actuators), tracking.slots),
         weight,
         W,
         pull,

@@ -143,25 +143,24 @@ class Limits:
     def violations(self, t: np.ndarray, values: np.ndarray) -> list[Violation]:
         """Every interval over which a checked value of the samples values (T, n) at times
         t (T,) is past its limit by more than `TOLERANCE`, in order of time."""
-        found = []
-        for j, column in enumerate(self.columns):
-            series = values[:, column]
-            below, above = self.lower[j] - series, series - self.upper[j]
-            for bound, excess in (("lower", below), ("upper", above)):
-                outside = excess > TOLERANCE
-                edges = np.flatnonzero(np.diff(np.concatenate([[0], outside.astype(int), [0]])))
-                for start, stop in zip(edges[::2], edges[1::2]):
-                    found.append(
-                        Violation(
-                            self.names[j],
-                            bound,
-                            float(t[start]),
-                            float(t[stop - 1]),
-                            float(excess[start:stop].max()),
-                            self.units[j],
-                        )
-                    )
-        return sorted(found, key=lambda v: v.start)
+        found = []  # (start, checked column, bound, the violation): sorted as the key says
+        checked = values[:, self.columns]
+        for order, (bound, excess) in enumerate(
+            (("lower", self.lower - checked), ("upper", checked - self.upper))
+        ):
+            outside = np.pad(excess > TOLERANCE, ((1, 1), (0, 0))).astype(np.int8)
+            columns, edges = np.nonzero(np.diff(outside, axis=0).T)  # per column: start, stop
+            for j, start, stop in zip(columns[::2], edges[::2], edges[1::2]):
+                violation = Violation(
+                    self.names[j],
+                    bound,
+                    float(t[start]),
+                    float(t[stop - 1]),
+                    float(excess[start:stop, j].max()),
+                    self.units[j],
+                )
+                found.append((violation.start, j, order, violation))
+        return [violation for *_, violation in sorted(found, key=lambda f: f[:3])]
 
 
 def hydraulic_values(circuit: Circuit, x_dot: np.ndarray, flows: Flows) -> np.ndarray:

@@ -10,60 +10,45 @@ diagonal) becomes, in actuator coordinates (Eqs. 16, 20-23, 25),
     M_H = A⁻ᵀ M A⁻¹               N_H = A⁻ᵀ N − M_H Ȧ A⁻¹ ẋ
     F_H = M_H ẍ + N_H
 
-A is never inverted: every product with A⁻¹ is a linear solve. A is singular where a cylinder's
-torque arm vanishes (its line passes through the joint); `actuator_space` then raises
-`SingularConfigurationError` naming the weakest actuator, and the integrators freeze such states.
+A is never inverted: every product with A⁻¹ is a solve with A's LU factors, in the compiled core
+(`redundancy._core`), which also runs the pass, the built-in actuator kinds, y, J and J_H in one
+call per batch (`Robot.evaluator`); a kind or a task of your own is evaluated in Python, and the
+rest derived by the same core. A is singular where a cylinder's torque arm vanishes (its line
+passes through the joint); `actuator_space` then raises `SingularConfigurationError` naming the
+weakest actuator, and the integrators freeze such states.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from functools import cached_property
 from typing import Any
 
 import numpy as np
 
+from redundancy import _core
 from redundancy.errors import InvalidInputError, SingularConfigurationError
 from redundancy.model.kinematics import Kinematics, join, take
+from redundancy.model.robot import SINGULAR_TOLERANCE as SINGULAR_TOLERANCE
 from redundancy.model.robot import Robot
-from redundancy.resolution.linalg import solve
-
-SINGULAR_TOLERANCE = 1e-9
-
-
-def invertibility(A: np.ndarray) -> np.ndarray:
-    """σ_min / σ_max of each A (k, n, n), (k,): 1 for an orthogonal A, 0 for a singular one."""
-    singular_values = np.linalg.svd(A, compute_uv=False)
-    return singular_values[:, -1] / np.maximum(singular_values[:, 0], np.finfo(float).tiny)
 
 
 def singular(A: np.ndarray, tolerance: float = SINGULAR_TOLERANCE) -> np.ndarray:
-    """Where `invertibility` (k,) falls below ``tolerance`` or A is not finite, (k,) bool.
-
-    |det A| / ‖A‖_F^n bounds σ_min / σ_max from below (|det A| = Π σ_i ≤ σ_min σ_max^(n−1) and
-    σ_max ≤ ‖A‖_F), so the singular values are computed only where that bound is not enough.
-    """
-    n = A.shape[-1]
-    with np.errstate(all="ignore"):  # overflow and NaN fall through to the singular values
-        settled = np.linalg.det(A) ** 2 > tolerance**2 * np.einsum("kij,kij->k", A, A) ** n
-    if settled.all():
-        return ~settled
-    found = np.zeros(len(A), dtype=bool)
-    rows = np.flatnonzero(~settled)
-    finite = np.isfinite(A[rows]).all(axis=(1, 2))
-    found[rows] = ~finite
-    found[rows[finite]] = invertibility(A[rows[finite]]) < tolerance
-    return found
+    """Where σ_min / σ_max of each A (k, n, n) falls below ``tolerance`` or A is not finite,
+    (k,) bool; the core bounds the ratio below by |det A| / ‖A‖_F^n (|det A| = Π σ_i ≤
+    σ_min σ_max^(n−1) and σ_max ≤ ‖A‖_F) and computes the singular values only where that bound
+    is not enough."""
+    return _core.derive(A, np.empty((len(A), 0, A.shape[-1])), tolerance)[1]
 
 
-def check_invertible(A: np.ndarray, q: np.ndarray, names: list[str]) -> None:
+def check_invertible(space: ActuatorSpace) -> None:
     """Raise `SingularConfigurationError` where A is singular to working precision."""
-    bad = np.flatnonzero(singular(A))
+    bad = np.flatnonzero(space._bad)
     if bad.size:
         i = bad[0]
-        weakest = names[int(np.argmin(np.linalg.norm(A[i], axis=1)))]
+        weakest = space.robot.actuators.names[int(np.argmin(np.linalg.norm(space.A[i], axis=1)))]
         raise SingularConfigurationError(
-            f"actuator Jacobian A is singular at q = {np.round(q[i], 6).tolist()} "
+            f"actuator Jacobian A is singular at q = {np.round(space.q[i], 6).tolist()} "
             f"(weakest: actuator {weakest!r}); the actuators cannot move the joints there"
         )
 
@@ -106,10 +91,22 @@ class ActuatorSpace:
             kinematics = kinematics.moving(self.v)
         return self.robot.actuators.rate(kinematics)
 
+    def _derive(self) -> np.ndarray:
+        """J_H, derived in one call of the core with where A is singular; ``_bad`` kept."""
+        J_H, singular_A = _core.derive(self.A, self.J, SINGULAR_TOLERANCE)
+        vars(self)["_bad"] = singular_A | ~np.isfinite(self.q).all(axis=1)
+        return J_H
+
     @cached_property
     def J_H(self) -> np.ndarray:
         """J_H = J A⁻¹ (Eqs. 16, 25), (k, m, n)."""
-        return solve(self.A.mT, self.J.mT).mT
+        return self._derive()
+
+    @cached_property
+    def _bad(self) -> np.ndarray:
+        """Where A is singular to working precision (`singular`) or q is not finite, (k,)."""
+        vars(self)["J_H"] = self._derive()
+        return vars(self)["_bad"]
 
     @cached_property
     def M(self) -> np.ndarray:
@@ -119,17 +116,13 @@ class ActuatorSpace:
     @cached_property
     def M_H(self) -> np.ndarray:
         """M_H = A⁻ᵀ M A⁻¹ (Eq. 22), symmetric positive definite."""
-        A_T = self.A.mT
-        M_H = solve(A_T, solve(A_T, self.M).mT)  # A⁻ᵀ (A⁻ᵀ M)ᵀ = A⁻ᵀ M A⁻¹
-        return (M_H + M_H.mT) / 2
+        return _core.inertias(self.A, self.M)
 
     @cached_property
     def N_H(self) -> np.ndarray:
         """N_H = A⁻ᵀ N − M_H Ȧ A⁻¹ ẋ (Eq. 23), with A⁻¹ ẋ = q̇; A⁻ᵀ G at rest."""
         v = np.zeros_like(self.q) if self.v is None else self.v
-        N = self.robot.nonlinear(self.q, v)
-        a_dot_v = (self.A_dot @ v[..., None])[..., 0]
-        return solve(self.A.mT, N[..., None])[..., 0] - (self.M_H @ a_dot_v[..., None])[..., 0]
+        return _core.biases(self.A, self.robot.nonlinear(self.q, v), self.M_H, self.A_dot, v)
 
     @cached_property
     def F_H(self) -> np.ndarray:
@@ -155,7 +148,7 @@ class ActuatorSpace:
 
     def joint_velocities(self, x_dot: np.ndarray) -> np.ndarray:
         """q̇ = A⁻¹ ẋ (Eq. 11) for actuator velocities ẋ (k, n)."""
-        return solve(self.A, x_dot[..., None])[..., 0]
+        return _core.solve(self.A, x_dot)
 
     def moving(self, v: np.ndarray, x_ddot: np.ndarray | None = None) -> ActuatorSpace:
         """These states at joint velocities v (k, n), once a law has solved for them, and
@@ -187,14 +180,14 @@ class ActuatorSpace:
 
 
 ARRAYS = ("q", "v", "x", "A", "y", "J", "x_ddot")  # the batch's own arrays, batch axis first
-KEPT = {"J_H", "M", "M_H"}  # derived from q alone: unchanged by velocities or accelerations
+KEPT = {"J_H", "_bad", "M", "M_H"}  # derived from q alone: unchanged by v or ẍ
 
 
 def regularised(space: ActuatorSpace) -> tuple[ActuatorSpace, np.ndarray]:
     """``space`` with A replaced by I where it is singular or the state is not finite, so that
     every derived quantity is defined on the whole batch, and where that was, (k,) bool. What is
     derived there is meaningless: callers freeze or exclude those states."""
-    bad = singular(space.A) | ~np.isfinite(space.q).all(axis=1)
+    bad = space._bad
     if bad.any():
         eye = np.eye(space.A.shape[-1])
         space = replace(space, A=np.where(bad[:, None, None], eye, space.A))
@@ -204,10 +197,43 @@ def regularised(space: ActuatorSpace) -> tuple[ActuatorSpace, np.ndarray]:
 def evaluate(robot: Robot, q: np.ndarray, v: np.ndarray | None = None) -> ActuatorSpace:
     """`ActuatorSpace` at checked states q (k, n) and v (k, n) or None: the lean entry every
     computation of the toolkit goes through."""
+    return _compiled(robot, q, v, False) or _evaluated(robot, q, v)
+
+
+def _evaluated(robot: Robot, q: np.ndarray, v: np.ndarray | None) -> ActuatorSpace:
+    """`evaluate` through Python: the pass, each group of actuator kinds, the task point."""
     kinematics = robot.kinematics(q, v)
     x, A = robot.actuators.evaluate(kinematics)
     y, J = robot.task_point(kinematics)
     return ActuatorSpace(robot, kinematics, q, v, x, A, y, J)
+
+
+def _compiled(robot: Robot, q, v, finite: bool) -> ActuatorSpace | None:
+    """`evaluate` in one call of the core (`Robot.evaluator`), J_H and where A is singular or
+    q not finite included; None where it does not serve: a kind or task of your own, q or v
+    not a float array of shape (n,) or (k, n) (and finite, if ``finite``), an actuator that
+    cannot evaluate (Python raises its error)."""
+    evaluator = robot.evaluator()
+    found = None if evaluator is None else evaluator.evaluate(q, v, finite)
+    if found is None or found[-1] is not None:
+        return None
+    q, v, *frames, x, A, y, J, J_H, bad, _ = found
+    kinematics = _made(Kinematics, robot.tracking(), q, *frames[:3], v, *frames[3:])
+    space = _made(ActuatorSpace, robot, kinematics, q, v, x, A, y, J, None)
+    vars(space).update(J_H=J_H, _bad=bad)
+    return space
+
+
+def _made(cls: type[Any], *values: Any) -> Any:
+    """An instance of the frozen dataclass ``cls`` with its fields' ``values``, in order: its
+    __init__ sets each field through object.__setattr__, which would cost a one-state
+    evaluation more than the core's call."""
+    made = object.__new__(cls)
+    vars(made).update(zip(FIELDS[cls], values))
+    return made
+
+
+FIELDS = {cls: [f.name for f in fields(cls)] for cls in (Kinematics, ActuatorSpace)}
 
 
 def actuator_space(robot: Robot, q, v=None, check: bool = True) -> ActuatorSpace:
@@ -216,11 +242,13 @@ def actuator_space(robot: Robot, q, v=None, check: bool = True) -> ActuatorSpace
     One state comes back as a batch of one. ``check`` raises `SingularConfigurationError` where
     A is singular.
     """
-    qb = robot.configuration(q)
-    vb = None if v is None else robot.configuration(v, "v")
-    if vb is not None and vb.shape != qb.shape:
-        raise InvalidInputError(f"v has shape {vb.shape}; q has {qb.shape}")
-    space = evaluate(robot, qb, vb)
-    if check:
-        check_invertible(space.A, qb, robot.actuators.names)
+    space = _compiled(robot, q, v, True)
+    if space is None:
+        qb = robot.configuration(q)
+        vb = None if v is None else robot.configuration(v, "v")
+        if vb is not None and vb.shape != qb.shape:
+            raise InvalidInputError(f"v has shape {vb.shape}; q has {qb.shape}")
+        space = evaluate(robot, qb, vb)
+    if check and space._bad.any():
+        check_invertible(space)
     return space

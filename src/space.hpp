@@ -1,0 +1,224 @@
+// The state in actuator coordinates (module docstring of `redundancy.resolution.state`): whether
+// A is singular, J_H = J A⁻¹, M_H = A⁻ᵀ M A⁻¹, N_H = A⁻ᵀ N − M_H Ȧ q̇ and q̇ = A⁻¹ ẋ, each by
+// solves with A's LU factors (A is never inverted); for one state, which the control step shares,
+// and over batches. `Evaluator` runs the pass, the built-in kinds, y, J and J_H in one call.
+#pragma once
+
+#include <limits>
+#include <optional>
+#include <tuple>
+#include <vector>
+
+#include "actuators.hpp"
+
+using Dense = Eigen::MatrixXd;
+using Factor = Eigen::PartialPivLU<Dense>;
+
+// Whether A (n, n) is singular to working precision, σ_min / σ_max < tolerance or not finite:
+// |det A| / ‖A‖_F^n bounds σ_min / σ_max from below (|det A| = Π σ_i ≤ σ_min σ_max^(n−1) and
+// σ_max ≤ ‖A‖_F), so the singular values are computed only where that bound is not enough.
+template <class Square>
+bool singular(const Square& A, double tolerance) {
+  if (!A.allFinite()) return true;
+  const double n = double(A.rows());
+  if (std::abs(A.determinant()) > tolerance * std::pow(A.squaredNorm(), n / 2)) return false;
+  const Eigen::VectorXd sigma = Eigen::JacobiSVD<Dense>(A).singularValues();
+  return sigma[sigma.size() - 1] / std::max(sigma[0], std::numeric_limits<double>::min()) <
+         tolerance;
+}
+
+// J_H = J A⁻¹ (m, n) from the factors of Aᵀ: J_Hᵀ = A⁻ᵀ Jᵀ.
+template <class Rows>
+Dense task_jacobian(const Factor& transposed, const Rows& J) {
+  return transposed.solve(J.transpose()).transpose();
+}
+
+// M_H = A⁻ᵀ M A⁻¹ = A⁻ᵀ (A⁻ᵀ M)ᵀ for a symmetric M, symmetrised, from the factors of Aᵀ.
+template <class Square>
+Dense inertia(const Factor& transposed, const Square& M) {
+  const Dense half = transposed.solve(Dense(transposed.solve(M).transpose()));
+  return (half + half.transpose()) / 2;
+}
+
+// The k of a batch of square matrices A (k, n, n), checked against the other batches' shapes:
+// each of `others` is (k, n, ...) with the given number of dimensions.
+inline std::pair<py::ssize_t, py::ssize_t> square_batch(
+    const Array& A, std::initializer_list<std::tuple<const Array*, int, const char*>> others) {
+  if (A.ndim() != 3 || A.shape(1) != A.shape(2))
+    throw py::value_error("A must have shape (k, n, n)");
+  const auto k = A.shape(0), n = A.shape(1);
+  for (const auto& [other, ndim, name] : others)
+    if (other->ndim() != ndim || other->shape(0) != k || other->shape(1) != n)
+      throw py::value_error(std::string(name) + " must have shape (k, n" +
+                            (ndim == 3 ? ", …)" : ")") + ", as A (k, n, n)");
+  return {k, n};
+}
+
+inline Eigen::Map<const Matrix> at(const Array& a, py::ssize_t i, py::ssize_t rows,
+                                   py::ssize_t cols) {
+  return Eigen::Map<const Matrix>(a.data() + i * rows * cols, rows, cols);
+}
+
+inline Eigen::Map<Matrix> at(Array& a, py::ssize_t i, py::ssize_t rows, py::ssize_t cols) {
+  return Eigen::Map<Matrix>(a.mutable_data() + i * rows * cols, rows, cols);
+}
+
+// J_H (k, m, n) and where A is singular (k,) bool, for A (k, n, n) and J (k, m, n); J_H is
+// meaningless where A is singular.
+inline py::tuple derive(const Array& A, const Array& J, double tolerance) {
+  if (A.ndim() != 3 || A.shape(1) != A.shape(2) || J.ndim() != 3 || J.shape(0) != A.shape(0) ||
+      J.shape(2) != A.shape(1))
+    throw py::value_error("derive takes A (k, n, n) and J (k, m, n)");
+  const auto k = A.shape(0), n = A.shape(1), m = J.shape(1);
+  Array J_H({k, m, n});
+  py::array_t<bool> bad(k);
+  for (py::ssize_t i = 0; i < k; ++i) {
+    const auto Ai = at(A, i, n, n);
+    bad.mutable_data()[i] = singular(Ai, tolerance);
+    at(J_H, i, m, n) = task_jacobian(Factor(Ai.transpose()), at(J, i, m, n));
+  }
+  return py::make_tuple(J_H, bad);
+}
+
+// M_H (k, n, n) for A and M (k, n, n).
+inline Array inertias(const Array& A, const Array& M) {
+  const auto [k, n] = square_batch(A, {{&M, 3, "M"}});
+  Array out({k, n, n});
+  for (py::ssize_t i = 0; i < k; ++i)
+    at(out, i, n, n) = inertia(Factor(at(A, i, n, n).transpose()), at(M, i, n, n));
+  return out;
+}
+
+// N_H = A⁻ᵀ N − M_H (Ȧ q̇) (k, n), for A, M_H, Ȧ (k, n, n) and N, q̇ (k, n).
+inline Array biases(const Array& A, const Array& N, const Array& M_H, const Array& A_dot,
+                    const Array& v) {
+  const auto [k, n] = square_batch(
+      A, {{&N, 2, "N"}, {&M_H, 3, "M_H"}, {&A_dot, 3, "A_dot"}, {&v, 2, "v"}});
+  Array out({k, n});
+  for (py::ssize_t i = 0; i < k; ++i)
+    at(out, i, 1, n).transpose() =
+        Factor(at(A, i, n, n).transpose()).solve(at(N, i, 1, n).transpose()) -
+        at(M_H, i, n, n) * (at(A_dot, i, n, n) * at(v, i, 1, n).transpose());
+  return out;
+}
+
+// X = A⁻¹ B for A (k, n, n) and B (k, n, p) or (k, n); numpy's LinAlgError where a pivot of A's
+// factors is exactly zero, as LAPACK's.
+inline Array solve(const Array& A, const Array& B) {
+  const bool vectors = B.ndim() == 2;
+  const auto [k, n] = square_batch(A, {{&B, vectors ? 2 : 3, "B"}});
+  const auto p = vectors ? 1 : B.shape(2);
+  Array out(std::vector<py::ssize_t>(B.shape(), B.shape() + B.ndim()));
+  for (py::ssize_t i = 0; i < k; ++i) {
+    const Factor factor(at(A, i, n, n));
+    if ((factor.matrixLU().diagonal().array() == 0).any()) {
+      PyErr_SetString(py::module_::import("numpy.linalg").attr("LinAlgError").ptr(),
+                      "Singular matrix");
+      throw py::error_already_set();
+    }
+    at(out, i, n, p) = factor.solve(at(B, i, n, p));
+  }
+  return out;
+}
+
+// What one state's actuator space reads: the tool's task rows and the compiled actuators.
+struct Actuation {
+  Eigen::Index tool;
+  std::vector<Eigen::Index> rows;
+  std::vector<Actuator> actuators;
+
+  // x (n), the rows of A (n, n) and the task's y (m) and J (m, n) at one state of the pass; the
+  // first actuator that cannot evaluate there, with its `Status`, or (−1, OK).
+  std::pair<Eigen::Index, Status> operator()(const Frames& s, const double* q, const double* v,
+                                             double* x, double* A, double* y, double* J) const {
+    const auto n = s.n;
+    std::pair<Eigen::Index, Status> refused{-1, OK};
+    Eigen::Vector3d end;
+    for (std::size_t j = 0; j < actuators.size(); ++j) {
+      const auto status =
+          actuate(actuators[j], s, q, v, x[j], RowOut(A + j * n, n), nullptr, end);
+      if (status != OK && refused.first < 0) refused = {Eigen::Index(j), status};
+    }
+    for (std::size_t r = 0; r < rows.size(); ++r) {
+      y[r] = s.position(tool)[rows[r]];
+      Eigen::Map<Eigen::RowVectorXd>(J + r * n, n) = s.jacobian(tool).row(rows[r]);
+    }
+    return refused;
+  }
+};
+
+// A robot's states in actuator coordinates, one call per batch: the pass, x and A of the
+// built-in kinds (all the robot's actuators), y and J, J_H, and where A is singular or q not
+// finite.
+class Evaluator {
+ public:
+  Evaluator(const Pass& pass, Eigen::Index tool, std::vector<Eigen::Index> rows,
+            const py::array_t<int>& kinds, const py::array_t<Eigen::Index>& slots,
+            const Array& numbers, double tolerance)
+      : pass_(pass),
+        actuation_{tool, std::move(rows), declared(kinds, slots, numbers, pass.size(), pass.n())},
+        tolerance_(tolerance) {
+    if (tool < 0 || tool >= pass_.size() ||
+        Eigen::Index(actuation_.actuators.size()) != pass_.n() ||
+        std::any_of(actuation_.rows.begin(), actuation_.rows.end(),
+                    [](auto r) { return r < 0 || r > 2; }))
+      throw py::value_error("an evaluator takes the tool's slot, its task rows and n actuators");
+  }
+
+  // At q (k, n) or (n,) and v like q or None: (q, v) as batches, positions, jacobians, angular,
+  // velocities, rates (`Pass.kinematics`), x, A, y, J, J_H, where A is singular or q not finite
+  // (k,) bool, and None or the first (state, actuator, status) a kind refused (the batch ends
+  // there). None where q or v is not a float64 array of that shape (finite too, if `finite`):
+  // Python then checks them.
+  py::object evaluate(const py::object& q, const py::object& v, bool finite) {
+    const auto n = pass_.n();
+    const auto qa = batch(q, n, finite);
+    if (!qa) return py::none();
+    const auto k = qa->shape(0);
+    std::optional<Array> va;
+    if (!v.is_none()) {
+      va = batch(v, n, finite);
+      if (!va || va->shape(0) != k) return py::none();
+    }
+    auto [positions, linear, angular, velocities, rates] = pass_.outputs(k, va.has_value());
+    const auto m = Eigen::Index(actuation_.rows.size());
+    Array x({k, n}), A({k, n, n}), y({k, m}), J({k, m, n}), J_H({k, m, n});
+    py::array_t<bool> bad(k);
+    py::object refused = py::none();
+    for (py::ssize_t i = 0; i < k; ++i) {
+      const double* qi = qa->data() + i * n;
+      const double* vi = va ? va->data() + i * n : nullptr;
+      const Frames s = pass_.write(qi, vi, i, positions, linear, angular, velocities, rates);
+      const auto [actuator, status] =
+          actuation_(s, qi, vi, x.mutable_data() + i * n, A.mutable_data() + i * n * n,
+                     y.mutable_data() + i * m, J.mutable_data() + i * m * n);
+      if (status != OK) {
+        refused = py::make_tuple(i, actuator, int(status));
+        break;
+      }
+      const auto Ai = at(A, i, n, n);
+      bad.mutable_data()[i] = singular(Ai, tolerance_) || !Vector(qi, n).allFinite();
+      at(J_H, i, m, n) = task_jacobian(Factor(Ai.transpose()), at(J, i, m, n));
+    }
+    return py::make_tuple(*qa, Pass::maybe(va), positions, linear, angular,
+                          Pass::maybe(velocities), Pass::maybe(rates), x, A, y, J, J_H, bad,
+                          refused);
+  }
+
+ private:
+  // `value` as a (k, n) batch when it is a float64 array (n,) or (k, n), C-contiguous, and
+  // finite where asked; else nothing.
+  static std::optional<Array> batch(const py::object& value, Eigen::Index n, bool finite) {
+    if (!py::isinstance<Array>(value)) return std::nullopt;
+    auto array = py::reinterpret_borrow<Array>(value);
+    if (array.ndim() < 1 || array.ndim() > 2 || array.shape(array.ndim() - 1) != n)
+      return std::nullopt;
+    if (finite && !Vector(array.data(), array.size()).allFinite()) return std::nullopt;
+    if (array.ndim() == 1) return Array(array.reshape({py::ssize_t(1), py::ssize_t(n)}));
+    return array;
+  }
+
+  Pass pass_;
+  Actuation actuation_;
+  double tolerance_;
+};
