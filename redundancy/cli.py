@@ -53,7 +53,13 @@ from redundancy.study.families import read_family
 from redundancy.study.maps import CONNECT_TIMEOUT, connect, design_map, summary
 from redundancy.study.output import OutputFolder, writable, write_atomically
 from redundancy.study.signals import Terminated, caught, ending, received
-from redundancy.study.study import STUDY_CYCLES, cycle_section, run_study, write_report
+from redundancy.study.study import (
+    STUDY_CYCLES,
+    cycle_section,
+    run_study,
+    study_searches,
+    write_report,
+)
 from redundancy.viz.map_figures import write_map_figures
 from redundancy.viz.playback import (
     export_html,
@@ -226,8 +232,10 @@ def _study_command(args: argparse.Namespace, out: OutputFolder, robot, cycle, op
             stacklevel=1,
         )
     objectives = tuple(objective(name) for name in chosen)
+    # the improved searches first: the cycle section's per-segment plan is the first objective's
+    searches = study_searches(robot, cycle, objectives, **options, energy_bound=args.energy_bound)
     section = partial(
-        _cycle_section, robot, cycle, objectives[0], args.cycles, options, out.staging
+        _cycle_section, robot, cycle, objectives[0], args.cycles, options, out.staging, searches
     )
     # the cycle section and its outputs are computed in a second process meanwhile
     with Background(section) as pending:
@@ -239,6 +247,7 @@ def _study_command(args: argparse.Namespace, out: OutputFolder, robot, cycle, op
             progress=args.progress,
             energy_bound=args.energy_bound,
             cycles=0,
+            searches=searches,
         )
         figures = write_figures(study, out.staging)
         playbacks = write_playbacks(study, out.staging)
@@ -302,10 +311,13 @@ def _searched(run: Callable[..., tuple]) -> Callable[[argparse.Namespace], None]
     return command
 
 
-def _cycle_section(robot, cycle, chosen, cycles, options, folder):
-    """The study's cycle section (`cycle_section`) and its figures and playbacks, written into
-    ``folder``: (cycle study or None, why none, figure paths, playback paths)."""
-    found, skipped = cycle_section(robot, cycle, chosen, cycles, **options)
+def _cycle_section(robot, cycle, chosen, cycles, options, folder, searches):
+    """The study's cycle section (`cycle_section`, its per-segment plan the study's
+    ``searches``) and its figures and playbacks, written into ``folder``: (cycle study or None,
+    why none, figure paths, playback paths)."""
+    found, skipped = cycle_section(
+        robot, cycle, chosen, cycles, **options, segments=searches.first()
+    )
     if found is None:
         return None, skipped, [], []
     return found, None, write_cycle_figures(found, folder), write_cycle_playbacks(found, folder)

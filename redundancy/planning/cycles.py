@@ -69,7 +69,7 @@ from redundancy.planning.starts import (
     held_actuators,
     improved_start,
 )
-from redundancy.planning.tasks import Chain, Segment, WorkCycle
+from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.laws import Resolver
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
 from redundancy.resolution.limits import Limits
@@ -237,27 +237,46 @@ def plan_cycle(
     method: str | None = None,
     circuit: bool = False,
     speed: float | None = None,
+    segments: Sequence[SearchResult] | None = None,
 ) -> CyclePlan:
     """The whole-cycle improved start and, beside it, the per-segment plan with its corners'
-    self-motion gaps (the held actuators at ``speed``, default `gap_speed`)."""
+    self-motion gaps (the held actuators at ``speed``, default `gap_speed`). ``segments``: each
+    segment's search where it was already made with these arguments (the study's), else each
+    is searched here."""
     cycle.check_continuous(closed=False)
     held = _held(robot, cycle, held)
     speed = gap_speed(robot, held) if speed is None else speed
     if not speed > 0:
         raise InvalidInputError(f"the self-motion's speed must be > 0; got {speed}")
-    paths: list[Segment | Chain] = [cycle.chain(), *cycle.segments]
-    search, *searches = (
-        improved_start(robot, path, objective, held, samples, checked, method, circuit=circuit)
-        for path in paths
+    search_along = partial(
+        improved_start,
+        robot,
+        objective=objective,
+        held=held,
+        samples=samples,
+        checked=checked,
+        method=method,
+        circuit=circuit,
     )
+    search = search_along(cycle.chain())
+    if segments is None:
+        segments = [search_along(segment) for segment in cycle.segments]
+    elif [(s.segment.name, s.objective.name, s.held) for s in segments] != [
+        (segment.name, objective.name, held) for segment in cycle.segments
+    ]:
+        raise InvalidInputError(
+            f"segments must be one search of {objective.name!r} holding {held} per segment of "
+            f"{cycle.name!r}, in order"
+        )
+    searches = tuple(segments)
     motion, *motions = (s.best_motion if s.best is not None else None for s in (search, *searches))
-    count, segments = len(searches), cycle.segments
+    count, paths = len(searches), cycle.segments
     corners = tuple(
-        _corner(robot, segments[i], motions[i], segments[j], motions[j], held, speed, checked)
+        _corner(robot, paths[i], motions[i], paths[j], motions[j], held, speed, checked)
         for i, j in ((i, (i + 1) % count) for i in range(count if cycle.closed else count - 1))
     )
     return CyclePlan(
-        robot, cycle, objective, held, search, motion, tuple(searches), tuple(motions), corners
+        robot, cycle, objective, held, search, motion, searches, tuple(motions), corners
     )
 
 
