@@ -75,6 +75,7 @@ from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
 from redundancy.resolution.limits import Limits
 from redundancy.resolution.linalg import solve
 from redundancy.resolution.objectives import VELOCITY, Objective
+from redundancy.resolution.objectives import objective as as_objective
 from redundancy.resolution.state import ActuatorSpace, evaluate
 
 CYCLES = 20  # repetitions by default
@@ -258,16 +259,17 @@ def plan_cycle(
         method=method,
         circuit=circuit,
     )
+    named = as_objective(objective).name
+    if segments is not None and [(s.segment.name, s.objective.name, s.held) for s in segments] != [
+        (segment.name, named, held) for segment in cycle.segments
+    ]:
+        raise InvalidInputError(
+            f"segments must be one search of {named!r} holding {held} per segment of "
+            f"{cycle.name!r}, in order"
+        )
     search = search_along(cycle.chain())
     if segments is None:
         segments = [search_along(segment) for segment in cycle.segments]
-    elif [(s.segment.name, s.objective.name, s.held) for s in segments] != [
-        (segment.name, objective.name, held) for segment in cycle.segments
-    ]:
-        raise InvalidInputError(
-            f"segments must be one search of {objective.name!r} holding {held} per segment of "
-            f"{cycle.name!r}, in order"
-        )
     searches = tuple(segments)
     motion, *motions = (s.best_motion if s.best is not None else None for s in (search, *searches))
     count, paths = len(searches), cycle.segments
