@@ -45,9 +45,8 @@ from redundancy.planning.starts import (
 from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import OBJECTIVES, Objective, objective
-from redundancy.resolution.state import actuator_space
 from redundancy.study.background import Background
-from redundancy.study.check import check, held_problems, span, task_point
+from redundancy.study.check import check, held_problems, mid_range, span, task_point
 from redundancy.study.cycles import CHOICES, named_values, run_cycle
 from redundancy.study.families import read_family
 from redundancy.study.maps import CONNECT_TIMEOUT, connect, design_map, summary
@@ -87,24 +86,22 @@ def describe(robot: Robot) -> str:
             f"  {actuator.name:<8} {type(actuator).__name__:<15} on {actuator.joint:<18} "
             f"stroke {stroke}"
         )
-    lower, upper = robot.span
-    q = (lower + upper) / 2
-    space = actuator_space(robot, q)
+    state = mid_range(robot)
     if robot.kinematic_only:
         lines.append(f"mass: none on links {', '.join(robot.massless_links)} (kinematic only)")
     else:
         masses = [inertia.mass for inertia in robot.model.inertias]
         lines.append(f"mass: {sum(masses):.1f} kg, of which payload {robot.payload:.1f} kg")
-    joints = [amount(v, "rad" if r else "m") for v, r in zip(q, robot.rotary_joints)]
-    x = [amount(v, a.unit) for v, a in zip(space.x[0], robot.actuators)]
+    joints = [amount(v, "rad" if r else "m") for v, r in zip(state.q, robot.rotary_joints)]
+    x = [amount(v, a.unit) for v, a in zip(state.x, robot.actuators)]
     lines.append(
         f"at mid-range q = [{', '.join(joints)}]: x = [{', '.join(x)}], "
-        f"y = {task_point(robot, space.y[0])}"
+        f"y = {task_point(robot, state.y)}"
     )
     with np.printoptions(precision=4, suppress=True):
-        if not robot.kinematic_only:
-            lines.append(f"M_H (kg) =\n{space.M_H[0]}")
-            lines.append(f"F_H holding still (N) = {space.forces(np.zeros_like(space.x))[0]}")
+        if state.M_H is not None:
+            lines.append(f"M_H (kg) =\n{state.M_H}")
+            lines.append(f"F_H holding still (N) = {state.holding}")
     return "\n".join(lines)
 
 

@@ -23,7 +23,7 @@ from redundancy.study.study import (
     study_searches,
 )
 from redundancy.viz.playback import write_playbacks
-from redundancy.viz.plots import write_figures
+from redundancy.viz.plots import study_figures, write_figures
 
 OBJECTIVES = (VELOCITY, ENERGY)
 SEGMENTS = ("1-2", "2-3", "3-1")
@@ -96,6 +96,18 @@ def test_the_whole_study_evaluates_each_state_about_once(crane, paper_cycle, tmp
     assert section.plan.segments == searches.first()
     assert counts.distinct > 100_000
     assert counts.evaluated <= 1.05 * counts.distinct, counts.ratio
+
+
+def test_the_study_figures_only_read_finished_numbers(crane, paper_cycle):
+    """The study computes every motion its figures draw, Fig. 4c's non-optimal one too
+    (`Study.nonoptimal`): drawing them sends no state through the pass."""
+    study = run_study(
+        crane, paper_cycle, OBJECTIVES, samples=12, bound=False, progress=False, cycles=0
+    )
+    with counting() as counts:
+        figures = study_figures(study)
+    assert "fig4c_nonoptimal_velocity_1-2.png" in figures
+    assert counts.evaluated == 0
 
 
 def test_searches_made_otherwise_are_refused(crane, paper_cycle):

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import json
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property, partial
 from pathlib import Path
 
@@ -44,6 +44,7 @@ from redundancy.planning.integral_optimum import EnergyOptimum, energy_optimum
 from redundancy.planning.integrate import Trajectory
 from redundancy.planning.starts import (
     METHODS,
+    Sample,
     SearchResult,
     default_start,
     held_actuators,
@@ -95,6 +96,9 @@ class Study:
     cycle_skipped: str | None = None  # why the study has no cycle section
     reachable: np.ndarray | None = None  # (k, m) task points reached with the strokes kept,
     # sampled (`reachable_points`); None where the task has no plane
+    nonoptimal_motions: dict[str, tuple[Sample, Trajectory]] = field(
+        default_factory=dict, repr=False, compare=False
+    )  # by segment, `nonoptimal`'s start and motion, once computed
 
     def search(self, objective: str, segment: str) -> SearchResult:
         return self.searches[objective][self._segment(segment)]
@@ -123,6 +127,17 @@ class Study:
 
     def sweep(self, objective: str, segment: str) -> SearchResult:
         return self.sweeps[objective][self._segment(segment)]
+
+    def nonoptimal(self, segment: str) -> tuple[Sample, Trajectory]:
+        """The paper's Fig. 4c start on ``segment``, the velocity sweep's least extended feasible
+        start (else its lowest reachable), and its motion on the grid, computed once (the
+        study computes the first segment's)."""
+        if segment not in self.nonoptimal_motions:
+            sweep = self.sweep(VELOCITY.name, segment)
+            candidates = sweep.feasible or [s for s in sweep.samples if s.peak is not None]
+            start = min(candidates, key=lambda s: s.values)
+            self.nonoptimal_motions[segment] = start, sweep.motion(start)
+        return self.nonoptimal_motions[segment]
 
     def bound(self, objective: str, segment: str) -> GlobalOptimum | None:
         """The bound as solved, converged or not (see `result`)."""
@@ -395,7 +410,7 @@ def run_study(
     def by_objective(k: int) -> dict[str, tuple]:
         return {o.name: tuple(part[k][i] for part in parts) for i, o in enumerate(objectives)}
 
-    return Study(
+    study = Study(
         robot,
         cycle,
         held,
@@ -413,6 +428,9 @@ def run_study(
         skipped,
         reachable_points(robot, kept) if len(robot.task_axes) >= 2 else None,
     )
+    if VELOCITY.name in study.sweeps:  # the figures' Fig. 4c
+        study.nonoptimal(cycle.segments[0].name)
+    return study
 
 
 def _on_segment(
