@@ -374,12 +374,12 @@ def run_study(
     baselines = [
         (n, r) for n, r in BASELINES if not (robot.kinematic_only and r is ENERGY.resolver)
     ]
-    study = partial(_on_segment, robot, objectives, held, samples, checked, circuit, baselines)
+    on_segment = partial(_on_segment, robot, objectives, held, samples, checked, circuit, baselines)
     failures: dict[str, str] = {}
     total = len(cycle.segments) * (len(baselines) + 3 * len(objectives))
     with tqdm(total=total, unit="task", desc="study", disable=not progress, mininterval=0.5) as bar:
         parts = [
-            study(segment, searches.by_segment[segment.name], searched, bound, bar, failures)
+            on_segment(segment, searches.by_segment[segment.name], searched, bound, bar, failures)
             for segment in cycle.segments
         ]
     energy_bounds: dict[str, dict[str, EnergyOptimum]] | None = None
