@@ -69,7 +69,7 @@ from redundancy.planning.starts import (
     held_actuators,
     improved_start,
 )
-from redundancy.planning.tasks import WorkCycle
+from redundancy.planning.tasks import Chain, Segment, WorkCycle
 from redundancy.resolution.laws import Resolver
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
 from redundancy.resolution.limits import Limits
@@ -249,16 +249,12 @@ def plan_cycle(
     speed = gap_speed(robot, held) if speed is None else speed
     if not speed > 0:
         raise InvalidInputError(f"the self-motion's speed must be > 0; got {speed}")
-    search_along = partial(
-        improved_start,
-        robot,
-        objective=objective,
-        held=held,
-        samples=samples,
-        checked=checked,
-        method=method,
-        circuit=circuit,
-    )
+
+    def search_along(path: Segment | Chain) -> SearchResult:
+        return improved_start(
+            robot, path, objective, held, samples, checked, method, circuit=circuit
+        )
+
     named = as_objective(objective).name
     if segments is not None and [(s.segment.name, s.objective.name, s.held) for s in segments] != [
         (segment.name, named, held) for segment in cycle.segments
