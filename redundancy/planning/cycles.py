@@ -76,7 +76,7 @@ from redundancy.resolution.limits import Limits
 from redundancy.resolution.linalg import solve
 from redundancy.resolution.objectives import VELOCITY, Objective
 from redundancy.resolution.objectives import objective as as_objective
-from redundancy.resolution.state import ActuatorSpace, evaluate
+from redundancy.resolution.state import ActuatorSpace
 
 CYCLES = 20  # repetitions by default
 SETTLED = 1e-6  # m (or rad): a cycle whose every actuator moves less than this is closed
@@ -190,17 +190,22 @@ def _corner(robot, after, end, before, start, held, speed, checked) -> Corner:
     path = np.linspace(end_x[rows], start_x[rows], SELF_MOTION_STEPS + 1)  # a line in r-space
     q = np.empty((len(path), robot.n))
     q[0] = end.q[0, -1]
+    spaces = [end.space.take(np.array([end.q.shape[1] - 1]))]  # each state, evaluated once
     for i in range(1, len(path)):  # followed step by step, so it stays on its branch
         target = np.concatenate([after.end, path[i]])[None]
-        solved = newton(robot, q[i - 1 : i], rows, target, CONTINUATION_ITERATIONS)
+        solved = newton(
+            robot, q[i - 1 : i], rows, target, CONTINUATION_ITERATIONS, start=spaces[-1]
+        )
         if solved.miss[0] >= FOUND:
             at = ", ".join(f"{h} = {v:.4g}" for h, v in zip(held, path[i]))
             return found(False, f"the self-motion loses the task point at {at}", q[:i])
         q[i] = solved.q[0]
+        spaces.append(solved.space)  # type: ignore[arg-type]
     if not np.allclose(q[-1], start.q[0, 0], atol=1e-6):
         reason = "the self-motion reaches another configuration (branch)"
         return found(False, reason, q)
-    margin = Limits.strokes(robot, checked).margin(evaluate(robot, q).x).min()
+    x = np.concatenate([space.x for space in spaces])
+    margin = Limits.strokes(robot, checked).margin(x).min()
     return found(bool(margin >= -LIMIT_TOLERANCE), None, q)
 
 
