@@ -45,15 +45,20 @@ from redundancy.planning.starts import (
 from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import OBJECTIVES, Objective, objective
-from redundancy.resolution.state import actuator_space
 from redundancy.study.background import Background
-from redundancy.study.check import check, held_problems, span, task_point
+from redundancy.study.check import check, held_problems, mid_range, span, task_point
 from redundancy.study.cycles import CHOICES, named_values, run_cycle
 from redundancy.study.families import read_family
 from redundancy.study.maps import CONNECT_TIMEOUT, connect, design_map, summary
 from redundancy.study.output import OutputFolder, writable, write_atomically
 from redundancy.study.signals import Terminated, caught, ending, received
-from redundancy.study.study import STUDY_CYCLES, cycle_section, run_study, write_report
+from redundancy.study.study import (
+    STUDY_CYCLES,
+    cycle_section,
+    run_study,
+    study_searches,
+    write_report,
+)
 from redundancy.viz.map_figures import write_map_figures
 from redundancy.viz.playback import (
     export_html,
@@ -81,24 +86,22 @@ def describe(robot: Robot) -> str:
             f"  {actuator.name:<8} {type(actuator).__name__:<15} on {actuator.joint:<18} "
             f"stroke {stroke}"
         )
-    lower, upper = robot.span
-    q = (lower + upper) / 2
-    space = actuator_space(robot, q)
+    state = mid_range(robot)
     if robot.kinematic_only:
         lines.append(f"mass: none on links {', '.join(robot.massless_links)} (kinematic only)")
     else:
         masses = [inertia.mass for inertia in robot.model.inertias]
         lines.append(f"mass: {sum(masses):.1f} kg, of which payload {robot.payload:.1f} kg")
-    joints = [amount(v, "rad" if r else "m") for v, r in zip(q, robot.rotary_joints)]
-    x = [amount(v, a.unit) for v, a in zip(space.x[0], robot.actuators)]
+    joints = [amount(v, "rad" if r else "m") for v, r in zip(state.q, robot.rotary_joints)]
+    x = [amount(v, a.unit) for v, a in zip(state.x, robot.actuators)]
     lines.append(
         f"at mid-range q = [{', '.join(joints)}]: x = [{', '.join(x)}], "
-        f"y = {task_point(robot, space.y[0])}"
+        f"y = {task_point(robot, state.y)}"
     )
     with np.printoptions(precision=4, suppress=True):
-        if not robot.kinematic_only:
-            lines.append(f"M_H (kg) =\n{space.M_H[0]}")
-            lines.append(f"F_H holding still (N) = {space.forces(np.zeros_like(space.x))[0]}")
+        if state.M_H is not None:
+            lines.append(f"M_H (kg) =\n{state.M_H}")
+            lines.append(f"F_H holding still (N) = {state.holding}")
     return "\n".join(lines)
 
 
@@ -226,8 +229,10 @@ def _study_command(args: argparse.Namespace, out: OutputFolder, robot, cycle, op
             stacklevel=1,
         )
     objectives = tuple(objective(name) for name in chosen)
+    # the improved searches first: the cycle section's per-segment plan is the first objective's
+    searches = study_searches(robot, cycle, objectives, **options, energy_bound=args.energy_bound)
     section = partial(
-        _cycle_section, robot, cycle, objectives[0], args.cycles, options, out.staging
+        _cycle_section, robot, cycle, objectives[0], args.cycles, options, out.staging, searches
     )
     # the cycle section and its outputs are computed in a second process meanwhile
     with Background(section) as pending:
@@ -239,6 +244,7 @@ def _study_command(args: argparse.Namespace, out: OutputFolder, robot, cycle, op
             progress=args.progress,
             energy_bound=args.energy_bound,
             cycles=0,
+            searches=searches,
         )
         figures = write_figures(study, out.staging)
         playbacks = write_playbacks(study, out.staging)
@@ -302,10 +308,13 @@ def _searched(run: Callable[..., tuple]) -> Callable[[argparse.Namespace], None]
     return command
 
 
-def _cycle_section(robot, cycle, chosen, cycles, options, folder):
-    """The study's cycle section (`cycle_section`) and its figures and playbacks, written into
-    ``folder``: (cycle study or None, why none, figure paths, playback paths)."""
-    found, skipped = cycle_section(robot, cycle, chosen, cycles, **options)
+def _cycle_section(robot, cycle, chosen, cycles, options, folder, searches):
+    """The study's cycle section (`cycle_section`, its per-segment plan the study's
+    ``searches``) and its figures and playbacks, written into ``folder``: (cycle study or None,
+    why none, figure paths, playback paths)."""
+    found, skipped = cycle_section(
+        robot, cycle, chosen, cycles, **options, segments=searches.first()
+    )
     if found is None:
         return None, skipped, [], []
     return found, None, write_cycle_figures(found, folder), write_cycle_playbacks(found, folder)

@@ -7,12 +7,23 @@ import pinocchio as pin
 import pytest
 from counting import counting
 
+from redundancy.errors import InvalidInputError
 from redundancy.planning.bound import global_optimum
+from redundancy.planning.cycles import plan_cycle
 from redundancy.planning.integrate import rate_on_grid
 from redundancy.planning.starts import default_start, improved_start, improved_starts
 from redundancy.resolution.objectives import ENERGY, VELOCITY
 from redundancy.study.peers import StrategyRun, fixed_start_run
-from redundancy.study.study import BASELINES
+from redundancy.study.study import (
+    BASELINES,
+    STUDY_CYCLES,
+    Searches,
+    cycle_section,
+    run_study,
+    study_searches,
+)
+from redundancy.viz.playback import write_playbacks
+from redundancy.viz.plots import study_figures, write_figures
 
 OBJECTIVES = (VELOCITY, ENERGY)
 SEGMENTS = ("1-2", "2-3", "3-1")
@@ -61,6 +72,53 @@ def test_the_search_and_the_bound_evaluate_each_state_about_once(crane, paper_cy
             global_optimum(crane, segment, search.objective, "x3", search=search)
     assert counts.distinct > 10_000
     assert counts.evaluated <= 1.05 * counts.distinct, counts.ratio
+
+
+def test_the_whole_study_evaluates_each_state_about_once(crane, paper_cycle, tmp_path):
+    """What `redundancy study` computes, in one process as `benchmarks/evaluations.py` counts
+    it: the improved searches first, the study of the paper's segments, every run's figures,
+    the figures and playbacks, and the cycle section (the command's second process), whose
+    per-segment plan reads the study's searches. Each state goes through the one Pinocchio pass
+    once, give or take 5 %."""
+    with counting() as counts:
+        searches = study_searches(crane, paper_cycle, OBJECTIVES)
+        study = run_study(
+            crane, paper_cycle, OBJECTIVES, progress=False, cycles=0, searches=searches
+        )
+        write_figures(study, tmp_path)
+        write_playbacks(study, tmp_path)
+        for run in study.runs:
+            run.summary()
+        section, skipped = cycle_section(
+            crane, paper_cycle, VELOCITY, STUDY_CYCLES, segments=searches.first()
+        )
+    assert section is not None, skipped
+    assert section.plan.segments == searches.first()
+    assert counts.distinct > 100_000
+    assert counts.evaluated <= 1.05 * counts.distinct, counts.ratio
+
+
+def test_the_study_figures_only_read_finished_numbers(crane, paper_cycle):
+    """The study computes every motion its figures draw, Fig. 4c's non-optimal one too
+    (`Study.nonoptimal`): drawing them sends no state through the pass."""
+    study = run_study(
+        crane, paper_cycle, OBJECTIVES, samples=12, bound=False, progress=False, cycles=0
+    )
+    with counting() as counts:
+        figures = study_figures(study)
+    assert "fig4c_nonoptimal_velocity_1-2.png" in figures
+    assert counts.evaluated == 0
+
+
+def test_searches_made_otherwise_are_refused(crane, paper_cycle):
+    """Searches are read only where they were made with the same arguments: a study refuses
+    searches made for other objectives, and the cycle plan a per-segment plan that is not one
+    search of its objective per segment, before any work."""
+    other = Searches(("x3",), "fast", {}, (("energy",), 100, None, None, False, False))
+    with pytest.raises(InvalidInputError, match="the searches were made with"):
+        run_study(crane, paper_cycle, (VELOCITY,), progress=False, searches=other)
+    with pytest.raises(InvalidInputError, match="segments must be one search of 'velocity'"):
+        plan_cycle(crane, paper_cycle, VELOCITY, segments=())
 
 
 def _mechanical_energy(robot, q, v):

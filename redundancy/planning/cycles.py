@@ -75,7 +75,8 @@ from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
 from redundancy.resolution.limits import Limits
 from redundancy.resolution.linalg import solve
 from redundancy.resolution.objectives import VELOCITY, Objective
-from redundancy.resolution.state import ActuatorSpace, evaluate
+from redundancy.resolution.objectives import objective as as_objective
+from redundancy.resolution.state import ActuatorSpace
 
 CYCLES = 20  # repetitions by default
 SETTLED = 1e-6  # m (or rad): a cycle whose every actuator moves less than this is closed
@@ -189,17 +190,22 @@ def _corner(robot, after, end, before, start, held, speed, checked) -> Corner:
     path = np.linspace(end_x[rows], start_x[rows], SELF_MOTION_STEPS + 1)  # a line in r-space
     q = np.empty((len(path), robot.n))
     q[0] = end.q[0, -1]
+    spaces = [end.space.take(np.array([end.q.shape[1] - 1]))]  # each state, evaluated once
     for i in range(1, len(path)):  # followed step by step, so it stays on its branch
         target = np.concatenate([after.end, path[i]])[None]
-        solved = newton(robot, q[i - 1 : i], rows, target, CONTINUATION_ITERATIONS)
+        solved = newton(
+            robot, q[i - 1 : i], rows, target, CONTINUATION_ITERATIONS, start=spaces[-1]
+        )
         if solved.miss[0] >= FOUND:
             at = ", ".join(f"{h} = {v:.4g}" for h, v in zip(held, path[i]))
             return found(False, f"the self-motion loses the task point at {at}", q[:i])
         q[i] = solved.q[0]
+        spaces.append(solved.space)  # type: ignore[arg-type]
     if not np.allclose(q[-1], start.q[0, 0], atol=1e-6):
         reason = "the self-motion reaches another configuration (branch)"
         return found(False, reason, q)
-    margin = Limits.strokes(robot, checked).margin(evaluate(robot, q).x).min()
+    x = np.concatenate([space.x for space in spaces])
+    margin = Limits.strokes(robot, checked).margin(x).min()
     return found(bool(margin >= -LIMIT_TOLERANCE), None, q)
 
 
@@ -237,27 +243,43 @@ def plan_cycle(
     method: str | None = None,
     circuit: bool = False,
     speed: float | None = None,
+    segments: Sequence[SearchResult] | None = None,
 ) -> CyclePlan:
     """The whole-cycle improved start and, beside it, the per-segment plan with its corners'
-    self-motion gaps (the held actuators at ``speed``, default `gap_speed`)."""
+    self-motion gaps (the held actuators at ``speed``, default `gap_speed`). ``segments``: each
+    segment's search where it was already made with these arguments (the study's), else each
+    is searched here."""
     cycle.check_continuous(closed=False)
     held = _held(robot, cycle, held)
     speed = gap_speed(robot, held) if speed is None else speed
     if not speed > 0:
         raise InvalidInputError(f"the self-motion's speed must be > 0; got {speed}")
-    paths: list[Segment | Chain] = [cycle.chain(), *cycle.segments]
-    search, *searches = (
-        improved_start(robot, path, objective, held, samples, checked, method, circuit=circuit)
-        for path in paths
-    )
+
+    def search_along(path: Segment | Chain) -> SearchResult:
+        return improved_start(
+            robot, path, objective, held, samples, checked, method, circuit=circuit
+        )
+
+    named = as_objective(objective).name
+    if segments is not None and [(s.segment.name, s.objective.name, s.held) for s in segments] != [
+        (segment.name, named, held) for segment in cycle.segments
+    ]:
+        raise InvalidInputError(
+            f"segments must be one search of {named!r} holding {held} per segment of "
+            f"{cycle.name!r}, in order"
+        )
+    search = search_along(cycle.chain())
+    if segments is None:
+        segments = [search_along(segment) for segment in cycle.segments]
+    searches = tuple(segments)
     motion, *motions = (s.best_motion if s.best is not None else None for s in (search, *searches))
-    count, segments = len(searches), cycle.segments
+    count, paths = len(searches), cycle.segments
     corners = tuple(
-        _corner(robot, segments[i], motions[i], segments[j], motions[j], held, speed, checked)
+        _corner(robot, paths[i], motions[i], paths[j], motions[j], held, speed, checked)
         for i, j in ((i, (i + 1) % count) for i in range(count if cycle.closed else count - 1))
     )
     return CyclePlan(
-        robot, cycle, objective, held, search, motion, tuple(searches), tuple(motions), corners
+        robot, cycle, objective, held, search, motion, searches, tuple(motions), corners
     )
 
 

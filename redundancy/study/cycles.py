@@ -340,10 +340,12 @@ def run_cycle(
     circuit: bool = False,
     speed: float | None = None,
     progress: bool = False,
+    segments: Sequence[SearchResult] | None = None,
 ) -> CycleStudy:
     """Plan ``cycle`` and run ``strategy`` ("free", "periodic" or "both") for ``cycles`` cycles
     (module docstring). ``speed`` is the held actuator's in the corners' self-motions (default
-    `redundancy.planning.cycles.gap_speed`); the other options as `run_study`'s."""
+    `redundancy.planning.cycles.gap_speed`), ``segments`` the per-segment plan's searches where
+    they were made already (`plan_cycle`); the other options as `run_study`'s."""
     from tqdm import tqdm
 
     if strategy not in CHOICES:
@@ -360,7 +362,9 @@ def run_cycle(
     failures: dict[str, str] = {}
     with bar:
         bar.set_description("cycle: plan")
-        plan = plan_cycle(robot, cycle, objective, held, samples, checked, method, circuit, speed)
+        plan = plan_cycle(
+            robot, cycle, objective, held, samples, checked, method, circuit, speed, segments
+        )
         bar.update()
         free_motion = plan.motion
         free_kind, start_q, free_start = free_start_of(plan.search)

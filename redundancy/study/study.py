@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import json
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property, partial
 from pathlib import Path
 
@@ -44,6 +44,7 @@ from redundancy.planning.integral_optimum import EnergyOptimum, energy_optimum
 from redundancy.planning.integrate import Trajectory
 from redundancy.planning.starts import (
     METHODS,
+    Sample,
     SearchResult,
     default_start,
     held_actuators,
@@ -95,6 +96,9 @@ class Study:
     cycle_skipped: str | None = None  # why the study has no cycle section
     reachable: np.ndarray | None = None  # (k, m) task points reached with the strokes kept,
     # sampled (`reachable_points`); None where the task has no plane
+    nonoptimal_motions: dict[str, tuple[Sample, Trajectory]] = field(
+        default_factory=dict, repr=False, compare=False
+    )  # by segment, `nonoptimal`'s start and motion, once computed
 
     def search(self, objective: str, segment: str) -> SearchResult:
         return self.searches[objective][self._segment(segment)]
@@ -123,6 +127,17 @@ class Study:
 
     def sweep(self, objective: str, segment: str) -> SearchResult:
         return self.sweeps[objective][self._segment(segment)]
+
+    def nonoptimal(self, segment: str) -> tuple[Sample, Trajectory]:
+        """The paper's Fig. 4c start on ``segment``, the velocity sweep's least extended feasible
+        start (else its lowest reachable), and its motion on the grid, computed once (the
+        study computes the first segment's)."""
+        if segment not in self.nonoptimal_motions:
+            sweep = self.sweep(VELOCITY.name, segment)
+            candidates = sweep.feasible or [s for s in sweep.samples if s.peak is not None]
+            start = min(candidates, key=lambda s: s.values)
+            self.nonoptimal_motions[segment] = start, sweep.motion(start)
+        return self.nonoptimal_motions[segment]
 
     def bound(self, objective: str, segment: str) -> GlobalOptimum | None:
         """The bound as solved, converged or not (see `result`)."""
@@ -264,6 +279,55 @@ class Study:
         }
 
 
+@dataclass(frozen=True)
+class Searches:
+    """A study's improved start searches, made first (`study_searches`), so that the cycle
+    section's per-segment plan reads the first objective's instead of searching again: per
+    segment (by name), one search per objective, each with the best start's motion; the held
+    actuators and the method as searched, and ``given`` the arguments they were searched with."""
+
+    held: tuple[str, ...]
+    method: str
+    by_segment: dict[str, tuple[SearchResult, ...]]
+    given: tuple
+
+    def first(self) -> tuple[SearchResult, ...]:
+        """The first objective's search on each segment: the cycle section's per-segment plan."""
+        return tuple(searches[0] for searches in self.by_segment.values())
+
+
+def study_searches(
+    robot: Robot,
+    cycle: WorkCycle,
+    objectives: tuple[Objective, ...] = (VELOCITY, ENERGY),
+    samples: int = 100,
+    checked: tuple[str, ...] | None = None,
+    method: str | None = None,
+    energy_bound: bool = False,
+    circuit: bool = False,
+) -> Searches:
+    """Every segment's improved start search for each of ``objectives`` (`improved_starts`),
+    and each best start's motion, as `run_study` makes them with these arguments; bad input is
+    refused first, as `run_study` refuses it."""
+    held = held_actuators(robot, cycle)
+    searched = method or ("fast" if len(held) == 1 else "sweep")
+    if searched not in METHODS:
+        raise InvalidInputError(f"unknown method {searched!r}; methods: {', '.join(METHODS)}")
+    _refuse_before_work(robot, cycle, held, energy_bound, circuit)
+    by_segment = {
+        segment.name: improved_starts(
+            robot, segment, objectives, held, samples, checked, searched, circuit=circuit
+        )
+        for segment in cycle.segments
+    }
+    for searches in by_segment.values():
+        for search in searches:
+            if search.best is not None:
+                search.best_motion  # noqa: B018 -- computed once, before a fork shares it
+    given = (tuple(o.name for o in objectives), samples, checked, method, energy_bound, circuit)
+    return Searches(held, searched, by_segment, given)
+
+
 def run_study(
     robot: Robot,
     cycle: WorkCycle,
@@ -276,6 +340,7 @@ def run_study(
     energy_bound: bool = False,
     circuit: bool = False,
     cycles: int = STUDY_CYCLES,
+    searches: Searches | None = None,
 ) -> Study:
     """Run every objective's improved search, sweep and bound, and the comparison strategies,
     on every segment.
@@ -289,24 +354,34 @@ def run_study(
     circuit's limits count wherever strokes do (the searches' feasibility, every run's limits);
     the min-max bound still keeps the strokes alone, so it stays a bound. With ``cycles`` > 0
     and a continuous closed task, the cycle section repeats the cycle that many times for the
-    first objective (`run_cycle`); 0 leaves it out. A bound that fails does not stop the study:
-    why is kept in `Study.bound_failures`.
+    first objective (`run_cycle`), its per-segment plan from the study's searches; 0 leaves it
+    out. ``searches``: the improved searches already made by `study_searches` with the same
+    arguments (by default made here). A bound that fails does not stop the study: why is kept
+    in `Study.bound_failures`.
     """
     from tqdm import tqdm
 
-    held = held_actuators(robot, cycle)
-    searched = method or ("fast" if len(held) == 1 else "sweep")
-    if searched not in METHODS:
-        raise InvalidInputError(f"unknown method {searched!r}; methods: {', '.join(METHODS)}")
-    _refuse_before_work(robot, cycle, held, energy_bound, circuit)
+    given = (tuple(o.name for o in objectives), samples, checked, method, energy_bound, circuit)
+    if searches is None:
+        searches = study_searches(
+            robot, cycle, objectives, samples, checked, method, energy_bound, circuit
+        )
+    elif searches.given != given:
+        raise InvalidInputError(
+            f"the searches were made with {searches.given}; this study's arguments are {given}"
+        )
+    held, searched = searches.held, searches.method
     baselines = [
         (n, r) for n, r in BASELINES if not (robot.kinematic_only and r is ENERGY.resolver)
     ]
-    study = partial(_on_segment, robot, objectives, held, samples, checked, circuit, baselines)
+    on_segment = partial(_on_segment, robot, objectives, held, samples, checked, circuit, baselines)
     failures: dict[str, str] = {}
     total = len(cycle.segments) * (len(baselines) + 3 * len(objectives))
     with tqdm(total=total, unit="task", desc="study", disable=not progress, mininterval=0.5) as bar:
-        parts = [study(segment, searched, bound, bar, failures) for segment in cycle.segments]
+        parts = [
+            on_segment(segment, searches.by_segment[segment.name], searched, bound, bar, failures)
+            for segment in cycle.segments
+        ]
     energy_bounds: dict[str, dict[str, EnergyOptimum]] | None = None
     if energy_bound:
         machine, energy_bounds = robot.circuit(), {}
@@ -319,14 +394,23 @@ def run_study(
     for run in runs:  # every figure a report or table shows is computed here, once
         run.summary()
     cycle_study, skipped = cycle_section(
-        robot, cycle, objectives[0], cycles, samples, checked, method, circuit, progress
+        robot,
+        cycle,
+        objectives[0],
+        cycles,
+        samples,
+        checked,
+        method,
+        circuit,
+        progress,
+        searches.first(),
     )
     kept = tuple(robot.actuators.names if checked is None else checked)
 
     def by_objective(k: int) -> dict[str, tuple]:
         return {o.name: tuple(part[k][i] for part in parts) for i, o in enumerate(objectives)}
 
-    return Study(
+    study = Study(
         robot,
         cycle,
         held,
@@ -344,6 +428,9 @@ def run_study(
         skipped,
         reachable_points(robot, kept) if len(robot.task_axes) >= 2 else None,
     )
+    if VELOCITY.name in study.sweeps:  # the figures' Fig. 4c
+        study.nonoptimal(cycle.segments[0].name)
+    return study
 
 
 def _on_segment(
@@ -355,14 +442,15 @@ def _on_segment(
     circuit,
     baselines,
     segment,
+    searches,
     method,
     bound,
     bar,
     failures,
 ) -> tuple[list[StrategyRun], list[SearchResult], list[SearchResult], list]:
     """One segment's part of the study: the runs (the ``baselines`` from the default start, the
-    improved starts'), and per objective its search, its sweep and its bound (a failure noted
-    in ``failures``); ``bar`` counts them."""
+    improved starts'), and per objective its search (``searches``, made by ``method``), its
+    sweep and its bound (a failure noted in ``failures``); ``bar`` counts them."""
     start = default_start(robot, segment, held)
     runs = []
     for name, resolver in baselines:
@@ -371,14 +459,11 @@ def _on_segment(
             fixed_start_run(robot, resolver, name, segment, held, start, checked, circuit=circuit)
         )
         bar.update()
-    bar.set_description(f"{segment.name}: improved starts")
-    sweeps = improved_starts(
-        robot, segment, objectives, held, samples, checked, "sweep", circuit=circuit
-    )
-    searches = sweeps
+    sweeps = searches
     if method == "fast":
-        searches = improved_starts(
-            robot, segment, objectives, held, checked=checked, circuit=circuit
+        bar.set_description(f"{segment.name}: sweeps")
+        sweeps = improved_starts(
+            robot, segment, objectives, held, samples, checked, "sweep", circuit=circuit
         )
     bar.update(2 * len(objectives))
     bounds = []
@@ -425,9 +510,11 @@ def cycle_section(
     method: str | None = None,
     circuit: bool = False,
     progress: bool = False,
+    segments: tuple[SearchResult, ...] | None = None,
 ) -> tuple[CycleStudy | None, str | None]:
     """The study's cycle section: `run_cycle` for ``objective``, repeating the cycle ``cycles``
-    times, where the task is one continuous closed cycle. Returns the cycle study, or None and
+    times, where the task is one continuous closed cycle; ``segments``: the per-segment plan's
+    searches where the study made them (`Searches.first`). Returns the cycle study, or None and
     why there is none (``cycles`` = 0, or the task does not close)."""
     if not cycles:
         return None, "not asked for (cycles = 0)"
@@ -445,6 +532,7 @@ def cycle_section(
         method=method,
         circuit=circuit,
         progress=progress,
+        segments=segments,
     )
     return found, None
 

@@ -230,12 +230,6 @@ def _labelled(
     return figure
 
 
-def nonoptimal_sample(search: SearchResult):
-    """The paper's Fig. 4c start: the least extended feasible start, else the lowest reachable."""
-    candidates = search.feasible or [s for s in search.samples if s.peak is not None]
-    return min(candidates, key=lambda s: s.values)
-
-
 def write_figures(study: Study, folder: Path, segment: str | None = None) -> list[Path]:
     """Write `study_figures` into ``folder``; return their paths."""
     return write_pngs(study_figures(study, segment), folder)
@@ -271,10 +265,9 @@ def study_figures(study: Study, segment: str | None = None) -> dict:
                     best, f"Pump flow and pressures: min {objective.label}, segment {segment}"
                 )
         if name == "velocity":
-            sweep = study.sweep(name, segment)
-            other = nonoptimal_sample(sweep)
+            other, motion = study.nonoptimal(segment)
             nonoptimal = motion_figure(
-                sweep.motion(other),
+                motion,
                 f"min {objective.label}, segment {segment}, non-optimal start "
                 f"{named_values(study.robot, study.held, other.values)}",
             )
