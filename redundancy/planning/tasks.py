@@ -577,22 +577,7 @@ class WorkCycle:
         path = Path(path)
         task = validate(TaskFile, read_toml(path, "task file"), str(path))
         size = None if dimension is None else dimension + int(task.tool_angle)
-        points = task.points
-        if points is None and all(
-            isinstance(e, SegmentTable) and e.csv is not None for e in task.segments
-        ):
-            points = {}
-        elif not points:
-            raise InvalidInputError(f"{path}: needs a [points] table of name = [coordinates]")
-        found = {}
-        for name, value in points.items():
-            where = f"{path}: point {name}"
-            if size is not None and len(value) != size:
-                raise InvalidInputError(
-                    f"{where} has {len(value)} coordinates; the robot's task has {size}"
-                )
-            _check_reach(np.array(value), where, [repr(v) for v in value])
-            found[name] = _in_radians(np.array(value), task.tool_angle)
+        found = _points(task, size, path)
         timing = {"speed": 0.5, **task.model_dump(include=set(TIMING), exclude_none=True)}
         if timing.get("profile") == "trapezoidal" and "acceleration" not in timing:
             raise InvalidInputError(
@@ -615,6 +600,28 @@ class WorkCycle:
             )
         name = path.stem if task.name is None else task.name
         return cls(name, tuple(segments), tuple(task.held or ()), task.tool_angle)
+
+
+def _points(task: TaskFile, size: int | None, path: Path) -> dict[str, np.ndarray]:
+    """A task file's named points, each of ``size`` coordinates where given (angles in rad);
+    none are needed where every segment is a CSV polyline."""
+    points = task.points
+    if points is None and all(
+        isinstance(e, SegmentTable) and e.csv is not None for e in task.segments
+    ):
+        return {}
+    if not points:
+        raise InvalidInputError(f"{path}: needs a [points] table of name = [coordinates]")
+    found = {}
+    for name, value in points.items():
+        where = f"{path}: point {name}"
+        if size is not None and len(value) != size:
+            raise InvalidInputError(
+                f"{where} has {len(value)} coordinates; the robot's task has {size}"
+            )
+        _check_reach(np.array(value), where, [repr(v) for v in value])
+        found[name] = _in_radians(np.array(value), task.tool_angle)
+    return found
 
 
 def _check_reach(point: np.ndarray, where: str, shown: list[str]) -> None:
