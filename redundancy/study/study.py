@@ -296,6 +296,12 @@ class Searches:
         return tuple(searches[0] for searches in self.by_segment.values())
 
 
+def _given(objectives: tuple[Objective, ...], *arguments) -> tuple:
+    """What `Searches.given` records: the objectives' names and the other search arguments, so
+    that `run_study` can tell searches made with other arguments."""
+    return (tuple(o.name for o in objectives), *arguments)
+
+
 def study_searches(
     robot: Robot,
     cycle: WorkCycle,
@@ -324,7 +330,7 @@ def study_searches(
         for search in searches:
             if search.best is not None:
                 search.best_motion  # noqa: B018 -- computed once, before a fork shares it
-    given = (tuple(o.name for o in objectives), samples, checked, method, energy_bound, circuit)
+    given = _given(objectives, samples, checked, method, energy_bound, circuit)
     return Searches(held, searched, by_segment, given)
 
 
@@ -361,7 +367,7 @@ def run_study(
     """
     from tqdm import tqdm
 
-    given = (tuple(o.name for o in objectives), samples, checked, method, energy_bound, circuit)
+    given = _given(objectives, samples, checked, method, energy_bound, circuit)
     if searches is None:
         searches = study_searches(
             robot, cycle, objectives, samples, checked, method, energy_bound, circuit
