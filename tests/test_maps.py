@@ -631,7 +631,15 @@ def test_ctrl_c_to_a_local_maps_process_group_ends_in_one_line(tmp_path):
     while not list(store.glob("chunk-*.parquet")) and time.monotonic() < deadline:
         assert process.poll() is None, "the map ended before its first chunk was seen"
         time.sleep(0.05)
-    os.killpg(process.pid, signal.SIGINT)
+    # the group is frozen while the test makes sure the map is still solving, so that the
+    # Ctrl-C, delivered as the group goes on, cannot reach a map that has meanwhile finished
+    os.killpg(process.pid, signal.SIGSTOP)
+    try:
+        solved = len(list(store.glob("chunk-*.parquet")))
+        assert process.poll() is None and 0 < solved < 120, f"{solved} chunks at the signal"
+        os.killpg(process.pid, signal.SIGINT)
+    finally:
+        os.killpg(process.pid, signal.SIGCONT)
     _, stderr = process.communicate(timeout=600)
     assert process.returncode == 130, stderr
     assert stderr == "redundancy: interrupted\n"
