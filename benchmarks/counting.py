@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 import redundancy.model.robot
+import redundancy.planning.integrate
 import redundancy.resolution.state
 from redundancy.model.kinematics import Kinematics
 
@@ -34,10 +35,13 @@ class Evaluations:
 def counting():
     """Count every state `Robot.kinematics` or the compiled evaluation (`Robot.evaluator`)
     sends through the pass while the block runs, and every state `Kinematics.moving` passes
-    again."""
+    again. The core's integration loop evaluates its stages in C++, out of sight: within the
+    block it runs on the law's Python right-hand side instead (`Law.stage`), which evaluates
+    the same states, one call per stage."""
     counts = Evaluations()
-    state = redundancy.resolution.state
+    state, integrate = redundancy.resolution.state, redundancy.planning.integrate
     track, compiled, moving = redundancy.model.robot.track, state._compiled, Kinematics.moving
+    rates = integrate.compiled_rates
 
     def seen(q):
         counts.evaluated += len(q)
@@ -60,9 +64,11 @@ def counting():
     redundancy.model.robot.track = counted
     state._compiled = counted_compiled
     Kinematics.moving = counted_moving  # type: ignore[method-assign]
+    integrate.compiled_rates = lambda robot, law: None
     try:
         yield counts
     finally:
         redundancy.model.robot.track = track
         state._compiled = compiled
         Kinematics.moving = moving  # type: ignore[method-assign]
+        integrate.compiled_rates = rates

@@ -5,14 +5,10 @@
 #include <optional>
 #include <vector>
 
-#include "law.hpp"
-#include "space.hpp"
+#include "rule.hpp"
 
 class Controller {
  public:
-  // How the law weighs ẋ: W = I, W = M_H, or a constant W given once.
-  enum Weight : int { IDENTITY = 0, INERTIA = 1, CONSTANT = 2 };
-
   // `pass` tracks the tool (slot `tool`, task rows `rows` of its position) and the actuators'
   // frames; the law is its `weight` (with `W` for CONSTANT) and, where `pull` (n) is given, the
   // null-space term z = pull ∘ (x − middle). `fallback(q, y_dot)` is the Python step: it answers
@@ -25,8 +21,7 @@ class Controller {
              double tolerance, py::object fallback, py::object result)
       : pass_(pass),
         actuation_{tool, std::move(rows), declared(kinds, slots, numbers, pass.size(), pass.n())},
-        weight_(Weight(weight)),
-        ratio_(ratio),
+        rule_(pass.n(), weight, W, pull, middle, ratio),
         tolerance_(tolerance),
         fallback_(std::move(fallback)),
         result_(std::move(result)) {
@@ -35,18 +30,6 @@ class Controller {
     if (tool < 0 || tool >= pass_.size() || Eigen::Index(actuation_.actuators.size()) != n ||
         std::any_of(task.begin(), task.end(), [](auto r) { return r < 0 || r > 2; }))
       throw py::value_error("a controller takes the tool's slot, its task rows and n actuators");
-    if (weight_ == CONSTANT) {
-      if (!W || W->ndim() != 2 || W->shape(0) != n || W->shape(1) != n)
-        throw py::value_error("a constant weight W must have shape (n, n)");
-      W_ = ConstMatrix(W->data(), n, n);
-    }
-    if (pull.has_value() != middle.has_value() ||
-        (pull && (pull->size() != n || middle->size() != n)))
-      throw py::value_error("the null-space pull and its middle must both be (n,)");
-    if (pull) {
-      pull_ = Vector(pull->data(), n);
-      middle_ = Vector(middle->data(), n);
-    }
     if (!PyType_Check(result_.ptr()) ||
         !PyType_IsSubtype(reinterpret_cast<PyTypeObject*>(result_.ptr()), &PyTuple_Type))
       throw py::value_error("a controller's result is a tuple type (x_dot, q_dot, y)");
@@ -66,20 +49,10 @@ class Controller {
         singular(A_, tolerance_))
       return fallback_(q, y_dot);
     const Factor transposed(A_.transpose());
-    const Dense J_H = task_jacobian(transposed, J_);
-    const Dense* W = weight_ == CONSTANT ? &W_ : nullptr;
-    if (weight_ == INERTIA) {
-      const Dense& M = pass_.mass(qi);
-      if (!(M.diagonal().array() > 0).all()) return fallback_(q, y_dot);
-      M_H_ = inertia(transposed, M);
-      W = &M_H_;
-    }
-    std::optional<Eigen::VectorXd> z;
-    if (pull_.size()) z = pull_.cwiseProduct(x_ - middle_);
-    const Eigen::VectorXd x_dot = law(J_H, Eigen::VectorXd(Vector(yi, m)), W, z ? &*z : nullptr,
-                                      ratio_);
-    const Eigen::VectorXd q_dot = A_.partialPivLu().solve(x_dot);
-    return result(vector(x_dot), vector(q_dot), vector(y_));
+    const auto x_dot = rule_(pass_, qi, x_, transposed, task_jacobian(transposed, J_), Vector(yi, m));
+    if (!x_dot) return fallback_(q, y_dot);
+    const Eigen::VectorXd q_dot = A_.partialPivLu().solve(*x_dot);
+    return result(vector(*x_dot), vector(q_dot), vector(y_));
   }
 
  private:
@@ -113,11 +86,9 @@ class Controller {
 
   Pass pass_;
   Actuation actuation_;
-  Weight weight_;
-  Dense W_, M_H_;
+  Rule rule_;
   Matrix A_, J_;  // row-major, as `Actuation` writes them
   Eigen::VectorXd x_, y_;
-  Eigen::VectorXd pull_, middle_;
-  double ratio_, tolerance_;
+  double tolerance_;
   py::object fallback_, result_;
 };

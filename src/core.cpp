@@ -1,7 +1,8 @@
 // redundancy._core: the one Pinocchio pass over a batch of states, the built-in actuator kinds'
 // x with their rows of A and Ȧ, the state's derivation in actuator coordinates (J_H, M_H, N_H,
 // q̇), the resolution laws' kernel, and the evaluation of a batch and a control step that run
-// them in one call each.
+// them in one call each, and the adaptive integration loop with the laws' compiled right-hand
+// side.
 //
 // A `Pass` holds a copy of the robot's Pinocchio model (handed over as Pinocchio's own text
 // serialization, so that mimic joints, locked joints and added frames arrive exactly as Python
@@ -11,6 +12,7 @@
 
 #include "actuators.hpp"
 #include "controller.hpp"
+#include "integrate.hpp"
 #include "law.hpp"
 #include "pass.hpp"
 #include "space.hpp"
@@ -46,6 +48,15 @@ PYBIND11_MODULE(_core, m) {
            py::arg("tracking"), py::arg("tool"), py::arg("rows"), py::arg("kinds"),
            py::arg("slots"), py::arg("numbers"), py::arg("tolerance"))
       .def("evaluate", &Evaluator::evaluate, py::arg("q"), py::arg("v"), py::arg("finite"));
+  py::class_<Rates>(m, "Rates")
+      .def(py::init<py::object, int, const std::optional<Array>&, const std::optional<Array>&,
+                    const std::optional<Array>&, double>(),
+           py::arg("evaluator"), py::arg("weight"), py::arg("W"), py::arg("pull"),
+           py::arg("middle"), py::arg("ratio"));
+  m.def("dormand_prince", &dormand_prince, py::arg("rates"), py::arg("velocity"), py::arg("q"),
+        py::arg("f"), py::arg("failed"), py::arg("duration"), py::arg("tolerance"), py::arg("c"),
+        py::arg("a"), py::arg("e"), py::arg("lower"), py::arg("upper"), py::arg("allowance"),
+        py::arg("stop"), py::arg("keep"));
   py::class_<Controller>(m, "Controller")
       .def(py::init<const Pass&, Eigen::Index, std::vector<Eigen::Index>,
                     const py::array_t<int>&, const py::array_t<Eigen::Index>&, const Array&, int,

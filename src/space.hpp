@@ -205,6 +205,9 @@ class Evaluator {
                           refused);
   }
 
+  // The pass the states are evaluated on (what a law's M(q) is read from, after `evaluate`).
+  Pass& pass() { return pass_; }
+
  private:
   // `value` as a (k, n) batch when it is a float64 array (n,) or (k, n), C-contiguous, and
   // finite where asked; else nothing.

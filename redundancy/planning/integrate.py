@@ -32,17 +32,18 @@ from typing import TYPE_CHECKING, NamedTuple
 import numpy as np
 from scipy.integrate import RK45
 
+from redundancy import _core
 from redundancy.errors import InvalidInputError
 from redundancy.model.hydraulics import BAR, LITRES_PER_MINUTE, Flows, Supply
 from redundancy.model.kinematics import join
 from redundancy.model.robot import Robot
 from redundancy.model.values import is_real
 from redundancy.planning.tasks import Chain, Segment
-from redundancy.resolution.laws import Resolver
+from redundancy.resolution.laws import Resolver, compiled_rates
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
 from redundancy.resolution.limits import Limits, Violation, hydraulic_values
 from redundancy.resolution.objectives import ENERGY, VELOCITY, Objective, integral
-from redundancy.resolution.state import ActuatorSpace, evaluate, regularised
+from redundancy.resolution.state import ActuatorSpace, compiled_space, evaluate, regularised
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -63,12 +64,14 @@ ALLOWANCE = 30  # sparse samples' strokes count ALLOWANCE × tolerance (m) close
 METHODS = ("adaptive", "rk4")
 
 # Dormand-Prince 5(4), the tableau scipy's RK45 integrates with: the stage nodes c (the last
-# stage, at c = 1, gives the next step's first slope), the stage weights (the last row gives
-# the 5th-order step), the error weights E (4th − 5th order) and the dense output, whose
-# weights at θ of a step are P · (θ, θ², θ³, θ⁴) (Shampine, 1986).
-NODES = (*RK45.C[1:], 1.0)
-STAGES = (*(RK45.A[i, :i] for i in range(1, RK45.n_stages)), RK45.B)
-ERROR = RK45.E
+# stage, at c = 1, gives the next step's first slope), the stage weights a (row i: stage i + 1's;
+# the last row gives the 5th-order step), the error weights e (4th − 5th order), and the dense
+# output, whose weights at θ of a step are P · (θ, θ², θ³, θ⁴) (Shampine, 1986).
+TABLEAU = (
+    np.append(RK45.C[1:], 1.0),
+    np.vstack([np.pad(RK45.A[1:], ((0, 0), (0, 1))), RK45.B]),
+    RK45.E,
+)
 DENSE = RK45.P
 
 
@@ -525,20 +528,41 @@ class Law:
         self.robot, self.resolver, self.segment = robot, resolver, segment
         self.gain, self.objective = gain, objective
 
+    def velocity(self, t: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """The task velocity ẏ (k, m) the law resolves at times t (k,) where the tool is at
+        y (k, m): ẏ_d(t), plus K (y_d(t) − y) in closed loop."""
+        y_dot = self.segment.velocity_at(t)
+        if self.gain:
+            y_dot = y_dot + self.gain * (self.segment.position(t) - y)
+        return y_dot
+
     def __call__(self, t: np.ndarray, q: np.ndarray) -> Rates:
         """At times t (k,) and configurations q (k, n)."""
         space, bad = regularised(evaluate(self.robot, q))
-        segment = self.segment
-        y_dot = segment.velocity_at(t)
-        if self.gain:
-            y_dot = y_dot + self.gain * (segment.position(t) - space.y)
-        x_dot = self.resolver.resolve_at(space, y_dot, t)
+        x_dot = self.resolver.resolve_at(space, self.velocity(t, space.y), t)
         q_dot = space.joint_velocities(x_dot)
         bad |= ~np.isfinite(q_dot).all(axis=1)
         if bad.any():
             q_dot[bad], x_dot[bad] = 0.0, 0.0
+        return self._rates(space, x_dot, q_dot, bad)
+
+    def _rates(self, space: ActuatorSpace, x_dot, q_dot, bad) -> Rates:
         measure = None if self.objective is None else self.objective.measure(space, x_dot)
         return Rates(x_dot, space.moving(q_dot), measure, bad)
+
+    def stage(self, t: np.ndarray, q: np.ndarray) -> tuple:
+        """The law at a stage of the core's integration loop: (its `Rates`, q̇, bad, x)."""
+        rates = self(t, q)
+        return rates, rates.q_dot, rates.bad, rates.space.x
+
+    def rates(self, record) -> Rates:
+        """The `Rates` of a stage's record: `stage`'s own, or the compiled right-hand side's
+        (the evaluator's arrays, ẋ and q̇)."""
+        if isinstance(record, Rates):
+            return record
+        found, x_dot, q_dot = record
+        space = compiled_space(self.robot, found)
+        return self._rates(space, x_dot, q_dot, found[-2])
 
 
 def simulate(
@@ -646,52 +670,41 @@ def _runge_kutta(law: Law, starts: np.ndarray, t: np.ndarray):
 
 def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
     """Dormand-Prince 5(4) with error control, every start with its own step size (see the
-    module docstring); samples on ``grid`` (T,) or, ``sparse``, at the steps and midpoints,
-    and the accepted `Steps`. ``bounds`` = (limits, allowance) stops motions that with both
-    neighbours passed them."""
+    module docstring), by the core's loop (`redundancy._core.dormand_prince`) on the law's
+    compiled right-hand side, or on `Law.stage` for a kind or law of your own; samples on
+    ``grid`` (T,) or, ``sparse``, at the steps and midpoints, and the accepted `Steps`.
+    ``bounds`` = (limits, allowance) stops motions that with both neighbours passed them."""
     k, n = starts.shape
     first = law(np.zeros(k), starts)
-    t, q, f, failed = np.zeros(k), starts.copy(), first.q_dot.copy(), first.bad.copy()
-    past, stopped = np.zeros(k, dtype=bool), np.zeros(k, dtype=bool)
-    evaluated = [(np.arange(k), np.zeros(k), first)]  # samples whose rates are known
-    # the accepted steps: rows, t0, h, q0 and the stage slopes (p, 7, n)
-    accepted = [(np.zeros(0, int), np.zeros(0), np.zeros(0), np.zeros((0, n)), np.zeros((0, 7, n)))]
-    scale = tolerance * (1 + np.abs(q))
-    size = np.sqrt(np.mean((q / scale) ** 2, axis=1))
-    speed = np.sqrt(np.mean((f / scale) ** 2, axis=1))
-    h = np.minimum(duration, 0.01 * size / np.maximum(speed, 1e-12))
-    while True:
-        rows = np.flatnonzero(~failed & ~stopped & (t < duration))
-        if not rows.size:
-            break
-        step = np.minimum(h[rows], duration - t[rows])[:, None]
-        slopes = np.empty((len(STAGES) + 1, len(rows), n))  # the stages' q̇, K (7, rows, n)
-        slopes[0] = f[rows]
-        for stage, (node, weights) in enumerate(zip(NODES, STAGES), 1):  # Σ_s w_s K_s
-            increment = np.tensordot(weights, slopes[:stage], axes=1)
-            end = law(t[rows] + node * step[:, 0], q[rows] + step * increment)
-            slopes[stage] = end.q_dot
-            failed[rows[end.bad]] = True
-        q_new = q[rows] + step * increment
-        scale = tolerance * (1 + np.maximum(np.abs(q[rows]), np.abs(q_new)))
-        error = np.sqrt(np.mean((step * np.tensordot(ERROR, slopes, axes=1) / scale) ** 2, axis=1))
-        accept = (error <= 1) & ~failed[rows]
-        done, kept = rows[accept], slopes[:, accept]
-        t0, h0, q0, q1 = t[done], step[accept, 0], q[done], q_new[accept]
-        accepted.append((done, t0, h0, q0, kept.transpose(1, 0, 2)))
-        if sparse:
-            evaluated.append((done, t0 + h0, end.take(accept)))
-        t[done], q[done], f[done] = t0 + h0, q1, kept[-1]
-        growth = np.clip(0.9 * np.maximum(error, 1e-10) ** -0.2, 0.2, 10.0)
-        h[rows] = step[:, 0] * np.where(accept, growth, np.minimum(growth, 1.0))
-        failed[rows[h[rows] < 1e-9 * duration]] = True
-        if bounds is not None:
-            limits, allowance = bounds
-            past[done] |= limits.margin(end.space.x[accept]) < -allowance
-            stopped = past & np.append(True, past[:-1]) & np.append(past[1:], True)
-    steps = Steps.gathered(law, first, accepted)
+    lower, upper = np.full(n, -np.inf), np.full(n, np.inf)
+    limits, allowance = bounds or (None, 0.0)
+    if limits is not None:
+        lower[limits.columns], upper[limits.columns] = limits.lower, limits.upper
+    arguments = (
+        starts,
+        first.q_dot,
+        first.bad,
+        duration,
+        tolerance,
+        *TABLEAU,
+        lower,
+        upper,
+        allowance,
+        bounds is not None,
+        sparse,
+    )
+    rates = compiled_rates(law.robot, law.resolver)
+    found = None if rates is None else _core.dormand_prince(rates, law.velocity, *arguments)
+    if found is None:  # a kind, a law or a task of your own, or a state a kind refused
+        found = _core.dormand_prince(law.stage, law.velocity, *arguments)
+    *accepted, failed, stopped, kept = found
+    steps = Steps(law, first, *accepted)
     if not sparse:
         return on_grid(steps, grid, failed, stopped), steps
+    evaluated = [(np.arange(k), np.zeros(k), first)]
+    if kept:  # the ends of the accepted steps, in the order the steps were accepted
+        ends = joined([law.rates(record).take(positions) for record, positions in kept])
+        evaluated.append((steps.rows, steps.t0 + steps.h, ends))
     rows, times, configurations = steps.midpoints()
     evaluated.append((rows, times, law(times, configurations)))
     return _assemble(k, evaluated, failed, stopped, None), steps

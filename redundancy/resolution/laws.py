@@ -216,26 +216,9 @@ class Controller:
 def compiled(robot: Robot, law: Resolver, fallback) -> _core.Controller | None:
     """The compiled step of ``law`` on ``robot``, or None where the core cannot run it alone
     (`Controller`); ``fallback`` is the Python step it calls for what it refuses."""
-    kind = type(law)
-    weights = {
-        Resolver.weight: IDENTITY,
-        MinKineticEnergy.weight: INERTIA,
-        MinFlow.weight: CONSTANT,
-    }
-    own = any(getattr(kind, name) is not getattr(Resolver, name) for name in ("resolve", "step"))
-    pulls = kind.null_space is GradientProjection.null_space
-    if (
-        own
-        or kind.weight not in weights
-        or not (pulls or kind.null_space is Resolver.null_space)
-        or robot.evaluator() is None  # a kind or a task of your own
-    ):
+    found = rule(robot, law, ("resolve", "step"))
+    if found is None:
         return None
-    weight = weights[kind.weight]
-    if weight == INERTIA:
-        robot.require_masses("M(q) and the dynamics (M_H, the energy law)")
-    W = law.constant_weight(robot) if weight == CONSTANT else None  # type: ignore[attr-defined]
-    pull, middle = law.pull(robot) if pulls else (None, None)  # type: ignore[attr-defined]
     tracking = robot.tracking()
     tool, rows = robot.task_rows
     return _core.Controller(
@@ -243,15 +226,49 @@ def compiled(robot: Robot, law: Resolver, fallback) -> _core.Controller | None:
         tracking.slots[tool],
         rows,
         *declared(list(robot.actuators), tracking.slots),
-        weight,
-        W,
-        pull,
-        middle,
+        *found,
         SINGULAR_RATIO,
         SINGULAR_TOLERANCE,
         fallback,
         Step,
     )
+
+
+def compiled_rates(robot: Robot, law: Resolver) -> _core.Rates | None:
+    """The compiled right-hand side q̇ = A⁻¹ ẋ of ``law`` on ``robot`` for the integrator
+    (`redundancy.planning.integrate`), or None where the core cannot run it alone: a kind, a
+    task or a law of your own (``resolve_at`` overridden too, e.g. a law that follows a plan in
+    time)."""
+    found = rule(robot, law, ("resolve", "resolve_at"))
+    return None if found is None else _core.Rates(robot.evaluator(), *found, SINGULAR_RATIO)
+
+
+def rule(robot: Robot, law: Resolver, methods: tuple[str, ...]) -> tuple | None:
+    """The core's form of ``law`` on ``robot``: its weight (I, M_H or a constant W), W, and the
+    null-space pull and middle (`GradientProjection.pull`) or None, None; None where the law
+    overrides any of ``methods`` or its weight or null-space term is of its own, or where the
+    robot has a kind or a task of its own (`Robot.evaluator`)."""
+    kind = type(law)
+    weights = {
+        Resolver.weight: IDENTITY,
+        MinKineticEnergy.weight: INERTIA,
+        MinFlow.weight: CONSTANT,
+    }
+    own = any(getattr(kind, name) is not getattr(Resolver, name) for name in methods)
+    pulls = kind.null_space is GradientProjection.null_space
+    if (
+        own
+        or kind.weight not in weights
+        or not (pulls or kind.null_space is Resolver.null_space)
+        or robot.evaluator() is None
+    ):
+        return None
+    weight = weights[kind.weight]
+    if weight == INERTIA:
+        robot.require_masses("M(q) and the dynamics (M_H, the energy law)")
+    W = law.constant_weight(robot) if weight == CONSTANT else None  # type: ignore[attr-defined]
+    pull, middle = law.pull(robot) if pulls else (None, None)  # type: ignore[attr-defined]
+    return weight, W, pull, middle
 
 
 IDENTITY, INERTIA, CONSTANT = 0, 1, 2  # the core's weights: I, M_H, a constant W

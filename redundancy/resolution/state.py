@@ -217,6 +217,12 @@ def _compiled(robot: Robot, q, v, finite: bool) -> ActuatorSpace | None:
     found = None if evaluator is None else evaluator.evaluate(q, v, finite)
     if found is None or found[-1] is not None:
         return None
+    return compiled_space(robot, found)
+
+
+def compiled_space(robot: Robot, found: tuple) -> ActuatorSpace:
+    """The `ActuatorSpace` of what the core's evaluator ``found``: (q, v, the pass's arrays,
+    x, A, y, J, J_H, where A is singular or q not finite, None)."""
     q, v, *frames, x, A, y, J, J_H, bad, _ = found
     kinematics = _made(Kinematics, robot.tracking(), q, *frames[:3], v, *frames[3:])
     space = _made(ActuatorSpace, robot, kinematics, q, v, x, A, y, J, None)
