@@ -9,6 +9,7 @@ import redundancy.model.robot
 import redundancy.planning.integrate
 import redundancy.resolution.state
 from redundancy.model.kinematics import Kinematics
+from redundancy.model.robot import Robot
 
 
 @dataclass
@@ -37,11 +38,12 @@ def counting():
     sends through the pass while the block runs, and every state `Kinematics.moving` passes
     again. The core's integration loop evaluates its stages in C++, out of sight: within the
     block it runs on the law's Python right-hand side instead (`Law.stage`), which evaluates
-    the same states, one call per stage."""
+    the same states, one call per stage; so does the core's Newton loop, on the Python pass of
+    the task and the held actuators instead of `Robot.held_pass`."""
     counts = Evaluations()
     state, integrate = redundancy.resolution.state, redundancy.planning.integrate
     track, compiled, moving = redundancy.model.robot.track, state._compiled, Kinematics.moving
-    rates = integrate.compiled_rates
+    rates, held = integrate.compiled_rates, Robot.held_pass
 
     def seen(q):
         counts.evaluated += len(q)
@@ -65,6 +67,7 @@ def counting():
     state._compiled = counted_compiled
     Kinematics.moving = counted_moving  # type: ignore[method-assign]
     integrate.compiled_rates = lambda robot, law: None
+    Robot.held_pass = lambda robot, part: None  # type: ignore[method-assign]
     try:
         yield counts
     finally:
@@ -72,3 +75,4 @@ def counting():
         state._compiled = compiled
         Kinematics.moving = moving  # type: ignore[method-assign]
         integrate.compiled_rates = rates
+        Robot.held_pass = held  # type: ignore[method-assign]

@@ -1,8 +1,8 @@
 // redundancy._core: the one Pinocchio pass over a batch of states, the built-in actuator kinds'
 // x with their rows of A and Ȧ, the state's derivation in actuator coordinates (J_H, M_H, N_H,
 // q̇), the resolution laws' kernel, and the evaluation of a batch and a control step that run
-// them in one call each, and the adaptive integration loop with the laws' compiled right-hand
-// side.
+// them in one call each, the adaptive integration loop with the laws' compiled right-hand side,
+// and the inverse kinematics' Newton loop.
 //
 // A `Pass` holds a copy of the robot's Pinocchio model (handed over as Pinocchio's own text
 // serialization, so that mimic joints, locked joints and added frames arrive exactly as Python
@@ -14,6 +14,7 @@
 #include "controller.hpp"
 #include "integrate.hpp"
 #include "law.hpp"
+#include "newton.hpp"
 #include "pass.hpp"
 #include "space.hpp"
 
@@ -57,6 +58,14 @@ PYBIND11_MODULE(_core, m) {
         py::arg("f"), py::arg("failed"), py::arg("duration"), py::arg("tolerance"), py::arg("c"),
         py::arg("a"), py::arg("e"), py::arg("lower"), py::arg("upper"), py::arg("allowance"),
         py::arg("stop"), py::arg("keep"));
+  py::class_<HeldPass>(m, "HeldPass")
+      .def(py::init<const Pass&, Eigen::Index, std::vector<Eigen::Index>, const py::array_t<int>&,
+                    const py::array_t<Eigen::Index>&, const Array&>(),
+           py::arg("tracking"), py::arg("tool"), py::arg("rows"), py::arg("kinds"),
+           py::arg("slots"), py::arg("numbers"));
+  m.def("newton", &newton, py::arg("pass"), py::arg("q"), py::arg("target"), py::arg("first"),
+        py::arg("iterations"), py::arg("bounded"), py::arg("lower"), py::arg("upper"),
+        py::arg("tolerance"), py::arg("damping"), py::arg("stalled"));
   py::class_<Controller>(m, "Controller")
       .def(py::init<const Pass&, Eigen::Index, std::vector<Eigen::Index>,
                     const py::array_t<int>&, const py::array_t<Eigen::Index>&, const Array&, int,

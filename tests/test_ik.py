@@ -14,6 +14,7 @@ from redundancy import (
     actuator_space,
     load_robot,
 )
+from redundancy.model.robot import Robot
 from redundancy.planning.ik import _seeds, check_path, configuration_at, inverse_kinematics
 
 
@@ -90,3 +91,18 @@ def test_ik_seeds_are_roberts_sequence_inside_the_joint_box(name):
     for column in np.sort(u, axis=0).T:
         gaps = np.diff(np.append(column, column[0] + 1))
         assert len(np.unique(np.round(gaps, 9))) <= 3
+
+
+def test_newton_on_the_compiled_pass_is_newton_on_the_python_one(crane, monkeypatch):
+    """The core's Newton loop reaches the same configurations, to rounding, on the compiled pass
+    of the task and the held actuator (`Robot.held_pass`) as on the Python one (what a kind of
+    your own runs on): from the same seeds, with the same rows shared and stopped."""
+    values = np.linspace(0.0, 1.2, 13)[:, None]  # some held values the crane cannot reach
+    point = np.array([3.5, -0.5])
+    compiled = inverse_kinematics(crane, point, ["x3"], values, seeds=16)
+    monkeypatch.setattr(Robot, "held_pass", lambda robot, part: None)
+    python = inverse_kinematics(crane, point, ["x3"], values, seeds=16)
+    np.testing.assert_array_equal(compiled.reached, python.reached)
+    assert compiled.reached.any() and not compiled.reached.all()
+    np.testing.assert_allclose(compiled.q, python.q, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(compiled.miss, python.miss, rtol=1e-9, atol=1e-12)  # TOLERANCE

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from redundancy._core import Evaluator, Pass
+from redundancy._core import Evaluator, HeldPass, Pass
 from redundancy.errors import InvalidInputError
 from redundancy.model.actuators import ActuatorSet, CompiledMap, declared, driven_joints, prismatic
 from redundancy.model.hydraulics import Circuit
@@ -100,11 +100,12 @@ class Robot:
         self._task_frames = [self._tool]  # the frames the task is read from
         self._tracking: dict[tuple[int, ...], Tracking] = {}
         self._evaluators: dict[ActuatorSet, Evaluator | None] = {}
+        self._held_passes: dict[ActuatorSet, HeldPass | None] = {}
 
     def __getstate__(self) -> dict:
         """What a copy sent to a worker process is rebuilt from; its evaluators are built there
         again, when first asked for."""
-        return {**vars(self), "_evaluators": {}}
+        return {**vars(self), "_evaluators": {}, "_held_passes": {}}
 
     def __repr__(self) -> str:
         return f"Robot({self.name!r}, n={self.n}, m={self.m}, payload={self.payload} kg)"
@@ -187,22 +188,32 @@ class Robot:
         (`redundancy.resolution.state.evaluate`), built once per set of actuators; None where
         an actuator is a kind of your own or the task is not the tool's position (`task_point`
         overridden): Python then evaluates them."""
-        actuators = self.actuators
-        if actuators not in self._evaluators:
-            maps, tracking = list(actuators), self.tracking()
+        return self._compiled(self._evaluators, self.actuators, Evaluator, SINGULAR_TOLERANCE)
+
+    def held_pass(self, part: ActuatorSet) -> HeldPass | None:
+        """The compiled pass that reads the task point and the actuators ``part`` alone, y, J,
+        x and A (inverse kinematics, `redundancy.planning.ik.newton`), built once per part; None
+        where one is a kind of your own or the task is not the tool's position."""
+        return self._compiled(self._held_passes, part, HeldPass)
+
+    def _compiled(self, built: dict, part: ActuatorSet, kind: type, *more):
+        """The core's ``kind`` over the tool point and ``part`` (and ``more`` arguments), kept
+        in ``built``; None where the core cannot read them."""
+        if part not in built:
+            maps, tracking = list(part), self.tracking(part)
             own = type(self).task_point is not Robot.task_point
-            self._evaluators[actuators] = (
+            built[part] = (
                 None
                 if own or not all(isinstance(m, CompiledMap) for m in maps)
-                else Evaluator(
+                else kind(
                     tracking.core,
                     tracking.slots[self._tool],
                     self._task_rows,
                     *declared(maps, tracking.slots),  # type: ignore[arg-type]
-                    SINGULAR_TOLERANCE,
+                    *more,
                 )
             )
-        return self._evaluators[actuators]
+        return built[part]
 
     @property
     def task_rows(self) -> tuple[int, list[int]]:

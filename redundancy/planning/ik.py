@@ -19,6 +19,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
+from redundancy import _core
 from redundancy.errors import InvalidInputError, SingularConfigurationError, UnreachableError
 from redundancy.model.actuators import ActuatorSet
 from redundancy.model.robot import Robot
@@ -92,50 +93,41 @@ def newton(
     and the rows of a pass at one configuration (the seeds every target starts from, a corner
     of the joint box) share it. A pass reads the task and the held actuators alone; given
     ``start``, the states at ``guess`` evaluated already, Newton begins from them and reads
-    every actuator, and the states at its solution come back for whoever reads them next."""
-    q = np.array(guess, dtype=float)
+    every actuator, and the states at its solution come back for whoever reads them next.
+
+    The loop is the core's (`redundancy._core.newton`), on the compiled pass of the task and
+    the held actuators (`Robot.held_pass`), or on a Python one: for a kind or a task of your
+    own, and with ``start``, whose states are kept."""
     part = robot.actuators.part(rows)
-    parts: list[ActuatorSpace] = []  # with ``start``: every pass's states, in order
-    latest = np.arange(len(q))  # with ``start``: each row's latest state among them, joined
+    parts: list[ActuatorSpace] = [] if start is None else [start]  # every pass's states
 
-    def passed(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """[y; x_h] (k, m + r) and K (k, m + r, n) at q (k, n), by one pass."""
-        unique, inverse = np.unique(q, axis=0, return_inverse=True)
-        inverse = inverse.reshape(-1)
-        if start is None:
-            value, jacobian = _held_pass(robot, part, unique)
-        else:
-            space = evaluate(robot, unique)
-            parts.append(space.take(inverse))
-            value, jacobian = _read(space, rows)
-        return value[inverse], jacobian[inverse]
+    def held(unique: np.ndarray, inverse: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return _held_pass(robot, part, unique)
 
-    if start is None:
-        value, jacobian = passed(q)
-    else:
-        parts.append(start)
-        value, jacobian = _read(start, rows)
-    residual = value - target
-    active = np.arange(len(q))
-    eye = DAMPING * np.eye(robot.n)
-    for _ in range(iterations):
-        active = active[np.linalg.norm(residual[active], axis=1) > TOLERANCE]
-        if not active.size:
-            break
-        K, r = jacobian[active], residual[active]
-        step = np.linalg.solve(K.mT @ K + eye, K.mT @ r[..., None])[..., 0]
-        updated = q[active] - step
-        if bounded:
-            updated = np.clip(updated, robot.lower, robot.upper)
-        moved = ~np.all(np.abs(updated - q[active]) < STALLED, axis=1)
-        active = active[moved]
-        q[active] = updated[moved]
-        if active.size:
-            value, jacobian[active] = passed(q[active])
-            residual[active] = value - target[active]
-            latest[active] = sum(len(p.q) for p in parts[:-1]) + np.arange(active.size)
+    def evaluated(unique: np.ndarray, inverse: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        space = evaluate(robot, unique)
+        parts.append(space.take(inverse))
+        return _read(space, rows)
+
+    arguments = (
+        np.asarray(guess, dtype=float),
+        target,
+        None if start is None else _read(start, rows),
+        iterations,
+        bounded,
+        robot.lower,
+        robot.upper,
+        TOLERANCE,
+        DAMPING,
+        STALLED,
+    )
+    compiled = robot.held_pass(part) if start is None else None
+    found = None if compiled is None else _core.newton(compiled, *arguments)
+    if found is None:  # a kind or a task of your own, a state a kind refused, or the states kept
+        found = _core.newton(held if start is None else evaluated, *arguments)
+    q, miss, latest = found
     space = None if start is None else ActuatorSpace.joined(parts).take(latest)
-    return Solved(q, np.linalg.norm(residual, axis=1), space)
+    return Solved(q, miss, space)
 
 
 def _held_pass(robot: Robot, part: ActuatorSet, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,155 @@
+// Inverse kinematics (`redundancy.planning.ik.newton`): damped Gauss-Newton on [y; x_h](q) = y*
+// for a batch of rows at once, on a compiled pass that reads the task and the held actuators
+// (`HeldPass`) or on a Python one.
+#pragma once
+
+#include <algorithm>
+#include <numeric>
+#include <optional>
+#include <utility>
+#include <vector>
+
+#include "space.hpp"
+
+// [y; x_h] (m + r) and K = [J; A_h] (m + r, n) of the task rows and r held actuators, read from
+// one pass at each of a batch of states.
+class HeldPass {
+ public:
+  HeldPass(const Pass& pass, Eigen::Index tool, std::vector<Eigen::Index> rows,
+           const py::array_t<int>& kinds, const py::array_t<Eigen::Index>& slots,
+           const Array& numbers)
+      : pass_(pass),
+        actuation_{tool, std::move(rows), declared(kinds, slots, numbers, pass.size(), pass.n())} {
+    if (tool < 0 || tool >= pass_.size() ||
+        std::any_of(actuation_.rows.begin(), actuation_.rows.end(),
+                    [](auto r) { return r < 0 || r > 2; }))
+      throw py::value_error("a held pass takes the tool's slot and its task rows");
+  }
+
+  // The values (u, m + r) and K (u, m + r, n) at q (u, n); nothing where a kind refused a state
+  // (Python evaluates it again and raises the kind's error).
+  std::optional<std::pair<Matrix, Matrix>> operator()(const Matrix& q) {
+    const auto u = q.rows(), n = pass_.n(), m = Eigen::Index(actuation_.rows.size());
+    const auto r = Eigen::Index(actuation_.actuators.size()), d = m + r;
+    Matrix values(u, d), jacobians(u, d * n), A(r, n), J(m, n);
+    Eigen::VectorXd x(r), y(m);
+    for (Eigen::Index i = 0; i < u; ++i) {
+      pass_.at(q.row(i).data(), nullptr);
+      if (actuation_(pass_.frames(), q.row(i).data(), nullptr, x.data(), A.data(), y.data(),
+                     J.data())
+              .second != OK)
+        return std::nullopt;
+      values.row(i).head(m) = y;
+      values.row(i).tail(r) = x;
+      Eigen::Map<Matrix> K(jacobians.row(i).data(), d, n);
+      K.topRows(m) = J;
+      K.bottomRows(r) = A;
+    }
+    return std::make_pair(std::move(values), std::move(jacobians));
+  }
+
+ private:
+  Pass pass_;
+  Actuation actuation_;
+};
+
+// Damped Gauss-Newton from q (k, n) to [y; x_h](q) = target (k, d): steps δ = (KᵀK + δ₀ I)⁻¹ Kᵀ r,
+// each iterate clipped to [lower, upper] (n,) when `bounded`; a row stops once |r| ≤
+// `tolerance` or its step moves no coordinate by `stalled` or more. The rows of a pass at one
+// configuration share it. `pass` is a `HeldPass` or a Python callable (unique (u, n), inverse
+// (a,)) → (values (u, d), K (u, d, n)); `first`, None or the values and K at q already known.
+// Returns q, |r| (k,) and each row's latest state among the rows passed in order (the first
+// k at q); None where a `HeldPass` refused a state.
+inline py::object newton(const py::object& pass, Array start, const Array& target,
+                         const py::object& first, int iterations, bool bounded,
+                         const Array& lower, const Array& upper, double tolerance, double damping,
+                         double stalled) {
+  const auto k = start.shape(0), n = start.shape(1), d = target.shape(1);
+  Matrix q = ConstMatrix(start.data(), k, n);
+  const ConstMatrix goal(target.data(), k, d);
+  Matrix values(k, d), jacobians(k, d * n);
+  // The values and K at the rows `active` of q, one pass per distinct configuration.
+  auto passed = [&](const std::vector<py::ssize_t>& active) -> bool {
+    std::vector<py::ssize_t> order(active.size());
+    std::iota(order.begin(), order.end(), 0);
+    auto row = [&](py::ssize_t i) { return q.row(active[i]); };
+    auto less = [&](py::ssize_t a, py::ssize_t b) {
+      return std::lexicographical_compare(row(a).begin(), row(a).end(), row(b).begin(),
+                                          row(b).end());
+    };
+    std::stable_sort(order.begin(), order.end(), less);
+    std::vector<py::ssize_t> inverse(active.size()), unique;
+    for (std::size_t j = 0; j < order.size(); ++j) {
+      if (j == 0 || row(order[j]) != row(order[j - 1])) unique.push_back(order[j]);
+      inverse[order[j]] = py::ssize_t(unique.size()) - 1;
+    }
+    Matrix states(unique.size(), n);
+    for (std::size_t j = 0; j < unique.size(); ++j) states.row(j) = row(unique[j]);
+    Matrix found_values, found_jacobians;
+    if (py::isinstance<HeldPass>(pass)) {
+      auto found = pass.cast<HeldPass&>()(states);
+      if (!found) return false;
+      std::tie(found_values, found_jacobians) = std::move(*found);
+    } else {
+      py::array_t<py::ssize_t> where(py::ssize_t(inverse.size()));
+      std::copy(inverse.begin(), inverse.end(), where.mutable_data());
+      Array unique_states({py::ssize_t(states.rows()), py::ssize_t(n)});
+      at(unique_states, 0, states.rows(), n) = states;
+      const auto out = pass(unique_states, where).cast<py::tuple>();
+      const auto v = out[0].cast<Array>(), K = out[1].cast<Array>();
+      found_values = ConstMatrix(v.data(), states.rows(), d);
+      found_jacobians = ConstMatrix(K.data(), states.rows(), d * n);
+    }
+    for (std::size_t i = 0; i < active.size(); ++i) {
+      values.row(active[i]) = found_values.row(inverse[i]);
+      jacobians.row(active[i]) = found_jacobians.row(inverse[i]);
+    }
+    return true;
+  };
+  std::vector<py::ssize_t> active(k);
+  std::iota(active.begin(), active.end(), 0);
+  if (first.is_none()) {
+    if (!passed(active)) return py::none();
+  } else {
+    const auto known = first.cast<py::tuple>();
+    const auto v = known[0].cast<Array>(), K = known[1].cast<Array>();
+    values = ConstMatrix(v.data(), k, d);
+    jacobians = ConstMatrix(K.data(), k, d * n);
+  }
+  Matrix residual = values - goal;
+  py::array_t<py::ssize_t> latest(k);
+  auto* last = latest.mutable_data();
+  std::iota(last, last + k, 0);
+  py::ssize_t offset = k;
+  const Eigen::MatrixXd eye = damping * Eigen::MatrixXd::Identity(n, n);
+  for (int iteration = 0; iteration < iterations; ++iteration) {
+    std::vector<py::ssize_t> moving;
+    for (const auto i : active) {
+      if (!(residual.row(i).norm() > tolerance)) continue;
+      const ConstMatrix K(jacobians.row(i).data(), d, n);
+      const Eigen::VectorXd step = (K.transpose() * K + eye)
+                                       .partialPivLu()
+                                       .solve(K.transpose() * residual.row(i).transpose());
+      Eigen::RowVectorXd updated = q.row(i) - step.transpose();
+      if (bounded)
+        updated = updated.cwiseMax(Vector(lower.data(), n).transpose())
+                      .cwiseMin(Vector(upper.data(), n).transpose());
+      if (!((updated - q.row(i)).cwiseAbs().array() < stalled).all()) {
+        q.row(i) = updated;
+        moving.push_back(i);
+      }
+    }
+    active = std::move(moving);
+    if (active.empty()) break;
+    if (!passed(active)) return py::none();
+    for (std::size_t j = 0; j < active.size(); ++j) {
+      residual.row(active[j]) = values.row(active[j]) - goal.row(active[j]);
+      last[active[j]] = offset + py::ssize_t(j);
+    }
+    offset += py::ssize_t(active.size());
+  }
+  Array solved({k, n}), miss(k);
+  at(solved, 0, k, n) = q;
+  for (py::ssize_t i = 0; i < k; ++i) miss.mutable_data()[i] = residual.row(i).norm();
+  return py::make_tuple(solved, miss, latest);
+}
