@@ -4,6 +4,7 @@ import contextlib
 import fcntl
 import os
 import pty
+import signal
 import struct
 import subprocess
 import sys
@@ -30,3 +31,11 @@ def run_cli(*args, cwd=None, timeout=None, terminal=False):
         stdout = run.stdout.read()  # type: ignore[union-attr]
         run.wait(timeout)
     return subprocess.CompletedProcess(run.args, run.returncode, stdout.decode(), shown.decode())
+
+
+def as_foreground() -> None:
+    """A child's ``preexec_fn``: SIGINT as a foreground job has it. Where the suite itself runs
+    as a background job of a shell without job control, its commands start with SIGINT
+    ignored, and the command, as it should, keeps ignoring it: a Ctrl-C test would then test
+    nothing."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)

@@ -14,6 +14,7 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import pytest
+from commands import as_foreground
 
 from redundancy.errors import InvalidInputError
 from redundancy.study.background import Background
@@ -137,9 +138,9 @@ def _children(pid: int) -> list[int]:
 
 
 def _foreground() -> None:
-    """In the child: SIGINT as a foreground job has it, even where this test runs as a
-    background job (which ignores SIGINT, and so, rightly, would its children)."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    """In the child: SIGINT as a foreground job has it (`as_foreground`), in a process group of
+    its own."""
+    as_foreground()
     os.setpgrp()
 
 

@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 import pinocchio as pin
 import pytest
-from commands import run_cli
+from commands import as_foreground, run_cli
 
 from redundancy import VELOCITY, WorkCycle, actuator_space, improved_start, load_robot
 from redundancy.errors import InvalidInputError
@@ -626,6 +626,7 @@ def test_ctrl_c_to_a_local_maps_process_group_ends_in_one_line(tmp_path):
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
+        preexec_fn=as_foreground,
     )
     deadline = time.monotonic() + 600  # guards a hang only
     while not list(store.glob("chunk-*.parquet")) and time.monotonic() < deadline:

@@ -14,7 +14,7 @@ import weakref
 from pathlib import Path
 
 import pytest
-from commands import run_cli
+from commands import as_foreground, run_cli
 
 from redundancy.errors import InvalidInputError
 from redundancy.study import output
@@ -156,12 +156,6 @@ def test_a_reader_that_goes_away_stops_nothing(tmp_path):
     assert json.loads((tmp_path / "out" / "report.json").read_text())["studies"]
 
 
-def _foreground() -> None:
-    """In the child: SIGINT as a foreground job has it, even where this test runs as a
-    background job (which ignores SIGINT, and so, rightly, would its children)."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-
-
 def handles_sigterm(pid: int) -> bool:
     """Whether the process ``pid`` has a handler of its own for SIGTERM (the command installs
     its handlers first thing, before it imports numpy, Pinocchio and the rest)."""
@@ -182,7 +176,7 @@ def test_a_signal_while_the_libraries_load_ends_the_command_with_one_line(tmp_pa
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             text=True,
-            preexec_fn=_foreground,
+            preexec_fn=as_foreground,
         )
         deadline = time.monotonic() + 600
         while not handles_sigterm(process.pid):
@@ -258,7 +252,7 @@ def test_an_interrupted_write_leaves_the_earlier_output_byte_identical(
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
-        preexec_fn=_foreground,
+        preexec_fn=as_foreground,
     )
     deadline = time.monotonic() + 600
     while _staged_files(folder.parent) < staged and run.poll() is None:
