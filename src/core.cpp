@@ -2,7 +2,7 @@
 // x with their rows of A and Ȧ, the state's derivation in actuator coordinates (J_H, M_H, N_H,
 // q̇), the resolution laws' kernel, and the evaluation of a batch and a control step that run
 // them in one call each, the adaptive integration loop with the laws' compiled right-hand side,
-// and the inverse kinematics' Newton loop.
+// the inverse kinematics' Newton loop, and the integral optimum's recursion over transitions.
 //
 // A `Pass` holds a copy of the robot's Pinocchio model (handed over as Pinocchio's own text
 // serialization, so that mimic joints, locked joints and added frames arrive exactly as Python
@@ -16,6 +16,7 @@
 #include "law.hpp"
 #include "newton.hpp"
 #include "pass.hpp"
+#include "recursion.hpp"
 #include "space.hpp"
 
 PYBIND11_MODULE(_core, m) {
@@ -43,6 +44,8 @@ PYBIND11_MODULE(_core, m) {
   m.def("biases", &biases, py::arg("A"), py::arg("N"), py::arg("M_H"), py::arg("A_dot"),
         py::arg("v"));
   m.def("solve", &solve, py::arg("A"), py::arg("B"));
+  m.def("accelerated_step", &accelerated_step, py::arg("previous"), py::arg("incoming"),
+        py::arg("outgoing"), py::arg("reach"));
   py::class_<Evaluator>(m, "Evaluator")
       .def(py::init<const Pass&, Eigen::Index, std::vector<Eigen::Index>, const py::array_t<int>&,
                     const py::array_t<Eigen::Index>&, const Array&, double>(),

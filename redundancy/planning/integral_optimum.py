@@ -27,24 +27,26 @@ cost of the same recursion, as in Ferrentino et al. (Robotics 10(1) 42, 2021).
   circuit's meter-in model against the mean of both nodes' forces at rest, A⁻ᵀ G (Eq. 23
   without velocity terms). The circuit's limits (`Limits.hydraulic`) exclude transitions, for
   the energy bound always and for an objective where a supply is given;
-- actuator speed limits |ẋ| ≤ ẋ_max exclude transitions. An acceleration limit |ẍ| ≤ ẍ_max is
-  checked against the best path into each node alone (|ẋ' − ẋ| / h), the recursion's state
-  being the node, as in Ferrentino et al.'s heuristic: the path kept keeps the limit, but
-  where it binds (`IntegralOptimum.acceleration_binds`) the optimum is the least over the
-  histories the recursion keeps, no longer the grid's global optimum, and the recursion may
-  find no path where one exists. Where the segment starts (ends) at rest, the first (last)
+- actuator speed limits |ẋ| ≤ ẋ_max exclude transitions. An acceleration limit |ẍ| ≤ ẍ_max
+  (|ẋ' − ẋ| / h between consecutive transitions) makes the recursion's state the transition
+  into a node instead of the node (`_pass`), so that it is checked on every path, not only on
+  the best path into each node as in Ferrentino et al.'s recursion: the optimum stays the
+  least cost over the grid. Where the segment starts (ends) at rest, the first (last)
   transition's acceleration is checked from (to) ẋ = 0;
 - the least cost to each node is the least over its predecessors; start and end are free. The
   first pass spans the strokes with `SPANNING` values per held actuator (`SPANNING_EACH` for
   r = 2); each later one a band `NARROWING` times as wide around the last path with `VALUES`
-  (`VALUES_EACH`) values (iterative dynamic programming), at a cost of G² N per pass.
+  (`VALUES_EACH`) values (iterative dynamic programming), at a cost of G² N per pass, up to
+  G³ N with an acceleration limit. On a finer grid, where the first band around the coarser
+  grid's path holds no path that keeps the limits (an acceleration limit wants held values
+  closer than h² ẍ_max), the band narrows around that path until one does.
 
 Dynamic programming and not the transcription of `redundancy.planning.bound`: the load-sensing
 pump pressure is a maximum over the moving cylinders and the overrunning clamp a kink, so the
 cost is not differentiable where the optimum tends to lie, and the circuit's limits cut the
-feasible set into pieces; without acceleration limits the recursion finds the least cost over
-its grid globally. The forces leave out inertia and velocity terms (M_H ẍ and the Coriolis part
-of N_H), which would make the stage cost depend on three nodes: on the paper's crane they change
+feasible set into pieces; the recursion finds the least cost over its grid globally. The
+forces leave out inertia and velocity terms (M_H ẍ and the Coriolis part of N_H), which
+would make the stage cost depend on three nodes: on the paper's crane they change
 the strategies' pump energy by well under 1 % (tests/test_hydraulics.py); a ``dynamic`` measure
 reads them at rest too. `IntegralOptimum.change` is the optimum's relative change from the
 previous grid; where a finer grid finds no path, the coarser grid's result is kept and marked
@@ -59,6 +61,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.interpolate import CubicSpline, RegularGridInterpolator
 
+from redundancy import _core
 from redundancy.errors import InvalidInputError
 from redundancy.model.hydraulics import Supply
 from redundancy.model.robot import Robot
@@ -137,8 +140,8 @@ class IntegralOptimum(Refined):
 
     @property
     def acceleration_binds(self) -> bool:
-        """Whether the acceleration limit raised the motion's cost: the optimum is then the
-        least over the histories the recursion keeps, not the grid's global optimum."""
+        """Whether the acceleration limit raised the motion's cost (the least cost without it
+        is lower)."""
         return self.searched.acceleration_binds
 
     @property
@@ -341,41 +344,56 @@ def _pass(
     rest: tuple[bool, bool] = (False, False),
 ):
     """Dynamic programming over the nodes' strokes x (N + 1, G, n) at times t: the least cost
-    (inf where the recursion found no path), the index of its held values at each node
-    (N + 1,), and the least cost without the acceleration limit (the same where it does not
-    bind). Where ``rest`` (at the start, at the end), the first (last) transition's
-    acceleration is checked from (to) ẋ = 0."""
+    (inf where no path keeps the limits), the index of its held values at each node (N + 1,),
+    and the least cost without the acceleration limit (the same where it does not bind).
+
+    Without the acceleration limit the recursion's state is the node: V_j+1(d) = min over c of
+    V_j(c) + C_j(c, d), G² per interval, C_j the stage cost (inf where a transition is not
+    allowed). With it the state is the transition into the node, so that every acceleration of
+    every path is checked: V_j+1(c, d) = C_j(c, d) + the least V_j(b, c) over the b with
+    |ẋ_j(c, d) − ẋ_j−1(b, c)| ≤ h ẍ_max in every limited actuator (`_core.accelerated_step`,
+    up to G³ per interval), the least cost over the grid. Where ``rest`` (at the start, at the
+    end), the first (last) transition's acceleration is checked from (to) ẋ = 0."""
     intervals, count = len(t) - 1, x.shape[1]
     h, fast, quick = t[1], np.isfinite(speeds), np.isfinite(accelerations)  # the limited ones
     reach = h * (accelerations[quick] + TOLERANCE)  # the largest change of ẋ in one step
 
-    def steady(change: np.ndarray) -> np.ndarray:
-        return np.all(np.abs(change[..., quick]) <= reach, axis=-1)
+    def steady(rate: np.ndarray) -> np.ndarray:  # the transitions (c, d) that start or end at rest
+        return np.all(np.abs(rate) <= reach, axis=-1)
 
-    cost = np.where(usable[0], 0.0, np.inf)
-    free = cost  # the same recursion without the acceleration limit
-    incoming = np.zeros(x.shape[1:])  # ẋ of the best path into each node
-    choices = np.empty((intervals, count), dtype=int)
+    free = np.where(usable[0], 0.0, np.inf)  # V_j over the nodes, no acceleration limit
+    choices = np.empty((intervals, count), dtype=int)  # each node's best predecessor
+    if quick.any():  # V_j over the transitions into node j, their rates, their best predecessors
+        pairs, incoming = np.empty((count, count)), np.empty((count, count, quick.sum()))
+        before = np.empty((intervals, count, count), dtype=np.int32)
     for j in range(intervals):
         x_dot = (x[j + 1][None] - x[j][:, None]) / h  # (from, to, n)
         allowed = np.all(np.abs(x_dot[..., fast]) <= speeds[fast] + TOLERANCE, axis=2)
-        allowed &= usable[j + 1]
-        kept = allowed & np.isfinite(cost)[:, None]
-        if j or rest[0]:
-            kept &= steady(x_dot - incoming[:, None])
-        steps = stage(j, h, allowed & np.isfinite(free)[:, None])
-        free = np.min(free[:, None] + steps, axis=0)
-        total = np.where(kept, cost[:, None] + steps, np.inf)
+        steps = stage(j, h, allowed & usable[j + 1] & np.isfinite(free)[:, None])
+        total = free[:, None] + steps
         choices[j] = np.argmin(total, axis=0)
-        cost = total[choices[j], np.arange(count)]
-        incoming = x_dot[choices[j], np.arange(count)]
+        free = total[choices[j], np.arange(count)]
+        if quick.any():
+            rate = x_dot[..., quick]
+            if j:
+                best, before[j] = _core.accelerated_step(pairs, incoming, rate, reach)
+                pairs = steps + best
+            else:
+                pairs = np.where(steady(rate) | (not rest[0]), steps, np.inf)
+            incoming = rate
+    if not quick.any():
+        last = int(np.argmin(free))
+        path = [last]
+        for j in range(intervals - 1, -1, -1):
+            path.append(choices[j, path[-1]])
+        return float(free[last]), np.array(path[::-1]), float(free[last])
     if rest[1]:
-        cost = np.where(steady(incoming), cost, np.inf)
-    path = np.empty(intervals + 1, dtype=int)
-    path[-1] = np.argmin(cost)
-    for j in range(intervals - 1, -1, -1):
-        path[j] = choices[j, path[j + 1]]
-    return float(cost[path[-1]]), path, float(free.min())
+        pairs = np.where(steady(incoming), pairs, np.inf)
+    c, d = (int(i) for i in np.unravel_index(np.argmin(pairs), pairs.shape))
+    path = [d, c]
+    for j in range(intervals - 1, 0, -1):
+        path.append(before[j, path[-1], path[-2]])
+    return float(pairs[c, d]), np.array(path[::-1]), float(free.min())
 
 
 def _limit(robot: Robot, value, what: str) -> np.ndarray:
@@ -440,6 +458,7 @@ def _optimum(
         else:
             centre = np.column_stack([np.interp(t, path[0], r) for r in path[1].T])
             width = (upper - lower) / 2 * NARROWING
+        reached = False  # whether a pass on this grid found a path
         for done in range(PASSES):
             each = counts[path is not None or done > 0]
             axes = [np.linspace(-w, w, each) for w in width]
@@ -448,6 +467,9 @@ def _optimum(
             x, q, usable, stage = build(tables, values)
             optimum, index, free = _pass(x, usable, stage, t, speeds, accelerations, rest)
             if not np.isfinite(optimum):
+                if path is not None and not reached and done < PASSES - 1:
+                    width = width * NARROWING  # finer values about the coarser grid's path
+                    continue
                 units = (robot.actuators.maps[row].unit for row in rows)
                 band = " × ".join(f"{w:.4g} {unit}" for w, unit in zip(width, units))
                 message = (
@@ -455,10 +477,9 @@ def _optimum(
                     f"keeps every stroke and every limit with {', '.join(names)} within {band} "
                     f"of the path searched ({intervals} intervals)"
                 )
-                if np.isfinite(free):
+                if np.isfinite(free):  # the limit wants held values closer than h² ẍ_max
                     message += (
-                        "; the acceleration limit, checked against the best path into each "
-                        "node alone, pruned every history, so one may still exist"
+                        "; without the acceleration limit one would: begin with a coarser grid"
                     )
                 if path is None:
                     raise InvalidInputError(message)
@@ -466,7 +487,7 @@ def _optimum(
                     OptimumGrid(intervals, last, np.nan, False, message, False, tables.folded)
                 )
                 return *path, tuple(found)
-            nodes = np.arange(len(t))
+            nodes, reached = np.arange(len(t)), True
             r, x, q = values[nodes, index], x[nodes, index], q[nodes, index]
             centre, width = r, width * NARROWING
         path = (t, r, x, q)

@@ -2,8 +2,8 @@
 default start (for the velocity objective of directly driven joints, the local pseudoinverse of
 least q̇ᵀq̇), the improved start (the search of the held actuators' start under the same
 objective) and the optimum by dynamic programming over the held actuators' histories
-(`redundancy.planning.integral_optimum`), `LIMITED` where an acceleration limit binds. Result
-data only; docs/integral.md shows the table.
+(`redundancy.planning.integral_optimum`), the global optimum over its grid. Result data only;
+docs/integral.md shows the table.
 """
 
 from __future__ import annotations
@@ -21,8 +21,6 @@ from redundancy.planning.tasks import Segment
 from redundancy.resolution.objectives import Objective
 from redundancy.resolution.objectives import objective as named
 from redundancy.resolution.state import evaluate
-
-LIMITED = "DP optimum (acceleration checked on kept paths)"  # where the acceleration limit binds
 
 
 @dataclass(frozen=True)
@@ -87,7 +85,7 @@ def compare(
     steps = np.diff(optimum.x, axis=0) / h
     figures.append(
         Figures(
-            LIMITED if optimum.acceleration_binds else "global optimum",
+            "global optimum",
             optimum.optimum,
             float(objective.measure(evaluate(robot, optimum.q), x_dot).max()),
             float(np.abs(steps).max()),
