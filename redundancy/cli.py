@@ -225,11 +225,9 @@ def _robots_command(args: argparse.Namespace) -> None:
 
 
 def _planned_command(args: argparse.Namespace) -> None:
-    """The study and the cycle commands: the robot, its task and the searches' options are read
-    here, the command's own computation (`_study` or `_cycle`) gives (result, figure paths,
-    playback paths) and prints its table; its report (``--json``, or report.json in the output
-    folder), time series and index page are written beside them, all committed together, and
-    what was written is listed."""
+    """The study and the cycle commands: ``args.plan`` (`_study`, `_cycle`) gives (result, figure
+    paths, playback paths); the report, time series and index page are written beside them, all
+    committed together, and what was written is listed."""
     with OutputFolder(args.out) as out:  # committed only if everything below succeeds
         report = out / "report.json" if args.json is None else out.beside(Path(args.json), "--json")
         robot, cycle = _load_task(_robot(args), args.task)
@@ -271,9 +269,17 @@ def _study(args: argparse.Namespace, folder: Path, robot, cycle, options) -> tup
     bound = args.energy_bound
     # the improved searches first: the cycle section's per-segment plan is the first objective's
     searches = study_searches(robot, cycle, objectives, **options, energy_bound=bound)
-    section = partial(
-        _cycle_section, robot, cycle, objectives[0], args.cycles, options, folder, searches
-    )
+
+    def section() -> tuple:
+        """The cycle section and its figures and playbacks: (cycle study or None, why none,
+        figure paths, playback paths)."""
+        found, skipped = cycle_section(
+            robot, cycle, objectives[0], args.cycles, **options, segments=searches.first()
+        )
+        if found is None:
+            return None, skipped, [], []
+        return found, None, write_cycle_figures(found, folder), write_cycle_playbacks(found, folder)
+
     # the cycle section and its outputs are computed in a second process meanwhile
     with Background(section) as pending:
         study = run_study(
@@ -296,18 +302,6 @@ def _study(args: argparse.Namespace, folder: Path, robot, cycle, options) -> tup
     study = replace(study, cycle_study=cycle_study, cycle_skipped=skipped)
     print(study_table(study))
     return study, figures + cycle_figures, playbacks + cycle_playbacks
-
-
-def _cycle_section(robot, cycle, chosen, cycles, options, folder, searches):
-    """The study's cycle section (`cycle_section`, its per-segment plan the study's
-    ``searches``) and its figures and playbacks, written into ``folder``: (cycle study or None,
-    why none, figure paths, playback paths)."""
-    found, skipped = cycle_section(
-        robot, cycle, chosen, cycles, **options, segments=searches.first()
-    )
-    if found is None:
-        return None, skipped, [], []
-    return found, None, write_cycle_figures(found, folder), write_cycle_playbacks(found, folder)
 
 
 def _cycle(args: argparse.Namespace, folder: Path, robot, cycle, options) -> tuple:
