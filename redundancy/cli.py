@@ -89,7 +89,8 @@ def describe(robot: Robot) -> str:
             f"  {actuator.name:<8} {type(actuator).__name__:<15} on {actuator.joint:<18} "
             f"stroke {stroke}"
         )
-    q = sum(robot.span) / 2
+    lower, upper = robot.span
+    q = (lower + upper) / 2  # mid-range
     space = actuator_space(robot, q)
     if robot.kinematic_only:
         lines.append(f"mass: none on links {', '.join(robot.massless_links)} (kinematic only)")
