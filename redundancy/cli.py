@@ -110,9 +110,9 @@ def describe(robot: Robot) -> str:
     return "\n".join(lines)
 
 
-def bounded(convert: type, lower: float, upper: float, what: str):
-    """An argument type: the text ``convert``ed (int or float) within [lower, upper]; otherwise
-    one line, the text and ``what`` it must be (Python's digit separators, 1_000, refused)."""
+def bounded(convert: type, lower: float, upper: float, what: str, unit: str = ""):
+    """An argument type: the text ``convert``ed (int or float) within [lower, upper] (``unit``);
+    otherwise one line, the text and ``what`` it must be (Python's digit separators refused)."""
 
     def parse(text: str):
         try:
@@ -121,7 +121,7 @@ def bounded(convert: type, lower: float, upper: float, what: str):
             value = math.nan
         if not lower <= value <= upper:
             raise argparse.ArgumentTypeError(
-                f"{text!r} must be {what} within [{lower:,g}, {upper:,g}]"
+                f"{text!r} must be {what} within [{lower:,g}, {upper:,g}]{unit}"
             )
         return value
 
@@ -406,7 +406,7 @@ def parser() -> argparse.ArgumentParser:
     whole = partial(bounded, int, what="a whole number")
     robot = argparse.ArgumentParser(add_help=False)
     robot.add_argument("--robot", default="hiab031", help="bundled robot, or robot.toml or .urdf")
-    mass = bounded(float, 0, MAX_PAYLOAD, "a mass (kg)")
+    mass = bounded(float, 0, MAX_PAYLOAD, "a mass", " kg")
     robot.add_argument("--payload", type=mass, help="payload at the tool, kg (robot's)")
     robot.add_argument("--hydraulics", metavar="FILE", help="TOML file with a [hydraulics] table")
     task = argparse.ArgumentParser(add_help=False)
@@ -553,7 +553,7 @@ def parser() -> argparse.ArgumentParser:
     )
     cycle.add_argument(
         "--gap-speed",
-        type=bounded(float, 1e-3, 10, "a speed (m/s or rad/s)"),
+        type=bounded(float, 1e-3, 10, "a speed", " (m/s or rad/s)"),
         metavar="V",
         help="the held actuator's speed in the corners' self-motions (default: its cylinder's "
         "maximum, else 0.1)",
