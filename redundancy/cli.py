@@ -10,15 +10,16 @@ only on a terminal.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import ipaddress
 import json
 import math
 import os
+import shutil
 import signal
 import socket
 import sys
 import warnings
-from collections.abc import Callable
 from dataclasses import replace
 from functools import partial
 from importlib.metadata import version
@@ -45,12 +46,13 @@ from redundancy.planning.starts import (
 from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import OBJECTIVES, Objective, objective
+from redundancy.resolution.state import actuator_space
 from redundancy.study.background import Background
-from redundancy.study.check import check, held_problems, mid_range, span, task_point
+from redundancy.study.check import check, held_problems, span, task_point
 from redundancy.study.cycles import CHOICES, named_values, run_cycle
 from redundancy.study.families import read_family
 from redundancy.study.maps import CONNECT_TIMEOUT, connect, design_map, summary
-from redundancy.study.output import OutputFolder, writable, write_atomically
+from redundancy.study.output import OutputFolder, writable
 from redundancy.study.signals import Terminated, caught, ending, received
 from redundancy.study.study import (
     STUDY_CYCLES,
@@ -75,8 +77,9 @@ from redundancy.viz.tables import check_table, cycle_table, joint_lines, study_t
 
 
 def describe(robot: Robot) -> str:
-    """A summary of a robot: joints, actuators and strokes (mm, degrees), mass, M_H at
-    mid-range (where the robot has masses)."""
+    """A summary of a robot: joints, actuators and strokes (mm, degrees), mass, and at
+    mid-range (every joint halfway between its limits) x, y and, where the robot has masses,
+    M_H (n, n) in kg and the forces F_H = N_H holding still (n,) in N."""
     task = " + ".join([robot.task_axes, *task_labels(robot)[len(robot.task_axes) :]])
     lines = [f"{robot.name}: n = {robot.n} joints, task = tool {task} (m = {robot.m})"]
     lines += [*joint_lines(robot), "actuators:"]
@@ -86,66 +89,43 @@ def describe(robot: Robot) -> str:
             f"  {actuator.name:<8} {type(actuator).__name__:<15} on {actuator.joint:<18} "
             f"stroke {stroke}"
         )
-    state = mid_range(robot)
+    lower, upper = robot.span
+    q = (lower + upper) / 2  # mid-range
+    space = actuator_space(robot, q)
     if robot.kinematic_only:
         lines.append(f"mass: none on links {', '.join(robot.massless_links)} (kinematic only)")
     else:
         masses = [inertia.mass for inertia in robot.model.inertias]
         lines.append(f"mass: {sum(masses):.1f} kg, of which payload {robot.payload:.1f} kg")
-    joints = [amount(v, "rad" if r else "m") for v, r in zip(state.q, robot.rotary_joints)]
-    x = [amount(v, a.unit) for v, a in zip(state.x, robot.actuators)]
+    joints = [amount(v, "rad" if r else "m") for v, r in zip(q, robot.rotary_joints)]
+    x = [amount(v, a.unit) for v, a in zip(space.x[0], robot.actuators)]
     lines.append(
         f"at mid-range q = [{', '.join(joints)}]: x = [{', '.join(x)}], "
-        f"y = {task_point(robot, state.y)}"
+        f"y = {task_point(robot, space.y[0])}"
     )
-    with np.printoptions(precision=4, suppress=True):
-        if state.M_H is not None:
-            lines.append(f"M_H (kg) =\n{state.M_H}")
-            lines.append(f"F_H holding still (N) = {state.holding}")
+    if not robot.kinematic_only:
+        with np.printoptions(precision=4, suppress=True):
+            lines.append(f"M_H (kg) =\n{space.M_H[0]}")
+            lines.append(f"F_H holding still (N) = {space.forces(np.zeros_like(space.x))[0]}")
     return "\n".join(lines)
 
 
-def _describe_command(args: argparse.Namespace) -> None:
-    robot = _robot(args)
-    if robot.task_file is not None:  # read on its task: the tool's angle may be a coordinate
-        robot = _load_task(robot, None)[0]
-    print(describe(robot))
-
-
-def argument(convert: Callable[[str], float], accept: Callable[[float], bool], phrase: str):
-    """An argument type: the text ``convert``ed, where ``accept`` takes it; otherwise one line,
-    the text and ``phrase`` (what it must be)."""
+def bounded(convert: type, lower: float, upper: float, what: str, unit: str = ""):
+    """An argument type: the text ``convert``ed (int or float) within [lower, upper] (``unit``);
+    otherwise one line, the text and ``what`` it must be (Python's digit separators refused)."""
 
     def parse(text: str):
         try:
-            value = convert(text) if "_" not in text else math.nan  # not Python's 1_000
+            value = convert(text) if "_" not in text else math.nan
         except ValueError:
             value = math.nan
-        if not accept(value):
-            raise argparse.ArgumentTypeError(f"{text!r} {phrase}")
+        if not lower <= value <= upper:
+            raise argparse.ArgumentTypeError(
+                f"{text!r} must be {what} within [{lower:,g}, {upper:,g}]{unit}"
+            )
         return value
 
     return parse
-
-
-def whole(lower: int, upper: int):
-    """An argument type: a whole number within [lower, upper]."""
-    return argument(
-        int, lambda v: lower <= v <= upper, f"must be a whole number within [{lower}, {upper:,}]"
-    )
-
-
-sample_count = whole(1, MAX_SAMPLES)
-worker_count = whole(1, 4096)
-cycle_count = whole(0, 10_000)
-repetition_count = whole(1, 10_000)
-payload_mass = argument(
-    float, lambda v: 0 <= v <= MAX_PAYLOAD, f"must be a mass within [0, {MAX_PAYLOAD:g}] kg"
-)
-seconds = argument(float, lambda v: 0 < v <= 3600, "must be seconds within (0, 3600]")
-speed_value = argument(
-    float, lambda v: 1e-3 <= v <= 10, "must be a speed within [0.001, 10] (m/s or rad/s)"
-)
 
 
 def listen_address(text: str) -> str:
@@ -161,6 +141,24 @@ def listen_address(text: str) -> str:
             "0.0.0.0 (every interface)"
         ) from None
     return str(address)
+
+
+def start_values(text: str) -> dict[str, float]:
+    """``NAME=V[,NAME=V]``: held actuators' start values (m, or rad for a rotary actuator)."""
+    found: dict[str, float] = {}
+    for item in text.split(","):
+        name, equals, value = item.partition("=")
+        try:
+            number = float(value)
+        except ValueError:
+            number = math.nan
+        if not equals or not name.strip() or not math.isfinite(number) or name in found:
+            raise argparse.ArgumentTypeError(
+                f"{text!r} must be NAME=V[,NAME=V] with distinct actuator names and finite "
+                "values (m, rad for a rotary actuator), e.g. x3=0.6"
+            )
+        found[name.strip()] = number
+    return found
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -197,26 +195,66 @@ def _load_task(robot: Robot, path: str | None) -> tuple[Robot, WorkCycle]:
 
 
 def _holdable(robot: Robot, cycle: WorkCycle, sampled: bool = True) -> None:
-    """Refuse, in the first of its lines, a task whose held actuators cannot be held
-    (`held_problems`)."""
-    problems = held_problems(robot, cycle, sampled)
-    if problems:
+    """Refuse a task whose held actuators cannot be held, in the first line of `held_problems`."""
+    if problems := held_problems(robot, cycle, sampled):
         raise InvalidInputError(problems[0])
 
 
-def _checked(robot: Robot, option: str | None) -> tuple[str, ...] | None:
-    """The actuators ``--check`` names (None: every one), each an actuator of ``robot``."""
-    if option is None:
-        return None
-    checked = tuple(option.split(","))
-    try:
-        robot.actuators.rows(checked)
-    except InvalidInputError as error:
-        raise InvalidInputError(f"--check {option}: {error}") from None
-    return checked
+def _describe_command(args: argparse.Namespace) -> None:
+    robot = _robot(args)
+    if robot.task_file is not None:  # read on its task: the tool's angle may be a coordinate
+        robot = _load_task(robot, None)[0]
+    print(describe(robot))
 
 
-def _study_command(args: argparse.Namespace, out: OutputFolder, robot, cycle, options) -> tuple:
+def _check_command(args: argparse.Namespace) -> int:
+    """The one-screen check of a robot (and its task); status 2 where something blocks a
+    study."""
+    robot, cycle = _robot(args), None
+    if args.task is not None or robot.task_file is not None:
+        robot, cycle = _load_task(robot, args.task)
+    found = check(robot, cycle)
+    print(check_table(found))
+    return 2 if found.blocking() else 0
+
+
+def _robots_command(args: argparse.Namespace) -> None:
+    for name in bundled_robots():
+        robot = load_robot(name)
+        actuators = ", ".join(robot.actuators.names)
+        print(f"{name:<16} n = {robot.n}, m = {robot.m}, actuators: {actuators}")
+
+
+def _planned_command(args: argparse.Namespace) -> None:
+    """The study and the cycle commands: ``args.plan`` (`_study`, `_cycle`) gives (result, figure
+    paths, playback paths); the report, time series and index page are written beside them, all
+    committed together, and what was written is listed."""
+    with OutputFolder(args.out) as out:  # committed only if everything below succeeds
+        report = out / "report.json" if args.json is None else out.beside(Path(args.json), "--json")
+        robot, cycle = _load_task(_robot(args), args.task)
+        _holdable(robot, cycle)
+        checked = None if args.check is None else tuple(args.check.split(","))
+        try:
+            robot.actuators.rows(checked or ())
+        except InvalidInputError as error:
+            raise InvalidInputError(f"--check {args.check}: {error}") from None
+        options = dict(
+            samples=args.samples, checked=checked, method=args.method, circuit=args.circuit_limits
+        )
+        result, figures, playbacks = args.plan(args, out.staging, robot, cycle, options)
+        write_report(result, report)
+        written = {
+            "figures": figures,
+            "time series (CSV)": write_series(result, out.staging),
+            "playbacks": playbacks,
+        }
+        write_index(out.staging, report)
+    print(f"report: {args.json or out.target / 'report.json'}")
+    for label, paths in written.items():
+        print(f"{label}: {', '.join(str(out.final(p)) for p in paths)}")
+
+
+def _study(args: argparse.Namespace, folder: Path, robot, cycle, options) -> tuple:
     from tqdm import tqdm
 
     chosen = ("velocity", "energy") if args.objective == "both" else (args.objective,)
@@ -229,11 +267,20 @@ def _study_command(args: argparse.Namespace, out: OutputFolder, robot, cycle, op
             stacklevel=1,
         )
     objectives = tuple(objective(name) for name in chosen)
+    bound = args.energy_bound
     # the improved searches first: the cycle section's per-segment plan is the first objective's
-    searches = study_searches(robot, cycle, objectives, **options, energy_bound=args.energy_bound)
-    section = partial(
-        _cycle_section, robot, cycle, objectives[0], args.cycles, options, out.staging, searches
-    )
+    searches = study_searches(robot, cycle, objectives, **options, energy_bound=bound)
+
+    def section() -> tuple:
+        """The cycle section and its figures and playbacks: (cycle study or None, why none,
+        figure paths, playback paths)."""
+        found, skipped = cycle_section(
+            robot, cycle, objectives[0], args.cycles, **options, segments=searches.first()
+        )
+        if found is None:
+            return None, skipped, [], []
+        return found, None, write_cycle_figures(found, folder), write_cycle_playbacks(found, folder)
+
     # the cycle section and its outputs are computed in a second process meanwhile
     with Background(section) as pending:
         study = run_study(
@@ -242,12 +289,12 @@ def _study_command(args: argparse.Namespace, out: OutputFolder, robot, cycle, op
             objectives,
             **options,
             progress=args.progress,
-            energy_bound=args.energy_bound,
+            energy_bound=bound,
             cycles=0,
             searches=searches,
         )
-        figures = write_figures(study, out.staging)
-        playbacks = write_playbacks(study, out.staging)
+        figures = write_figures(study, folder)
+        playbacks = write_playbacks(study, folder)
         for run in study.runs:  # each run's figures for the table and report, kept by the
             run.summary()  # run: computed while the cycle section still runs, not after
         with tqdm(total=1, desc="cycle section", disable=not args.progress) as waiting:
@@ -258,7 +305,7 @@ def _study_command(args: argparse.Namespace, out: OutputFolder, robot, cycle, op
     return study, figures + cycle_figures, playbacks + cycle_playbacks
 
 
-def _cycle_command(args: argparse.Namespace, out: OutputFolder, robot, cycle, options) -> tuple:
+def _cycle(args: argparse.Namespace, folder: Path, robot, cycle, options) -> tuple:
     study = run_cycle(
         robot,
         cycle,
@@ -270,54 +317,7 @@ def _cycle_command(args: argparse.Namespace, out: OutputFolder, robot, cycle, op
         progress=args.progress,
     )
     print(cycle_table(study))
-    figures = write_cycle_figures(study, out.staging)
-    return study, figures, write_cycle_playbacks(study, out.staging)
-
-
-def _searched(run: Callable[..., tuple]) -> Callable[[argparse.Namespace], None]:
-    """The study and the cycle commands: ``run(args, out, robot, cycle, options)`` on the robot,
-    its task and the searches' options gives (result, figure paths, playback paths); its
-    report (``--json``, or report.json in the output folder), time series and index page are
-    written beside them, all committed together, and what was written is listed."""
-
-    def command(args: argparse.Namespace) -> None:
-        with OutputFolder(args.out) as out:  # committed only if everything below succeeds
-            report = (
-                out / "report.json" if args.json is None else out.beside(Path(args.json), "--json")
-            )
-            robot, cycle = _load_task(_robot(args), args.task)
-            _holdable(robot, cycle)
-            options = dict(
-                samples=args.samples,
-                checked=_checked(robot, args.check),
-                method=args.method,
-                circuit=args.circuit_limits,
-            )
-            result, figures, playbacks = run(args, out, robot, cycle, options)
-            write_report(result, report)
-            written = {
-                "figures": figures,
-                "time series (CSV)": write_series(result, out.staging),
-                "playbacks": playbacks,
-            }
-            write_index(out.staging, report)
-        print(f"report: {args.json or out.target / 'report.json'}")
-        for label, paths in written.items():
-            print(f"{label}: {', '.join(str(out.final(p)) for p in paths)}")
-
-    return command
-
-
-def _cycle_section(robot, cycle, chosen, cycles, options, folder, searches):
-    """The study's cycle section (`cycle_section`, its per-segment plan the study's
-    ``searches``) and its figures and playbacks, written into ``folder``: (cycle study or None,
-    why none, figure paths, playback paths)."""
-    found, skipped = cycle_section(
-        robot, cycle, chosen, cycles, **options, segments=searches.first()
-    )
-    if found is None:
-        return None, skipped, [], []
-    return found, None, write_cycle_figures(found, folder), write_cycle_playbacks(found, folder)
+    return study, write_cycle_figures(study, folder), write_cycle_playbacks(study, folder)
 
 
 def _play_motion(
@@ -331,56 +331,29 @@ def _play_motion(
         motion = search.motion()  # the best; says so when no start keeps the limits
         values = search.best.values  # type: ignore[union-attr]
         return motion, f"best of {search.simulations} starts, {named_values(robot, held, values)}"
-    given = args.start
-    option = "--start"
-    if args.x3init is not None:
-        if len(held) != 1:
-            raise InvalidInputError(
-                f"--x3init sets one held actuator; task {cycle.name!r} holds {list(held)}: "
-                f"give each with --start {','.join(f'{h}=V' for h in held)}"
-            )
-        given, option = {held[0]: args.x3init}, "--x3init"
-    if given is not None:
-        if set(given) != set(held):
-            raise InvalidInputError(
-                f"--start sets {', '.join(given)}; task {cycle.name!r} holds {list(held)}: "
-                f"give each, --start {','.join(f'{h}=V' for h in held)} (m, rad)"
-            )
-        for name, value in given.items():
-            stroke = robot.actuators[name]
-            unit = stroke.unit
-            if not stroke.lower <= value <= stroke.upper:
-                shown = f"{name}={value:g}" if option == "--start" else f"{value:g}"
-                raise InvalidInputError(
-                    f"{option} {shown} is outside the stroke of {name}: "
-                    f"{amount(value, unit) if np.isfinite(value) else value}, stroke "
-                    f"{span(stroke.lower, stroke.upper, unit)}"
-                )
-        values = [given[h] for h in held]
-        q = configuration_at(robot, segment.start, dict(zip(held, values)))
-        label = named_values(robot, held, values)
-    else:
+    if args.start is None and args.x3init is None:
         values, q = default_start(robot, segment, held)
         label = f"default start, {named_values(robot, held, values)}"
-    return simulate(robot, chosen.resolver, segment, q[None]), label
-
-
-def start_values(text: str) -> dict[str, float]:
-    """``NAME=V[,NAME=V]``: held actuators' start values (m, or rad for a rotary actuator)."""
-    found: dict[str, float] = {}
-    for item in text.split(","):
-        name, equals, value = item.partition("=")
-        try:
-            number = float(value)
-        except ValueError:
-            number = math.nan
-        if not equals or not name.strip() or not math.isfinite(number) or name in found:
-            raise argparse.ArgumentTypeError(
-                f"{text!r} must be NAME=V[,NAME=V] with distinct actuator names and finite "
-                "values (m, rad for a rotary actuator), e.g. x3=0.6"
+        return simulate(robot, chosen.resolver, segment, q[None]), label
+    option = "--start" if args.x3init is None else "--x3init"
+    given = args.start if args.x3init is None else {held[0]: args.x3init}
+    if set(given) != set(held):
+        raise InvalidInputError(
+            f"{option} sets {', '.join(given)}; task {cycle.name!r} holds {list(held)}: "
+            f"give each, --start {','.join(f'{h}=V' for h in held)} (m, rad)"
+        )
+    for name, value in given.items():
+        stroke = robot.actuators[name]
+        if not stroke.lower <= value <= stroke.upper:
+            shown = f"{name}={value:g}" if option == "--start" else f"{value:g}"
+            raise InvalidInputError(
+                f"{option} {shown} is outside the stroke of {name}: "
+                f"{amount(value, stroke.unit) if np.isfinite(value) else value}, stroke "
+                f"{span(stroke.lower, stroke.upper, stroke.unit)}"
             )
-        found[name.strip()] = number
-    return found
+    values = [given[h] for h in held]
+    q = configuration_at(robot, segment.start, dict(zip(held, values)))
+    return simulate(robot, chosen.resolver, segment, q[None]), named_values(robot, held, values)
 
 
 def _play_command(args: argparse.Namespace) -> None:
@@ -406,27 +379,21 @@ def _play_command(args: argparse.Namespace) -> None:
 
 
 def _map_command(args: argparse.Namespace) -> None:
-    import shutil
-
     family = read_family(args.family)
     target = Path(args.out or Path("maps") / Path(args.family).stem)
     with OutputFolder(target) as out:  # committed only if everything below succeeds
         store = target.parent / f".{target.name}.chunks"  # finished chunks, kept for a rerun
-        client = None if args.scheduler is None else connect(args.scheduler, args.timeout)
-        try:
+        with (
+            contextlib.nullcontext()
+            if args.scheduler is None
+            else connect(args.scheduler, args.timeout)
+        ) as client:
             table = design_map(family, client, args.workers, store, progress=args.progress)
-        finally:
-            if client is not None:
-                client.close()
         line = summary(table, family)
         print(line)
-        write_atomically(out / "map.parquet", table.to_parquet)
-        write_atomically(
-            out / "summary.json",
-            lambda path: path.write_text(
-                json.dumps({"summary": line, "problems": len(family), "rows": len(table)}) + "\n"
-            ),
-        )
+        table.to_parquet(out / "map.parquet")
+        outline = {"summary": line, "problems": len(family), "rows": len(table)}
+        (out / "summary.json").write_text(json.dumps(outline) + "\n")
         figures = [out.final(p) for p in write_map_figures(table, family, out.staging)]
         write_index(out.staging)
     shutil.rmtree(store, ignore_errors=True)
@@ -434,47 +401,26 @@ def _map_command(args: argparse.Namespace) -> None:
     print(f"figures: {', '.join(str(p) for p in figures)}")
 
 
-def _check_command(args: argparse.Namespace) -> int:
-    """The one-screen check of a robot (and its task); status 2 where something blocks a
-    study."""
-    robot = _robot(args)
-    cycle = None
-    if args.task is not None or robot.task_file is not None:
-        robot, cycle = _load_task(robot, args.task)
-    found = check(robot, cycle)
-    print(check_table(found))
-    return 2 if found.blocking() else 0
-
-
-def _robots_command(args: argparse.Namespace) -> None:
-    for name in bundled_robots():
-        robot = load_robot(name)
-        actuators = ", ".join(robot.actuators.names)
-        print(f"{name:<16} n = {robot.n}, m = {robot.m}, actuators: {actuators}")
-
-
 def parser() -> argparse.ArgumentParser:
-    robot = argparse.ArgumentParser(add_help=False)  # options shared by several commands
+    """The command line: each command's options, from the parents they share."""
+    whole = partial(bounded, int, what="a whole number")
+    robot = argparse.ArgumentParser(add_help=False)
     robot.add_argument("--robot", default="hiab031", help="bundled robot, or robot.toml or .urdf")
-    robot.add_argument("--payload", type=payload_mass, help="payload at the tool, kg (robot's)")
-    robot.add_argument(
-        "--hydraulics", metavar="FILE", help="TOML file with a [hydraulics] table (robot's own)"
-    )
+    mass = bounded(float, 0, MAX_PAYLOAD, "a mass", " kg")
+    robot.add_argument("--payload", type=mass, help="payload at the tool, kg (robot's)")
+    robot.add_argument("--hydraulics", metavar="FILE", help="TOML file with a [hydraulics] table")
     task = argparse.ArgumentParser(add_help=False)
     task.add_argument("--task", help="task file (TOML); default: the robot's own")
     sampled = argparse.ArgumentParser(add_help=False)
     sampled.add_argument(
         "--samples",
-        type=sample_count,
+        type=whole(1, MAX_SAMPLES),
         default=100,
         help="starts sampled per sweep of the held stroke (play reads it with --best only)",
     )
     search = argparse.ArgumentParser(add_help=False, parents=[sampled])
     search.add_argument(
-        "--method",
-        choices=METHODS,
-        help="the improved start's search: fast (default, one held actuator) or the paper's "
-        "uniform sweep",
+        "--method", choices=METHODS, help="the improved start's search (default: fast)"
     )
     search.add_argument(
         "--check", help="comma-separated actuators whose limits count (all; the paper: x1,x2)"
@@ -489,9 +435,7 @@ def parser() -> argparse.ArgumentParser:
     written = argparse.ArgumentParser(add_help=False, parents=[quiet])
     written.add_argument("--json", help="report path (default: OUT/report.json)")
     minimised = argparse.ArgumentParser(add_help=False)
-    minimised.add_argument(
-        "--objective", choices=list(OBJECTIVES), default="velocity", help="what to minimise"
-    )
+    minimised.add_argument("--objective", choices=list(OBJECTIVES), default="velocity")
     main = OneLineParser(
         prog="redundancy",
         description="Redundancy resolution of hydraulic manipulators in actuator coordinates.",
@@ -499,7 +443,7 @@ def parser() -> argparse.ArgumentParser:
     main.add_argument("--version", action="version", version=f"%(prog)s {version('redundancy')}")
     commands = main.add_subparsers(dest="command", required=True)
 
-    def command(name, run, help, example, parents=()) -> argparse.ArgumentParser:
+    def command(name, run, help, example, parents=(), **defaults) -> argparse.ArgumentParser:
         found = commands.add_parser(
             name,
             help=help,
@@ -508,7 +452,7 @@ def parser() -> argparse.ArgumentParser:
             formatter_class=Help,
             epilog=f"example:\n  redundancy {name} {example}".rstrip(),
         )
-        found.set_defaults(run=run)
+        found.set_defaults(run=run, **defaults)
         return found
 
     command("robots", _robots_command, "list the bundled robots", "")
@@ -522,10 +466,11 @@ def parser() -> argparse.ArgumentParser:
     )
     study = command(
         "study",
-        _searched(_study_command),
+        _planned_command,
         "the paper's study: improved initial configurations and strategies compared",
         "--objective velocity --check x1,x2 --out results",
         [robot, task, search, written],
+        plan=_study,
     )
     study.add_argument(
         "--objective",
@@ -540,7 +485,7 @@ def parser() -> argparse.ArgumentParser:
     )
     study.add_argument(
         "--cycles",
-        type=cycle_count,
+        type=whole(0, 10_000),
         default=STUDY_CYCLES,
         help="the cycle section repeats the task this many times (0: no cycle section)",
     )
@@ -555,10 +500,7 @@ def parser() -> argparse.ArgumentParser:
     play.add_argument("--segment", help="segment to play (default: the task's first)")
     start = play.add_mutually_exclusive_group()
     start.add_argument(
-        "--x3init",
-        type=float,
-        metavar="V",
-        help="start with the held actuator (the crane's x3) at V, m (default: mid-stroke)",
+        "--x3init", type=float, metavar="V", help="start with the one held actuator at V, m"
     )
     start.add_argument(
         "--start",
@@ -566,19 +508,14 @@ def parser() -> argparse.ArgumentParser:
         metavar="NAME=V[,NAME=V]",
         help="start with each held actuator at its value, m (rad for a rotary one)",
     )
-    start.add_argument(
-        "--best", action="store_true", help="start from the improved initial configuration"
-    )
-    play.add_argument(
-        "--html", metavar="FILE", help="write a self-contained page instead of serving one"
-    )
+    start.add_argument("--best", action="store_true", help="start from the improved start")
+    play.add_argument("--html", metavar="FILE", help="write a page instead of serving one")
     play.add_argument(
         "--listen",
         metavar="ADDRESS",
         type=listen_address,
         default=LOCALHOST,
-        help="serve the page on ADDRESS (this machine only; 0.0.0.0 opens it to every network "
-        "this machine is on)",
+        help="serve the page on ADDRESS (0.0.0.0: on every network this machine is on)",
     )
     design = command(
         "map",
@@ -589,32 +526,24 @@ def parser() -> argparse.ArgumentParser:
     )
     design.add_argument("family", help="map file (TOML; schema in the README)")
     where = design.add_mutually_exclusive_group()
-    where.add_argument(
-        "--workers", type=worker_count, help="local worker processes (default: the core count)"
-    )
-    where.add_argument(
-        "--scheduler", metavar="ADDRESS", help="run on a Dask cluster, e.g. tcp://HOST:8786"
-    )
+    where.add_argument("--workers", type=whole(1, 4096), help="local worker processes (cores)")
+    where.add_argument("--scheduler", metavar="ADDRESS", help="a Dask cluster: tcp://HOST:8786")
     design.add_argument(
         "--timeout",
-        type=seconds,
+        type=bounded(float, 1e-3, 3600, "seconds"),
         default=CONNECT_TIMEOUT,
         help="seconds the scheduler has to answer",
     )
     design.add_argument("--out", help="output folder (default: maps/<map file name>)")
     cycle = command(
         "cycle",
-        _searched(_cycle_command),
+        _planned_command,
         "the work cycle as a machine runs it: whole-cycle plan, repetition, drift",
         "--strategy periodic --cycles 50",
         [robot, task, search, written, minimised],
+        plan=_cycle,
     )
-    cycle.add_argument(
-        "--cycles",
-        type=repetition_count,
-        default=CYCLES,
-        help="cycles run one after another",
-    )
+    cycle.add_argument("--cycles", type=whole(1, 10_000), default=CYCLES, help="cycles in a row")
     cycle.add_argument(
         "--strategy",
         choices=CHOICES,
@@ -624,10 +553,10 @@ def parser() -> argparse.ArgumentParser:
     )
     cycle.add_argument(
         "--gap-speed",
-        type=speed_value,
+        type=bounded(float, 1e-3, 10, "a speed", " (m/s or rad/s)"),
         metavar="V",
-        help="the held actuator's speed in the corners' self-motions, m/s or rad/s (default: "
-        "its cylinder's maximum, else 0.1)",
+        help="the held actuator's speed in the corners' self-motions (default: its cylinder's "
+        "maximum, else 0.1)",
     )
     cycle.add_argument("--out", default="cycle_results", help="output folder")
     return main
@@ -646,23 +575,21 @@ class _Output:
         self.stream = stream
 
     def write(self, text: str) -> int:
-        try:
-            return self.stream.write(text)
-        except BrokenPipeError:
-            self._discard()
-            return len(text)
+        self._unless_gone(self.stream.write, text)
+        return len(text)
 
     def flush(self) -> None:
-        try:
-            self.stream.flush()
-        except BrokenPipeError:
-            self._discard()
+        self._unless_gone(self.stream.flush)
 
-    def _discard(self) -> None:
-        """What is written from now on, and what is still buffered, goes to /dev/null."""
-        null = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(null, self.stream.fileno())
-        os.close(null)
+    def _unless_gone(self, call, *args) -> None:
+        """``call(*args)``; where the reader has gone, what is written from now on, and what is
+        still buffered, goes to /dev/null."""
+        try:
+            call(*args)
+        except BrokenPipeError:
+            null = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(null, self.stream.fileno())
+            os.close(null)
 
     def __getattr__(self, name: str):
         return getattr(self.stream, name)
@@ -694,28 +621,23 @@ def main(argv: list[str] | None = None) -> int:
             if received:  # raised where Python could only ignore it (a weakref callback)
                 raise KeyboardInterrupt
     except BaseException as error:
-        return _ending(error)
+        # a signal decides, even where a library turned its exception into another (an import
+        # cut short ends in ImportError)
+        if received or isinstance(error, KeyboardInterrupt | Terminated):
+            default = signal.SIGTERM if isinstance(error, Terminated) else signal.SIGINT
+            word, status = ending(received[-1] if received else default)
+            print(f"redundancy: {word}", file=sys.stderr)
+        elif isinstance(error, RedundancyError):
+            print(f"redundancy: error: {error}", file=sys.stderr)
+            status = 2
+        elif isinstance(error, SystemExit):
+            raise
+        else:
+            print(f"redundancy: internal error: {type(error).__name__}: {error}", file=sys.stderr)
+            status = 1
     finally:
         sys.stdout = stdout
     return status or 0
-
-
-def _ending(error: BaseException) -> int:
-    """The one line and the exit status for an exception that reached the command line. A
-    signal decides, even where a library turned its exception into another (an import cut
-    short ends in ImportError)."""
-    if received or isinstance(error, KeyboardInterrupt | Terminated):
-        number = signal.SIGTERM if isinstance(error, Terminated) else signal.SIGINT
-        word, status = ending(received[-1] if received else number)
-        print(f"redundancy: {word}", file=sys.stderr)
-        return status
-    if isinstance(error, RedundancyError):
-        print(f"redundancy: error: {error}", file=sys.stderr)
-        return 2
-    if isinstance(error, SystemExit):
-        raise error
-    print(f"redundancy: internal error: {type(error).__name__}: {error}", file=sys.stderr)
-    return 1
 
 
 if __name__ == "__main__":

@@ -1,20 +1,17 @@
-"""A computation run in a second, forked process while this one goes on: the study command's
-cycle section, about 45 % of the command's processor time, computed on a second core.
+"""A computation run in a second, forked process while this one goes on (the study command's
+cycle section, on a second core).
 
 `Background(function, *args)` forks a process that calls ``function(*args)`` and sends back its
 result, or the exception it raised, through a pipe; `result()` waits for it and returns it, or
 raises that exception here. Leaving the ``with`` block stops the process if its result was never
 collected (an error or Ctrl-C in this process), so no computation outlives the command. The child
 ignores Ctrl-C, which the terminal sends to both (this process decides); stopped, it ends at once;
-it dies with this process however that ends, SIGKILL included (`die_with_parent`). The study's
-child writes only into the output's staging folder, kept only if the whole command succeeds.
+it dies with this process however that ends, SIGKILL included (`die_with_parent`).
 
 Where a fork would not be safe, the function runs in this process, at once: where the POSIX
 ``fork`` start method is missing, and where this process runs other threads (a notebook's
-kernel, a Dask worker), since a forked child inherits the locks those threads hold but not the
-threads that would release them. The progress bars' lock is shared across processes on purpose
-(tqdm's): the child sets its own (`tqdm.set_lock`), so that neither process waits for ever on a
-lock the other holds.
+kernel, a Dask worker), whose locks a forked child would inherit without the threads that
+release them. The progress bars' lock, which tqdm shares across processes, is the child's own.
 """
 
 from __future__ import annotations

@@ -27,7 +27,7 @@ from redundancy.planning.ik import inverse_kinematics
 from redundancy.planning.starts import held_actuators, stroke_box
 from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.limits import Limits, amount
-from redundancy.resolution.state import actuator_space, evaluate
+from redundancy.resolution.state import evaluate
 
 SWEEP = 1441  # joint values per sweep: a quarter degree over a full turn
 REACH_SAMPLES = 20_000  # configurations sampled for the reachable area (the workspace figure)
@@ -114,30 +114,6 @@ class Check:
                 if not ok
             ]
         return found
-
-
-@dataclass(frozen=True)
-class MidRange:
-    """The robot at mid-range, every joint halfway between its limits: q (n,), the actuators'
-    x (n,), the tool's y (m,) and, where the robot has masses, M_H (n, n) in kg and the forces
-    F_H = N_H holding still (n,) in N (None where kinematic only)."""
-
-    q: np.ndarray
-    x: np.ndarray
-    y: np.ndarray
-    M_H: np.ndarray | None
-    holding: np.ndarray | None
-
-
-def mid_range(robot: Robot) -> MidRange:
-    """The robot's state at mid-range (`MidRange`), by one pass."""
-    lower, upper = robot.span
-    q = (lower + upper) / 2
-    space = actuator_space(robot, q)
-    if robot.kinematic_only:
-        return MidRange(q, space.x[0], space.y[0], None, None)
-    holding = space.forces(np.zeros_like(space.x))[0]
-    return MidRange(q, space.x[0], space.y[0], space.M_H[0], holding)
 
 
 def held_problems(robot: Robot, cycle: WorkCycle, sampled: bool = True) -> list[str]:

@@ -297,17 +297,13 @@ class OutputFolder:
         return self
 
     def __exit__(self, kind, value, traceback) -> None:
-        if kind is not None:
-            self.discard()
-            return
         try:
-            self.commit()
+            if kind is None:
+                self.commit()
         except OSError as error:
-            self.discard()
             raise _unwritable(self.target, error, self.option) from None
-        except BaseException:
-            self.discard()
-            raise
+        finally:
+            self.discard()  # nothing once committed
 
 
 def _sync(path: Path) -> None:
