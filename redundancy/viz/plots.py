@@ -189,16 +189,8 @@ def hydraulics_figure(trajectory: Trajectory, title: str):
         middle.plot(t, load, color=colour, label=f"p_L of {name}")
         overrun = flows.overrunning[0, :, column]
         if overrun.any():
-            middle.fill_between(
-                t,
-                0,
-                load,
-                where=overrun,
-                color=colour,
-                alpha=0.2,
-                lw=0,
-                label=f"{name} overrunning",
-            )
+            shaded = {"color": colour, "alpha": 0.2, "lw": 0, "label": f"{name} overrunning"}
+            middle.fill_between(t, 0, load, where=overrun, **shaded)
     middle.plot(
         t, flows.pump_pressure(circuit.load_sensing)[0] / BAR, "k", lw=1, label="LS pump pressure"
     )
@@ -219,11 +211,12 @@ def _labelled(
 ):
     """Label a figure of one or more plots over one horizontal axis (by default time t, s), from the
     top down by ``labels``: title, grids and a legend in each, placed by ``legend`` (matplotlib's
-    `legend` options; default: where it hides least, small)."""
+    `legend` options; default: where it hides least, small; {}: no legend)."""
     for axes, label in zip(figure.axes, labels):
         axes.set_ylabel(label)
         axes.grid(alpha=0.3)
-        axes.legend(**(legend or {"loc": "best", "fontsize": 8}))
+        if legend != {}:
+            axes.legend(**(legend or {"loc": "best", "fontsize": 8}))
     figure.axes[-1].set_xlabel(along)
     figure.axes[0].set_title(title)
     figure.tight_layout()
@@ -342,39 +335,21 @@ def cycle_figure(study: CycleStudy, title: str):
     offsets = study.cycle.chain().offsets
     styles = {"free": "-", "periodic": "--"}
     colours: dict[str, str] = {}
+    # the curves carry no labels: one key, by colour and by line style, names them all
     for name, whole in study.firsts.items():
-        t = whole.t[0]
+        t, style = whole.t[0], styles.get(name, "-")
         for row, actuator in enumerate(actuators):
-            held = actuator.name in study.held
-            line = top.plot(
-                t,
-                whole.x[0, :, row],
-                styles.get(name, "-"),
-                lw=2.0 if held else 1.0,
-                color=colours.get(actuator.name),
-                label=f"{actuator.name}, {name}",
-            )[0]
+            width = 2.0 if actuator.name in study.held else 1.0
+            colour = colours.get(actuator.name)
+            line = top.plot(t, whole.x[0, :, row], style, lw=width, color=colour)[0]
             colours.setdefault(actuator.name, line.get_color())
-            bottom.plot(
-                t,
-                whole.x_dot[0, :, row],
-                styles.get(name, "-"),
-                lw=1.0,
-                color=line.get_color(),
-                label=f"ẋ of {actuator.name}, {name}",
-            )
+            bottom.plot(t, whole.x_dot[0, :, row], style, lw=1.0, color=line.get_color())
     for offset, motion in zip(offsets, study.plan.segment_motions):
         if motion is None:
             continue
         for row, actuator in enumerate(actuators):
-            top.plot(
-                motion.t[0] + offset,
-                motion.x[0, :, row],
-                ":",
-                lw=1.2,
-                color=colours.get(actuator.name),
-                label=f"{actuator.name}, per segment" if offset == offsets[0] else None,
-            )
+            colour = colours.get(actuator.name)
+            top.plot(motion.t[0] + offset, motion.x[0, :, row], ":", lw=1.2, color=colour)
     for actuator in actuators:
         for bound in (actuator.lower, actuator.upper):
             if np.isfinite(bound):
@@ -382,19 +357,11 @@ def cycle_figure(study: CycleStudy, title: str):
     for axes in (top, bottom):
         for corner in offsets[1:-1]:
             axes.axvline(corner, color="k", lw=0.6, alpha=0.4)
+    above = {"ha": "center", "va": "bottom", "transform": top.get_xaxis_transform(), "fontsize": 9}
     for start, end, segment in zip(offsets[:-1], offsets[1:], study.cycle.segments):
-        top.text(
-            (start + end) / 2,
-            1.01,
-            segment.name,
-            ha="center",
-            va="bottom",
-            transform=top.get_xaxis_transform(),
-            fontsize=9,
-        )
+        top.text((start + end) / 2, 1.01, segment.name, **above)
     labels = (f"stroke x ({unit(actuators)})", f"velocity ẋ ({unit(actuators, rate='/s')})")
-    _labelled(figure, title, labels)
-    # one entry per actuator (its colour) and per line style, beside the curves
+    _labelled(figure, title, labels, legend={})
     from matplotlib.lines import Line2D
 
     key = [Line2D([], [], color=colours.get(a.name), label=a.name) for a in actuators]
@@ -403,8 +370,6 @@ def cycle_figure(study: CycleStudy, title: str):
         for style, label in (("-", "free"), ("--", "drift-free"), (":", "per-segment plan"))
     ]
     key.append(Line2D([], [], ls="--", lw=0.6, color="0.5", label="stroke limits"))
-    for axes in (top, bottom):
-        axes.get_legend().remove()
     top.legend(handles=key, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     top.set_title(title, pad=16)
     figure.tight_layout()
@@ -425,23 +390,12 @@ def drift_figure(study: CycleStudy, title: str):
     for name, repetition in study.repetitions.items():
         cycles = np.arange(1, repetition.cycles + 1)
         drift = np.maximum(np.abs(repetition.drift), 1e-17)
+        marker = markers.get(name, "o-")
         for j, actuator in enumerate(names):
-            top.semilogy(
-                cycles,
-                drift[:, j],
-                markers.get(name, "o-"),
-                ms=3,
-                lw=1,
-                label=f"{actuator}, {name}",
-            )
+            top.semilogy(cycles, drift[:, j], marker, ms=3, lw=1, label=f"{actuator}, {name}")
         start = repetition.held_values[:, 0]
-        bottom.plot(
-            np.arange(repetition.cycles + 1),
-            start - start[0],
-            markers.get(name, "o-"),
-            ms=3,
-            label=f"{name}, from {start[0]:.4f} {actuators[held].unit}",
-        )
+        shown = f"{name}, from {start[0]:.4f} {actuators[held].unit}"
+        bottom.plot(np.arange(repetition.cycles + 1), start - start[0], marker, ms=3, label=shown)
     top.axhline(SETTLED, ls=":", color="k", lw=0.8, label=f"closed: {SETTLED:g}")
     # the change, not the value: its scale is the drift's, however far the stroke's ends are
     bottom.ticklabel_format(axis="y", useOffset=False)
@@ -464,17 +418,11 @@ def return_map_figure(mapped: ReturnMap, title: str, held_unit: str = "m"):
     outside = ~mapped.within & np.isfinite(p)
     for axes, values, label in ((top, p, "P(v): one cycle later"), (bottom, p - v, "P(v) − v")):
         axes.plot(v, values, "-", color="C0", lw=1, label=label)
-        axes.plot(
-            v[mapped.within],
-            values[mapped.within],
-            "o",
-            ms=4,
-            color="C0",
-            label="keeps the strokes",
-        )
-        axes.plot(
-            v[outside], values[outside], "o", ms=4, mfc="none", color="C0", label="passes a stroke"
-        )
+        for kept, fill, words in (
+            (mapped.within, "C0", "keeps the strokes"),
+            (outside, "none", "passes a stroke"),
+        ):
+            axes.plot(v[kept], values[kept], "o", ms=4, mfc=fill, color="C0", label=words)
         for value, slope, _ in mapped.fixed_points:
             stable = abs(slope) < 1
             axes.plot(
