@@ -142,7 +142,7 @@ def _number(value, digits: int = 4) -> str:
 
 def _percent(value) -> str:
     """A percentage to 0.01, a solver's −3e-10 shown as 0.00; a missing one as a dash."""
-    return "–" if value is None else f"{round(value, 2) + 0.0:.2f}"
+    return "–" if value is None else f"{value:z.2f}"
 
 
 def _range(pair) -> str:
