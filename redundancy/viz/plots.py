@@ -167,11 +167,9 @@ def motion_figure(trajectory: Trajectory, title: str):
 
 
 def hydraulics_figure(trajectory: Trajectory, title: str):
-    """The circuit along one motion, read from its `flows`: the pump flow Q_P and each
-    cylinder's flow Q (L/min), the pump's maximum dashed; each cylinder's load pressure p_L and
-    the load-sensing pump pressure (bar), the highest load pressure the supply serves dashed,
-    overrunning stretches shaded under their cylinder's curve; the pump power p_P Q_P (kW)
-    under load sensing (LS) and constant pressure (CP)."""
+    """The circuit along one motion, read from its `flows`: flows Q_P, Q (L/min), pressures
+    p_L and the pump's (bar), pump power p_P Q_P (kW); its caption (`report.CAPTIONS`) says
+    the encodings."""
     plt = pyplot()
     circuit, flows = trajectory.robot.circuit(), trajectory.flows
     figure, (top, middle, bottom) = plt.subplots(3, 1, figsize=(7, 8), sharex=True)
@@ -281,13 +279,9 @@ def study_figures(study: Study, segment: str | None = None) -> dict:
 
 
 def workspace_figure(study: Study, title: str):
-    """The task in its plane (the first two task axes, m; a task has two or more): each
-    segment's path in its own colour, named at its middle; at each segment's improved start for
-    the study's first objective, the machine as its best motion's first state holds it: each
-    cylinder from its base to its rod point (thick, pale), the links as rods between the joints'
-    origins (`Study.best_poses`, dark) and the tool point (●); behind them,
-    grey, the reachable area the study sampled (`Study.reachable`: task points of random
-    configurations that keep every checked stroke)."""
+    """The task in its plane (the first two task axes, m), the machine at each segment's
+    improved start for the first objective (its best motion's first state, `Study.best_poses`)
+    and the reachable area the study sampled (`Study.reachable`), as its caption says."""
     plt = pyplot()
     robot = study.robot
     rows = [AXES.index(a) for a in robot.task_axes][:2]
@@ -325,10 +319,8 @@ def workspace_figure(study: Study, title: str):
 
 
 def cycle_figure(study: CycleStudy, title: str):
-    """The held actuator and every stroke over one cycle: each strategy's first cycle (solid),
-    the per-segment plan's best motions (dotted, jumping at the corners by the self-motions it
-    leaves out), stroke limits dashed, corners as vertical lines; below, the actuator velocities
-    of the strategies."""
+    """Every stroke over one cycle, each strategy's first cycle and the per-segment plan's
+    best motions; below, the strategies' velocities (its caption says the encodings)."""
     plt = pyplot()
     figure, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True)
     actuators = study.robot.actuators
@@ -377,9 +369,8 @@ def cycle_figure(study: CycleStudy, title: str):
 
 
 def drift_figure(study: CycleStudy, title: str):
-    """Drift against cycle number: each actuator's |drift| per cycle for each strategy (log
-    scale, the closing threshold dotted); below, how far the held actuator at each cycle's
-    start has moved from its first value."""
+    """Each actuator's |drift| per cycle against cycle number, per strategy (log scale);
+    below, the held actuator's start of each cycle less its first."""
     from redundancy.planning.cycles import SETTLED
 
     plt = pyplot()
