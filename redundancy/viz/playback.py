@@ -1,25 +1,19 @@
 """Playback of a motion in meshcat: live in a browser, or as one self-contained HTML page.
 
-What is drawn: every link of the URDF, locked links included (Pinocchio's meshcat visualizer,
-from the URDF's visual geometry; a link without any, or whose meshes no file answers, as the
-convex hull of its origin, the joints it carries and the actuators' points on it, `hull`);
-every `LinearCylinder` and `LinkageCylinder` as a barrel from its base point and a rod ending at
-its rod point, red while its length is at or past a stroke limit; each linkage's
-rocker and coupler as bars between their pins; the desired path, the path the tool traced (in
-front of it), the task points, and a grid behind the machine whose spacing the page states. The
-camera looks at the task plane (for the crane, world x–z, from −y) and frames every link's
-visual geometry over the whole motion.
+Drawn: every link of the URDF, locked links included (Pinocchio's meshcat visualizer; a link
+without visual geometry, or whose meshes no file answers, as the convex hull of its origin, its
+joints and the actuators' points on it); every `LinearCylinder` and `LinkageCylinder` as a
+barrel and a rod, red at or past a stroke limit; each linkage's rocker and coupler; the desired
+and the traced paths, the task points, and a grid behind the machine. The camera looks at the
+task plane (the crane's world x–z, from −y) and frames the whole motion.
 
-The motion is one recorded `meshcat.animation.Animation` that loops in the browser. `export_html`
-needs no server: a stand-in for meshcat's viewer window records the drawing commands and writes
-them into a page that embeds meshcat's viewer script and loads nothing from the network. `play`
-serves the same page from a meshcat server on localhost until interrupted, the scene sent by the
-server; the server stops with it. Over the scene the page shows its title (robot, segment,
-strategy), the time, play and pause, a time slider, the grid's spacing, and each actuator's
-value and speed with its unit and a gauge of its stroke that turns red at a limit: a stroke's
-end, and, where the robot has a hydraulic circuit, a cylinder's speed or load pressure past what
-the circuit allows. Opening the page with ``?t=SECONDS`` shows that instant of the motion,
-paused.
+The motion is one `meshcat.animation.Animation` looping in the browser. `export_html` records
+meshcat's commands into a page that embeds its viewer script and needs no network; `play`
+serves the same page from a meshcat server on localhost until interrupted. Over the scene the
+page shows the title, the time, play and pause, a time slider, the grid's spacing and each
+actuator's value and speed with a gauge of its stroke, red at a limit (a stroke's end, or a
+cylinder's speed or load pressure past what the circuit allows). ``?t=SECONDS`` opens the page
+at that instant, paused.
 """
 
 from __future__ import annotations
@@ -37,9 +31,9 @@ import sys
 import tempfile
 import threading
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from itertools import product
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -130,25 +124,14 @@ def task_points(cycle: WorkCycle) -> np.ndarray:
     return np.unique(np.array(ends), axis=0)
 
 
-@dataclass(frozen=True)
-class Cylinder:
+class Cylinder(NamedTuple):
     """How one `LinearCylinder` or `LinkageCylinder` is drawn: a barrel of length ``part`` (m)
-    from the base point and a rod of the same length ending at the rod point. The drawing spans
-    the base point to the rod point, so its length is the actuator value x_i (Eq. 9); ``part``
-    is the closed length, so the rod stays inside the barrel over any stroke shorter than that,
-    as a real cylinder's is."""
+    from the base point and a rod as long ending at the rod point, spanning the actuator value
+    x_i (Eq. 9); ``part`` is the closed length, so the rod stays inside the barrel."""
 
+    name: str
     actuator: LinearCylinder | LinkageCylinder
     part: float
-
-    @property
-    def name(self) -> str:
-        return self.actuator.name
-
-    def poses(self, base: np.ndarray, rod: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Barrel and rod transforms (k, 4, 4) for attachment points ``base``, ``rod`` (k, 3)."""
-        u = (rod - base) / np.linalg.norm(rod - base, axis=1, keepdims=True)
-        return _between(base, base + self.part * u), _between(rod - self.part * u, rod)
 
 
 def at_stroke_limit(x: np.ndarray, lower, upper) -> np.ndarray:
@@ -220,7 +203,7 @@ def hull(points: np.ndarray, thickness: float) -> tuple[np.ndarray, np.ndarray]:
     (F, 3) of vertex indices."""
     from scipy.spatial import ConvexHull
 
-    corners = np.array([[i >> k & 1 for k in range(3)] for i in range(8)]) - 0.5
+    corners = np.array(list(product((-0.5, 0.5), repeat=3)))
     grown = (points[:, None, :] + thickness * corners).reshape(-1, 3)
     found = ConvexHull(grown)
     used = np.unique(found.simplices)
@@ -271,7 +254,7 @@ class Playback:
                 base, rod = actuator.ends(kinematics)
                 shortest = float(np.linalg.norm(rod - base, axis=1).min())
                 closed = actuator.lower if 0 < actuator.lower < np.inf else shortest
-                self.cylinders.append(Cylinder(actuator, min(closed, shortest)))
+                self.cylinders.append(Cylinder(actuator.name, actuator, min(closed, shortest)))
         # Each linkage's rocker and coupler: (actuator, bar name, length in m).
         self.bars = [
             (actuator, bar, float(np.linalg.norm(b[0] - a[0])))
@@ -298,10 +281,8 @@ class Playback:
         boxes = []
         for item in items:
             item.geometry.computeLocalAABB()
-            low, high = item.geometry.aabb_local.min_, item.geometry.aabb_local.max_
-            boxes.append(
-                np.array([[(low, high)[b >> k & 1][k] for k in range(3)] for b in range(8)])
-            )
+            box = item.geometry.aabb_local
+            boxes.append(np.array(list(product(*zip(box.min_, box.max_)))))
         poses: dict[str, list[np.ndarray]] = {}
         found = []
         for row in q:
@@ -448,9 +429,11 @@ class Playback:
         limited = np.empty((len(kinematics.q), len(self.cylinders)), dtype=bool)
         for column, cylinder in enumerate(self.cylinders):
             base, rod = cylinder.actuator.ends(kinematics)
-            for part, pose in zip(PARTS, cylinder.poses(base, rod)):
-                placed[f"cylinders/{cylinder.name}/{part}"] = pose
             length = np.linalg.norm(rod - base, axis=1)
+            u = (rod - base) / length[:, None]
+            barrel = _between(base, base + cylinder.part * u)
+            placed[f"cylinders/{cylinder.name}/barrel"] = barrel
+            placed[f"cylinders/{cylinder.name}/rod"] = _between(rod - cylinder.part * u, rod)
             stroke = cylinder.actuator
             limited[:, column] = at_stroke_limit(length, stroke.lower, stroke.upper)
         return placed, limited
@@ -595,17 +578,10 @@ def _titles(motion: Trajectory, strategy: str | None) -> tuple[str, str]:
     return title, f"{title}, {strategy or motion.resolver.name}"
 
 
-def page(motion: Trajectory, points: np.ndarray | None = None, strategy: str | None = None) -> str:
-    """A self-contained HTML page that plays ``motion`` in a loop, with no server and no
-    network; ``points`` as in `Playback`; ``strategy`` names how the motion was made, for the
-    title (default: its resolver's name)."""
-    title, heading = _titles(motion, strategy)
-    playback = Playback(motion, points)
-    recording = Recording(title, playback.overlay(heading))
-    vis = _meshcat().Visualizer(window=recording)
+def _shown(playback: Playback, vis) -> None:
+    """Draw ``playback`` into ``vis``, its animation looping."""
     playback.draw(vis)
     vis.set_animation(playback.animation(vis), play=True, repetitions=math.inf)
-    return vis.static_html()
 
 
 def export_html(
@@ -614,9 +590,15 @@ def export_html(
     points: np.ndarray | None = None,
     strategy: str | None = None,
 ) -> Path:
-    """Write `page` for ``motion`` to ``path`` (atomically); return the path."""
+    """Write a self-contained HTML page that plays ``motion`` in a loop, with no server and no
+    network, to ``path`` (atomically); return the path. ``points`` as in `Playback`;
+    ``strategy`` names how the motion was made, for the title (default: its resolver's name)."""
+    title, heading = _titles(motion, strategy)
+    playback = Playback(motion, points)
+    vis = _meshcat().Visualizer(window=Recording(title, playback.overlay(heading)))
+    _shown(playback, vis)
+    text = vis.static_html()
     path = Path(path)
-    text = page(motion, points, strategy)
     write_atomically(path, lambda p: p.write_text(text, encoding="utf-8"))
     return path
 
@@ -699,17 +681,15 @@ def play(
     address: str = LOCALHOST,
 ) -> None:
     """Serve the playback of ``motion`` on ``address`` (this machine only by default) until
-    interrupted (KeyboardInterrupt, which propagates): the page `page` writes, its scene and
-    animation sent by the server instead of held in the page, so that it loops in the browser
-    under the same title, gauges and controls. ``announce`` is given the page's address once it
-    is served. The server stops when this returns or raises."""
+    interrupted (KeyboardInterrupt, which propagates): `export_html`'s page, its scene sent by
+    the server. ``announce`` is given the page's address once it is served. The server stops
+    when this returns or raises."""
     title, heading = _titles(motion, None)
     playback = Playback(motion, points)
     viewer = '<script src="main.min.js"></script>'  # meshcat's, beside the page
     live = _html(title, playback.overlay(heading), viewer, "viewer.connect();")
     with served(live, address) as vis:
-        playback.draw(vis)
-        vis.set_animation(playback.animation(vis), play=True, repetitions=math.inf)
+        _shown(playback, vis)
         url = vis.url()
         announce(url if address == LOCALHOST else url.replace(LOCALHOST, address, 1))
         threading.Event().wait()

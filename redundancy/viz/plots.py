@@ -167,11 +167,9 @@ def motion_figure(trajectory: Trajectory, title: str):
 
 
 def hydraulics_figure(trajectory: Trajectory, title: str):
-    """The circuit along one motion, read from its `flows`: the pump flow Q_P and each
-    cylinder's flow Q (L/min), the pump's maximum dashed; each cylinder's load pressure p_L and
-    the load-sensing pump pressure (bar), the highest load pressure the supply serves dashed,
-    overrunning stretches shaded under their cylinder's curve; the pump power p_P Q_P (kW)
-    under load sensing (LS) and constant pressure (CP)."""
+    """The circuit along one motion, read from its `flows`: flows Q_P, Q (L/min), pressures
+    p_L and the pump's (bar), pump power p_P Q_P (kW); its caption (`report.CAPTIONS`) says
+    the encodings."""
     plt = pyplot()
     circuit, flows = trajectory.robot.circuit(), trajectory.flows
     figure, (top, middle, bottom) = plt.subplots(3, 1, figsize=(7, 8), sharex=True)
@@ -189,16 +187,8 @@ def hydraulics_figure(trajectory: Trajectory, title: str):
         middle.plot(t, load, color=colour, label=f"p_L of {name}")
         overrun = flows.overrunning[0, :, column]
         if overrun.any():
-            middle.fill_between(
-                t,
-                0,
-                load,
-                where=overrun,
-                color=colour,
-                alpha=0.2,
-                lw=0,
-                label=f"{name} overrunning",
-            )
+            shaded = {"color": colour, "alpha": 0.2, "lw": 0, "label": f"{name} overrunning"}
+            middle.fill_between(t, 0, load, where=overrun, **shaded)
     middle.plot(
         t, flows.pump_pressure(circuit.load_sensing)[0] / BAR, "k", lw=1, label="LS pump pressure"
     )
@@ -219,11 +209,12 @@ def _labelled(
 ):
     """Label a figure of one or more plots over one horizontal axis (by default time t, s), from the
     top down by ``labels``: title, grids and a legend in each, placed by ``legend`` (matplotlib's
-    `legend` options; default: where it hides least, small)."""
+    `legend` options; default: where it hides least, small; {}: no legend)."""
     for axes, label in zip(figure.axes, labels):
         axes.set_ylabel(label)
         axes.grid(alpha=0.3)
-        axes.legend(**(legend or {"loc": "best", "fontsize": 8}))
+        if legend != {}:
+            axes.legend(**(legend or {"loc": "best", "fontsize": 8}))
     figure.axes[-1].set_xlabel(along)
     figure.axes[0].set_title(title)
     figure.tight_layout()
@@ -288,13 +279,9 @@ def study_figures(study: Study, segment: str | None = None) -> dict:
 
 
 def workspace_figure(study: Study, title: str):
-    """The task in its plane (the first two task axes, m; a task has two or more): each
-    segment's path in its own colour, named at its middle; at each segment's improved start for
-    the study's first objective, the machine as its best motion's first state holds it: each
-    cylinder from its base to its rod point (thick, pale), the links as rods between the joints'
-    origins (`Study.best_poses`, dark) and the tool point (●); behind them,
-    grey, the reachable area the study sampled (`Study.reachable`: task points of random
-    configurations that keep every checked stroke)."""
+    """The task in its plane (the first two task axes, m), the machine at each segment's
+    improved start for the first objective (its best motion's first state, `Study.best_poses`)
+    and the reachable area the study sampled (`Study.reachable`), as its caption says."""
     plt = pyplot()
     robot = study.robot
     rows = [AXES.index(a) for a in robot.task_axes][:2]
@@ -332,49 +319,29 @@ def workspace_figure(study: Study, title: str):
 
 
 def cycle_figure(study: CycleStudy, title: str):
-    """The held actuator and every stroke over one cycle: each strategy's first cycle (solid),
-    the per-segment plan's best motions (dotted, jumping at the corners by the self-motions it
-    leaves out), stroke limits dashed, corners as vertical lines; below, the actuator velocities
-    of the strategies."""
+    """Every stroke over one cycle, each strategy's first cycle and the per-segment plan's
+    best motions; below, the strategies' velocities (its caption says the encodings)."""
     plt = pyplot()
     figure, (top, bottom) = plt.subplots(2, 1, figsize=(8, 6.5), sharex=True)
     actuators = study.robot.actuators
     offsets = study.cycle.chain().offsets
     styles = {"free": "-", "periodic": "--"}
     colours: dict[str, str] = {}
+    # the curves carry no labels: one key, by colour and by line style, names them all
     for name, whole in study.firsts.items():
-        t = whole.t[0]
+        t, style = whole.t[0], styles.get(name, "-")
         for row, actuator in enumerate(actuators):
-            held = actuator.name in study.held
-            line = top.plot(
-                t,
-                whole.x[0, :, row],
-                styles.get(name, "-"),
-                lw=2.0 if held else 1.0,
-                color=colours.get(actuator.name),
-                label=f"{actuator.name}, {name}",
-            )[0]
+            width = 2.0 if actuator.name in study.held else 1.0
+            colour = colours.get(actuator.name)
+            line = top.plot(t, whole.x[0, :, row], style, lw=width, color=colour)[0]
             colours.setdefault(actuator.name, line.get_color())
-            bottom.plot(
-                t,
-                whole.x_dot[0, :, row],
-                styles.get(name, "-"),
-                lw=1.0,
-                color=line.get_color(),
-                label=f"ẋ of {actuator.name}, {name}",
-            )
+            bottom.plot(t, whole.x_dot[0, :, row], style, lw=1.0, color=line.get_color())
     for offset, motion in zip(offsets, study.plan.segment_motions):
         if motion is None:
             continue
         for row, actuator in enumerate(actuators):
-            top.plot(
-                motion.t[0] + offset,
-                motion.x[0, :, row],
-                ":",
-                lw=1.2,
-                color=colours.get(actuator.name),
-                label=f"{actuator.name}, per segment" if offset == offsets[0] else None,
-            )
+            colour = colours.get(actuator.name)
+            top.plot(motion.t[0] + offset, motion.x[0, :, row], ":", lw=1.2, color=colour)
     for actuator in actuators:
         for bound in (actuator.lower, actuator.upper):
             if np.isfinite(bound):
@@ -382,19 +349,11 @@ def cycle_figure(study: CycleStudy, title: str):
     for axes in (top, bottom):
         for corner in offsets[1:-1]:
             axes.axvline(corner, color="k", lw=0.6, alpha=0.4)
+    above = {"ha": "center", "va": "bottom", "transform": top.get_xaxis_transform(), "fontsize": 9}
     for start, end, segment in zip(offsets[:-1], offsets[1:], study.cycle.segments):
-        top.text(
-            (start + end) / 2,
-            1.01,
-            segment.name,
-            ha="center",
-            va="bottom",
-            transform=top.get_xaxis_transform(),
-            fontsize=9,
-        )
+        top.text((start + end) / 2, 1.01, segment.name, **above)
     labels = (f"stroke x ({unit(actuators)})", f"velocity ẋ ({unit(actuators, rate='/s')})")
-    _labelled(figure, title, labels)
-    # one entry per actuator (its colour) and per line style, beside the curves
+    _labelled(figure, title, labels, legend={})
     from matplotlib.lines import Line2D
 
     key = [Line2D([], [], color=colours.get(a.name), label=a.name) for a in actuators]
@@ -403,8 +362,6 @@ def cycle_figure(study: CycleStudy, title: str):
         for style, label in (("-", "free"), ("--", "drift-free"), (":", "per-segment plan"))
     ]
     key.append(Line2D([], [], ls="--", lw=0.6, color="0.5", label="stroke limits"))
-    for axes in (top, bottom):
-        axes.get_legend().remove()
     top.legend(handles=key, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     top.set_title(title, pad=16)
     figure.tight_layout()
@@ -412,9 +369,8 @@ def cycle_figure(study: CycleStudy, title: str):
 
 
 def drift_figure(study: CycleStudy, title: str):
-    """Drift against cycle number: each actuator's |drift| per cycle for each strategy (log
-    scale, the closing threshold dotted); below, how far the held actuator at each cycle's
-    start has moved from its first value."""
+    """Each actuator's |drift| per cycle against cycle number, per strategy (log scale);
+    below, the held actuator's start of each cycle less its first."""
     from redundancy.planning.cycles import SETTLED
 
     plt = pyplot()
@@ -425,23 +381,12 @@ def drift_figure(study: CycleStudy, title: str):
     for name, repetition in study.repetitions.items():
         cycles = np.arange(1, repetition.cycles + 1)
         drift = np.maximum(np.abs(repetition.drift), 1e-17)
+        marker = markers.get(name, "o-")
         for j, actuator in enumerate(names):
-            top.semilogy(
-                cycles,
-                drift[:, j],
-                markers.get(name, "o-"),
-                ms=3,
-                lw=1,
-                label=f"{actuator}, {name}",
-            )
+            top.semilogy(cycles, drift[:, j], marker, ms=3, lw=1, label=f"{actuator}, {name}")
         start = repetition.held_values[:, 0]
-        bottom.plot(
-            np.arange(repetition.cycles + 1),
-            start - start[0],
-            markers.get(name, "o-"),
-            ms=3,
-            label=f"{name}, from {start[0]:.4f} {actuators[held].unit}",
-        )
+        shown = f"{name}, from {start[0]:.4f} {actuators[held].unit}"
+        bottom.plot(np.arange(repetition.cycles + 1), start - start[0], marker, ms=3, label=shown)
     top.axhline(SETTLED, ls=":", color="k", lw=0.8, label=f"closed: {SETTLED:g}")
     # the change, not the value: its scale is the drift's, however far the stroke's ends are
     bottom.ticklabel_format(axis="y", useOffset=False)
@@ -464,17 +409,11 @@ def return_map_figure(mapped: ReturnMap, title: str, held_unit: str = "m"):
     outside = ~mapped.within & np.isfinite(p)
     for axes, values, label in ((top, p, "P(v): one cycle later"), (bottom, p - v, "P(v) − v")):
         axes.plot(v, values, "-", color="C0", lw=1, label=label)
-        axes.plot(
-            v[mapped.within],
-            values[mapped.within],
-            "o",
-            ms=4,
-            color="C0",
-            label="keeps the strokes",
-        )
-        axes.plot(
-            v[outside], values[outside], "o", ms=4, mfc="none", color="C0", label="passes a stroke"
-        )
+        for kept, fill, words in (
+            (mapped.within, "C0", "keeps the strokes"),
+            (outside, "none", "passes a stroke"),
+        ):
+            axes.plot(v[kept], values[kept], "o", ms=4, mfc=fill, color="C0", label=words)
         for value, slope, _ in mapped.fixed_points:
             stable = abs(slope) < 1
             axes.plot(

@@ -113,7 +113,7 @@ def write_index(folder: Path | str, report: Path | str | None = None) -> Path:
     elif "studies" in data:
         title, body = _study_page(data)
     else:
-        title, body = _cycle_page(data)
+        title, body = f"{data['robot']}: work cycle {data['task']}", _cycle_body(data)
     body += _figures(files) + _playbacks(files) + _data_files(files)
     page = Template((Path(__file__).parent / "report.html").read_text(encoding="utf-8"))
     text = page.substitute(title=_e(title), body=body)
@@ -142,7 +142,7 @@ def _number(value, digits: int = 4) -> str:
 
 def _percent(value) -> str:
     """A percentage to 0.01, a solver's −3e-10 shown as 0.00; a missing one as a dash."""
-    return "–" if value is None else f"{round(value, 2) + 0.0:.2f}"
+    return "–" if value is None else f"{value:z.2f}"
 
 
 def _range(pair) -> str:
@@ -166,7 +166,7 @@ def _table(rows: list[dict], caption: str = "") -> str:
 
 
 def _unit(objective: str) -> str:
-    return OBJECTIVES[objective].unit if objective in OBJECTIVES else ""
+    return getattr(OBJECTIVES.get(objective), "unit", "")
 
 
 def _units(report: dict, names: str | list[str] | None = None) -> str:
@@ -301,11 +301,6 @@ def _hydraulics(comparison: list[dict], bounds: dict | None) -> str:
         for supply, b in supplies.items()
     ]
     return text + _table(bound_rows, "The least pump energy over every held actuator history.")
-
-
-def _cycle_page(report: dict) -> tuple[str, str]:
-    title = f"{report['robot']}: work cycle {report['task']}"
-    return title, _cycle_body(report)
 
 
 def _cycle_body(cycle: dict) -> str:

@@ -30,12 +30,6 @@ def write_series(study: Study | CycleStudy, folder: Path) -> list[Path]:
     if cycle is not None:
         for strategy, motion in cycle.firsts.items():
             motions[f"motion_cycle_{strategy}.csv"] = motion
-    paths = []
     for name, motion in motions.items():
-        write_atomically(folder / name, partial(_write_csv, motion))
-        paths.append(folder / name)
-    return paths
-
-
-def _write_csv(motion: Trajectory, path: Path) -> None:
-    motion.to_frame().to_csv(path, index=False)
+        write_atomically(folder / name, partial(motion.to_frame().to_csv, index=False))
+    return [folder / name for name in motions]

@@ -6,7 +6,7 @@ result (`run_study`, `run_cycle`), so printing one evaluates no state.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Iterable, Sequence
 
 import numpy as np
 
@@ -16,58 +16,69 @@ from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import VELOCITY
 from redundancy.study.check import Check, span, task_point
 from redundancy.study.cycles import CycleStudy, named_values, settling_words
-from redundancy.study.peers import StrategyRun
 from redundancy.study.study import Study
 from redundancy.viz.plots import measure_unit
+
+RUN_COLUMNS = {"segment": "<", "strategy": "<"}  # the first columns of a table of runs
+HYDRAULIC_COLUMNS = dict.fromkeys(
+    ["Q_P L/min", "p_L bar", "LS kJ", "CP kJ", "LS +%", "CP +%", "t_min s"], ">"
+)
+
+
+def text_table(columns: dict[str, str], rows: Iterable[Sequence[str]]) -> list[str]:
+    """A fixed-width table ruled under its header: ``columns`` maps each column's name (with its
+    unit) to its alignment, "<" or ">"; each row holds one formatted cell per column. Each column
+    is as wide as its widest cell, two spaces apart; trailing blanks are cut."""
+    table = [list(columns), *rows]
+    widths = [max(len(row[i]) for row in table) for i in range(len(columns))]
+    aligned = [
+        "  ".join(f"{cell:{a}{w}}" for cell, a, w in zip(row, columns.values(), widths)).rstrip()
+        for row in table
+    ]
+    return [aligned[0], "-" * len(aligned[0]), *aligned[1:]]
 
 
 def study_table(study: Study) -> str:
     """The comparison (held starts in mm, or degrees for a rotary actuator), then the bounds,
     the hydraulic comparison where the robot has a circuit, and the cycle section."""
-    start = "start " + ",".join(study.held)
-    width = max(10, len(start) + 1, 11 * len(study.held) + 1)
     actuators = study.robot.actuators
     units = [actuators[h].unit for h in study.held]
-    names = _segment_width(study)
-
-    def cells(run: StrategyRun) -> str:
+    rows = []
+    for run in study.runs:
         row = run.summary()
         # a limit passed is named: the first violation (in time), the count of the others
         passed = row["violations"]
         held = "held" if row["within_limits"] else f"passed: {passed[0]}" if passed else "failed"
-        if len(passed) > 1:
-            held += f" (+{len(passed) - 1} more)"
-        values = ",".join(amount(v, unit) for v, unit in zip(run.start, units))
+        more = f" (+{len(passed) - 1} more)" if len(passed) > 1 else ""
         kinetic = "-" if row["peak_kinetic"] is None else f"{row['peak_kinetic']:.3f}"
-        return f"{values:>{width}}{row['peak_velocity_norm']:>16.5f}{kinetic:>15}  {held}"
-
+        values = ",".join(amount(v, unit) for v, unit in zip(run.start, units))
+        peak = f"{row['peak_velocity_norm']:.5f}"
+        rows.append([run.segment, run.strategy, values, peak, kinetic, held + more])
     squared = measure_unit(VELOCITY, actuators)
-    columns = f"{start:>{width}}{'peak ẋᵀẋ ' + squared:>16}{'peak ẋᵀM_Hẋ J':>15}  limits"
-    lines = _per_run(study, columns, cells)
-    lines += [
-        "",
-        f"{'segment':<{names}}{'objective':<10}{'unit':<8}{'improved':>12}{'bound':>12}"
-        f"{'gap %':>8}",
-    ]
+    start = "start " + ",".join(study.held)
+    columns = dict.fromkeys([start, f"peak ẋᵀẋ {squared}", "peak ẋᵀM_Hẋ J"], ">")
+    lines = text_table(RUN_COLUMNS | columns | {"limits": "<"}, rows)
+    bounds = []
     for name, searches in study.searches.items():
         unit = measure_unit(searches[0].objective, actuators)
         for search in searches:
             segment = search.segment.name
-            bound, gap = study.result(name, segment), study.gap(name, segment)
+            head = [segment, name, unit]
             if search.best is None:
                 closest = study.sweep(name, segment).closest_violation
-                lines.append(
-                    f"{segment:<{names}}{name:<10}{unit:<8}{'none':>12}{'-':>12}{'-':>8}  "
-                    f"no sampled start stays inside the limits"
-                    + (f"; closest: {closest}" if closest else "")
-                )
+                words = "no sampled start stays inside the limits"
+                words += f"; closest: {closest}" if closest else ""
+                bounds.append([*head, "none", "-", "-", words])
                 continue
-            failure = study.withheld(name, segment)
-            lines.append(
-                f"{segment:<{names}}{name:<10}{unit:<8}{search.best_peak:>12.5g}"
-                + ("" if bound is None else f"{bound.bound:>12.5g}{gap:>z8.2f}")
-                + ("" if failure is None else f"{'-':>12}{'-':>8}  no bound: {failure}")
-            )
+            bound, failure = study.result(name, segment), study.withheld(name, segment)
+            cells = ["", "", ""]  # a withheld bound is named with its reason
+            if failure is not None:
+                cells = ["-", "-", f"no bound: {failure}"]
+            elif bound is not None:
+                cells = [f"{bound.bound:.5g}", f"{study.gap(name, segment):z.2f}", ""]
+            bounds.append([*head, f"{search.best_peak:.5g}", *cells])
+    columns = {"segment": "<", "objective": "<", "unit": "<", "improved": ">", "bound": ">"}
+    lines += ["", *text_table(columns | {"gap %": ">", "": "<"}, bounds)]
     if study.robot.hydraulics is not None:
         lines += ["", hydraulic_table(study)]
     if study.cycle_study is not None:
@@ -80,63 +91,40 @@ def study_table(study: Study) -> str:
 def hydraulic_table(study: Study) -> str:
     """The hydraulic comparison: peak pump flow, highest load pressure, pump energies, shortest
     duration and, with energy bounds, per cent above them, then the bounds."""
-    names = _segment_width(study)
-
     circuit = study.robot.circuit()
-
-    def cells(run: StrategyRun) -> str:
+    rows = []
+    for run in study.runs:
         figures, above = run.summary()["hydraulics"], study.above_energy_bound(run)
-        percent = "".join(f"{above[s]:>7.1f}" if s in above else f"{'-':>7}" for s in ("LS", "CP"))
-        shortest = figures["shortest_duration_s"]
-        pressure = figures["max_load_pressure_bar"]
+        shortest, pressure = figures["shortest_duration_s"], figures["max_load_pressure_bar"]
         unphysical = circuit.unphysical(pressure * BAR)
-        return (
-            f"{figures['peak_pump_flow_l_min']:>10.1f}"
-            + (f"{'(!)':>9}" if unphysical else f"{pressure:>9.1f}")
-            + f"{figures['ls_energy_kj']:>8.2f}{figures['cp_energy_kj']:>8.2f}{percent}"
-            + (f"{'-':>8}" if shortest is None else f"{shortest:>8.2f}")
-            + "  "
-            + (
-                f"(!) p_L beyond the circuit's physics, over {BEYOND_RELIEF:g} × the relief "
-                f"{circuit.relief / BAR:g} bar (the model's, where the motion leaves a stroke); "
-                if unphysical
-                else ""
-            )
-            + ("held" if figures["within_limits"] else "; ".join(figures["violations"]))
+        note = (
+            f"(!) p_L beyond the circuit's physics, over {BEYOND_RELIEF:g} × the relief "
+            f"{circuit.relief / BAR:g} bar (the model's, where the motion leaves a stroke); "
+            if unphysical
+            else ""
         )
-
-    columns = (
-        f"{'Q_P L/min':>10}{'p_L bar':>9}{'LS kJ':>8}{'CP kJ':>8}{'LS +%':>7}{'CP +%':>7}"
-        f"{'t_min s':>8}  circuit"
-    )
-    lines = _per_run(study, columns, cells)
+        rows.append(
+            [
+                run.segment,
+                run.strategy,
+                f"{figures['peak_pump_flow_l_min']:.1f}",
+                "(!)" if unphysical else f"{pressure:.1f}",
+                f"{figures['ls_energy_kj']:.2f}",
+                f"{figures['cp_energy_kj']:.2f}",
+                *(f"{above[s]:.1f}" if s in above else "-" for s in ("LS", "CP")),
+                "-" if shortest is None else f"{shortest:.2f}",
+                note + ("held" if figures["within_limits"] else "; ".join(figures["violations"])),
+            ]
+        )
     for segment in study.energy_bounds or {}:
         for supply in ("LS", "CP"):  # a bound whose solve raised is named with its reason too
             failure = study.energy_withheld(segment, supply)
             bound = study.energy_result(segment, supply)
             energy = "-" if bound is None else f"{bound.energy / KILOJOULE:.2f}"
             ls, cp = (energy, "") if supply == "LS" else ("", energy)
-            row = f"{segment:<{names}}{f'energy bound, {supply}':<36}{'':>19}{ls:>8}{cp:>8}"
-            lines.append(row.rstrip() if failure is None else f"{row}{'':>22}  no bound: {failure}")
-    return "\n".join(lines)
-
-
-def ruled(header: str) -> list[str]:
-    """A table's header and the rule under it."""
-    return [header, "-" * len(header)]
-
-
-def _per_run(study: Study, columns: str, cells: Callable[[StrategyRun], str]) -> list[str]:
-    """A table of the study's runs, ruled under its header: each run's segment and strategy,
-    then ``columns`` filled by ``cells(run)``."""
-    names = _segment_width(study)
-    lines = ruled(f"{'segment':<{names}}{'strategy':<36}{columns}")
-    return lines + [f"{run.segment:<{names}}{run.strategy:<36}{cells(run)}" for run in study.runs]
-
-
-def _segment_width(study: Study) -> int:
-    """The width of the tables' segment column."""
-    return max(8, *(len(s.name) + 2 for s in study.cycle.segments))
+            note = "" if failure is None else f"no bound: {failure}"
+            rows.append([segment, f"energy bound, {supply}", "", "", ls, cp, "", "", "", note])
+    return "\n".join(text_table(RUN_COLUMNS | HYDRAULIC_COLUMNS | {"circuit": "<"}, rows))
 
 
 def cycle_table(study: CycleStudy) -> str:
@@ -194,19 +182,20 @@ def _plan_lines(study: CycleStudy) -> list[str]:
 def _corner_lines(study: CycleStudy) -> list[str]:
     """The self-motion of every corner of the per-segment plan, and the time they add."""
     plan, actuators = study.plan, study.robot.actuators
-    names = list(actuators.names)
-    units = [actuators[n].unit for n in names]
-    header = f"  {'corner':<18}" + "".join(f"{'Δ' + n:>12}" for n in names)
-    lines = [header + f"{'time s':>9}  self-motion"]
     state = {True: "keeps the strokes", False: "passes a stroke", None: "-"}
+    rows = []
     for corner in plan.corners:
-        delta = corner.delta
-        row = f"  {corner.after + ' → ' + corner.before:<18}"
+        name, delta = f"{corner.after} → {corner.before}", corner.delta
         if delta is None:
-            lines.append(row + f"  {corner.reason}")
+            rows.append([name, *[""] * (len(actuators.names) + 1), str(corner.reason)])
             continue
-        row += "".join(f"{amount(d, u):>12}" for d, u in zip(delta, units))
-        lines.append(row + f"{corner.time:>9.2f}  {corner.reason or state[corner.within_limits]}")
+        shown = [amount(d, a.unit) for d, a in zip(delta, actuators)]
+        words = corner.reason or state[corner.within_limits]
+        rows.append([name, *shown, f"{corner.time:.2f}", words])
+    columns = {"corner": "<"} | {f"Δ{n}": ">" for n in actuators.names}
+    lines = [
+        "  " + line for line in text_table(columns | {"time s": ">", "self-motion": "<"}, rows)
+    ]
     if plan.gap_time is not None and plan.corners:
         lines.append(
             f"  the self-motions add {plan.gap_time:.2f} s per cycle, the held "
@@ -234,23 +223,20 @@ def _price_line(study: CycleStudy) -> str:
 
 
 def _repetition_table(study: CycleStudy) -> str:
-    header = (
-        f"{'strategy':<34}{'cycles':>7}{'drift/cycle: first':>20}{'last':>13}"
-        f"{'tool drift':>13}  first stroke passed; settling"
-    )
-    lines = ruled(header)
     units = [a.unit for a in study.robot.actuators]
+    rows = []
     for name, repetition in study.repetitions.items():
         drift = np.abs(repetition.drift)  # (cycles, n): each actuator's, in its own unit
         first_cycle, last_cycle = (amount(d.max(), units[d.argmax()]) for d in drift[[0, -1]])
         first = repetition.first_violation
         passed = "none" if first is None else f"cycle {first[0]}: {first[1]}"
-        lines.append(
-            f"{study.names[name]:<34}{repetition.cycles:>7}{first_cycle:>20}{last_cycle:>13}"
-            f"{amount(repetition.tool_drift.max(), 'm'):>13}  {passed}; "
-            f"{settling_words(repetition, study.fixed_points(name))}"
-        )
-    return "\n".join(lines)
+        settling = settling_words(repetition, study.fixed_points(name))
+        tool = amount(repetition.tool_drift.max(), "m")
+        cells = [str(repetition.cycles), first_cycle, last_cycle, tool, f"{passed}; {settling}"]
+        rows.append([study.names[name], *cells])
+    columns = dict.fromkeys(["cycles", "drift/cycle: first", "last", "tool drift"], ">")
+    spec = {"strategy": "<"} | columns | {"first stroke passed; settling": "<"}
+    return "\n".join(text_table(spec, rows))
 
 
 def fixed_point_words(mapped: ReturnMap, unit: str) -> str:
