@@ -1,39 +1,16 @@
 """Tasks: paths in task coordinates, how fast they are travelled, and work cycles of them.
 
-A segment is a path (its geometry) and a speed profile (its timing):
+A segment is a path and a speed profile. Paths (`Line`, `Arc`, `Polyline`) are parametrised by
+the arc length s ∈ [0, length] of the tool's position: a straight line P→Q (Eq. 33), a circular
+arc (through a third point, or about a centre; a closed circle ends where it starts) or a
+polyline through recorded points (a CSV file). Where the task's last coordinate is the tool's
+angle, it changes linearly with s (a closed circle keeps it); speeds are the position's.
+Profiles (`Profile`): "constant", ṡ = speed from t = 0 (Eq. 34), so ẏ jumps at a cycle's
+corners; or "trapezoidal", from rest to rest at most ``acceleration``, ẏ continuous.
 
-- paths (`Line`, `Arc`, `Polyline`) are parametrised by the arc length s of the tool's position
-  over [0, length]: a straight line P→Q (Eq. 33), a circular arc (through a third point, or about
-  a centre; a closed circle is an arc about a centre that ends where it starts), or a polyline
-  through recorded points (a CSV file: an operator's path). Where the task has the tool's angle
-  as its last coordinate, the angle changes linearly with s from its value at the start to its
-  value at the end (a closed circle keeps it), and the speed is the tool position's.
-- speed profiles (`Profile`): "constant", the paper's (Eq. 34), ṡ = speed from t = 0, so ẏ jumps
-  at the corners of a cycle; or "trapezoidal", from rest to rest: ṡ rises at the maximum
-  ``acceleration`` to the ``speed``, cruises and falls again (a triangle where the path is too
-  short to reach the speed), so ẏ is continuous everywhere, zero at every corner.
-
-A work cycle is its segments travelled one after another; a cycle a machine repeats is
-continuous (each segment starts where the one before ends) and closed (the last ends where the
-first starts): `WorkCycle.check_continuous`.
-
-A task file (TOML; an example of every key in docs/machines.md) gives ``name`` (default: the
-file's), ``speed`` (m/s of the tool, ≤ 10; default 0.5), ``profile`` ("constant", the default, or
-"trapezoidal" with ``acceleration``, m/s²), ``tool_angle`` (true: every point has one more
-value, the tool's angle about the task plane's normal in degrees; a planar task only), ``held``
-(the actuators the improved search holds; optional), ``segments`` and ``[points]`` (name = one
-value per task coordinate, m, and degrees). A segment is "<from>-<to>", a line, or a table:
-``from`` and ``to`` alone (a line), with ``via`` (an arc through that point), or with ``centre``
-and ``direction`` (an arc about it, "ccw" from the first task axis towards the second or "cw";
-a closed circle where from = to; a planar position, its ends at one distance from the centre);
-or ``csv`` alone (a polyline, the file beside the task file). A table may give its own ``name``,
-``speed``, ``profile`` and ``acceleration``; names must differ (a line or arc is "<from>-<to>"
-by default, a polyline its file's name).
-
-A CSV polyline holds one point per line, its cells separated by commas: one value per task
-coordinate (the angle in degrees). Blank lines and lines starting with "#" are skipped, and so
-is a first line of names (no cell a number). Consecutive points at one position are merged. A
-malformed file is one error naming its line.
+A work cycle is a `Chain` of segments, one path over time; a cycle a machine repeats is
+continuous and closed (`WorkCycle.check_continuous`). The task file (`WorkCycle.from_toml`) and
+the CSV polyline (`read_polyline`) are documented key by key in docs/machines.md.
 """
 
 from __future__ import annotations
@@ -91,30 +68,27 @@ def _piece(edges: np.ndarray, x) -> tuple[np.ndarray, np.ndarray]:
 
 class Shape(ABC):
     """Geometry of a segment in task coordinates (m of them; the last ``angles`` are angles),
-    parametrised by the arc length s ∈ [0, length] of the position (the first m − angles)."""
+    parametrised by the arc length s ∈ [0, length] (m) of the position (the first m − angles):
+    ``point(s)`` y (..., m) and ``tangent(s)`` dy/ds (..., m), a unit vector in the position
+    and the angle's rate per metre, for s (...,); ``outline()`` points (P, m) that draw it."""
 
     start: np.ndarray
     end: np.ndarray
     angles: int
     kind: str = "path"
-    kinks: tuple[float, ...] = ()  # arc lengths inside the path where its tangent jumps
 
     @property
     @abstractmethod
-    def length(self) -> float:
-        """The position's arc length, m."""
+    def length(self) -> float: ...
 
     @abstractmethod
-    def point(self, s: np.ndarray) -> np.ndarray:
-        """y(s), (..., m) for s (...,) in m."""
+    def point(self, s: np.ndarray) -> np.ndarray: ...
 
     @abstractmethod
-    def tangent(self, s: np.ndarray) -> np.ndarray:
-        """dy/ds (..., m): a unit vector in the position, and the angle's rate per metre."""
+    def tangent(self, s: np.ndarray) -> np.ndarray: ...
 
     @abstractmethod
-    def outline(self) -> np.ndarray:
-        """Points (P, m) that draw the path as straight pieces."""
+    def outline(self) -> np.ndarray: ...
 
 
 def _position(y: np.ndarray, angles: int) -> np.ndarray:
@@ -162,7 +136,8 @@ class Polyline(Shape):
         return float(self.cumulative[-1])
 
     @property
-    def kinks(self) -> tuple[float, ...]:  # type: ignore[override]
+    def kinks(self) -> tuple[float, ...]:
+        """Arc lengths inside the path where its tangent jumps."""
         return tuple(float(s) for s in self.cumulative[1:-1])
 
     def point(self, s):
@@ -468,7 +443,7 @@ class Segment:
 
 @dataclass(frozen=True)
 class Chain:
-    """Segments travelled one after another as one motion's path over time: ``position`` and
+    """Segments travelled one after another as one path over time: ``position`` and
     ``velocity_at`` (right-continuous at the corners) of the whole, from t = 0."""
 
     name: str
@@ -489,6 +464,7 @@ class Chain:
 
     @property
     def duration(self) -> float:
+        """One pass through every segment, s."""
         return float(self.offsets[-1])
 
     def _each(self, t, method):
@@ -516,12 +492,10 @@ class Chain:
 
 
 @dataclass(frozen=True)
-class WorkCycle:
-    """Segments travelled one after another, the actuators a search holds, and whether the last
+class WorkCycle(Chain):
+    """A task: its `Chain` of segments, the actuators a search holds, and whether the last
     task coordinate is the tool's angle (rad)."""
 
-    name: str
-    segments: tuple[Segment, ...]
     held: tuple[str, ...] = ()
     tool_angle: bool = False
 
@@ -533,18 +507,13 @@ class WorkCycle:
         raise InvalidInputError(f"no segment {name!r} in {self.name!r}; segments: {names}")
 
     @property
-    def duration(self) -> float:
-        """One pass through every segment, s."""
-        return sum(s.duration for s in self.segments)
-
-    @property
     def closed(self) -> bool:
         """Whether the last segment ends where the first starts."""
-        return bool(np.all(np.abs(self.segments[-1].end - self.segments[0].start) <= CLOSED))
+        return bool(np.all(np.abs(self.end - self.start) <= CLOSED))
 
     def chain(self) -> Chain:
-        """The whole cycle as one path over time."""
-        return Chain(self.name, self.segments)
+        """The whole cycle as one path over time: the cycle itself."""
+        return self
 
     def check_continuous(self, closed: bool = True) -> None:
         """`InvalidInputError` naming the first corner where a segment does not start where the
