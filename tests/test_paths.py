@@ -18,7 +18,6 @@ from redundancy.planning.tasks import (
     Arc,
     Line,
     Polyline,
-    Profile,
     Segment,
     WorkCycle,
     read_polyline,
@@ -87,7 +86,7 @@ def test_an_arc_about_a_centre_needs_its_ends_on_one_circle():
 
 
 def test_the_trapezoidal_profile_ramps_at_its_acceleration_from_rest_to_rest():
-    profile = Profile("trapezoidal", 0.5, 5.0, 1.0)
+    profile = Segment.along("s", Line([0.0, 0.0], [5.0, 0.0]), 0.5, "trapezoidal", 1.0)
     assert profile.ramp == pytest.approx(0.5)
     assert profile.duration == pytest.approx(5.0 / 0.5 + 0.5)
     t = np.linspace(0.0, profile.duration, 2001)
@@ -97,7 +96,8 @@ def test_the_trapezoidal_profile_ramps_at_its_acceleration_from_rest_to_rest():
     assert rate.max() == pytest.approx(0.5)
     assert np.abs(np.diff(rate) / np.diff(t)).max() <= 1.0 + 1e-9
     np.testing.assert_allclose(np.gradient(s, t, edge_order=2), rate, atol=2e-3)
-    short = Profile("trapezoidal", 0.5, 0.1, 1.0)  # a triangle: never reaches 0.5 m/s
+    # a triangle: never reaches 0.5 m/s
+    short = Segment.along("s", Line([0.0, 0.0], [0.1, 0.0]), 0.5, "trapezoidal", 1.0)
     assert short.peak == pytest.approx(math.sqrt(0.1)) and short.duration == pytest.approx(
         2 * math.sqrt(0.1)
     )

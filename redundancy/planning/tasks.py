@@ -5,7 +5,7 @@ the arc length s ∈ [0, length] of the tool's position: a straight line P→Q (
 arc (through a third point, or about a centre; a closed circle ends where it starts) or a
 polyline through recorded points (a CSV file). Where the task's last coordinate is the tool's
 angle, it changes linearly with s (a closed circle keeps it); speeds are the position's.
-Profiles (`Profile`): "constant", ṡ = speed from t = 0 (Eq. 34), so ẏ jumps at a cycle's
+Speed profiles: "constant", ṡ = speed from t = 0 (Eq. 34), so ẏ jumps at a cycle's
 corners; or "trapezoidal", from rest to rest at most ``acceleration``, ẏ continuous.
 
 A work cycle is a `Chain` of segments, one path over time; a cycle a machine repeats is
@@ -268,81 +268,11 @@ def _angle_of(d: np.ndarray, e1: np.ndarray, e2: np.ndarray) -> float:
 
 
 @dataclass(frozen=True)
-class Profile:
-    """How fast a path of ``length`` m is travelled: "constant" at ``speed`` m/s (Eq. 34), or
-    "trapezoidal" from rest to rest with at most ``acceleration`` m/s²."""
-
-    kind: str
-    speed: float
-    length: float
-    acceleration: float | None = None
-
-    def __post_init__(self) -> None:
-        if self.kind not in PROFILES:
-            raise InvalidInputError(f"profile {self.kind!r} is not one of {', '.join(PROFILES)}")
-        if not (is_real(self.speed) and 0 < self.speed <= MAX_SPEED):
-            raise InvalidInputError(
-                f"speed must be > 0 and ≤ {MAX_SPEED:g} m/s; got {self.speed!r}"
-            )
-        acceleration = self.acceleration
-        if self.kind == "trapezoidal" and not (
-            is_real(acceleration) and 0 < acceleration <= MAX_ACCELERATION  # type: ignore[operator]
-        ):
-            raise InvalidInputError(
-                f"a trapezoidal profile needs acceleration > 0 and ≤ {MAX_ACCELERATION:g} m/s² "
-                f"(the tool's maximum); got {acceleration!r}"
-            )
-        if not self.duration <= MAX_DURATION:
-            pace = f"speed {self.speed:g} m/s" + (
-                f" and acceleration {self.acceleration:g} m/s²" if self.ramp else ""
-            )
-            raise InvalidInputError(
-                f"at {pace} its path of {self.length:.4g} m takes {self.duration:.3g} s; a "
-                f"segment may take at most {MAX_DURATION:g} s: give a higher "
-                + ("speed or acceleration" if self.ramp else "speed")
-            )
-
-    @cached_property
-    def peak(self) -> float:
-        """The highest speed reached, m/s: √(length · acceleration) where the path is too short
-        to reach the ``speed``."""
-        if self.kind == "constant":
-            return self.speed
-        return min(self.speed, math.sqrt(self.length * self.acceleration))  # type: ignore[operator]
-
-    @cached_property
-    def ramp(self) -> float:
-        """Duration of the acceleration (and of the deceleration), s; 0 at constant speed."""
-        return 0.0 if self.kind == "constant" else self.peak / self.acceleration  # type: ignore[operator]
-
-    @cached_property
-    def duration(self) -> float:
-        return self.length / self.peak + self.ramp
-
-    def progress(self, t) -> tuple[np.ndarray, np.ndarray]:
-        """Arc length s and its rate ṡ at times t (...,) in s, both (...,); for the trapezoidal
-        profile t is clipped to [0, duration] (at rest outside), and with a = acceleration,
-        t_a = ramp, T = duration, v = peak: s = v (t − t_a/2) + a/2 (max(t_a − t, 0)² −
-        max(t − T + t_a, 0)²), ṡ = min(v, a t, a (T − t))."""
-        t = np.asarray(t, dtype=float)
-        if self.kind == "constant":
-            return self.speed * t, np.full(t.shape, self.speed)
-        a, ramp, peak, end = float(self.acceleration or 0.0), self.ramp, self.peak, self.duration
-        t = np.clip(t, 0.0, end)
-        late = np.maximum(t - end + ramp, 0.0)
-        s = peak * (t - ramp / 2) + a / 2 * (np.maximum(ramp - t, 0.0) ** 2 - late**2)
-        return s, np.minimum(peak, a * np.minimum(t, end - t))
-
-    def describe(self) -> dict:
-        found = {"profile": self.kind, "speed": self.speed}
-        return found if self.kind == "constant" else {**found, "acceleration": self.acceleration}
-
-
-@dataclass(frozen=True)
 class Segment:
-    """A path from ``start`` to ``end`` (m,) travelled at ``speed`` m/s: by default the
-    straight line P→Q at constant speed (Eqs. 33-34); `Segment.along` builds any path and
-    profile."""
+    """A path from ``start`` to ``end`` (m,) travelled at ``speed`` m/s with a speed
+    ``profile``: "constant" (Eq. 34), or "trapezoidal" from rest to rest with at most
+    ``acceleration`` m/s². By default the straight line P→Q at constant speed (Eqs. 33-34);
+    `Segment.along` builds any path and profile."""
 
     name: str
     start: np.ndarray
@@ -372,7 +302,64 @@ class Segment:
             ends = [self.shape.start, self.shape.end]
             if not np.allclose(ends, [self.start, self.end], rtol=0, atol=CLOSED):
                 raise InvalidInputError("its path's ends are not its own")
-            self.timing  # noqa: B018 - checks the profile
+            self._check_timing()
+
+    def _check_timing(self) -> None:
+        if self.profile not in PROFILES:
+            raise InvalidInputError(f"profile {self.profile!r} is not one of {', '.join(PROFILES)}")
+        if not (is_real(self.speed) and 0 < self.speed <= MAX_SPEED):
+            raise InvalidInputError(
+                f"speed must be > 0 and ≤ {MAX_SPEED:g} m/s; got {self.speed!r}"
+            )
+        acceleration = self.acceleration
+        if self.profile == "trapezoidal" and not (
+            is_real(acceleration) and 0 < acceleration <= MAX_ACCELERATION  # type: ignore[operator]
+        ):
+            raise InvalidInputError(
+                f"a trapezoidal profile needs acceleration > 0 and ≤ {MAX_ACCELERATION:g} m/s² "
+                f"(the tool's maximum); got {acceleration!r}"
+            )
+        if not self.duration <= MAX_DURATION:
+            pace = f"speed {self.speed:g} m/s" + (
+                f" and acceleration {self.acceleration:g} m/s²" if self.ramp else ""
+            )
+            raise InvalidInputError(
+                f"at {pace} its path of {self.shape.length:.4g} m takes {self.duration:.3g} s; "
+                f"a segment may take at most {MAX_DURATION:g} s: give a higher "
+                + ("speed or acceleration" if self.ramp else "speed")
+            )
+
+    @cached_property
+    def peak(self) -> float:
+        """The highest speed reached, m/s: √(length · acceleration) where the path is too short
+        to reach the ``speed``."""
+        if self.profile == "constant":
+            return self.speed
+        return min(self.speed, math.sqrt(self.shape.length * self.acceleration))  # type: ignore[operator]
+
+    @cached_property
+    def ramp(self) -> float:
+        """Duration of the acceleration (and of the deceleration), s; 0 at constant speed."""
+        return 0.0 if self.profile == "constant" else self.peak / self.acceleration  # type: ignore[operator]
+
+    @cached_property
+    def duration(self) -> float:
+        """t_f, in s: |Q − P| / speed for a line at constant speed."""
+        return self.shape.length / self.peak + self.ramp
+
+    def progress(self, t) -> tuple[np.ndarray, np.ndarray]:
+        """Arc length s and its rate ṡ at times t (...,) in s, both (...,); for the trapezoidal
+        profile t is clipped to [0, duration] (at rest outside), and with a = acceleration,
+        t_a = ramp, T = duration, v = peak: s = v (t − t_a/2) + a/2 (max(t_a − t, 0)² −
+        max(t − T + t_a, 0)²), ṡ = min(v, a t, a (T − t))."""
+        t = np.asarray(t, dtype=float)
+        if self.profile == "constant":
+            return self.speed * t, np.full(t.shape, self.speed)
+        a, ramp, peak, end = float(self.acceleration or 0.0), self.ramp, self.peak, self.duration
+        t = np.clip(t, 0.0, end)
+        late = np.maximum(t - end + ramp, 0.0)
+        s = peak * (t - ramp / 2) + a / 2 * (np.maximum(ramp - t, 0.0) ** 2 - late**2)
+        return s, np.minimum(peak, a * np.minimum(t, end - t))
 
     @classmethod
     def along(
@@ -385,15 +372,6 @@ class Segment:
     ) -> Segment:
         """The segment ``name`` along ``shape`` at ``speed`` m/s with the speed ``profile``."""
         return cls(name, shape.start, shape.end, speed, shape, profile, acceleration)
-
-    @cached_property
-    def timing(self) -> Profile:
-        return Profile(self.profile, self.speed, self.shape.length, self.acceleration)
-
-    @cached_property
-    def duration(self) -> float:
-        """t_f, in s: |Q − P| / speed for a line at constant speed."""
-        return self.timing.duration
 
     @cached_property
     def velocity(self) -> np.ndarray:
@@ -409,12 +387,12 @@ class Segment:
 
     def position(self, t: np.ndarray | float) -> np.ndarray:
         """y_d(t) (..., m) for t (...,) in s (Eq. 33 on a line at constant speed)."""
-        s, _ = self.timing.progress(t)
+        s, _ = self.progress(t)
         return self.shape.point(s)
 
     def velocity_at(self, t: np.ndarray | float) -> np.ndarray:
         """ẏ_d(t) (..., m) in m/s (and rad/s) for t (...,) in s."""
-        s, rate = self.timing.progress(t)
+        s, rate = self.progress(t)
         return self.shape.tangent(s) * rate[..., None]
 
     def outline(self) -> np.ndarray:
@@ -438,7 +416,10 @@ class Segment:
             )
         if isinstance(shape, Polyline) and shape.kind == "polyline":
             found["points"] = len(shape.points)
-        return {**found, **self.timing.describe()}
+        found.update(profile=self.profile, speed=self.speed)
+        if self.profile == "trapezoidal":
+            found["acceleration"] = self.acceleration
+        return found
 
 
 @dataclass(frozen=True)
