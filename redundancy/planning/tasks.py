@@ -690,34 +690,30 @@ def _csv_points(path: Path):
     """(line number, point) of each line of a CSV file that holds one: blank lines, comments
     ("#") and a first line of names (no cell a number) are skipped."""
     lines = read_text(path, "CSV file").splitlines()
-    names_allowed = True
+    header = True  # the first line that holds anything may be one of names
     for number, cells in enumerate(csv.reader(lines), start=1):
         if not "".join(cells).strip() or lines[number - 1].lstrip().startswith("#"):
             continue
         values = [_cell(cell) for cell in cells]
-        if names_allowed and all(v is None for v in values):
-            names_allowed = False
+        names, header = header and all(v is None for v in values), False
+        if names:
             continue
-        names_allowed = False
         where = f"{path} line {number}"
         if None in values:
             bad = values.index(None)
             text = excerpt(cells[bad].strip())
-            raise InvalidInputError(f"{where}: cell {bad + 1} ({text}) is not a number")
-        point = np.array(values, dtype=float)
-        if not np.all(np.isfinite(point)):
-            text = excerpt(cells[int(np.argmin(np.isfinite(point)))].strip())
-            raise InvalidInputError(f"{where}: {text} is not a finite number")
-        _check_reach(point, where, [c.strip() for c in cells])
-        yield number, point
+            raise InvalidInputError(f"{where}: cell {bad + 1} ({text}) is not a finite number")
+        _check_reach(np.array(values), where, [c.strip() for c in cells])
+        yield number, np.array(values)
 
 
 def _cell(text: str) -> float | None:
-    """The number a CSV cell writes, or None."""
+    """The finite number a CSV cell writes, or None."""
     try:
-        return decimal(text)
+        value = decimal(text)
     except ValueError:
         return None
+    return value if math.isfinite(value) else None
 
 
 def checked_path(path: object, name: str = "segment") -> Segment | Chain:
