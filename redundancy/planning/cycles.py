@@ -117,14 +117,13 @@ def checked_cycles(cycles: object) -> int:
 
 @dataclass(frozen=True)
 class Corner:
-    """A corner of the per-segment plan: segment ``after`` ends at ``point`` where ``before``
-    starts. The plan's motion along ``after`` ends with the strokes ``end`` (n,); its best start
-    of ``before`` has ``start`` (n,). Between them the machine needs a self-motion, the tool held
-    at the point, moving the held actuators along a line from end to start, the fastest at
-    ``speed`` (m/s or rad/s). ``within_limits`` says whether that self-motion keeps every
-    checked stroke (None where a segment has no feasible start), ``reason`` why a corner has
-    no gap or its self-motion fails; ``path`` the self-motion's configurations (k, n), as far
-    as it was followed."""
+    """A corner of the per-segment plan, at ``point`` where segment ``after`` ends and
+    ``before`` starts: the plan's motion along ``after`` ends with the strokes ``end`` (n,), its
+    best start of ``before`` has ``start`` (n,) (None where a segment has no feasible start).
+    Between them the tool is held at the point while the held actuators move along a line from
+    end to start, the fastest at ``speed`` (m/s or rad/s); ``within_limits`` whether that
+    self-motion keeps every checked stroke, ``reason`` why it fails or there is no gap, ``path``
+    its configurations (k, n) as far as it was followed."""
 
     after: str
     before: str
