@@ -42,10 +42,6 @@ from redundancy.study.peers import pump_energies
 
 STRATEGIES = ("free", "periodic")
 CHOICES = (*STRATEGIES, "both")
-NAMES = {
-    "free": "free, whole-cycle improved start",
-    "periodic": "periodic optimum (drift-free)",
-}
 
 
 def free_start_of(search: SearchResult) -> tuple[str, np.ndarray, str]:
@@ -132,7 +128,7 @@ class CycleStudy:
     @property
     def names(self) -> dict[str, str]:
         """Each strategy's name, the free one's with the start it really ran from."""
-        return {**NAMES, "free": f"free, {self.free_kind}"}
+        return {"free": f"free, {self.free_kind}", "periodic": "periodic optimum (drift-free)"}
 
     def fixed_points(self, strategy: str) -> list[FixedPoint]:
         """The return map's fixed points where ``strategy`` is the law the map samples (the
