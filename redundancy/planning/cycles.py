@@ -56,7 +56,7 @@ from redundancy.planning.starts import (
     held_actuators,
     improved_start,
 )
-from redundancy.planning.tasks import Chain, Segment, WorkCycle
+from redundancy.planning.tasks import Chain, Segment, WorkCycle, finite_vector
 from redundancy.resolution.laws import Resolver
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
 from redundancy.resolution.limits import Limits
@@ -505,12 +505,8 @@ def return_map(
             )
         reachable = configurations.reachable(end_tolerance(robot, name, None))
         values = np.linspace(reachable[0], reachable[-1], count)
-    given = values
-    try:
-        values = np.asarray(values, dtype=float)
-    except (TypeError, ValueError):
-        values = np.array([np.nan])
-    if values.ndim != 1 or not values.size or not np.all(np.isfinite(values)):
+    given, values = values, finite_vector(values)
+    if values is None:
         raise InvalidInputError(
             f"values must be finite strokes of {name}, one per sample, shape (k,); got {given!r}"
         )

@@ -59,6 +59,15 @@ def _prefixed(prefix: str) -> Iterator[None]:
         raise InvalidInputError(f"{prefix}: {error}") from None
 
 
+def finite_vector(value: object) -> np.ndarray | None:
+    """``value`` as a vector (k,) of finite floats, k ≥ 1, or None where it is none."""
+    try:
+        vector = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        return None
+    return vector if vector.ndim == 1 and vector.size and np.isfinite(vector).all() else None
+
+
 def _piece(edges: np.ndarray, x) -> tuple[np.ndarray, np.ndarray]:
     """``x`` (...,) as floats and the piece i of each, edges[i] ≤ x < edges[i + 1], the first
     and last pieces extended beyond the ends."""
@@ -285,11 +294,8 @@ class Segment:
     def __post_init__(self) -> None:
         with _prefixed(f"segment {self.name}"):
             for end in ("start", "end"):
-                try:
-                    point = np.asarray(getattr(self, end), dtype=float)
-                except (TypeError, ValueError):
-                    point = np.array([np.nan])
-                if point.ndim != 1 or not np.all(np.isfinite(point)):
+                point = finite_vector(getattr(self, end))
+                if point is None:
                     raise InvalidInputError(
                         f"{end} must be finite task coordinates, shape (m,); got "
                         f"{getattr(self, end)!r}"
@@ -717,11 +723,12 @@ def _cell(text: str) -> float | None:
 
 
 def checked_path(path: object, name: str = "segment") -> Segment | Chain:
-    """``path`` if it is one the integrators take (a `Segment`, or a cycle's `Chain`), else one
-    line naming what was given: a segment's name is looked up in its `WorkCycle`."""
+    """``path`` if it is one the integrators take (a `Segment`, or a `Chain` such as a
+    `WorkCycle`), else one line naming what was given: a segment's name is looked up in its
+    `WorkCycle`."""
     if isinstance(path, Segment | Chain):
         return path
     raise InvalidInputError(
-        f"{name} must be a Segment or a Chain (e.g. cycle[{path!r}] or cycle.chain() of a "
-        f"WorkCycle); got {type(path).__name__} {path!r}"[:240]
+        f"{name} must be a Segment or a Chain (e.g. cycle[{path!r}] of a WorkCycle, or the "
+        f"WorkCycle itself); got {type(path).__name__} {path!r}"[:240]
     )
