@@ -18,7 +18,6 @@ from redundancy.planning.tasks import (
     Arc,
     Line,
     Polyline,
-    Profile,
     Segment,
     WorkCycle,
     read_polyline,
@@ -87,7 +86,7 @@ def test_an_arc_about_a_centre_needs_its_ends_on_one_circle():
 
 
 def test_the_trapezoidal_profile_ramps_at_its_acceleration_from_rest_to_rest():
-    profile = Profile("trapezoidal", 0.5, 5.0, 1.0)
+    profile = Segment.along("s", Line([0.0, 0.0], [5.0, 0.0]), 0.5, "trapezoidal", 1.0)
     assert profile.ramp == pytest.approx(0.5)
     assert profile.duration == pytest.approx(5.0 / 0.5 + 0.5)
     t = np.linspace(0.0, profile.duration, 2001)
@@ -97,7 +96,8 @@ def test_the_trapezoidal_profile_ramps_at_its_acceleration_from_rest_to_rest():
     assert rate.max() == pytest.approx(0.5)
     assert np.abs(np.diff(rate) / np.diff(t)).max() <= 1.0 + 1e-9
     np.testing.assert_allclose(np.gradient(s, t, edge_order=2), rate, atol=2e-3)
-    short = Profile("trapezoidal", 0.5, 0.1, 1.0)  # a triangle: never reaches 0.5 m/s
+    # a triangle: never reaches 0.5 m/s
+    short = Segment.along("s", Line([0.0, 0.0], [0.1, 0.0]), 0.5, "trapezoidal", 1.0)
     assert short.peak == pytest.approx(math.sqrt(0.1)) and short.duration == pytest.approx(
         2 * math.sqrt(0.1)
     )
@@ -264,13 +264,13 @@ def test_bad_segments_are_named_in_one_line(tmp_path, text, message):
 @pytest.mark.parametrize(
     "csv, message",
     [
-        ("x,y\n1.0,0.0\n1.5,abc\n", r"path.csv line 3: cell 2 \('abc'\) is not a number"),
-        ("1.0,0.0\n2_0,1.0\n", r"path.csv line 2: cell 1 \('2_0'\) is not a number"),
+        ("x,y\n1.0,0.0\n1.5,abc\n", r"path.csv line 3: cell 2 \('abc'\) is not a finite number"),
+        ("1.0,0.0\n2_0,1.0\n", r"path.csv line 2: cell 1 \('2_0'\) is not a finite number"),
         ("1.0,0.0\n", r"path.csv: one point \(line 1\); a polyline needs at least two"),
         ("# only this\n1.0,0.0\n", r"one point \(line 2\)"),
         ("1.0,0.0\n1.0,0.0\n", r"one point \(lines 1-2\)"),
-        ("1.0,0.0\nnan,1.0\n", r"path.csv line 2: 'nan' is not a finite number"),
-        ("1.0,0.0\n2.0,inf\n", r"path.csv line 2: 'inf' is not a finite number"),
+        ("1.0,0.0\nnan,1.0\n", r"path.csv line 2: cell 1 \('nan'\) is not a finite number"),
+        ("1.0,0.0\n2.0,inf\n", r"path.csv line 2: cell 2 \('inf'\) is not a finite number"),
         ("1.0,0.0\n2.0,1.0,3.0\n", r"path.csv line 2: 3 values; the task has 2 coordinates"),
         ("1.0,0.0\n1e308,1.0\n", r"path.csv line 2: 1e308 lies beyond ±1000 \(m, or degrees"),
         ("1.0,0.0\n2.0,-1000.5\n", r"path.csv line 2: -1000.5 lies beyond ±1000"),
@@ -289,7 +289,7 @@ def test_a_malformed_polyline_ends_the_command_line_in_one_line(tmp_path):
     run = run_cli("cycle", "--task", str(path), "--out", str(tmp_path / "out"), "--quiet")
     assert run.returncode == 2
     assert run.stderr.strip().count("\n") == 0
-    assert "path.csv line 2: cell 2 ('x') is not a number" in run.stderr
+    assert "path.csv line 2: cell 2 ('x') is not a finite number" in run.stderr
 
 
 def test_a_point_out_of_reach_is_shown_with_its_angle_in_degrees(arm):

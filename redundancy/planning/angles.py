@@ -105,25 +105,25 @@ class ToolAngleRobot(Robot):
         None)."""
         tool, probe = kinematics.point(self._tool), kinematics.point(self._probe)
         a, b = self._plane
+
+        def cross(u: np.ndarray, U: np.ndarray) -> np.ndarray:
+            """u_a U_b − u_b U_a, (k, n) for u (k, 3) and U (k, 3, n)."""
+            return u[:, a, None] * U[:, b] - u[:, b, None] * U[:, a]
+
         d = probe.position - tool.position
         dJ = probe.jacobian - tool.jacobian
         rho2 = d[:, a] ** 2 + d[:, b] ** 2
         raw = np.arctan2(d[:, b], d[:, a])
         angle = self.centre + np.mod(raw - self.centre + math.pi, 2 * math.pi) - math.pi
-        jacobian = (d[:, a, None] * dJ[:, b] - d[:, b, None] * dJ[:, a]) / rho2[:, None]
+        jacobian = cross(d, dJ) / rho2[:, None]
         if not rates or probe.velocity is None or tool.velocity is None:
             return angle, jacobian, None, None
         dd = probe.velocity - tool.velocity
         dJ_dot = probe.jacobian_rate - tool.jacobian_rate  # type: ignore[operator]
         rate = (d[:, a] * dd[:, b] - d[:, b] * dd[:, a]) / rho2
-        jacobian_rate = (
-            dd[:, a, None] * dJ[:, b]
-            + d[:, a, None] * dJ_dot[:, b]
-            - dd[:, b, None] * dJ[:, a]
-            - d[:, b, None] * dJ_dot[:, a]
-        ) / rho2[:, None] - 2 * ((d[:, a] * dd[:, a] + d[:, b] * dd[:, b]) / rho2)[
-            :, None
-        ] * jacobian
+        spin = (d[:, a] * dd[:, a] + d[:, b] * dd[:, b]) / rho2  # ρ̇ / ρ
+        jacobian_rate = (cross(dd, dJ) + cross(d, dJ_dot)) / rho2[:, None]
+        jacobian_rate -= 2 * spin[:, None] * jacobian
         return angle, jacobian, rate, jacobian_rate
 
     def task_point(self, kinematics: Kinematics) -> tuple[np.ndarray, np.ndarray]:

@@ -1,38 +1,25 @@
 """Work cycles as a machine runs them: one continuous motion through every corner, again and
 again.
 
-The paper plans each segment on its own, from its own best start; a machine runs its cycle
-1 → 2 → 3 → 1 continuously, each segment (and each cycle) starting where the last ended. A cycle
-is a path like any other, its `Chain` (`simulate_path`), so:
-
-- `improved_cycle_start` is `improved_start` along the chain: the held actuators' start at the
-  cycle's first point whose motion keeps every stroke over the whole cycle with the least peak
-  (or integral) of the objective;
-- `plan_cycle` puts it beside the per-segment plan, whose every corner needs a self-motion (the
-  task point held still) from where one segment's best motion ends to where the next one's best
-  start begins (`Corner`: every actuator's Δ, the time at a stated speed, the strokes kept);
-- `repeat` runs N cycles, each from where the last ended (`Repetition`: drift per cycle, the
-  first cycle past a limit, whether the held value at the cycle's start settles, `Settling`);
-  `return_map` samples the map P from that value to the next cycle's, whose fixed points are
-  the limit cycles (stable where |P'| < 1).
+A cycle is a path like any other (a `WorkCycle` is a `Chain`): the whole-cycle improved start is
+`improved_start` along it (`improved_cycle_start`). `plan_cycle` puts it beside the paper's
+per-segment plan, whose every corner needs a self-motion, the task point held still, from where
+one segment's best motion ends to where the next one's best start begins (`Corner`). `repeat`
+runs N cycles, each from where the last ended (`Repetition`: drift per cycle, the first cycle
+past a limit, `Settling`); `return_map` samples the map P from the held value at the cycle's
+start to the next cycle's, whose fixed points are the limit cycles (stable where |P'| < 1).
 
 Pseudoinverse control is not repeatable on a closed path in general (Roberts & Maciejewski, IJRR
 13(1), 1994): the self-motion is not integrable, so each cycle ends a little away from its
-start. The drift-free strategy is the periodic global optimum (`periodic_optimum`):
-
-- it closes exactly: the unknowns are the held strokes r(t) at the nodes of the whole cycle with
-  r(T) = r(0) one unknown, each node's configuration solving y(q) = y_d(t), x_h(q) = r(t), so
-  every cycle is the same motion. A null-space return term z = −k ∇‖x − x*‖² only contracts
-  towards a periodic motion, by a factor per cycle set by k: closing within 1e-6 from the first
-  cycle needs a stiff k, whose self-motion costs velocity at every instant and raises the peak;
-- it is the least peak over every periodic history of the held actuators with every checked
-  stroke kept at every node: the segment's bound (`redundancy.planning.bound`, whose
-  transcription it reuses) over all segments with the periodic unknown, so its price against
-  the free improved cycle is a measured optimum;
-- a machine runs it as a law in time (`HeldReference`): the held actuators follow r(t)
-  (feedforward ṙ, feedback `HELD_GAIN`), the others resolve the task, J_H ẋ = ẏ, in closed loop.
-
-It costs seconds of planning (`benchmarks/cycles.py`) and minimises a peak objective only.
+start. The drift-free strategy is the periodic global optimum (`periodic_optimum`): the bound's
+transcription (`redundancy.planning.bound`) over the whole cycle with r(T) = r(0) one unknown,
+each node's configuration solving y(q) = y_d(t), x_h(q) = r(t), so every cycle is the same
+motion, of least peak over every periodic history of the held actuators with every checked
+stroke kept at every node: its price against the free improved cycle is a measured optimum. (A
+null-space return term z = −k ∇‖x − x*‖² only contracts towards a periodic motion, by a factor
+per cycle set by k; closing within 1e-6 from the first cycle needs a stiff k, which raises the
+peak.) A machine runs it by `HeldReference`: the held actuators follow r(t), the others resolve
+the task, J_H ẋ = ẏ, in closed loop. It minimises a peak objective only.
 """
 
 from __future__ import annotations
@@ -69,7 +56,7 @@ from redundancy.planning.starts import (
     held_actuators,
     improved_start,
 )
-from redundancy.planning.tasks import Chain, Segment, WorkCycle
+from redundancy.planning.tasks import Chain, Segment, WorkCycle, finite_vector
 from redundancy.resolution.laws import Resolver
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
 from redundancy.resolution.limits import Limits
@@ -81,22 +68,20 @@ from redundancy.resolution.state import ActuatorSpace
 CYCLES = 20  # repetitions by default
 SETTLED = 1e-6  # m (or rad): a cycle whose every actuator moves less than this is closed
 MAP_SAMPLES = 25  # starts the return map samples over the reachable held stroke
-GAP_SPEED = 0.1  # m/s (or rad/s): the held actuator's speed in a corner's self-motion, where
-# the robot's circuit gives no maximum speed for it
+GAP_SPEED = 0.1  # m/s (or rad/s): the held actuators' speed in a corner's self-motion, where
+# the robot's circuit gives none
 SELF_MOTION_STEPS = 50  # held values the corners' self-motions are followed through
-REPEAT_TOLERANCE = 1e-7  # per adaptive step on q: repetitions integrate this finely, so that
-# the integrator's own error stays far below the drift measured (`SETTLED`)
+REPEAT_TOLERANCE = 1e-7  # per adaptive step on q: the integrator's own error stays far below
+# the drift measured (`SETTLED`)
 HELD_GAIN = 20.0  # 1/s: feedback of the held actuators onto the periodic plan's r(t)
-TASK_GAIN = 1.0  # 1/s: feedback of the task in repetitions and the return map. It keeps the
-# integrator's own tool error from adding up cycle after cycle (a time constant of 1 s against
-# cycles of seconds) and leaves the motion smooth for the adaptive steps: with the fixed-step
-# method's 20/s the same motion turns stiff, and its steps are 6 × as many.
+TASK_GAIN = 1.0  # 1/s: feedback of the task in repetitions and the return map: it keeps the
+# integrator's tool error from adding up over cycles of seconds, and the motion smooth for the
+# adaptive steps (at the fixed-step method's 20/s it turns stiff, for 6 × the steps)
 PERIODIC_GRIDS = (48, 96)  # intervals over the whole cycle of the periodic optimum's grids
 PERIODIC_MARGIN = 5e-4  # m (or rad): the periodic plan keeps the strokes this far inside at
 # its nodes, so that the motion a machine runs between them keeps them too
-SMOOTHNESS = 1e-4  # s²: the periodic plan's tie-break on the mean squared held acceleration
-# r̈², beside the bound's on ṙ²: a plan a machine runs should be smooth where the peak does not
-# bind (on the crane it halves the rms of ẍ_h and moves the peak by 2e-4 of itself)
+SMOOTHNESS = 1e-4  # s²: the periodic plan's tie-break on mean r̈², beside the bound's on ṙ²
+# (on the crane it halves the rms of ẍ_h and moves the peak by 2e-4 of itself)
 
 
 def improved_cycle_start(
@@ -109,31 +94,36 @@ def improved_cycle_start(
     method: str | None = None,
     circuit: bool = False,
 ) -> SearchResult:
-    """The improved initial configuration over the whole cycle: `improved_start` along the
-    cycle's `Chain`, so that the start of the held actuators (default the task's,
-    `held_actuators`) at the cycle's first point keeps every checked stroke through every
-    segment with the least peak (or integral) of ``objective``."""
-    cycle.check_continuous(closed=False)
-    held = _held(robot, cycle, held)
-    return improved_start(
-        robot, cycle.chain(), objective, held, samples, checked, method, circuit=circuit
-    )
+    """`improved_start` along the whole ``cycle``: the start of the held actuators (default
+    the task's, `held_actuators`) at its first point that keeps every checked stroke through
+    every segment with the least peak (or integral) of ``objective``."""
+    held = _held(robot, cycle, held, closed=False)
+    return improved_start(robot, cycle, objective, held, samples, checked, method, circuit=circuit)
 
 
-def _held(robot: Robot, cycle: WorkCycle, held) -> tuple[str, ...]:
+def _held(robot: Robot, cycle: WorkCycle, held, closed: bool = True) -> tuple[str, ...]:
+    """The held actuators' names (default the task's), once ``cycle`` is checked continuous
+    (and ``closed``)."""
+    cycle.check_continuous(closed)
     return held_names(robot, held_actuators(robot, cycle) if held is None else held)
+
+
+def checked_cycles(cycles: object) -> int:
+    """``cycles`` if it is a whole number of repetitions within [1, 10,000], else one line."""
+    if not is_whole(cycles, 1, 10_000):
+        raise InvalidInputError(f"cycles must be a whole number within [1, 10,000]; got {cycles!r}")
+    return int(cycles)  # type: ignore[call-overload]
 
 
 @dataclass(frozen=True)
 class Corner:
-    """A corner of the per-segment plan: segment ``after`` ends at ``point`` where ``before``
-    starts. The plan's motion along ``after`` ends with the strokes ``end`` (n,); its best start
-    of ``before`` has ``start`` (n,). Between them the machine needs a self-motion, the tool held
-    at the point, moving the held actuators along a line from end to start, the fastest at
-    ``speed`` (m/s or rad/s). ``within_limits`` says whether that self-motion keeps every
-    checked stroke (None where a segment has no feasible start), ``reason`` why a corner has
-    no gap or its self-motion fails; ``path`` the self-motion's configurations (k, n), as far
-    as it was followed."""
+    """A corner of the per-segment plan, at ``point`` where segment ``after`` ends and
+    ``before`` starts: the plan's motion along ``after`` ends with the strokes ``end`` (n,), its
+    best start of ``before`` has ``start`` (n,) (None where a segment has no feasible start).
+    Between them the tool is held at the point while the held actuators move along a line from
+    end to start, the fastest at ``speed`` (m/s or rad/s); ``within_limits`` whether that
+    self-motion keeps every checked stroke, ``reason`` why it fails or there is no gap, ``path``
+    its configurations (k, n) as far as it was followed."""
 
     after: str
     before: str
@@ -249,8 +239,7 @@ def plan_cycle(
     self-motion gaps (the held actuators at ``speed``, default `gap_speed`). ``segments``: each
     segment's search where it was already made with these arguments (the study's), else each
     is searched here."""
-    cycle.check_continuous(closed=False)
-    held = _held(robot, cycle, held)
+    held = _held(robot, cycle, held, closed=False)
     speed = gap_speed(robot, held) if speed is None else speed
     if not speed > 0:
         raise InvalidInputError(f"the self-motion's speed must be > 0; got {speed}")
@@ -268,7 +257,7 @@ def plan_cycle(
             f"segments must be one search of {named!r} holding {held} per segment of "
             f"{cycle.name!r}, in order"
         )
-    search = search_along(cycle.chain())
+    search = search_along(cycle)
     if segments is None:
         segments = [search_along(segment) for segment in cycle.segments]
     searches = tuple(segments)
@@ -283,8 +272,7 @@ def plan_cycle(
     )
 
 
-@dataclass(frozen=True)
-class Settling:
+class Settling(NamedTuple):
     """Whether the held actuator's value at the cycle's start settles to a limit cycle.
 
     ``settled_at``: the first cycle after which every actuator moved less than `SETTLED`; else
@@ -412,11 +400,6 @@ class Repetition:
         ``fixed_points`` (`settling`)."""
         return settling(self.held_values[:, 0], self.drift, fixed_points)
 
-    @property
-    def peak_velocity_norm(self) -> float:
-        """The highest ẋᵀẋ over every cycle, m²/s²."""
-        return float(max(m.peak_velocity_norm[0] for m in self.motions))
-
     def score(self, objective: Objective) -> float:
         """The first cycle's ``objective``."""
         return float(self.motions[0].score(objective)[0])
@@ -440,22 +423,20 @@ def repeat(
     configuration ``start`` (n,), each from where the last ended, with closed-loop tracking of
     the task (gain K, 1/s), adaptively to ``tolerance`` and sampled at the steps
     (`Repetition.motion` gives a cycle on the grid)."""
-    cycle.check_continuous(closed=True)
     held = _held(robot, cycle, held)
-    if not isinstance(cycles, int | np.integer) or not 1 <= cycles <= 10_000:
-        raise InvalidInputError(f"cycles must be a whole number within [1, 10,000]; got {cycles!r}")
+    cycles = checked_cycles(cycles)
     q = robot.configuration(start, "start")
     if len(q) != 1:
         raise InvalidInputError(
             f"start must be one configuration ({robot.n},): repetitions run one after another; "
             f"got shape {np.shape(start)}"
         )
-    run = partial(simulate_path, robot, laws, cycle.chain(), checked=checked, sparse=True)
+    run = partial(simulate_path, robot, laws, cycle, checked=checked, sparse=True)
     motions = []
     for _ in range(cycles):
         motions.append(run(q, objective=objective, circuit=circuit, gain=gain, tolerance=tolerance))
         q = motions[-1].q[:, -1]
-    laws = per_segment(cycle.chain(), laws)
+    laws = per_segment(cycle, laws)
     return Repetition(robot, cycle, strategy, held, laws, tuple(motions), circuit, gain, tolerance)
 
 
@@ -508,7 +489,6 @@ def return_map(
 ) -> ReturnMap:
     """P sampled at ``values`` of the held actuator (default ``count`` evenly over the reachable
     part of its stroke at the cycle's start), all integrated as one batch."""
-    cycle.check_continuous(closed=True)
     found = _held(robot, cycle, held)
     if len(found) != 1:
         raise InvalidInputError(
@@ -517,7 +497,7 @@ def return_map(
             "tells instead"
         )
     name = found[0]
-    configurations = Configurations(robot, cycle.chain(), name)
+    configurations = Configurations(robot, cycle, name)
     if values is None:
         if not is_whole(count, 2, MAX_SAMPLES):
             raise InvalidInputError(
@@ -525,12 +505,8 @@ def return_map(
             )
         reachable = configurations.reachable(end_tolerance(robot, name, None))
         values = np.linspace(reachable[0], reachable[-1], count)
-    given = values
-    try:
-        values = np.asarray(values, dtype=float)
-    except (TypeError, ValueError):
-        values = np.array([np.nan])
-    if values.ndim != 1 or not values.size or not np.all(np.isfinite(values)):
+    given, values = values, finite_vector(values)
+    if values is None:
         raise InvalidInputError(
             f"values must be finite strokes of {name}, one per sample, shape (k,); got {given!r}"
         )
@@ -540,7 +516,7 @@ def return_map(
     within = np.zeros(len(values), dtype=bool)
     if ok.any():
         motions = simulate_path(
-            robot, laws, cycle.chain(), starts.q[ok], checked=checked, sparse=True, gain=TASK_GAIN
+            robot, laws, cycle, starts.q[ok], checked=checked, sparse=True, gain=TASK_GAIN
         )
         end = motions.x[:, -1, robot.actuators.rows(name)[0]]
         following[ok] = np.where(motions.failed, np.nan, end)
@@ -642,7 +618,6 @@ def periodic_optimum(
     motion of ``guess`` (e.g. the free improved cycle) with its drift taken out linearly in
     time; ``grids`` are interval counts over the whole cycle, each solved from the last.
     ``held`` names the held actuators (default the task's), one or several."""
-    cycle.check_continuous(closed=True)
     names = _held(robot, cycle, held)
     if objective.reduction != "peak":
         raise InvalidInputError(
@@ -663,17 +638,17 @@ def periodic_optimum(
         (a.lower + margin, a.upper - margin) if a.name in limits.names else (None, None)
         for a in actuators
     ]
-    period, chain, solutions = cycle.duration, cycle.chain(), []
+    period, solutions = cycle.duration, []
     t0, r0 = guess.t[0], guess.x[0][:, rows]
     nodes_t, nodes_q = t0, guess.q[0]  # where the next grid's configurations are interpolated from
     # and its held strokes (periodic in the cycle's time): the free motion's, its drift out
     unknown_t, unknown_r = t0, r0 - (r0[-1] - r0[0]) * t0[:, None] / period
     for intervals in grids:
-        q = resampled(node_times(chain, intervals), nodes_t, nodes_q)
+        q = resampled(node_times(cycle, intervals), nodes_t, nodes_q)
         problem = Transcription(
             robot,
             objective,
-            chain,
+            cycle,
             rows,
             others,
             intervals,

@@ -1,39 +1,16 @@
 """Tasks: paths in task coordinates, how fast they are travelled, and work cycles of them.
 
-A segment is a path (its geometry) and a speed profile (its timing):
+A segment is a path and a speed profile. Paths (`Line`, `Arc`, `Polyline`) are parametrised by
+the arc length s ∈ [0, length] of the tool's position: a straight line P→Q (Eq. 33), a circular
+arc (through a third point, or about a centre; a closed circle ends where it starts) or a
+polyline through recorded points (a CSV file). Where the task's last coordinate is the tool's
+angle, it changes linearly with s (a closed circle keeps it); speeds are the position's.
+Speed profiles: "constant", ṡ = speed from t = 0 (Eq. 34), so ẏ jumps at a cycle's
+corners; or "trapezoidal", from rest to rest at most ``acceleration``, ẏ continuous.
 
-- paths (`Line`, `Arc`, `Polyline`) are parametrised by the arc length s of the tool's position
-  over [0, length]: a straight line P→Q (Eq. 33), a circular arc (through a third point, or about
-  a centre; a closed circle is an arc about a centre that ends where it starts), or a polyline
-  through recorded points (a CSV file: an operator's path). Where the task has the tool's angle
-  as its last coordinate, the angle changes linearly with s from its value at the start to its
-  value at the end (a closed circle keeps it), and the speed is the tool position's.
-- speed profiles (`Profile`): "constant", the paper's (Eq. 34), ṡ = speed from t = 0, so ẏ jumps
-  at the corners of a cycle; or "trapezoidal", from rest to rest: ṡ rises at the maximum
-  ``acceleration`` to the ``speed``, cruises and falls again (a triangle where the path is too
-  short to reach the speed), so ẏ is continuous everywhere, zero at every corner.
-
-A work cycle is its segments travelled one after another; a cycle a machine repeats is
-continuous (each segment starts where the one before ends) and closed (the last ends where the
-first starts): `WorkCycle.check_continuous`.
-
-A task file (TOML; an example of every key in docs/machines.md) gives ``name`` (default: the
-file's), ``speed`` (m/s of the tool, ≤ 10; default 0.5), ``profile`` ("constant", the default, or
-"trapezoidal" with ``acceleration``, m/s²), ``tool_angle`` (true: every point has one more
-value, the tool's angle about the task plane's normal in degrees; a planar task only), ``held``
-(the actuators the improved search holds; optional), ``segments`` and ``[points]`` (name = one
-value per task coordinate, m, and degrees). A segment is "<from>-<to>", a line, or a table:
-``from`` and ``to`` alone (a line), with ``via`` (an arc through that point), or with ``centre``
-and ``direction`` (an arc about it, "ccw" from the first task axis towards the second or "cw";
-a closed circle where from = to; a planar position, its ends at one distance from the centre);
-or ``csv`` alone (a polyline, the file beside the task file). A table may give its own ``name``,
-``speed``, ``profile`` and ``acceleration``; names must differ (a line or arc is "<from>-<to>"
-by default, a polyline its file's name).
-
-A CSV polyline holds one point per line, its cells separated by commas: one value per task
-coordinate (the angle in degrees). Blank lines and lines starting with "#" are skipped, and so
-is a first line of names (no cell a number). Consecutive points at one position are merged. A
-malformed file is one error naming its line.
+A work cycle is a `Chain` of segments, one path over time; a cycle a machine repeats is
+continuous and closed (`WorkCycle.check_continuous`). The task file (`WorkCycle.from_toml`) and
+the CSV polyline (`read_polyline`) are documented key by key in docs/machines.md.
 """
 
 from __future__ import annotations
@@ -82,6 +59,15 @@ def _prefixed(prefix: str) -> Iterator[None]:
         raise InvalidInputError(f"{prefix}: {error}") from None
 
 
+def finite_vector(value: object) -> np.ndarray | None:
+    """``value`` as a vector (k,) of finite floats, k ≥ 1, or None where it is none."""
+    try:
+        vector = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        return None
+    return vector if vector.ndim == 1 and vector.size and np.isfinite(vector).all() else None
+
+
 def _piece(edges: np.ndarray, x) -> tuple[np.ndarray, np.ndarray]:
     """``x`` (...,) as floats and the piece i of each, edges[i] ≤ x < edges[i + 1], the first
     and last pieces extended beyond the ends."""
@@ -91,30 +77,27 @@ def _piece(edges: np.ndarray, x) -> tuple[np.ndarray, np.ndarray]:
 
 class Shape(ABC):
     """Geometry of a segment in task coordinates (m of them; the last ``angles`` are angles),
-    parametrised by the arc length s ∈ [0, length] of the position (the first m − angles)."""
+    parametrised by the arc length s ∈ [0, length] (m) of the position (the first m − angles):
+    ``point(s)`` y (..., m) and ``tangent(s)`` dy/ds (..., m), a unit vector in the position
+    and the angle's rate per metre, for s (...,); ``outline()`` points (P, m) that draw it."""
 
     start: np.ndarray
     end: np.ndarray
     angles: int
     kind: str = "path"
-    kinks: tuple[float, ...] = ()  # arc lengths inside the path where its tangent jumps
 
     @property
     @abstractmethod
-    def length(self) -> float:
-        """The position's arc length, m."""
+    def length(self) -> float: ...
 
     @abstractmethod
-    def point(self, s: np.ndarray) -> np.ndarray:
-        """y(s), (..., m) for s (...,) in m."""
+    def point(self, s: np.ndarray) -> np.ndarray: ...
 
     @abstractmethod
-    def tangent(self, s: np.ndarray) -> np.ndarray:
-        """dy/ds (..., m): a unit vector in the position, and the angle's rate per metre."""
+    def tangent(self, s: np.ndarray) -> np.ndarray: ...
 
     @abstractmethod
-    def outline(self) -> np.ndarray:
-        """Points (P, m) that draw the path as straight pieces."""
+    def outline(self) -> np.ndarray: ...
 
 
 def _position(y: np.ndarray, angles: int) -> np.ndarray:
@@ -162,7 +145,8 @@ class Polyline(Shape):
         return float(self.cumulative[-1])
 
     @property
-    def kinks(self) -> tuple[float, ...]:  # type: ignore[override]
+    def kinks(self) -> tuple[float, ...]:
+        """Arc lengths inside the path where its tangent jumps."""
         return tuple(float(s) for s in self.cumulative[1:-1])
 
     def point(self, s):
@@ -293,81 +277,11 @@ def _angle_of(d: np.ndarray, e1: np.ndarray, e2: np.ndarray) -> float:
 
 
 @dataclass(frozen=True)
-class Profile:
-    """How fast a path of ``length`` m is travelled: "constant" at ``speed`` m/s (Eq. 34), or
-    "trapezoidal" from rest to rest with at most ``acceleration`` m/s²."""
-
-    kind: str
-    speed: float
-    length: float
-    acceleration: float | None = None
-
-    def __post_init__(self) -> None:
-        if self.kind not in PROFILES:
-            raise InvalidInputError(f"profile {self.kind!r} is not one of {', '.join(PROFILES)}")
-        if not (is_real(self.speed) and 0 < self.speed <= MAX_SPEED):
-            raise InvalidInputError(
-                f"speed must be > 0 and ≤ {MAX_SPEED:g} m/s; got {self.speed!r}"
-            )
-        acceleration = self.acceleration
-        if self.kind == "trapezoidal" and not (
-            is_real(acceleration) and 0 < acceleration <= MAX_ACCELERATION  # type: ignore[operator]
-        ):
-            raise InvalidInputError(
-                f"a trapezoidal profile needs acceleration > 0 and ≤ {MAX_ACCELERATION:g} m/s² "
-                f"(the tool's maximum); got {acceleration!r}"
-            )
-        if not self.duration <= MAX_DURATION:
-            pace = f"speed {self.speed:g} m/s" + (
-                f" and acceleration {self.acceleration:g} m/s²" if self.ramp else ""
-            )
-            raise InvalidInputError(
-                f"at {pace} its path of {self.length:.4g} m takes {self.duration:.3g} s; a "
-                f"segment may take at most {MAX_DURATION:g} s: give a higher "
-                + ("speed or acceleration" if self.ramp else "speed")
-            )
-
-    @cached_property
-    def peak(self) -> float:
-        """The highest speed reached, m/s: √(length · acceleration) where the path is too short
-        to reach the ``speed``."""
-        if self.kind == "constant":
-            return self.speed
-        return min(self.speed, math.sqrt(self.length * self.acceleration))  # type: ignore[operator]
-
-    @cached_property
-    def ramp(self) -> float:
-        """Duration of the acceleration (and of the deceleration), s; 0 at constant speed."""
-        return 0.0 if self.kind == "constant" else self.peak / self.acceleration  # type: ignore[operator]
-
-    @cached_property
-    def duration(self) -> float:
-        return self.length / self.peak + self.ramp
-
-    def progress(self, t) -> tuple[np.ndarray, np.ndarray]:
-        """Arc length s and its rate ṡ at times t (...,) in s, both (...,); for the trapezoidal
-        profile t is clipped to [0, duration] (at rest outside), and with a = acceleration,
-        t_a = ramp, T = duration, v = peak: s = v (t − t_a/2) + a/2 (max(t_a − t, 0)² −
-        max(t − T + t_a, 0)²), ṡ = min(v, a t, a (T − t))."""
-        t = np.asarray(t, dtype=float)
-        if self.kind == "constant":
-            return self.speed * t, np.full(t.shape, self.speed)
-        a, ramp, peak, end = float(self.acceleration or 0.0), self.ramp, self.peak, self.duration
-        t = np.clip(t, 0.0, end)
-        late = np.maximum(t - end + ramp, 0.0)
-        s = peak * (t - ramp / 2) + a / 2 * (np.maximum(ramp - t, 0.0) ** 2 - late**2)
-        return s, np.minimum(peak, a * np.minimum(t, end - t))
-
-    def describe(self) -> dict:
-        found = {"profile": self.kind, "speed": self.speed}
-        return found if self.kind == "constant" else {**found, "acceleration": self.acceleration}
-
-
-@dataclass(frozen=True)
 class Segment:
-    """A path from ``start`` to ``end`` (m,) travelled at ``speed`` m/s: by default the
-    straight line P→Q at constant speed (Eqs. 33-34); `Segment.along` builds any path and
-    profile."""
+    """A path from ``start`` to ``end`` (m,) travelled at ``speed`` m/s with a speed
+    ``profile``: "constant" (Eq. 34), or "trapezoidal" from rest to rest with at most
+    ``acceleration`` m/s². By default the straight line P→Q at constant speed (Eqs. 33-34);
+    `Segment.along` builds any path and profile."""
 
     name: str
     start: np.ndarray
@@ -380,11 +294,8 @@ class Segment:
     def __post_init__(self) -> None:
         with _prefixed(f"segment {self.name}"):
             for end in ("start", "end"):
-                try:
-                    point = np.asarray(getattr(self, end), dtype=float)
-                except (TypeError, ValueError):
-                    point = np.array([np.nan])
-                if point.ndim != 1 or not np.all(np.isfinite(point)):
+                point = finite_vector(getattr(self, end))
+                if point is None:
                     raise InvalidInputError(
                         f"{end} must be finite task coordinates, shape (m,); got "
                         f"{getattr(self, end)!r}"
@@ -397,7 +308,64 @@ class Segment:
             ends = [self.shape.start, self.shape.end]
             if not np.allclose(ends, [self.start, self.end], rtol=0, atol=CLOSED):
                 raise InvalidInputError("its path's ends are not its own")
-            self.timing  # noqa: B018 - checks the profile
+            self._check_timing()
+
+    def _check_timing(self) -> None:
+        if self.profile not in PROFILES:
+            raise InvalidInputError(f"profile {self.profile!r} is not one of {', '.join(PROFILES)}")
+        if not (is_real(self.speed) and 0 < self.speed <= MAX_SPEED):
+            raise InvalidInputError(
+                f"speed must be > 0 and ≤ {MAX_SPEED:g} m/s; got {self.speed!r}"
+            )
+        acceleration = self.acceleration
+        if self.profile == "trapezoidal" and not (
+            is_real(acceleration) and 0 < acceleration <= MAX_ACCELERATION  # type: ignore[operator]
+        ):
+            raise InvalidInputError(
+                f"a trapezoidal profile needs acceleration > 0 and ≤ {MAX_ACCELERATION:g} m/s² "
+                f"(the tool's maximum); got {acceleration!r}"
+            )
+        if not self.duration <= MAX_DURATION:
+            pace = f"speed {self.speed:g} m/s" + (
+                f" and acceleration {self.acceleration:g} m/s²" if self.ramp else ""
+            )
+            raise InvalidInputError(
+                f"at {pace} its path of {self.shape.length:.4g} m takes {self.duration:.3g} s; "
+                f"a segment may take at most {MAX_DURATION:g} s: give a higher "
+                + ("speed or acceleration" if self.ramp else "speed")
+            )
+
+    @cached_property
+    def peak(self) -> float:
+        """The highest speed reached, m/s: √(length · acceleration) where the path is too short
+        to reach the ``speed``."""
+        if self.profile == "constant":
+            return self.speed
+        return min(self.speed, math.sqrt(self.shape.length * self.acceleration))  # type: ignore[operator]
+
+    @cached_property
+    def ramp(self) -> float:
+        """Duration of the acceleration (and of the deceleration), s; 0 at constant speed."""
+        return 0.0 if self.profile == "constant" else self.peak / self.acceleration  # type: ignore[operator]
+
+    @cached_property
+    def duration(self) -> float:
+        """t_f, in s: |Q − P| / speed for a line at constant speed."""
+        return self.shape.length / self.peak + self.ramp
+
+    def progress(self, t) -> tuple[np.ndarray, np.ndarray]:
+        """Arc length s and its rate ṡ at times t (...,) in s, both (...,); for the trapezoidal
+        profile t is clipped to [0, duration] (at rest outside), and with a = acceleration,
+        t_a = ramp, T = duration, v = peak: s = v (t − t_a/2) + a/2 (max(t_a − t, 0)² −
+        max(t − T + t_a, 0)²), ṡ = min(v, a t, a (T − t))."""
+        t = np.asarray(t, dtype=float)
+        if self.profile == "constant":
+            return self.speed * t, np.full(t.shape, self.speed)
+        a, ramp, peak, end = float(self.acceleration or 0.0), self.ramp, self.peak, self.duration
+        t = np.clip(t, 0.0, end)
+        late = np.maximum(t - end + ramp, 0.0)
+        s = peak * (t - ramp / 2) + a / 2 * (np.maximum(ramp - t, 0.0) ** 2 - late**2)
+        return s, np.minimum(peak, a * np.minimum(t, end - t))
 
     @classmethod
     def along(
@@ -410,15 +378,6 @@ class Segment:
     ) -> Segment:
         """The segment ``name`` along ``shape`` at ``speed`` m/s with the speed ``profile``."""
         return cls(name, shape.start, shape.end, speed, shape, profile, acceleration)
-
-    @cached_property
-    def timing(self) -> Profile:
-        return Profile(self.profile, self.speed, self.shape.length, self.acceleration)
-
-    @cached_property
-    def duration(self) -> float:
-        """t_f, in s: |Q − P| / speed for a line at constant speed."""
-        return self.timing.duration
 
     @cached_property
     def velocity(self) -> np.ndarray:
@@ -434,12 +393,12 @@ class Segment:
 
     def position(self, t: np.ndarray | float) -> np.ndarray:
         """y_d(t) (..., m) for t (...,) in s (Eq. 33 on a line at constant speed)."""
-        s, _ = self.timing.progress(t)
+        s, _ = self.progress(t)
         return self.shape.point(s)
 
     def velocity_at(self, t: np.ndarray | float) -> np.ndarray:
         """ẏ_d(t) (..., m) in m/s (and rad/s) for t (...,) in s."""
-        s, rate = self.timing.progress(t)
+        s, rate = self.progress(t)
         return self.shape.tangent(s) * rate[..., None]
 
     def outline(self) -> np.ndarray:
@@ -463,12 +422,15 @@ class Segment:
             )
         if isinstance(shape, Polyline) and shape.kind == "polyline":
             found["points"] = len(shape.points)
-        return {**found, **self.timing.describe()}
+        found.update(profile=self.profile, speed=self.speed)
+        if self.profile == "trapezoidal":
+            found["acceleration"] = self.acceleration
+        return found
 
 
 @dataclass(frozen=True)
 class Chain:
-    """Segments travelled one after another as one motion's path over time: ``position`` and
+    """Segments travelled one after another as one path over time: ``position`` and
     ``velocity_at`` (right-continuous at the corners) of the whole, from t = 0."""
 
     name: str
@@ -489,6 +451,7 @@ class Chain:
 
     @property
     def duration(self) -> float:
+        """One pass through every segment, s."""
         return float(self.offsets[-1])
 
     def _each(self, t, method):
@@ -516,12 +479,10 @@ class Chain:
 
 
 @dataclass(frozen=True)
-class WorkCycle:
-    """Segments travelled one after another, the actuators a search holds, and whether the last
+class WorkCycle(Chain):
+    """A task: its `Chain` of segments, the actuators a search holds, and whether the last
     task coordinate is the tool's angle (rad)."""
 
-    name: str
-    segments: tuple[Segment, ...]
     held: tuple[str, ...] = ()
     tool_angle: bool = False
 
@@ -533,18 +494,13 @@ class WorkCycle:
         raise InvalidInputError(f"no segment {name!r} in {self.name!r}; segments: {names}")
 
     @property
-    def duration(self) -> float:
-        """One pass through every segment, s."""
-        return sum(s.duration for s in self.segments)
-
-    @property
     def closed(self) -> bool:
         """Whether the last segment ends where the first starts."""
-        return bool(np.all(np.abs(self.segments[-1].end - self.segments[0].start) <= CLOSED))
+        return bool(np.all(np.abs(self.end - self.start) <= CLOSED))
 
     def chain(self) -> Chain:
-        """The whole cycle as one path over time."""
-        return Chain(self.name, self.segments)
+        """The whole cycle as one path over time: the cycle itself."""
+        return self
 
     def check_continuous(self, closed: bool = True) -> None:
         """`InvalidInputError` naming the first corner where a segment does not start where the
@@ -740,42 +696,39 @@ def _csv_points(path: Path):
     """(line number, point) of each line of a CSV file that holds one: blank lines, comments
     ("#") and a first line of names (no cell a number) are skipped."""
     lines = read_text(path, "CSV file").splitlines()
-    names_allowed = True
+    header = True  # the first line that holds anything may be one of names
     for number, cells in enumerate(csv.reader(lines), start=1):
         if not "".join(cells).strip() or lines[number - 1].lstrip().startswith("#"):
             continue
         values = [_cell(cell) for cell in cells]
-        if names_allowed and all(v is None for v in values):
-            names_allowed = False
+        names, header = header and all(v is None for v in values), False
+        if names:
             continue
-        names_allowed = False
         where = f"{path} line {number}"
         if None in values:
             bad = values.index(None)
             text = excerpt(cells[bad].strip())
-            raise InvalidInputError(f"{where}: cell {bad + 1} ({text}) is not a number")
-        point = np.array(values, dtype=float)
-        if not np.all(np.isfinite(point)):
-            text = excerpt(cells[int(np.argmin(np.isfinite(point)))].strip())
-            raise InvalidInputError(f"{where}: {text} is not a finite number")
-        _check_reach(point, where, [c.strip() for c in cells])
-        yield number, point
+            raise InvalidInputError(f"{where}: cell {bad + 1} ({text}) is not a finite number")
+        _check_reach(np.array(values), where, [c.strip() for c in cells])
+        yield number, np.array(values)
 
 
 def _cell(text: str) -> float | None:
-    """The number a CSV cell writes, or None."""
+    """The finite number a CSV cell writes, or None."""
     try:
-        return decimal(text)
+        value = decimal(text)
     except ValueError:
         return None
+    return value if math.isfinite(value) else None
 
 
 def checked_path(path: object, name: str = "segment") -> Segment | Chain:
-    """``path`` if it is one the integrators take (a `Segment`, or a cycle's `Chain`), else one
-    line naming what was given: a segment's name is looked up in its `WorkCycle`."""
+    """``path`` if it is one the integrators take (a `Segment`, or a `Chain` such as a
+    `WorkCycle`), else one line naming what was given: a segment's name is looked up in its
+    `WorkCycle`."""
     if isinstance(path, Segment | Chain):
         return path
     raise InvalidInputError(
-        f"{name} must be a Segment or a Chain (e.g. cycle[{path!r}] or cycle.chain() of a "
-        f"WorkCycle); got {type(path).__name__} {path!r}"[:240]
+        f"{name} must be a Segment or a Chain (e.g. cycle[{path!r}] of a WorkCycle, or the "
+        f"WorkCycle itself); got {type(path).__name__} {path!r}"[:240]
     )

@@ -1,20 +1,10 @@
 """The work cycle as a machine runs it, as one report: `redundancy cycle` and the study's cycle
-section.
-
-For one objective (a peak one for the drift-free strategy):
-
-- the plan (`redundancy.planning.cycles.plan_cycle`): the improved start over the whole cycle,
-  and beside it the paper's per-segment plan with the self-motion each corner would need;
-- the strategies, each run for ``cycles`` cycles one after another (`repeat`):
-  "free", the objective's law from the whole-cycle improved start (the default start where no
-  start keeps the strokes), which drifts; and "periodic", the drift-free periodic optimum
-  (`periodic_optimum`), run by the law that follows its plan;
-- the drift of every actuator and of the tool per cycle, the first cycle that passes a stroke,
-  whether the free cycle settles to a limit cycle, and the return map of the held actuator at
-  the cycle's start whose fixed points are those limit cycles;
-- the drift-free strategy's cost against the free improved cycle: the peak of the objective and,
-  with hydraulics, the pump energy under load sensing and constant pressure
-  (`Trajectory.energy`), over the first cycle.
+section. For one objective (a peak one for the drift-free strategy): the plan (`plan_cycle`);
+the strategies, each repeated for ``cycles`` cycles (`repeat`): "free", the objective's law
+from the whole-cycle improved start, which drifts, and "periodic", the drift-free periodic
+optimum (`periodic_optimum`) run by the law that follows its plan; the drift, settling and
+return map; and the drift-free strategy's price against the free one, in the objective's peak
+and, with hydraulics, the pump energy under load sensing and constant pressure.
 """
 
 from __future__ import annotations
@@ -37,6 +27,7 @@ from redundancy.planning.cycles import (
     PeriodicOptimum,
     Repetition,
     ReturnMap,
+    checked_cycles,
     periodic_optimum,
     plan_cycle,
     repeat,
@@ -51,10 +42,6 @@ from redundancy.study.peers import pump_energies
 
 STRATEGIES = ("free", "periodic")
 CHOICES = (*STRATEGIES, "both")
-NAMES = {
-    "free": "free, whole-cycle improved start",
-    "periodic": "periodic optimum (drift-free)",
-}
 
 
 def free_start_of(search: SearchResult) -> tuple[str, np.ndarray, str]:
@@ -141,7 +128,7 @@ class CycleStudy:
     @property
     def names(self) -> dict[str, str]:
         """Each strategy's name, the free one's with the start it really ran from."""
-        return {**NAMES, "free": f"free, {self.free_kind}"}
+        return {"free": f"free, {self.free_kind}", "periodic": "periodic optimum (drift-free)"}
 
     def fixed_points(self, strategy: str) -> list[FixedPoint]:
         """The return map's fixed points where ``strategy`` is the law the map samples (the
@@ -350,8 +337,7 @@ def run_cycle(
 
     if strategy not in CHOICES:
         raise InvalidInputError(f"unknown strategy {strategy!r}; strategies: {', '.join(CHOICES)}")
-    if not isinstance(cycles, int | np.integer) or not 1 <= cycles <= 10_000:
-        raise InvalidInputError(f"cycles must be a whole number within [1, 10,000]; got {cycles!r}")
+    cycles = checked_cycles(cycles)
     cycle.check_continuous(closed=True)
     chosen = STRATEGIES if strategy == "both" else (strategy,)
     held = held_actuators(robot, cycle)
