@@ -1,7 +1,27 @@
 """One exception family: every failure a user can cause is a :class:`RedundancyError`.
 
-Messages name the bad value and, where there is a closed set, the valid choices.
+Messages name the bad value, where it came from (a file and its table or key, or an option) and,
+where there is a closed set, the valid choices.
 """
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+
+def placed(where: str, message: str) -> str:
+    """``message`` led by ``where`` it came from (a file and its table or key), if known."""
+    return f"{where}: {message}" if where else message
+
+
+@contextmanager
+def prefixed(where: str) -> Iterator[None]:
+    """Re-raise a `RedundancyError` from inside, of its own kind, led by ``where`` (`placed`)."""
+    try:
+        yield
+    except RedundancyError as error:
+        if not where:
+            raise
+        raise type(error)(placed(where, str(error))) from None
 
 
 class RedundancyError(Exception):

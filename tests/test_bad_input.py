@@ -803,6 +803,9 @@ def test_bad_command_line_input_is_one_line(tmp_path, monkeypatch, capsys, argv,
     assert len(errors) == 1, errors
     assert "internal error" not in errors[0] and "Traceback" not in errors[0]
     assert fragment in errors[0], errors[0]
+    if files:  # the line names the file to fix, unless an option is what is wrong
+        named = [name for name in files if Path(name).name in errors[0]]
+        assert named or errors[0].startswith("redundancy: error: --"), errors[0]
 
 
 def test_a_message_quotes_no_more_than_an_excerpt_of_a_file(tmp_path, monkeypatch, capsys):

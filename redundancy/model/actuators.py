@@ -16,7 +16,13 @@ import numpy as np
 import pinocchio as pin
 
 from redundancy import _core
-from redundancy.errors import InvalidInputError, RobotDescriptionError, SingularConfigurationError
+from redundancy.errors import (
+    InvalidInputError,
+    RobotDescriptionError,
+    SingularConfigurationError,
+    placed,
+    prefixed,
+)
 from redundancy.model.kinematics import Kinematics
 from redundancy.model.parameters import Number, Parameter, Point
 
@@ -344,11 +350,17 @@ class ActuatorSet:
         bound: dict[str, ActuatorMap] = {}
         for declared in maps:
             actuator = copy.copy(declared)
-            actuator.bind(model)
+            with prefixed(actuator.declared_in):  # named where the actuator is declared
+                actuator.bind(model)
             if actuator.joint in bound:
+                first = bound[actuator.joint]
                 raise RobotDescriptionError(
-                    f"joint {actuator.joint!r} is driven twice: by {bound[actuator.joint].name!r} "
-                    f"and {actuator.name!r}; each joint takes one actuator"
+                    placed(
+                        actuator.declared_in,
+                        f"joint {actuator.joint!r} is driven twice: by {first.name!r}"
+                        f"{f' ({first.declared_in})' if first.declared_in else ''} and "
+                        f"{actuator.name!r}; each joint takes one actuator",
+                    )
                 )
             bound[actuator.joint] = actuator
         names = [a.name for a in bound.values()]

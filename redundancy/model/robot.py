@@ -290,7 +290,7 @@ class Robot:
                 f"{self.name}: M(q) is singular at q = [{', '.join(f'{v:.4g}' for v in q[state])}]"
                 f": nothing beyond joints {joints} has mass off their axes or inertia about them, "
                 "so the dynamics (M_H, N_H, F_H, the energy objective) are undefined there; give "
-                "those links inertia about the joints' axes"
+                f"those links' <inertial> in {self.urdf.name} inertia about the joints' axes"
             )
         return out
 

@@ -20,7 +20,12 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from redundancy import _core
-from redundancy.errors import InvalidInputError, SingularConfigurationError, UnreachableError
+from redundancy.errors import (
+    InvalidInputError,
+    SingularConfigurationError,
+    UnreachableError,
+    placed,
+)
 from redundancy.model.actuators import ActuatorSet
 from redundancy.model.robot import Robot
 from redundancy.model.values import is_whole
@@ -318,9 +323,12 @@ def check_path(robot: Robot, segment: Segment, seeds: int = 8) -> None:
             best = q[np.argmin(miss)][None]
             error = robot.task_point(robot.kinematics(best))[0][0] - point
             raise UnreachableError(
-                f"{robot.name} cannot follow segment {segment.name}: its point "
-                f"{_point_text(robot, point)} (t = {t:.3g} s) is out of reach inside the joint "
-                f"limits, missed by {_miss_text(robot, error)}"
+                placed(
+                    segment.source,
+                    f"{robot.name} cannot follow segment {segment.name}: its point "
+                    f"{_point_text(robot, point)} (t = {t:.3g} s) is out of reach inside the "
+                    f"joint limits, missed by {_miss_text(robot, error)}",
+                )
             )
         q = q[miss < FOUND] if np.any(miss < FOUND) else q
         if not i:
@@ -363,9 +371,12 @@ def _check_mobility(robot: Robot, segment: Segment, q: np.ndarray) -> None:
         if np.abs(direction).max() > 0.99
         else (f"{np.round(direction, 3).tolist()} (in {', '.join(axes)})")
     )
+    rank = int(np.sum(sigma[best] > SINGULAR_TOLERANCE * sigma[best, 0]))
     raise SingularConfigurationError(
-        f"{robot.name} cannot move its tool along {along} at the start of segment "
-        f"{segment.name} {np.round(segment.start, 6).tolist()}: the task Jacobian J has rank "
-        f"{int(np.sum(sigma[best] > SINGULAR_TOLERANCE * sigma[best, 0]))} of {robot.m} there; "
-        f"task axes: {', '.join(axes)}"
+        placed(
+            segment.source,
+            f"{robot.name} cannot move its tool along {along} at the start of segment "
+            f"{segment.name} {np.round(segment.start, 6).tolist()}: the task Jacobian J has rank "
+            f"{rank} of {robot.m} there; task axes: {', '.join(axes)}",
+        )
     )

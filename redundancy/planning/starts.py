@@ -35,7 +35,7 @@ from functools import cached_property, partial
 
 import numpy as np
 
-from redundancy.errors import InvalidInputError, UnreachableError
+from redundancy.errors import InvalidInputError, UnreachableError, placed
 from redundancy.model.robot import Robot
 from redundancy.planning.brackets import bracket_probes, new_probes, vertex_probe
 from redundancy.planning.ik import (
@@ -240,7 +240,11 @@ def _unreachable(robot: Robot, path, how: str, miss: float | None = None) -> Unr
         "" if miss is None else f"; the closest configuration misses it by {amount(miss, 'm')}"
     )
     return UnreachableError(
-        f"{robot.name} cannot reach the start {path.start.tolist()} of {path.label} {how}{closest}"
+        placed(
+            getattr(path, "source", ""),  # a segment's or a work cycle's task file
+            f"{robot.name} cannot reach the start {path.start.tolist()} of {path.label} "
+            f"{how}{closest}",
+        )
     )
 
 

@@ -18,15 +18,13 @@ from __future__ import annotations
 import csv
 import math
 from abc import ABC, abstractmethod
-from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 
-from redundancy.errors import InvalidInputError
+from redundancy.errors import InvalidInputError, prefixed
 from redundancy.model.schema import (
     SegmentTable,
     TaskFile,
@@ -48,15 +46,6 @@ ARC_MISMATCH = 1e-6  # relative: an arc's ends must lie this close to one circle
 OUTLINE = 64  # points per full turn when a curved path is drawn
 TIMING = ("speed", "profile", "acceleration")  # the keys a task file and a segment's table share
 ARC_KEYS = ("from", "to", "via", "centre", "center", "direction")  # a line's or an arc's keys
-
-
-@contextmanager
-def _prefixed(prefix: str) -> Iterator[None]:
-    """Re-raise an `InvalidInputError` from inside with ``prefix`` (where it happened) first."""
-    try:
-        yield
-    except InvalidInputError as error:
-        raise InvalidInputError(f"{prefix}: {error}") from None
 
 
 def finite_vector(value: object) -> np.ndarray | None:
@@ -290,9 +279,10 @@ class Segment:
     shape: Shape = field(default=None, repr=False)  # type: ignore[assignment]  # None: a line
     profile: str = "constant"
     acceleration: float | None = None
+    source: str = field(default="", compare=False, repr=False)  # its task file's entry, if read
 
     def __post_init__(self) -> None:
-        with _prefixed(f"segment {self.name}"):
+        with prefixed(f"segment {self.name}"):
             for end in ("start", "end"):
                 point = finite_vector(getattr(self, end))
                 if point is None:
@@ -375,9 +365,11 @@ class Segment:
         speed: float,
         profile: str = "constant",
         acceleration: float | None = None,
+        source: str = "",
     ) -> Segment:
-        """The segment ``name`` along ``shape`` at ``speed`` m/s with the speed ``profile``."""
-        return cls(name, shape.start, shape.end, speed, shape, profile, acceleration)
+        """The segment ``name`` along ``shape`` at ``speed`` m/s with the speed ``profile``
+        (``source``: the task file's entry it was read from, which messages name)."""
+        return cls(name, shape.start, shape.end, speed, shape, profile, acceleration, source)
 
     @cached_property
     def velocity(self) -> np.ndarray:
@@ -480,11 +472,12 @@ class Chain:
 
 @dataclass(frozen=True)
 class WorkCycle(Chain):
-    """A task: its `Chain` of segments, the actuators a search holds, and whether the last
-    task coordinate is the tool's angle (rad)."""
+    """A task: its `Chain` of segments, the actuators a search holds, whether the last task
+    coordinate is the tool's angle (rad), and the task file it was read from (for messages)."""
 
     held: tuple[str, ...] = ()
     tool_angle: bool = False
+    source: str = field(default="", compare=False, repr=False)
 
     def __getitem__(self, name: str) -> Segment:
         for segment in self.segments:
@@ -555,7 +548,7 @@ class WorkCycle(Chain):
                 "leave it out for the default)"
             )
         name = path.stem if task.name is None else task.name
-        return cls(name, tuple(segments), tuple(task.held or ()), task.tool_angle)
+        return cls(name, tuple(segments), tuple(task.held or ()), task.tool_angle, str(path))
 
 
 def _points(task: TaskFile, size: int | None, path: Path) -> dict[str, np.ndarray]:
@@ -632,15 +625,16 @@ def _segment(
         if clash:
             raise InvalidInputError(f"{where}: a csv polyline takes no {', '.join(clash)}")
         dimension = size if size is not None or not points else len(next(iter(points.values())))
-        shape: Shape = read_polyline(path.parent / entry.csv, dimension, tool_angle)
+        with prefixed(where):
+            shape: Shape = read_polyline(path.parent / entry.csv, dimension, tool_angle)
         name = Path(entry.csv).stem if entry.name is None else entry.name
     else:
         start, end = point(entry.start, "from"), point(entry.to, "to")
         name = f"{entry.start}-{entry.to}" if entry.name is None else entry.name
-        with _prefixed(f"{where} ({name})"):
+        with prefixed(f"{where} ({name})"):
             shape = _curve(entry, start, end, point, int(tool_angle))
-    with _prefixed(where):
-        return Segment.along(name, shape, **timing)
+    with prefixed(where):
+        return Segment.along(name, shape, **timing, source=where)
 
 
 def _curve(entry: SegmentTable, start, end, point, angles: int) -> Shape:

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from redundancy.errors import InvalidInputError
+from redundancy.errors import InvalidInputError, placed
 from redundancy.model.robot import Robot
 from redundancy.planning.angles import task_labels
 from redundancy.planning.ik import inverse_kinematics
@@ -127,9 +127,12 @@ def held_problems(robot: Robot, cycle: WorkCycle, sampled: bool = True) -> list[
         source = f"a robot.toml beside {source or 'the URDF'}"
     try:
         held = held_actuators(robot, cycle)
-        robot.actuators.rows(held)
-    except InvalidInputError as error:  # no redundancy, or actuators the robot does not have
+    except InvalidInputError as error:  # no redundancy
         return [str(error)]
+    try:
+        robot.actuators.rows(held)
+    except InvalidInputError as error:  # the task file holds actuators the robot does not have
+        return [placed(cycle.source and f"{cycle.source}: held", str(error))]
     redundant = robot.n - robot.m
     if len(held) != redundant:
         line = (

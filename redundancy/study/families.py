@@ -58,7 +58,7 @@ import pinocchio as pin
 from pydantic import AfterValidator, Field, model_validator
 from pydantic_core import PydanticCustomError
 
-from redundancy.errors import InvalidInputError
+from redundancy.errors import InvalidInputError, prefixed
 from redundancy.model.actuators import ActuatorSet, LinearCylinder
 from redundancy.model.loading import bundled_robots, load_robot
 from redundancy.model.robot import AXES, Robot
@@ -438,7 +438,8 @@ def _task_segments(robot: Robot, table: TaskTable, folder: Path, where: str):
     else:
         raise InvalidInputError(f"{where}: [task] needs file = ...; {robot.name} has no task")
     cycle = WorkCycle.from_toml(path, dimension=robot.m)
-    segments = tuple(cycle[s] for s in table.segments) if table.segments else cycle.segments
+    with prefixed(f"{where}: [task] segments"):
+        segments = tuple(cycle[s] for s in table.segments) if table.segments else cycle.segments
     return segments, cycle
 
 
@@ -474,9 +475,10 @@ def read_family(path: Path | str) -> MapFamily:
     else:
         segments, cycle = _task_segments(robot, family.task, folder, where)  # type: ignore[arg-type]
         _check_size(len(segments), grid, where)
-        cycle = WorkCycle(cycle.name, cycle.segments, held or cycle.held)
+        cycle = WorkCycle(cycle.name, cycle.segments, held or cycle.held, source=cycle.source)
     held = held_actuators(robot, cycle)
-    held_indices(robot, held)  # names checked before any work
+    with prefixed(f"{where}: held" if family.held else cycle.source and f"{cycle.source}: held"):
+        held_indices(robot, held)  # names checked before any work
     return MapFamily(
         path.stem if family.name is None else family.name,
         robot_name,
