@@ -61,7 +61,7 @@ def _piece(edges: np.ndarray, x) -> tuple[np.ndarray, np.ndarray]:
     """``x`` (...,) as floats and the piece i of each, edges[i] ≤ x < edges[i + 1], the first
     and last pieces extended beyond the ends."""
     x = np.asarray(x, dtype=float)
-    return x, np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 2)
+    return x, np.searchsorted(edges[1:-1], x, side="right")  # inner edges at or below x
 
 
 class Shape(ABC):

@@ -148,8 +148,11 @@ class Limits:
         for order, (bound, excess) in enumerate(
             (("lower", self.lower - checked), ("upper", checked - self.upper))
         ):
-            outside = np.pad(excess > TOLERANCE, ((1, 1), (0, 0))).astype(np.int8)
-            columns, edges = np.nonzero(np.diff(outside, axis=0).T)  # per column: start, stop
+            outside = (excess > TOLERANCE).astype(np.int8)
+            if not outside.any():  # the common case, found at the cost of one pass
+                continue
+            change = np.diff(outside, axis=0, prepend=0, append=0)
+            columns, edges = np.nonzero(change.T)  # per column: start, stop
             for j, start, stop in zip(columns[::2], edges[::2], edges[1::2]):
                 violation = Violation(
                     self.names[j],
