@@ -535,9 +535,9 @@ def test_an_actuator_on_a_mimic_joint_names_the_joints_that_take_one(tmp_path, c
     )
     status, errors = run(["describe", "--robot", str(toml)], capsys)
     assert status == 2 and errors == [
-        "redundancy: error: actuator 'b' drives joint 'bucket_joint', which mimics another "
-        "joint; declare the actuator on the joint it follows; joints: boom_joint, stick_joint, "
-        "telescope_joint"
+        f"redundancy: error: {toml}: [actuators.b]: actuator 'b' drives joint 'bucket_joint', "
+        "which mimics another joint; declare the actuator on the joint it follows; joints: "
+        "boom_joint, stick_joint, telescope_joint"
     ]
 
 
