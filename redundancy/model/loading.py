@@ -6,6 +6,7 @@ from __future__ import annotations
 import importlib.metadata
 import importlib.resources
 import os
+import re
 import warnings
 from pathlib import Path
 
@@ -33,20 +34,11 @@ def bundled_robots() -> list[str]:
 
 
 def _read_description(path: Path) -> Description:
-    """The robot description ``path`` (a ``robot.toml``), checked."""
     table = read_toml(path, "robot description")
     return validate(Description, table, str(path), error=RobotDescriptionError)
 
 
 URDF_SUFFIXES = (".urdf", ".xacro")
-
-
-def _file_name(path: Path) -> str:
-    """A robot's name from its URDF or xacro file: the file's name without those suffixes."""
-    name = path.name
-    while Path(name).suffix in URDF_SUFFIXES:
-        name = Path(name).stem
-    return name or path.name
 
 
 def _describe(robot: str | Path) -> tuple[str, Path, Description, str]:
@@ -63,9 +55,10 @@ def _describe(robot: str | Path) -> tuple[str, Path, Description, str]:
                 f"no {'URDF file' if urdf else 'robot description'} at {path}"
             )
         folder = path.resolve().parent
-        if urdf:
+        if urdf:  # named after the file, without its suffixes
+            name = re.sub(r"(\.urdf|\.xacro)+$", "", path.name) or path.name
             bare = Description(urdf=path.name, tool_frame=None, task_axes=AXES)
-            return _file_name(path), folder, bare, str(path)
+            return name, folder, bare, str(path)
         return folder.name, folder, _read_description(path), str(path)
     names = bundled_robots()
     if str(robot) not in names:
@@ -119,13 +112,6 @@ def _lock(model: pin.Model, locked: dict[str, float | None], where: str, source:
     if not locked:
         return model
     return pin.buildReducedModel(model, [model.getJointId(j) for j in locked], q)
-
-
-def _add_payload(model: pin.Model, frame: str, payload: float) -> None:
-    """A point mass ``payload`` (kg) at the tool frame, carried by the tool's joint."""
-    tool = model.frames[frame_id(model, frame)]
-    point_mass = pin.Inertia(payload, tool.placement.translation, np.zeros((3, 3)))
-    model.inertias[tool.parentJoint] = model.inertias[tool.parentJoint] + point_mass
 
 
 def _tool(model: pin.Model, description: Description, where: str) -> str:
@@ -284,8 +270,10 @@ def load_robot(
     tool_frame = _tool(model, description, where)
     given = validate(Overrides, {"payload": payload, "task_axes": task_axes}, "load_robot")
     payload = description.payload if given.payload is None else given.payload
-    if payload > 0:
-        _add_payload(model, tool_frame, payload)
+    if payload > 0:  # a point mass at the tool frame, carried by the tool's joint
+        tool = model.frames[frame_id(model, tool_frame)]
+        point_mass = pin.Inertia(payload, tool.placement.translation, np.zeros((3, 3)))
+        model.inertias[tool.parentJoint] = model.inertias[tool.parentJoint] + point_mass
     actuators = ActuatorSet.bind(
         _actuators(urdf.root, description, urdf.source, where, locked), model
     )
