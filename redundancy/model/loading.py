@@ -42,9 +42,8 @@ URDF_SUFFIXES = (".urdf", ".xacro")
 
 
 def _describe(robot: str | Path) -> tuple[str, Path, Description, str]:
-    """Name, folder, description (robot.toml contents) and where the description came from, of
-    a bundled name or a file path (named after its folder, a ``robot.toml``'s, or its file, a
-    URDF's; paths it names are relative to the folder the file, not a link to it, is in)."""
+    """Name, folder, description and its source, of a bundled name or a ``robot.toml``, URDF or
+    xacro path (paths it names are relative to the folder the file, not a link to it, is in)."""
     if not isinstance(robot, str | Path):
         raise InvalidInputError(f"robot must be a name or a path; got {robot!r}")
     path = Path(robot)
@@ -115,8 +114,8 @@ def _lock(model: pin.Model, locked: dict[str, float | None], where: str, source:
 
 
 def _tool(model: pin.Model, description: Description, where: str) -> str:
-    """The tool frame: ``tool_frame``, a link, or ``tool = {link = "...", xyz = [...]}``, a
-    point on a link, added to ``model`` as the frame "tool point"; by default the last link."""
+    """The tool frame: ``tool_frame``, a link (by default the last), or ``tool``, a point on a
+    link added to ``model`` as the frame `TOOL_POINT`."""
     tool = description.tool
     if tool is not None:
 
@@ -164,9 +163,8 @@ def _along(robot: Robot, column: int, values: np.ndarray) -> np.ndarray:
 
 def _stroke_arc(robot: Robot, column: int, actuator: ActuatorMap) -> tuple[float, float] | None:
     """The angles of joint ``column`` (rad) over which ``actuator`` stays inside its stroke, the
-    other joints at zero: sought on a grid over two turns either way, each end then located by
-    bisection; of several arcs (a cylinder on either side of the joint axis), the one nearest
-    the URDF's zero angle. None where the stroke admits no angle, or every one."""
+    other joints at rest: found on a grid over ±2 turns, each end then bisected; of several arcs,
+    the one nearest 0. None where the stroke admits no angle, or every one."""
 
     def inside(theta: np.ndarray) -> np.ndarray:
         x = actuator.evaluate(robot.kinematics(_along(robot, column, theta)))[0]
@@ -195,9 +193,8 @@ SAMPLES = 33  # values of a joint over its range at which `_check_arms` reads th
 
 def _check_arms(robot: Robot) -> None:
     """Every actuator moves its joint: somewhere over the joint's range (±π or ±1 m where it
-    is unbounded), the other joints at rest, |∂x_i/∂q_i| reaches `ARM`. A cylinder with an
-    attachment point on (or within `ARM` of) its joint's axis does not: its length barely
-    changes with the joint, A is singular everywhere, and one line names it and its table."""
+    is unbounded), the other joints at rest, |∂x_i/∂q_i| reaches `ARM`; else (an attachment
+    point on its joint's axis: A singular everywhere) one line names it and its table."""
     for actuator in robot.actuators:
         column = actuator.index
         span = np.pi if robot.rotary_joints[column] else 1.0
@@ -220,9 +217,7 @@ def _check_arms(robot: Robot) -> None:
 
 def _bound_by_strokes(robot: Robot, continuous: list[str]) -> None:
     """Give each ``continuous`` joint whose actuator has a finite stroke the arc over which the
-    actuator stays inside it (`_stroke_arc`: exact where the actuator spans that joint alone,
-    as a cylinder between the links on either side of it does); where there is none, the
-    joint stays unbounded (and `redundancy check` says so)."""
+    actuator stays inside it (`_stroke_arc`); where there is none, it stays unbounded."""
     for joint in continuous:
         column = robot.joint_names.index(joint)
         actuator = next(a for a in robot.actuators if a.index == column)

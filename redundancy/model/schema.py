@@ -1,18 +1,13 @@
 """Declared input: the toolkit's files as pydantic models, and the one line a bad value gives.
 
-A file is read by `read_toml` (or `read_text`) and checked by `validate` against its model:
-
-- ``robot.toml``: `Description` (its ``[hydraulics]`` table: `Hydraulics`; its
-  ``[actuators.<name>]`` tables: the kinds' own parameters, `redundancy.model.transmissions`);
-- a hydraulics file (``--hydraulics FILE``): `Hydraulics`, cylinders `CylinderTable`;
-- a task file: `TaskFile`, its segment tables `SegmentTable`;
-- a map family: `redundancy.study.families`, built from the pieces here.
-
-Every model refuses unknown keys (naming the known ones), reads numbers strictly (true and "3"
-are no numbers) and finite, and declares each quantity's unit, range and likely unit mistakes
-(`quantity`): pressures within 1-1,000 bar, flows within 0.1-10,000 L/min, bores within 5-1,000
-mm. `validate` turns any `pydantic.ValidationError` into one line: the file, the table and key,
-the value given (at most `EXCERPT` characters of it) and what it must be.
+Files are read by `read_toml` (or `read_text`) and checked by `validate`: ``robot.toml``
+(`Description`), a ``[hydraulics]`` table (`Hydraulics`), a task file (`TaskFile`); the map
+families of `redundancy.study.families` and the ``[actuators.<name>]`` tables of
+`redundancy.model.transmissions` are built from the pieces here. Every model refuses unknown
+keys, reads numbers strictly and finite, and declares each quantity's unit, range and likely
+unit mistakes (`quantity`). `message` turns a `pydantic.ValidationError` into one line, read
+against the model's JSON schema: the file, the table and key, the value given (at most
+`EXCERPT` characters of it) and what it must be.
 """
 
 from __future__ import annotations

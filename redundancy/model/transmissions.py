@@ -1,13 +1,6 @@
 """Actuator declarations, read in both forms with one schema (docs/machines.md): an
-``[actuators.<name>]`` table of ``robot.toml``::
-
-    [actuators.x1]
-    kind = "LinearCylinder"                  # an ActuatorMap subclass, by class name
-    joint = "boom1_joint"                    # the joint it drives
-    stroke = [0.830, 1.375]                  # m (rad for a rotary drive); default unbounded
-    base = {link = "column", xyz = [0.383, 0, -0.964]}   # the kind's own parameters
-    rod = {link = "boom1", xyz = [0.370, 0, -0.069]}
-
+``[actuators.<name>]`` table of ``robot.toml`` (``kind``, an ActuatorMap subclass by class name;
+``joint``; ``stroke = [lower, upper]``, m or rad, unbounded by default; the kind's parameters),
 or a URDF ``<transmission>`` of type ``redundancy/<kind>`` (read here with lxml: URDF parsers
 drop transmissions), whose one ``<actuator>``, named as the transmission or not at all, holds
 the stroke and any ``<cylinder>`` (hydraulic data, as ``[hydraulics.cylinders.<name>]``)::
