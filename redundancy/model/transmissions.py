@@ -35,6 +35,7 @@ from redundancy.model.linkage import LinkageCylinder
 from redundancy.model.parameters import REQUIRED, number_or_text
 from redundancy.model.schema import MAX_OFFSET, CylinderTable, Table, excerpt, validate
 from redundancy.model.urdf import written
+from redundancy.model.values import is_real
 
 # Kinds are found among ActuatorMap's subclasses: importing a module defines its kinds.
 BUNDLED_KINDS = (LinkageCylinder,)
@@ -58,11 +59,9 @@ def _kind(kind_name: object, where: str, prefix: str = "") -> type[ActuatorMap]:
 def _stroke(value: object, kind: type[ActuatorMap], where: str) -> tuple[float, float]:
     """Stroke limits [lower, upper], numbers (infinite ones too) with lower < upper; a cylinder's
     (a ``distance``, m) at least 0 and, where finite, within `MAX_OFFSET`."""
-    if not (
-        isinstance(value, list)
-        and len(value) == 2
-        and all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
-        and value[0] < value[1]
+    if (
+        not (isinstance(value, list) and len(value) == 2 and all(map(is_real, value)))
+        or not value[0] < value[1]
     ):
         raise RobotDescriptionError(
             f"{where} must be [lower, upper], numbers with lower < upper (m, rad for a rotary "
@@ -153,14 +152,15 @@ def _read_transmission(element: etree._Element, source: str) -> ActuatorMap:
         texts["stroke"] = f"{where} {written(stroke)}"
         bounds = (stroke.get("lower", "-inf"), stroke.get("upper", "inf"))
         given["stroke"] = [number_or_text(text) for text in bounds]
-    children = _parameter_elements(element, kind, where)
+    # parameters sharing a tag take its elements in turn
+    children = {
+        tag: iter(found) for tag, found in _parameter_elements(element, kind, where).items()
+    }
     for parameter in kind.parameters:
-        found = children.get(parameter.element, [])
-        sharing = [p.name for p in kind.parameters if p.element == parameter.element]
-        taken = sharing.index(parameter.name)  # parameters sharing a tag take its elements in turn
-        if taken < len(found):
-            given[parameter.name] = parameter.from_attributes(dict(found[taken].attrib))
-            texts[parameter.name] = f"{where} {parameter.name} {written(found[taken])}"
+        child = next(children.get(parameter.element, iter(())), None)
+        if child is not None:
+            given[parameter.name] = parameter.from_attributes(dict(child.attrib))
+            texts[parameter.name] = f"{where} {parameter.name} {written(child)}"
         else:
             texts[parameter.name] = f"{where}: missing <{parameter.element}> for {parameter.name}"
     return _declare(kind, str(name), joint, given, texts, where)
