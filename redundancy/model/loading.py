@@ -33,11 +33,6 @@ def bundled_robots() -> list[str]:
     return sorted(p.parent.name for p in bundled_root().glob("*/robot.toml"))
 
 
-def _read_description(path: Path) -> Description:
-    table = read_toml(path, "robot description")
-    return validate(Description, table, str(path), error=RobotDescriptionError)
-
-
 URDF_SUFFIXES = (".urdf", ".xacro")
 
 
@@ -54,20 +49,20 @@ def _describe(robot: str | Path) -> tuple[str, Path, Description, str]:
                 f"no {'URDF file' if urdf else 'robot description'} at {path}"
             )
         folder = path.resolve().parent
-        if urdf:  # named after the file, without its suffixes
-            name = re.sub(r"(\.urdf|\.xacro)+$", "", path.name) or path.name
-            bare = Description(urdf=path.name, tool_frame=None, task_axes=AXES)
-            return name, folder, bare, str(path)
-        return folder.name, folder, _read_description(path), str(path)
-    names = bundled_robots()
-    if str(robot) not in names:
+    elif str(robot) in bundled_robots():
+        folder = bundled_root() / str(robot)
+        path = folder / "robot.toml"
+    else:
         raise RobotDescriptionError(
-            f"unknown robot {str(robot)!r}; bundled robots: {', '.join(names)}; "
+            f"unknown robot {str(robot)!r}; bundled robots: {', '.join(bundled_robots())}; "
             "or give the path of a .urdf, .xacro or robot.toml file"
         )
-    folder = bundled_root() / str(robot)
-    source = folder / "robot.toml"
-    return str(robot), folder, _read_description(source), str(source)
+    if urdf:  # named after the file, without its suffixes
+        name = re.sub(r"(\.urdf|\.xacro)+$", "", path.name) or path.name
+        return name, folder, Description(urdf=path.name, tool_frame=None, task_axes=AXES), str(path)
+    table = read_toml(path, "robot description")
+    description = validate(Description, table, str(path), error=RobotDescriptionError)
+    return folder.name, folder, description, str(path)
 
 
 def _urdf_path(folder: Path, reference: str) -> Path:
