@@ -6,6 +6,7 @@ from __future__ import annotations
 import importlib.metadata
 import importlib.resources
 import os
+import re
 import warnings
 from pathlib import Path
 
@@ -32,27 +33,12 @@ def bundled_robots() -> list[str]:
     return sorted(p.parent.name for p in bundled_root().glob("*/robot.toml"))
 
 
-def _read_description(path: Path) -> Description:
-    """The robot description ``path`` (a ``robot.toml``), checked."""
-    table = read_toml(path, "robot description")
-    return validate(Description, table, str(path), error=RobotDescriptionError)
-
-
 URDF_SUFFIXES = (".urdf", ".xacro")
 
 
-def _file_name(path: Path) -> str:
-    """A robot's name from its URDF or xacro file: the file's name without those suffixes."""
-    name = path.name
-    while Path(name).suffix in URDF_SUFFIXES:
-        name = Path(name).stem
-    return name or path.name
-
-
 def _describe(robot: str | Path) -> tuple[str, Path, Description, str]:
-    """Name, folder, description (robot.toml contents) and where the description came from, of
-    a bundled name or a file path (named after its folder, a ``robot.toml``'s, or its file, a
-    URDF's; paths it names are relative to the folder the file, not a link to it, is in)."""
+    """Name, folder, description and its source, of a bundled name or a ``robot.toml``, URDF or
+    xacro path (paths it names are relative to the folder the file, not a link to it, is in)."""
     if not isinstance(robot, str | Path):
         raise InvalidInputError(f"robot must be a name or a path; got {robot!r}")
     path = Path(robot)
@@ -63,19 +49,20 @@ def _describe(robot: str | Path) -> tuple[str, Path, Description, str]:
                 f"no {'URDF file' if urdf else 'robot description'} at {path}"
             )
         folder = path.resolve().parent
-        if urdf:
-            bare = Description(urdf=path.name, tool_frame=None, task_axes=AXES)
-            return _file_name(path), folder, bare, str(path)
-        return folder.name, folder, _read_description(path), str(path)
-    names = bundled_robots()
-    if str(robot) not in names:
+    elif str(robot) in bundled_robots():
+        folder = bundled_root() / str(robot)
+        path = folder / "robot.toml"
+    else:
         raise RobotDescriptionError(
-            f"unknown robot {str(robot)!r}; bundled robots: {', '.join(names)}; "
+            f"unknown robot {str(robot)!r}; bundled robots: {', '.join(bundled_robots())}; "
             "or give the path of a .urdf, .xacro or robot.toml file"
         )
-    folder = bundled_root() / str(robot)
-    source = folder / "robot.toml"
-    return str(robot), folder, _read_description(source), str(source)
+    if urdf:  # named after the file, without its suffixes
+        name = re.sub(r"(\.urdf|\.xacro)+$", "", path.name) or path.name
+        return name, folder, Description(urdf=path.name, tool_frame=None, task_axes=AXES), str(path)
+    table = read_toml(path, "robot description")
+    description = validate(Description, table, str(path), error=RobotDescriptionError)
+    return folder.name, folder, description, str(path)
 
 
 def _urdf_path(folder: Path, reference: str) -> Path:
@@ -121,16 +108,9 @@ def _lock(model: pin.Model, locked: dict[str, float | None], where: str, source:
     return pin.buildReducedModel(model, [model.getJointId(j) for j in locked], q)
 
 
-def _add_payload(model: pin.Model, frame: str, payload: float) -> None:
-    """A point mass ``payload`` (kg) at the tool frame, carried by the tool's joint."""
-    tool = model.frames[frame_id(model, frame)]
-    point_mass = pin.Inertia(payload, tool.placement.translation, np.zeros((3, 3)))
-    model.inertias[tool.parentJoint] = model.inertias[tool.parentJoint] + point_mass
-
-
 def _tool(model: pin.Model, description: Description, where: str) -> str:
-    """The tool frame: ``tool_frame``, a link, or ``tool = {link = "...", xyz = [...]}``, a
-    point on a link, added to ``model`` as the frame "tool point"; by default the last link."""
+    """The tool frame: ``tool_frame``, a link (by default the last), or ``tool``, a point on a
+    link added to ``model`` as the frame `TOOL_POINT`."""
     tool = description.tool
     if tool is not None:
 
@@ -178,9 +158,8 @@ def _along(robot: Robot, column: int, values: np.ndarray) -> np.ndarray:
 
 def _stroke_arc(robot: Robot, column: int, actuator: ActuatorMap) -> tuple[float, float] | None:
     """The angles of joint ``column`` (rad) over which ``actuator`` stays inside its stroke, the
-    other joints at zero: sought on a grid over two turns either way, each end then located by
-    bisection; of several arcs (a cylinder on either side of the joint axis), the one nearest
-    the URDF's zero angle. None where the stroke admits no angle, or every one."""
+    other joints at rest: found on a grid over ±2 turns, each end then bisected; of several arcs,
+    the one nearest 0. None where the stroke admits no angle, or every one."""
 
     def inside(theta: np.ndarray) -> np.ndarray:
         x = actuator.evaluate(robot.kinematics(_along(robot, column, theta)))[0]
@@ -209,9 +188,8 @@ SAMPLES = 33  # values of a joint over its range at which `_check_arms` reads th
 
 def _check_arms(robot: Robot) -> None:
     """Every actuator moves its joint: somewhere over the joint's range (±π or ±1 m where it
-    is unbounded), the other joints at rest, |∂x_i/∂q_i| reaches `ARM`. A cylinder with an
-    attachment point on (or within `ARM` of) its joint's axis does not: its length barely
-    changes with the joint, A is singular everywhere, and one line names it and its table."""
+    is unbounded), the other joints at rest, |∂x_i/∂q_i| reaches `ARM`; else (an attachment
+    point on its joint's axis: A singular everywhere) one line names it and its table."""
     for actuator in robot.actuators:
         column = actuator.index
         span = np.pi if robot.rotary_joints[column] else 1.0
@@ -234,9 +212,7 @@ def _check_arms(robot: Robot) -> None:
 
 def _bound_by_strokes(robot: Robot, continuous: list[str]) -> None:
     """Give each ``continuous`` joint whose actuator has a finite stroke the arc over which the
-    actuator stays inside it (`_stroke_arc`: exact where the actuator spans that joint alone,
-    as a cylinder between the links on either side of it does); where there is none, the
-    joint stays unbounded (and `redundancy check` says so)."""
+    actuator stays inside it (`_stroke_arc`); where there is none, it stays unbounded."""
     for joint in continuous:
         column = robot.joint_names.index(joint)
         actuator = next(a for a in robot.actuators if a.index == column)
@@ -284,8 +260,10 @@ def load_robot(
     tool_frame = _tool(model, description, where)
     given = validate(Overrides, {"payload": payload, "task_axes": task_axes}, "load_robot")
     payload = description.payload if given.payload is None else given.payload
-    if payload > 0:
-        _add_payload(model, tool_frame, payload)
+    if payload > 0:  # a point mass at the tool frame, carried by the tool's joint
+        tool = model.frames[frame_id(model, tool_frame)]
+        point_mass = pin.Inertia(payload, tool.placement.translation, np.zeros((3, 3)))
+        model.inertias[tool.parentJoint] = model.inertias[tool.parentJoint] + point_mass
     actuators = ActuatorSet.bind(
         _actuators(urdf.root, description, urdf.source, where, locked), model
     )

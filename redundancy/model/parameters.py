@@ -2,23 +2,13 @@
 
 A kind lists its parameters once (`redundancy.model.actuators.ActuatorMap.parameters`); each
 knows its value's shape as an ``[actuators.<name>]`` key and as a ``<transmission>`` child
-(`redundancy.model.transmissions`):
-
-- `Number`: ``offset = -0.18`` and ``<offset value="-0.18"/>``;
-- `Point`: ``base = {link = "column", xyz = [0, 0, 1]}`` and
-  ``<attachment link="column" xyz="0 0 1"/>``;
-- `Choice`: ``side = "left"`` and ``<side value="left"/>``;
-- `Arm`: a point and a length from it, ``rocker = {link = "stick", xyz = [1.5, 0, 0.07],
-  length = 0.45}`` and ``<rocker link="stick" xyz="1.5 0 0.07" length="0.45"/>``.
-
-A child is named after its parameter unless it gives a ``tag``; parameters sharing a tag take
-its elements in the order they are listed (a cylinder's two ``<attachment>``s: base, then rod).
-Both forms are checked by the one `Parameter.read`, so they give the same one-line errors.
+(`redundancy.model.transmissions`), named after the parameter unless it gives a ``tag``
+(parameters sharing a tag take its elements in turn: a cylinder's base, then rod). Both forms
+are checked by the one `Parameter.read`, so they give the same one-line errors.
 """
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 from typing import Annotated, Any, ClassVar, Literal
 
@@ -48,31 +38,23 @@ class Parameter:
 
     @property
     def element(self) -> str:
-        """The tag of its ``<transmission>`` child."""
         return self.tag or self.name
 
     def read(self, value: object, where: str) -> Any:
-        """The value from its TOML shape (or an element's attributes in that shape), as the
-        kind's constructor takes it; ``where`` names the file, the actuator and the value as
-        written, for the message."""
+        """The value from its TOML shape, as the kind's constructor takes it; ``where`` names
+        the file, the actuator and the value as written, for the message."""
         try:
-            return self.convert(_adapter(self.annotation).validate_python(value))
+            return self.convert(TypeAdapter(self.annotation).validate_python(value))
         except ValidationError:
             raise RobotDescriptionError(f"{where} must be {self.shape} ({self.meaning})") from None
 
     def convert(self, value: Any) -> Any:
-        """The checked value as the kind's constructor takes it."""
         return value
 
     def from_attributes(self, attributes: dict[str, str]) -> object:
         """A ``<transmission>`` child's attributes in the TOML shape, unchecked: text that is
         not a number stays text, so that `read` names it."""
         return number_or_text(attributes.get("value", ""))
-
-
-@functools.cache
-def _adapter(annotation: Any) -> TypeAdapter:
-    return TypeAdapter(annotation)
 
 
 def number_or_text(text: str) -> float | str:

@@ -1,27 +1,21 @@
 """Declared input: the toolkit's files as pydantic models, and the one line a bad value gives.
 
-A file is read by `read_toml` (or `read_text`) and checked by `validate` against its model:
-
-- ``robot.toml``: `Description` (its ``[hydraulics]`` table: `Hydraulics`; its
-  ``[actuators.<name>]`` tables: the kinds' own parameters, `redundancy.model.transmissions`);
-- a hydraulics file (``--hydraulics FILE``): `Hydraulics`, cylinders `CylinderTable`;
-- a task file: `TaskFile`, its segment tables `SegmentTable`;
-- a map family: `redundancy.study.families`, built from the pieces here.
-
-Every model refuses unknown keys (naming the known ones), reads numbers strictly (true and "3"
-are no numbers) and finite, and declares each quantity's unit, range and likely unit mistakes
-(`quantity`): pressures within 1-1,000 bar, flows within 0.1-10,000 L/min, bores within 5-1,000
-mm. `validate` turns any `pydantic.ValidationError` into one line: the file, the table and key,
-the value given (at most `EXCERPT` characters of it) and what it must be.
+Files are read by `read_toml` (or `read_text`) and checked by `validate`: ``robot.toml``
+(`Description`), a ``[hydraulics]`` table (`Hydraulics`), a task file (`TaskFile`); the map
+families of `redundancy.study.families` and the ``[actuators.<name>]`` tables of
+`redundancy.model.transmissions` are built from the pieces here. Every model refuses unknown
+keys, reads numbers strictly and finite, and declares each quantity's unit, range and likely
+unit mistakes (`quantity`). `message` turns a `pydantic.ValidationError` into one line, read
+against the model's JSON schema: the file, the table and key, the value given (at most
+`EXCERPT` characters of it) and what it must be.
 """
 
 from __future__ import annotations
 
+import functools
 import os
 import stat
 import tomllib
-import types
-import typing
 from pathlib import Path
 from typing import Annotated, Any, ClassVar, Literal, TypeVar, Union
 
@@ -35,7 +29,6 @@ from pydantic import (
     ValidationError,
     model_validator,
 )
-from pydantic.fields import FieldInfo
 from pydantic_core import PydanticCustomError
 
 from redundancy.errors import InvalidInputError
@@ -85,7 +78,13 @@ class Table(BaseModel):
     """A table of a declared file: unknown keys refused, numbers strict and finite. ``entries``
     says what its keys are called in messages."""
 
-    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False, frozen=True)
+    model_config = ConfigDict(
+        extra="forbid",
+        strict=True,
+        allow_inf_nan=False,
+        frozen=True,
+        json_schema_extra=lambda schema, cls: schema.update(entries=cls.entries),
+    )
     entries: ClassVar[str] = "keys"
 
 
@@ -362,61 +361,69 @@ def message(
     table: str = "",
     entries: str = "",
 ) -> str:
-    """The one line of ``failure``'s first error (an unknown key first: likely one misspelt):
-    the file, the table and key, the value (an excerpt), what it must be (its shape, range and
-    likely unit mistake) and what it means."""
+    """The one line of ``failure``'s first error (an unknown key first: likely one misspelt),
+    read against ``model``'s JSON schema: the file, the table and key, the value (an excerpt),
+    what it must be (its shape, range and likely unit mistake) and what it means."""
     errors = failure.errors(include_url=False)
     first = ([e for e in errors if e["type"] == "extra_forbidden"] or errors)[0]
-    loc = tuple(first["loc"])
-    if first["type"] in ("extra_forbidden", "missing"):
-        path, parent, _ = _locate(model, loc[:-1])
-        keys = [
-            e["loc"][-1] for e in errors if e["type"] == first["type"] and e["loc"][:-1] == loc[:-1]
-        ]
-        return f"{_place(source, table, path)}: {_keys(first['type'], keys, parent, entries)}"
-    path, annotation, info = _locate(model, loc)
-    if not path:
-        said = first["msg"] if first["type"] == DECLARED else f"= {excerpt(data)} must be a table"
-        return f"{_place(source, table, path)}{':' if first['type'] == DECLARED else ''} {said}"
-    if first["type"] == DECLARED and _is_table(annotation):  # a rule across the table's keys
-        return f"{_place(source, table, path)}: {first['msg']}"
+    kind, loc = first["type"], tuple(first["loc"])
+    if kind in ("extra_forbidden", "missing"):
+        path, forms, _ = _walk(model, loc[:-1])
+        keys = [e["loc"][-1] for e in errors if e["type"] == kind and e["loc"][:-1] == loc[:-1]]
+        if kind == "missing":
+            said = f"missing key {keys[0]!r}" if len(keys) == 1 else f"missing keys {keys}"
+        else:
+            known = entries or forms[0].get("entries", "keys")
+            said = f"unknown {known} {sorted(keys)}; {known}: {', '.join(forms[0]['properties'])}"
+        return f"{_place(source, table, path)}: {said}"
+    path, forms, exact = _walk(model, loc)
+    if not path or (kind == DECLARED and _is_table(forms)):  # a rule across a table's keys
+        said = f": {first['msg']}" if kind == DECLARED else f" = {excerpt(data)} must be a table"
+        return _place(source, table, path) + said
     value = excerpt(_get(data, path))
     where = f"{_place(source, table, path[:-1], keyed=True)}{path[-1]} = {value}"
-    exact = len(path) == len([p for p in loc if p not in ("table", "other")])
-    return f"{where} {_problem(first, annotation, info, exact)}"
+    return f"{where} {_problem(first, forms, exact)}"
 
 
-def _keys(kind: str, keys: list, parent: Any, entries: str) -> str:
-    """The keys ``missing`` from a table, or the unknown ones and the table's known keys."""
-    if kind == "missing":
-        return f"missing key {keys[0]!r}" if len(keys) == 1 else f"missing keys {keys}"
-    known = entries or getattr(parent, "entries", "keys")
-    fields = getattr(parent, "model_fields", {})
-    names = ", ".join(info.alias or name for name, info in fields.items())
-    return f"unknown {known} {sorted(keys)}; {known}: {names}"
+_RANGE = ("greater_than", "greater_than_equal", "less_than", "less_than_equal")
+_TAGS = ("table", "other")  # the forms of `either`, as they appear in an error's location
+_WORDS = {
+    "number": "a finite number",
+    "integer": "a whole number",
+    "string": "a string",
+    "boolean": "true or false",
+}
 
 
-def _problem(error: Any, annotation: Any, info: FieldInfo | None, exact: bool) -> str:
-    """What a value must be, from its ``error``, its ``annotation`` and its field ``info``:
-    a declared rule's words, a range with the likely unit mistake, or a shape; and what it
-    means. ``exact``: the error is the value's own, not one of its items'."""
-    meaning = f" ({info.description})" if info is not None and info.description else ""
+def _problem(error: Any, forms: list[dict], exact: bool) -> str:
+    """What a value of ``forms`` must be: a declared rule's words, a range with the likely unit
+    mistake, or a shape; and what it means. ``exact``: the error is the value's own, not one of
+    its items'."""
+    form = forms[0]
+    meaning = f" ({form['description']})" if form.get("description") else ""
     if error["type"] == DECLARED:
         return f"{error['msg']}{meaning}"
-    bounds = _bounds(info)
-    if not (exact and info is not None and bounds and error["type"] in _RANGE):
-        return f"must be {_shape(annotation, info)}{meaning}"
-    lower, upper, open_lower = bounds
-    shape = "a whole number " if annotation is int else ""
-    extra = info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {}
-    hint = extra.get("below" if "greater" in error["type"] else "above")
-    low = "(" if open_lower else "["
-    return f"must be {shape}within {low}{lower:g}, {upper:g}]{meaning}" + (
+    lower, upper = form.get("minimum", form.get("exclusiveMinimum")), form.get("maximum")
+    if not (exact and error["type"] in _RANGE and None not in (lower, upper)):
+        return f"must be {' or '.join(dict.fromkeys(map(_shape, forms)))}{meaning}"
+    whole = "a whole number " if form["type"] == "integer" else ""
+    low = "(" if "exclusiveMinimum" in form else "["
+    hint = form.get("below" if "greater" in error["type"] else "above")
+    return f"must be {whole}within {low}{lower:g}, {upper:g}]{meaning}" + (
         f"; {hint}" if hint else ""
     )
 
 
-_RANGE = ("greater_than", "greater_than_equal", "less_than", "less_than_equal")
+def _shape(form: dict) -> str:
+    """What a value of the JSON-schema ``form`` is, in words."""
+    if "shape" in form:
+        return str(form["shape"])
+    if "enum" in form:
+        return "one of " + ", ".join(map(repr, form["enum"]))
+    if form.get("type") == "array":
+        item = form.get("items", {}).get("type")
+        return "a list of " + {"string": "names", "number": "finite numbers"}.get(item, "values")
+    return _WORDS.get(form.get("type", ""), "a table")
 
 
 def _place(source: str, table: str, path: list, keyed: bool = False) -> str:
@@ -440,90 +447,51 @@ def _get(data: object, path: list) -> object:
     return data
 
 
-def _bare(annotation: Any) -> Any:
-    """``annotation`` without Annotated and without an optional None."""
-    while True:
-        if typing.get_origin(annotation) is Annotated:
-            annotation = typing.get_args(annotation)[0]
-            continue
-        members = [a for a in typing.get_args(annotation) if a is not type(None)]
-        if _union(annotation) and len(members) == 1:
-            annotation = members[0]
-            continue
-        return annotation
+@functools.cache
+def _schema(model: type[BaseModel]) -> dict:
+    return model.model_json_schema()
 
 
-def _union(annotation: Any) -> bool:
-    return typing.get_origin(annotation) in (Union, types.UnionType)
+def _forms(node: dict, defs: dict) -> list[dict]:
+    """The forms a JSON-schema ``node`` allows (its reference followed, its union's members
+    but null), each with the node's own description and hints."""
+    own = {k: v for k, v in node.items() if k not in ("$ref", "anyOf", "oneOf")}
+    if "$ref" in node:
+        target = defs[node["$ref"].rsplit("/", 1)[1]]
+        inner = [{k: v for k, v in target.items() if k != "description"}]
+    else:
+        members = node.get("anyOf", []) + node.get("oneOf", [])
+        inner = [f for m in members if m.get("type") != "null" for f in _forms(m, defs)]
+    return [{**form, **own} for form in inner] or [node]
 
 
-def _locate(model: type[BaseModel], loc: tuple) -> tuple[list, Any, FieldInfo | None]:
-    """Follow ``loc`` through ``model``: the path of keys and indices to the deepest named key
-    (a field or a table's key), the annotation there and the field it belongs to."""
-    annotation: Any = model
-    info: FieldInfo | None = None
-    steps: list[tuple[object, Any, FieldInfo | None]] = []
+def _is_table(forms: list[dict]) -> bool:
+    return all(form.get("type") == "object" for form in forms)
+
+
+def _walk(model: type[BaseModel], loc: tuple) -> tuple[list, list[dict], bool]:
+    """Follow ``loc`` through ``model``'s JSON schema to the deepest named key (a field, a
+    table's key, or a list's item that is a table): its path, its forms, and whether the
+    error is the value's own (not one of its items')."""
+    schema = _schema(model)
+    steps: list[tuple[object, list[dict]]] = [((), [schema])]
     for part in loc:
-        annotation = _bare(annotation)
-        if isinstance(annotation, type) and issubclass(annotation, BaseModel):
-            fields = annotation.model_fields
-            name = next((n for n, f in fields.items() if (f.alias or n) == part), None)
-            if name is None:
-                break
-            info = fields[name]
-            annotation = info.annotation
-        elif typing.get_origin(annotation) is dict:
-            annotation, info = typing.get_args(annotation)[1], None
-        elif typing.get_origin(annotation) is list and isinstance(part, int):
-            annotation = typing.get_args(annotation)[0]
-        elif _union(annotation) and part in ("table", "other") and steps:
-            members = typing.get_args(annotation)
-            annotation = members[0] if part == "table" else members[1]
-            steps[-1] = (steps[-1][0], annotation, info)
+        forms = steps[-1][1]
+        if part in _TAGS:  # the form the value took: narrow the key's forms to it
+            steps[-1] = (steps[-1][0], [f for f in forms if _is_table([f]) == (part == "table")])
             continue
-        else:
+        nodes = (f.get("items") if isinstance(part, int) else _key(f, part) for f in forms)
+        found = next((node for node in nodes if node), None)
+        if found is None:
             break
-        steps.append((part, annotation, info))
-    while steps and isinstance(steps[-1][0], int) and not _is_table(steps[-1][1]):
+        steps.append((part, _forms(found, schema.get("$defs", {}))))
+    exact = len(steps) - 1 == len([part for part in loc if part not in _TAGS])
+    while len(steps) > 1 and isinstance(steps[-1][0], int) and not _is_table(steps[-1][1]):
         steps.pop()
-    if not steps:
-        return [], model, None
-    return [s[0] for s in steps], _bare(steps[-1][1]), steps[-1][2]
+    return [step[0] for step in steps[1:]], steps[-1][1], exact
 
 
-def _is_table(annotation: Any) -> bool:
-    annotation = _bare(annotation)
-    return isinstance(annotation, type) and issubclass(annotation, BaseModel)
-
-
-def _bounds(info: FieldInfo | None) -> tuple[float, float, bool] | None:
-    """A field's range [lower, upper] and whether its lower end is open; None without one."""
-    metadata = info.metadata if info is not None else []
-    rules = {k: getattr(r, k) for r in metadata for k in ("ge", "gt", "le") if hasattr(r, k)}
-    lower = rules.get("ge", rules.get("gt"))
-    if lower is None or "le" not in rules:
-        return None
-    return float(lower), float(rules["le"]), "gt" in rules
-
-
-def _shape(annotation: Any, info: FieldInfo | None = None) -> str:
-    """What a value of ``annotation`` (of the field ``info``) is, in words."""
-    extra = info.json_schema_extra if info is not None else None
-    if isinstance(extra, dict) and "shape" in extra:
-        return str(extra["shape"])
-    annotation = _bare(annotation)
-    origin = typing.get_origin(annotation)
-    if annotation is float:
-        return "a finite number"
-    if annotation is int:
-        return "a whole number"
-    if annotation is str:
-        return "a string"
-    if annotation is bool:
-        return "true or false"
-    if origin is Literal:
-        return "one of " + ", ".join(map(repr, typing.get_args(annotation)))
-    if origin is list:
-        item = _bare(typing.get_args(annotation)[0])
-        return "a list of " + {str: "names", float: "finite numbers"}.get(item, "values")
-    return "a table"
+def _key(form: dict, key: object) -> dict | None:
+    """The node of ``key`` in the table ``form``: a field, or a value of a free table."""
+    free = form.get("additionalProperties")
+    return form.get("properties", {}).get(key, free if isinstance(free, dict) else None)

@@ -1,13 +1,6 @@
 """Actuator declarations, read in both forms with one schema (docs/machines.md): an
-``[actuators.<name>]`` table of ``robot.toml``::
-
-    [actuators.x1]
-    kind = "LinearCylinder"                  # an ActuatorMap subclass, by class name
-    joint = "boom1_joint"                    # the joint it drives
-    stroke = [0.830, 1.375]                  # m (rad for a rotary drive); default unbounded
-    base = {link = "column", xyz = [0.383, 0, -0.964]}   # the kind's own parameters
-    rod = {link = "boom1", xyz = [0.370, 0, -0.069]}
-
+``[actuators.<name>]`` table of ``robot.toml`` (``kind``, an ActuatorMap subclass by class name;
+``joint``; ``stroke = [lower, upper]``, m or rad, unbounded by default; the kind's parameters),
 or a URDF ``<transmission>`` of type ``redundancy/<kind>`` (read here with lxml: URDF parsers
 drop transmissions), whose one ``<actuator>``, named as the transmission or not at all, holds
 the stroke and any ``<cylinder>`` (hydraulic data, as ``[hydraulics.cylinders.<name>]``)::
@@ -42,6 +35,7 @@ from redundancy.model.linkage import LinkageCylinder
 from redundancy.model.parameters import REQUIRED, number_or_text
 from redundancy.model.schema import MAX_OFFSET, CylinderTable, Table, excerpt, validate
 from redundancy.model.urdf import written
+from redundancy.model.values import is_real
 
 # Kinds are found among ActuatorMap's subclasses: importing a module defines its kinds.
 BUNDLED_KINDS = (LinkageCylinder,)
@@ -65,11 +59,9 @@ def _kind(kind_name: object, where: str, prefix: str = "") -> type[ActuatorMap]:
 def _stroke(value: object, kind: type[ActuatorMap], where: str) -> tuple[float, float]:
     """Stroke limits [lower, upper], numbers (infinite ones too) with lower < upper; a cylinder's
     (a ``distance``, m) at least 0 and, where finite, within `MAX_OFFSET`."""
-    if not (
-        isinstance(value, list)
-        and len(value) == 2
-        and all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
-        and value[0] < value[1]
+    if (
+        not (isinstance(value, list) and len(value) == 2 and all(map(is_real, value)))
+        or not value[0] < value[1]
     ):
         raise RobotDescriptionError(
             f"{where} must be [lower, upper], numbers with lower < upper (m, rad for a rotary "
@@ -90,27 +82,23 @@ def _stroke(value: object, kind: type[ActuatorMap], where: str) -> tuple[float, 
 
 
 def _declare(
-    kind: type[ActuatorMap],
-    name: str,
-    joint: str,
-    stroke: tuple[float, float],
-    given: dict[str, tuple[object, str]],
-    declared: str,
+    kind: type[ActuatorMap], name: str, joint: str, given: dict, texts: dict, where: str
 ) -> ActuatorMap:
-    """An actuator of ``kind``: ``given`` maps each parameter's name to its value in the TOML
-    shape (None where absent) and a text naming the file, the actuator and the value as
-    written (or saying it is missing); ``declared`` names the declaring table or element."""
+    """An actuator of ``kind`` declared by ``where`` (a table or an element): ``given`` maps
+    the stroke and each parameter given to its value in the TOML shape, ``texts`` each to
+    the file, the actuator and the value as written, or to what is missing."""
+    stroke = given.get("stroke", [-math.inf, math.inf])
+    lower, upper = _stroke(stroke, kind, texts.get("stroke", ""))
     values: dict[str, Any] = {}
     for parameter in kind.parameters:
-        value, where = given[parameter.name]
-        if value is not None:
-            values[parameter.name] = parameter.read(value, where)
+        if parameter.name in given:
+            values[parameter.name] = parameter.read(given[parameter.name], texts[parameter.name])
         elif parameter.default is REQUIRED:
-            raise RobotDescriptionError(f"{where} ({parameter.meaning})")
+            raise RobotDescriptionError(f"{texts[parameter.name]} ({parameter.meaning})")
         else:
             values[parameter.name] = parameter.default
-    actuator = kind(name, joint, stroke[0], stroke[1], **values)
-    actuator.declared_in = declared
+    actuator = kind(name, joint, lower, upper, **values)
+    actuator.declared_in = where
     return actuator
 
 
@@ -137,18 +125,9 @@ def read_actuator_tables(tables: dict[str, dict], source: str) -> list[ActuatorM
         where = f"{source}: [actuators.{name}]"
         kind = _kind(table.get("kind"), f"{where} kind")
         joint = validate(_table(kind), table, source, f"actuators.{name}", RobotDescriptionError)
-        stroke = table.get("stroke", [-math.inf, math.inf])
-        limits = _stroke(stroke, kind, f"{where} stroke = {excerpt(stroke)}")
-        given = {
-            p.name: (
-                table.get(p.name),
-                f"{where} {p.name} = {excerpt(table[p.name])}"
-                if p.name in table
-                else f"{where}: missing key {p.name}",
-            )
-            for p in kind.parameters
-        }
-        maps.append(_declare(kind, name, joint.joint, limits, given, where))  # type: ignore[attr-defined]
+        texts = {p.name: f"{where}: missing key {p.name}" for p in kind.parameters}
+        texts |= {key: f"{where} {key} = {excerpt(value)}" for key, value in table.items()}
+        maps.append(_declare(kind, name, joint.joint, table, texts, where))  # type: ignore[attr-defined]
     return maps
 
 
@@ -166,24 +145,25 @@ def _read_transmission(element: etree._Element, source: str) -> ActuatorMap:
     where = f"{source}: <transmission name={name!r}>"
     kind = _kind((element.findtext("type") or "").strip(), f"{where} <type>", PREFIX)
     joint = _check_header(element, where)
+    given: dict[str, object] = {}
+    texts: dict[str, str] = {}
     stroke = element.find("actuator/stroke")
-    limits: tuple[float, float] = (-math.inf, math.inf)
     if stroke is not None:
-        texts = (stroke.get("lower", "-inf"), stroke.get("upper", "inf"))
-        limits = _stroke([number_or_text(t) for t in texts], kind, f"{where} {written(stroke)}")
-    children = _parameter_elements(element, kind, where)
-    given = {}
+        texts["stroke"] = f"{where} {written(stroke)}"
+        bounds = (stroke.get("lower", "-inf"), stroke.get("upper", "inf"))
+        given["stroke"] = [number_or_text(text) for text in bounds]
+    # parameters sharing a tag take its elements in turn
+    children = {
+        tag: iter(found) for tag, found in _parameter_elements(element, kind, where).items()
+    }
     for parameter in kind.parameters:
-        found = children.get(parameter.element, [])
-        sharing = [p.name for p in kind.parameters if p.element == parameter.element]
-        taken = sharing.index(parameter.name)  # parameters sharing a tag take its elements in turn
-        if taken < len(found):
-            value = parameter.from_attributes(dict(found[taken].attrib))
-            given[parameter.name] = (value, f"{where} {parameter.name} {written(found[taken])}")
+        child = next(children.get(parameter.element, iter(())), None)
+        if child is not None:
+            given[parameter.name] = parameter.from_attributes(dict(child.attrib))
+            texts[parameter.name] = f"{where} {parameter.name} {written(child)}"
         else:
-            missing = f"{where}: missing <{parameter.element}> for {parameter.name}"
-            given[parameter.name] = (None, missing)
-    return _declare(kind, str(name), joint, limits, given, where)
+            texts[parameter.name] = f"{where}: missing <{parameter.element}> for {parameter.name}"
+    return _declare(kind, str(name), joint, given, texts, where)
 
 
 def _check_header(element: etree._Element, where: str) -> str:

@@ -35,10 +35,8 @@ INERTIA_TOLERANCE = 1e-6  # of the largest principal moment: what a file's round
 
 @dataclass(frozen=True)
 class Urdf:
-    """A URDF as the toolkit reads it: ``root``, its XML (meshes by absolute path; the
-    transmissions are read from it and the playback draws its visuals), yourdfpy's ``parse``,
-    the file's name ``source``, the mesh references no file answers (``missing_meshes``) and
-    the links whose ``<inertial>`` gives a mass of 0 (``zero_masses``)."""
+    """A URDF read: its XML ``root`` (meshes by absolute path), yourdfpy's ``parse``, the
+    file's name ``source``, the mesh references no file answers and the links of mass 0."""
 
     root: etree._Element
     parse: yourdfpy.Robot
@@ -48,7 +46,6 @@ class Urdf:
 
     @property
     def text(self) -> str:
-        """The document as text, describing the robot on its own."""
         return etree.tostring(self.root, encoding="unicode")
 
 
@@ -175,51 +172,50 @@ def build_model(urdf: Urdf, locked: dict[str, float | None]) -> tuple[pin.Model,
 def _leads(robot: yourdfpy.Robot, joint: yourdfpy.Joint, leaders: set[str]) -> bool:
     """Whether ``joint`` or a joint below it is among the ``leaders`` (joints mimic joints
     follow): its branch is built first."""
-    below = [joint]
-    while below:
-        current = below.pop()
-        if current.name in leaders:
-            return True
-        below += [j for j in robot.joints if j.parent == current.child]
-    return False
+    below = [j for j in robot.joints if j.parent == joint.child]
+    return joint.name in leaders or any(_leads(robot, j, leaders) for j in below)
+
+
+JOINTS = {  # URDF joint types: the model graph's joint of an axis (unit vector)
+    "revolute": graph.JointRevolute,
+    "continuous": graph.JointRevolute,
+    "prismatic": graph.JointPrismatic,
+    "fixed": lambda axis: graph.JointFixed(),
+    "floating": lambda axis: graph.JointFreeFlyer(),
+    "planar": lambda axis: graph.JointPlanar(),
+}
 
 
 def _joint(joint: yourdfpy.Joint, source: str, locked: dict) -> tuple[Any, float, float]:
-    """The model graph's joint of a URDF joint, and its range (rad or m)."""
-    axis = np.asarray(joint.axis, dtype=float)
-    if joint.type in ("revolute", "continuous", "prismatic") and not (
-        np.all(np.isfinite(axis)) and np.linalg.norm(axis) > 0
-    ):
+    """The model graph's joint of a URDF joint, and its range (rad or m; [−π, π] for a
+    continuous joint)."""
+    where = f"{source}: joint {excerpt(joint.name)}"
+    if joint.type not in JOINTS:
         raise RobotDescriptionError(
-            f"{source}: joint {excerpt(joint.name)}: <axis xyz={excerpt(' '.join(map(str, axis)))}"
-            "> must be three finite numbers, not all zero"
+            f"{where}: type={excerpt(joint.type)} must be one of {', '.join(JOINTS)}"
+        )
+    axis = np.asarray(joint.axis, dtype=float)
+    moves = joint.type in ("revolute", "continuous", "prismatic")
+    if moves and not (np.all(np.isfinite(axis)) and np.linalg.norm(axis) > 0):
+        raise RobotDescriptionError(
+            f"{where}: <axis xyz={excerpt(' '.join(map(str, axis)))}> must be three finite "
+            "numbers, not all zero"
         )
     if joint.type in FREE and joint.name not in locked:
         raise RobotDescriptionError(
-            f"{source}: joint {excerpt(joint.name)} is {joint.type}, a base that moves freely; "
-            f'the toolkit models machines on a fixed base: add locked_joints = ["{joint.name}"] '
-            f'to robot.toml (the base stays at the joint\'s origin) or make it type="fixed"'
+            f"{where} is {joint.type}, a base that moves freely; the toolkit models machines on "
+            f'a fixed base: add locked_joints = ["{joint.name}"] to robot.toml (the base stays '
+            'at the joint\'s origin) or make it type="fixed"'
         )
-    if joint.type == "continuous":
-        return graph.JointRevolute(axis / np.linalg.norm(axis)), -math.pi, math.pi
+    kind = JOINTS[joint.type](axis / np.linalg.norm(axis) if moves else axis)
     if joint.type in LIMITED:
-        kind = graph.JointRevolute if joint.type == "revolute" else graph.JointPrismatic
-        return kind(axis / np.linalg.norm(axis)), joint.limit.lower, joint.limit.upper
-    if joint.type in FREE:
-        return (graph.JointFreeFlyer() if joint.type == "floating" else graph.JointPlanar()), 0, 0
-    if joint.type == "fixed":
-        return graph.JointFixed(), 0.0, 0.0
-    raise RobotDescriptionError(
-        f"{source}: joint {excerpt(joint.name)}: type={excerpt(joint.type)} must be one of "
-        "revolute, continuous, prismatic, fixed, floating, planar"
-    )
+        return kind, joint.limit.lower, joint.limit.upper
+    return kind, -math.pi, math.pi  # the range of a continuous joint; others have none
 
 
 def _placement(transform: np.ndarray | None) -> pin.SE3:
     """A URDF ``<origin>`` (yourdfpy's 4 × 4 transform, None for none) as an SE3."""
-    if transform is None:
-        return pin.SE3.Identity()
-    return pin.SE3(transform[:3, :3], transform[:3, 3])
+    return pin.SE3(np.eye(4) if transform is None else transform)
 
 
 def _inertia(inertial: yourdfpy.Inertial | None) -> pin.Inertia:
@@ -228,8 +224,7 @@ def _inertia(inertial: yourdfpy.Inertial | None) -> pin.Inertia:
     if inertial is None or inertial.mass is None:
         return pin.Inertia.Zero()
     placement = _placement(inertial.origin)
-    rotation = placement.rotation
-    moments = rotation @ inertial.inertia @ rotation.T
+    moments = placement.rotation @ inertial.inertia @ placement.rotation.T
     return pin.Inertia(inertial.mass, placement.translation, moments)
 
 
