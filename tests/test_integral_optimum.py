@@ -238,7 +238,7 @@ def test_no_path_found_says_why_and_a_finer_grid_without_one_keeps_the_coarser(a
     error says so, and that one would keep the other limits. A finer grid without a path after a
     coarser one with a path keeps the coarser one's motion, marked not converged, with why."""
     _, robot, circle = arm
-    pruned = "no motion along segment circle .* limit one would: begin with a coarser grid$"
+    pruned = "no motion along segment circle .* one would: the limit is too tight for the task"
     with pytest.raises(InvalidInputError, match=pruned):
         integral_optimum(robot, circle, SQUARED, "x1", grids=(5,), accelerations=1e-3)
 

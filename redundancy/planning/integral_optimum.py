@@ -479,7 +479,9 @@ def _optimum(
                 )
                 if np.isfinite(free):  # the limit wants held values closer than h² ẍ_max
                     message += (
-                        "; without the acceleration limit one would: begin with a coarser grid"
+                        "; without the acceleration limit one would: the limit is too tight for "
+                        "the task, or the held values lie too far apart for it on this grid "
+                        "(begin with a coarser one)"
                     )
                 if path is None:
                     raise InvalidInputError(message)
