@@ -2,6 +2,7 @@
 findings reproduced, families read with one-line errors."""
 
 import contextlib
+import dataclasses
 import functools
 import itertools
 import os
@@ -22,7 +23,7 @@ from commands import as_foreground, run_cli
 
 from redundancy import VELOCITY, WorkCycle, actuator_space, improved_start, load_robot
 from redundancy.errors import InvalidInputError
-from redundancy.planning.tasks import Polyline, Segment
+from redundancy.planning.tasks import Arc, Polyline, Segment
 from redundancy.study import families
 from redundancy.study.families import Design, MapFamily, read_family
 from redundancy.study.maps import design_map, summary
@@ -482,7 +483,8 @@ def test_bound_and_energy_columns_agree_with_the_searches_they_come_from(tmp_pat
 def test_the_fingerprint_sees_every_point_of_a_long_path_and_nothing_cached():
     """Two families whose 2,000-point paths differ at one point in the middle (which numpy's
     repr elides) have different fingerprints; what a segment has computed and cached since
-    (its timing) changes none."""
+    (its timing) changes none, nor where its task file lies (a store survives a moved
+    folder)."""
     x = np.linspace(1.5, 3.5, 2000)
     points = np.column_stack([x, 0.2 * np.sin(x)])
     bent = points.copy()
@@ -497,6 +499,8 @@ def test_the_fingerprint_sees_every_point_of_a_long_path_and_nothing_cached():
     cached = family(points)
     cached.segments[0].duration  # noqa: B018 - caches the timing
     assert cached.fingerprint == first.fingerprint
+    moved = Segment.along("dig", Polyline(points), 0.5, source="/elsewhere/task.toml: segments[0]")
+    assert dataclasses.replace(first, segments=(moved,)).fingerprint == first.fingerprint
 
 
 def test_a_chunks_problems_are_segments_times_the_design_grid_in_product_order():
@@ -516,6 +520,19 @@ def test_a_chunks_problems_are_segments_times_the_design_grid_in_product_order()
         for payload, speed in itertools.product(*(values for _, values in grid))
     ]
     assert all(s is es and d == ed for (_, s, d), (es, ed) in zip(found, expected, strict=True))
+
+
+def test_a_design_speed_keeps_the_segments_path_and_profile():
+    """A speed on the design grid sets the segment's (peak) speed alone: an arc stays the arc,
+    a trapezoidal profile stays trapezoidal, only faster."""
+    arc = Arc.about([3.0, -0.5], [2.0, 0.5], [2.0, -0.5], "ccw")
+    segment = Segment.along("arc", arc, 0.3, "trapezoidal", 0.5)
+    family = MapFamily("f", "hiab031", None, ("velocity",), ("x3",), (segment,))
+    faster = family.segment_for(segment, Design(speed=0.6))
+    assert faster.shape is arc and faster.profile == "trapezoidal" and faster.speed == 0.6
+    t = np.linspace(0.0, faster.duration, 7)
+    np.testing.assert_allclose(np.linalg.norm(faster.position(t) - [2.0, -0.5], axis=1), 1.0)
+    assert faster.duration < segment.duration
 
 
 def _damage_truncated(path: Path, other: Path) -> None:

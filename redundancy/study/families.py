@@ -277,18 +277,19 @@ class MapFamily:
     def segment_for(self, segment: Segment, design: Design) -> Segment:
         if design.speed is None:
             return segment
-        return Segment(segment.name, segment.start, segment.end, design.speed)
+        return dataclasses.replace(segment, speed=design.speed)  # its path and profile kept
 
 
 def _digest(digest, value: object) -> None:
-    """Feed ``value`` to ``digest``: a dataclass field by field (what its fields are, not what
-    it has cached), an array by its type, shape and bytes (whole: its repr would elide a long
-    polyline's middle, and cost seconds on a large family), a sequence item by item, anything
-    else by its repr."""
+    """Feed ``value`` to ``digest``: a dataclass field by field, those its equality compares
+    (what its fields are, not what it has cached, nor where it was read from), an array by its
+    type, shape and bytes (whole: its repr would elide a long polyline's middle, and cost
+    seconds on a large family), a sequence item by item, anything else by its repr."""
     if dataclasses.is_dataclass(value):
         digest.update(type(value).__name__.encode())
         for field in dataclasses.fields(value):
-            _digest(digest, getattr(value, field.name))
+            if field.compare:
+                _digest(digest, getattr(value, field.name))
     elif isinstance(value, np.ndarray):
         digest.update(f"{value.dtype}{value.shape}".encode())
         digest.update(np.ascontiguousarray(value).tobytes())
