@@ -459,6 +459,7 @@ def _optimum(
             centre = np.column_stack([np.interp(t, path[0], r) for r in path[1].T])
             width = (upper - lower) / 2 * NARROWING
         reached = False  # whether a pass on this grid found a path
+        widest, without_limit = width, False  # the first band; whether a pass found a path
         for done in range(PASSES):
             each = counts[path is not None or done > 0]
             axes = [np.linspace(-w, w, each) for w in width]
@@ -466,18 +467,20 @@ def _optimum(
             values = np.clip(centre[:, None] + offsets, lower, upper)
             x, q, usable, stage = build(tables, values)
             optimum, index, free = _pass(x, usable, stage, t, speeds, accelerations, rest)
+            without_limit |= bool(np.isfinite(free))  # without the acceleration limit
             if not np.isfinite(optimum):
                 if path is not None and not reached and done < PASSES - 1:
                     width = width * NARROWING  # finer values about the coarser grid's path
                     continue
                 units = (robot.actuators.maps[row].unit for row in rows)
-                band = " × ".join(f"{w:.4g} {unit}" for w, unit in zip(width, units))
+                searched = width if reached else widest  # the widest band it searched
+                band = " × ".join(f"{w:.4g} {unit}" for w, unit in zip(searched, units))
                 message = (
                     f"dynamic programming found no motion along segment {segment.name} that "
                     f"keeps every stroke and every limit with {', '.join(names)} within {band} "
                     f"of the path searched ({intervals} intervals)"
                 )
-                if np.isfinite(free):  # the limit wants held values closer than h² ẍ_max
+                if without_limit:  # the limit wants held values closer than h² ẍ_max
                     message += (
                         "; without the acceleration limit one would: the limit is too tight for "
                         "the task, or the held values lie too far apart for it on this grid "

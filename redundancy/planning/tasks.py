@@ -606,9 +606,9 @@ def _segment(
 
     def point(name: str | None, key: str) -> np.ndarray:
         if name is None:
-            raise InvalidInputError(f"{where}: missing {key!r} (a point's name)")
+            raise InvalidInputError(f"missing {key!r} (a point's name)")
         if name not in points:
-            raise InvalidInputError(f"{where}: {key} = {name!r} must name a point among {known}")
+            raise InvalidInputError(f"{key} = {name!r} must name a point among {known}")
         return points[name]
 
     if isinstance(entry, str):
@@ -629,7 +629,8 @@ def _segment(
             shape: Shape = read_polyline(path.parent / entry.csv, dimension, tool_angle)
         name = Path(entry.csv).stem if entry.name is None else entry.name
     else:
-        start, end = point(entry.start, "from"), point(entry.to, "to")
+        with prefixed(where):
+            start, end = point(entry.start, "from"), point(entry.to, "to")
         name = f"{entry.start}-{entry.to}" if entry.name is None else entry.name
         with prefixed(f"{where} ({name})"):
             shape = _curve(entry, start, end, point, int(tool_angle))
