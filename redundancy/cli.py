@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from redundancy.errors import InvalidInputError, RedundancyError
+from redundancy.errors import InvalidInputError, RedundancyError, prefixed
 from redundancy.model.loading import bundled_robots, load_robot
 from redundancy.model.robot import Robot
 from redundancy.model.values import MAX_PAYLOAD
@@ -234,10 +234,8 @@ def _planned_command(args: argparse.Namespace) -> None:
         robot, cycle = _load_task(_robot(args), args.task)
         _holdable(robot, cycle)
         checked = None if args.check is None else tuple(args.check.split(","))
-        try:
+        with prefixed(f"--check {args.check}"):
             robot.actuators.rows(checked or ())
-        except InvalidInputError as error:
-            raise InvalidInputError(f"--check {args.check}: {error}") from None
         options = dict(
             samples=args.samples, checked=checked, method=args.method, circuit=args.circuit_limits
         )
