@@ -29,20 +29,24 @@ struct Actuator {
   std::array<double, 3> numbers;
 };
 
-// x = |d|, its row of A, uᵀ ∂d/∂q (u = d / x) and, with the rates ḋ and d(∂d/∂q)/dt, its row of
-// Ȧ, u̇ᵀ ∂d/∂q + uᵀ d(∂d/∂q)/dt with u̇ = (I − u uᵀ) ḋ / x. A zero length (the ends coincide) is
-// refused.
-inline Status span(const Eigen::Vector3d& d, const Block& J, const Eigen::Vector3d* d_dot,
-                   const Block* J_dot, double& x, RowOut row, RowOut* rate) {
+// x = |d| and its row of A, uᵀ ∂d/∂q (u = d / x), for ∂d/∂q `J` (3, n), an expression read as it
+// is multiplied (no copy). A zero length (the ends coincide) is refused.
+template <class Jacobian>
+Status span(const Eigen::Vector3d& d, const Jacobian& J, double& x, RowOut row) {
   x = d.norm();
   if (!(x >= 1e-12) && std::isfinite(x)) return ZERO_LENGTH;
-  const Eigen::Vector3d u = d / x;
-  row = u.transpose() * J;
-  if (rate) {
-    const Eigen::Vector3d u_dot = (*d_dot - u * u.dot(*d_dot)) / x;
-    *rate = u_dot.transpose() * J + u.transpose() * *J_dot;
-  }
+  row.noalias() = (d / x).transpose().lazyProduct(J);
   return OK;
+}
+
+// The row of Ȧ of x = |d| (`span`), u̇ᵀ ∂d/∂q + uᵀ d(∂d/∂q)/dt with u̇ = (I − u uᵀ) ḋ / x, from
+// the rates ḋ and d(∂d/∂q)/dt.
+template <class Jacobian, class Rate>
+void span_rate(const Eigen::Vector3d& d, double x, const Jacobian& J,
+               const Eigen::Vector3d& d_dot, const Rate& J_dot, RowOut rate) {
+  const Eigen::Vector3d u = d / x;
+  const Eigen::Vector3d u_dot = (d_dot - u * u.dot(d_dot)) / x;
+  rate.noalias() = u_dot.transpose().lazyProduct(J) + u.transpose().lazyProduct(J_dot);
 }
 
 // The four-bar's closure (module docstring of `redundancy.model.linkage`): P in the plane through
@@ -76,7 +80,8 @@ inline Status linkage(const Actuator& a, const Frames& s, const double* v, doubl
       axis.transpose() * J_R - to_R.transpose() * J_n;
   const auto solver = M.partialPivLu();
   const Block J_P = solver.solve(K);
-  if (!rate) return span(pin - b, J_P - J_b, nullptr, nullptr, x, row, nullptr);
+  const auto status = span(pin - b, J_P - J_b, x, row);
+  if (!rate || status != OK) return status;
   const Block Jd_R = s.rate(R_), Jd_C = s.rate(C_), Jd_n = s.rate(tip_) - Jd_R;
   const Eigen::Vector3d v_R = s.velocity(R_), v_C = s.velocity(C_);
   const Eigen::Vector3d v_n = s.velocity(tip_) - v_R;
@@ -90,8 +95,8 @@ inline Status linkage(const Actuator& a, const Frames& s, const double* v, doubl
           to_R.transpose() * Jd_n;
   const Block Jd_P = solver.solve(K_dot - M_dot * J_P);
   const Eigen::Vector3d d_dot = v_P - s.velocity(b_);
-  const Block J_dot = Jd_P - s.rate(b_);
-  return span(pin - b, J_P - J_b, &d_dot, &J_dot, x, row, rate);
+  span_rate(pin - b, x, J_P - J_b, d_dot, Jd_P - s.rate(b_), *rate);
+  return OK;
 }
 
 // x, the row of A and, if `rate`, the row of Ȧ of one actuator at one state (q, v (n) or null);
@@ -112,11 +117,11 @@ inline Status actuate(const Actuator& a, const Frames& s, const double* q, const
       const auto base = a.slots[0], rod = a.slots[1];
       end = s.position(rod);
       const Eigen::Vector3d d = end - s.position(base);
-      const Block J = s.jacobian(rod) - s.jacobian(base);
-      if (!rate) return span(d, J, nullptr, nullptr, x, row, nullptr);
-      const Eigen::Vector3d d_dot = s.velocity(rod) - s.velocity(base);
-      const Block J_dot = s.rate(rod) - s.rate(base);
-      return span(d, J, &d_dot, &J_dot, x, row, rate);
+      const auto J = s.jacobian(rod) - s.jacobian(base);
+      const auto status = span(d, J, x, row);
+      if (!rate || status != OK) return status;
+      span_rate(d, x, J, s.velocity(rod) - s.velocity(base), s.rate(rod) - s.rate(base), *rate);
+      return OK;
     }
     case Actuator::LINKAGE:
       return linkage(a, s, v, x, row, rate, end);

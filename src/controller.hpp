@@ -35,6 +35,7 @@ class Controller {
       throw py::value_error("a controller's result is a tuple type (x_dot, q_dot, y)");
     A_.resize(n, n);
     J_.resize(Eigen::Index(task.size()), n);
+    J_H_.resize(Eigen::Index(task.size()), n);
     x_.resize(n);
     y_.resize(Eigen::Index(task.size()));
   }
@@ -45,14 +46,15 @@ class Controller {
     if (!qi || !yi) return fallback_(q, y_dot);
     pass_.at(qi, nullptr);
     if (actuation_(pass_.frames(), qi, nullptr, x_.data(), A_.data(), y_.data(), J_.data())
-            .second != OK ||
-        singular(A_, tolerance_))
+            .second != OK)
       return fallback_(q, y_dot);
-    const Factor transposed(A_.transpose());
-    const auto x_dot = rule_(pass_, qi, x_, transposed, task_jacobian(transposed, J_), Vector(yi, m));
+    factor_.compute(A_.transpose());
+    if (singular(A_, factor_, tolerance_)) return fallback_(q, y_dot);
+    task_jacobian(factor_, J_, J_H_);
+    const auto* x_dot = rule_(pass_, qi, x_, factor_, J_H_, Vector(yi, m));
     if (!x_dot) return fallback_(q, y_dot);
-    const Eigen::VectorXd q_dot = A_.partialPivLu().solve(*x_dot);
-    return result(vector(*x_dot), vector(q_dot), vector(y_));
+    q_dot_ = factor_.transpose().solve(*x_dot);  // q̇ = A⁻¹ ẋ with the factors of Aᵀ
+    return result(vector(*x_dot), vector(q_dot_), vector(y_));
   }
 
  private:
@@ -88,7 +90,9 @@ class Controller {
   Actuation actuation_;
   Rule rule_;
   Matrix A_, J_;  // row-major, as `Actuation` writes them
-  Eigen::VectorXd x_, y_;
+  Dense J_H_;
+  Factor factor_;
+  Eigen::VectorXd x_, y_, q_dot_;
   double tolerance_;
   py::object fallback_, result_;
 };

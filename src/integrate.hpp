@@ -50,17 +50,17 @@ class Rates {
       xi.setZero();
       vi.setZero();
       if (flags[i]) continue;
-      const auto Ai = at(A, i, n, n);
-      const auto solved = rule_(evaluator.pass(), q.data() + i * n, at(x, i, 1, n).transpose(),
-                                Factor(Ai.transpose()), at(J_H, i, m, n), at(y_dot, i, 1, m).transpose());
+      factor_.compute(at(A, i, n, n).transpose());
+      const auto* solved = rule_(evaluator.pass(), q.data() + i * n, at(x, i, 1, n).transpose(),
+                                 factor_, at(J_H, i, m, n), at(y_dot, i, 1, m).transpose());
       if (!solved) return std::nullopt;
-      const Eigen::VectorXd rate = Factor(Ai).solve(*solved);
-      if (!rate.allFinite()) {
+      vi = factor_.transpose().solve(*solved);  // q̇ = A⁻¹ ẋ
+      if (!vi.allFinite()) {
         flags[i] = true;
+        vi.setZero();
         continue;
       }
       xi = *solved;
-      vi = rate;
     }
     return Stage{py::make_tuple(evaluated, x_dot, q_dot), q_dot, x, bad};
   }
@@ -68,6 +68,7 @@ class Rates {
  private:
   py::object evaluator_;
   Rule rule_;
+  Factor factor_;
 };
 
 // A right-hand side at r states: `Rates` in C++, or a Python callable (t, q) → (record, q̇, bad, x).

@@ -5,40 +5,59 @@
 #include <algorithm>
 #include <cmath>
 
-#include "pass.hpp"
+#include "space.hpp"
 
-// (G + λ² I)⁻¹ b for one G = J_H W⁻¹ J_Hᵀ (m, m): λ² = 0 where G is provably conditioned,
-// det G ≥ ε (tr G)^m (then σ_min / σ_max ≥ ε, and the Cholesky factor gives det G and the
-// solve at once); otherwise λ² = ε σ_max (1 − (σ_min / (ε σ_max))²), clamped to [0, ε σ_max].
-inline Eigen::VectorXd solve_gram(const Eigen::MatrixXd& G, const Eigen::VectorXd& b,
-                                  double ratio) {
-  const Eigen::LLT<Eigen::MatrixXd> factor(G);
-  if (factor.info() == Eigen::Success) {
-    const double root = factor.matrixLLT().diagonal().prod();
-    if (root * root >= ratio * std::pow(G.trace(), double(G.rows()))) return factor.solve(b);
+// The weighted pseudoinverse for one state at a time, its products kept from state to state (a
+// state allocates nothing once sized):
+//   ẋ = J_W⁺ (ẏ − J_H z) + z,   J_W⁺ = W⁻¹ J_Hᵀ (J_H W⁻¹ J_Hᵀ)⁻¹,
+// for J_H (m, n), ẏ (m), W (n, n) or null for I, z (n) or null for 0. The Gram matrix
+// G = J_H W⁻¹ J_Hᵀ (m, m) is solved undamped where it is provably conditioned, det G ≥ ε (tr G)^m
+// (then σ_min / σ_max ≥ ε, and the Cholesky factor gives det G and the solve at once); otherwise
+// with λ² = ε σ_max (1 − (σ_min / (ε σ_max))²), clamped to [0, ε σ_max], added to its diagonal.
+class Law {
+ public:
+  template <class JH, class Velocity>
+  const Eigen::VectorXd& operator()(const JH& J, const Velocity& y_dot, const Dense* W,
+                                    const Eigen::VectorXd* z, double ratio) {
+    if (W) {
+      weight_.compute(*W);
+      W_inv_J_T_ = weight_.solve(J.transpose());
+    } else {
+      W_inv_J_T_ = J.transpose();
+    }
+    target_ = y_dot;
+    if (z) target_.noalias() -= J * *z;
+    G_.noalias() = J * W_inv_J_T_;
+    x_dot_.noalias() = W_inv_J_T_ * gram(ratio);
+    if (z) x_dot_ += *z;
+    return x_dot_;
   }
-  const Eigen::VectorXd eigenvalues =
-      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(G, Eigen::EigenvaluesOnly).eigenvalues();
-  const double threshold = ratio * eigenvalues(eigenvalues.size() - 1);
-  const double r = std::clamp(eigenvalues(0) / threshold, 0.0, 1.0);
-  const Eigen::MatrixXd damped =
-      G + threshold * (1 - r * r) * Eigen::MatrixXd::Identity(G.rows(), G.cols());
-  return damped.partialPivLu().solve(b);
-}
 
-// ẋ = J_W⁺ (ẏ − J_H z) + z, J_W⁺ = W⁻¹ J_Hᵀ (J_H W⁻¹ J_Hᵀ)⁻¹, for one J_H (m, n), ẏ (m), W (n, n)
-// or null for I, z (n) or null for 0.
-template <class JH>
-Eigen::VectorXd law(const JH& J, const Eigen::VectorXd& y_dot, const Eigen::MatrixXd* W,
-                    const Eigen::VectorXd* z, double ratio) {
-  const Eigen::MatrixXd W_inv_J_T =
-      W ? Eigen::MatrixXd(W->partialPivLu().solve(J.transpose())) : Eigen::MatrixXd(J.transpose());
-  Eigen::VectorXd target = y_dot;
-  if (z) target -= J * *z;
-  Eigen::VectorXd x_dot = W_inv_J_T * solve_gram(J * W_inv_J_T, target, ratio);
-  if (z) x_dot += *z;
-  return x_dot;
-}
+ private:
+  // (G + λ² I)⁻¹ (ẏ − J_H z).
+  const Eigen::VectorXd& gram(double ratio) {
+    cholesky_.compute(G_);
+    if (cholesky_.info() == Eigen::Success) {
+      const double root = cholesky_.matrixLLT().diagonal().prod();
+      if (root * root >= ratio * std::pow(G_.trace(), double(G_.rows()))) {
+        lambda_ = cholesky_.solve(target_);
+        return lambda_;
+      }
+    }
+    const Eigen::VectorXd eigenvalues =
+        Eigen::SelfAdjointEigenSolver<Dense>(G_, Eigen::EigenvaluesOnly).eigenvalues();
+    const double threshold = ratio * eigenvalues(eigenvalues.size() - 1);
+    const double r = std::clamp(eigenvalues(0) / threshold, 0.0, 1.0);
+    G_.diagonal().array() += threshold * (1 - r * r);
+    lambda_ = G_.partialPivLu().solve(target_);
+    return lambda_;
+  }
+
+  Factor weight_;
+  Dense W_inv_J_T_, G_;
+  Eigen::LLT<Dense> cholesky_;
+  Eigen::VectorXd target_, lambda_, x_dot_;
+};
 
 // The kernel on a batch: J_H (k, m, n), ẏ (k, m), W (k, n, n) or None, z (k, n) or None: ẋ (k, n).
 inline Array resolve(const Array& J_H, const Array& y_dot, const std::optional<Array>& W,
@@ -52,8 +71,9 @@ inline Array resolve(const Array& J_H, const Array& y_dot, const std::optional<A
   if (z && (z->ndim() != 2 || z->shape(0) != k || z->shape(1) != n))
     throw py::value_error("z must have shape (k, n), as J_H (k, m, n)");
   Array out({k, n});
-  Eigen::MatrixXd Wi;
+  Dense Wi;
   Eigen::VectorXd zi;
+  Law law;
   for (py::ssize_t i = 0; i < k; ++i) {
     if (W) Wi = ConstMatrix(W->data() + i * n * n, n, n);
     if (z) zi = Vector(z->data() + i * n, n);

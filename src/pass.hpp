@@ -178,14 +178,19 @@ class Pass {
     return a ? py::object(*a) : py::none();
   }
 
-  // M(q) (k, n, n) by CRBA, both triangles filled.
-  Array mass_matrices(const Array& q) {
+  // M(q) (k, n, n) by CRBA at q (k, n), both triangles filled, and the first state where M has a diagonal entry ≤ 0
+  // (nothing beyond a joint has inertia about it), or −1.
+  py::tuple mass_matrices(const Array& q) {
     const auto k = batch(q, "q");
     const auto n = py::ssize_t(model_.nv);
     Array out({k, n, n});
-    for (py::ssize_t i = 0; i < k; ++i)
-      Eigen::Map<Eigen::MatrixXd>(out.mutable_data() + i * n * n, n, n) = mass(q.data() + i * n);
-    return out;
+    py::ssize_t still = -1;
+    for (py::ssize_t i = 0; i < k; ++i) {
+      const auto& M = mass(q.data() + i * n);
+      Eigen::Map<Eigen::MatrixXd>(out.mutable_data() + i * n * n, n, n) = M;
+      if (still < 0 && !(M.diagonal().array() > 0).all()) still = i;
+    }
+    return py::make_tuple(out, still);
   }
 
   // N(q, v) = V(q, v) + G(q) (k, n) by RNEA.

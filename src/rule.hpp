@@ -29,26 +29,30 @@ struct Rule {
     }
   }
 
-  // ẋ at one state of `pass`: q (n), x (n), the factors of Aᵀ, J_H (m, n) and ẏ (m); nothing
+  // ẋ at one state of `pass`: q (n), x (n), the factors of Aᵀ, J_H (m, n) and ẏ (m); null
   // where the law weighs by M_H and M(q) has no positive diagonal (a robot without masses).
   template <class Strokes, class Jacobian, class Velocity>
-  std::optional<Eigen::VectorXd> operator()(Pass& pass, const double* q, const Strokes& x,
-                                            const Factor& transposed, const Jacobian& J_H,
-                                            const Velocity& y_dot) {
+  const Eigen::VectorXd* operator()(Pass& pass, const double* q, const Strokes& x,
+                                    const Factor& transposed, const Jacobian& J_H,
+                                    const Velocity& y_dot) {
     const Dense* weighting = weight == CONSTANT ? &W : nullptr;
     if (weight == INERTIA) {
       const Dense& M = pass.mass(q);
-      if (!(M.diagonal().array() > 0).all()) return std::nullopt;
-      M_H = inertia(transposed, M);
+      if (!(M.diagonal().array() > 0).all()) return nullptr;
+      inertia(transposed, M, first_, second_, M_H);
       weighting = &M_H;
     }
-    std::optional<Eigen::VectorXd> z;
-    if (pull.size()) z = pull.cwiseProduct(x - middle);
-    return law(J_H, Eigen::VectorXd(y_dot), weighting, z ? &*z : nullptr, ratio);
+    if (pull.size()) z_ = pull.cwiseProduct(x - middle);
+    return &law_(J_H, y_dot, weighting, pull.size() ? &z_ : nullptr, ratio);
   }
 
   Weight weight;
   Dense W, M_H;
   Eigen::VectorXd pull, middle;
   double ratio;
+
+ private:
+  Law law_;
+  Dense first_, second_;
+  Eigen::VectorXd z_;
 };

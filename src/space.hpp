@@ -1,7 +1,9 @@
 // The state in actuator coordinates (module docstring of `redundancy.resolution.state`): whether
 // A is singular, J_H = J A⁻¹, M_H = A⁻ᵀ M A⁻¹, N_H = A⁻ᵀ N − M_H Ȧ q̇ and q̇ = A⁻¹ ẋ, each by
-// solves with A's LU factors (A is never inverted); for one state, which the control step shares,
-// and over batches. `Evaluator` runs the pass, the built-in kinds, y, J and J_H in one call.
+// solves with one LU factorisation of Aᵀ per state (A is never inverted; A⁻¹ b is the transposed
+// solve with the same factors); for one state, which the control step shares, and over batches.
+// `Evaluator` runs the pass, the built-in kinds, y, J and J_H in one call. The factors and the
+// products live in storage kept across states, so that a state allocates nothing once sized.
 #pragma once
 
 #include <limits>
@@ -14,30 +16,33 @@
 using Dense = Eigen::MatrixXd;
 using Factor = Eigen::PartialPivLU<Dense>;
 
-// Whether A (n, n) is singular to working precision, σ_min / σ_max < tolerance or not finite:
-// |det A| / ‖A‖_F^n bounds σ_min / σ_max from below (|det A| = Π σ_i ≤ σ_min σ_max^(n−1) and
-// σ_max ≤ ‖A‖_F), so the singular values are computed only where that bound is not enough.
+// Whether A (n, n), whose (or whose transpose's) LU `factor` is given, is singular to working
+// precision, σ_min / σ_max < tolerance or not finite: |det A| / ‖A‖_F^n bounds σ_min / σ_max from
+// below (|det A| = Π σ_i ≤ σ_min σ_max^(n−1) and σ_max ≤ ‖A‖_F), so the singular values are
+// computed only where that bound is not enough.
 template <class Square>
-bool singular(const Square& A, double tolerance) {
+bool singular(const Square& A, const Factor& factor, double tolerance) {
   if (!A.allFinite()) return true;
   const double n = double(A.rows());
-  if (std::abs(A.determinant()) > tolerance * std::pow(A.squaredNorm(), n / 2)) return false;
+  if (std::abs(factor.determinant()) > tolerance * std::pow(A.squaredNorm(), n / 2)) return false;
   const Eigen::VectorXd sigma = Eigen::JacobiSVD<Dense>(A).singularValues();
   return sigma[sigma.size() - 1] / std::max(sigma[0], std::numeric_limits<double>::min()) <
          tolerance;
 }
 
-// J_H = J A⁻¹ (m, n) from the factors of Aᵀ: J_Hᵀ = A⁻ᵀ Jᵀ.
-template <class Rows>
-Dense task_jacobian(const Factor& transposed, const Rows& J) {
-  return transposed.solve(J.transpose()).transpose();
+// J_H = J A⁻¹ (m, n) into `out`, from the factors of Aᵀ: J_Hᵀ = A⁻ᵀ Jᵀ.
+template <class Rows, class Out>
+void task_jacobian(const Factor& transposed, const Rows& J, Out&& out) {
+  out.transpose() = transposed.solve(J.transpose());
 }
 
-// M_H = A⁻ᵀ M A⁻¹ = A⁻ᵀ (A⁻ᵀ M)ᵀ for a symmetric M, symmetrised, from the factors of Aᵀ.
-template <class Square>
-Dense inertia(const Factor& transposed, const Square& M) {
-  const Dense half = transposed.solve(Dense(transposed.solve(M).transpose()));
-  return (half + half.transpose()) / 2;
+// M_H = A⁻ᵀ M A⁻¹ = A⁻ᵀ (A⁻ᵀ M)ᵀ for a symmetric M, symmetrised, into `out`, from the factors of
+// Aᵀ; `first` and `second` hold the two solves.
+template <class Square, class Out>
+void inertia(const Factor& transposed, const Square& M, Dense& first, Dense& second, Out&& out) {
+  first = transposed.solve(M);
+  second = transposed.solve(first.transpose());
+  out = (second + second.transpose()) / 2;
 }
 
 // The k of a batch of square matrices A (k, n, n), checked against the other batches' shapes:
@@ -72,10 +77,12 @@ inline py::tuple derive(const Array& A, const Array& J, double tolerance) {
   const auto k = A.shape(0), n = A.shape(1), m = J.shape(1);
   Array J_H({k, m, n});
   py::array_t<bool> bad(k);
+  Factor factor(n);
   for (py::ssize_t i = 0; i < k; ++i) {
     const auto Ai = at(A, i, n, n);
-    bad.mutable_data()[i] = singular(Ai, tolerance);
-    at(J_H, i, m, n) = task_jacobian(Factor(Ai.transpose()), at(J, i, m, n));
+    factor.compute(Ai.transpose());
+    bad.mutable_data()[i] = singular(Ai, factor, tolerance);
+    task_jacobian(factor, at(J, i, m, n), at(J_H, i, m, n));
   }
   return py::make_tuple(J_H, bad);
 }
@@ -84,8 +91,12 @@ inline py::tuple derive(const Array& A, const Array& J, double tolerance) {
 inline Array inertias(const Array& A, const Array& M) {
   const auto [k, n] = square_batch(A, {{&M, 3, "M"}});
   Array out({k, n, n});
-  for (py::ssize_t i = 0; i < k; ++i)
-    at(out, i, n, n) = inertia(Factor(at(A, i, n, n).transpose()), at(M, i, n, n));
+  Factor factor(n);
+  Dense first, second;
+  for (py::ssize_t i = 0; i < k; ++i) {
+    factor.compute(at(A, i, n, n).transpose());
+    inertia(factor, at(M, i, n, n), first, second, at(out, i, n, n));
+  }
   return out;
 }
 
@@ -95,10 +106,15 @@ inline Array biases(const Array& A, const Array& N, const Array& M_H, const Arra
   const auto [k, n] = square_batch(
       A, {{&N, 2, "N"}, {&M_H, 3, "M_H"}, {&A_dot, 3, "A_dot"}, {&v, 2, "v"}});
   Array out({k, n});
-  for (py::ssize_t i = 0; i < k; ++i)
-    at(out, i, 1, n).transpose() =
-        Factor(at(A, i, n, n).transpose()).solve(at(N, i, 1, n).transpose()) -
-        at(M_H, i, n, n) * (at(A_dot, i, n, n) * at(v, i, 1, n).transpose());
+  Factor factor(n);
+  Eigen::VectorXd rate(n);
+  for (py::ssize_t i = 0; i < k; ++i) {
+    factor.compute(at(A, i, n, n).transpose());
+    rate.noalias() = at(A_dot, i, n, n) * at(v, i, 1, n).transpose();
+    auto row = at(out, i, 1, n).transpose();
+    row = factor.solve(at(N, i, 1, n).transpose());
+    row.noalias() -= at(M_H, i, n, n) * rate;
+  }
   return out;
 }
 
@@ -109,8 +125,9 @@ inline Array solve(const Array& A, const Array& B) {
   const auto [k, n] = square_batch(A, {{&B, vectors ? 2 : 3, "B"}});
   const auto p = vectors ? 1 : B.shape(2);
   Array out(std::vector<py::ssize_t>(B.shape(), B.shape() + B.ndim()));
+  Factor factor(n);
   for (py::ssize_t i = 0; i < k; ++i) {
-    const Factor factor(at(A, i, n, n));
+    factor.compute(at(A, i, n, n));
     if ((factor.matrixLU().diagonal().array() == 0).any()) {
       PyErr_SetString(py::module_::import("numpy.linalg").attr("LinAlgError").ptr(),
                       "Singular matrix");
@@ -197,8 +214,9 @@ class Evaluator {
         break;
       }
       const auto Ai = at(A, i, n, n);
-      bad.mutable_data()[i] = singular(Ai, tolerance_) || !Vector(qi, n).allFinite();
-      at(J_H, i, m, n) = task_jacobian(Factor(Ai.transpose()), at(J, i, m, n));
+      factor_.compute(Ai.transpose());
+      bad.mutable_data()[i] = singular(Ai, factor_, tolerance_) || !Vector(qi, n).allFinite();
+      task_jacobian(factor_, at(J, i, m, n), at(J_H, i, m, n));
     }
     return py::make_tuple(*qa, Pass::maybe(va), positions, linear, angular,
                           Pass::maybe(velocities), Pass::maybe(rates), x, A, y, J, J_H, bad,
@@ -223,5 +241,6 @@ class Evaluator {
 
   Pass pass_;
   Actuation actuation_;
+  Factor factor_;
   double tolerance_;
 };

@@ -281,11 +281,9 @@ class Robot:
     def mass_matrices(self, q: np.ndarray) -> np.ndarray:
         """M(q) (k, n, n) for configurations q (k, n) already checked (`configuration`)."""
         self.require_masses("M(q) and the dynamics (M_H, N_H, F_H, the energy objective)")
-        out = self._dynamics.mass_matrices(q)
-        still = np.diagonal(out, axis1=1, axis2=2) <= 0  # a massless link is refused above
-        if np.any(still):
-            state = int(np.flatnonzero(still.any(axis=1))[0])
-            joints = [self.joint_names[j] for j in np.flatnonzero(still[state])]
+        out, state = self._dynamics.mass_matrices(q)
+        if state >= 0:  # a massless link is refused above
+            joints = [self.joint_names[j] for j in np.flatnonzero(np.diagonal(out[state]) <= 0)]
             raise InvalidInputError(
                 f"{self.name}: M(q) is singular at q = [{', '.join(f'{v:.4g}' for v in q[state])}]"
                 f": nothing beyond joints {joints} has mass off their axes or inertia about them, "
