@@ -178,8 +178,8 @@ class Pass {
     return a ? py::object(*a) : py::none();
   }
 
-  // M(q) (k, n, n) by CRBA at q (k, n), both triangles filled, and the first state where M has a diagonal entry ≤ 0
-  // (nothing beyond a joint has inertia about it), or −1.
+  // M(q) (k, n, n) by CRBA at q (k, n), both triangles filled, and the first state where M has
+  // a diagonal entry ≤ 0 (nothing beyond a joint has inertia about it), or −1.
   py::tuple mass_matrices(const Array& q) {
     const auto k = batch(q, "q");
     const auto n = py::ssize_t(model_.nv);
