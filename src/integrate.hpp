@@ -21,8 +21,8 @@ struct Stage {
 
 // q̇(t, q) = A⁻¹ ẋ of a built-in law (`Rule`) at states evaluated by the compiled `Evaluator`,
 // for the task velocity ẏ(t, y) given by `velocity` (a Python callable, one call per batch). Its
-// record is (the evaluator's tuple, ẋ, q̇); None where a kind refused a state (Python evaluates
-// the batch again and raises the kind's error).
+// record is (the evaluator's tuple, ẋ, q̇). A state a kind refused is bad, as where A is singular.
+// None where the core cannot serve the states (Python evaluates them again and raises its error).
 class Rates {
  public:
   Rates(py::object evaluator, int weight, const std::optional<Array>& W,
@@ -33,7 +33,7 @@ class Rates {
   std::optional<Stage> operator()(const Array& t, const Array& q, const py::object& velocity) {
     auto& evaluator = evaluator_.cast<Evaluator&>();
     const py::object found = evaluator.evaluate(q, py::none(), false);
-    if (found.is_none() || !found.cast<py::tuple>()[13].is_none()) return std::nullopt;
+    if (found.is_none()) return std::nullopt;
     const auto evaluated = found.cast<py::tuple>();
     const auto x = evaluated[7].cast<Array>(), A = evaluated[8].cast<Array>();
     const auto J_H = evaluated[11].cast<Array>();
@@ -88,7 +88,7 @@ inline std::optional<Stage> rates_at(const py::object& rates, const py::object& 
 // [lower, upper] (n,) by more than `allowance`, as are its neighbours in the batch, stops.
 // The accepted steps (rows, t0, h, q0 and the stage slopes (p, s + 1, n)), failed and stopped
 // (k,), and, with `keep`, each batch of ends of accepted steps as (record, positions in it); None
-// where `Rates` refused a state.
+// where `Rates` could not serve a batch.
 inline py::object dormand_prince(const py::object& rates, const py::object& velocity, Array q,
                                  Array f, py::array_t<bool> failed, double duration,
                                  double tolerance, const Array& c, const Array& a, const Array& e,

@@ -183,10 +183,10 @@ class Evaluator {
   }
 
   // At q (k, n) or (n,) and v like q or None: (q, v) as batches, positions, jacobians, angular,
-  // velocities, rates (`Pass.kinematics`), x, A, y, J, J_H, where A is singular or q not finite
-  // (k,) bool, and None or the first (state, actuator, status) a kind refused (the batch ends
-  // there). None where q or v is not a float64 array of that shape (finite too, if `finite`):
-  // Python then checks them.
+  // velocities, rates (`Pass.kinematics`), x, A, y, J, J_H, where the state is bad (k,) bool
+  // (A singular, q not finite, or a kind refused it: there x, A and J_H are NaN), and None or
+  // the first (state, actuator, status) a kind refused. None where q or v is not a float64 array
+  // of that shape (finite too, if `finite`): Python then checks them.
   py::object evaluate(const py::object& q, const py::object& v, bool finite) {
     const auto n = pass_.n();
     const auto qa = batch(q, n, finite);
@@ -209,11 +209,15 @@ class Evaluator {
       const auto [actuator, status] =
           actuation_(s, qi, vi, x.mutable_data() + i * n, A.mutable_data() + i * n * n,
                      y.mutable_data() + i * m, J.mutable_data() + i * m * n);
-      if (status != OK) {
-        refused = py::make_tuple(i, actuator, int(status));
-        break;
-      }
       const auto Ai = at(A, i, n, n);
+      if (status != OK) {  // bad, as a singular A: frozen by the integrators, named by Python
+        if (refused.is_none()) refused = py::make_tuple(i, actuator, int(status));
+        bad.mutable_data()[i] = true;
+        at(x, i, 1, n).setConstant(std::numeric_limits<double>::quiet_NaN());
+        at(A, i, n, n).setConstant(std::numeric_limits<double>::quiet_NaN());
+        at(J_H, i, m, n).setConstant(std::numeric_limits<double>::quiet_NaN());
+        continue;
+      }
       factor_.compute(Ai.transpose());
       bad.mutable_data()[i] = singular(Ai, factor_, tolerance_) || !Vector(qi, n).allFinite();
       task_jacobian(factor_, at(J, i, m, n), at(J_H, i, m, n));

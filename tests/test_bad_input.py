@@ -949,7 +949,9 @@ API = [
     (
         "timing a failed motion",
         lambda r: shortest_duration(simulate(r, VELOCITY.resolver, _segment(r), np.zeros(3))),
-        "motion 0 along segment 1-2 failed (A turned singular): it has no path to time",
+        "motion 0 along segment 1-2 failed, where A turned singular or an actuator could not be "
+        "evaluated (a cylinder of zero length, a linkage that cannot close): it has no path to "
+        "time",
     ),
     (
         "forces of nan",

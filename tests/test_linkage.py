@@ -8,9 +8,17 @@ from lxml import etree
 from scipy.optimize import fsolve
 from test_derivatives import central_difference, columns
 
-from redundancy import RobotDescriptionError, SingularConfigurationError, actuator_space, load_robot
+from redundancy import (
+    VELOCITY,
+    RobotDescriptionError,
+    SingularConfigurationError,
+    actuator_space,
+    load_robot,
+)
 from redundancy.model.linkage import LinkageCylinder
 from redundancy.model.transmissions import read_transmissions
+from redundancy.planning.integrate import simulate
+from redundancy.planning.tasks import Segment
 
 # A slewing arm carrying a stick whose tip joint turns a bucket through a four-bar. The slew's
 # axis is oblique to the linkage's, so the linkage's plane turns every way, and the cylinder's
@@ -173,6 +181,26 @@ def test_a_linkage_that_cannot_close_is_one_line_naming_it(tmp_path):
     assert "\n" not in message
     assert "linkage 'bucket' cannot close at q = [0.0, 0.0, 0.0]" in message
     assert "joint 'curl'" in message
+
+
+@pytest.mark.parametrize("method", ["adaptive", "rk4"])
+def test_a_motion_that_drives_the_linkage_past_closing_fails_that_start_alone(tmp_path, method):
+    """With a 0.27 m coupler the loop closes for curl below about −1.86 rad and not above: of
+    two starts moved alike, the one driven across that edge is frozen and flagged, as at a
+    singular A, and the other runs on; nothing raises."""
+    robot = load(tmp_path, coupler=0.27)
+    q = np.array([[0.3, 0.2, -2.0], [0.3, 0.2, -2.4]])
+    start = actuator_space(robot, q)
+    with pytest.raises(SingularConfigurationError, match="linkage 'bucket' cannot close"):
+        actuator_space(robot, [0.3, 0.2, -1.7])
+    y0 = start.y[1]
+    segment = Segment("curl", y0, y0 + start.J[0] @ [0.0, 0.0, 0.4], 1.0)
+    motion = simulate(robot, VELOCITY.resolver, segment, q, method=method, gain=0.0)
+    assert motion.failed.tolist() == [True, False]
+    assert not motion.within_limits[0]
+    assert np.isfinite(motion.x[0]).all()  # frozen at the last state the loop closed at
+    assert motion.q[0, -1, 2] < -1.8 < motion.q[0, 0, 2] + 0.25
+    assert motion.q[1, -1, 2] - motion.q[1, 0, 2] > 0.4  # the other ran the whole segment
 
 
 def test_the_declaration_is_written_and_read_back(tmp_path):

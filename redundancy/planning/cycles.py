@@ -45,7 +45,7 @@ from redundancy.planning.bound import (
     solve_transcription,
 )
 from redundancy.planning.ik import CONTINUATION_ITERATIONS, FOUND, held_names, newton
-from redundancy.planning.integrate import TIME_STEP, Trajectory
+from redundancy.planning.integrate import FAILED, TIME_STEP, Trajectory
 from redundancy.planning.motions import Laws, per_segment, simulate_path
 from redundancy.planning.refinement import Refined, checked_grids
 from redundancy.planning.starts import (
@@ -371,7 +371,7 @@ class Repetition:
             if found:
                 return number, str(found[0])
             if not motion.within_limits[0]:
-                return number, "the motion failed (singular actuator Jacobian)"
+                return number, f"the motion failed {FAILED}"
         return None
 
     @property

@@ -18,8 +18,10 @@ Two methods, one result type (`Trajectory`):
 - "rk4": classical Runge-Kutta on the grid of ``time_step``, closed loop with K = `GAIN` by
   default (the paper's fixed-step simulation).
 
-A start whose actuator Jacobian turns singular or whose state stops being finite is frozen there
-and flagged (`Trajectory.failed`), so one bad start never spoils the batch.
+A start whose actuator Jacobian turns singular, whose state stops being finite, or where an
+actuator cannot be evaluated (a cylinder of zero length, a four-bar linkage that cannot close,
+past its toggle) is frozen there and flagged (`Trajectory.failed`, `FAILED`), so one bad start
+never spoils the batch.
 """
 
 from __future__ import annotations
@@ -49,6 +51,10 @@ if TYPE_CHECKING:
     import pandas as pd
 
 TIME_STEP = 0.01  # s
+FAILED = (  # why a motion failed (`Trajectory.failed`), in words
+    "where A turned singular or an actuator could not be evaluated (a cylinder of zero length, "
+    "a linkage that cannot close)"
+)
 MIN_INTERVALS = 10  # of a motion's grid, however short its segment
 MAX_INTERVALS = 1_000_000  # of a motion's grid: 24 MB of q alone for a 3-joint robot
 GAIN = 20.0  # K, 1/s, of the fixed-step method
@@ -84,7 +90,7 @@ class Trajectory:
     states at the samples as the integrator evaluated them, one flat batch of k·T, motion by
     motion, v = q̇: q (k, T, n) joints, x (k, T, n) actuator strokes (m) and y (k, T, m) tool
     are read from it, and so is every quantity along the motion (`states`); x_dot (k, T, n)
-    actuator velocities (m/s); failed (k,) starts frozen at a singular or non-finite state;
+    actuator velocities (m/s); failed (k,) starts frozen at a bad state (`FAILED`);
     stopped (k,) motions a search stopped past their limits; checked: the actuators whose
     strokes count; measure (k, T) the measure of ``objective`` at the samples, when integrated
     for one; ``sparse``: sampled at the adaptive steps (see the module docstring), with the
@@ -502,8 +508,8 @@ def time_grid(segment: Segment, time_step: float = TIME_STEP) -> np.ndarray:
 
 class Rates(NamedTuple):
     """The law at k states: ẋ (k, n); the states themselves, at v = q̇ (``space``: q, x, y,
-    A, J, ...); the objective's measure (k,) or None; bad (k,) where A is singular or the
-    state not finite (there q̇ = ẋ = 0)."""
+    A, J, ...); the objective's measure (k,) or None; bad (k,) where A is singular, the state
+    not finite or an actuator not evaluated (there q̇ = ẋ = 0)."""
 
     x_dot: np.ndarray
     space: ActuatorSpace

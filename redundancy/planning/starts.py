@@ -46,6 +46,7 @@ from redundancy.planning.ik import (
     inverse_kinematics,
 )
 from redundancy.planning.integrate import (
+    FAILED,
     REPORT_TOLERANCE,
     TIME_STEP,
     TOLERANCE,
@@ -415,7 +416,7 @@ def evaluate_starts(
 def _reason(trajectory: Trajectory, row: int, violations: tuple[Violation, ...]) -> str:
     """Why a reachable start is not feasible."""
     if trajectory.failed[row]:
-        return "singular actuator Jacobian"
+        return f"the motion failed {FAILED}"
     if trajectory.stopped[row]:
         return "past a stroke limit, as its neighbours: stopped"
     if violations:

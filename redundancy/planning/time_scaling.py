@@ -24,7 +24,7 @@ import numpy as np
 from redundancy.errors import InvalidInputError, RedundancyError
 from redundancy.model.robot import Robot
 from redundancy.model.values import is_whole
-from redundancy.planning.integrate import Trajectory
+from redundancy.planning.integrate import FAILED, Trajectory
 
 SAMPLES = 400  # path points fed to TOPP-RA (at most; fewer if the motion has fewer)
 
@@ -72,8 +72,8 @@ def shortest_duration(motion: Trajectory, row: int = 0, samples: int = SAMPLES) 
         raise InvalidInputError(f"samples must be a whole number ≥ 3; got {samples!r}")
     if motion.failed[row]:
         raise InvalidInputError(
-            f"motion {row} along segment {motion.segment.name} failed (A turned singular): it "
-            "has no path to time"
+            f"motion {row} along segment {motion.segment.name} failed, {FAILED}: it has no "
+            "path to time"
         )
     import toppra  # its algorithms and constraints come with it
 

@@ -42,7 +42,13 @@ def singular(A: np.ndarray, tolerance: float = SINGULAR_TOLERANCE) -> np.ndarray
 
 
 def check_invertible(space: ActuatorSpace) -> None:
-    """Raise `SingularConfigurationError` where A is singular to working precision."""
+    """Raise where a state is bad: the error of the actuator the core could not evaluate there
+    (a cylinder of zero length, a linkage that cannot close), else `SingularConfigurationError`
+    where A is singular to working precision."""
+    refused = vars(space).get("_refused")
+    if refused is not None:
+        state, actuator, status = refused
+        list(space.robot.actuators)[actuator].refuse(space.kinematics, state, status)
     bad = np.flatnonzero(space._bad)
     if bad.size:
         i = bad[0]
@@ -209,24 +215,23 @@ def _evaluated(robot: Robot, q: np.ndarray, v: np.ndarray | None) -> ActuatorSpa
 
 
 def _compiled(robot: Robot, q, v, finite: bool) -> ActuatorSpace | None:
-    """`evaluate` in one call of the core (`Robot.evaluator`), J_H and where A is singular or
-    q not finite included; None where it does not serve: a kind or task of your own, q or v
-    not a float array of shape (n,) or (k, n) (and finite, if ``finite``), an actuator that
-    cannot evaluate (Python raises its error)."""
+    """`evaluate` in one call of the core (`Robot.evaluator`), J_H and the bad states included;
+    None where it does not serve: a kind or task of your own, q or v not a float array of
+    shape (n,) or (k, n) (and finite, if ``finite``)."""
     evaluator = robot.evaluator()
     found = None if evaluator is None else evaluator.evaluate(q, v, finite)
-    if found is None or found[-1] is not None:
-        return None
-    return compiled_space(robot, found)
+    return None if found is None else compiled_space(robot, found)
 
 
 def compiled_space(robot: Robot, found: tuple) -> ActuatorSpace:
     """The `ActuatorSpace` of what the core's evaluator ``found``: (q, v, the pass's arrays,
-    x, A, y, J, J_H, where A is singular or q not finite, None)."""
-    q, v, *frames, x, A, y, J, J_H, bad, _ = found
+    x, A, y, J, J_H, the bad states, the first state an actuator could not evaluate or None).
+    Such a state is bad, as where A is singular (`check_invertible` raises the actuator's
+    error)."""
+    q, v, *frames, x, A, y, J, J_H, bad, refused = found
     kinematics = _made(Kinematics, robot.tracking(), q, *frames[:3], v, *frames[3:])
     space = _made(ActuatorSpace, robot, kinematics, q, v, x, A, y, J, None)
-    vars(space).update(J_H=J_H, _bad=bad)
+    vars(space).update(J_H=J_H, _bad=bad, _refused=refused)
     return space
 
 
