@@ -7,8 +7,8 @@
 
 #include "space.hpp"
 
-// The weighted pseudoinverse for one state at a time, its products kept from state to state (a
-// state allocates nothing once sized):
+// The weighted pseudoinverse for one state at a time, its products kept from state to state (an
+// undamped state allocates nothing once they are sized):
 //   ẋ = J_W⁺ (ẏ − J_H z) + z,   J_W⁺ = W⁻¹ J_Hᵀ (J_H W⁻¹ J_Hᵀ)⁻¹,
 // for J_H (m, n), ẏ (m), W (n, n) or null for I, z (n) or null for 0. The Gram matrix
 // G = J_H W⁻¹ J_Hᵀ (m, m) is solved undamped where it is provably conditioned, det G ≥ ε (tr G)^m
