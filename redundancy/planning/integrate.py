@@ -701,7 +701,7 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
     )
     rates = compiled_rates(law.robot, law.resolver)
     found = None if rates is None else _core.dormand_prince(rates, law.velocity, *arguments)
-    if found is None:  # a kind, a law or a task of your own, or a state a kind refused
+    if found is None:  # a kind, a law or a task of your own
         found = _core.dormand_prince(law.stage, law.velocity, *arguments)
     *accepted, failed, stopped, kept = found
     steps = Steps(law, first, *accepted)
