@@ -226,6 +226,23 @@ def test_a_signal_python_had_to_ignore_still_ends_the_command(monkeypatch, capsy
     assert captured.err.splitlines() == ["redundancy: interrupted"], captured.err
 
 
+def test_a_signal_a_library_swallowed_stops_the_commit(tmp_path):
+    """A Ctrl-C whose KeyboardInterrupt a weakref callback swallowed while the output was
+    staged: the commit raises it instead of writing, and nothing is left."""
+    from redundancy.study.signals import caught, stop
+
+    class Part:
+        pass
+
+    with caught(), pytest.raises(KeyboardInterrupt), OutputFolder(tmp_path / "out") as out:
+        (out / "report.json").write_text("{}")
+        part = Part()
+        noted = weakref.ref(part, lambda _: stop(signal.SIGINT, None))
+        del part  # the callback runs here; its KeyboardInterrupt is ignored
+        assert noted() is None
+    assert list(tmp_path.iterdir()) == []
+
+
 def _staged_files(parent: Path) -> int:
     return sum(
         len(list(folder.iterdir())) for folder in parent.glob(".out.partial-*") if folder.is_dir()

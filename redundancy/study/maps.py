@@ -66,6 +66,7 @@ from redundancy.resolution.objectives import OBJECTIVES
 from redundancy.study.families import Design, MapFamily, read_family
 from redundancy.study.output import write_atomically
 from redundancy.study.peers import pump_energies
+from redundancy.study.signals import check
 
 CONNECT_TIMEOUT = 10.0  # s a scheduler has to answer
 FAMILY_FILE = "family.json"
@@ -451,6 +452,7 @@ def design_map(
                         chunks.add(chunk, frame)
                     frames[chunk] = frame
                     bar.update(frame["problem"].nunique())
+                    check()  # a Ctrl-C a library swallowed stops the map here, its chunks kept
             except (OSError, CancelledError) as error:  # the scheduler or its connection lost
                 raise SchedulerLostError(
                     f"map {family.name!r}: the Dask scheduler was lost after {len(frames)} of "

@@ -37,7 +37,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from redundancy.errors import InvalidInputError
-from redundancy.study.signals import deferred
+from redundancy.study.signals import check, deferred
 
 MARKER = ".redundancy-output"  # names the folder as one this toolkit wrote; holds its manifest
 RENAME_NOREPLACE, RENAME_EXCHANGE = 1, 2  # renameat2 flags, <linux/fs.h>
@@ -255,7 +255,9 @@ class OutputFolder:
 
     def commit(self) -> None:
         """Exchange the staged folder with the target, then rename the files beside it; the
-        earlier output is retired (`_retire`)."""
+        earlier output is retired (`_retire`). A signal a library swallowed on the way
+        (`signals.check`) is raised first: nothing is committed."""
+        check()
         files = [p for p in self.staging.rglob("*") if p.is_file() and p.name != MARKER]
         self._mark(sorted(str(p.relative_to(self.staging)) for p in files))
         for path in [*self.staging.rglob("*"), self.staging, *(s for s, _ in self.others)]:

@@ -58,6 +58,14 @@ def install(interrupt: bool = False) -> dict:
     return {number: signal.signal(number, stop) for number in numbers}
 
 
+def check() -> None:
+    """Within `caught`, raise a signal received that a library swallowed (`received`) where
+    the program is now: a long loop stops at its next turn, and a block that must not outlast
+    the signal (an output's commit) does not begin."""
+    if _raising and received:
+        raise Terminated if received[-1] == signal.SIGTERM else KeyboardInterrupt
+
+
 @contextlib.contextmanager
 def caught(interrupt: bool = False) -> Iterator[None]:
     """`stop` raising where the program is, for the block (`install`); then as before."""
