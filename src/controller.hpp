@@ -48,9 +48,7 @@ class Controller {
     if (actuation_(pass_.frames(), qi, nullptr, x_.data(), A_.data(), y_.data(), J_.data())
             .second != OK)
       return fallback_(q, y_dot);
-    factor_.compute(A_.transpose());
-    if (singular(A_, factor_, tolerance_)) return fallback_(q, y_dot);
-    task_jacobian(factor_, J_, J_H_);
+    if (derive_state(factor_, A_, J_, J_H_, tolerance_)) return fallback_(q, y_dot);
     const auto* x_dot = rule_(pass_, qi, x_, factor_, J_H_, Vector(yi, m));
     if (!x_dot) return fallback_(q, y_dot);
     q_dot_ = factor_.transpose().solve(*x_dot);  // q̇ = A⁻¹ ẋ with the factors of Aᵀ

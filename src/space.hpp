@@ -9,6 +9,7 @@
 #include <limits>
 #include <optional>
 #include <tuple>
+#include <utility>
 #include <vector>
 
 #include "actuators.hpp"
@@ -34,6 +35,15 @@ bool singular(const Square& A, const Factor& factor, double tolerance) {
 template <class Rows, class Out>
 void task_jacobian(const Factor& transposed, const Rows& J, Out&& out) {
   out.transpose() = transposed.solve(J.transpose());
+}
+
+// One state's derivation from A (n, n) and J (m, n): the factors of Aᵀ into `factor`,
+// J_H = J A⁻¹ into `out` (meaningless where A is singular), and whether A is singular.
+template <class Square, class Rows, class Out>
+bool derive_state(Factor& factor, const Square& A, const Rows& J, Out&& out, double tolerance) {
+  factor.compute(A.transpose());
+  task_jacobian(factor, J, std::forward<Out>(out));
+  return singular(A, factor, tolerance);
 }
 
 // M_H = A⁻ᵀ M A⁻¹ = A⁻ᵀ (A⁻ᵀ M)ᵀ for a symmetric M, symmetrised, into `out`, from the factors of
@@ -79,10 +89,8 @@ inline py::tuple derive(const Array& A, const Array& J, double tolerance) {
   py::array_t<bool> bad(k);
   Factor factor(n);
   for (py::ssize_t i = 0; i < k; ++i) {
-    const auto Ai = at(A, i, n, n);
-    factor.compute(Ai.transpose());
-    bad.mutable_data()[i] = singular(Ai, factor, tolerance);
-    task_jacobian(factor, at(J, i, m, n), at(J_H, i, m, n));
+    bad.mutable_data()[i] =
+        derive_state(factor, at(A, i, n, n), at(J, i, m, n), at(J_H, i, m, n), tolerance);
   }
   return py::make_tuple(J_H, bad);
 }
@@ -209,7 +217,6 @@ class Evaluator {
       const auto [actuator, status] =
           actuation_(s, qi, vi, x.mutable_data() + i * n, A.mutable_data() + i * n * n,
                      y.mutable_data() + i * m, J.mutable_data() + i * m * n);
-      const auto Ai = at(A, i, n, n);
       if (status != OK) {  // bad, as a singular A: frozen by the integrators, named by Python
         if (refused.is_none()) refused = py::make_tuple(i, actuator, int(status));
         bad.mutable_data()[i] = true;
@@ -218,9 +225,9 @@ class Evaluator {
         at(J_H, i, m, n).setConstant(std::numeric_limits<double>::quiet_NaN());
         continue;
       }
-      factor_.compute(Ai.transpose());
-      bad.mutable_data()[i] = singular(Ai, factor_, tolerance_) || !Vector(qi, n).allFinite();
-      task_jacobian(factor_, at(J, i, m, n), at(J_H, i, m, n));
+      bad.mutable_data()[i] =
+          derive_state(factor_, at(A, i, n, n), at(J, i, m, n), at(J_H, i, m, n), tolerance_) ||
+          !Vector(qi, n).allFinite();
     }
     return py::make_tuple(*qa, Pass::maybe(va), positions, linear, angular,
                           Pass::maybe(velocities), Pass::maybe(rates), x, A, y, J, J_H, bad,

@@ -48,7 +48,7 @@ def check_invertible(space: ActuatorSpace) -> None:
     refused = vars(space).get("_refused")
     if refused is not None:
         state, actuator, status = refused
-        list(space.robot.actuators)[actuator].refuse(space.kinematics, state, status)
+        space.robot.actuators.maps[actuator].refuse(space.kinematics, state, status)
     bad = np.flatnonzero(space._bad)
     if bad.size:
         i = bad[0]
