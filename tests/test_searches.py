@@ -23,6 +23,7 @@ from redundancy import (
 )
 from redundancy.model.loading import bundled_root
 from redundancy.model.parameters import Number
+from redundancy.planning.brackets import interpolant_zeros
 from redundancy.planning.cycles import improved_cycle_start
 from redundancy.planning.ik import inverse_kinematics
 from redundancy.planning.integrate import simulate, stroke_extremes
@@ -53,6 +54,28 @@ def test_hermite_extremes_find_a_maximum_between_samples():
     lowest, highest = stroke_extremes(t, x, np.cos(t)[..., None])
     assert highest[0, 0] == pytest.approx(1.0, abs=5e-3) and highest[0, 0] > np.sin(2.0)
     assert lowest[0, 0] == pytest.approx(np.sin(1.0))  # the start itself is excluded
+
+
+def test_the_zeros_of_the_interpolant_through_the_probes_are_the_polynomials_zeros():
+    """Lines and parabolas through two or three random points: each zero found makes the
+    Lagrange interpolant vanish, and they are the real zeros numpy finds from its fitted
+    coefficients; and the degenerate parabolas: through collinear points, a double zero, none."""
+    rng = np.random.default_rng(7)
+    for u, m in (rng.normal(size=(2, count)) for count in (2, 3) for _ in range(200)):
+        u.sort()
+        zeros = interpolant_zeros(u.tolist(), m.tolist())
+
+        def terms(z, u=u, m=m):  # m_i L_i(z), whose sum is the interpolant
+            others = [np.delete(u, i) for i in range(len(u))]
+            return np.array([m[i] * np.prod((z - o) / (u[i] - o)) for i, o in enumerate(others)])
+
+        assert all(abs(terms(z).sum()) <= 1e-12 * np.abs(terms(z)).sum() for z in zeros)
+        roots = np.roots(np.polyfit(u, m, len(u) - 1))
+        real = np.sort(roots[roots.imag == 0].real)
+        assert np.allclose(np.sort(zeros), real, rtol=1e-9, atol=1e-12)
+    assert interpolant_zeros([0.0, 1.0, 2.0], [1.0, 0.0, -1.0]) == [1.0]  # collinear
+    assert interpolant_zeros([-1.0, 0.0, 1.0], [1.0, 0.0, 1.0]) == [0.0]  # u²
+    assert interpolant_zeros([-1.0, 0.0, 1.0], [2.0, 1.0, 2.0]) == []  # u² + 1
 
 
 @pytest.mark.parametrize("sparse", [True, False], ids=["steps", "grid"])

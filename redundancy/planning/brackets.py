@@ -10,6 +10,8 @@ near the least peak, and `new_probes` of those, the ones not sampled already.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
@@ -33,14 +35,32 @@ def bracket_probes(values, margins, inside, tolerance) -> list[float]:
         for first, last in fits:
             if first < 0 or last >= len(values) or not usable[first : last + 1].all():
                 continue
-            v, m = values[first : last + 1], margins[first : last + 1]
-            roots = np.roots(np.polyfit(v - a, m, len(v) - 1))
-            zeros += [a + z.real for z in roots if z.imag == 0 and 0 < z.real < b - a]
+            u, m = values[first : last + 1] - a, margins[first : last + 1]
+            zeros += [a + z for z in interpolant_zeros(u.tolist(), m.tolist()) if 0 < z < b - a]
         if not zeros or max(zeros) - min(zeros) > (b - a) / 4:
             probes.append((a + b) / 2)
         for zero in clusters(sorted(zeros), tolerance):
             probes += list(np.clip(zero + tolerance * np.array([-0.45, 0.45]), a, b))
     return probes
+
+
+def interpolant_zeros(u: list[float], m: list[float]) -> list[float]:
+    """The real zeros of the polynomial through two or three points (u_i, m_i), distinct u_i:
+    in Newton's form p(u) = m_0 + d_1 (u − u_0) + d_2 (u − u_0)(u − u_1), with the divided
+    differences d_1 = (m_1 − m_0) / (u_1 − u_0) and d_2 = ((m_2 − m_1) / (u_2 − u_1) − d_1) /
+    (u_2 − u_0), that is c_2 u² + c_1 u + c_0; a parabola's zeros by the quadratic formula
+    without cancellation, s = −(c_1 + sign(c_1) √(c_1² − 4 c_2 c_0)) / 2, u = s / c_2 and
+    c_0 / s."""
+    d1 = (m[1] - m[0]) / (u[1] - u[0])
+    d2 = 0.0 if len(u) == 2 else ((m[2] - m[1]) / (u[2] - u[1]) - d1) / (u[2] - u[0])
+    c2, c1, c0 = d2, d1 - d2 * (u[0] + u[1]), m[0] - d1 * u[0] + d2 * u[0] * u[1]
+    if c2 == 0:
+        return [] if c1 == 0 else [-c0 / c1]
+    discriminant = c1 * c1 - 4 * c2 * c0
+    if discriminant < 0:
+        return []
+    s = -(c1 + math.copysign(math.sqrt(discriminant), c1)) / 2
+    return [s / c2, c0 / s] if s else [0.0]
 
 
 def clusters(values: list[float], tolerance: float) -> list[float]:
