@@ -19,9 +19,28 @@ struct Stage {
   py::array_t<bool> bad;
 };
 
+// The task velocity ẏ (r, m) at times t (r,) where the tool is at y (r, m): `velocity` is ẏ
+// itself, (m,), where it is constant along the path, or a Python callable (t, y) → ẏ (r, m).
+inline Array task_velocity(const py::object& velocity, const Array& t, const py::object& y,
+                           py::ssize_t m) {
+  const auto r = t.shape(0);
+  if (py::isinstance<Array>(velocity)) {
+    const auto steady = velocity.cast<Array>();
+    if (steady.ndim() != 1 || steady.shape(0) != m)
+      throw py::value_error("a constant task velocity must have shape (m,)");
+    Array out({r, m});
+    for (py::ssize_t i = 0; i < r; ++i) at(out, i, 1, m) = at(steady, 0, 1, m);
+    return out;
+  }
+  const Array out = velocity(t, y);
+  if (out.ndim() != 2 || out.shape(0) != r || out.shape(1) != m)
+    throw py::value_error("the task velocity must have shape (r, m)");
+  return out;
+}
+
 // q̇(t, q) = A⁻¹ ẋ of a built-in law (`Rule`) at states evaluated by the compiled `Evaluator`,
-// for the task velocity ẏ(t, y) given by `velocity` (a Python callable, one call per batch). Its
-// record is (the evaluator's tuple, ẋ, q̇). A state a kind refused is bad, as where A is singular.
+// for the task velocity given by `velocity` (`task_velocity`: constant, or one call of Python
+// per batch). Its record is (the evaluator's tuple, ẋ, q̇). A state a kind refused is bad, as where A is singular.
 // None where the core cannot serve the states (Python evaluates them again and raises its error).
 class Rates {
  public:
@@ -39,9 +58,7 @@ class Rates {
     const auto J_H = evaluated[11].cast<Array>();
     auto bad = evaluated[12].cast<py::array_t<bool>>();
     const auto r = q.shape(0), n = q.shape(1), m = J_H.shape(1);
-    const Array y_dot = velocity(t, evaluated[9]);
-    if (y_dot.ndim() != 2 || y_dot.shape(0) != r || y_dot.shape(1) != m)
-      throw py::value_error("the task velocity must have shape (r, m)");
+    const Array y_dot = task_velocity(velocity, t, evaluated[9], m);
     Array x_dot({r, n}), q_dot({r, n});
     auto* flags = bad.mutable_data();
     for (py::ssize_t i = 0; i < r; ++i) {

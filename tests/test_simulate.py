@@ -174,7 +174,9 @@ def test_a_motion_as_a_table_round_trips_its_arrays(crane, cycle):
 )
 def test_the_compiled_right_hand_side_is_the_laws_own(crane, cycle, resolver, monkeypatch):
     """The core's adaptive loop gives the same motions on a built-in law's compiled right-hand
-    side as on the law's Python one (`Law.stage`, what a law of your own runs on).
+    side as on the law's Python one (`Law.stage`, what a law of your own runs on). The segment
+    is straight at constant speed: the compiled loop reads its ẏ_d as one constant, the Python
+    one from `Segment.velocity_at` at each stage.
 
     On the grid they agree to rounding. Sampled at the steps, the same steps are taken and the
     same motions stopped, but a step's size follows its error estimate, a difference of slopes

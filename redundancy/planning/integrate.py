@@ -542,6 +542,13 @@ class Law:
             y_dot = y_dot + self.gain * (self.segment.position(t) - y)
         return y_dot
 
+    @property
+    def loop_velocity(self):
+        """What the core's loop reads ẏ from: ẏ_d itself (m,) where it is constant (a steady
+        segment in open loop), else `velocity`, called once per batch."""
+        steady = not self.gain and isinstance(self.segment, Segment) and self.segment.steady
+        return self.segment.velocity if steady else self.velocity
+
     def __call__(self, t: np.ndarray, q: np.ndarray) -> Rates:
         """At times t (k,) and configurations q (k, n)."""
         space, bad = regularised(evaluate(self.robot, q))
@@ -700,9 +707,10 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
         sparse,
     )
     rates = compiled_rates(law.robot, law.resolver)
-    found = None if rates is None else _core.dormand_prince(rates, law.velocity, *arguments)
+    velocity = law.loop_velocity
+    found = None if rates is None else _core.dormand_prince(rates, velocity, *arguments)
     if found is None:  # a kind, a law or a task of your own
-        found = _core.dormand_prince(law.stage, law.velocity, *arguments)
+        found = _core.dormand_prince(law.stage, velocity, *arguments)
     *accepted, failed, stopped, kept = found
     steps = Steps(law, first, *accepted)
     if not sparse:

@@ -371,11 +371,16 @@ class Segment:
         (``source``: the task file's entry it was read from, which messages name)."""
         return cls(name, shape.start, shape.end, speed, shape, profile, acceleration, source)
 
+    @property
+    def steady(self) -> bool:
+        """Whether ẏ_d is constant along the segment: a straight line at constant speed."""
+        return self.shape.kind == "line" and self.profile == "constant"
+
     @cached_property
     def velocity(self) -> np.ndarray:
-        """ẏ_d = (Q − P) / t_f (Eq. 34), constant, (m,) in m/s (read-only): a straight segment
-        at constant speed only (others: `velocity_at`)."""
-        if self.shape.kind != "line" or self.profile != "constant":
+        """ẏ_d = (Q − P) / t_f (Eq. 34), constant, (m,) in m/s (read-only): a `steady` segment
+        only (others: `velocity_at`)."""
+        if not self.steady:
             raise InvalidInputError(
                 f"segment {self.name}'s velocity varies along it; use velocity_at(t)"
             )
