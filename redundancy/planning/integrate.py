@@ -372,8 +372,11 @@ class Trajectory:
 
     def violations(self, i: int) -> list[Violation]:
         """Every interval over which motion ``i`` has a checked actuator outside its stroke, or,
-        where the circuit counts, passes one of its limits, at its samples, in order of time."""
-        found = self.limits.violations(self.t[i], self.x[i])
+        where the circuit counts, passes one of its limits, at its samples, in order of time.
+        A margin of at least −`LIMIT_TOLERANCE` (a bound on every sample's) says there is none
+        among the strokes."""
+        inside = self.margins[i] >= -LIMIT_TOLERANCE
+        found = [] if inside else self.limits.violations(self.t[i], self.x[i])
         if self.circuit:
             found = sorted(found + self.hydraulic_violations(i), key=lambda v: v.start)
         return found
@@ -717,8 +720,10 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
         return on_grid(steps, grid, failed, stopped), steps
     evaluated = [(np.arange(k), np.zeros(k), first)]
     if kept:  # the ends of the accepted steps, in the order the steps were accepted
-        ends = joined([law.rates(record).take(positions) for record, positions in kept])
-        evaluated.append((steps.rows, steps.t0 + steps.h, ends))
+        records = [law.rates(record) for record, _ in kept]
+        offsets = np.cumsum([0] + [len(record.bad) for record in records])
+        picks = np.concatenate([positions + offsets[i] for i, (_, positions) in enumerate(kept)])
+        evaluated.append((steps.rows, steps.t0 + steps.h, joined(records).take(picks)))
     rows, times, configurations = steps.midpoints()
     evaluated.append((rows, times, law(times, configurations)))
     return _assemble(k, evaluated, failed, stopped, None), steps
