@@ -19,6 +19,7 @@ from redundancy.model.linkage import LinkageCylinder
 from redundancy.model.transmissions import read_transmissions
 from redundancy.planning.integrate import simulate
 from redundancy.planning.tasks import Segment
+from redundancy.resolution.state import joined_found
 
 # A slewing arm carrying a stick whose tip joint turns a bucket through a four-bar. The slew's
 # axis is oblique to the linkage's, so the linkage's plane turns every way, and the cylinder's
@@ -201,6 +202,24 @@ def test_a_motion_that_drives_the_linkage_past_closing_fails_that_start_alone(tm
     assert np.isfinite(motion.x[0]).all()  # frozen at the last state the loop closed at
     assert motion.q[0, -1, 2] < -1.8 < motion.q[0, 0, 2] + 0.25
     assert motion.q[1, -1, 2] - motion.q[1, 0, 2] > 0.4  # the other ran the whole segment
+
+
+def test_batches_found_apart_and_joined_are_the_batch_found_at_once(tmp_path):
+    """What the core's evaluator finds for two batches, joined (`joined_found`, how the
+    integrator gathers the ends of its steps), is what it finds for both as one batch: every
+    array, and the refusal of the linkage counted at its state in the whole batch."""
+    robot = load(tmp_path, coupler=0.27)
+    q = np.array([[0.3, 0.2, -2.0], [0.3, 0.2, -2.4], [0.3, 0.2, -2.2], [0.3, 0.2, -1.7]])
+    evaluator = robot.evaluator()
+    apart = joined_found(
+        [evaluator.evaluate(q[:2], None, True), evaluator.evaluate(q[2:], None, True)]
+    )
+    whole = evaluator.evaluate(q, None, True)
+    assert apart[-1] == whole[-1] and whole[-1][0] == 3  # the last state cannot close
+    for ours, theirs in zip(apart[:-1], whole[:-1], strict=True):
+        assert (ours is None) == (theirs is None)
+        if ours is not None:
+            np.testing.assert_array_equal(ours, theirs)
 
 
 def test_the_declaration_is_written_and_read_back(tmp_path):

@@ -45,7 +45,13 @@ from redundancy.resolution.laws import Resolver, compiled_rates
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
 from redundancy.resolution.limits import Limits, Violation, hydraulic_values
 from redundancy.resolution.objectives import ENERGY, VELOCITY, Objective, integral
-from redundancy.resolution.state import ActuatorSpace, compiled_space, evaluate, regularised
+from redundancy.resolution.state import (
+    ActuatorSpace,
+    compiled_space,
+    evaluate,
+    joined_found,
+    regularised,
+)
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -571,14 +577,20 @@ class Law:
         rates = self(t, q)
         return rates, rates.q_dot, rates.bad, rates.space.x
 
-    def rates(self, record) -> Rates:
-        """The `Rates` of a stage's record: `stage`'s own, or the compiled right-hand side's
-        (the evaluator's arrays, ẋ and q̇)."""
-        if isinstance(record, Rates):
-            return record
-        found, x_dot, q_dot = record
-        space = compiled_space(self.robot, found)
-        return self._rates(space, x_dot, q_dot, found[-2])
+    def ends(self, kept: list[tuple]) -> Rates:
+        """The `Rates` at the ends of the accepted steps, in order, from the core loop's
+        ``kept`` batches (a stage's record, the positions of its accepted steps): the records,
+        `stage`'s own or the compiled right-hand side's (the evaluator's arrays, ẋ and q̇),
+        joined into one batch, then taken."""
+        records = [record for record, _ in kept]
+        if isinstance(records[0], Rates):
+            rates = joined(records)
+        else:
+            found = joined_found([record[0] for record in records])
+            x_dot, q_dot = (np.concatenate([record[i] for record in records]) for i in (1, 2))
+            rates = self._rates(compiled_space(self.robot, found), x_dot, q_dot, found[-2])
+        offsets = np.cumsum([0] + [len(record[-1]) for record in records])  # bad, or q̇
+        return rates.take(np.concatenate([at + offsets[i] for i, (_, at) in enumerate(kept)]))
 
 
 def simulate(
@@ -720,10 +732,7 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
         return on_grid(steps, grid, failed, stopped), steps
     evaluated = [(np.arange(k), np.zeros(k), first)]
     if kept:  # the ends of the accepted steps, in the order the steps were accepted
-        records = [law.rates(record) for record, _ in kept]
-        offsets = np.cumsum([0] + [len(record.bad) for record in records])
-        picks = np.concatenate([positions + offsets[i] for i, (_, positions) in enumerate(kept)])
-        evaluated.append((steps.rows, steps.t0 + steps.h, joined(records).take(picks)))
+        evaluated.append((steps.rows, steps.t0 + steps.h, law.ends(kept)))
     rows, times, configurations = steps.midpoints()
     evaluated.append((rows, times, law(times, configurations)))
     return _assemble(k, evaluated, failed, stopped, None), steps

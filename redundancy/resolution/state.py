@@ -235,6 +235,18 @@ def compiled_space(robot: Robot, found: tuple) -> ActuatorSpace:
     return space
 
 
+def joined_found(parts: list[tuple]) -> tuple:
+    """What the core's evaluator found for several batches, as found for one batch of them all,
+    in order (`compiled_space`): the arrays joined, and the first refusal, its state counted
+    in the joined batch."""
+    *arrays, refusals = zip(*parts)
+    starts = np.cumsum([0] + [len(part[0]) for part in parts])
+    refused = next(
+        ((starts[i] + r[0], *r[1:]) for i, r in enumerate(refusals) if r is not None), None
+    )
+    return (*(join(list(values)) for values in arrays), refused)
+
+
 def _made(cls: type[Any], *values: Any) -> Any:
     """An instance of the frozen dataclass ``cls`` with its fields' ``values``, in order: its
     __init__ sets each field through object.__setattr__, which would cost a one-state
