@@ -56,7 +56,14 @@ PYBIND11_MODULE(_core, m) {
       .def(py::init<py::object, int, const std::optional<Array>&, const std::optional<Array>&,
                     const std::optional<Array>&, double>(),
            py::arg("evaluator"), py::arg("weight"), py::arg("W"), py::arg("pull"),
-           py::arg("middle"), py::arg("ratio"));
+           py::arg("middle"), py::arg("ratio"))
+      .def(
+          "__call__",
+          [](Rates& rates, const Array& t, const Array& q, const py::object& velocity) {
+            const auto stage = rates(t, q, velocity);
+            return stage ? stage->record : py::object(py::none());
+          },
+          py::arg("t"), py::arg("q"), py::arg("velocity"));
   m.def("dormand_prince", &dormand_prince, py::arg("rates"), py::arg("velocity"), py::arg("q"),
         py::arg("f"), py::arg("failed"), py::arg("duration"), py::arg("tolerance"), py::arg("c"),
         py::arg("a"), py::arg("e"), py::arg("lower"), py::arg("upper"), py::arg("allowance"),

@@ -40,8 +40,10 @@ inline Array task_velocity(const py::object& velocity, const Array& t, const py:
 
 // q̇(t, q) = A⁻¹ ẋ of a built-in law (`Rule`) at states evaluated by the compiled `Evaluator`,
 // for the task velocity given by `velocity` (`task_velocity`: constant, or one call of Python
-// per batch). Its record is (the evaluator's tuple, ẋ, q̇). A state a kind refused is bad, as where A is singular.
-// None where the core cannot serve the states (Python evaluates them again and raises its error).
+// per batch). Its record is (the evaluator's tuple, ẋ, q̇), which is also what a call from
+// Python returns (`Law.__call__`: the first states, the samples between steps and on a grid).
+// A state a kind refused is bad, as where A is singular. None where the core cannot serve the
+// states (Python evaluates them again and raises its error).
 class Rates {
  public:
   Rates(py::object evaluator, int weight, const std::optional<Array>& W,
@@ -58,6 +60,8 @@ class Rates {
     const auto J_H = evaluated[11].cast<Array>();
     auto bad = evaluated[12].cast<py::array_t<bool>>();
     const auto r = q.shape(0), n = q.shape(1), m = J_H.shape(1);
+    if (t.ndim() != 1 || t.shape(0) != r)
+      throw py::value_error("t must have shape (r,), one time per state");
     const Array y_dot = task_velocity(velocity, t, evaluated[9], m);
     Array x_dot({r, n}), q_dot({r, n});
     auto* flags = bad.mutable_data();

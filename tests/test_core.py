@@ -32,6 +32,7 @@ from redundancy.resolution.laws import (
     MinVelocityNorm,
     Resolver,
     Step,
+    compiled_rates,
 )
 from redundancy.resolution.objectives import Objective
 from redundancy.resolution.state import _evaluated, evaluate
@@ -207,6 +208,13 @@ def test_the_law_kernel_equals_its_closed_form(ratio):
 def test_the_law_kernel_refuses_mismatched_shapes():
     with pytest.raises(ValueError, match=r"W must have shape \(k, n, n\)"):
         _core.resolve(np.zeros((1, 2, 3)), np.zeros((1, 2)), np.eye(3), None, SINGULAR_RATIO)
+
+
+def test_the_compiled_right_hand_side_refuses_times_that_are_not_one_per_state(crane):
+    rates = compiled_rates(crane, MinVelocityNorm())
+    q = np.tile((crane.lower + crane.upper) / 2, (3, 1))
+    with pytest.raises(ValueError, match=r"t must have shape \(r,\), one time per state"):
+        rates(np.zeros(2), q, np.array([0.5, 0.0]))
 
 
 class SlowTelescope(Resolver):

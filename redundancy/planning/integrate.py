@@ -558,8 +558,20 @@ class Law:
         steady = not self.gain and isinstance(self.segment, Segment) and self.segment.steady
         return self.segment.velocity if steady else self.velocity
 
+    @cached_property
+    def compiled(self) -> _core.Rates | None:
+        """The law's compiled right-hand side (`compiled_rates`), or None: a kind, a task or a
+        law of your own."""
+        return compiled_rates(self.robot, self.resolver)
+
     def __call__(self, t: np.ndarray, q: np.ndarray) -> Rates:
-        """At times t (k,) and configurations q (k, n)."""
+        """At times t (k,) and configurations q (k, n): by one call of the compiled right-hand
+        side where there is one and it serves the states, else in Python, alike to rounding."""
+        record = None if self.compiled is None else self.compiled(t, q, self.loop_velocity)
+        if record is not None:
+            found, x_dot, q_dot = record
+            space, bad = regularised(compiled_space(self.robot, found))
+            return self._rates(space, x_dot, q_dot, bad)
         space, bad = regularised(evaluate(self.robot, q))
         x_dot = self.resolver.resolve_at(space, self.velocity(t, space.y), t)
         q_dot = space.joint_velocities(x_dot)
@@ -721,8 +733,7 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
         bounds is not None,
         sparse,
     )
-    rates = compiled_rates(law.robot, law.resolver)
-    velocity = law.loop_velocity
+    rates, velocity = law.compiled, law.loop_velocity
     found = None if rates is None else _core.dormand_prince(rates, velocity, *arguments)
     if found is None:  # a kind, a law or a task of your own
         found = _core.dormand_prince(law.stage, velocity, *arguments)
