@@ -1,6 +1,8 @@
 """The fixed-step method (the paper's simulation) along the paper's segments: tracking accuracy,
 limits, failures. The adaptive method is checked against it in test_searches.py."""
 
+import pickle
+
 import numpy as np
 import pytest
 from joint_space import fk, inverse_dynamics
@@ -167,6 +169,19 @@ def test_a_motion_as_a_table_round_trips_its_arrays(crane, cycle):
         columns = [f"{part}{name} " for name in crane.actuators.names]
         picked = frame[[c for c in frame.columns if any(c.startswith(p) for p in columns)]]
         np.testing.assert_array_equal(picked.to_numpy(), values[0])
+
+
+def test_a_motion_sent_to_another_process_is_sampled_there_as_here(crane, cycle):
+    """A search's motions travel between processes (the study's cycle section, design maps):
+    pickled with their steps and law, they are put on the grid alike on the other side, where
+    the law's compiled right-hand side is built again."""
+    segment = cycle["2-3"]
+    starts = reachable_starts(crane, segment, [0.3, 0.7])
+    motion = simulate(crane, VELOCITY.resolver, segment, starts, sparse=True)
+    here = motion.on_grid()
+    there = pickle.loads(pickle.dumps(motion)).on_grid()
+    for name in ("t", "q", "x", "x_dot"):
+        np.testing.assert_array_equal(getattr(there, name), getattr(here, name))
 
 
 @pytest.mark.parametrize(

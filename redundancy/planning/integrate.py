@@ -564,6 +564,11 @@ class Law:
         law of your own."""
         return compiled_rates(self.robot, self.resolver)
 
+    def __getstate__(self) -> dict:
+        """The law as sent to another process (a motion's steps keep it): without its compiled
+        right-hand side, which is not picklable and is built again there when needed."""
+        return {name: value for name, value in vars(self).items() if name != "compiled"}
+
     def __call__(self, t: np.ndarray, q: np.ndarray) -> Rates:
         """At times t (k,) and configurations q (k, n): by one call of the compiled right-hand
         side where there is one and it serves the states, else in Python, alike to rounding."""
