@@ -577,6 +577,10 @@ class Law:
             found, x_dot, q_dot = record
             space, bad = regularised(compiled_space(self.robot, found))
             return self._rates(space, x_dot, q_dot, bad)
+        return self._python(t, q)
+
+    def _python(self, t: np.ndarray, q: np.ndarray) -> Rates:
+        """`__call__` in Python: the evaluation, the law's own methods, the solve for q̇."""
         space, bad = regularised(evaluate(self.robot, q))
         x_dot = self.resolver.resolve_at(space, self.velocity(t, space.y), t)
         q_dot = space.joint_velocities(x_dot)
@@ -590,8 +594,9 @@ class Law:
         return Rates(x_dot, space.moving(q_dot), measure, bad)
 
     def stage(self, t: np.ndarray, q: np.ndarray) -> tuple:
-        """The law at a stage of the core's integration loop: (its `Rates`, q̇, bad, x)."""
-        rates = self(t, q)
+        """The law at a stage of the core's integration loop, which calls it where its compiled
+        right-hand side does not serve: (its `Rates`, q̇, bad, x), in Python."""
+        rates = self._python(t, q)
         return rates, rates.q_dot, rates.bad, rates.space.x
 
     def ends(self, kept: list[tuple]) -> Rates:
