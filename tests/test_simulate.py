@@ -88,6 +88,12 @@ def test_limits_are_flagged_with_actuator_time_and_excess(crane, cycle):
             past = lower[row] - x if violation.bound == "lower" else x - upper[row]
             assert past.max() == pytest.approx(violation.excess)
             assert np.all(past > 0)
+        t = trajectory.t[i]
+        for row, name in enumerate(crane.actuators.names):  # every sample past is in one
+            x = trajectory.x[i, :, row]
+            past = (x < lower[row] - 1e-9) | (x > upper[row] + 1e-9)
+            spans = [(t >= v.start) & (t <= v.end) for v in violations if v.actuator == name]
+            np.testing.assert_array_equal(np.any([past & False, *spans], axis=0), past)
 
 
 def test_checking_named_actuators_only(crane, cycle):

@@ -315,7 +315,9 @@ class Trajectory:
     def hydraulic_violations(self, i: int) -> list[Violation]:
         """Every interval over which motion ``i`` passes a limit of the circuit, at its
         samples."""
-        return self.hydraulic_limits.violations(self.t[i], self.hydraulic_values[i])
+        return self.hydraulic_limits.violations(
+            self.t[i : i + 1], self.hydraulic_values[i : i + 1]
+        )[0]
 
     @property
     def velocity_norm(self) -> np.ndarray:
@@ -378,13 +380,21 @@ class Trajectory:
 
     def violations(self, i: int) -> list[Violation]:
         """Every interval over which motion ``i`` has a checked actuator outside its stroke, or,
-        where the circuit counts, passes one of its limits, at its samples, in order of time.
-        A margin of at least −`LIMIT_TOLERANCE` (a bound on every sample's) says there is none
-        among the strokes."""
-        inside = self.margins[i] >= -LIMIT_TOLERANCE
-        found = [] if inside else self.limits.violations(self.t[i], self.x[i])
+        where the circuit counts, passes one of its limits, at its samples, in order of time."""
+        found = list(self.stroke_violations[i])
         if self.circuit:
             found = sorted(found + self.hydraulic_violations(i), key=lambda v: v.start)
+        return found
+
+    @cached_property
+    def stroke_violations(self) -> list[list[Violation]]:
+        """Each motion's intervals outside a checked stroke, in order of time, found for all
+        motions at once; only motions with a margin below −`LIMIT_TOLERANCE` are scanned (the
+        margin bounds every sample's)."""
+        past = np.flatnonzero(self.margins < -LIMIT_TOLERANCE)
+        found: list[list[Violation]] = [[] for _ in self.t]
+        for i, violations in zip(past, self.limits.violations(self.t[past], self.x[past])):
+            found[i] = violations
         return found
 
 

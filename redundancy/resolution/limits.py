@@ -140,30 +140,32 @@ class Limits:
         )
         return inside.min(axis=-1)
 
-    def violations(self, t: np.ndarray, values: np.ndarray) -> list[Violation]:
-        """Every interval over which a checked value of the samples values (T, n) at times
-        t (T,) is past its limit by more than `TOLERANCE`, in order of time."""
-        found = []  # (start, checked column, bound, the violation): sorted as the key says
-        checked = values[:, self.columns]
+    def violations(self, t: np.ndarray, values: np.ndarray) -> list[list[Violation]]:
+        """Every interval over which a checked value is past its limit by more than
+        `TOLERANCE`, for each of k sampled series values (k, T, n) at times t (k, T): a list per
+        series, in order of time. All series are scanned at once."""
+        found: list[list] = [[] for _ in values]  # (start, column, bound, the violation)
+        checked = values[..., self.columns]
         for order, (bound, excess) in enumerate(
             (("lower", self.lower - checked), ("upper", checked - self.upper))
         ):
             outside = (excess > TOLERANCE).astype(np.int8)
             if not outside.any():  # the common case, found at the cost of one pass
                 continue
-            change = np.diff(outside, axis=0, prepend=0, append=0)
-            columns, edges = np.nonzero(change.T)  # per column: start, stop
-            for j, start, stop in zip(columns[::2], edges[::2], edges[1::2]):
+            change = np.diff(outside, axis=1, prepend=0, append=0)
+            # per series and column, in that order: each interval's start and stop in turn
+            series, columns, edges = np.nonzero(change.transpose(0, 2, 1))
+            for i, j, start, stop in zip(series[::2], columns[::2], edges[::2], edges[1::2]):
                 violation = Violation(
                     self.names[j],
                     bound,
-                    float(t[start]),
-                    float(t[stop - 1]),
-                    float(excess[start:stop, j].max()),
+                    float(t[i, start]),
+                    float(t[i, stop - 1]),
+                    float(excess[i, start:stop, j].max()),
                     self.units[j],
                 )
-                found.append((violation.start, j, order, violation))
-        return [violation for *_, violation in sorted(found, key=lambda f: f[:3])]
+                found[i].append((violation.start, j, order, violation))
+        return [[violation for *_, violation in sorted(f, key=lambda f: f[:3])] for f in found]
 
 
 def hydraulic_values(circuit: Circuit, x_dot: np.ndarray, flows: Flows) -> np.ndarray:
