@@ -533,7 +533,7 @@ def test_live_playback_opens_to_the_network_only_when_asked():
         run.communicate(timeout=600)
 
 
-def test_with_two_held_actuators_the_peak_figure_is_a_map_over_their_box(tmp_path):
+def test_with_two_held_actuators_the_peak_figure_is_a_map_over_their_box(tmp_path, request):
     """r = 2 (the crane's horizontal task, x2 and x3 held): Fig. 4a is one panel per segment
     over the stroke box, every reachable sample where it was taken, coloured by its peak when
     feasible, the feasible set's edge drawn, and the best start starred."""
@@ -541,7 +541,7 @@ def test_with_two_held_actuators_the_peak_figure_is_a_map_over_their_box(tmp_pat
 
     from redundancy import WorkCycle, load_robot, run_study
     from redundancy.study.study import write_report
-    from redundancy.viz.plots import peak_map_figure, write_figures
+    from redundancy.viz.plots import peak_map_figure, pyplot, write_figures
     from redundancy.viz.report import write_index
 
     robot = load_robot("hiab031", task_axes="x")
@@ -552,6 +552,7 @@ def test_with_two_held_actuators_the_peak_figure_is_a_map_over_their_box(tmp_pat
     study = run_study(robot, cycle, (VELOCITY,), samples=24, bound=False, progress=False, cycles=0)
     searches = study.searches["velocity"]
     figure = peak_map_figure(study.sweeps["velocity"], "peak", searches)
+    request.addfinalizer(lambda: pyplot().close(figure))
     panes = [a for a in figure.axes if a.get_label() != "<colorbar>"]
     assert len(panes) == len(cycle.segments)
     for pane, sweep, search in zip(panes, study.sweeps["velocity"], searches):
@@ -578,20 +579,21 @@ def test_with_two_held_actuators_the_peak_figure_is_a_map_over_their_box(tmp_pat
     assert "<td>x2, x3</td>" in page and f"<td>{best}</td>" in page
 
 
-def test_every_axis_of_the_study_figures_names_its_unit(crane):
+def test_every_axis_of_the_study_figures_names_its_unit(crane, request):
     """Each figure of a study with its cycle section: every axis label ends with its unit in
     brackets (a cycle count and colour bars aside); Fig. 4c shares Fig. 4b's velocity scale;
     Fig. 5a's legend names the segments with no feasible start and explains its encodings."""
     from matplotlib.legend import Legend
 
     from redundancy import ENERGY, WorkCycle, run_study
-    from redundancy.viz.plots import study_figures
+    from redundancy.viz.plots import pyplot, study_figures
 
     cycle = WorkCycle.from_toml(crane.task_file, dimension=crane.m)
     study = run_study(
         crane, cycle, (VELOCITY, ENERGY), samples=8, bound=False, progress=False, cycles=2
     )
     figures = study_figures(study)
+    request.addfinalizer(lambda: [pyplot().close(figure) for figure in figures.values()])
     assert {"cycle_strokes.png", "cycle_drift.png", "hydraulics_best_velocity_1-2.png"} <= set(
         figures
     )
