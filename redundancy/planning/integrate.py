@@ -315,9 +315,7 @@ class Trajectory:
     def hydraulic_violations(self, i: int) -> list[Violation]:
         """Every interval over which motion ``i`` passes a limit of the circuit, at its
         samples."""
-        return self.hydraulic_limits.violations(
-            self.t[i : i + 1], self.hydraulic_values[i : i + 1]
-        )[0]
+        return self.hydraulic_limits.violations(self.t[[i]], self.hydraulic_values[[i]])[0]
 
     @property
     def velocity_norm(self) -> np.ndarray:
@@ -391,7 +389,7 @@ class Trajectory:
         """Each motion's intervals outside a checked stroke, in order of time, found for all
         motions at once; only motions with a margin below −`LIMIT_TOLERANCE` are scanned (the
         margin bounds every sample's)."""
-        past = np.flatnonzero(self.margins < -LIMIT_TOLERANCE)
+        past = np.flatnonzero(~(self.margins >= -LIMIT_TOLERANCE))  # NaN too
         found: list[list[Violation]] = [[] for _ in self.t]
         for i, violations in zip(past, self.limits.violations(self.t[past], self.x[past])):
             found[i] = violations
