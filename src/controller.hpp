@@ -48,10 +48,10 @@ class Controller {
     if (actuation_(pass_.frames(), qi, nullptr, x_.data(), A_.data(), y_.data(), J_.data())
             .second != OK)
       return fallback_(q, y_dot);
-    if (derive_state(factor_, A_, J_, J_H_, tolerance_)) return fallback_(q, y_dot);
-    const auto* x_dot = rule_(pass_, qi, x_, factor_, J_H_, Vector(yi, m));
+    if (derive_state(factors_, A_, J_, J_H_, tolerance_)) return fallback_(q, y_dot);
+    const auto* x_dot = rule_(pass_, qi, x_, factors_, J_H_, Vector(yi, m));
     if (!x_dot) return fallback_(q, y_dot);
-    q_dot_ = factor_.transpose().solve(*x_dot);  // q̇ = A⁻¹ ẋ with the factors of Aᵀ
+    factors_.solve(*x_dot, q_dot_);  // q̇ = A⁻¹ ẋ
     return result(vector(*x_dot), vector(q_dot_), vector(y_));
   }
 
@@ -89,7 +89,7 @@ class Controller {
   Rule rule_;
   Matrix A_, J_;  // row-major, as `Actuation` writes them
   Dense J_H_;
-  Factor factor_;
+  Factors factors_;
   Eigen::VectorXd x_, y_, q_dot_;
   double tolerance_;
   py::object fallback_, result_;

@@ -51,7 +51,9 @@ PYBIND11_MODULE(_core, m) {
                     const py::array_t<Eigen::Index>&, const Array&, double>(),
            py::arg("tracking"), py::arg("tool"), py::arg("rows"), py::arg("kinds"),
            py::arg("slots"), py::arg("numbers"), py::arg("tolerance"))
-      .def("evaluate", &Evaluator::evaluate, py::arg("q"), py::arg("v"), py::arg("finite"));
+      .def("evaluate",
+           py::overload_cast<const py::object&, const py::object&, bool>(&Evaluator::evaluate),
+           py::arg("q"), py::arg("v"), py::arg("finite"));
   py::class_<Rates>(m, "Rates")
       .def(py::init<py::object, int, const std::optional<Array>&, const std::optional<Array>&,
                     const std::optional<Array>&, double>(),

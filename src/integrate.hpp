@@ -53,7 +53,7 @@ class Rates {
 
   std::optional<Stage> operator()(const Array& t, const Array& q, const py::object& velocity) {
     auto& evaluator = evaluator_.cast<Evaluator&>();
-    const py::object found = evaluator.evaluate(q, py::none(), false);
+    const py::object found = evaluator.evaluate(q, py::none(), false, factors_);
     if (found.is_none()) return std::nullopt;
     const auto evaluated = found.cast<py::tuple>();
     const auto x = evaluated[7].cast<Array>(), A = evaluated[8].cast<Array>();
@@ -71,11 +71,11 @@ class Rates {
       xi.setZero();
       vi.setZero();
       if (flags[i]) continue;
-      factor_.compute(at(A, i, n, n).transpose());
+      auto& factors = factors_[std::size_t(i)];  // of Aᵀ, as the evaluation derived them
       const auto* solved = rule_(evaluator.pass(), q.data() + i * n, at(x, i, 1, n).transpose(),
-                                 factor_, at(J_H, i, m, n), at(y_dot, i, 1, m).transpose());
+                                 factors, at(J_H, i, m, n), at(y_dot, i, 1, m).transpose());
       if (!solved) return std::nullopt;
-      vi = factor_.transpose().solve(*solved);  // q̇ = A⁻¹ ẋ
+      factors.solve(*solved, vi);  // q̇ = A⁻¹ ẋ
       if (!vi.allFinite()) {
         flags[i] = true;
         vi.setZero();
@@ -89,7 +89,7 @@ class Rates {
  private:
   py::object evaluator_;
   Rule rule_;
-  Factor factor_;
+  std::vector<Factors> factors_;  // each state's, kept by the evaluation for the solves here
 };
 
 // A right-hand side at r states: `Rates` in C++, or a Python callable (t, q) → (record, q̇, bad, x).

@@ -33,13 +33,13 @@ struct Rule {
   // where the law weighs by M_H and M(q) has no positive diagonal (a robot without masses).
   template <class Strokes, class Jacobian, class Velocity>
   const Eigen::VectorXd* operator()(Pass& pass, const double* q, const Strokes& x,
-                                    const Factor& transposed, const Jacobian& J_H,
+                                    Factors& factors, const Jacobian& J_H,
                                     const Velocity& y_dot) {
     const Dense* weighting = weight == CONSTANT ? &W : nullptr;
     if (weight == INERTIA) {
       const Dense& M = pass.mass(q);
       if (!(M.diagonal().array() > 0).all()) return nullptr;
-      inertia(transposed, M, first_, second_, M_H);
+      inertia(factors, M, first_, second_, M_H);
       weighting = &M_H;
     }
     if (pull.size()) z_ = pull.cwiseProduct(x - middle);

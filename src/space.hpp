@@ -17,41 +17,84 @@
 using Dense = Eigen::MatrixXd;
 using Factor = Eigen::PartialPivLU<Dense>;
 
-// Whether A (n, n), whose (or whose transpose's) LU `factor` is given, is singular to working
-// precision, σ_min / σ_max < tolerance or not finite: |det A| / ‖A‖_F^n bounds σ_min / σ_max from
-// below (|det A| = Π σ_i ≤ σ_min σ_max^(n−1) and σ_max ≤ ‖A‖_F), so the singular values are
-// computed only where that bound is not enough.
+// The LU factors of Aᵀ of one state, P Aᵀ = L U (so A = Uᵀ Lᵀ P), and the solves with them, one
+// right-hand side at a time through a vector kept from state to state. At these sizes Eigen's
+// solve of a matrix, or through a transpose, costs more in its blocked kernels and temporaries
+// than in the arithmetic; its triangular solves of one vector in place do not.
+class Factors {
+ public:
+  template <class Square>
+  void compute(const Square& A) {
+    lu_.compute(A.transpose());
+  }
+
+  double determinant() const { return lu_.determinant(); }
+
+  // out = A⁻ᵀ b: P b, then L⁻¹, then U⁻¹.
+  template <class In, class Out>
+  void solve_transposed(const In& b, Out&& out) {
+    column_ = lu_.permutationP() * b;
+    lu_.matrixLU().template triangularView<Eigen::UnitLower>().solveInPlace(column_);
+    lu_.matrixLU().template triangularView<Eigen::Upper>().solveInPlace(column_);
+    out = column_;
+  }
+
+  // out = A⁻¹ b: U⁻ᵀ b, then L⁻ᵀ, then Pᵀ.
+  template <class In, class Out>
+  void solve(const In& b, Out&& out) {
+    column_ = b;
+    lu_.matrixLU().template triangularView<Eigen::Upper>().transpose().solveInPlace(column_);
+    lu_.matrixLU().template triangularView<Eigen::UnitLower>().transpose().solveInPlace(column_);
+    out = lu_.permutationP().transpose() * column_;
+  }
+
+ private:
+  Factor lu_;
+  Eigen::VectorXd column_;
+};
+
+// Whether A (n, n), whose `factors` are given, is singular to working precision,
+// σ_min / σ_max < tolerance or not finite: |det A| / ‖A‖_F^n bounds σ_min / σ_max from below
+// (|det A| = Π σ_i ≤ σ_min σ_max^(n−1) and σ_max ≤ ‖A‖_F), so the singular values are computed
+// only where that bound is not enough.
 template <class Square>
-bool singular(const Square& A, const Factor& factor, double tolerance) {
+bool singular(const Square& A, const Factors& factors, double tolerance) {
   if (!A.allFinite()) return true;
   const double n = double(A.rows());
-  if (std::abs(factor.determinant()) > tolerance * std::pow(A.squaredNorm(), n / 2)) return false;
+  if (std::abs(factors.determinant()) > tolerance * std::pow(A.squaredNorm(), n / 2))
+    return false;
   const Eigen::VectorXd sigma = Eigen::JacobiSVD<Dense>(A).singularValues();
   return sigma[sigma.size() - 1] / std::max(sigma[0], std::numeric_limits<double>::min()) <
          tolerance;
 }
 
-// J_H = J A⁻¹ (m, n) into `out`, from the factors of Aᵀ: J_Hᵀ = A⁻ᵀ Jᵀ.
+// J_H = J A⁻¹ (m, n) into `out`, row by row: J_Hᵀ = A⁻ᵀ Jᵀ.
 template <class Rows, class Out>
-void task_jacobian(const Factor& transposed, const Rows& J, Out&& out) {
-  out.transpose() = transposed.solve(J.transpose());
+void task_jacobian(Factors& factors, const Rows& J, Out&& out) {
+  for (Eigen::Index j = 0; j < J.rows(); ++j)
+    factors.solve_transposed(J.row(j).transpose(), out.row(j).transpose());
 }
 
-// One state's derivation from A (n, n) and J (m, n): the factors of Aᵀ into `factor`,
+// One state's derivation from A (n, n) and J (m, n): the factors of Aᵀ into `factors`,
 // J_H = J A⁻¹ into `out` (meaningless where A is singular), and whether A is singular.
 template <class Square, class Rows, class Out>
-bool derive_state(Factor& factor, const Square& A, const Rows& J, Out&& out, double tolerance) {
-  factor.compute(A.transpose());
-  task_jacobian(factor, J, std::forward<Out>(out));
-  return singular(A, factor, tolerance);
+bool derive_state(Factors& factors, const Square& A, const Rows& J, Out&& out,
+                  double tolerance) {
+  factors.compute(A);
+  task_jacobian(factors, J, std::forward<Out>(out));
+  return singular(A, factors, tolerance);
 }
 
-// M_H = A⁻ᵀ M A⁻¹ = A⁻ᵀ (A⁻ᵀ M)ᵀ for a symmetric M, symmetrised, into `out`, from the factors of
-// Aᵀ; `first` and `second` hold the two solves.
+// M_H = A⁻ᵀ M A⁻¹ = A⁻ᵀ (A⁻ᵀ M)ᵀ for a symmetric M, symmetrised, into `out`, column by column;
+// `first` and `second` hold the two solves.
 template <class Square, class Out>
-void inertia(const Factor& transposed, const Square& M, Dense& first, Dense& second, Out&& out) {
-  first = transposed.solve(M);
-  second = transposed.solve(first.transpose());
+void inertia(Factors& factors, const Square& M, Dense& first, Dense& second, Out&& out) {
+  const auto n = M.rows();
+  first.resize(n, n);
+  second.resize(n, n);
+  for (Eigen::Index j = 0; j < n; ++j) factors.solve_transposed(M.col(j), first.col(j));
+  for (Eigen::Index j = 0; j < n; ++j)
+    factors.solve_transposed(first.row(j).transpose(), second.col(j));
   out = (second + second.transpose()) / 2;
 }
 
@@ -87,10 +130,10 @@ inline py::tuple derive(const Array& A, const Array& J, double tolerance) {
   const auto k = A.shape(0), n = A.shape(1), m = J.shape(1);
   Array J_H({k, m, n});
   py::array_t<bool> bad(k);
-  Factor factor(n);
+  Factors factors;
   for (py::ssize_t i = 0; i < k; ++i) {
     bad.mutable_data()[i] =
-        derive_state(factor, at(A, i, n, n), at(J, i, m, n), at(J_H, i, m, n), tolerance);
+        derive_state(factors, at(A, i, n, n), at(J, i, m, n), at(J_H, i, m, n), tolerance);
   }
   return py::make_tuple(J_H, bad);
 }
@@ -99,11 +142,11 @@ inline py::tuple derive(const Array& A, const Array& J, double tolerance) {
 inline Array inertias(const Array& A, const Array& M) {
   const auto [k, n] = square_batch(A, {{&M, 3, "M"}});
   Array out({k, n, n});
-  Factor factor(n);
+  Factors factors;
   Dense first, second;
   for (py::ssize_t i = 0; i < k; ++i) {
-    factor.compute(at(A, i, n, n).transpose());
-    inertia(factor, at(M, i, n, n), first, second, at(out, i, n, n));
+    factors.compute(at(A, i, n, n));
+    inertia(factors, at(M, i, n, n), first, second, at(out, i, n, n));
   }
   return out;
 }
@@ -114,13 +157,13 @@ inline Array biases(const Array& A, const Array& N, const Array& M_H, const Arra
   const auto [k, n] = square_batch(
       A, {{&N, 2, "N"}, {&M_H, 3, "M_H"}, {&A_dot, 3, "A_dot"}, {&v, 2, "v"}});
   Array out({k, n});
-  Factor factor(n);
+  Factors factors;
   Eigen::VectorXd rate(n);
   for (py::ssize_t i = 0; i < k; ++i) {
-    factor.compute(at(A, i, n, n).transpose());
+    factors.compute(at(A, i, n, n));
     rate.noalias() = at(A_dot, i, n, n) * at(v, i, 1, n).transpose();
     auto row = at(out, i, 1, n).transpose();
-    row = factor.solve(at(N, i, 1, n).transpose());
+    factors.solve_transposed(at(N, i, 1, n).transpose(), row);
     row.noalias() -= at(M_H, i, n, n) * rate;
   }
   return out;
@@ -196,6 +239,13 @@ class Evaluator {
   // the first (state, actuator, status) a kind refused. None where q or v is not a float64 array
   // of that shape (finite too, if `finite`): Python then checks them.
   py::object evaluate(const py::object& q, const py::object& v, bool finite) {
+    return evaluate(q, v, finite, factors_);
+  }
+
+  // `evaluate`, keeping the factors of each state's Aᵀ in `factors` (grown to the batch) for
+  // the caller's solves: state i's at factors[i] where it is not bad.
+  py::object evaluate(const py::object& q, const py::object& v, bool finite,
+                      std::vector<Factors>& factors) {
     const auto n = pass_.n();
     const auto qa = batch(q, n, finite);
     if (!qa) return py::none();
@@ -210,6 +260,7 @@ class Evaluator {
     Array x({k, n}), A({k, n, n}), y({k, m}), J({k, m, n}), J_H({k, m, n});
     py::array_t<bool> bad(k);
     py::object refused = py::none();
+    if (factors.size() < std::size_t(k)) factors.resize(std::size_t(k));
     for (py::ssize_t i = 0; i < k; ++i) {
       const double* qi = qa->data() + i * n;
       const double* vi = va ? va->data() + i * n : nullptr;
@@ -225,9 +276,9 @@ class Evaluator {
         at(J_H, i, m, n).setConstant(std::numeric_limits<double>::quiet_NaN());
         continue;
       }
-      bad.mutable_data()[i] =
-          derive_state(factor_, at(A, i, n, n), at(J, i, m, n), at(J_H, i, m, n), tolerance_) ||
-          !Vector(qi, n).allFinite();
+      bad.mutable_data()[i] = derive_state(factors[std::size_t(i)], at(A, i, n, n), at(J, i, m, n),
+                                           at(J_H, i, m, n), tolerance_) ||
+                              !Vector(qi, n).allFinite();
     }
     return py::make_tuple(*qa, Pass::maybe(va), positions, linear, angular,
                           Pass::maybe(velocities), Pass::maybe(rates), x, A, y, J, J_H, bad,
@@ -252,6 +303,6 @@ class Evaluator {
 
   Pass pass_;
   Actuation actuation_;
-  Factor factor_;
+  std::vector<Factors> factors_;  // `evaluate`'s own, for callers that keep none
   double tolerance_;
 };

@@ -2,12 +2,13 @@
 limits, failures. The adaptive method is checked against it in test_searches.py."""
 
 import pickle
+from dataclasses import replace
 
 import numpy as np
 import pytest
 from joint_space import fk, inverse_dynamics
 
-from redundancy import InvalidInputError
+from redundancy import InvalidInputError, actuator_space
 from redundancy.planning import integrate
 from redundancy.planning.ik import inverse_kinematics
 from redundancy.planning.integrate import simulate
@@ -223,3 +224,28 @@ def test_the_compiled_right_hand_side_is_the_laws_own(crane, cycle, resolver, mo
             a, b = getattr(ours, name), getattr(python, name)
             np.testing.assert_allclose(a, b, rtol=0, atol=close * np.abs(b).max())
     assert compiled[1].stopped.any()  # the loop stopped motions past their strokes
+
+
+def test_a_path_that_evaluates_the_robot_within_a_step_changes_no_solve(crane, cycle, monkeypatch):
+    """The compiled loop solves each state on the factors of A its own evaluation kept. A path
+    whose ẏ_d is read by calling Python at each stage (here a trapezoidal profile) may evaluate
+    the same robot in between, on a batch of another size (a path of your own may): the
+    motions are the same, bit for bit."""
+    segment = replace(cycle["1-2"], profile="trapezoidal", acceleration=0.5)
+    starts = reachable_starts(crane, segment, np.linspace(0.2, 0.9, 5))
+    elsewhere = reachable_starts(crane, cycle["3-1"], np.linspace(0.1, 0.9, 7))
+    assert integrate.compiled_rates(crane, VELOCITY.resolver) is not None  # the compiled loop
+    assert len(elsewhere) >= len(starts)  # would overwrite every state's factors if shared
+    alone = simulate(crane, VELOCITY.resolver, segment, starts)
+    velocity = integrate.Law.velocity
+    calls = []
+
+    def evaluating(law, t, y):
+        calls.append(actuator_space(crane, elsewhere).J_H)
+        return velocity(law, t, y)
+
+    monkeypatch.setattr(integrate.Law, "velocity", evaluating)
+    between = simulate(crane, VELOCITY.resolver, segment, starts)
+    assert len(calls) > 10  # the loop called the path back at its stages
+    for name in ("t", "q", "x", "x_dot"):
+        np.testing.assert_array_equal(getattr(between, name), getattr(alone, name))
