@@ -387,9 +387,9 @@ class Trajectory:
     @cached_property
     def stroke_violations(self) -> list[list[Violation]]:
         """Each motion's intervals outside a checked stroke, in order of time, found for all
-        motions at once; only motions with a margin below −`LIMIT_TOLERANCE` are scanned (the
-        margin bounds every sample's)."""
-        past = np.flatnonzero(~(self.margins >= -LIMIT_TOLERANCE))  # NaN too
+        motions at once. A margin of at least −`LIMIT_TOLERANCE` (a bound on every sample's)
+        says a motion has none; the others (a NaN margin too) are scanned."""
+        past = np.flatnonzero(~(self.margins >= -LIMIT_TOLERANCE))
         found: list[list[Violation]] = [[] for _ in self.t]
         for i, violations in zip(past, self.limits.violations(self.t[past], self.x[past])):
             found[i] = violations
