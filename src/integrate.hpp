@@ -53,7 +53,7 @@ class Rates {
 
   std::optional<Stage> operator()(const Array& t, const Array& q, const py::object& velocity) {
     auto& evaluator = evaluator_.cast<Evaluator&>();
-    const py::object found = evaluator.evaluate(q, py::none(), false, factors_);
+    const py::object found = evaluator.evaluate(q, py::none(), false, &factors_);
     if (found.is_none()) return std::nullopt;
     const auto evaluated = found.cast<py::tuple>();
     const auto x = evaluated[7].cast<Array>(), A = evaluated[8].cast<Array>();

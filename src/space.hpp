@@ -239,13 +239,14 @@ class Evaluator {
   // the first (state, actuator, status) a kind refused. None where q or v is not a float64 array
   // of that shape (finite too, if `finite`): Python then checks them.
   py::object evaluate(const py::object& q, const py::object& v, bool finite) {
-    return evaluate(q, v, finite, factors_);
+    return evaluate(q, v, finite, nullptr);
   }
 
-  // `evaluate`, keeping the factors of each state's Aᵀ in `factors` (grown to the batch) for
-  // the caller's solves: state i's at factors[i] where it is not bad.
+  // `evaluate`, keeping, where `kept` is given, the factors of each state's Aᵀ there (grown to
+  // the batch) for the caller's solves: state i's at (*kept)[i] where it is not bad. Without
+  // it, one set of factors serves each state in turn.
   py::object evaluate(const py::object& q, const py::object& v, bool finite,
-                      std::vector<Factors>& factors) {
+                      std::vector<Factors>* kept) {
     const auto n = pass_.n();
     const auto qa = batch(q, n, finite);
     if (!qa) return py::none();
@@ -260,7 +261,7 @@ class Evaluator {
     Array x({k, n}), A({k, n, n}), y({k, m}), J({k, m, n}), J_H({k, m, n});
     py::array_t<bool> bad(k);
     py::object refused = py::none();
-    if (factors.size() < std::size_t(k)) factors.resize(std::size_t(k));
+    if (kept && kept->size() < std::size_t(k)) kept->resize(std::size_t(k));
     for (py::ssize_t i = 0; i < k; ++i) {
       const double* qi = qa->data() + i * n;
       const double* vi = va ? va->data() + i * n : nullptr;
@@ -276,9 +277,10 @@ class Evaluator {
         at(J_H, i, m, n).setConstant(std::numeric_limits<double>::quiet_NaN());
         continue;
       }
-      bad.mutable_data()[i] = derive_state(factors[std::size_t(i)], at(A, i, n, n), at(J, i, m, n),
-                                           at(J_H, i, m, n), tolerance_) ||
-                              !Vector(qi, n).allFinite();
+      auto& factors = kept ? (*kept)[std::size_t(i)] : factors_;
+      bad.mutable_data()[i] =
+          derive_state(factors, at(A, i, n, n), at(J, i, m, n), at(J_H, i, m, n), tolerance_) ||
+          !Vector(qi, n).allFinite();
     }
     return py::make_tuple(*qa, Pass::maybe(va), positions, linear, angular,
                           Pass::maybe(velocities), Pass::maybe(rates), x, A, y, J, J_H, bad,
@@ -303,6 +305,6 @@ class Evaluator {
 
   Pass pass_;
   Actuation actuation_;
-  std::vector<Factors> factors_;  // `evaluate`'s own, for callers that keep none
+  Factors factors_;  // each state's in turn, where the caller keeps none
   double tolerance_;
 };
