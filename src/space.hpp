@@ -10,6 +10,7 @@
 #include <optional>
 #include <tuple>
 #include <utility>
+#include <variant>
 #include <vector>
 
 #include "actuators.hpp"
@@ -17,11 +18,13 @@
 using Dense = Eigen::MatrixXd;
 using Factor = Eigen::PartialPivLU<Dense>;
 
-// The LU factors of Aᵀ of one state, P Aᵀ = L U (so A = Uᵀ Lᵀ P), and the solves with them, one
-// right-hand side at a time through a vector kept from state to state. At these sizes Eigen's
-// solve of a matrix, or through a transpose, costs more in its blocked kernels and temporaries
-// than in the arithmetic; its triangular solves of one vector in place do not.
-class Factors {
+// The LU factors of Aᵀ of one state, P Aᵀ = L U (so A = Uᵀ Lᵀ P), for n = N fixed at compile
+// time (Eigen::Dynamic: any n), and the solves with them, one right-hand side at a time through
+// a vector kept from state to state. At these sizes Eigen's solve of a matrix, or through a
+// transpose, costs more in its blocked kernels and temporaries than in the arithmetic; its
+// triangular solves of one vector in place do not, and at a fixed size they are unrolled.
+template <int N>
+class SizedFactors {
  public:
   template <class Square>
   void compute(const Square& A) {
@@ -49,8 +52,73 @@ class Factors {
   }
 
  private:
-  Factor lu_;
-  Eigen::VectorXd column_;
+  Eigen::PartialPivLU<Eigen::Matrix<double, N, N>> lu_;
+  Eigen::Matrix<double, N, 1> column_;
+};
+
+// The LU factors of Aᵀ of one state at its n: Eigen's fixed-size kernels up to `MAX_FIXED`
+// (at n = 3 a factorisation with eight solves takes a third of the dynamic kernels' time),
+// its dynamic ones beyond. Chosen per `compute`, so one object serves any robot.
+class Factors {
+ public:
+  static constexpr int MAX_FIXED = 6;
+
+  template <class Square>
+  void compute(const Square& A) {
+    sized(A.rows(), [&](auto& factors) {
+      factors.compute(A);
+      determinant_ = factors.determinant();
+    });
+  }
+
+  double determinant() const { return determinant_; }
+
+  // out = A⁻ᵀ b.
+  template <class In, class Out>
+  void solve_transposed(const In& b, Out&& out) {
+    current([&](auto& factors) { factors.solve_transposed(b, out); });
+  }
+
+  // out = A⁻¹ b.
+  template <class In, class Out>
+  void solve(const In& b, Out&& out) {
+    current([&](auto& factors) { factors.solve(b, out); });
+  }
+
+ private:
+  // `then` on the factors of size n, made the current ones.
+  template <class Then, int N = 1>
+  void sized(Eigen::Index n, Then&& then) {
+    if constexpr (N > MAX_FIXED) {
+      then(made<Eigen::Dynamic>());
+    } else {
+      if (n == N) return then(made<N>());
+      sized<Then, N + 1>(n, std::forward<Then>(then));
+    }
+  }
+
+  // `act` on the current factors (the alternatives in the order of `sized_`).
+  template <std::size_t I = 1, class Act>
+  auto current(Act&& act) -> decltype(act(std::declval<SizedFactors<Eigen::Dynamic>&>())) {
+    if constexpr (I == std::variant_size_v<decltype(sized_)>) {
+      return act(*std::get_if<0>(&sized_));
+    } else {
+      if (sized_.index() == I) return act(*std::get_if<I>(&sized_));
+      return current<I + 1>(std::forward<Act>(act));
+    }
+  }
+
+  template <int N>
+  SizedFactors<N>& made() {
+    if (!std::holds_alternative<SizedFactors<N>>(sized_))
+      sized_.template emplace<SizedFactors<N>>();
+    return std::get<SizedFactors<N>>(sized_);
+  }
+
+  std::variant<SizedFactors<Eigen::Dynamic>, SizedFactors<1>, SizedFactors<2>, SizedFactors<3>,
+               SizedFactors<4>, SizedFactors<5>, SizedFactors<6>>
+      sized_;
+  double determinant_ = 0;
 };
 
 // Whether A (n, n), whose `factors` are given, is singular to working precision,

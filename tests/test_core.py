@@ -35,7 +35,7 @@ from redundancy.resolution.laws import (
     compiled_rates,
 )
 from redundancy.resolution.objectives import Objective
-from redundancy.resolution.state import _evaluated, evaluate
+from redundancy.resolution.state import SINGULAR_TOLERANCE, _evaluated, evaluate
 
 WORLD = pin.LOCAL_WORLD_ALIGNED
 MIMIC = Path(__file__).parent / "fixtures" / "intake" / "mimic" / "robot.toml"
@@ -108,6 +108,33 @@ def test_the_compiled_evaluation_equals_python_s_and_the_closed_forms(robot):
 def test_the_core_s_solve_refuses_a_singular_matrix_as_numpy_does():
     with pytest.raises(np.linalg.LinAlgError, match="Singular matrix"):
         _core.solve(np.zeros((1, 3, 3)), np.ones((1, 3)))
+
+
+@pytest.mark.parametrize("n", range(1, 9))
+def test_the_core_s_derivations_equal_numpy_s_at_every_size(n):
+    """J_H = J A⁻¹, M_H = A⁻ᵀ M A⁻¹ and N_H = A⁻ᵀ N − M_H Ȧ q̇ by the core's factors of Aᵀ
+    (fixed-size kernels up to n = 6, dynamic beyond) against numpy's solves, on matrices that
+    need row pivoting (small leading entries), with the singular ones flagged."""
+    rng = np.random.default_rng(n)
+    k, m = 50, max(1, n - 1)
+    A = rng.normal(size=(k, n, n)) + 3 * np.eye(n)[::-1]  # the large entries off the diagonal
+    A[:, 0, 0] *= 1e-3
+    A[-1] = np.outer(np.arange(1, n + 1), np.ones(n)) if n > 1 else 0.0  # singular
+    J = rng.normal(size=(k, m, n))
+    root = rng.normal(size=(k, n, n))
+    M = root @ root.mT + n * np.eye(n)
+    N, v, A_dot = rng.normal(size=(k, n)), rng.normal(size=(k, n)), rng.normal(size=(k, n, n))
+    J_H, bad = _core.derive(A, J, SINGULAR_TOLERANCE)
+    assert bad.tolist() == [False] * (k - 1) + [True]
+    good = slice(0, k - 1)
+    A_T = A[good].mT
+    assert_equal_relative(J_H[good], np.linalg.solve(A_T, J[good].mT).mT)
+    A_inv = np.linalg.inv(A[good])
+    M_H = _core.inertias(A[good], M[good])
+    assert_equal_relative(M_H, A_inv.mT @ M[good] @ A_inv)
+    N_H = _core.biases(A[good], N[good], M_H, A_dot[good], v[good])
+    expected = np.linalg.solve(A_T, N[good][..., None])[..., 0]
+    assert_equal_relative(N_H, expected - (M_H @ A_dot[good] @ v[good][..., None])[..., 0])
 
 
 def test_the_cylinder_kind_equals_its_closed_form():
