@@ -34,13 +34,25 @@ class Law {
   }
 
  private:
-  // (G + λ² I)⁻¹ (ẏ − J_H z).
+  // (G + λ² I)⁻¹ (ẏ − J_H z), through Eigen's fixed-size Cholesky kernels for a task of up to
+  // three coordinates (at m = 2 the dynamic ones spend most of their time deciding sizes), its
+  // dynamic ones, kept from state to state, beyond.
   const Eigen::VectorXd& gram(double ratio) {
-    cholesky_.compute(G_);
-    if (cholesky_.info() == Eigen::Success) {
-      const double root = cholesky_.matrixLLT().diagonal().prod();
+    switch (G_.rows()) {
+      case 1: return gram(Eigen::LLT<Eigen::Matrix<double, 1, 1>>(), ratio);
+      case 2: return gram(Eigen::LLT<Eigen::Matrix2d>(), ratio);
+      case 3: return gram(Eigen::LLT<Eigen::Matrix3d>(), ratio);
+      default: return gram(cholesky_, ratio);
+    }
+  }
+
+  template <class Cholesky>
+  const Eigen::VectorXd& gram(Cholesky&& cholesky, double ratio) {
+    cholesky.compute(G_);
+    if (cholesky.info() == Eigen::Success) {
+      const double root = cholesky.matrixLLT().diagonal().prod();
       if (root * root >= ratio * std::pow(G_.trace(), double(G_.rows()))) {
-        lambda_ = cholesky_.solve(target_);
+        lambda_ = cholesky.solve(target_);
         return lambda_;
       }
     }
