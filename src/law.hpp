@@ -52,7 +52,8 @@ class Law {
     if (cholesky.info() == Eigen::Success) {
       const double root = cholesky.matrixLLT().diagonal().prod();
       if (root * root >= ratio * std::pow(G_.trace(), double(G_.rows()))) {
-        lambda_ = cholesky.solve(target_);
+        lambda_ = target_;
+        cholesky.solveInPlace(lambda_);  // a solve's expression would copy at m = 1
         return lambda_;
       }
     }
