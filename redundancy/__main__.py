@@ -9,13 +9,17 @@ from redundancy.study import signals
 
 
 def main() -> int:
-    """Run the command line (`redundancy.cli.main`) once it has loaded. Its objects are then
-    left to the process's end (`gc.freeze`): the interpreter's shutdown would otherwise trace
-    them all in its garbage collections, about a tenth of a study's wall time, to free memory
-    the process gives back as it exits."""
+    """Run the command line (`redundancy.cli.main`) once it has loaded.
+
+    Objects that live until the process ends are moved out of the garbage collector's sight
+    (`gc.freeze`): the modules' once loaded, so that the collections of the command's run (and
+    of the process the study forks) do not trace them again and again, and the command's own
+    once it has returned, so that the interpreter's shutdown does not trace them all to free
+    memory the process gives back as it exits (about a tenth of a study's wall time)."""
     signals.install()
     from redundancy.cli import main as run
 
+    gc.freeze()
     status = run()
     gc.freeze()
     return status
