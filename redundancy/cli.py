@@ -227,8 +227,8 @@ def _robots_command(args: argparse.Namespace) -> None:
 
 def _planned_command(args: argparse.Namespace) -> None:
     """The study and the cycle commands: ``args.plan`` (`_study`, `_cycle`) gives (result, figure
-    paths, playback paths); the report, time series and index page are written beside them, all
-    committed together, and what was written is listed."""
+    paths, playback paths, time series paths); the report and index page are written beside
+    them, all committed together, and what was written is listed."""
     with OutputFolder(args.out) as out:  # committed only if everything below succeeds
         report = out / "report.json" if args.json is None else out.beside(Path(args.json), "--json")
         robot, cycle = _load_task(_robot(args), args.task)
@@ -239,13 +239,9 @@ def _planned_command(args: argparse.Namespace) -> None:
         options = dict(
             samples=args.samples, checked=checked, method=args.method, circuit=args.circuit_limits
         )
-        result, figures, playbacks = args.plan(args, out.staging, robot, cycle, options)
+        result, figures, playbacks, series = args.plan(args, out.staging, robot, cycle, options)
         write_report(result, report)
-        written = {
-            "figures": figures,
-            "time series (CSV)": write_series(result, out.staging),
-            "playbacks": playbacks,
-        }
+        written = {"figures": figures, "time series (CSV)": series, "playbacks": playbacks}
         write_index(out.staging, report)
     print(f"report: {args.json or out.target / 'report.json'}")
     for label, paths in written.items():
@@ -254,6 +250,8 @@ def _planned_command(args: argparse.Namespace) -> None:
 
 def _study(args: argparse.Namespace, folder: Path, robot, cycle, options) -> tuple:
     from tqdm import tqdm
+
+    tqdm.monitor_interval = 0  # no monitor thread: with a thread running, `Background` cannot fork
 
     chosen = ("velocity", "energy") if args.objective == "both" else (args.objective,)
     if robot.kinematic_only and args.objective == "both":
@@ -291,16 +289,18 @@ def _study(args: argparse.Namespace, folder: Path, robot, cycle, options) -> tup
             cycles=0,
             searches=searches,
         )
-        figures = write_figures(study, folder)
-        playbacks = write_playbacks(study, folder)
-        for run in study.runs:  # each run's figures for the table and report, kept by the
-            run.summary()  # run: computed while the cycle section still runs, not after
-        with tqdm(total=1, desc="cycle section", disable=not args.progress) as waiting:
-            cycle_study, skipped, cycle_figures, cycle_playbacks = pending.result()
-            waiting.update()
-    study = replace(study, cycle_study=cycle_study, cycle_skipped=skipped)
+        # the figures only read numbers the study has computed: drawn in a third process
+        # while this one writes the playbacks and, once the cycle section ends, the series
+        with Background(write_figures, study, folder) as drawing:
+            playbacks = write_playbacks(study, folder)
+            with tqdm(total=1, desc="cycle section", disable=not args.progress) as waiting:
+                cycle_study, skipped, cycle_figures, cycle_playbacks = pending.result()
+                waiting.update()
+            study = replace(study, cycle_study=cycle_study, cycle_skipped=skipped)
+            series = write_series(study, folder)
+            figures = drawing.result()
     print(study_table(study))
-    return study, figures + cycle_figures, playbacks + cycle_playbacks
+    return study, figures + cycle_figures, playbacks + cycle_playbacks, series
 
 
 def _cycle(args: argparse.Namespace, folder: Path, robot, cycle, options) -> tuple:
@@ -315,7 +315,8 @@ def _cycle(args: argparse.Namespace, folder: Path, robot, cycle, options) -> tup
         progress=args.progress,
     )
     print(cycle_table(study))
-    return study, write_cycle_figures(study, folder), write_cycle_playbacks(study, folder)
+    figures, playbacks = write_cycle_figures(study, folder), write_cycle_playbacks(study, folder)
+    return study, figures, playbacks, write_series(study, folder)
 
 
 def _play_motion(

@@ -1,5 +1,5 @@
 """A computation run in a second, forked process while this one goes on (the study command's
-cycle section, on a second core).
+cycle section, and then its figures, on another core).
 
 `Background(function, *args)` forks a process that calls ``function(*args)`` and sends back its
 result, or the exception it raised, through a pipe; `result()` waits for it and returns it, or
