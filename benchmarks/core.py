@@ -1,7 +1,8 @@
 """The evaluation core's costs against the targets, in one table of one run: one control step
 beside pink's step and two bare Pinocchio calls from Python (the floor of anything that calls
-Pinocchio per step), x, A, J_H and M_H at one state and per state of a batch of 1,000, the law on
-that batch, and the improved start per paper segment; this checkout after an earlier tree.
+Pinocchio per step), x, A, J_H and M_H at one state (as the batch object `actuator_space` gives
+them, and as `Controller.state` does in one compiled call) and per state of a batch of 1,000, the
+law on that batch, and the improved start per paper segment; this checkout after an earlier tree.
 
 Run: python benchmarks/core.py [--before DIR]
 DIR is an earlier tree with its compiled core built beside its sources (e.g. `git archive REV`
@@ -27,7 +28,8 @@ ROWS = [  # key, what, unit, factor from seconds, target
     ("step", "one control step (min ẋᵀẋ, crane)", "µs", 1e6, 2),
     ("pink", "pink's control step", "µs", 1e6, None),
     ("bare", "two bare Pinocchio calls from Python", "µs", 1e6, None),
-    ("one", "x, A, J_H, M_H at one state", "µs", 1e6, 3),
+    ("one", "x, A, J_H, M_H at one state (actuator_space)", "µs", 1e6, 3),
+    ("state", "x, A, J_H, M_H at one state (Controller.state)", "µs", 1e6, 3),
     ("batch", f"x, A, J_H, M_H, batch of {BATCH}, per state", "µs", 1e6, 1),
     ("law", f"law on a batch of {BATCH}, per state", "µs", 1e6, None),
     *((f"start {s}", f"improved start (fast), segment {s}", "ms", 1e3, 10) for s in SEGMENTS),
@@ -54,6 +56,8 @@ def measure() -> dict[str, float]:
     if hasattr(redundancy, "Controller"):
         controller = redundancy.Controller(robot, law)
         cost = {"step": per_call(lambda: controller.step(q, segment.velocity), 20000)}
+        if hasattr(controller, "state"):
+            cost["state"] = per_call(lambda: controller.state(q), 20000)
     else:
         cost = {"step": per_call(lambda: law.step(robot, q, segment.velocity), 5000)}
     model, tool = robot.model, robot.model.getFrameId(robot.tool_frame)

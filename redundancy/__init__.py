@@ -84,6 +84,7 @@ if TYPE_CHECKING:
         MinKineticEnergy,
         MinVelocityNorm,
         Resolver,
+        State,
         Step,
     )
     from redundancy.resolution.limits import Limits, Violation

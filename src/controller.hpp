@@ -1,5 +1,6 @@
 // One control step in one call: the pass at q, the task point y and J, the actuators' x and A,
-// J_H = J A⁻¹, the law's W and z, the kernel, q̇ = A⁻¹ ẋ.
+// J_H = J A⁻¹, the law's W and z, the kernel, q̇ = A⁻¹ ẋ; and the state a step reads, with M_H,
+// in one call.
 #pragma once
 
 #include <optional>
@@ -13,26 +14,34 @@ class Controller {
   // frames; the law is its `weight` (with `W` for CONSTANT) and, where `pull` (n) is given, the
   // null-space term z = pull ∘ (x − middle). `fallback(q, y_dot)` is the Python step: it answers
   // whatever this one does not (input that is not one finite float vector each, a singular A, a
-  // kind that cannot evaluate, a mass matrix without mass), raising the toolkit's errors there.
+  // kind that cannot evaluate, a mass matrix without mass), raising the toolkit's errors there;
+  // `state_fallback(q)` is the Python state likewise. `result` and `state` are the tuple types
+  // of a step (x_dot, q_dot, y) and of a state (x, A, J_H, M_H); with `masses` false (a robot
+  // without masses) a state's M_H is None.
   Controller(const Pass& pass, Eigen::Index tool, std::vector<Eigen::Index> rows,
              const py::array_t<int>& kinds, const py::array_t<Eigen::Index>& slots,
              const Array& numbers, int weight, const std::optional<Array>& W,
              const std::optional<Array>& pull, const std::optional<Array>& middle, double ratio,
-             double tolerance, py::object fallback, py::object result)
+             double tolerance, py::object fallback, py::object result, py::object state_fallback,
+             py::object state, bool masses)
       : pass_(pass),
         actuation_{tool, std::move(rows), declared(kinds, slots, numbers, pass.size(), pass.n())},
         rule_(pass.n(), weight, W, pull, middle, ratio),
         tolerance_(tolerance),
+        masses_(masses),
         fallback_(std::move(fallback)),
-        result_(std::move(result)) {
+        state_fallback_(std::move(state_fallback)),
+        result_(std::move(result)),
+        state_(std::move(state)) {
     const auto n = pass_.n();
     const auto& task = actuation_.rows;
     if (tool < 0 || tool >= pass_.size() || Eigen::Index(actuation_.actuators.size()) != n ||
         std::any_of(task.begin(), task.end(), [](auto r) { return r < 0 || r > 2; }))
       throw py::value_error("a controller takes the tool's slot, its task rows and n actuators");
-    if (!PyType_Check(result_.ptr()) ||
-        !PyType_IsSubtype(reinterpret_cast<PyTypeObject*>(result_.ptr()), &PyTuple_Type))
-      throw py::value_error("a controller's result is a tuple type (x_dot, q_dot, y)");
+    for (const auto* type : {&result_, &state_})
+      if (!PyType_Check(type->ptr()) ||
+          !PyType_IsSubtype(reinterpret_cast<PyTypeObject*>(type->ptr()), &PyTuple_Type))
+        throw py::value_error("a controller's step and state are tuple types");
     A_.resize(n, n);
     J_.resize(Eigen::Index(task.size()), n);
     J_H_.resize(Eigen::Index(task.size()), n);
@@ -43,19 +52,38 @@ class Controller {
   py::object step(const py::object& q, const py::object& y_dot) {
     const auto n = pass_.n(), m = Eigen::Index(actuation_.rows.size());
     const double *qi = finite(q, n), *yi = finite(y_dot, m);
-    if (!qi || !yi) return fallback_(q, y_dot);
-    pass_.at(qi, nullptr);
-    if (actuation_(pass_.frames(), qi, nullptr, x_.data(), A_.data(), y_.data(), J_.data())
-            .second != OK)
-      return fallback_(q, y_dot);
-    if (derive_state(factors_, A_, J_, J_H_, tolerance_)) return fallback_(q, y_dot);
+    if (!qi || !yi || !evaluated(qi)) return fallback_(q, y_dot);
     const auto* x_dot = rule_(pass_, qi, x_, factors_, J_H_, Vector(yi, m));
     if (!x_dot) return fallback_(q, y_dot);
     factors_.solve(*x_dot, q_dot_);  // q̇ = A⁻¹ ẋ
-    return result(vector(*x_dot), vector(q_dot_), vector(y_));
+    return filled(result_, {vector(*x_dot), vector(q_dot_), vector(y_)});
+  }
+
+  // x, A, J_H and M_H = A⁻ᵀ M A⁻¹ at q, by the step's own evaluation.
+  py::object state(const py::object& q) {
+    const double* qi = finite(q, pass_.n());
+    if (!qi || !evaluated(qi)) return state_fallback_(q);
+    py::object M_H = py::none();
+    if (masses_) {
+      const Dense& M = pass_.mass(qi);
+      if (!(M.diagonal().array() > 0).all()) return state_fallback_(q);
+      inertia(factors_, M, first_, second_, M_H_);
+      M_H = matrix(M_H_);
+    }
+    return filled(state_, {vector(x_), matrix(A_), matrix(J_H_), M_H});
   }
 
  private:
+  // The pass at q, x, A, y, J, the factors of Aᵀ and J_H; false where an actuator cannot be
+  // evaluated or A is singular.
+  bool evaluated(const double* q) {
+    pass_.at(q, nullptr);
+    if (actuation_(pass_.frames(), q, nullptr, x_.data(), A_.data(), y_.data(), J_.data())
+            .second != OK)
+      return false;
+    return !derive_state(factors_, A_, J_, J_H_, tolerance_);
+  }
+
   // The data of a one-dimensional, contiguous float64 array of `size` finite values, or null.
   static const double* finite(const py::object& value, Eigen::Index size) {
     if (!py::isinstance<py::array_t<double>>(value)) return nullptr;
@@ -66,15 +94,14 @@ class Controller {
     return Vector(data, size).allFinite() ? data : nullptr;
   }
 
-  // The result type's tuple of the three, filled as tuple's own constructor fills a subtype's
-  // (the type adds no field), without a call into Python.
-  py::object result(Array x_dot, Array q_dot, Array y) const {
-    auto* type = reinterpret_cast<PyTypeObject*>(result_.ptr());
-    PyObject* out = type->tp_alloc(type, 3);
+  // A tuple of the tuple type `kind` holding `items`, filled as tuple's own constructor fills a
+  // subtype's (the type adds no field), without a call into Python.
+  static py::object filled(const py::object& kind, std::initializer_list<py::object> items) {
+    auto* type = reinterpret_cast<PyTypeObject*>(kind.ptr());
+    PyObject* out = type->tp_alloc(type, py::ssize_t(items.size()));
     if (!out) throw py::error_already_set();
-    PyTuple_SET_ITEM(out, 0, x_dot.release().ptr());
-    PyTuple_SET_ITEM(out, 1, q_dot.release().ptr());
-    PyTuple_SET_ITEM(out, 2, y.release().ptr());
+    py::ssize_t i = 0;
+    for (const auto& item : items) PyTuple_SET_ITEM(out, i++, item.inc_ref().ptr());
     return py::reinterpret_steal<py::object>(out);
   }
 
@@ -84,13 +111,21 @@ class Controller {
     return out;
   }
 
+  template <class Values>
+  static Array matrix(const Eigen::MatrixBase<Values>& values) {
+    Array out({values.rows(), values.cols()});
+    Eigen::Map<Matrix>(out.mutable_data(), values.rows(), values.cols()) = values;
+    return out;
+  }
+
   Pass pass_;
   Actuation actuation_;
   Rule rule_;
   Matrix A_, J_;  // row-major, as `Actuation` writes them
-  Dense J_H_;
+  Dense J_H_, M_H_, first_, second_;
   Factors factors_;
   Eigen::VectorXd x_, y_, q_dot_;
   double tolerance_;
-  py::object fallback_, result_;
+  bool masses_;
+  py::object fallback_, state_fallback_, result_, state_;
 };

@@ -82,10 +82,12 @@ PYBIND11_MODULE(_core, m) {
       .def(py::init<const Pass&, Eigen::Index, std::vector<Eigen::Index>,
                     const py::array_t<int>&, const py::array_t<Eigen::Index>&, const Array&, int,
                     const std::optional<Array>&, const std::optional<Array>&,
-                    const std::optional<Array>&, double, double, py::object, py::object>(),
+                    const std::optional<Array>&, double, double, py::object, py::object,
+                    py::object, py::object, bool>(),
            py::arg("tracking"), py::arg("tool"), py::arg("rows"), py::arg("kinds"),
            py::arg("slots"), py::arg("numbers"), py::arg("weight"), py::arg("W"), py::arg("pull"),
            py::arg("middle"), py::arg("ratio"), py::arg("tolerance"), py::arg("fallback"),
-           py::arg("result"))
-      .def("step", &Controller::step, py::arg("q"), py::arg("y_dot"));
+           py::arg("result"), py::arg("state_fallback"), py::arg("state"), py::arg("masses"))
+      .def("step", &Controller::step, py::arg("q"), py::arg("y_dot"))
+      .def("state", &Controller::state, py::arg("q"));
 }

@@ -31,6 +31,7 @@ from redundancy.resolution.laws import (
     MinKineticEnergy,
     MinVelocityNorm,
     Resolver,
+    State,
     Step,
     compiled_rates,
 )
@@ -39,6 +40,7 @@ from redundancy.resolution.state import SINGULAR_TOLERANCE, _evaluated, evaluate
 
 WORLD = pin.LOCAL_WORLD_ALIGNED
 MIMIC = Path(__file__).parent / "fixtures" / "intake" / "mimic" / "robot.toml"
+MASSLESS = Path(__file__).parent / "fixtures" / "intake" / "massless" / "robot.toml"
 
 
 def assert_equal_relative(ours, theirs):
@@ -356,6 +358,75 @@ def test_the_controller_refuses_what_the_resolver_refuses_in_the_same_words(
     assert type(ours.value) is type(theirs.value)
     assert str(ours.value) == str(theirs.value)
     assert message in str(ours.value)
+
+
+def test_the_controllers_state_is_the_actuator_space_on_every_robot(robot):
+    """One compiled call gives `actuator_space`'s x, A and J_H at a state, and M_H as its
+    defining equation, A⁻ᵀ M A⁻¹ with M by Pinocchio's own CRBA, to 1e-12 relative, on every
+    bundled robot and one with a mimic joint (M_H None on a robot without masses)."""
+    controller = Controller(robot, MinVelocityNorm())
+    assert controller.is_compiled
+    model = robot.model
+    data = model.createData()
+    for q in random_configurations(robot, 6, seed=59, margin=0.05):
+        state, space = controller.state(q), actuator_space(robot, q)
+        assert isinstance(state, State)
+        for mine, reference in zip(state[:3], (space.x[0], space.A[0], space.J_H[0])):
+            assert_equal_relative(mine, reference)
+        if robot.kinematic_only:
+            assert state.M_H is None
+            continue
+        M = pin.crba(model, data, q)
+        M = np.triu(M) + np.triu(M, 1).T
+        inverse = np.linalg.inv(space.A[0])
+        assert_equal_relative(state.M_H, inverse.T @ M @ inverse)
+
+
+def test_the_controllers_state_has_no_M_H_on_a_robot_without_masses():
+    """A kinematic-only robot: the compiled state's x, A and J_H are `actuator_space`'s, and
+    M_H, undefined, is None."""
+    with pytest.warns(UserWarning, match="the robot is kinematic only"):
+        robot = load_robot(MASSLESS)
+    assert robot.kinematic_only
+    controller = Controller(robot, MinVelocityNorm())
+    assert controller.is_compiled
+    for q in random_configurations(robot, 4, seed=60, margin=0.05):
+        state, space = controller.state(q), actuator_space(robot, q)
+        assert state.M_H is None
+        for mine, reference in zip(state[:3], (space.x[0], space.A[0], space.J_H[0])):
+            assert_equal_relative(mine, reference)
+
+
+def test_a_users_own_kind_gives_its_state_through_the_controller_in_python(geared):
+    """The geared telescope, a user's kind: the controller's state is `actuator_space`'s."""
+    q = np.array([1.7, 1.0, 0.7])
+    state, space = Controller(geared, MinVelocityNorm()).state(q), actuator_space(geared, q)
+    for mine, reference in zip(state, (space.x[0], space.A[0], space.J_H[0], space.M_H[0])):
+        assert_equal_relative(mine, reference)
+
+
+STATE_ERRORS = [
+    ([1.7, np.nan, 0.7], "q contains NaN or infinite values"),
+    ([1.7, 1.0], "q must have shape (3,)"),
+    ([0.0, 0.0, 0.0], "actuator Jacobian A is singular at q = [0.0, 0.0, 0.0]"),
+]
+
+
+@pytest.mark.parametrize("q, message", STATE_ERRORS)
+def test_the_controllers_state_refuses_what_actuator_space_refuses_in_the_same_words(
+    crane, q, message
+):
+    """A NaN, a wrong shape or a singular A: the compiled state refuses it with
+    `actuator_space`'s one line; two states at once, with its own."""
+    with pytest.raises(RedundancyError) as theirs:
+        actuator_space(crane, np.array(q))
+    with pytest.raises(RedundancyError) as ours:
+        Controller(crane, MinVelocityNorm()).state(np.array(q))
+    assert type(ours.value) is type(theirs.value)
+    assert str(ours.value) == str(theirs.value)
+    assert message in str(ours.value)
+    with pytest.raises(InvalidInputError, match=r"a state takes one q \(3,\); got shape \(2, 3\)"):
+        Controller(crane, MinVelocityNorm()).state(np.ones((2, 3)))
 
 
 def test_the_controller_takes_a_robot_and_a_law(crane):

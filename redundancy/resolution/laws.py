@@ -34,6 +34,7 @@ from redundancy.model.robot import Robot
 from redundancy.resolution.state import (
     SINGULAR_TOLERANCE,
     ActuatorSpace,
+    actuator_space,
     check_invertible,
     evaluate,
 )
@@ -53,6 +54,18 @@ class Step(NamedTuple):
     x_dot: np.ndarray
     q_dot: np.ndarray
     y: np.ndarray
+
+
+class State(NamedTuple):
+    """The robot in actuator coordinates at one configuration, as a control loop reads it:
+    strokes x (n,), A = ∂x/∂q (n, n) (Eq. 10), J_H = J A⁻¹ (m, n) (Eq. 16) and
+    M_H = A⁻ᵀ M A⁻¹ (n, n) (Eq. 22), kg, the mass each actuator moves (None on a robot without
+    masses)."""
+
+    x: np.ndarray
+    A: np.ndarray
+    J_H: np.ndarray
+    M_H: np.ndarray | None
 
 
 class Resolver:
@@ -182,6 +195,9 @@ class Controller:
     A) is answered by `Resolver.step`, which raises the toolkit's one-line errors. A kind or a
     law of your own (any of ``weight``, ``null_space``, ``resolve``, ``step`` overridden), or a
     task other than the tool's position, runs `Resolver.step` on every call, as the same object.
+    `state` is the state a step reads, with M_H (say, to schedule a servo's gains on the mass
+    each cylinder moves), in one call by the same evaluation, answered likewise by
+    `actuator_space` where the core does not serve it.
 
     The controller reads the robot as it was when built: build another after changing it.
     """
@@ -195,7 +211,7 @@ class Controller:
             )
         self.robot, self.law = robot, law
         self._python = functools.partial(law.step, robot)
-        self._compiled = compiled(robot, law, self._python)
+        self._compiled = compiled(robot, law, self._python, self._python_state)
 
     def __repr__(self) -> str:
         return f"Controller({self.robot!r}, {self.law!r})"
@@ -212,10 +228,29 @@ class Controller:
             return self._python(q, y_dot)
         return self._compiled.step(q, y_dot)
 
+    def state(self, q: np.ndarray) -> State:
+        """The robot at q (n,) in actuator coordinates: what `actuator_space` gives of x, A,
+        J_H and M_H there, to rounding; `InvalidInputError` and `SingularConfigurationError`
+        as it raises them."""
+        if self._compiled is None:
+            return self._python_state(q)
+        return self._compiled.state(q)
 
-def compiled(robot: Robot, law: Resolver, fallback) -> _core.Controller | None:
+    def _python_state(self, q) -> State:
+        states = self.robot.configuration(q)
+        if len(states) != 1:
+            raise InvalidInputError(
+                f"a state takes one q ({self.robot.n},); got shape {np.shape(q)}"
+            )
+        space = actuator_space(self.robot, states)
+        M_H = None if self.robot.kinematic_only else space.M_H[0]
+        return State(space.x[0], space.A[0], space.J_H[0], M_H)
+
+
+def compiled(robot: Robot, law: Resolver, fallback, state_fallback) -> _core.Controller | None:
     """The compiled step of ``law`` on ``robot``, or None where the core cannot run it alone
-    (`Controller`); ``fallback`` is the Python step it calls for what it refuses."""
+    (`Controller`); ``fallback`` and ``state_fallback`` are the Python step and state it calls
+    for what it refuses."""
     found = rule(robot, law, ("resolve", "step"))
     if found is None:
         return None
@@ -231,6 +266,9 @@ def compiled(robot: Robot, law: Resolver, fallback) -> _core.Controller | None:
         SINGULAR_TOLERANCE,
         fallback,
         Step,
+        state_fallback,
+        State,
+        not robot.kinematic_only,
     )
 
 
