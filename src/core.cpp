@@ -39,6 +39,7 @@ PYBIND11_MODULE(_core, m) {
         py::arg("velocities") = py::none(), py::arg("rates") = py::none());
   m.def("resolve", &resolve, py::arg("J_H"), py::arg("y_dot"), py::arg("W") = py::none(),
         py::arg("z") = py::none(), py::arg("ratio"));
+  m.def("held", &held, py::arg("J_H"), py::arg("y_dot"), py::arg("rows"), py::arg("rates"));
   m.def("derive", &derive, py::arg("A"), py::arg("J"), py::arg("tolerance"));
   m.def("inertias", &inertias, py::arg("A"), py::arg("M"));
   m.def("biases", &biases, py::arg("A"), py::arg("N"), py::arg("M_H"), py::arg("A_dot"),
@@ -59,6 +60,8 @@ PYBIND11_MODULE(_core, m) {
                     const std::optional<Array>&, double>(),
            py::arg("evaluator"), py::arg("weight"), py::arg("W"), py::arg("pull"),
            py::arg("middle"), py::arg("ratio"))
+      .def(py::init<py::object, std::vector<Eigen::Index>, py::object>(), py::arg("evaluator"),
+           py::arg("rows"), py::arg("held"))
       .def(
           "__call__",
           [](Rates& rates, const Array& t, const Array& q, const py::object& velocity) {

@@ -38,18 +38,26 @@ inline Array task_velocity(const py::object& velocity, const Array& t, const py:
   return out;
 }
 
-// q̇(t, q) = A⁻¹ ẋ of a built-in law (`Rule`) at states evaluated by the compiled `Evaluator`,
-// for the task velocity given by `velocity` (`task_velocity`: constant, or one call of Python
-// per batch). Its record is (the evaluator's tuple, ẋ, q̇), which is also what a call from
-// Python returns (`Law.__call__`: the first states, the samples between steps and on a grid).
-// A state a kind refused is bad, as where A is singular. None where the core cannot serve the
-// states (Python evaluates them again and raises its error).
+// q̇(t, q) = A⁻¹ ẋ of a built-in law at states evaluated by the compiled `Evaluator`, for the
+// task velocity given by `velocity` (`task_velocity`: constant, or one call of Python per
+// batch): a weighted pseudoinverse (`Rule`), or a held law (`Held`) whose held actuators' rates
+// `held(t, x_h)` → (r, h) Python gives, once per batch, from the times and their strokes. Its
+// record is (the evaluator's tuple, ẋ, q̇), which is also what a call from Python returns
+// (`Law.__call__`: the first states, the samples between steps and on a grid). A state a kind
+// refused is bad, as where A is singular. None where the core cannot serve the states (Python
+// evaluates them again and raises its error).
 class Rates {
  public:
   Rates(py::object evaluator, int weight, const std::optional<Array>& W,
         const std::optional<Array>& pull, const std::optional<Array>& middle, double ratio)
-      : evaluator_(std::move(evaluator)),
-        rule_(evaluator_.cast<Evaluator&>().pass().n(), weight, W, pull, middle, ratio) {}
+      : evaluator_(std::move(evaluator)) {
+    rule_.emplace(evaluator_.cast<Evaluator&>().pass().n(), weight, W, pull, middle, ratio);
+  }
+
+  Rates(py::object evaluator, std::vector<Eigen::Index> rows, py::object held)
+      : evaluator_(std::move(evaluator)), rates_(std::move(held)) {
+    held_.emplace(std::move(rows), evaluator_.cast<Evaluator&>().pass().n());
+  }
 
   std::optional<Stage> operator()(const Array& t, const Array& q, const py::object& velocity) {
     auto& evaluator = evaluator_.cast<Evaluator&>();
@@ -63,6 +71,8 @@ class Rates {
     if (t.ndim() != 1 || t.shape(0) != r)
       throw py::value_error("t must have shape (r,), one time per state");
     const Array y_dot = task_velocity(velocity, t, evaluated[9], m);
+    const Array targets = held_ ? held_rates(t, x) : Array();
+    const auto h = held_ ? targets.shape(1) : 0;
     Array x_dot({r, n}), q_dot({r, n});
     auto* flags = bad.mutable_data();
     for (py::ssize_t i = 0; i < r; ++i) {
@@ -72,8 +82,11 @@ class Rates {
       vi.setZero();
       if (flags[i]) continue;
       auto& factors = factors_[std::size_t(i)];  // of Aᵀ, as the evaluation derived them
-      const auto* solved = rule_(evaluator.pass(), q.data() + i * n, at(x, i, 1, n).transpose(),
-                                 factors, at(J_H, i, m, n), at(y_dot, i, 1, m).transpose());
+      const auto y_dot_i = at(y_dot, i, 1, m).transpose();
+      const auto* solved =
+          held_ ? (*held_)(at(J_H, i, m, n), y_dot_i, at(targets, i, 1, h).transpose())
+                : (*rule_)(evaluator.pass(), q.data() + i * n, at(x, i, 1, n).transpose(),
+                           factors, at(J_H, i, m, n), y_dot_i);
       if (!solved) return std::nullopt;
       factors.solve(*solved, vi);  // q̇ = A⁻¹ ẋ
       if (!vi.allFinite()) {
@@ -87,8 +100,24 @@ class Rates {
   }
 
  private:
+  // The held actuators' rates (r, h) at times t (r,), from their strokes among x (r, n).
+  Array held_rates(const Array& t, const Array& x) const {
+    const auto& rows = held_->rows();
+    const auto r = x.shape(0), n = x.shape(1), h = py::ssize_t(rows.size());
+    Array strokes({r, h});
+    for (py::ssize_t i = 0; i < r; ++i)
+      for (py::ssize_t j = 0; j < h; ++j)
+        strokes.mutable_at(i, j) = x.data()[i * n + rows[std::size_t(j)]];
+    const Array out = rates_(t, strokes);
+    if (out.ndim() != 2 || out.shape(0) != r || out.shape(1) != h)
+      throw py::value_error("the held actuators' rates must have shape (r, h)");
+    return out;
+  }
+
   py::object evaluator_;
-  Rule rule_;
+  std::optional<Rule> rule_;
+  std::optional<Held> held_;
+  py::object rates_;  // a held law's rates, a Python callable (t, x_h) → (r, h)
   std::vector<Factors> factors_;  // each state's, kept by the evaluation for the solves here
 };
 

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "space.hpp"
 
@@ -71,6 +72,63 @@ class Law {
   Eigen::LLT<Dense> cholesky_;
   Eigen::VectorXd target_, lambda_, x_dot_;
 };
+
+// A law that moves the held actuators `rows` (h) at rates of its own and the others so as to
+// resolve the task (`redundancy.resolution.laws.HeldRates`): the ẋ (n) solving
+//   [J_H; E_h] ẋ = [ẏ; ẋ_h]
+// for J_H (m, n), ẏ (m) and the held rates ẋ_h (n − m), E_h the rows of I that pick the held
+// actuators; null where that matrix is singular (a pivot of its LU factors exactly zero).
+class Held {
+ public:
+  Held(std::vector<Eigen::Index> rows, Eigen::Index n) : rows_(std::move(rows)) {
+    if (std::any_of(rows_.begin(), rows_.end(), [n](auto r) { return r < 0 || r >= n; }))
+      throw py::value_error("the held actuators' rows must be among the n actuators");
+  }
+
+  template <class JH, class Velocity, class Rates>
+  const Eigen::VectorXd* operator()(const JH& J, const Velocity& y_dot, const Rates& held) {
+    const auto m = J.rows(), n = J.cols(), h = Eigen::Index(rows_.size());
+    if (m + h != n || held.size() != h)
+      throw py::value_error("a held law holds n − m actuators, one rate each");
+    K_.setZero(n, n);
+    K_.topRows(m) = J;
+    target_.resize(n);
+    target_.head(m) = y_dot;
+    target_.tail(h) = held;
+    for (Eigen::Index i = 0; i < h; ++i) K_(m + i, rows_[std::size_t(i)]) = 1;
+    factor_.compute(K_);
+    if (zero_pivot(factor_)) return nullptr;
+    x_dot_ = factor_.solve(target_);
+    return &x_dot_;
+  }
+
+  const std::vector<Eigen::Index>& rows() const { return rows_; }
+
+ private:
+  std::vector<Eigen::Index> rows_;
+  Dense K_;
+  Factor factor_;
+  Eigen::VectorXd target_, x_dot_;
+};
+
+// The held law on a batch: J_H (k, m, n), ẏ (k, m), the held rows (h) and their rates (k, h):
+// ẋ (k, n); numpy's LinAlgError where [J_H; E_h] is singular, as `solve` raises it.
+inline Array held(const Array& J_H, const Array& y_dot, std::vector<Eigen::Index> rows,
+                  const Array& rates) {
+  if (J_H.ndim() != 3 || y_dot.ndim() != 2 || rates.ndim() != 2 || y_dot.shape(0) != J_H.shape(0) ||
+      y_dot.shape(1) != J_H.shape(1) || rates.shape(0) != J_H.shape(0))
+    throw py::value_error("held takes J_H (k, m, n), y_dot (k, m) and the held rates (k, h)");
+  const auto k = J_H.shape(0), m = J_H.shape(1), n = J_H.shape(2), h = rates.shape(1);
+  Held law(std::move(rows), n);
+  Array out({k, n});
+  for (py::ssize_t i = 0; i < k; ++i) {
+    const auto* x_dot = law(at(J_H, i, m, n), at(y_dot, i, 1, m).transpose(),
+                            at(rates, i, 1, h).transpose());
+    if (!x_dot) singular_matrix();
+    at(out, i, 1, n) = x_dot->transpose();
+  }
+  return out;
+}
 
 // The kernel on a batch: J_H (k, m, n), ẏ (k, m), W (k, n, n) or None, z (k, n) or None: ẋ (k, n).
 inline Array resolve(const Array& J_H, const Array& y_dot, const std::optional<Array>& W,

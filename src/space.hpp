@@ -237,6 +237,18 @@ inline Array biases(const Array& A, const Array& N, const Array& M_H, const Arra
   return out;
 }
 
+// Whether a pivot of LU factors is exactly zero, as LAPACK's test of a singular matrix.
+inline bool zero_pivot(const Factor& factor) {
+  return (factor.matrixLU().diagonal().array() == 0).any();
+}
+
+// numpy's LinAlgError, "Singular matrix", raised in Python.
+[[noreturn]] inline void singular_matrix() {
+  PyErr_SetString(py::module_::import("numpy.linalg").attr("LinAlgError").ptr(),
+                  "Singular matrix");
+  throw py::error_already_set();
+}
+
 // X = A⁻¹ B for A (k, n, n) and B (k, n, p) or (k, n); numpy's LinAlgError where a pivot of A's
 // factors is exactly zero, as LAPACK's.
 inline Array solve(const Array& A, const Array& B) {
@@ -247,11 +259,7 @@ inline Array solve(const Array& A, const Array& B) {
   Factor factor(n);
   for (py::ssize_t i = 0; i < k; ++i) {
     factor.compute(at(A, i, n, n));
-    if ((factor.matrixLU().diagonal().array() == 0).any()) {
-      PyErr_SetString(py::module_::import("numpy.linalg").attr("LinAlgError").ptr(),
-                      "Singular matrix");
-      throw py::error_already_set();
-    }
+    if (zero_pivot(factor)) singular_matrix();
     at(out, i, n, p) = factor.solve(at(B, i, n, p));
   }
   return out;

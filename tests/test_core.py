@@ -429,6 +429,23 @@ def test_the_controllers_state_refuses_what_actuator_space_refuses_in_the_same_w
         Controller(crane, MinVelocityNorm()).state(np.ones((2, 3)))
 
 
+def test_the_held_law_solves_its_defining_equations(crane):
+    """`_core.held`: the task resolved, J_H ẋ = ẏ, and the held actuators at their rates,
+    ẋ_h = E_h ẋ, to 1e-12 relative, on states of the crane with x3 or x1 held; numpy's
+    LinAlgError where [J_H; E_h] is singular."""
+    space = actuator_space(crane, random_configurations(crane, 8, seed=61, margin=0.05))
+    rng = np.random.default_rng(62)
+    y_dot, held = rng.normal(size=(8, 2)), rng.normal(size=(8, 1))
+    for rows in ([2], [0]):
+        x_dot = _core.held(space.J_H, y_dot, rows, held)
+        assert_equal_relative((space.J_H @ x_dot[..., None])[..., 0], y_dot)
+        assert_equal_relative(x_dot[:, rows], held)
+    J_H = space.J_H.copy()
+    J_H[0, :, :2] = [[1.0, 2.0], [2.0, 4.0]]  # x1 and x2 alone cannot resolve the task
+    with pytest.raises(np.linalg.LinAlgError, match="Singular matrix"):
+        _core.held(J_H, y_dot, [2], held)
+
+
 def test_the_controller_takes_a_robot_and_a_law(crane):
     with pytest.raises(InvalidInputError, match="a controller takes a law, a Resolver"):
         Controller(crane, "velocity")

@@ -10,6 +10,7 @@ from joint_space import fk, inverse_dynamics
 
 from redundancy import InvalidInputError, actuator_space
 from redundancy.planning import integrate
+from redundancy.planning.cycles import HeldReference
 from redundancy.planning.ik import inverse_kinematics
 from redundancy.planning.integrate import simulate
 from redundancy.planning.tasks import Segment, WorkCycle
@@ -224,6 +225,51 @@ def test_the_compiled_right_hand_side_is_the_laws_own(crane, cycle, resolver, mo
             a, b = getattr(ours, name), getattr(python, name)
             np.testing.assert_allclose(a, b, rtol=0, atol=close * np.abs(b).max())
     assert compiled[1].stopped.any()  # the loop stopped motions past their strokes
+
+
+def test_a_held_law_runs_in_the_compiled_loop_as_in_python(crane, cycle, monkeypatch):
+    """A periodic plan's law (`HeldReference`: x3 follows r(t), the others the task, with
+    feedback on both) integrates in the core's loop, its held rates called once per batch, to
+    the motions its Python right-hand side gives: on the grid to rounding, and its held
+    actuator, from starts off the plan, on r(t) once the feedback has settled."""
+    segment = cycle["1-2"]
+    starts = reachable_starts(crane, segment, np.linspace(0.7, 1.0, 4))
+    nodes = np.linspace(0.0, segment.duration, 9)
+    plan = 0.9 + 0.15 * np.sin(2 * np.pi * nodes / segment.duration)
+    law = HeldReference(2, nodes, plan)
+    assert integrate.compiled_rates(crane, law) is not None
+
+    def motion():
+        return simulate(crane, law, segment, starts, gain=1.0)
+
+    stages = []
+    stage = integrate.Law.stage
+    monkeypatch.setattr(
+        integrate.Law, "stage", lambda self, t, q: stages.append(t) or stage(self, t, q)
+    )
+    compiled = motion()
+    assert not stages  # no stage fell back to Python
+    monkeypatch.setattr(integrate, "compiled_rates", lambda robot, law: None)
+    python = motion()
+    assert stages
+    for name in ("t", "q", "x", "x_dot"):
+        a, b = getattr(compiled, name), getattr(python, name)
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * np.abs(b).max())
+    settled = compiled.t > 10 / law.gain  # ten time constants of the held feedback
+    lag = np.abs(compiled.x[:, :, 2] - law.reference(compiled.t)[..., 0])[settled]
+    assert lag.max() < 1e-5, lag.max()
+    assert np.ptp(compiled.x[:, 0, 2]) > 0.05  # the starts were not on the plan alike
+
+
+def test_a_held_law_of_your_own_runs_in_python(crane):
+    """A subclass that answers `resolve_at` itself is its own law: the core does not run it."""
+
+    class Mine(HeldReference):
+        def resolve_at(self, space, y_dot, t):
+            return super().resolve_at(space, y_dot, t)
+
+    nodes = np.linspace(0.0, 1.0, 5)
+    assert integrate.compiled_rates(crane, Mine(2, nodes, np.full(5, 0.9))) is None
 
 
 def test_a_path_that_evaluates_the_robot_within_a_step_changes_no_solve(crane, cycle, monkeypatch):

@@ -57,13 +57,11 @@ from redundancy.planning.starts import (
     improved_start,
 )
 from redundancy.planning.tasks import Chain, Segment, WorkCycle, finite_vector
-from redundancy.resolution.laws import Resolver
+from redundancy.resolution.laws import HeldRates, Resolver
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
 from redundancy.resolution.limits import Limits
-from redundancy.resolution.linalg import solve
 from redundancy.resolution.objectives import VELOCITY, Objective
 from redundancy.resolution.objectives import objective as as_objective
-from redundancy.resolution.state import ActuatorSpace
 
 CYCLES = 20  # repetitions by default
 SETTLED = 1e-6  # m (or rad): a cycle whose every actuator moves less than this is closed
@@ -524,10 +522,10 @@ def return_map(
     return ReturnMap(name, values, following, within)
 
 
-class HeldReference(Resolver):
+class HeldReference(HeldRates):
     """Runs a periodic plan: the held actuators follow the plan's r(t) along one segment (t in
     s from the segment's start), ẋ_h = ṙ(t) + k (r(t) − x_h), and the others resolve the task,
-    J_H ẋ = ẏ: the one ẋ solving [J_H; E_h] ẋ = [ẏ; ẋ_h] (n equations, r = n − m held).
+    J_H ẋ = ẏ (`HeldRates`: the one ẋ solving [J_H; E_h] ẋ = [ẏ; ẋ_h], r = n − m held).
     r(t) is the cubic spline through the plan's nodes, (N,) or (N, r) (twice differentiable, so
     the integrator steps over the nodes; ``periodic`` where one segment is the whole cycle)."""
 
@@ -541,7 +539,7 @@ class HeldReference(Resolver):
         gain: float = HELD_GAIN,
         periodic=False,
     ):
-        self.rows = [int(rows)] if isinstance(rows, int | np.integer) else list(rows)
+        super().__init__(rows)
         self.gain = gain
         r = np.reshape(r, (len(t), len(self.rows)))
         self.reference = CubicSpline(t, r, bc_type="periodic" if periodic else "not-a-knot")
@@ -550,16 +548,9 @@ class HeldReference(Resolver):
     def __repr__(self) -> str:
         return f"HeldReference(rows={self.rows}, gain={self.gain})"
 
-    def resolve(self, space: ActuatorSpace, y_dot: np.ndarray) -> np.ndarray:
-        raise InvalidInputError("this law follows a plan in time; call resolve_at(space, ẏ, t)")
-
-    def resolve_at(self, space: ActuatorSpace, y_dot: np.ndarray, t: np.ndarray) -> np.ndarray:
-        t = np.broadcast_to(np.asarray(t, dtype=float), (len(space.x),))
-        held = self.rate(t) + self.gain * (self.reference(t) - space.x[:, self.rows])
-        n = space.x.shape[1]
-        K = np.concatenate([space.J_H, np.eye(n)[self.rows][None].repeat(len(t), 0)], 1)
-        rhs = np.concatenate([y_dot, held], axis=1)
-        return solve(K, rhs[..., None])[..., 0]
+    def held_velocity(self, t: np.ndarray, x_h: np.ndarray) -> np.ndarray:
+        """ẋ_h = ṙ(t) + k (r(t) − x_h), (k, h)."""
+        return self.rate(t) + self.gain * (self.reference(t) - x_h)
 
 
 @dataclass(frozen=True, eq=False)

@@ -23,6 +23,7 @@ W and z.
 from __future__ import annotations
 
 import functools
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -183,6 +184,31 @@ class GradientProjection(Resolver):
         return -self.gain * scale, middle
 
 
+class HeldRates(Resolver):
+    """A law that moves the held actuators ``rows`` (n − m of them) at rates of its own,
+    ẋ_h = `held_velocity`(t, x_h), and the others so as to resolve the task, J_H ẋ = ẏ: the one
+    ẋ solving [J_H; E_h] ẋ = [ẏ; ẋ_h] (n equations; E_h the rows of I that pick the held
+    actuators), by the compiled core (`_core.held`), in the integrators' loop too. It depends on
+    time, so it answers `resolve_at` only. A subclass gives `held_velocity`
+    (`redundancy.planning.cycles.HeldReference`: a periodic plan's r(t) followed with feedback).
+    """
+
+    def __init__(self, rows: int | Sequence[int]):
+        self.rows = [int(rows)] if isinstance(rows, int | np.integer) else list(rows)
+
+    def held_velocity(self, t: np.ndarray, x_h: np.ndarray) -> np.ndarray:
+        """ẋ_h (k, h) at times t (k,) s where the held actuators' strokes are x_h (k, h)."""
+        raise NotImplementedError
+
+    def resolve(self, space: ActuatorSpace, y_dot: np.ndarray) -> np.ndarray:
+        raise InvalidInputError("this law follows a plan in time; call resolve_at(space, ẏ, t)")
+
+    def resolve_at(self, space: ActuatorSpace, y_dot: np.ndarray, t: np.ndarray) -> np.ndarray:
+        t = np.broadcast_to(np.asarray(t, dtype=float), (len(space.x),))
+        rates = self.held_velocity(t, space.x[:, self.rows])
+        return _core.held(space.J_H, y_dot, self.rows, rates)
+
+
 class Controller:
     """A law bound to a robot for a control loop: ``Controller(robot, law).step(q, y_dot)``.
 
@@ -275,8 +301,13 @@ def compiled(robot: Robot, law: Resolver, fallback, state_fallback) -> _core.Con
 def compiled_rates(robot: Robot, law: Resolver) -> _core.Rates | None:
     """The compiled right-hand side q̇ = A⁻¹ ẋ of ``law`` on ``robot`` for the integrator
     (`redundancy.planning.integrate`), or None where the core cannot run it alone: a kind, a
-    task or a law of your own (``resolve_at`` overridden too, e.g. a law that follows a plan in
-    time)."""
+    task or a law of your own (``resolve_at`` overridden too). A `HeldRates` law runs in the
+    core with its ``held_velocity`` called once per batch."""
+    if isinstance(law, HeldRates):
+        evaluator = robot.evaluator()
+        if evaluator is None or type(law).resolve_at is not HeldRates.resolve_at:
+            return None
+        return _core.Rates(evaluator, law.rows, law.held_velocity)
     found = rule(robot, law, ("resolve", "resolve_at"))
     return None if found is None else _core.Rates(robot.evaluator(), *found, SINGULAR_RATIO)
 
