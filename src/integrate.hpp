@@ -71,8 +71,9 @@ class Rates {
     if (t.ndim() != 1 || t.shape(0) != r)
       throw py::value_error("t must have shape (r,), one time per state");
     const Array y_dot = task_velocity(velocity, t, evaluated[9], m);
-    const Array targets = held_ ? held_rates(t, x) : Array();
-    const auto h = held_ ? targets.shape(1) : 0;
+    std::optional<Array> targets;  // a held law's rates (r, h)
+    if (held_) targets = held_rates(t, x);
+    const auto h = targets ? targets->shape(1) : 0;
     Array x_dot({r, n}), q_dot({r, n});
     auto* flags = bad.mutable_data();
     for (py::ssize_t i = 0; i < r; ++i) {
@@ -84,7 +85,7 @@ class Rates {
       auto& factors = factors_[std::size_t(i)];  // of Aᵀ, as the evaluation derived them
       const auto y_dot_i = at(y_dot, i, 1, m).transpose();
       const auto* solved =
-          held_ ? (*held_)(at(J_H, i, m, n), y_dot_i, at(targets, i, 1, h).transpose())
+          held_ ? (*held_)(at(J_H, i, m, n), y_dot_i, at(*targets, i, 1, h).transpose())
                 : (*rule_)(evaluator.pass(), q.data() + i * n, at(x, i, 1, n).transpose(),
                            factors, at(J_H, i, m, n), y_dot_i);
       if (!solved) return std::nullopt;

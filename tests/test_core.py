@@ -2,7 +2,9 @@
 for the pass, the closed forms of a cylinder's span and of the laws' kernel, to 1e-12
 relative; and Python kinds and laws of a user's own, through every path."""
 
+import gc
 import warnings
+import weakref
 from pathlib import Path
 
 import numpy as np
@@ -24,6 +26,7 @@ from redundancy import (
 from redundancy.model.actuators import ActuatorSet
 from redundancy.planning.cycles import repeat
 from redundancy.planning.starts import improved_start
+from redundancy.resolution import laws
 from redundancy.resolution.laws import (
     SINGULAR_RATIO,
     GradientProjection,
@@ -360,10 +363,20 @@ def test_the_controller_refuses_what_the_resolver_refuses_in_the_same_words(
     assert message in str(ours.value)
 
 
-def test_the_controllers_state_is_the_actuator_space_on_every_robot(robot):
+def fallbacks(monkeypatch) -> list:
+    """The states a controller built from now on hands to its Python path (`python_state`)."""
+    handed: list = []
+    python = laws.python_state
+    monkeypatch.setattr(laws, "python_state", lambda robot, q: handed.append(q) or python(robot, q))
+    return handed
+
+
+def test_the_controllers_state_is_the_actuator_space_on_every_robot(robot, monkeypatch):
     """One compiled call gives `actuator_space`'s x, A and J_H at a state, and M_H as its
     defining equation, A⁻ᵀ M A⁻¹ with M by Pinocchio's own CRBA, to 1e-12 relative, on every
-    bundled robot and one with a mimic joint (M_H None on a robot without masses)."""
+    bundled robot and one with a mimic joint (M_H None on a robot without masses); none of
+    them through the Python path."""
+    handed = fallbacks(monkeypatch)
     controller = Controller(robot, MinVelocityNorm())
     assert controller.is_compiled
     model = robot.model
@@ -380,14 +393,16 @@ def test_the_controllers_state_is_the_actuator_space_on_every_robot(robot):
         M = np.triu(M) + np.triu(M, 1).T
         inverse = np.linalg.inv(space.A[0])
         assert_equal_relative(state.M_H, inverse.T @ M @ inverse)
+    assert not handed
 
 
-def test_the_controllers_state_has_no_M_H_on_a_robot_without_masses():
+def test_the_controllers_state_has_no_M_H_on_a_robot_without_masses(monkeypatch):
     """A kinematic-only robot: the compiled state's x, A and J_H are `actuator_space`'s, and
     M_H, undefined, is None."""
     with pytest.warns(UserWarning, match="the robot is kinematic only"):
         robot = load_robot(MASSLESS)
     assert robot.kinematic_only
+    handed = fallbacks(monkeypatch)
     controller = Controller(robot, MinVelocityNorm())
     assert controller.is_compiled
     for q in random_configurations(robot, 4, seed=60, margin=0.05):
@@ -395,6 +410,7 @@ def test_the_controllers_state_has_no_M_H_on_a_robot_without_masses():
         assert state.M_H is None
         for mine, reference in zip(state[:3], (space.x[0], space.A[0], space.J_H[0])):
             assert_equal_relative(mine, reference)
+    assert not handed
 
 
 def test_a_users_own_kind_gives_its_state_through_the_controller_in_python(geared):
@@ -414,19 +430,32 @@ STATE_ERRORS = [
 
 @pytest.mark.parametrize("q, message", STATE_ERRORS)
 def test_the_controllers_state_refuses_what_actuator_space_refuses_in_the_same_words(
-    crane, q, message
+    crane, q, message, monkeypatch
 ):
-    """A NaN, a wrong shape or a singular A: the compiled state refuses it with
-    `actuator_space`'s one line; two states at once, with its own."""
+    """A NaN, a wrong shape or a singular A: the compiled state hands it to the Python path,
+    which refuses it with `actuator_space`'s one line; two states at once, with its own."""
     with pytest.raises(RedundancyError) as theirs:
         actuator_space(crane, np.array(q))
+    handed = fallbacks(monkeypatch)
     with pytest.raises(RedundancyError) as ours:
         Controller(crane, MinVelocityNorm()).state(np.array(q))
+    assert len(handed) == 1
     assert type(ours.value) is type(theirs.value)
     assert str(ours.value) == str(theirs.value)
     assert message in str(ours.value)
     with pytest.raises(InvalidInputError, match=r"a state takes one q \(3,\); got shape \(2, 3\)"):
         Controller(crane, MinVelocityNorm()).state(np.ones((2, 3)))
+
+
+def test_a_controller_is_freed_once_dropped(crane):
+    """Its compiled object keeps the Python fallbacks, which must not keep the controller: a
+    cycle through the core's object is one the garbage collector cannot see."""
+    controller = Controller(crane, MinVelocityNorm())
+    assert controller.is_compiled
+    dropped = weakref.ref(controller)
+    del controller
+    gc.collect()
+    assert dropped() is None
 
 
 def test_the_held_law_solves_its_defining_equations(crane):

@@ -60,8 +60,8 @@ class Step(NamedTuple):
 class State(NamedTuple):
     """The robot in actuator coordinates at one configuration, as a control loop reads it:
     strokes x (n,), A = ∂x/∂q (n, n) (Eq. 10), J_H = J A⁻¹ (m, n) (Eq. 16) and
-    M_H = A⁻ᵀ M A⁻¹ (n, n) (Eq. 22), kg, the mass each actuator moves (None on a robot without
-    masses)."""
+    M_H = A⁻ᵀ M A⁻¹ (n, n) (Eq. 22), the mass each actuator moves (kg; kg·m² where an actuator
+    turns), None on a robot without masses."""
 
     x: np.ndarray
     A: np.ndarray
@@ -237,6 +237,9 @@ class Controller:
             )
         self.robot, self.law = robot, law
         self._python = functools.partial(law.step, robot)
+        # the core keeps both fallbacks: neither may hold this object, a cycle through the
+        # compiled object that the garbage collector cannot see
+        self._python_state = functools.partial(python_state, robot)
         self._compiled = compiled(robot, law, self._python, self._python_state)
 
     def __repr__(self) -> str:
@@ -262,15 +265,15 @@ class Controller:
             return self._python_state(q)
         return self._compiled.state(q)
 
-    def _python_state(self, q) -> State:
-        states = self.robot.configuration(q)
-        if len(states) != 1:
-            raise InvalidInputError(
-                f"a state takes one q ({self.robot.n},); got shape {np.shape(q)}"
-            )
-        space = actuator_space(self.robot, states)
-        M_H = None if self.robot.kinematic_only else space.M_H[0]
-        return State(space.x[0], space.A[0], space.J_H[0], M_H)
+
+def python_state(robot: Robot, q) -> State:
+    """`Controller.state` through `actuator_space`, with its checks and errors."""
+    states = robot.configuration(q)
+    if len(states) != 1:
+        raise InvalidInputError(f"a state takes one q ({robot.n},); got shape {np.shape(q)}")
+    space = actuator_space(robot, states)
+    M_H = None if robot.kinematic_only else space.M_H[0]
+    return State(space.x[0], space.A[0], space.J_H[0], M_H)
 
 
 def compiled(robot: Robot, law: Resolver, fallback, state_fallback) -> _core.Controller | None:
