@@ -20,16 +20,34 @@ struct Stage {
 };
 
 // The task velocity ẏ (r, m) at times t (r,) where the tool is at y (r, m): `velocity` is ẏ
-// itself, (m,), where it is constant along the path, or a Python callable (t, y) → ẏ (r, m).
+// itself, (m,), where it is constant along the path; (y_d(0), ẏ_d, K) on such a path in closed
+// loop, ẏ = ẏ_d + K (y_d(0) + ẏ_d t − y); or a Python callable (t, y) → ẏ (r, m).
 inline Array task_velocity(const py::object& velocity, const Array& t, const py::object& y,
                            py::ssize_t m) {
   const auto r = t.shape(0);
+  const auto constant = [m](const py::handle& value) {
+    const auto out = value.cast<Array>();
+    if (out.ndim() != 1 || out.shape(0) != m)
+      throw py::value_error("a constant task velocity and its path's start must have shape (m,)");
+    return out;
+  };
   if (py::isinstance<Array>(velocity)) {
-    const auto steady = velocity.cast<Array>();
-    if (steady.ndim() != 1 || steady.shape(0) != m)
-      throw py::value_error("a constant task velocity must have shape (m,)");
+    const auto steady = constant(velocity);
     Array out({r, m});
     for (py::ssize_t i = 0; i < r; ++i) at(out, i, 1, m) = at(steady, 0, 1, m);
+    return out;
+  }
+  if (py::isinstance<py::tuple>(velocity)) {
+    const auto loop = velocity.cast<py::tuple>();
+    if (loop.size() != 3) throw py::value_error("a closed loop is (y_d(0), ẏ_d, K)");
+    const auto start = constant(loop[0]), steady = constant(loop[1]);
+    const double gain = loop[2].cast<double>();
+    const auto tool = y.cast<Array>();
+    Array out({r, m});
+    for (py::ssize_t i = 0; i < r; ++i) {
+      const auto target = at(start, 0, 1, m) + t.at(i) * at(steady, 0, 1, m);
+      at(out, i, 1, m) = at(steady, 0, 1, m) + gain * (target - at(tool, i, 1, m));
+    }
     return out;
   }
   const Array out = velocity(t, y);
@@ -39,8 +57,8 @@ inline Array task_velocity(const py::object& velocity, const Array& t, const py:
 }
 
 // q̇(t, q) = A⁻¹ ẋ of a built-in law at states evaluated by the compiled `Evaluator`, for the
-// task velocity given by `velocity` (`task_velocity`: constant, or one call of Python per
-// batch): a weighted pseudoinverse (`Rule`), or a held law (`Held`) whose held actuators' rates
+// task velocity given by `velocity` (`task_velocity`: constant, with its closed loop on a
+// steady path, or one call of Python per batch): a weighted pseudoinverse (`Rule`), or a held law (`Held`) whose held actuators' rates
 // `held(t, x_h)` → (r, h) Python gives, once per batch, from the times and their strokes. Its
 // record is (the evaluator's tuple, ẋ, q̇), which is also what a call from Python returns
 // (`Law.__call__`: the first states, the samples between steps and on a grid). A state a kind

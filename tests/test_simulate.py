@@ -227,6 +227,31 @@ def test_the_compiled_right_hand_side_is_the_laws_own(crane, cycle, resolver, mo
     assert compiled[1].stopped.any()  # the loop stopped motions past their strokes
 
 
+def test_the_closed_loop_on_a_straight_segment_runs_in_the_core(crane, cycle, monkeypatch):
+    """With feedback K on a straight segment at constant speed, the core's loop adds
+    K (y_d(0) + ẏ_d t − y) itself, calling back to the path at no stage, and gives the motions
+    those calls give (`Law.velocity`, y_d(t) from the path), on the grid to rounding."""
+    segment = cycle["2-3"]
+    starts = reachable_starts(crane, segment, np.linspace(0.2, 0.9, 5))
+    calls = []
+    velocity = integrate.Law.velocity
+    monkeypatch.setattr(
+        integrate.Law, "velocity", lambda self, t, y: calls.append(t) or velocity(self, t, y)
+    )
+
+    def motion():
+        return simulate(crane, VELOCITY.resolver, segment, starts, gain=2.0)
+
+    compiled = motion()
+    assert not calls
+    monkeypatch.setattr(integrate.Law, "loop_velocity", property(lambda self: self.velocity))
+    called = motion()
+    assert calls
+    for name in ("t", "q", "x", "x_dot"):
+        a, b = getattr(compiled, name), getattr(called, name)
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * np.abs(b).max())
+
+
 def test_a_held_law_runs_in_the_compiled_loop_as_in_python(crane, cycle, monkeypatch):
     """A periodic plan's law (`HeldReference`: x3 follows r(t), the others the task, with
     feedback on both) integrates in the core's loop, its held rates called once per batch, to

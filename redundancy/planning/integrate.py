@@ -561,10 +561,14 @@ class Law:
 
     @property
     def loop_velocity(self):
-        """What the core's loop reads ẏ from: ẏ_d itself (m,) where it is constant (a steady
-        segment in open loop), else `velocity`, called once per batch."""
-        steady = not self.gain and isinstance(self.segment, Segment) and self.segment.steady
-        return self.segment.velocity if steady else self.velocity
+        """What the core's loop reads ẏ from: on a steady segment, where ẏ_d is constant and
+        y_d(t) = y_d(0) + ẏ_d t, ẏ_d itself (m,) in open loop and (y_d(0), ẏ_d, K) in closed
+        loop; else `velocity`, called once per batch."""
+        if not (isinstance(self.segment, Segment) and self.segment.steady):
+            return self.velocity
+        if not self.gain:
+            return self.segment.velocity
+        return self.segment.position(0.0), self.segment.velocity, float(self.gain)
 
     @cached_property
     def compiled(self) -> _core.Rates | None:
