@@ -28,7 +28,7 @@ inline Array task_velocity(const py::object& velocity, const Array& t, const py:
   const auto constant = [m](const py::handle& value) {
     const auto out = value.cast<Array>();
     if (out.ndim() != 1 || out.shape(0) != m)
-      throw py::value_error("a constant task velocity and its path's start must have shape (m,)");
+      throw py::value_error("a constant ẏ_d and its path's start must have shape (m,)");
     return out;
   };
   if (py::isinstance<Array>(velocity)) {
@@ -58,12 +58,12 @@ inline Array task_velocity(const py::object& velocity, const Array& t, const py:
 
 // q̇(t, q) = A⁻¹ ẋ of a built-in law at states evaluated by the compiled `Evaluator`, for the
 // task velocity given by `velocity` (`task_velocity`: constant, with its closed loop on a
-// steady path, or one call of Python per batch): a weighted pseudoinverse (`Rule`), or a held law (`Held`) whose held actuators' rates
-// `held(t, x_h)` → (r, h) Python gives, once per batch, from the times and their strokes. Its
-// record is (the evaluator's tuple, ẋ, q̇), which is also what a call from Python returns
-// (`Law.__call__`: the first states, the samples between steps and on a grid). A state a kind
-// refused is bad, as where A is singular. None where the core cannot serve the states (Python
-// evaluates them again and raises its error).
+// steady path, or one call of Python per batch): a weighted pseudoinverse (`Rule`), or a held
+// law (`Held`) whose held actuators' rates `held(t, x_h)` → (r, h) Python gives, once per
+// batch, from the times and their strokes. Its record is (the evaluator's tuple, ẋ, q̇), which
+// is also what a call from Python returns (`Law.__call__`: the first states, the samples between
+// steps and on a grid). A state a kind refused is bad, as where A is singular. None where the
+// core cannot serve the states (Python evaluates them again and raises its error).
 class Rates {
  public:
   Rates(py::object evaluator, int weight, const std::optional<Array>& W,
