@@ -56,7 +56,7 @@ class Controller {
     const auto* x_dot = rule_(pass_, qi, x_, factors_, J_H_, Vector(yi, m));
     if (!x_dot) return fallback_(q, y_dot);
     factors_.solve(*x_dot, q_dot_);  // q̇ = A⁻¹ ẋ
-    return filled(result_, {vector(*x_dot), vector(q_dot_), vector(y_)});
+    return filled(result_, {array(*x_dot), array(q_dot_), array(y_)});
   }
 
   // x, A, J_H and M_H = A⁻ᵀ M A⁻¹ at q, by the step's own evaluation.
@@ -68,9 +68,9 @@ class Controller {
       const Dense& M = pass_.mass(qi);
       if (!(M.diagonal().array() > 0).all()) return state_fallback_(q);
       inertia(factors_, M, first_, second_, M_H_);
-      M_H = matrix(M_H_);
+      M_H = array(M_H_);
     }
-    return filled(state_, {vector(x_), matrix(A_), matrix(J_H_), M_H});
+    return filled(state_, {array(x_), array(A_), array(J_H_), M_H});
   }
 
  private:
@@ -103,19 +103,6 @@ class Controller {
     py::ssize_t i = 0;
     for (const auto& item : items) PyTuple_SET_ITEM(out, i++, item.inc_ref().ptr());
     return py::reinterpret_steal<py::object>(out);
-  }
-
-  static Array vector(const Eigen::VectorXd& values) {
-    Array out(values.size());
-    Eigen::Map<Eigen::VectorXd>(out.mutable_data(), values.size()) = values;
-    return out;
-  }
-
-  template <class Values>
-  static Array matrix(const Eigen::MatrixBase<Values>& values) {
-    Array out({values.rows(), values.cols()});
-    Eigen::Map<Matrix>(out.mutable_data(), values.rows(), values.cols()) = values;
-    return out;
   }
 
   Pass pass_;

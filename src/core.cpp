@@ -65,7 +65,11 @@ PYBIND11_MODULE(_core, m) {
       .def(
           "__call__",
           [](Rates& rates, const Array& t, const Array& q, const py::object& velocity) {
-            const auto stage = rates(t, q, velocity);
+            if (q.ndim() != 2) return py::object(py::none());  // Python says what is wrong
+            if (t.ndim() != 1 || t.shape(0) != q.shape(0))
+              throw py::value_error("t must have shape (r,), one time per state");
+            const auto stage =
+                rates(Vector(t.data(), t.size()), at(q, 0, q.shape(0), q.shape(1)), velocity, true);
             return stage ? stage->record : py::object(py::none());
           },
           py::arg("t"), py::arg("q"), py::arg("velocity"));

@@ -10,60 +10,53 @@
 
 #include "rule.hpp"
 
-// What a right-hand side gives at r states: q̇ (r, n), where the state is bad (r,) (A singular or
-// not finite: there q̇ = 0), the strokes x (r, n), and its record of the states (kept, for the
-// ends of accepted steps, where the integration samples them).
+// What a right-hand side gives at r states: q̇ (r, n), the strokes x (r, n), where the state is
+// bad (r,) (A singular or not finite, or a kind refused it: there q̇ = 0) and, where asked, its
+// record of the states (for the ends of accepted steps, where the integration samples them).
 struct Stage {
+  Matrix q_dot, x;
+  std::vector<bool> bad;
   py::object record;
-  Array q_dot, x;
-  py::array_t<bool> bad;
 };
 
 // The task velocity ẏ (r, m) at times t (r,) where the tool is at y (r, m): `velocity` is ẏ
 // itself, (m,), where it is constant along the path; (y_d(0), ẏ_d, K) on such a path in closed
 // loop, ẏ = ẏ_d + K (y_d(0) + ẏ_d t − y); or a Python callable (t, y) → ẏ (r, m).
-inline Array task_velocity(const py::object& velocity, const Array& t, const py::object& y,
-                           py::ssize_t m) {
-  const auto r = t.shape(0);
+inline Matrix task_velocity(const py::object& velocity, const Eigen::VectorXd& t, const Matrix& y) {
+  const auto r = y.rows(), m = y.cols();
   const auto constant = [m](const py::handle& value) {
     const auto out = value.cast<Array>();
     if (out.ndim() != 1 || out.shape(0) != m)
       throw py::value_error("a constant ẏ_d and its path's start must have shape (m,)");
-    return out;
+    return Eigen::RowVectorXd(at(out, 0, 1, m));
   };
-  if (py::isinstance<Array>(velocity)) {
-    const auto steady = constant(velocity);
-    Array out({r, m});
-    for (py::ssize_t i = 0; i < r; ++i) at(out, i, 1, m) = at(steady, 0, 1, m);
-    return out;
-  }
+  if (py::isinstance<Array>(velocity)) return constant(velocity).replicate(r, 1);
   if (py::isinstance<py::tuple>(velocity)) {
     const auto loop = velocity.cast<py::tuple>();
     if (loop.size() != 3) throw py::value_error("a closed loop is (y_d(0), ẏ_d, K)");
     const auto start = constant(loop[0]), steady = constant(loop[1]);
     const double gain = loop[2].cast<double>();
-    const auto tool = y.cast<Array>();
-    Array out({r, m});
-    for (py::ssize_t i = 0; i < r; ++i) {
-      const auto target = at(start, 0, 1, m) + t.at(i) * at(steady, 0, 1, m);
-      at(out, i, 1, m) = at(steady, 0, 1, m) + gain * (target - at(tool, i, 1, m));
-    }
+    Matrix out(r, m);
+    for (Eigen::Index i = 0; i < r; ++i)
+      out.row(i) = steady + gain * (start + t(i) * steady - y.row(i));
     return out;
   }
-  const Array out = velocity(t, y);
+  const Array out = velocity(array(t), array(y));
   if (out.ndim() != 2 || out.shape(0) != r || out.shape(1) != m)
     throw py::value_error("the task velocity must have shape (r, m)");
-  return out;
+  return at(out, 0, r, m);
 }
 
 // q̇(t, q) = A⁻¹ ẋ of a built-in law at states evaluated by the compiled `Evaluator`, for the
 // task velocity given by `velocity` (`task_velocity`: constant, with its closed loop on a
 // steady path, or one call of Python per batch): a weighted pseudoinverse (`Rule`), or a held
 // law (`Held`) whose held actuators' rates `held(t, x_h)` → (r, h) Python gives, once per
-// batch, from the times and their strokes. Its record is (the evaluator's tuple, ẋ, q̇), which
-// is also what a call from Python returns (`Law.__call__`: the first states, the samples between
-// steps and on a grid). A state a kind refused is bad, as where A is singular. None where the
-// core cannot serve the states (Python evaluates them again and raises its error).
+// batch, from the times and their strokes. Where a record is asked for, it is (the evaluator's
+// tuple, ẋ, q̇), which is also what a call from Python returns (`Law.__call__`: the first states,
+// the samples between steps and on a grid); without one, the states are derived without the
+// pass's arrays (`Evaluator::derive`), alike to the last bit. A state a kind refused is bad, as
+// where A is singular. None where the core cannot serve the states (Python evaluates them again
+// and raises its error).
 class Rates {
  public:
   Rates(py::object evaluator, int weight, const std::optional<Array>& W,
@@ -77,57 +70,67 @@ class Rates {
     held_.emplace(std::move(rows), evaluator_.cast<Evaluator&>().pass().n());
   }
 
-  std::optional<Stage> operator()(const Array& t, const Array& q, const py::object& velocity) {
+  std::optional<Stage> operator()(const Eigen::VectorXd& t, const Matrix& q,
+                                  const py::object& velocity, bool record) {
     auto& evaluator = evaluator_.cast<Evaluator&>();
-    const py::object found = evaluator.evaluate(q, py::none(), false, &factors_);
-    if (found.is_none()) return std::nullopt;
-    const auto evaluated = found.cast<py::tuple>();
-    const auto x = evaluated[7].cast<Array>(), A = evaluated[8].cast<Array>();
-    const auto J_H = evaluated[11].cast<Array>();
-    auto bad = evaluated[12].cast<py::array_t<bool>>();
-    const auto r = q.shape(0), n = q.shape(1), m = J_H.shape(1);
-    if (t.ndim() != 1 || t.shape(0) != r)
-      throw py::value_error("t must have shape (r,), one time per state");
-    const Array y_dot = task_velocity(velocity, t, evaluated[9], m);
+    const auto r = q.rows(), n = q.cols();
+    Stage out{Matrix::Zero(r, n), Matrix(), {}, py::none()};
+    py::object evaluated = py::none();
+    if (record) {
+      evaluated = evaluator.evaluate(array(q), py::none(), false, &factors_);
+      if (evaluated.is_none()) return std::nullopt;
+      const auto found = evaluated.cast<py::tuple>();
+      const auto x = found[7].cast<Array>(), y = found[9].cast<Array>();
+      const auto J_H = found[11].cast<Array>();
+      const auto bad = found[12].cast<py::array_t<bool>>();
+      out.x = at(x, 0, r, n);
+      y_ = at(y, 0, r, y.shape(1));
+      J_H_ = at(J_H, 0, r, J_H.shape(1) * n);
+      out.bad.assign(bad.data(), bad.data() + r);
+    } else {
+      evaluator.derive(q, out.x, y_, J_H_, out.bad, factors_);
+    }
+    const auto m = y_.cols();
+    const Matrix y_dot = task_velocity(velocity, t, y_);
     std::optional<Array> targets;  // a held law's rates (r, h)
-    if (held_) targets = held_rates(t, x);
+    if (held_) targets = held_rates(t, out.x);
     const auto h = targets ? targets->shape(1) : 0;
-    Array x_dot({r, n}), q_dot({r, n});
-    auto* flags = bad.mutable_data();
-    for (py::ssize_t i = 0; i < r; ++i) {
-      auto xi = at(x_dot, i, 1, n).transpose();
-      auto vi = at(q_dot, i, 1, n).transpose();
-      xi.setZero();
-      vi.setZero();
-      if (flags[i]) continue;
+    Matrix x_dot = Matrix::Zero(r, n);
+    for (Eigen::Index i = 0; i < r; ++i) {
+      if (out.bad[std::size_t(i)]) continue;
       auto& factors = factors_[std::size_t(i)];  // of Aᵀ, as the evaluation derived them
-      const auto y_dot_i = at(y_dot, i, 1, m).transpose();
+      const auto y_dot_i = y_dot.row(i).transpose();
+      const ConstMatrix J_H_i(J_H_.row(i).data(), m, n);
       const auto* solved =
-          held_ ? (*held_)(at(J_H, i, m, n), y_dot_i, at(*targets, i, 1, h).transpose())
-                : (*rule_)(evaluator.pass(), q.data() + i * n, at(x, i, 1, n).transpose(),
-                           factors, at(J_H, i, m, n), y_dot_i);
+          held_ ? (*held_)(J_H_i, y_dot_i, at(*targets, i, 1, h).transpose())
+                : (*rule_)(evaluator.pass(), q.row(i).data(), out.x.row(i).transpose(), factors,
+                           J_H_i, y_dot_i);
       if (!solved) return std::nullopt;
+      auto vi = out.q_dot.row(i).transpose();
       factors.solve(*solved, vi);  // q̇ = A⁻¹ ẋ
       if (!vi.allFinite()) {
-        flags[i] = true;
+        out.bad[std::size_t(i)] = true;
         vi.setZero();
         continue;
       }
-      xi = *solved;
+      x_dot.row(i) = solved->transpose();
     }
-    return Stage{py::make_tuple(evaluated, x_dot, q_dot), q_dot, x, bad};
+    if (record) {  // its flags as the law found them, q̇ not finite included
+      auto flags = evaluated.cast<py::tuple>()[12].cast<py::array_t<bool>>();
+      std::copy(out.bad.begin(), out.bad.end(), flags.mutable_data());
+      out.record = py::make_tuple(evaluated, array(x_dot), array(out.q_dot));
+    }
+    return out;
   }
 
  private:
   // The held actuators' rates (r, h) at times t (r,), from their strokes among x (r, n).
-  Array held_rates(const Array& t, const Array& x) const {
+  Array held_rates(const Eigen::VectorXd& t, const Matrix& x) const {
     const auto& rows = held_->rows();
-    const auto r = x.shape(0), n = x.shape(1), h = py::ssize_t(rows.size());
-    Array strokes({r, h});
-    for (py::ssize_t i = 0; i < r; ++i)
-      for (py::ssize_t j = 0; j < h; ++j)
-        strokes.mutable_at(i, j) = x.data()[i * n + rows[std::size_t(j)]];
-    const Array out = rates_(t, strokes);
+    const auto r = x.rows(), h = Eigen::Index(rows.size());
+    Matrix strokes(r, h);
+    for (Eigen::Index j = 0; j < h; ++j) strokes.col(j) = x.col(rows[std::size_t(j)]);
+    const Array out = rates_(array(t), array(strokes));
     if (out.ndim() != 2 || out.shape(0) != r || out.shape(1) != h)
       throw py::value_error("the held actuators' rates must have shape (r, h)");
     return out;
@@ -138,14 +141,20 @@ class Rates {
   std::optional<Held> held_;
   py::object rates_;  // a held law's rates, a Python callable (t, x_h) → (r, h)
   std::vector<Factors> factors_;  // each state's, kept by the evaluation for the solves here
+  Matrix y_, J_H_;  // the states' task points and J_H (r, m·n)
 };
 
-// A right-hand side at r states: `Rates` in C++, or a Python callable (t, q) → (record, q̇, bad, x).
+// A right-hand side at r states: `Rates` in C++ (with its record where `record`), or a Python
+// callable (t, q) → (record, q̇, bad, x).
 inline std::optional<Stage> rates_at(const py::object& rates, const py::object& velocity,
-                                     const Array& t, const Array& q) {
-  if (py::isinstance<Rates>(rates)) return rates.cast<Rates&>()(t, q, velocity);
-  const auto out = rates(t, q).cast<py::tuple>();
-  return Stage{out[0], out[1].cast<Array>(), out[3].cast<Array>(), out[2].cast<py::array_t<bool>>()};
+                                     const Eigen::VectorXd& t, const Matrix& q, bool record) {
+  if (py::isinstance<Rates>(rates)) return rates.cast<Rates&>()(t, q, velocity, record);
+  const auto out = rates(array(t), array(q)).cast<py::tuple>();
+  const auto q_dot = out[1].cast<Array>(), x = out[3].cast<Array>();
+  const auto bad = out[2].cast<py::array_t<bool>>();
+  const auto r = q.rows(), n = q.cols();
+  return Stage{at(q_dot, 0, r, n), at(x, 0, r, n),
+               std::vector<bool>(bad.data(), bad.data() + r), out[0]};
 }
 
 // Dormand-Prince 5(4) with error control on q, every start with its own step size (the module
@@ -188,27 +197,27 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
     const auto r = py::ssize_t(rows.size());
     std::vector<double> step(r);
     std::vector<Matrix> slopes(s + 1, Matrix(r, n));  // the stages' q̇
-    Matrix increment(r, n);
+    Matrix increment(r, n), states(r, n);
+    Eigen::VectorXd times(r);
     for (py::ssize_t i = 0; i < r; ++i) {
       step[i] = std::min(h[rows[i]], duration - t[rows[i]]);
       slopes[0].row(i) = at(f, rows[i], 1, n);
     }
     std::optional<Stage> end;
     for (py::ssize_t stage = 1; stage <= s; ++stage) {  // Σ_j a_j K_j, then the stage's q̇
-      Array times(r), states({r, n});
       for (py::ssize_t i = 0; i < r; ++i) {
         increment.row(i).setZero();
         for (py::ssize_t j = 0; j < stage; ++j)
           increment.row(i) += a.at(stage - 1, j) * slopes[j].row(i);
-        times.mutable_data()[i] = t[rows[i]] + c.at(stage - 1) * step[i];
-        at(states, i, 1, n) = at(q, rows[i], 1, n) + step[i] * increment.row(i);
+        times(i) = t[rows[i]] + c.at(stage - 1) * step[i];
+        states.row(i) = at(q, rows[i], 1, n) + step[i] * increment.row(i);
       }
-      end = rates_at(rates, velocity, times, states);
+      // the last stage is the step's end: recorded where the ends are kept (a sample each)
+      end = rates_at(rates, velocity, times, states, keep && stage == s);
       if (!end) return py::none();
-      for (py::ssize_t i = 0; i < r; ++i) {
-        slopes[stage].row(i) = at(end->q_dot, i, 1, n);
-        if (end->bad.at(i)) dead[rows[i]] = true;
-      }
+      slopes[stage] = end->q_dot;
+      for (py::ssize_t i = 0; i < r; ++i)
+        if (end->bad[std::size_t(i)]) dead[rows[i]] = true;
     }
     std::vector<py::ssize_t> accepted;
     for (py::ssize_t i = 0; i < r; ++i) {
@@ -239,7 +248,7 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
       h[row] = step[i] * (accept ? growth : std::min(growth, 1.0));
       if (h[row] < 1e-9 * duration) dead[row] = true;
       if (accept && stop) {
-        const auto x = at(end->x, i, 1, n);
+        const auto x = end->x.row(i);
         for (py::ssize_t j = 0; j < n; ++j)
           if (std::max(lower.at(j) - x(j), x(j) - upper.at(j)) > allowance) past[row] = true;
       }

@@ -189,6 +189,20 @@ inline Eigen::Map<Matrix> at(Array& a, py::ssize_t i, py::ssize_t rows, py::ssiz
   return Eigen::Map<Matrix>(a.mutable_data() + i * rows * cols, rows, cols);
 }
 
+// A copy of `values` as a numpy array: (size,) of a vector, (rows, cols) of a matrix.
+inline Array array(const Eigen::VectorXd& values) {
+  Array out(values.size());
+  Eigen::Map<Eigen::VectorXd>(out.mutable_data(), values.size()) = values;
+  return out;
+}
+
+template <class Values>
+Array array(const Eigen::MatrixBase<Values>& values) {
+  Array out({values.rows(), values.cols()});
+  Eigen::Map<Matrix>(out.mutable_data(), values.rows(), values.cols()) = values;
+  return out;
+}
+
 // J_H (k, m, n) and where A is singular (k,) bool, for A (k, n, n) and J (k, m, n); J_H is
 // meaningless where A is singular.
 inline py::tuple derive(const Array& A, const Array& J, double tolerance) {
@@ -342,25 +356,39 @@ class Evaluator {
       const double* qi = qa->data() + i * n;
       const double* vi = va ? va->data() + i * n : nullptr;
       const Frames s = pass_.write(qi, vi, i, positions, linear, angular, velocities, rates);
-      const auto [actuator, status] =
-          actuation_(s, qi, vi, x.mutable_data() + i * n, A.mutable_data() + i * n * n,
-                     y.mutable_data() + i * m, J.mutable_data() + i * m * n);
-      if (status != OK) {  // bad, as a singular A: frozen by the integrators, named by Python
-        if (refused.is_none()) refused = py::make_tuple(i, actuator, int(status));
-        bad.mutable_data()[i] = true;
-        at(x, i, 1, n).setConstant(std::numeric_limits<double>::quiet_NaN());
-        at(A, i, n, n).setConstant(std::numeric_limits<double>::quiet_NaN());
-        at(J_H, i, m, n).setConstant(std::numeric_limits<double>::quiet_NaN());
-        continue;
-      }
-      auto& factors = kept ? (*kept)[std::size_t(i)] : factors_;
-      bad.mutable_data()[i] =
-          derive_state(factors, at(A, i, n, n), at(J, i, m, n), at(J_H, i, m, n), tolerance_) ||
-          !Vector(qi, n).allFinite();
+      const auto actuator = derived(s, qi, vi, x.mutable_data() + i * n, A.mutable_data() + i * n * n,
+                                    y.mutable_data() + i * m, J.mutable_data() + i * m * n,
+                                    J_H.mutable_data() + i * m * n,
+                                    kept ? (*kept)[std::size_t(i)] : factors_, bad.mutable_data()[i]);
+      if (actuator.second != OK && refused.is_none())
+        refused = py::make_tuple(i, actuator.first, int(actuator.second));
     }
     return py::make_tuple(*qa, Pass::maybe(va), positions, linear, angular,
                           Pass::maybe(velocities), Pass::maybe(rates), x, A, y, J, J_H, bad,
                           refused);
+  }
+
+  // x (k, n), y (k, m), J_H (k, m·n) and where the state is bad (k,) at q (k, n), the factors of
+  // each state's Aᵀ in `kept` (grown to the batch): what a law reads at a state of its
+  // integration, without the pass's arrays, which the stages between samples need not keep.
+  void derive(const Matrix& q, Matrix& x, Matrix& y, Matrix& J_H, std::vector<bool>& bad,
+              std::vector<Factors>& kept) {
+    const auto k = q.rows(), n = pass_.n(), m = Eigen::Index(actuation_.rows.size());
+    x.resize(k, n);
+    y.resize(k, m);
+    J_H.resize(k, m * n);
+    bad.assign(std::size_t(k), false);
+    A_.resize(n, n);
+    J_.resize(m, n);
+    if (kept.size() < std::size_t(k)) kept.resize(std::size_t(k));
+    for (Eigen::Index i = 0; i < k; ++i) {
+      const double* qi = q.row(i).data();
+      pass_.at(qi, nullptr);
+      bool flag = false;
+      derived(pass_.frames(), qi, nullptr, x.row(i).data(), A_.data(), y.row(i).data(), J_.data(),
+              J_H.row(i).data(), kept[std::size_t(i)], flag);
+      bad[std::size_t(i)] = flag;
+    }
   }
 
   // The pass the states are evaluated on (what a law's M(q) is read from, after `evaluate`).
@@ -379,8 +407,32 @@ class Evaluator {
     return array;
   }
 
+  // One state of the pass `s` at q (n) and v (n) or null: x (n), A (n, n), y (m) and J (m, n),
+  // row-major, and, unless a kind refused the state, the factors of Aᵀ and J_H (m, n); `bad`
+  // where A is singular, q not finite or a kind refused (there x, A and J_H are NaN). Returns
+  // the refusing actuator with its `Status`, or (−1, OK).
+  std::pair<Eigen::Index, Status> derived(const Frames& s, const double* q, const double* v,
+                                          double* x, double* A, double* y, double* J,
+                                          double* J_H, Factors& factors, bool& bad) {
+    const auto n = pass_.n(), m = Eigen::Index(actuation_.rows.size());
+    const auto refused = actuation_(s, q, v, x, A, y, J);
+    if (refused.second != OK) {  // bad, as a singular A: frozen by the integrators
+      bad = true;
+      constexpr double nan = std::numeric_limits<double>::quiet_NaN();
+      Eigen::Map<Eigen::VectorXd>(x, n).setConstant(nan);
+      Eigen::Map<Matrix>(A, n, n).setConstant(nan);
+      Eigen::Map<Matrix>(J_H, m, n).setConstant(nan);
+      return refused;
+    }
+    bad = derive_state(factors, ConstMatrix(A, n, n), ConstMatrix(J, m, n),
+                       Eigen::Map<Matrix>(J_H, m, n), tolerance_) ||
+          !Vector(q, n).allFinite();
+    return refused;
+  }
+
   Pass pass_;
   Actuation actuation_;
   Factors factors_;  // each state's in turn, where the caller keeps none
+  Matrix A_, J_;  // one state's, for `derive`
   double tolerance_;
 };
