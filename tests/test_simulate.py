@@ -227,6 +227,40 @@ def test_the_compiled_right_hand_side_is_the_laws_own(crane, cycle, resolver, mo
     assert compiled[1].stopped.any()  # the loop stopped motions past their strokes
 
 
+@pytest.mark.parametrize("resolver", [VELOCITY.resolver, ENERGY.resolver, GradientProjection()])
+def test_the_loop_s_inner_stages_are_the_recorded_ones_to_the_last_bit(crane, cycle, resolver):
+    """The compiled loop builds the evaluation's arrays only at the ends of the steps it keeps
+    (``keep``, a sparse motion's samples) and derives the stages between without them: both
+    ways give the same slopes, bit for bit, so keeping the ends moves no step."""
+    segment = cycle["3-1"]
+    starts = reachable_starts(crane, segment, np.linspace(0.05, 1.05, 9))
+    law = integrate.Law(crane, resolver, segment, 0.0, None)
+    assert law.compiled is not None
+    first = law(np.zeros(len(starts)), starts)
+    n = crane.n
+    fixed = (integrate.TOLERANCE, *integrate.TABLEAU, np.full(n, -np.inf), np.full(n, np.inf))
+    run = [
+        integrate._core.dormand_prince(
+            law.compiled,
+            law.loop_velocity,
+            starts,
+            first.q_dot,
+            first.bad,
+            segment.duration,
+            *fixed,
+            0.0,
+            False,
+            keep,
+        )
+        for keep in (False, True)
+    ]
+    lean, kept = run
+    assert not lean[-1] and kept[-1]  # only the second kept the ends' records
+    assert len(lean[0]) > 5 * len(starts)
+    for a, b in zip(lean[:7], kept[:7]):  # rows, t0, h, q0, slopes, failed, stopped
+        np.testing.assert_array_equal(a, b)
+
+
 def test_the_closed_loop_on_a_straight_segment_runs_in_the_core(crane, cycle, monkeypatch):
     """With feedback K on a straight segment at constant speed, the core's loop adds
     K (y_d(0) + ẏ_d t − y) itself, calling back to the path at no stage, and gives the motions
