@@ -74,6 +74,7 @@ class Rates {
                                   const py::object& velocity, bool record) {
     auto& evaluator = evaluator_.cast<Evaluator&>();
     const auto r = q.rows(), n = q.cols();
+    if (n != evaluator.pass().n()) return std::nullopt;  // Python says what is wrong
     Stage out{Matrix::Zero(r, n), Matrix(), {}, py::none()};
     py::object evaluated = py::none();
     if (record) {
@@ -153,6 +154,11 @@ inline std::optional<Stage> rates_at(const py::object& rates, const py::object& 
   const auto q_dot = out[1].cast<Array>(), x = out[3].cast<Array>();
   const auto bad = out[2].cast<py::array_t<bool>>();
   const auto r = q.rows(), n = q.cols();
+  const auto batch = [r, n](const Array& a) {
+    return a.ndim() == 2 && a.shape(0) == r && a.shape(1) == n;
+  };
+  if (!batch(q_dot) || !batch(x) || bad.ndim() != 1 || bad.shape(0) != r)
+    throw py::value_error("a right-hand side gives q̇ and x (r, n), and bad (r,)");
   return Stage{at(q_dot, 0, r, n), at(x, 0, r, n),
                std::vector<bool>(bad.data(), bad.data() + r), out[0]};
 }

@@ -356,12 +356,12 @@ class Evaluator {
       const double* qi = qa->data() + i * n;
       const double* vi = va ? va->data() + i * n : nullptr;
       const Frames s = pass_.write(qi, vi, i, positions, linear, angular, velocities, rates);
-      const auto actuator = derived(s, qi, vi, x.mutable_data() + i * n, A.mutable_data() + i * n * n,
-                                    y.mutable_data() + i * m, J.mutable_data() + i * m * n,
-                                    J_H.mutable_data() + i * m * n,
-                                    kept ? (*kept)[std::size_t(i)] : factors_, bad.mutable_data()[i]);
-      if (actuator.second != OK && refused.is_none())
-        refused = py::make_tuple(i, actuator.first, int(actuator.second));
+      auto& factors = kept ? (*kept)[std::size_t(i)] : factors_;
+      const auto [actuator, status] =
+          derived(s, qi, vi, x.mutable_data() + i * n, A.mutable_data() + i * n * n,
+                  y.mutable_data() + i * m, J.mutable_data() + i * m * n,
+                  J_H.mutable_data() + i * m * n, factors, bad.mutable_data()[i]);
+      if (status != OK && refused.is_none()) refused = py::make_tuple(i, actuator, int(status));
     }
     return py::make_tuple(*qa, Pass::maybe(va), positions, linear, angular,
                           Pass::maybe(velocities), Pass::maybe(rates), x, A, y, J, J_H, bad,

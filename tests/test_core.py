@@ -25,6 +25,7 @@ from redundancy import (
 )
 from redundancy.model.actuators import ActuatorSet
 from redundancy.planning.cycles import repeat
+from redundancy.planning.integrate import TABLEAU
 from redundancy.planning.starts import improved_start
 from redundancy.resolution import laws
 from redundancy.resolution.laws import (
@@ -247,6 +248,26 @@ def test_the_compiled_right_hand_side_refuses_times_that_are_not_one_per_state(c
     q = np.tile((crane.lower + crane.upper) / 2, (3, 1))
     with pytest.raises(ValueError, match=r"t must have shape \(r,\), one time per state"):
         rates(np.zeros(2), q, np.array([0.5, 0.0]))
+
+
+def test_the_integration_loop_refuses_states_it_cannot_read(crane):
+    """The core's loop integrates only what it can read: states of another robot's n come back
+    as None from the compiled right-hand side (Python then names what is wrong), and a Python
+    right-hand side whose q̇, x or flags are not one row per state raise, never read past them."""
+    q = np.tile((crane.lower + crane.upper) / 2, (3, 1))
+    velocity, bounds = np.array([0.5, 0.0]), (np.full(3, -np.inf), np.full(3, np.inf))
+
+    def loop(rates, starts):
+        zeros = np.zeros_like(starts)
+        flags = np.zeros(len(starts), dtype=bool)
+        return _core.dormand_prince(
+            rates, velocity, starts, zeros, flags, 1.0, 1e-6, *TABLEAU, *bounds, 0.0, False, False
+        )
+
+    assert loop(compiled_rates(crane, MinVelocityNorm()), np.zeros((3, 4))) is None
+    short = (None, np.zeros((2, 3)), np.zeros(3, dtype=bool), np.zeros((3, 3)))
+    with pytest.raises(ValueError, match=r"gives q̇ and x \(r, n\), and bad \(r,\)"):
+        loop(lambda t, states: short, q)
 
 
 class SlowTelescope(Resolver):

@@ -227,38 +227,49 @@ def test_the_compiled_right_hand_side_is_the_laws_own(crane, cycle, resolver, mo
     assert compiled[1].stopped.any()  # the loop stopped motions past their strokes
 
 
-@pytest.mark.parametrize("resolver", [VELOCITY.resolver, ENERGY.resolver, GradientProjection()])
-def test_the_loop_s_inner_stages_are_the_recorded_ones_to_the_last_bit(crane, cycle, resolver):
-    """The compiled loop builds the evaluation's arrays only at the ends of the steps it keeps
-    (``keep``, a sparse motion's samples) and derives the stages between without them: both
-    ways give the same slopes, bit for bit, so keeping the ends moves no step."""
-    segment = cycle["3-1"]
-    starts = reachable_starts(crane, segment, np.linspace(0.05, 1.05, 9))
-    law = integrate.Law(crane, resolver, segment, 0.0, None)
+@pytest.mark.parametrize(
+    "case", ["velocity", "inertia", "pull", "closed loop", "called back", "held"]
+)
+def test_the_loop_s_inner_stages_are_the_recorded_ones_to_the_last_bit(crane, cycle, case):
+    """The compiled loop builds the evaluation's arrays only at the last stage of a step, and
+    only where it keeps the ends (``keep``, a sparse motion's samples); it derives the other
+    stages without them. Both ways give the same slopes bit for bit, so keeping the ends moves
+    no step and stops no other motion, whatever the law reads of a state: each weight (I, M_H),
+    the null-space pull (which reads x), the closed loop on a straight segment (y), ẏ called
+    back from Python with y, and a held law (its rates called back with x); the loop stops
+    motions past the strokes (x) in each."""
+    segment, values, gain, resolver = cycle["3-1"], np.linspace(0.05, 1.05, 9), 0.0, None
+    resolver = {"inertia": ENERGY.resolver, "pull": GradientProjection()}.get(case)
+    if case in ("closed loop", "called back"):
+        gain = 5.0
+    if case == "held":
+        segment, values, gain = cycle["1-2"], np.linspace(0.7, 1.0, 4), 1.0
+        nodes = np.linspace(0.0, segment.duration, 9)
+        resolver = HeldReference(
+            2, nodes, 0.9 + 0.15 * np.sin(2 * np.pi * nodes / segment.duration)
+        )
+    law = integrate.Law(crane, resolver or VELOCITY.resolver, segment, gain, None)
+    velocity = law.velocity if case == "called back" else law.loop_velocity
     assert law.compiled is not None
+    assert isinstance(velocity, tuple) == (case in ("closed loop", "held"))  # else ẏ_d or a call
+    starts = reachable_starts(crane, segment, values)
     first = law(np.zeros(len(starts)), starts)
-    n = crane.n
-    fixed = (integrate.TOLERANCE, *integrate.TABLEAU, np.full(n, -np.inf), np.full(n, np.inf))
-    run = [
+    strokes = np.array(
+        [[crane.actuators[a].lower, crane.actuators[a].upper] for a in crane.actuators.names]
+    )
+    fixed = (integrate.TOLERANCE, *integrate.TABLEAU, *strokes.T, 1e-5, True)
+    lean, kept = (
         integrate._core.dormand_prince(
-            law.compiled,
-            law.loop_velocity,
-            starts,
-            first.q_dot,
-            first.bad,
-            segment.duration,
-            *fixed,
-            0.0,
-            False,
-            keep,
+            law.compiled, velocity, starts, first.q_dot, first.bad, segment.duration, *fixed, keep
         )
         for keep in (False, True)
-    ]
-    lean, kept = run
+    )
     assert not lean[-1] and kept[-1]  # only the second kept the ends' records
-    assert len(lean[0]) > 5 * len(starts)
+    assert np.unique(lean[0]).size == len(starts)  # every motion took steps
     for a, b in zip(lean[:7], kept[:7]):  # rows, t0, h, q0, slopes, failed, stopped
         np.testing.assert_array_equal(a, b)
+    if case == "velocity":
+        assert kept[6].any()  # the loop stopped motions past their strokes
 
 
 def test_the_closed_loop_on_a_straight_segment_runs_in_the_core(crane, cycle, monkeypatch):
