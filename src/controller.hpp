@@ -24,36 +24,31 @@ class Controller {
              const std::optional<Array>& pull, const std::optional<Array>& middle, double ratio,
              double tolerance, py::object fallback, py::object result, py::object state_fallback,
              py::object state, bool masses)
-      : pass_(pass),
-        actuation_{tool, std::move(rows), declared(kinds, slots, numbers, pass.size(), pass.n())},
+      : evaluator_(pass, tool, std::move(rows), kinds, slots, numbers, tolerance),
         rule_(pass.n(), weight, W, pull, middle, ratio),
-        tolerance_(tolerance),
         masses_(masses),
         fallback_(std::move(fallback)),
         state_fallback_(std::move(state_fallback)),
         result_(std::move(result)),
         state_(std::move(state)) {
-    const auto n = pass_.n();
-    const auto& task = actuation_.rows;
-    if (tool < 0 || tool >= pass_.size() || Eigen::Index(actuation_.actuators.size()) != n ||
-        std::any_of(task.begin(), task.end(), [](auto r) { return r < 0 || r > 2; }))
-      throw py::value_error("a controller takes the tool's slot, its task rows and n actuators");
     for (const auto* type : {&result_, &state_})
       if (!PyType_Check(type->ptr()) ||
           !PyType_IsSubtype(reinterpret_cast<PyTypeObject*>(type->ptr()), &PyTuple_Type))
         throw py::value_error("a controller's step and state are tuple types");
+    const auto n = pass.n(), m = evaluator_.m();
     A_.resize(n, n);
-    J_.resize(Eigen::Index(task.size()), n);
-    J_H_.resize(Eigen::Index(task.size()), n);
+    J_.resize(m, n);
+    J_H_.resize(m, n);
     x_.resize(n);
-    y_.resize(Eigen::Index(task.size()));
+    y_.resize(m);
   }
 
   py::object step(const py::object& q, const py::object& y_dot) {
-    const auto n = pass_.n(), m = Eigen::Index(actuation_.rows.size());
-    const double *qi = finite(q, n), *yi = finite(y_dot, m);
+    auto& pass = evaluator_.pass();
+    const auto m = evaluator_.m();
+    const double *qi = finite(q, pass.n()), *yi = finite(y_dot, m);
     if (!qi || !yi || !evaluated(qi)) return fallback_(q, y_dot);
-    const auto* x_dot = rule_(pass_, qi, x_, factors_, J_H_, Vector(yi, m));
+    const auto* x_dot = rule_(pass, qi, x_, factors_, J_H_, Vector(yi, m));
     if (!x_dot) return fallback_(q, y_dot);
     factors_.solve(*x_dot, q_dot_);  // q̇ = A⁻¹ ẋ
     return filled(result_, {array(*x_dot), array(q_dot_), array(y_)});
@@ -61,11 +56,11 @@ class Controller {
 
   // x, A, J_H and M_H = A⁻ᵀ M A⁻¹ at q, by the step's own evaluation.
   py::object state(const py::object& q) {
-    const double* qi = finite(q, pass_.n());
+    const double* qi = finite(q, evaluator_.pass().n());
     if (!qi || !evaluated(qi)) return state_fallback_(q);
     py::object M_H = py::none();
     if (masses_) {
-      const Dense& M = pass_.mass(qi);
+      const Dense& M = evaluator_.pass().mass(qi);
       if (!(M.diagonal().array() > 0).all()) return state_fallback_(q);
       inertia(factors_, M, first_, second_, M_H_);
       M_H = array(M_H_);
@@ -74,14 +69,17 @@ class Controller {
   }
 
  private:
-  // The pass at q, x, A, y, J, the factors of Aᵀ and J_H; false where an actuator cannot be
-  // evaluated or A is singular.
+  // The pass at q, x, A, y, J, the factors of Aᵀ and J_H, as a batch's state is derived
+  // (`Evaluator::derived`); false where an actuator cannot be evaluated or A is singular.
   bool evaluated(const double* q) {
-    pass_.at(q, nullptr);
-    if (actuation_(pass_.frames(), q, nullptr, x_.data(), A_.data(), y_.data(), J_.data())
-            .second != OK)
-      return false;
-    return !derive_state(factors_, A_, J_, J_H_, tolerance_);
+    auto& pass = evaluator_.pass();
+    pass.at(q, nullptr);
+    bool bad = false;
+    const auto status = evaluator_
+                            .derived(pass.frames(), q, nullptr, x_.data(), A_.data(), y_.data(),
+                                     J_.data(), J_H_.data(), factors_, bad)
+                            .second;
+    return status == OK && !bad;
   }
 
   // The data of a one-dimensional, contiguous float64 array of `size` finite values, or null.
@@ -105,14 +103,12 @@ class Controller {
     return py::reinterpret_steal<py::object>(out);
   }
 
-  Pass pass_;
-  Actuation actuation_;
+  Evaluator evaluator_;
   Rule rule_;
-  Matrix A_, J_;  // row-major, as `Actuation` writes them
-  Dense J_H_, M_H_, first_, second_;
+  Matrix A_, J_, J_H_;  // row-major, as `Evaluator::derived` writes them
+  Dense M_H_, first_, second_;
   Factors factors_;
   Eigen::VectorXd x_, y_, q_dot_;
-  double tolerance_;
   bool masses_;
   py::object fallback_, state_fallback_, result_, state_;
 };

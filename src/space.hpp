@@ -373,7 +373,7 @@ class Evaluator {
   // integration, without the pass's arrays, which the stages between samples need not keep.
   void derive(const Matrix& q, Matrix& x, Matrix& y, Matrix& J_H, std::vector<bool>& bad,
               std::vector<Factors>& kept) {
-    const auto k = q.rows(), n = pass_.n(), m = Eigen::Index(actuation_.rows.size());
+    const auto k = q.rows(), n = pass_.n(), m = this->m();
     x.resize(k, n);
     y.resize(k, m);
     J_H.resize(k, m * n);
@@ -394,18 +394,8 @@ class Evaluator {
   // The pass the states are evaluated on (what a law's M(q) is read from, after `evaluate`).
   Pass& pass() { return pass_; }
 
- private:
-  // `value` as a (k, n) batch when it is a float64 array (n,) or (k, n), C-contiguous, and
-  // finite where asked; else nothing.
-  static std::optional<Array> batch(const py::object& value, Eigen::Index n, bool finite) {
-    if (!py::isinstance<Array>(value)) return std::nullopt;
-    auto array = py::reinterpret_borrow<Array>(value);
-    if (array.ndim() < 1 || array.ndim() > 2 || array.shape(array.ndim() - 1) != n)
-      return std::nullopt;
-    if (finite && !Vector(array.data(), array.size()).allFinite()) return std::nullopt;
-    if (array.ndim() == 1) return Array(array.reshape({py::ssize_t(1), py::ssize_t(n)}));
-    return array;
-  }
+  // The task's coordinates m.
+  Eigen::Index m() const { return Eigen::Index(actuation_.rows.size()); }
 
   // One state of the pass `s` at q (n) and v (n) or null: x (n), A (n, n), y (m) and J (m, n),
   // row-major, and, unless a kind refused the state, the factors of Aᵀ and J_H (m, n); `bad`
@@ -414,7 +404,7 @@ class Evaluator {
   std::pair<Eigen::Index, Status> derived(const Frames& s, const double* q, const double* v,
                                           double* x, double* A, double* y, double* J,
                                           double* J_H, Factors& factors, bool& bad) {
-    const auto n = pass_.n(), m = Eigen::Index(actuation_.rows.size());
+    const auto n = pass_.n(), m = this->m();
     const auto refused = actuation_(s, q, v, x, A, y, J);
     if (refused.second != OK) {  // bad, as a singular A: frozen by the integrators
       bad = true;
@@ -428,6 +418,19 @@ class Evaluator {
                        Eigen::Map<Matrix>(J_H, m, n), tolerance_) ||
           !Vector(q, n).allFinite();
     return refused;
+  }
+
+ private:
+  // `value` as a (k, n) batch when it is a float64 array (n,) or (k, n), C-contiguous, and
+  // finite where asked; else nothing.
+  static std::optional<Array> batch(const py::object& value, Eigen::Index n, bool finite) {
+    if (!py::isinstance<Array>(value)) return std::nullopt;
+    auto array = py::reinterpret_borrow<Array>(value);
+    if (array.ndim() < 1 || array.ndim() > 2 || array.shape(array.ndim() - 1) != n)
+      return std::nullopt;
+    if (finite && !Vector(array.data(), array.size()).allFinite()) return std::nullopt;
+    if (array.ndim() == 1) return Array(array.reshape({py::ssize_t(1), py::ssize_t(n)}));
+    return array;
   }
 
   Pass pass_;
