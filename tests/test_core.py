@@ -442,6 +442,24 @@ def test_a_users_own_kind_gives_its_state_through_the_controller_in_python(geare
         assert_equal_relative(mine, reference)
 
 
+def test_a_users_own_law_reads_its_states_compiled(crane, monkeypatch):
+    """A state does not depend on the law: a controller of a user's own law steps in Python
+    (`Resolver.step`, to the last bit) and reads its states by one compiled call, none handed
+    to the Python path, equal to `actuator_space`'s."""
+    handed = fallbacks(monkeypatch)
+    law = SlowTelescope()
+    controller = Controller(crane, law)
+    assert not controller.is_compiled
+    y_dot = np.array([0.2, -0.1])
+    for q in random_configurations(crane, 4, seed=61, margin=0.05):
+        state, space = controller.state(q), actuator_space(crane, q)
+        for mine, reference in zip(state, (space.x[0], space.A[0], space.J_H[0], space.M_H[0])):
+            assert_equal_relative(mine, reference)
+        for mine, reference in zip(controller.step(q, y_dot), law.step(crane, q, y_dot)):
+            np.testing.assert_array_equal(mine, reference)
+    assert not handed
+
+
 STATE_ERRORS = [
     ([1.7, np.nan, 0.7], "q contains NaN or infinite values"),
     ([1.7, 1.0], "q must have shape (3,)"),

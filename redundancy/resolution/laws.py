@@ -223,7 +223,9 @@ class Controller:
     task other than the tool's position, runs `Resolver.step` on every call, as the same object.
     `state` is the state a step reads, with M_H (say, to schedule a servo's gains on the mass
     each cylinder moves), in one call by the same evaluation, answered likewise by
-    `actuator_space` where the core does not serve it.
+    `actuator_space` where the core does not serve it. A state does not depend on the law: with
+    a law of your own it is read compiled all the same, where the robot's kinds and task are
+    built in.
 
     The controller reads the robot as it was when built: build another after changing it.
     """
@@ -241,6 +243,11 @@ class Controller:
         # compiled object that the garbage collector cannot see
         self._python_state = functools.partial(python_state, robot)
         self._compiled = compiled(robot, law, self._python, self._python_state)
+        # a state does not depend on the law: with a law of your own, the plainest built-in
+        # one's compiled object reads it
+        self._states = self._compiled or compiled(
+            robot, MinVelocityNorm(), self._python, self._python_state
+        )
 
     def __repr__(self) -> str:
         return f"Controller({self.robot!r}, {self.law!r})"
@@ -261,9 +268,9 @@ class Controller:
         """The robot at q (n,) in actuator coordinates: what `actuator_space` gives of x, A,
         J_H and M_H there, to rounding; `InvalidInputError` and `SingularConfigurationError`
         as it raises them."""
-        if self._compiled is None:
+        if self._states is None:
             return self._python_state(q)
-        return self._compiled.state(q)
+        return self._states.state(q)
 
 
 def python_state(robot: Robot, q) -> State:
