@@ -238,7 +238,7 @@ def test_the_loop_s_inner_stages_are_the_recorded_ones_to_the_last_bit(crane, cy
     the null-space pull (which reads x), the closed loop on a straight segment (y), ẏ called
     back from Python with y, and a held law (its rates called back with x); the loop stops
     motions past the strokes (x) in each."""
-    segment, values, gain, resolver = cycle["3-1"], np.linspace(0.05, 1.05, 9), 0.0, None
+    segment, values, gain = cycle["3-1"], np.linspace(0.05, 1.05, 9), 0.0
     resolver = {"inertia": ENERGY.resolver, "pull": GradientProjection()}.get(case)
     if case in ("closed loop", "called back"):
         gain = 5.0
