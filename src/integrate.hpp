@@ -96,7 +96,8 @@ class Rates {
     std::optional<Array> targets;  // a held law's rates (r, h)
     if (held_) targets = held_rates(t, out.x);
     const auto h = targets ? targets->shape(1) : 0;
-    Matrix x_dot = Matrix::Zero(r, n);
+    Matrix x_dot;  // ẋ, which only the record reads
+    if (record) x_dot.setZero(r, n);
     for (Eigen::Index i = 0; i < r; ++i) {
       if (out.bad[std::size_t(i)]) continue;
       auto& factors = factors_[std::size_t(i)];  // of Aᵀ, as the evaluation derived them
@@ -114,7 +115,7 @@ class Rates {
         vi.setZero();
         continue;
       }
-      x_dot.row(i) = solved->transpose();
+      if (record) x_dot.row(i) = solved->transpose();
     }
     if (record) {  // its flags as the law found them, q̇ not finite included
       auto flags = evaluated.cast<py::tuple>()[12].cast<py::array_t<bool>>();
