@@ -5,6 +5,7 @@ relative; and Python kinds and laws of a user's own, through every path."""
 import gc
 import warnings
 import weakref
+from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
@@ -94,6 +95,8 @@ def test_the_compiled_evaluation_equals_python_s_and_the_closed_forms(robot):
     v = random_velocities(robot, 6, seed=60)
     ours, theirs = evaluate(robot, q, v), _evaluated(robot, q, v)
     assert robot.evaluator() is not None and "J_H" in vars(ours) and "J_H" not in vars(theirs)
+    for made in (ours, ours.kinematics):  # made past __init__: every field set all the same
+        assert {f.name for f in fields(made)} <= vars(made).keys()
     for name in ("x", "A", "y", "J", "J_H", "x_dot", "A_dot"):
         assert_equal_relative(getattr(ours, name), getattr(theirs, name))
     for name in ("positions", "jacobians", "angular", "velocities", "jacobian_rates"):

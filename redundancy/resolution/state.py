@@ -20,7 +20,7 @@ weakest actuator, and the integrators freeze such states.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import Any
 
@@ -227,10 +227,24 @@ def compiled_space(robot: Robot, found: tuple) -> ActuatorSpace:
     """The `ActuatorSpace` of what the core's evaluator ``found``: (q, v, the pass's arrays,
     x, A, y, J, J_H, the bad states, the first state an actuator could not evaluate or None).
     Such a state is bad, as where A is singular (`check_invertible` raises the actuator's
-    error)."""
-    q, v, *frames, x, A, y, J, J_H, bad, refused = found
-    kinematics = _made(Kinematics, robot.tracking(), q, *frames[:3], v, *frames[3:])
-    space = _made(ActuatorSpace, robot, kinematics, q, v, x, A, y, J, None)
+    error). Both frozen dataclasses are made without their __init__, whose object.__setattr__
+    per field would cost a one-state evaluation about as much as the core's call."""
+    q, v, positions, jacobians, angular, velocities, rates, x, A, y, J, J_H, bad, refused = found
+    kinematics = object.__new__(Kinematics)
+    vars(kinematics).update(
+        tracking=robot.tracking(),
+        q=q,
+        positions=positions,
+        jacobians=jacobians,
+        angular=angular,
+        v=v,
+        velocities=velocities,
+        jacobian_rates=rates,
+    )
+    space = object.__new__(ActuatorSpace)
+    vars(space).update(
+        robot=robot, kinematics=kinematics, q=q, v=v, x=x, A=A, y=y, J=J, x_ddot=None
+    )
     vars(space).update(J_H=J_H, _bad=bad, _refused=refused)
     return space
 
@@ -245,18 +259,6 @@ def joined_found(parts: list[tuple]) -> tuple:
         ((starts[i] + r[0], *r[1:]) for i, r in enumerate(refusals) if r is not None), None
     )
     return (*(join(list(values)) for values in arrays), refused)
-
-
-def _made(cls: type[Any], *values: Any) -> Any:
-    """An instance of the frozen dataclass ``cls`` with its fields' ``values``, in order: its
-    __init__ sets each field through object.__setattr__, which would cost a one-state
-    evaluation more than the core's call."""
-    made = object.__new__(cls)
-    vars(made).update(zip(FIELDS[cls], values))
-    return made
-
-
-FIELDS = {cls: [f.name for f in fields(cls)] for cls in (Kinematics, ActuatorSpace)}
 
 
 def actuator_space(robot: Robot, q, v=None, check: bool = True) -> ActuatorSpace:
