@@ -165,8 +165,25 @@ CASES = [
             ('["1"]', "segment '1' must be '<from>-<to>'"),
             ('["1-1"]', "start and end coincide"),
             ("[]", "no segments"),
+            # the outputs are named after a segment: no name may lead them out of their folder
+            ('[{from = "1", to = "2", name = "../../x"}]', "segment name '../../x' must be"),
+            ('[{from = "1", to = "2", name = ".."}]', "segment name '..' must be"),
+            ('[{from = "1", to = "2", name = ""}]', "segment name '' must be"),
+            ('[{from = "1", to = "2", name = "a\\tb"}]', "segment name 'a\\tb' must be"),
         )
     ],
+    (
+        "task point named with a slash",
+        ["study", "--task", "t.toml"],
+        {"t.toml": TASK.replace('"1-2", ', '"a/b-2", ').replace("1 = [", '"a/b" = [')},
+        "segment name 'a/b-2' must be",
+    ),
+    (
+        "task segment named with a backslash",
+        ["study", "--task", "t.toml"],
+        {"t.toml": TASK.replace('"1-2", ', "{from = '1', to = '2', name = 'a\\b'}, ")},
+        "segment name 'a\\\\b' must be",
+    ),
     *[
         (
             f"task point {v}",

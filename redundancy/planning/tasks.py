@@ -259,6 +259,12 @@ class Arc(Shape):
         return cls(start, end, centre, e1, e2, radius, sweep, angles)
 
 
+def _file_part(name: str) -> bool:
+    """Whether ``name`` can stand in a file's name as it is: a segment's outputs are named
+    after it, so no path separator may lead them out of their folder."""
+    return name not in ("", ".", "..") and name.isprintable() and not set(name) & {"/", "\\"}
+
+
 def _angle_of(d: np.ndarray, e1: np.ndarray, e2: np.ndarray) -> float:
     """The angle of d in the plane (e1, e2), in [0, 2π)."""
     angle = math.atan2(float(d @ e2), float(d @ e1))
@@ -282,6 +288,13 @@ class Segment:
     source: str = field(default="", compare=False, repr=False)  # its task file's entry, if read
 
     def __post_init__(self) -> None:
+        name = self.name
+        if not isinstance(name, str) or not _file_part(name):
+            raise InvalidInputError(
+                f"segment name {excerpt(name)} must be text that can be part of a file's "
+                "name (the outputs are named after it): not empty, '.' or '..', and without '/', "
+                "'\\' or control characters"
+            )
         with prefixed(f"segment {self.name}"):
             for end in ("start", "end"):
                 point = finite_vector(getattr(self, end))
