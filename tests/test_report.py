@@ -143,6 +143,30 @@ def test_a_cycle_folder_gets_its_own_index(study, tmp_path):
     assert "largest drift, last cycle (m or rad)" in headers
 
 
+def test_a_cycle_with_a_segment_no_start_keeps_gets_its_page(tmp_path):
+    """A segment no start keeps within the strokes is a finding, not an error: the cycle command
+    writes its report and page, its corners beside that segment with no self-motion and why."""
+    task = tmp_path / "high.toml"  # point 3 higher than the paper's: 2-3 passes x2's stroke
+    task.write_text(
+        'segments = ["1-2", "2-3", "3-1"]\n[points]\n1 = [3.5, -0.5]\n2 = [1.0, -0.5]\n'
+        "3 = [2.25, 4.45]\n"
+    )
+    out = tmp_path / "out"
+    run = run_cli(
+        "cycle", "--samples", "3", "--cycles", "2", "--task", str(task), "--out", str(out)
+    )
+    assert run.returncode == 0, run.stderr
+    plan = json.loads((out / "report.json").read_text())["per_segment"]
+    assert [s["best"] is None for s in plan["segments"]] == [False, True, False]
+    assert [c["delta"] is None for c in plan["corners"]] == [True, True, False]
+    assert plan["self_motion_time_s"] is None
+    page = html.fromstring((out / "index.html").read_text())
+    corners = [row for row in rows(page) if "→" in row[0]]
+    assert [row[-1] for row in corners[:2]] == ["segment 2-3 has no feasible start"] * 2
+    assert corners[0][1:4] == ["–"] * 3  # no Δ of the three actuators
+    assert corners[2][-1] == "keeps the strokes"
+
+
 def test_a_map_folder_gets_its_own_index(tmp_path):
     summary = {"summary": "best design: payload 0 kg", "problems": 4, "rows": 8}
     (tmp_path / "summary.json").write_text(json.dumps(summary))

@@ -346,7 +346,10 @@ def _cycle_body(cycle: dict) -> str:
     text += _table(plan, "The paper's per-segment plan: each segment from its own best start.")
     corners = [
         {"corner": f"{c['after']} → {c['before']}"}
-        | {f"Δ{name} ({_units(cycle, name)})": _number(d, 3) for name, d in c["delta"].items()}
+        | {  # no Δ where a segment beside the corner has no feasible start
+            f"Δ{name} ({_units(cycle, name)})": _number(d, 3)
+            for name, d in (c["delta"] or dict.fromkeys(cycle["units"])).items()
+        }
         | {
             "time (s)": _number(c["time_s"], 3),
             f"held speed ({held_unit}/s)": _number(c["speed"]),
@@ -358,8 +361,12 @@ def _cycle_body(cycle: dict) -> str:
     ]
     text += _table(
         corners,
-        "The self-motion the per-segment plan needs at each corner (the tool held still): "
-        f"{per['self_motion_time_s']:.2f} s per cycle in all.",
+        "The self-motion the per-segment plan needs at each corner (the tool held still)"
+        + (
+            ""  # a corner beside a segment with no feasible start has none
+            if per["self_motion_time_s"] is None
+            else f": {per['self_motion_time_s']:.2f} s per cycle in all."
+        ),
     )
     strategies = []
     for s in cycle["strategies"].values():
