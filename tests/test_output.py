@@ -124,6 +124,27 @@ def test_devices_and_pipes_are_refused_and_links_followed(tmp_path):
     assert (tmp_path / "kept.json").read_text() == "2"
 
 
+def test_a_file_written_whole_never_replaces_a_device_a_pipe_or_a_folder(tmp_path):
+    """What writes one file whole (`write_atomically`: an exported playback, a figure) refuses,
+    in one line, a path it would replace by a rename that is not a regular file, and one it
+    cannot write; nothing is left beside them. A regular file is replaced."""
+    pipe = tmp_path / "pipe"
+    os.mkfifo(pipe)
+    write = lambda path: path.write_text("page")  # noqa: E731
+    for path, why in (
+        (pipe, "is not a regular file"),  # as a device is: never the real one, in a test
+        (tmp_path, "is a folder"),
+        (Path("/proc/page.html"), "cannot write there"),
+    ):
+        with pytest.raises(InvalidInputError, match=f"^output {path}.* {why}"):
+            output.write_atomically(path, write)
+    assert pipe.is_fifo() and sorted(p.name for p in tmp_path.iterdir()) == ["pipe"]
+    (tmp_path / "page.html").write_text("old")
+    output.write_atomically(tmp_path / "page.html", write)
+    assert (tmp_path / "page.html").read_text() == "page"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["page.html", "pipe"]
+
+
 @pytest.mark.parametrize(
     ("json", "out"),
     [("out", "out"), ("out/report.json", "out"), ("x", "x/out")],

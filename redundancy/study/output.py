@@ -349,10 +349,12 @@ def writable(path: Path | str, option: str) -> Path:
 
 def write_atomically(path: Path, write: Callable[[Path], object]) -> None:
     """Call ``write(temporary_path)``, then move the result over ``path`` in one step, so a
-    failure never leaves ``path`` half-written or loses what it held."""
-    path.parent.mkdir(parents=True, exist_ok=True)
+    failure never leaves ``path`` half-written or loses what it held. A ``path`` that is a
+    folder, anything but a regular file (a device or a pipe, which the move would replace) or
+    cannot be written is refused in one line (`_create_beside`)."""
     temporary = Path(f"{_hidden(path, 'new')}{path.suffix}")  # a writer may read the suffix
     try:
+        _create_beside(path, temporary, "output")
         write(temporary)
         _sync(temporary)
         os.replace(temporary, path)
