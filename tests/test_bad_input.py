@@ -12,6 +12,7 @@ import pytest
 
 from redundancy import (
     VELOCITY,
+    GradientProjection,
     RedundancyError,
     actuator_space,
     configuration_at,
@@ -844,6 +845,14 @@ def crane():
 
 
 API = [
+    *[
+        (
+            f"gradient projection gain {gain!r}",
+            lambda r, gain=gain: GradientProjection(gain),
+            f"gain must be a number within [0, 1000] m²/s (tuned: 0.07); got {gain!r}",
+        )
+        for gain in (np.nan, np.inf, 1e308, -0.1, "0.1", True)
+    ],
     ("load_robot payload text", lambda r: load_robot("hiab031", payload="abc"), "payload = 'abc'"),
     ("load_robot payload nan", lambda r: load_robot("hiab031", payload=np.nan), "payload = nan"),
     ("load_robot payload huge", lambda r: load_robot("hiab031", payload=1e18), "payload = 1e+18"),

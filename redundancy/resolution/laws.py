@@ -32,6 +32,7 @@ from redundancy import _core
 from redundancy.errors import InvalidInputError
 from redundancy.model.actuators import declared
 from redundancy.model.robot import Robot
+from redundancy.model.values import is_real
 from redundancy.resolution.state import (
     SINGULAR_TOLERANCE,
     ActuatorSpace,
@@ -45,6 +46,7 @@ from redundancy.resolution.state import (
 # gains that keep every stroke inside its limits from the default starts (see
 # benchmarks/results.md).
 TUNED_GAIN = 0.07
+MAX_GAIN = 1e3  # m²/s: a pull of 10³ m/s at 1 m from mid-stroke, beyond any actuator's speed
 SINGULAR_RATIO = 1e-8  # ε: G counts as near singular below σ_min / σ_max = ε (cond J_H ≈ 1e4)
 
 
@@ -163,7 +165,12 @@ class GradientProjection(Resolver):
     name = "gradient projection (limit avoidance)"
 
     def __init__(self, gain: float = TUNED_GAIN):
-        self.gain = gain
+        if not (is_real(gain) and 0 <= gain <= MAX_GAIN):
+            raise InvalidInputError(
+                f"GradientProjection: gain must be a number within [0, {MAX_GAIN:g}] m²/s "
+                f"(tuned: {TUNED_GAIN}); got {gain!r}"
+            )
+        self.gain = float(gain)
 
     def __repr__(self) -> str:
         return f"GradientProjection(gain={self.gain})"
