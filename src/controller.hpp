@@ -14,7 +14,8 @@ class Controller {
   // frames; the law is its `weight` (with `W` for CONSTANT) and, where `pull` (n) is given, the
   // null-space term z = pull ∘ (x − middle). `fallback(q, y_dot)` is the Python step: it answers
   // whatever this one does not (input that is not one finite float vector each, a singular A, a
-  // kind that cannot evaluate, a mass matrix without mass), raising the toolkit's errors there;
+  // kind that cannot evaluate, a step that overflows, a mass matrix without mass or not finite),
+  // raising the toolkit's errors there;
   // `state_fallback(q)` is the Python state likewise. `result` and `state` are the tuple types
   // of a step (x_dot, q_dot, y) and of a state (x, A, J_H, M_H); with `masses` false (a robot
   // without masses) a state's M_H is None.
@@ -51,6 +52,7 @@ class Controller {
     const auto* x_dot = rule_(pass, qi, x_, factors_, J_H_, Vector(yi, m));
     if (!x_dot) return fallback_(q, y_dot);
     factors_.solve(*x_dot, q_dot_);  // q̇ = A⁻¹ ẋ
+    if (!x_dot->allFinite() || !q_dot_.allFinite()) return fallback_(q, y_dot);  // it overflowed
     return filled(result_, {array(*x_dot), array(q_dot_), array(y_)});
   }
 
@@ -61,7 +63,7 @@ class Controller {
     py::object M_H = py::none();
     if (masses_) {
       const Dense& M = evaluator_.pass().mass(qi);
-      if (!(M.diagonal().array() > 0).all()) return state_fallback_(q);
+      if (!M.allFinite() || !(M.diagonal().array() > 0).all()) return state_fallback_(q);
       inertia(factors_, M, first_, second_, M_H_);
       M_H = array(M_H_);
     }

@@ -179,7 +179,7 @@ class Pass {
   }
 
   // M(q) (k, n, n) by CRBA at q (k, n), both triangles filled, and the first state where M has
-  // a diagonal entry ≤ 0 (nothing beyond a joint has inertia about it), or −1.
+  // a diagonal entry ≤ 0 (nothing beyond a joint has inertia about it) or is not finite, or −1.
   py::tuple mass_matrices(const Array& q) {
     const auto k = batch(q, "q");
     const auto n = py::ssize_t(model_.nv);
@@ -188,7 +188,7 @@ class Pass {
     for (py::ssize_t i = 0; i < k; ++i) {
       const auto& M = mass(q.data() + i * n);
       Eigen::Map<Eigen::MatrixXd>(out.mutable_data() + i * n * n, n, n) = M;
-      if (still < 0 && !(M.diagonal().array() > 0).all()) still = i;
+      if (still < 0 && (!M.allFinite() || !(M.diagonal().array() > 0).all())) still = i;
     }
     return py::make_tuple(out, still);
   }

@@ -12,6 +12,7 @@ import pytest
 
 from redundancy import (
     VELOCITY,
+    Controller,
     GradientProjection,
     RedundancyError,
     actuator_space,
@@ -844,7 +845,23 @@ def crane():
     return load_robot("hiab031")
 
 
+FAR = np.array([1.7, 1.0, 1e200])  # finite, but the telescope out 1e200 m: every product overflows
 API = [
+    (
+        "controller step far outside the joints' limits",
+        lambda r: Controller(r, VELOCITY.resolver).step(FAR, np.array([0.1, 0.0])),
+        "the step at q = [1.7, 1, 1e+200] for ẏ = [0.1, 0] is not finite",
+    ),
+    (
+        "resolver step far outside the joints' limits",
+        lambda r: VELOCITY.resolver.step(r, FAR, np.array([0.1, 0.0])),
+        "the step at q = [1.7, 1, 1e+200] for ẏ = [0.1, 0] is not finite",
+    ),
+    (
+        "controller state far outside the joints' limits",
+        lambda r: Controller(r, VELOCITY.resolver).state(FAR),
+        "M(q) is not finite at q = [1.7, 1, 1e+200]: its numbers overflow",
+    ),
     *[
         (
             f"gradient projection gain {gain!r}",

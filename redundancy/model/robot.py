@@ -282,15 +282,26 @@ class Robot:
         """M(q) (k, n, n) for configurations q (k, n) already checked (`configuration`)."""
         self.require_masses("M(q) and the dynamics (M_H, N_H, F_H, the energy objective)")
         out, state = self._dynamics.mass_matrices(q)
+        if state >= 0 and not np.isfinite(out[state]).all():
+            raise InvalidInputError(
+                f"{self.name}: M(q) is not finite at q = {self.written(q[state])}: its numbers "
+                f"overflow there (the joints' limits: {self.written(self.lower)} to "
+                f"{self.written(self.upper)})"
+            )
         if state >= 0:  # a massless link is refused above
             joints = [self.joint_names[j] for j in np.flatnonzero(np.diagonal(out[state]) <= 0)]
             raise InvalidInputError(
-                f"{self.name}: M(q) is singular at q = [{', '.join(f'{v:.4g}' for v in q[state])}]"
+                f"{self.name}: M(q) is singular at q = {self.written(q[state])}"
                 f": nothing beyond joints {joints} has mass off their axes or inertia about them, "
                 "so the dynamics (M_H, N_H, F_H, the energy objective) are undefined there; give "
                 f"those links' <inertial> in {self.urdf.name} inertia about the joints' axes"
             )
         return out
+
+    @staticmethod
+    def written(values: np.ndarray) -> str:
+        """Joint or actuator values as a message writes them: [v, …] to 4 significant digits."""
+        return f"[{', '.join(f'{v:.4g}' for v in values)}]"
 
     @cached_property
     def massless_links(self) -> list[str]:

@@ -107,7 +107,8 @@ class Resolver:
         """The law at one configuration q (n,) for the task velocity ẏ (m,) m/s: one control
         step, by the same code as `resolve` on a batch of one. Both are checked (shape, finite:
         `InvalidInputError`), and so is A (`SingularConfigurationError` where it is singular,
-        as `actuator_space` raises)."""
+        as `actuator_space` raises); a step that overflows to inf or NaN is refused
+        (`InvalidInputError`)."""
         states, velocities = robot.configuration(q), robot.task_values(y_dot)
         if len(states) != 1 or len(velocities) != 1:
             raise InvalidInputError(
@@ -117,7 +118,14 @@ class Resolver:
         space = evaluate(robot, states)
         check_invertible(space)
         x_dot = self.resolve(space, velocities)
-        return Step(x_dot[0], space.joint_velocities(x_dot)[0], space.y[0])
+        q_dot = space.joint_velocities(x_dot)
+        if not (np.isfinite(x_dot).all() and np.isfinite(q_dot).all()):
+            raise InvalidInputError(
+                f"{self.name}: the step at q = {robot.written(states[0])} for ẏ = "
+                f"{robot.written(velocities[0])} is not finite: its numbers overflow there (the "
+                f"joints' limits: {robot.written(robot.lower)} to {robot.written(robot.upper)})"
+            )
+        return Step(x_dot[0], q_dot[0], space.y[0])
 
 
 class MinVelocityNorm(Resolver):
