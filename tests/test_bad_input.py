@@ -966,7 +966,37 @@ API = [
         lambda r: simulate(
             r, VELOCITY.resolver, _segment(r), np.array([[1.6, 1.0, 0.5]]), time_step=-1
         ),
-        "time_step must be > 0",
+        "time_step must be a finite number > 0",
+    ),
+    *[
+        (
+            f"simulate {name} = inf",
+            lambda r, name=name: simulate(
+                r, VELOCITY.resolver, _segment(r), np.array([[1.6, 1.0, 0.5]]), **{name: np.inf}
+            ),
+            f"{name} = inf",
+        )
+        for name in ("tolerance", "gain", "time_step")
+    ],
+    (
+        "simulate no starts",
+        lambda r: simulate(r, VELOCITY.resolver, _segment(r), np.zeros((0, 3))),
+        "starts must hold at least one configuration, (3,)",
+    ),
+    *[
+        (
+            f"improved_start tolerance {tolerance!r}",
+            lambda r, tolerance=tolerance: improved_start(
+                r, _segment(r), VELOCITY, tolerance=tolerance
+            ),
+            f"tolerance must be a finite number > 0 (m or rad); got {tolerance!r}",
+        )
+        for tolerance in ("abc", np.inf, np.nan, 0.0)
+    ],
+    (
+        "improved_start samples True",
+        lambda r: improved_start(r, _segment(r), VELOCITY, samples=True),
+        "samples must be a whole number within [1, 10,000]; got True",
     ),
     ("no hydraulics", lambda r: load_robot("panda").circuit(), "declare a [hydraulics] table"),
     (

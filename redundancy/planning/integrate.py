@@ -662,11 +662,15 @@ def simulate(
         raise InvalidInputError(f"unknown method {method!r}; methods: {', '.join(METHODS)}")
     gain = (GAIN if method == "rk4" else 0.0) if gain is None else gain
     numbers = (time_step, gain, tolerance)
-    if not all(is_real(v) for v in numbers) or not (time_step > 0 and gain >= 0 and tolerance > 0):
+    if not all(is_real(v) and np.isfinite(v) for v in numbers) or not (
+        time_step > 0 and gain >= 0 and tolerance > 0
+    ):
         raise InvalidInputError(
-            f"time_step must be > 0 s, gain ≥ 0 1/s and tolerance > 0; got time_step = "
-            f"{time_step!r}, gain = {gain!r}, tolerance = {tolerance!r}"
+            f"time_step must be a finite number > 0 s, gain ≥ 0 1/s and tolerance > 0; got "
+            f"time_step = {time_step!r}, gain = {gain!r}, tolerance = {tolerance!r}"
         )
+    if not len(starts):
+        raise InvalidInputError(f"starts must hold at least one configuration, ({robot.n},)")
     limits = Limits.strokes(robot, checked)
     if circuit:
         robot.circuit()  # says how to declare one before any work

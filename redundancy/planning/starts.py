@@ -37,6 +37,7 @@ import numpy as np
 
 from redundancy.errors import InvalidInputError, UnreachableError, placed
 from redundancy.model.robot import Robot
+from redundancy.model.values import is_real, is_whole
 from redundancy.planning.brackets import bracket_probes, new_probes, vertex_probe
 from redundancy.planning.ik import (
     FOUND,
@@ -500,7 +501,7 @@ def improved_starts(
 def search_method(held: tuple[str, ...], samples: int, method: str | None) -> str:
     """The search for ``held``: ``method``, or by default "fast" for one held actuator and
     "sweep" for several; one line where it or the ``samples`` count is not valid."""
-    if not isinstance(samples, int | np.integer) or not 1 <= samples <= MAX_SAMPLES:
+    if not is_whole(samples, 1, MAX_SAMPLES):
         raise InvalidInputError(
             f"samples must be a whole number within [1, {MAX_SAMPLES:,}]; got {samples!r}"
         )
@@ -519,8 +520,10 @@ def end_tolerance(robot: Robot, held: str, tolerance: float | None) -> float:
     ``tolerance``, or by default `END_TOLERANCE` of the held actuator's stroke."""
     scan = sweep_values(robot, held, REACH_GRID)
     tolerance = END_TOLERANCE * (scan[-1] - scan[0]) if tolerance is None else tolerance
-    if not tolerance > 0:
-        raise InvalidInputError(f"tolerance must be > 0; got {tolerance}")
+    if not (is_real(tolerance) and 0 < tolerance < np.inf):
+        raise InvalidInputError(
+            f"tolerance must be a finite number > 0 (m or rad); got {tolerance!r}"
+        )
     return tolerance
 
 
