@@ -845,8 +845,17 @@ def crane():
     return load_robot("hiab031")
 
 
+STATE = [1.6, 1.0, 0.5]
 FAR = np.array([1.7, 1.0, 1e200])  # finite, but the telescope out 1e200 m: every product overflows
 API = [
+    *[
+        (
+            f"resolve ẏ {velocities!r}",
+            lambda r, v=velocities: VELOCITY.resolver.resolve(actuator_space(r, STATE), v),
+            "y_dot must be finite numbers of shape (1, 2), a row per state",
+        )
+        for velocities in ([[np.nan, 0.0]], [[0.1]], [0.1, 0.0], "ab", [[0.1, 0.0], [0.1, 0.0]])
+    ],
     (
         "controller step far outside the joints' limits",
         lambda r: Controller(r, VELOCITY.resolver).step(FAR, np.array([0.1, 0.0])),
@@ -882,7 +891,7 @@ API = [
     (
         "forces of a vector",
         lambda r: actuator_space(r, [1.6, 1.0, 0.5]).forces(np.zeros(3)),
-        "x_ddot must have shape (1, 3)",
+        "x_ddot must be finite numbers of shape (1, 3), a row per state",
     ),
     ("space of a wrong shape", lambda r: actuator_space(r, [1.0, 2.0]), "q must have shape"),
     ("space of nan", lambda r: actuator_space(r, [np.nan, 1.0, 0.5]), "NaN or infinite"),
@@ -1029,7 +1038,7 @@ API = [
     (
         "forces of nan",
         lambda r: actuator_space(r, [1.6, 1.0, 0.5]).forces([[np.nan, 0.0, 0.0]]),
-        "x_ddot contains NaN or infinite values",
+        "x_ddot must be finite numbers of shape",
     ),
     (
         "segment at infinite speed",

@@ -39,6 +39,7 @@ from redundancy.resolution.state import (
     actuator_space,
     check_invertible,
     evaluate,
+    per_state,
 )
 
 # The gradient-projection gain α, m²/s, tuned on the paper's segments by
@@ -71,6 +72,11 @@ class State(NamedTuple):
     M_H: np.ndarray | None
 
 
+def _task_velocities(space: ActuatorSpace, y_dot) -> np.ndarray:
+    """ẏ (k, m) for the k states of ``space``, checked (`per_state`)."""
+    return per_state(y_dot, "y_dot", np.shape(space.J)[:2])
+
+
 class Resolver:
     """A resolution law: its weight W (`weight`) and null-space term z (`null_space`).
 
@@ -94,6 +100,7 @@ class Resolver:
     def resolve(self, space: ActuatorSpace, y_dot: np.ndarray) -> np.ndarray:
         """ẋ (k, n) for task velocities ẏ (k, m) at the states of ``space``:
         ẋ = J_W⁺ (ẏ − J_H z) + z, the module docstring's law."""
+        y_dot = _task_velocities(space, y_dot)
         W, z = self.weight(space), self.null_space(space)
         return _core.resolve(space.J_H, y_dot, W, z, SINGULAR_RATIO)
 
@@ -221,7 +228,7 @@ class HeldRates(Resolver):
     def resolve_at(self, space: ActuatorSpace, y_dot: np.ndarray, t: np.ndarray) -> np.ndarray:
         t = np.broadcast_to(np.asarray(t, dtype=float), (len(space.x),))
         rates = self.held_velocity(t, space.x[:, self.rows])
-        return _core.held(space.J_H, y_dot, self.rows, rates)
+        return _core.held(space.J_H, _task_velocities(space, y_dot), self.rows, rates)
 
 
 class Controller:

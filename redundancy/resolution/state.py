@@ -31,6 +31,22 @@ from redundancy.errors import InvalidInputError, SingularConfigurationError
 from redundancy.model.kinematics import Kinematics, join, take
 from redundancy.model.robot import SINGULAR_TOLERANCE as SINGULAR_TOLERANCE
 from redundancy.model.robot import Robot
+from redundancy.model.schema import excerpt
+
+
+def per_state(values, name: str, shape: tuple[int, ...]) -> np.ndarray:
+    """``values`` as finite numbers of ``shape``, a row per state of a batch; one line naming
+    ``name`` (`InvalidInputError`) otherwise."""
+    try:
+        checked = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        checked = None
+    if checked is None or checked.shape != shape or not np.isfinite(checked).all():
+        raise InvalidInputError(
+            f"{name} must be finite numbers of shape {shape}, a row per state; got "
+            f"{excerpt(values)}"
+        )
+    return checked
 
 
 def singular(A: np.ndarray, tolerance: float = SINGULAR_TOLERANCE) -> np.ndarray:
@@ -140,16 +156,7 @@ class ActuatorSpace:
 
     def forces(self, x_ddot: np.ndarray) -> np.ndarray:
         """Actuator forces F_H = M_H ẍ + N_H (Eq. 21), (k, n) in N, for x_ddot (k, n)."""
-        try:
-            x_ddot = np.asarray(x_ddot, dtype=float)
-        except (TypeError, ValueError):
-            raise InvalidInputError(f"x_ddot must be numbers; got {x_ddot!r}") from None
-        if x_ddot.shape != self.x.shape:
-            raise InvalidInputError(
-                f"x_ddot must have shape {self.x.shape} (one ẍ per state); got {x_ddot.shape}"
-            )
-        if not np.all(np.isfinite(x_ddot)):
-            raise InvalidInputError(f"x_ddot contains NaN or infinite values: {x_ddot.tolist()}")
+        x_ddot = per_state(x_ddot, "x_ddot", self.x.shape)
         return (self.M_H @ x_ddot[..., None])[..., 0] + self.N_H
 
     def joint_velocities(self, x_dot: np.ndarray) -> np.ndarray:
