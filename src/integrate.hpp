@@ -10,6 +10,8 @@
 
 #include "rule.hpp"
 
+using Flags = py::array_t<bool, py::array::c_style | py::array::forcecast>;  // a batch's (k,)
+
 // What a right-hand side gives at r states: q̇ (r, n), the strokes x (r, n), where the state is
 // bad (r,) (A singular or not finite, or a kind refused it: there q̇ = 0) and, where asked, its
 // record of the states (for the ends of accepted steps, where the integration samples them).
@@ -153,7 +155,7 @@ inline std::optional<Stage> rates_at(const py::object& rates, const py::object& 
   if (py::isinstance<Rates>(rates)) return rates.cast<Rates&>()(t, q, velocity, record);
   const auto out = rates(array(t), array(q)).cast<py::tuple>();
   const auto q_dot = out[1].cast<Array>(), x = out[3].cast<Array>();
-  const auto bad = out[2].cast<py::array_t<bool>>();
+  const auto bad = out[2].cast<Flags>();
   const auto r = q.rows(), n = q.cols();
   const auto batch = [r, n](const Array& a) {
     return a.ndim() == 2 && a.shape(0) == r && a.shape(1) == n;
@@ -170,19 +172,31 @@ inline std::optional<Stage> rates_at(const py::object& rates, const py::object& 
 // (s, s) (the last row the 5th-order step), error weights e (s + 1,). A step's relative and
 // absolute error ≤ `tolerance`; a start whose state turns bad, or whose step shrinks below
 // 1e-9 × duration, is frozen (failed). With `stop`, a motion whose end of step is past a stroke
-// [lower, upper] (n,) by more than `allowance`, as are its neighbours in the batch, stops.
+// [lower, upper] (n,) by more than `allowance`, as are its neighbours in the batch, stops. A
+// start whose error estimate is not finite (a Python right-hand side's q̇ NaN) is frozen too.
 // The accepted steps (rows, t0, h, q0 and the stage slopes (p, s + 1, n)), failed and stopped
 // (k,), and, with `keep`, each batch of ends of accepted steps as (record, positions in it); None
 // where `Rates` could not serve a batch.
 inline py::object dormand_prince(const py::object& rates, const py::object& velocity, Array q,
-                                 Array f, py::array_t<bool> failed, double duration,
+                                 Array f, Flags failed, double duration,
                                  double tolerance, const Array& c, const Array& a, const Array& e,
                                  const Array& lower, const Array& upper, double allowance,
                                  bool stop, bool keep) {
+  if (q.ndim() != 2) throw py::value_error("the starts q must have shape (k, n)");
   const auto k = q.shape(0), n = q.shape(1), s = c.shape(0);
+  const auto shaped = [](const py::array& a, std::vector<py::ssize_t> shape) {
+    return a.ndim() == py::ssize_t(shape.size()) &&
+           std::equal(shape.begin(), shape.end(), a.shape());
+  };
+  if (!shaped(f, {k, n}) || !shaped(failed, {k}) || !shaped(lower, {n}) || !shaped(upper, {n}))
+    throw py::value_error("the slopes f (k, n), failed (k,) and the strokes (n,) must fit q");
+  if (s < 1 || !shaped(c, {s}) || !shaped(a, {s, s}) || !shaped(e, {s + 1}))
+    throw py::value_error("the tableau is c (s,), a (s, s) and e (s + 1,), s ≥ 1");
+  if (!(duration > 0 && std::isfinite(duration) && tolerance > 0 && std::isfinite(tolerance)))
+    throw py::value_error("the duration and the tolerance must be finite and > 0");
   q = Array(q.request());  // own copies: the loop writes them
   f = Array(f.request());
-  failed = py::array_t<bool>(failed.request());
+  failed = Flags(failed.request());
   auto* dead = failed.mutable_data();
   std::vector<double> t(k, 0.0), h(k);
   std::vector<bool> past(k, false), stopped(k, false);
@@ -253,7 +267,7 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
       }
       const double growth = std::clamp(0.9 * std::pow(std::max(error, 1e-10), -0.2), 0.2, 10.0);
       h[row] = step[i] * (accept ? growth : std::min(growth, 1.0));
-      if (h[row] < 1e-9 * duration) dead[row] = true;
+      if (!(h[row] >= 1e-9 * duration)) dead[row] = true;  // NaN too: an error not finite
       if (accept && stop) {
         const auto x = end->x.row(i);
         for (py::ssize_t j = 0; j < n; ++j)

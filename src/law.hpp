@@ -40,6 +40,7 @@ class Law {
   // dynamic ones, kept from state to state, beyond.
   const Eigen::VectorXd& gram(double ratio) {
     switch (G_.rows()) {
+      case 0: return lambda_ = target_;  // no task: nothing to solve
       case 1: return gram(Eigen::LLT<Eigen::Matrix<double, 1, 1>>(), ratio);
       case 2: return gram(Eigen::LLT<Eigen::Matrix2d>(), ratio);
       case 3: return gram(Eigen::LLT<Eigen::Matrix3d>(), ratio);
@@ -141,6 +142,7 @@ inline Array resolve(const Array& J_H, const Array& y_dot, const std::optional<A
     throw py::value_error("W must have shape (k, n, n), as J_H (k, m, n)");
   if (z && (z->ndim() != 2 || z->shape(0) != k || z->shape(1) != n))
     throw py::value_error("z must have shape (k, n), as J_H (k, m, n)");
+  fraction(ratio, "the law's singular ratio");
   Array out({k, n});
   Dense Wi;
   Eigen::VectorXd zi;

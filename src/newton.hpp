@@ -26,6 +26,12 @@ class HeldPass {
       throw py::value_error("a held pass takes the tool's slot and its task rows");
   }
 
+  // The joints n, and the values m + r a state gives: its task rows and held actuators.
+  Eigen::Index n() const { return pass_.n(); }
+  Eigen::Index values() const {
+    return Eigen::Index(actuation_.rows.size() + actuation_.actuators.size());
+  }
+
   // The values (u, m + r) and K (u, m + r, n) at q (u, n); nothing where a kind refused a state
   // (Python evaluates it again and raises the kind's error).
   std::optional<std::pair<Matrix, Matrix>> operator()(const Matrix& q) {
@@ -64,7 +70,23 @@ inline py::object newton(const py::object& pass, Array start, const Array& targe
                          const py::object& first, int iterations, bool bounded,
                          const Array& lower, const Array& upper, double tolerance, double damping,
                          double stalled) {
+  const auto refuse = [] {
+    throw py::value_error(
+        "newton takes the robot's q (k, n), a target per row (k, m + r) its pass gives, and the "
+        "joint limits (n,) each");
+  };
+  if (start.ndim() != 2 || target.ndim() != 2) refuse();
   const auto k = start.shape(0), n = start.shape(1), d = target.shape(1);
+  if (target.shape(0) != k || lower.size() != n || upper.size() != n) refuse();
+  if (py::isinstance<HeldPass>(pass)) {
+    const auto& held = pass.cast<HeldPass&>();
+    if (held.n() != n || held.values() != d) refuse();
+  }
+  const auto fits = [d, n](const Array& v, const Array& K, py::ssize_t rows) {
+    if (v.ndim() != 2 || v.shape(0) != rows || v.shape(1) != d || K.ndim() != 3 ||
+        K.shape(0) != rows || K.shape(1) != d || K.shape(2) != n)
+      throw py::value_error("a pass gives the values (u, m + r) and K (u, m + r, n) at u states");
+  };
   Matrix q = ConstMatrix(start.data(), k, n);
   const ConstMatrix goal(target.data(), k, d);
   Matrix values(k, d), jacobians(k, d * n);
@@ -97,6 +119,7 @@ inline py::object newton(const py::object& pass, Array start, const Array& targe
       at(unique_states, 0, states.rows(), n) = states;
       const auto out = pass(unique_states, where).cast<py::tuple>();
       const auto v = out[0].cast<Array>(), K = out[1].cast<Array>();
+      fits(v, K, states.rows());
       found_values = ConstMatrix(v.data(), states.rows(), d);
       found_jacobians = ConstMatrix(K.data(), states.rows(), d * n);
     }
@@ -113,6 +136,7 @@ inline py::object newton(const py::object& pass, Array start, const Array& targe
   } else {
     const auto known = first.cast<py::tuple>();
     const auto v = known[0].cast<Array>(), K = known[1].cast<Array>();
+    fits(v, K, k);
     values = ConstMatrix(v.data(), k, d);
     jacobians = ConstMatrix(K.data(), k, d * n);
   }

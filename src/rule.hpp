@@ -12,7 +12,7 @@ struct Rule {
 
   Rule(Eigen::Index n, int weight, const std::optional<Array>& W,
        const std::optional<Array>& pull, const std::optional<Array>& middle, double ratio)
-      : weight(Weight(weight)), ratio(ratio) {
+      : weight(Weight(weight)), ratio(fraction(ratio, "the law's singular ratio")) {
     if (weight < IDENTITY || weight > CONSTANT)
       throw py::value_error("a law's weight is 0 (I), 1 (M_H) or 2 (a constant W)");
     if (this->weight == CONSTANT) {

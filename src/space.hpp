@@ -167,17 +167,26 @@ void inertia(Factors& factors, const Square& M, Dense& first, Dense& second, Out
 }
 
 // The k of a batch of square matrices A (k, n, n), checked against the other batches' shapes:
-// each of `others` is (k, n, ...) with the given number of dimensions.
+// each of `others` is (k, n) or (k, n, n), by its given number of dimensions.
 inline std::pair<py::ssize_t, py::ssize_t> square_batch(
     const Array& A, std::initializer_list<std::tuple<const Array*, int, const char*>> others) {
   if (A.ndim() != 3 || A.shape(1) != A.shape(2))
     throw py::value_error("A must have shape (k, n, n)");
   const auto k = A.shape(0), n = A.shape(1);
   for (const auto& [other, ndim, name] : others)
-    if (other->ndim() != ndim || other->shape(0) != k || other->shape(1) != n)
+    if (other->ndim() != ndim || other->shape(0) != k || other->shape(1) != n ||
+        (ndim == 3 && other->shape(2) != n))
       throw py::value_error(std::string(name) + " must have shape (k, n" +
-                            (ndim == 3 ? ", …)" : ")") + ", as A (k, n, n)");
+                            (ndim == 3 ? ", n)" : ")") + ", as A (k, n, n)");
   return {k, n};
+}
+
+// `value`, a ratio of singular values below which a matrix counts as (near) singular, checked to
+// lie in (0, 1]: at 0 or NaN a singular matrix would pass; at 1 every matrix counts.
+inline double fraction(double value, const char* name) {
+  if (!(value > 0 && value <= 1))
+    throw py::value_error(std::string(name) + " must lie in (0, 1]; got " + std::to_string(value));
+  return value;
 }
 
 inline Eigen::Map<const Matrix> at(const Array& a, py::ssize_t i, py::ssize_t rows,
@@ -206,9 +215,10 @@ Array array(const Eigen::MatrixBase<Values>& values) {
 // J_H (k, m, n) and where A is singular (k,) bool, for A (k, n, n) and J (k, m, n); J_H is
 // meaningless where A is singular.
 inline py::tuple derive(const Array& A, const Array& J, double tolerance) {
-  if (A.ndim() != 3 || A.shape(1) != A.shape(2) || J.ndim() != 3 || J.shape(0) != A.shape(0) ||
-      J.shape(2) != A.shape(1))
-    throw py::value_error("derive takes A (k, n, n) and J (k, m, n)");
+  if (A.ndim() != 3 || A.shape(1) != A.shape(2) || A.shape(1) < 1 || J.ndim() != 3 ||
+      J.shape(0) != A.shape(0) || J.shape(2) != A.shape(1))
+    throw py::value_error("derive takes A (k, n, n) and J (k, m, n), n ≥ 1");
+  fraction(tolerance, "the singular tolerance");
   const auto k = A.shape(0), n = A.shape(1), m = J.shape(1);
   Array J_H({k, m, n});
   py::array_t<bool> bad(k);
@@ -315,7 +325,7 @@ class Evaluator {
             const Array& numbers, double tolerance)
       : pass_(pass),
         actuation_{tool, std::move(rows), declared(kinds, slots, numbers, pass.size(), pass.n())},
-        tolerance_(tolerance) {
+        tolerance_(fraction(tolerance, "the singular tolerance")) {
     if (tool < 0 || tool >= pass_.size() ||
         Eigen::Index(actuation_.actuators.size()) != pass_.n() ||
         std::any_of(actuation_.rows.begin(), actuation_.rows.end(),

@@ -258,11 +258,11 @@ def test_the_integration_loop_refuses_states_it_cannot_read(crane):
     as None from the compiled right-hand side (Python then names what is wrong), and a Python
     right-hand side whose q̇, x or flags are not one row per state raise, never read past them."""
     q = np.tile((crane.lower + crane.upper) / 2, (3, 1))
-    velocity, bounds = np.array([0.5, 0.0]), (np.full(3, -np.inf), np.full(3, np.inf))
+    velocity = np.array([0.5, 0.0])
 
     def loop(rates, starts):
-        zeros = np.zeros_like(starts)
-        flags = np.zeros(len(starts), dtype=bool)
+        zeros, n = np.zeros_like(starts), starts.shape[1]
+        flags, bounds = np.zeros(len(starts), dtype=bool), (np.full(n, -np.inf), np.full(n, np.inf))
         return _core.dormand_prince(
             rates, velocity, starts, zeros, flags, 1.0, 1e-6, *TABLEAU, *bounds, 0.0, False, False
         )
@@ -271,6 +271,95 @@ def test_the_integration_loop_refuses_states_it_cannot_read(crane):
     short = (None, np.zeros((2, 3)), np.zeros(3, dtype=bool), np.zeros((3, 3)))
     with pytest.raises(ValueError, match=r"gives q̇ and x \(r, n\), and bad \(r,\)"):
         loop(lambda t, states: short, q)
+
+
+def test_the_loop_refuses_arrays_that_do_not_fit_and_freezes_a_start_it_cannot_step(crane):
+    """The loop's own arrays are checked against q before it writes its copies of them, and a
+    Python right-hand side's flags are read as their values, whatever their strides. A q̇ that
+    is NaN but not flagged bad makes the step's error NaN: the start is frozen, not stepped
+    forever."""
+    q = np.tile((crane.lower + crane.upper) / 2, (4, 1))
+    tableau, strokes = list(TABLEAU), (np.full(3, -np.inf), np.full(3, np.inf))
+
+    def loop(rates, f=None, failed=None, duration=1.0, c=tableau[0], a=tableau[1], e=tableau[2]):
+        f = np.zeros_like(q) if f is None else f
+        failed = np.zeros(len(q), dtype=bool) if failed is None else failed
+        return _core.dormand_prince(
+            rates, None, q, f, failed, duration, 1e-6, c, a, e, *strokes, 0.0, False, False
+        )
+
+    def still(flags):  # a right-hand side at rest, its flags given as ``flags(r)``
+        return lambda t, states: (None, np.zeros_like(states), flags(len(t)), states)
+
+    for wrong in (
+        {"f": np.zeros((1, 3))},
+        {"failed": np.zeros(1, dtype=bool)},
+        {"duration": np.nan},
+        {"c": np.zeros(0), "a": np.zeros((0, 0)), "e": np.zeros(1)},
+        {"e": tableau[2][:-1]},
+    ):
+        with pytest.raises(ValueError, match=r"must|tableau"):
+            loop(still(lambda r: np.zeros(r, dtype=bool)), **wrong)
+    # the last start flagged bad, by flags every other value of a longer array, or reversed
+    q[:, 0] += [0.0, 0.01, 0.02, 0.03]
+    last = lambda states: states[:, 0] > q[2, 0]  # noqa: E731
+    for view in (lambda b: b.repeat(2)[::2], lambda b: b[::-1].copy()[::-1]):
+
+        def flagged(t, states, view=view):  # at rest, the last start's flag True
+            return None, np.zeros_like(states), view(last(states)), states
+
+        found = loop(flagged)
+        assert found[-3].tolist() == [False, False, False, True] and len(found[0])
+
+    def nan(t, states):  # q̇ NaN, not flagged bad
+        return None, np.full_like(states, np.nan), np.zeros(len(t), dtype=bool), states
+
+    frozen = loop(nan)
+    assert frozen[-3].all() and len(frozen[0]) == 0  # every start failed, no step accepted
+
+
+def test_the_core_s_kernels_refuse_arrays_that_do_not_fit_and_ratios_outside_0_1():
+    """Arrays of the right rank but a wrong last size are refused, not read past; a singular
+    tolerance or a law's ratio of 0, NaN or above 1 is refused, not taken to pass a singular
+    matrix; a law for no task coordinates (m = 0) gives its null-space term alone."""
+    n, eye = 4, np.eye(4)[None]
+    with pytest.raises(ValueError, match=r"M must have shape \(k, n, n\)"):
+        _core.inertias(eye, np.ones((1, n, 1)))
+    with pytest.raises(ValueError, match=r"M_H must have shape \(k, n, n\)"):
+        _core.biases(eye, np.ones((1, n)), np.ones((1, n, 1)), eye, np.ones((1, n)))
+    with pytest.raises(ValueError, match="n ≥ 1"):
+        _core.derive(np.zeros((1, 0, 0)), np.zeros((1, 2, 0)), SINGULAR_TOLERANCE)
+    for ratio in (0.0, -1.0, np.nan, 2.0):
+        with pytest.raises(ValueError, match=r"must lie in \(0, 1\]"):
+            _core.derive(eye, np.ones((1, 2, n)), ratio)
+        with pytest.raises(ValueError, match=r"must lie in \(0, 1\]"):
+            _core.resolve(np.ones((1, 2, n)), np.ones((1, 2)), None, None, ratio)
+    z = np.arange(1.0, n + 1)[None]
+    free = _core.resolve(np.zeros((1, 0, n)), np.zeros((1, 0)), None, z, SINGULAR_RATIO)
+    assert np.array_equal(free, z)
+
+
+def test_newton_refuses_shapes_that_do_not_fit_the_robot(crane):
+    """The core's Newton loop takes the robot's q (k, n), one target per row of the m + r values
+    its pass gives (the task's, and the held actuators': n of them, or fewer for the closest
+    configuration to a point), and the joint limits (n,): anything else is refused before it
+    is read."""
+    held = crane.held_pass(crane.actuators.part([2]))
+    q = np.tile((crane.lower + crane.upper) / 2, (3, 1))
+    target = np.tile([3.5, -0.5, 0.8], (3, 1))
+    limits = (crane.lower, crane.upper)
+    tool_alone = crane.held_pass(crane.actuators.part([]))
+    for passed, goal in ((held, target), (tool_alone, target[:, :2])):
+        fine = _core.newton(passed, q, goal, None, 10, False, *limits, 1e-12, 1e-10, 1e-12)
+        assert fine is not None and fine[0].shape == (3, 3)
+    for start, goal, lower in (
+        (q, target[:1], crane.lower),  # a target for one row of three
+        (q[:, :2], target, crane.lower),  # another robot's n
+        (q, target[:, :2], crane.lower),  # a target short of the held actuator's value
+        (q, target, crane.lower[:2]),  # limits short of n
+    ):
+        with pytest.raises(ValueError, match="newton takes the robot's q"):
+            _core.newton(held, start, goal, None, 10, True, lower, crane.upper, 1e-12, 1e-10, 1e-12)
 
 
 class SlowTelescope(Resolver):
