@@ -1008,6 +1008,14 @@ API = [
         "samples must be a whole number within [1, 10,000]; got True",
     ),
     ("no hydraulics", lambda r: load_robot("panda").circuit(), "declare a [hydraulics] table"),
+    *[
+        (
+            f"held value {value!r}",
+            lambda r, value=value: configuration_at(r, [3.5, -0.5], {"x3": value}),
+            f"held must be {{actuator: value}}, values numbers; got {{'x3': {value!r}}}",
+        )
+        for value in ("0.9", None, True)
+    ],
     (
         "held outside its stroke",
         lambda r: configuration_at(r, [3.5, -0.5], {"x3": 5.0}),
@@ -1016,7 +1024,7 @@ API = [
     (
         "held values as text",
         lambda r: configuration_at(r, [3.5, -0.5], {"x3": "a"}),
-        "held values must be finite numbers, shape (k, 1); got [['a']]",
+        "held must be {actuator: value}, values numbers; got {'x3': 'a'}",
     ),
     (
         "periodic margin negative",

@@ -28,7 +28,7 @@ from redundancy.errors import (
 )
 from redundancy.model.actuators import ActuatorSet
 from redundancy.model.robot import Robot
-from redundancy.model.values import is_whole
+from redundancy.model.values import is_real, is_whole
 from redundancy.planning.angles import task_labels
 from redundancy.planning.tasks import Segment
 from redundancy.resolution.limits import amount
@@ -248,8 +248,8 @@ def configuration_at(robot: Robot, point: np.ndarray, held: dict[str, float]) ->
     Raises `UnreachableError` with the distance by which the point is missed (in mm, the held
     values in mm or degrees).
     """
-    if not isinstance(held, dict):
-        raise InvalidInputError(f"held must be {{actuator: value}}; got {held!r}")
+    if not isinstance(held, dict) or not all(is_real(v) for v in held.values()):
+        raise InvalidInputError(f"held must be {{actuator: value}}, values numbers; got {held!r}")
     solution = inverse_kinematics(robot, point, list(held), [list(held.values())])
     for name, value in held.items():
         actuator = robot.actuators[name]
