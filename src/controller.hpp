@@ -14,7 +14,7 @@ class Controller {
   // frames; the law is its `weight` (with `W` for CONSTANT) and, where `pull` (n) is given, the
   // null-space term z = pull ∘ (x − middle). `fallback(q, y_dot)` is the Python step: it answers
   // whatever this one does not (input that is not one finite float vector each, a singular A, a
-  // kind that cannot evaluate, a step that overflows, a mass matrix without mass or not finite),
+  // kind that cannot evaluate, a step not finite, a mass matrix without mass or not finite),
   // raising the toolkit's errors there;
   // `state_fallback(q)` is the Python state likewise. `result` and `state` are the tuple types
   // of a step (x_dot, q_dot, y) and of a state (x, A, J_H, M_H); with `masses` false (a robot

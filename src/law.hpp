@@ -40,7 +40,6 @@ class Law {
   // dynamic ones, kept from state to state, beyond.
   const Eigen::VectorXd& gram(double ratio) {
     switch (G_.rows()) {
-      case 0: return lambda_ = target_;  // no task: nothing to solve
       case 1: return gram(Eigen::LLT<Eigen::Matrix<double, 1, 1>>(), ratio);
       case 2: return gram(Eigen::LLT<Eigen::Matrix2d>(), ratio);
       case 3: return gram(Eigen::LLT<Eigen::Matrix3d>(), ratio);

@@ -185,7 +185,8 @@ inline std::pair<py::ssize_t, py::ssize_t> square_batch(
 // lie in (0, 1]: at 0 or NaN a singular matrix would pass; at 1 every matrix counts.
 inline double fraction(double value, const char* name) {
   if (!(value > 0 && value <= 1))
-    throw py::value_error(std::string(name) + " must lie in (0, 1]; got " + std::to_string(value));
+    throw py::value_error(std::string(name) + " must lie in (0, 1]; got " +
+                          std::string(py::repr(py::float_(value))));
   return value;
 }
 
@@ -277,7 +278,9 @@ inline bool zero_pivot(const Factor& factor) {
 // factors is exactly zero, as LAPACK's.
 inline Array solve(const Array& A, const Array& B) {
   const bool vectors = B.ndim() == 2;
-  const auto [k, n] = square_batch(A, {{&B, vectors ? 2 : 3, "B"}});
+  const auto [k, n] = square_batch(A, {});
+  if ((!vectors && B.ndim() != 3) || B.shape(0) != k || B.shape(1) != n)
+    throw py::value_error("B must have shape (k, n) or (k, n, p), as A (k, n, n)");
   const auto p = vectors ? 1 : B.shape(2);
   Array out(std::vector<py::ssize_t>(B.shape(), B.shape() + B.ndim()));
   Factor factor(n);
