@@ -14,7 +14,7 @@ from redundancy.planning.cycles import HeldReference
 from redundancy.planning.ik import inverse_kinematics
 from redundancy.planning.integrate import simulate
 from redundancy.planning.tasks import Segment, WorkCycle
-from redundancy.resolution.laws import GradientProjection, MinFlow
+from redundancy.resolution.laws import GradientProjection, MinFlow, Resolver
 from redundancy.resolution.objectives import ENERGY, VELOCITY
 
 
@@ -365,3 +365,28 @@ def test_a_path_that_evaluates_the_robot_within_a_step_changes_no_solve(crane, c
     assert len(calls) > 10  # the loop called the path back at its stages
     for name in ("t", "q", "x", "x_dot"):
         np.testing.assert_array_equal(getattr(between, name), getattr(alone, name))
+
+
+class Unweighted(Resolver):
+    """min ẋᵀẋ as a law of one's own: its motions run on the Python right-hand side."""
+
+    def weight(self, space):
+        return np.broadcast_to(np.eye(space.robot.n), space.A.shape)
+
+
+@pytest.mark.parametrize("method", ["adaptive", "rk4"])
+def test_a_start_whose_task_velocity_is_not_finite_is_frozen_on_either_right_hand_side(
+    crane, cycle, method
+):
+    """In closed loop ẏ = ẏ_d + K (y_d − y): from a start with the telescope out 1e308 m, y and
+    so ẏ are not finite. That start fails and the other runs on, whether the law is compiled or
+    one's own (the Python right-hand side), to the same motion."""
+    starts = np.array([[1.6, 1.0, 0.5], [1.6, 1.0, 1e308]])
+    motions = [
+        simulate(crane, law, cycle["1-2"], starts, method=method, gain=5.0)
+        for law in (VELOCITY.resolver, Unweighted())
+    ]
+    for motion in motions:
+        assert motion.failed.tolist() == [False, True]
+    compiled, python = (motion.q[0, : motion.counts[0]] for motion in motions)
+    np.testing.assert_allclose(python, compiled, rtol=0, atol=1e-9)

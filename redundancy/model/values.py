@@ -27,6 +27,15 @@ def is_real(value: object) -> bool:
     return isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool)
 
 
+def is_finite(value: object) -> bool:
+    """Whether ``value`` is a finite real number (`is_real`), an integer too large for a float
+    included as not finite."""
+    try:
+        return is_real(value) and math.isfinite(value)  # type: ignore[arg-type]
+    except OverflowError:
+        return False
+
+
 def is_whole(value: object, lower: float = -math.inf, upper: float = math.inf) -> bool:
     """Whether ``value`` is a whole number (Python's or numpy's, not a bool) in [lower, upper]."""
     return (

@@ -39,7 +39,7 @@ from redundancy.errors import InvalidInputError
 from redundancy.model.hydraulics import BAR, LITRES_PER_MINUTE, Flows, Supply
 from redundancy.model.kinematics import join
 from redundancy.model.robot import Robot
-from redundancy.model.values import is_real
+from redundancy.model.values import is_finite
 from redundancy.planning.tasks import Chain, Segment
 from redundancy.resolution.laws import Resolver, compiled_rates
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
@@ -592,9 +592,14 @@ class Law:
         return self._python(t, q)
 
     def _python(self, t: np.ndarray, q: np.ndarray) -> Rates:
-        """`__call__` in Python: the evaluation, the law's own methods, the solve for q̇."""
+        """`__call__` in Python: the evaluation, the law's own methods, the solve for q̇. A state
+        whose ẏ is not finite (a task of your own out of its domain) is bad, as the compiled
+        right-hand side finds it."""
         space, bad = regularised(evaluate(self.robot, q))
-        x_dot = self.resolver.resolve_at(space, self.velocity(t, space.y), t)
+        with np.errstate(over="ignore", invalid="ignore"):  # such a state is bad, said below
+            y_dot = self.velocity(t, space.y)
+        bad |= ~np.isfinite(y_dot).all(axis=1)
+        x_dot = self.resolver.resolve_at(space, np.where(bad[:, None], 0.0, y_dot), t)
         q_dot = space.joint_velocities(x_dot)
         bad |= ~np.isfinite(q_dot).all(axis=1)
         if bad.any():
@@ -662,7 +667,7 @@ def simulate(
         raise InvalidInputError(f"unknown method {method!r}; methods: {', '.join(METHODS)}")
     gain = (GAIN if method == "rk4" else 0.0) if gain is None else gain
     numbers = (time_step, gain, tolerance)
-    if not all(is_real(v) and np.isfinite(v) for v in numbers) or not (
+    if not all(is_finite(v) for v in numbers) or not (
         time_step > 0 and gain >= 0 and tolerance > 0
     ):
         raise InvalidInputError(

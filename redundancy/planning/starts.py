@@ -37,7 +37,7 @@ import numpy as np
 
 from redundancy.errors import InvalidInputError, UnreachableError, placed
 from redundancy.model.robot import Robot
-from redundancy.model.values import is_real, is_whole
+from redundancy.model.values import is_finite, is_whole
 from redundancy.planning.brackets import bracket_probes, new_probes, vertex_probe
 from redundancy.planning.ik import (
     FOUND,
@@ -520,7 +520,7 @@ def end_tolerance(robot: Robot, held: str, tolerance: float | None) -> float:
     ``tolerance``, or by default `END_TOLERANCE` of the held actuator's stroke."""
     scan = sweep_values(robot, held, REACH_GRID)
     tolerance = END_TOLERANCE * (scan[-1] - scan[0]) if tolerance is None else tolerance
-    if not (is_real(tolerance) and 0 < tolerance < np.inf):
+    if not (is_finite(tolerance) and tolerance > 0):
         raise InvalidInputError(
             f"tolerance must be a finite number > 0 (m or rad); got {tolerance!r}"
         )
