@@ -172,6 +172,7 @@ CASES = [
             ('[{from = "1", to = "2", name = ".."}]', "segment name '..' must be"),
             ('[{from = "1", to = "2", name = ""}]', "segment name '' must be"),
             ('[{from = "1", to = "2", name = "a\\tb"}]', "segment name 'a\\tb' must be"),
+            (f'[{{from = "1", to = "2", name = "{"é" * 51}"}}]', "at most 100 bytes"),
         )
     ],
     (
@@ -854,7 +855,7 @@ API = [
             lambda r, v=velocities: VELOCITY.resolver.resolve(actuator_space(r, STATE), v),
             "y_dot must be finite numbers of shape (1, 2), a row per state",
         )
-        for velocities in ([[np.nan, 0.0]], [[0.1]], [0.1, 0.0], "ab", [[0.1, 0.0], [0.1, 0.0]])
+        for velocities in ([[np.nan, 0.0]], [[0.1]], [0.1, 0.0], "ab", np.zeros((2, 2)))
     ],
     (
         "controller step far outside the joints' limits",

@@ -135,6 +135,8 @@ def test_a_file_written_whole_never_replaces_a_device_a_pipe_or_a_folder(tmp_pat
         (pipe, "is not a regular file"),  # as a device is: never the real one, in a test
         (tmp_path, "is a folder"),
         (Path("/proc/page.html"), "cannot write there"),
+        (pipe / "page.html", "is a file, not a folder"),
+        (tmp_path / f"{'a' * 300}.html", "cannot write there"),  # a name longer than 255 bytes
     ):
         with pytest.raises(InvalidInputError, match=f"^output {path}.* {why}"):
             output.write_atomically(path, write)

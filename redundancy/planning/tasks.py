@@ -259,10 +259,19 @@ class Arc(Shape):
         return cls(start, end, centre, e1, e2, radius, sweep, angles)
 
 
+NAME_BYTES = 100  # a segment name's most, in UTF-8: its outputs' names add up to 30 more, of 255
+
+
 def _file_part(name: str) -> bool:
     """Whether ``name`` can stand in a file's name as it is: a segment's outputs are named
-    after it, so no path separator may lead them out of their folder."""
-    return name not in ("", ".", "..") and name.isprintable() and not set(name) & {"/", "\\"}
+    after it, so no path separator may lead them out of their folder, and their names must fit
+    a file system's 255 bytes."""
+    return (
+        name not in ("", ".", "..")
+        and name.isprintable()
+        and not set(name) & {"/", "\\"}
+        and len(name.encode()) <= NAME_BYTES
+    )
 
 
 def _angle_of(d: np.ndarray, e1: np.ndarray, e2: np.ndarray) -> float:
@@ -292,8 +301,8 @@ class Segment:
         if not isinstance(name, str) or not _file_part(name):
             raise InvalidInputError(
                 f"segment name {excerpt(name)} must be text that can be part of a file's "
-                "name (the outputs are named after it): not empty, '.' or '..', and without '/', "
-                "'\\' or control characters"
+                f"name (the outputs are named after it): at most {NAME_BYTES} bytes, not empty, "
+                "'.' or '..', and without '/', '\\' or control characters"
             )
         with prefixed(f"segment {self.name}"):
             for end in ("start", "end"):

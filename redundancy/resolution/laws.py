@@ -129,8 +129,9 @@ class Resolver:
         if not (np.isfinite(x_dot).all() and np.isfinite(q_dot).all()):
             raise InvalidInputError(
                 f"{self.name}: the step at q = {robot.written(states[0])} for ẏ = "
-                f"{robot.written(velocities[0])} is not finite: its numbers overflow there (the "
-                f"joints' limits: {robot.written(robot.lower)} to {robot.written(robot.upper)})"
+                f"{robot.written(velocities[0])} is not finite: the law's numbers overflow or "
+                f"divide by zero there (the joints' limits: {robot.written(robot.lower)} to "
+                f"{robot.written(robot.upper)})"
             )
         return Step(x_dot[0], q_dot[0], space.y[0])
 
@@ -239,8 +240,9 @@ class Controller:
     robot's actuators are built-in kinds and the law is one of this module's, each step is one
     call of the compiled core (`redundancy._core.Controller`): the pass at q, y and J, x and A,
     J_H = J A⁻¹, W and z, the kernel, q̇ = A⁻¹ ẋ. It checks only that q (n,) and ẏ (m,) are
-    finite float arrays and that A is not singular; anything else (a list, a NaN, a singular
-    A) is answered by `Resolver.step`, which raises the toolkit's one-line errors. A kind or a
+    finite float arrays, that A is not singular and that ẋ and q̇ came out finite; anything
+    else (a list, a NaN, a singular A, a step that overflows) is answered by `Resolver.step`,
+    which raises the toolkit's one-line errors. A kind or a
     law of your own (any of ``weight``, ``null_space``, ``resolve``, ``step`` overridden), or a
     task other than the tool's position, runs `Resolver.step` on every call, as the same object.
     `state` is the state a step reads, with M_H (say, to schedule a servo's gains on the mass

@@ -42,9 +42,9 @@ def per_state(values, name: str, shape: tuple[int, ...]) -> np.ndarray:
     except (TypeError, ValueError):
         checked = None
     if checked is None or checked.shape != shape or not np.isfinite(checked).all():
+        shown = values.tolist() if isinstance(values, np.ndarray) else values  # on one line
         raise InvalidInputError(
-            f"{name} must be finite numbers of shape {shape}, a row per state; got "
-            f"{excerpt(values)}"
+            f"{name} must be finite numbers of shape {shape}, a row per state; got {excerpt(shown)}"
         )
     return checked
 
