@@ -302,7 +302,7 @@ class Segment:
             raise InvalidInputError(
                 f"segment name {excerpt(name)} must be text that can be part of a file's "
                 f"name (the outputs are named after it): at most {NAME_BYTES} bytes, not empty, "
-                "'.' or '..', and without '/', '\\' or control characters"
+                "'.' or '..', and without '/', '\\' or unprintable characters"
             )
         with prefixed(f"segment {self.name}"):
             for end in ("start", "end"):
