@@ -4,6 +4,7 @@ roots, locked joints, tool points), each loaded and run through the study and th
 
 import contextlib
 import re
+import shutil
 import tomllib
 import warnings
 from pathlib import Path
@@ -218,6 +219,22 @@ def test_locked_joints_hold_their_chosen_values_and_drop_their_actuators(tmp_pat
     toml.write_text(toml.read_text().replace("{stick_joint = -1.4}", '["telescope_joint"]'))
     neutral = quietly(toml)
     np.testing.assert_allclose(fk(neutral, [0.3, -1.0]), arm_tool([0.3, -1.0, 0.0]), atol=1e-12)
+
+
+def test_a_locked_joint_s_actuator_leaves_the_circuit_with_it(tmp_path):
+    """The crane with its telescope locked: x3 is dropped, and its cylinder in [hydraulics] with
+    it; the circuit is the two other cylinders' as the full crane declares them."""
+    shutil.copytree(bundled_root() / "hiab031", tmp_path / "crane")
+    toml = tmp_path / "crane" / "robot.toml"
+    locked_telescope = 'task_axes = "xz"\nlocked_joints = ["telescope_joint"]'
+    toml.write_text(toml.read_text().replace('task_axes = "xz"', locked_telescope, 1))
+    with pytest.warns(UserWarning, match="actuators on locked joints are dropped: x3"):
+        locked = load_robot(toml)
+    full = load_robot("hiab031")
+    assert locked.actuators.names == ["x1", "x2"]
+    assert locked.circuit().names == ("x1", "x2")
+    for mine, theirs in zip(locked.circuit().cylinders, full.circuit().cylinders[:2]):
+        assert mine == theirs
 
 
 def test_missing_meshes_are_named_once_and_their_links_drawn_as_hulls_through_their_joints():

@@ -209,12 +209,14 @@ def circuit_from_table(
     rotary: list[bool],
     declared: dict[str, CylinderTable] | None = None,
     declared_in: str = "",
+    dropped: list[str] | tuple[str, ...] = (),
 ) -> Circuit:
     """A `Circuit` from a ``[hydraulics]`` table (`redundancy.model.schema.Hydraulics`, schema
     in the README), read from ``source``, for a robot with actuators ``actuators`` (``rotary``
     marks angles, which cylinders cannot drive), with the cylinders ``declared`` beside the
     actuators (in ``declared_in``, a URDF's transmissions) besides the table's own; a cylinder
-    declared in both is an error."""
+    declared in both is an error. The cylinders of the actuators ``dropped`` (on locked joints)
+    are left out."""
     given = validate(Hydraulics, table, source, "hydraulics")
     where = f"{source}: [hydraulics]"
     declared = declared or {}
@@ -225,7 +227,11 @@ def circuit_from_table(
         )
     places = {name: f"{where} cylinders.{name}" for name in given.cylinders}
     places |= {name: f"{declared_in} transmission {name!r}" for name in declared}
-    cylinders = {**given.cylinders, **declared}
+    cylinders = {  # a dropped actuator's cylinder (its joint locked) goes with it
+        name: cylinder
+        for name, cylinder in {**given.cylinders, **declared}.items()
+        if name not in dropped
+    }
     if not cylinders:
         raise InvalidInputError(
             f"{where}: no cylinders; declare [hydraulics.cylinders.<actuator>] tables or "

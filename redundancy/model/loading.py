@@ -133,15 +133,16 @@ TOOL_POINT = "tool point"  # the frame of a tool given as a point on a link
 
 def _actuators(
     root: etree._Element, description: Description, source: str, where: str, locked: dict
-) -> list:
+) -> tuple[list, list[str]]:
     """The declared actuators, from the URDF's transmissions and robot.toml's tables, less
-    those on locked joints (dropped with a warning)."""
+    those on locked joints, and the names of those (dropped with a warning, their cylinders
+    with them)."""
     declared = read_transmissions(root, source)
     declared += read_actuator_tables(description.actuators, where)
     dropped = [a.name for a in declared if a.joint in locked]
     if dropped:
         warnings.warn(f"actuators on locked joints are dropped: {', '.join(dropped)}", stacklevel=3)
-    return [a for a in declared if a.joint not in locked]
+    return [a for a in declared if a.joint not in locked], dropped
 
 
 STEP = np.radians(0.25)  # rad: the grid a continuous joint's stroke range is first sought on
@@ -264,9 +265,8 @@ def load_robot(
         tool = model.frames[frame_id(model, tool_frame)]
         point_mass = pin.Inertia(payload, tool.placement.translation, np.zeros((3, 3)))
         model.inertias[tool.parentJoint] = model.inertias[tool.parentJoint] + point_mass
-    actuators = ActuatorSet.bind(
-        _actuators(urdf.root, description, urdf.source, where, locked), model
-    )
+    kept, dropped = _actuators(urdf.root, description, urdf.source, where, locked)
+    actuators = ActuatorSet.bind(kept, model)
     actuators.source = where
     loaded = Robot(
         name,
@@ -277,7 +277,7 @@ def load_robot(
         payload,
         urdf_path,
         None if description.task is None else folder / description.task,
-        _circuit(urdf, actuators, description, where, hydraulics),
+        _circuit(urdf, actuators, dropped, description, where, hydraulics),
         urdf.text,
         urdf.missing_meshes,
         urdf.zero_masses,
@@ -296,6 +296,7 @@ def load_robot(
 def _circuit(
     urdf: Urdf,
     actuators: ActuatorSet,
+    dropped: list[str],
     description: Description,
     where: str,
     hydraulics: str | Path | None,
@@ -322,4 +323,6 @@ def _circuit(
             )
         return None
     rotary = actuators.rotary.tolist()
-    return circuit_from_table(table, origin, actuators.names, rotary, declared, urdf.source)
+    return circuit_from_table(
+        table, origin, actuators.names, rotary, declared, urdf.source, dropped
+    )
