@@ -181,6 +181,23 @@ def test_fast_search_needs_few_simulations(searches):
         assert fast.simulations < 40 and fast.rounds <= 3
 
 
+def test_a_search_keeps_its_rounds_motions_and_each_samples_start(searches):
+    """Each round's motions are kept as integrated; joined, sample i's motion is row rows[i],
+    and it starts at the sample's start configuration, at its held value."""
+    search = searches["3-1"]
+    assert search.rounds == len(search.batches) == 2
+    assert len(search.trajectory) == sum(len(b) for b in search.batches) == search.simulations
+    x3 = list(search.robot.actuators.names).index("x3")
+    for sample, row in zip(search.samples, search.rows):
+        if row < 0:
+            with pytest.raises(InvalidInputError, match="unreachable"):
+                search.start_configuration(sample)
+            continue
+        q = search.start_configuration(sample)
+        np.testing.assert_array_equal(q, search.trajectory.q[row, 0])
+        assert search.trajectory.x[row, 0, x3] == pytest.approx(sample.value, abs=1e-9)
+
+
 def test_one_motion_signature_for_every_search(crane, cycle, searches):
     """`motion()` is the best's motion, `motion(sample)` any reachable sample's, whatever the
     method."""

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field, fields, replace
-from functools import cached_property, partial
+from functools import cached_property, partial, reduce
 
 import numpy as np
 
@@ -100,9 +100,9 @@ class SearchResult:
     """Every sample of a search of the start along one path (a segment, or a work cycle's
     `Chain`), and the motions of the reachable ones.
 
-    ``trajectory`` holds one motion per reachable sample (sparse samples); ``rows[i]`` is
-    sample i's row there (−1 when unreachable). ``method`` is the search that chose the
-    samples, ``rounds`` the batches it integrated.
+    ``batches`` holds the motions of each batch the search integrated, in order, one per
+    reachable sample (sparse samples); ``rows[i]`` is sample i's motion among them all, counted
+    across the batches (−1 when unreachable). ``method`` is the search that chose the samples.
     """
 
     robot: Robot = field(repr=False)
@@ -110,10 +110,33 @@ class SearchResult:
     objective: Objective
     held: tuple[str, ...]
     samples: tuple[Sample, ...]
-    trajectory: Trajectory = field(repr=False)
+    batches: tuple[Trajectory, ...] = field(repr=False)
     rows: np.ndarray
     method: str = "sweep"
-    rounds: int = 1
+
+    @property
+    def rounds(self) -> int:
+        """How many batches the search integrated."""
+        return len(self.batches)
+
+    @cached_property
+    def trajectory(self) -> Trajectory:
+        """Every reachable sample's motion, as one batch: row ``rows[i]`` is sample i's. Joined
+        when first read, not per round: a search reads its batches' starts alone."""
+        return reduce(concatenated, self.batches)
+
+    def start_configuration(self, sample: Sample) -> np.ndarray:
+        """The configuration (n,) the motion from a reachable ``sample`` starts at."""
+        if sample not in self.samples:
+            raise InvalidInputError(f"{sample} is not a sample of this search")
+        row = int(self.rows[self.samples.index(sample)])
+        if row < 0:
+            raise InvalidInputError(f"the start {sample.values} of {self.held} is unreachable")
+        for batch in self.batches:
+            if row < len(batch):
+                return batch.q[row, 0]
+            row -= len(batch)
+        raise AssertionError("rows count the batches' motions")
 
     @property
     def values(self) -> np.ndarray:
@@ -184,17 +207,13 @@ class SearchResult:
                 f"no start on {self.segment.label} keeps every checked limit for the "
                 f"{self.objective.name} objective; closest: {self.closest_violation}"
             )
-        if sample not in self.samples:
-            raise InvalidInputError(f"{sample} is not a sample of this search")
-        row = int(self.rows[self.samples.index(sample)])
-        if row < 0:
-            raise InvalidInputError(f"the start {sample.values} of {self.held} is unreachable")
-        searched = self.trajectory
+        start = self.start_configuration(sample)
+        searched = self.batches[0]
         return simulate_path(
             self.robot,
             self.objective.resolver,
             self.segment,
-            searched.q[row : row + 1, 0],
+            start[None],
             time_step,
             checked=searched.checked,
             tolerance=REPORT_TOLERANCE,
@@ -204,14 +223,13 @@ class SearchResult:
 
     def extended(self, other: SearchResult) -> SearchResult:
         """This search with the samples of ``other`` (same path and objective) appended."""
-        offset = len(self.trajectory)
+        offset = sum(len(batch) for batch in self.batches)
         rows = np.concatenate([self.rows, np.where(other.rows < 0, -1, other.rows + offset)])
         return replace(
             self,
             samples=self.samples + other.samples,
-            trajectory=concatenated(self.trajectory, other.trajectory),
+            batches=self.batches + other.batches,
             rows=rows,
-            rounds=self.rounds + other.rounds,
         )
 
 
@@ -411,7 +429,7 @@ def evaluate_starts(
         found = tuple(motions.violations(row))
         reason = None if feasible else _reason(motions, row, found)
         samples.append(Sample(start, float(scores[row]), feasible, margin, found, reason))
-    return SearchResult(robot, path, objective, held, tuple(samples), motions, rows, method)
+    return SearchResult(robot, path, objective, held, tuple(samples), (motions,), rows, method)
 
 
 def _reason(trajectory: Trajectory, row: int, violations: tuple[Violation, ...]) -> str:

@@ -60,7 +60,7 @@ def free_start_of(search: SearchResult) -> tuple[str, np.ndarray, str]:
     elif missed:
         closest = min(missed, key=lambda s: max(v.excess for v in s.violations))
         kind, values = "closest start", closest.values
-        q = search.trajectory.q[int(search.rows[search.samples.index(closest)]), 0]
+        q = search.start_configuration(closest)
         why = f": no start keeps every stroke over the cycle; closest: {search.closest_violation}"
     else:
         kind, why = "default start", ": no start reaches the cycle"
