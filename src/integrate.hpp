@@ -295,3 +295,60 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
   std::copy(stopped.begin(), stopped.end(), halted.mutable_data());
   return py::make_tuple(rows, t0, h0, q0, slopes, failed, halted, kept);
 }
+
+// The least and greatest stroke of every actuator over each of k motions after its start (the
+// start itself excluded), (k, n) each, for samples at times t (k, T) of x and ẋ (k, T, n): at
+// the samples and, between two, at the interior extrema of the cubic Hermite interpolant
+// through x and ẋ at both ends, p(s) = a s³ + b s² + d₀ s + x₀ over s ∈ [0, 1] with d = h ẋ,
+// a = 2 (x₀ − x₁) + d₀ + d₁ and b = 3 (x₁ − x₀) − 2 d₀ − d₁, where p′ = 3 a s² + 2 b s + d₀
+// vanishes: s = (−b ± √(b² − 3 a d₀)) / 3a, or −d₀ / 2b where p is (nearly) quadratic. A
+// repeated last sample (h = 0) adds nothing.
+inline py::tuple stroke_extremes(const Array& t, const Array& x, const Array& x_dot) {
+  if (t.ndim() != 2 || t.shape(1) < 2 || x.ndim() != 3 || x.shape(0) != t.shape(0) ||
+      x.shape(1) != t.shape(1) || x_dot.ndim() != 3 ||
+      !std::equal(x.shape(), x.shape() + 3, x_dot.shape()))
+    throw py::value_error("stroke_extremes takes t (k, T), x and x_dot (k, T, n), T ≥ 2");
+  const auto k = x.shape(0), T = x.shape(1), n = x.shape(2);
+  Array lowest({k, n}), highest({k, n});
+  auto* low = lowest.mutable_data();
+  auto* high = highest.mutable_data();
+  const auto* times = t.data();
+  const auto* strokes = x.data();
+  const auto* rates = x_dot.data();
+  for (py::ssize_t i = 0; i < k; ++i) {
+    for (py::ssize_t j = 0; j < n; ++j) {
+      const auto sample = [&](py::ssize_t u) { return strokes[(i * T + u) * n + j]; };
+      double least = sample(1), most = sample(1);
+      for (py::ssize_t u = 2; u < T; ++u) {  // a NaN sample stays, as numpy's minimum keeps it
+        const double value = sample(u);
+        if (std::isnan(least) || std::isnan(value)) {
+          least = most = std::isnan(least) ? least : value;
+          continue;
+        }
+        least = std::min(least, value);
+        most = std::max(most, value);
+      }
+      for (py::ssize_t u = 0; u + 1 < T; ++u) {
+        const double h = times[i * T + u + 1] - times[i * T + u];
+        const double x0 = sample(u), x1 = sample(u + 1);
+        const double d0 = h * rates[(i * T + u) * n + j], d1 = h * rates[(i * T + u + 1) * n + j];
+        const double a = 2 * (x0 - x1) + d0 + d1, b = 3 * (x1 - x0) - 2 * d0 - d1;
+        const double discriminant = b * b - 3 * a * d0;
+        if (!(discriminant >= 0)) continue;
+        const double root = std::sqrt(discriminant);
+        const bool cubic = std::abs(a) > 1e-12 * (std::abs(b) + std::abs(d0));
+        const double candidates[2] = {cubic ? (-b + root) / (3 * a) : -d0 / (2 * b),
+                                      cubic ? (-b - root) / (3 * a) : NAN};
+        for (const double s : candidates) {
+          if (!(s > 0 && s < 1)) continue;
+          const double value = ((a * s + b) * s + d0) * s + x0;
+          least = std::min(least, value);
+          most = std::max(most, value);
+        }
+      }
+      low[i * n + j] = least;
+      high[i * n + j] = most;
+    }
+  }
+  return py::make_tuple(lowest, highest);
+}

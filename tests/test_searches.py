@@ -56,6 +56,41 @@ def test_hermite_extremes_find_a_maximum_between_samples():
     assert lowest[0, 0] == pytest.approx(np.sin(1.0))  # the start itself is excluded
 
 
+def test_hermite_extremes_bound_the_interpolant_sampled_densely():
+    """Random samples, some motions padded by repeating their last sample (h = 0): with the start
+    (which they leave out) the extremes are those of the samples and of the cubic Hermite
+    interpolant between them, p(s) = h₀₀ x₀ + h₁₀ h ẋ₀ + h₀₁ x₁ + h₁₁ h ẋ₁, evaluated at 4,001
+    points of each interval (its extremum between two of them is within the spacing² of theirs);
+    a NaN sample is kept."""
+    rng = np.random.default_rng(3)
+    s = np.linspace(0.0, 1.0, 4001)
+    basis = np.stack(
+        [1 - 3 * s**2 + 2 * s**3, s - 2 * s**2 + s**3, 3 * s**2 - 2 * s**3, s**3 - s**2]
+    )
+    for trial in range(300):
+        k, T, n = rng.integers(1, 4), rng.integers(2, 7), rng.integers(1, 4)
+        t = np.cumsum(rng.uniform(0.05, 1.0, (k, T)), axis=1)
+        x, x_dot = rng.normal(size=(k, T, n)), rng.normal(scale=3.0, size=(k, T, n))
+        if trial % 3 == 0:  # padded: the last sample repeated
+            t[:, -1], x[:, -1], x_dot[:, -1] = t[:, -2], x[:, -2], x_dot[:, -2]
+        lowest, highest = stroke_extremes(t, x, x_dot)
+        lowest, highest = np.minimum(lowest, x[:, 0]), np.maximum(highest, x[:, 0])
+        h = np.diff(t, axis=1)[..., None]
+        pieces = [x[:, :-1], h * x_dot[:, :-1], x[:, 1:], h * x_dot[:, 1:]]
+        dense = np.einsum("cs,ckun->kuns", basis, np.stack(pieces))  # (k, T − 1, n, s)
+        dense_low, dense_high = dense.min(axis=(1, 3)), dense.max(axis=(1, 3))
+        scale = 1e-6 * (1 + sum(np.abs(piece).max() for piece in pieces))
+        assert np.all(lowest <= dense_low + 1e-12) and np.all(lowest >= dense_low - scale)
+        assert np.all(highest >= dense_high - 1e-12) and np.all(highest <= dense_high + scale)
+    x[0, -1, 0] = np.nan
+    lowest, highest = stroke_extremes(t, x, x_dot)
+    assert np.isnan(lowest[0, 0]) and np.isnan(highest[0, 0])
+    with pytest.raises(ValueError, match="T ≥ 2"):
+        stroke_extremes(t[:, :1], x[:, :1], x_dot[:, :1])
+    with pytest.raises(ValueError, match=r"x_dot \(k, T, n\)"):
+        stroke_extremes(t, x, x_dot[..., :1])
+
+
 def test_the_zeros_of_the_interpolant_through_the_probes_are_the_polynomials_zeros():
     """Lines and parabolas through two or three random points: each zero found makes the
     Lagrange interpolant vanish, and they are the real zeros numpy finds from its fitted

@@ -474,29 +474,11 @@ def stroke_extremes(
     """Least and greatest stroke of every actuator over each motion after its start (the start
     itself excluded), (k, n) each, for samples at times t (k, T) of x and ẋ (k, T, n).
 
-    Between samples x follows the cubic Hermite interpolant through x and ẋ at both ends; its
-    interior extrema are where its derivative, a quadratic, vanishes.
+    Between samples x follows the cubic Hermite interpolant through x and ẋ at both ends, p(s) =
+    a s³ + b s² + d₀ s + x₀ over s ∈ [0, 1] with d = h ẋ; its interior extrema are where its
+    derivative, a quadratic, vanishes. One pass of the core (`redundancy._core.stroke_extremes`).
     """
-    h = np.diff(t, axis=1)[:, :, None]
-    x0, x1, d0, d1 = x[:, :-1], x[:, 1:], h * x_dot[:, :-1], h * x_dot[:, 1:]
-    a = 2 * (x0 - x1) + d0 + d1  # p(s) = a s³ + b s² + d0 s + x0, s ∈ [0, 1]
-    b = 3 * (x1 - x0) - 2 * d0 - d1
-    discriminant = b * b - 3 * a * d0
-    root = np.sqrt(np.maximum(discriminant, 0.0))
-    lowest, highest = x[:, 1:].min(axis=1), x[:, 1:].max(axis=1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        cubic = np.abs(a) > 1e-12 * (np.abs(b) + np.abs(d0))
-        candidates = [
-            np.where(cubic, (-b + root) / (3 * a), -d0 / (2 * b)),
-            np.where(cubic, (-b - root) / (3 * a), np.nan),
-        ]
-    for s in candidates:
-        inside = (discriminant >= 0) & (s > 0) & (s < 1)
-        s = np.where(inside, s, 0.0)
-        value = ((a * s + b) * s + d0) * s + x0
-        lowest = np.minimum(lowest, np.where(inside, value, np.inf).min(axis=1))
-        highest = np.maximum(highest, np.where(inside, value, -np.inf).max(axis=1))
-    return lowest, highest
+    return _core.stroke_extremes(t, x, x_dot)
 
 
 def rate_on_grid(values: np.ndarray, t: np.ndarray) -> np.ndarray:
