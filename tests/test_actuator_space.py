@@ -76,6 +76,31 @@ def test_one_state_is_a_batch_of_one(crane):
     assert single.J_H.shape == (1, 2, 3)
 
 
+def test_states_taken_or_joined_are_the_states_evaluated_there(crane):
+    """Rows taken (indices, repeated, or a mask) and batches joined are, field by field, the
+    states evaluated at those q and v; what depends on q alone (J_H, M_H) is carried over,
+    equal to what those states derive afresh."""
+    q = random_configurations(crane, 9, seed=40, margin=0.01)
+    v = random_velocities(crane, 9, seed=41)
+    space = actuator_space(crane, q, v)
+    assert space.M_H.shape == (9, crane.n, crane.n)  # derived: carried by take and joined
+    rows = np.array([7, 2, 2, 0])
+    mask = np.arange(9) % 3 == 1
+    cases = [
+        (space.take(rows), rows),
+        (space.take(mask), np.flatnonzero(mask)),
+        (type(space).joined([space.take(rows[:2]), space.take(rows[2:])]), rows),
+    ]
+    for taken, at in cases:
+        fresh = actuator_space(crane, q[at], v[at])
+        assert {"J_H", "M_H"} <= set(vars(taken))
+        for name in ("q", "v", "x", "A", "y", "J", "J_H", "M_H", "x_dot", "A_dot", "N_H"):
+            np.testing.assert_array_equal(getattr(taken, name), getattr(fresh, name), err_msg=name)
+        for name in ("positions", "jacobians", "velocities", "jacobian_rates"):
+            got, expected = getattr(taken.kinematics, name), getattr(fresh.kinematics, name)
+            np.testing.assert_array_equal(got, expected, err_msg=name)
+
+
 def test_a_singular_actuator_jacobian_is_named(crane):
     """At q1 = 0 the lift cylinder's line passes through joint 1: no torque arm."""
     with pytest.raises(

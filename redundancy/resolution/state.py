@@ -20,7 +20,7 @@ weakest actuator, and the integrators freeze such states.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any
 
@@ -28,7 +28,7 @@ import numpy as np
 
 from redundancy import _core
 from redundancy.errors import InvalidInputError, SingularConfigurationError
-from redundancy.model.kinematics import Kinematics, join, take
+from redundancy.model.kinematics import Kinematics, join, remade, take
 from redundancy.model.robot import SINGULAR_TOLERANCE as SINGULAR_TOLERANCE
 from redundancy.model.robot import Robot
 from redundancy.model.schema import excerpt
@@ -167,18 +167,22 @@ class ActuatorSpace:
         """These states at joint velocities v (k, n), once a law has solved for them, and
         accelerations ``x_ddot`` where known: what depends on q alone (J_H, M, M_H), where
         already derived, is kept."""
-        return self._kept(replace(self, v=v, x_ddot=x_ddot), slice(None))
+        return self._kept(remade(self, v=v, x_ddot=x_ddot))
 
     def take(self, rows: np.ndarray) -> ActuatorSpace:
-        """The states ``rows`` (indices into the batch) alone."""
+        """The states ``rows`` (indices into the batch, or a mask over it) alone."""
+        rows = np.asarray(rows)
+        if rows.dtype == bool:
+            rows = np.flatnonzero(rows)
         taken: dict[str, Any] = {name: take(getattr(self, name), rows) for name in ARRAYS}
-        return self._kept(replace(self, kinematics=self.kinematics.take(rows), **taken), rows)
+        return self._kept(remade(self, kinematics=self.kinematics.take(rows), **taken), rows)
 
-    def _kept(self, other: ActuatorSpace, rows) -> ActuatorSpace:
+    def _kept(self, other: ActuatorSpace, rows: np.ndarray | None = None) -> ActuatorSpace:
         """``other`` (these states, or those ``rows`` of them) with what is derived from q
         alone copied over, not derived again."""
         for name in KEPT.intersection(vars(self)):
-            vars(other)[name] = vars(self)[name][rows]
+            derived = vars(self)[name]
+            vars(other)[name] = derived if rows is None else take(derived, rows)
         return other
 
     @classmethod
@@ -186,7 +190,7 @@ class ActuatorSpace:
         """The batches ``parts`` (one robot) as one, in order."""
         arrays: dict[str, Any] = {name: join([getattr(p, name) for p in parts]) for name in ARRAYS}
         kinematics = Kinematics.joined([p.kinematics for p in parts])
-        joined = replace(parts[0], kinematics=kinematics, **arrays)
+        joined = remade(parts[0], kinematics=kinematics, **arrays)
         for name in KEPT.intersection(*(vars(p) for p in parts)):
             vars(joined)[name] = np.concatenate([vars(p)[name] for p in parts])
         return joined
@@ -203,7 +207,7 @@ def regularised(space: ActuatorSpace) -> tuple[ActuatorSpace, np.ndarray]:
     bad = space._bad
     if bad.any():
         eye = np.eye(space.A.shape[-1])
-        space = replace(space, A=np.where(bad[:, None, None], eye, space.A))
+        space = remade(space, A=np.where(bad[:, None, None], eye, space.A))
     return space, bad
 
 
