@@ -322,7 +322,7 @@ class Configurations:
         self._reach: dict[float, np.ndarray] = {}
         self.row = held_indices(robot, [held])[0]
         self.joints = Limits.joints(robot)
-        scan = sweep_values(robot, held, REACH_GRID)
+        self.scan = scan = sweep_values(robot, held, REACH_GRID)
         order = np.argsort(np.abs(scan - scan.mean()), kind="stable")
         anchor = inverse_kinematics(robot, point, [held], scan[order[:1], None])
         if not anchor.reached[0]:
@@ -339,7 +339,7 @@ class Configurations:
         ends of the reachable ones located to ``tolerance`` by bisection of the joint margin: no
         integration, so one scan serves every objective's search (kept per tolerance)."""
         if tolerance not in self._reach:
-            reach = self.at(sweep_values(self.robot, self.held, REACH_GRID))
+            reach = self.at(self.scan)
             for _ in range(ROUNDS):
                 values = reach.values[:, 0]
                 probes = new_probes(
@@ -536,8 +536,9 @@ def search_method(held: tuple[str, ...], samples: int, method: str | None) -> st
 def end_tolerance(robot: Robot, held: str, tolerance: float | None) -> float:
     """The tolerance (m or rad) to which the fast search locates the feasible ends:
     ``tolerance``, or by default `END_TOLERANCE` of the held actuator's stroke."""
-    scan = sweep_values(robot, held, REACH_GRID)
-    tolerance = END_TOLERANCE * (scan[-1] - scan[0]) if tolerance is None else tolerance
+    if tolerance is None:
+        lower, upper = stroke_box(robot, (held,))[0]
+        tolerance = END_TOLERANCE * (upper - lower)
     if not (is_finite(tolerance) and tolerance > 0):
         raise InvalidInputError(
             f"tolerance must be a finite number > 0 (m or rad); got {tolerance!r}"
