@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import redundancy
 from redundancy import (
     VELOCITY,
     Controller,
@@ -848,7 +849,38 @@ def crane():
 
 STATE = [1.6, 1.0, 0.5]
 FAR = np.array([1.7, 1.0, 1e200])  # finite, but the telescope out 1e200 m: every product overflows
+ROBOT_FIRST = [  # each public function that takes a robot first, with the rest of its arguments
+    ("actuator_space", lambda r: (STATE,)),
+    ("simulate", lambda r: (VELOCITY.resolver, _segment(r), np.array([STATE]))),
+    ("simulate_path", lambda r: (VELOCITY.resolver, _segment(r), np.array([STATE]))),
+    ("improved_start", lambda r: (_segment(r), VELOCITY)),
+    ("improved_starts", lambda r: (_segment(r), (VELOCITY,))),
+    ("default_start", lambda r: (_segment(r),)),
+    ("inverse_kinematics", lambda r: (_segment(r).start, ["x3"], [[1.0]])),
+    ("configuration_at", lambda r: (_segment(r).start, {"x3": 1.0})),
+    ("global_optimum", lambda r: (_segment(r),)),
+    ("integral_optimum", lambda r: (_segment(r), "energy", "x3")),
+    ("energy_optimum", lambda r: (_segment(r), None, "x3")),
+    ("plan_cycle", lambda r: (_cycle(r),)),
+    ("improved_cycle_start", lambda r: (_cycle(r),)),
+    ("periodic_optimum", lambda r: (_cycle(r), None)),
+    ("repeat", lambda r: (_cycle(r), VELOCITY.resolver, np.array(STATE))),
+    ("return_map", lambda r: (_cycle(r), VELOCITY.resolver)),
+    ("run_cycle", lambda r: (_cycle(r),)),
+    ("run_study", lambda r: (_cycle(r),)),
+    ("check", lambda r: ()),
+    ("with_tool_angle", lambda r: ()),
+    ("Controller", lambda r: (VELOCITY.resolver,)),
+]
 API = [
+    *[
+        (
+            f"{name} of a robot's name",
+            lambda r, name=name, rest=rest: getattr(redundancy, name)("hiab031", *rest(r)),
+            "robot must be a Robot, as load_robot(name) gives one; got 'hiab031'",
+        )
+        for name, rest in ROBOT_FIRST
+    ],
     *[
         (
             f"resolve ẏ {velocities!r}",

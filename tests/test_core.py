@@ -609,5 +609,5 @@ def test_the_held_law_solves_its_defining_equations(crane):
 def test_the_controller_takes_a_robot_and_a_law(crane):
     with pytest.raises(InvalidInputError, match="a controller takes a law, a Resolver"):
         Controller(crane, "velocity")
-    with pytest.raises(InvalidInputError, match="a controller takes a Robot"):
+    with pytest.raises(InvalidInputError, match="robot must be a Robot"):
         Controller("hiab031", MinVelocityNorm())

@@ -56,6 +56,15 @@ def _as_batch(name: str, values: np.ndarray | list[float], n: int) -> np.ndarray
     return np.atleast_2d(array)
 
 
+def require_robot(robot: object) -> None:
+    """Refuse, in one line, what a function taking a `Robot` first was given instead (a bundled
+    robot's name, most often)."""
+    if not isinstance(robot, Robot):
+        raise InvalidInputError(
+            f"robot must be a Robot, as load_robot(name) gives one; got {robot!r}"
+        )
+
+
 class Robot:
     """A manipulator: Pinocchio model, tool point, task axes, actuators and limits, and its
     hydraulic circuit where one is declared (`redundancy.model.hydraulics`).

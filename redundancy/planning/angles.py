@@ -32,7 +32,7 @@ import pinocchio as pin
 
 from redundancy.errors import InvalidInputError
 from redundancy.model.kinematics import Kinematics, PointMotion
-from redundancy.model.robot import AXES, Robot, frame_id
+from redundancy.model.robot import AXES, Robot, frame_id, require_robot
 
 PROBE = "tool_angle_probe"  # the tracked frame one metre along the tool's chosen axis
 
@@ -146,6 +146,7 @@ def _stacked(task: tuple, angle: tuple) -> list:
 def with_tool_angle(robot: Robot, centre: float = 0.0, axis: str | None = None) -> Robot:
     """``robot`` with the tool's angle as its last task coordinate (see the module docstring);
     one already measuring it is returned with its branch moved to ``centre``."""
+    require_robot(robot)
     if isinstance(robot, ToolAngleRobot):
         return ToolAngleRobot(robot.base, centre, axis or robot.tool_axis)
     return ToolAngleRobot(robot, centre, axis)

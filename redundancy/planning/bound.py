@@ -38,7 +38,7 @@ from scipy.linalg import block_diag
 from scipy.optimize import minimize
 
 from redundancy.errors import InvalidInputError, UnreachableError
-from redundancy.model.robot import Robot
+from redundancy.model.robot import Robot, require_robot
 from redundancy.planning.ik import (
     CONTINUATION_ITERATIONS,
     FOUND,
@@ -477,6 +477,7 @@ def global_optimum(
     one. ``checked`` names the actuators whose strokes bind (default all). The objective must
     be a peak objective (its reduction "peak").
     """
+    require_robot(robot)
     segment, objective = checked_path(segment), as_objective(objective)
     names = held_names(robot, held)
     rows = held_indices(robot, names)

@@ -34,7 +34,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from redundancy.errors import InvalidInputError
-from redundancy.model.robot import Robot
+from redundancy.model.robot import Robot, require_robot
 from redundancy.model.values import is_real, is_whole
 from redundancy.planning.bound import (
     GridSolution,
@@ -95,6 +95,7 @@ def improved_cycle_start(
     """`improved_start` along the whole ``cycle``: the start of the held actuators (default
     the task's, `held_actuators`) at its first point that keeps every checked stroke through
     every segment with the least peak (or integral) of ``objective``."""
+    require_robot(robot)
     held = _held(robot, cycle, held, closed=False)
     return improved_start(robot, cycle, objective, held, samples, checked, method, circuit=circuit)
 
@@ -237,6 +238,7 @@ def plan_cycle(
     self-motion gaps (the held actuators at ``speed``, default `gap_speed`). ``segments``: each
     segment's search where it was already made with these arguments (the study's), else each
     is searched here."""
+    require_robot(robot)
     held = _held(robot, cycle, held, closed=False)
     speed = gap_speed(robot, held) if speed is None else speed
     if not speed > 0:
@@ -421,6 +423,7 @@ def repeat(
     configuration ``start`` (n,), each from where the last ended, with closed-loop tracking of
     the task (gain K, 1/s), adaptively to ``tolerance`` and sampled at the steps
     (`Repetition.motion` gives a cycle on the grid)."""
+    require_robot(robot)
     held = _held(robot, cycle, held)
     cycles = checked_cycles(cycles)
     q = robot.configuration(start, "start")
@@ -487,6 +490,7 @@ def return_map(
 ) -> ReturnMap:
     """P sampled at ``values`` of the held actuator (default ``count`` evenly over the reachable
     part of its stroke at the cycle's start), all integrated as one batch."""
+    require_robot(robot)
     found = _held(robot, cycle, held)
     if len(found) != 1:
         raise InvalidInputError(
@@ -609,6 +613,7 @@ def periodic_optimum(
     motion of ``guess`` (e.g. the free improved cycle) with its drift taken out linearly in
     time; ``grids`` are interval counts over the whole cycle, each solved from the last.
     ``held`` names the held actuators (default the task's), one or several."""
+    require_robot(robot)
     names = _held(robot, cycle, held)
     if objective.reduction != "peak":
         raise InvalidInputError(

@@ -27,7 +27,7 @@ from redundancy.errors import (
     placed,
 )
 from redundancy.model.actuators import ActuatorSet
-from redundancy.model.robot import Robot
+from redundancy.model.robot import Robot, require_robot
 from redundancy.model.values import is_real, is_whole
 from redundancy.planning.angles import task_labels
 from redundancy.planning.tasks import Segment
@@ -173,6 +173,7 @@ def inverse_kinematics(
 ) -> InverseKinematics:
     """Configurations reaching ``point`` (m,) with actuators ``held`` at ``values`` (k, r),
     each from ``seeds`` starts (at most `MOST_SEEDS`)."""
+    require_robot(robot)
     if not is_whole(seeds, 1, MOST_SEEDS):
         raise InvalidInputError(
             f"seeds must be a whole number within [1, {MOST_SEEDS}]; got {seeds!r}"
@@ -248,6 +249,7 @@ def configuration_at(robot: Robot, point: np.ndarray, held: dict[str, float]) ->
     Raises `UnreachableError` with the distance by which the point is missed (in mm, the held
     values in mm or degrees).
     """
+    require_robot(robot)
     if not isinstance(held, dict) or not all(is_real(v) for v in held.values()):
         raise InvalidInputError(f"held must be {{actuator: value}}, values numbers; got {held!r}")
     solution = inverse_kinematics(robot, point, list(held), [list(held.values())])

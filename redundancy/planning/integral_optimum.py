@@ -64,7 +64,7 @@ from scipy.interpolate import CubicSpline, RegularGridInterpolator
 from redundancy import _core
 from redundancy.errors import InvalidInputError
 from redundancy.model.hydraulics import Supply
-from redundancy.model.robot import Robot
+from redundancy.model.robot import Robot, require_robot
 from redundancy.planning.ik import (
     CONTINUATION_ITERATIONS,
     FOUND,
@@ -519,6 +519,7 @@ def integral_optimum(
     limit every actuator's |ẋ| and |ẍ| (one number, or one per actuator; m/s and m/s², rad/s
     and rad/s² for a rotary one; default none); a ``supply`` of the robot's circuit keeps the
     circuit's limits under it (default none kept)."""
+    require_robot(robot)
     objective = named(objective)
     if objective.reduction != "integral":
         raise InvalidInputError(
@@ -561,6 +562,7 @@ def energy_optimum(
     stroke and every limit of the hydraulic circuit kept (see the module docstring), on each of
     ``grids`` (intervals) in turn. ``checked`` names the actuators whose strokes bind (default
     all)."""
+    require_robot(robot)
     supply = supply or robot.circuit().supply
 
     def build(tables: Tables, values: np.ndarray):

@@ -38,7 +38,7 @@ from redundancy import _core
 from redundancy.errors import InvalidInputError
 from redundancy.model.hydraulics import BAR, LITRES_PER_MINUTE, Flows, Supply
 from redundancy.model.kinematics import join
-from redundancy.model.robot import Robot
+from redundancy.model.robot import Robot, require_robot
 from redundancy.model.values import is_finite
 from redundancy.planning.tasks import Chain, Segment
 from redundancy.resolution.laws import Resolver, compiled_rates
@@ -639,6 +639,7 @@ def simulate(
     than the error allowance (a search's motions that cannot matter). With ``circuit`` the
     hydraulic circuit's limits count for `Trajectory.within_limits` too.
     """
+    require_robot(robot)
     starts = robot.configuration(starts, "starts")
     if segment.start.shape != (robot.m,):
         raise InvalidInputError(

@@ -15,7 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from redundancy.errors import InvalidInputError
-from redundancy.model.robot import Robot
+from redundancy.model.robot import Robot, require_robot
 from redundancy.planning.integrate import TIME_STEP, Trajectory, chained, simulate
 from redundancy.planning.tasks import Chain, Segment
 from redundancy.resolution.laws import Resolver
@@ -35,6 +35,7 @@ def simulate_path(
     segment, each from where the one before ended (q continuous at every corner), by ``laws``
     (one `Resolver`, or one per segment that reads its segment's time), joined along the
     chain's time. The other ``options`` as `simulate`'s."""
+    require_robot(robot)
     if isinstance(path, Segment):
         (law,) = per_segment(Chain(path.name, (path,)), laws)
         return simulate(robot, law, path, starts, time_step, **options)

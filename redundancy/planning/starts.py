@@ -36,7 +36,7 @@ from functools import cached_property, partial, reduce
 import numpy as np
 
 from redundancy.errors import InvalidInputError, UnreachableError, placed
-from redundancy.model.robot import Robot
+from redundancy.model.robot import Robot, require_robot
 from redundancy.model.values import is_finite, is_whole
 from redundancy.planning.brackets import bracket_probes, new_probes, vertex_probe
 from redundancy.planning.ik import (
@@ -486,6 +486,7 @@ def improved_starts(
     """`improved_start` for each of ``objectives`` on one segment, in order. The start
     configurations do not depend on the objective, so the searches share them: the fast
     search's reachable scan is done once."""
+    require_robot(robot)
     segment = checked_path(segment)
     objectives = tuple(as_objective(o) for o in objectives)
     held = held_names(robot, held)
@@ -617,6 +618,7 @@ def default_start(robot: Robot, segment: Segment | Chain, held: str | Sequence[s
 
     Returns (values (r,), q (n,)).
     """
+    require_robot(robot)
     held = held_names(robot, held)
     box = stroke_box(robot, held)
     if len(held) == 1:

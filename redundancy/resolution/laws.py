@@ -31,7 +31,7 @@ import numpy as np
 from redundancy import _core
 from redundancy.errors import InvalidInputError
 from redundancy.model.actuators import declared
-from redundancy.model.robot import Robot
+from redundancy.model.robot import Robot, require_robot
 from redundancy.model.values import is_real
 from redundancy.resolution.state import (
     SINGULAR_TOLERANCE,
@@ -255,8 +255,7 @@ class Controller:
     """
 
     def __init__(self, robot: Robot, law: Resolver):
-        if not isinstance(robot, Robot):
-            raise InvalidInputError(f"a controller takes a Robot (load_robot); got {robot!r}")
+        require_robot(robot)
         if not isinstance(law, Resolver):
             raise InvalidInputError(
                 f"a controller takes a law, a Resolver (e.g. VELOCITY.resolver); got {law!r}"

@@ -30,7 +30,7 @@ from redundancy import _core
 from redundancy.errors import InvalidInputError, SingularConfigurationError
 from redundancy.model.kinematics import Kinematics, join, remade, take
 from redundancy.model.robot import SINGULAR_TOLERANCE as SINGULAR_TOLERANCE
-from redundancy.model.robot import Robot
+from redundancy.model.robot import Robot, require_robot
 from redundancy.model.schema import excerpt
 
 
@@ -278,6 +278,7 @@ def actuator_space(robot: Robot, q, v=None, check: bool = True) -> ActuatorSpace
     One state comes back as a batch of one. ``check`` raises `SingularConfigurationError` where
     A is singular.
     """
+    require_robot(robot)
     space = _compiled(robot, q, v, True)
     if space is None:
         qb = robot.configuration(q)

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from redundancy.errors import InvalidInputError, placed
-from redundancy.model.robot import Robot
+from redundancy.model.robot import Robot, require_robot
 from redundancy.planning.angles import task_labels
 from redundancy.planning.ik import inverse_kinematics
 from redundancy.planning.starts import held_actuators, stroke_box
@@ -217,6 +217,7 @@ def _reached(robot: Robot, cycle: WorkCycle) -> tuple[np.ndarray, tuple[bool, ..
 
 def check(robot: Robot, cycle: WorkCycle | None = None) -> Check:
     """Check ``robot`` (and the points of ``cycle``, where given) for a study."""
+    require_robot(robot)
     actuators = tuple(
         ActuatorCheck(
             a.name,

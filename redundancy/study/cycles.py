@@ -17,7 +17,7 @@ from typing import NamedTuple
 import numpy as np
 
 from redundancy.errors import InvalidInputError, UnreachableError
-from redundancy.model.robot import Robot
+from redundancy.model.robot import Robot, require_robot
 from redundancy.planning.cycles import (
     CYCLES,
     SETTLED,
@@ -333,6 +333,7 @@ def run_cycle(
     (module docstring). ``speed`` is the held actuator's in the corners' self-motions (default
     `redundancy.planning.cycles.gap_speed`), ``segments`` the per-segment plan's searches where
     they were made already (`plan_cycle`); the other options as `run_study`'s."""
+    require_robot(robot)
     from tqdm import tqdm
 
     if strategy not in CHOICES:

@@ -37,7 +37,7 @@ import numpy as np
 
 from redundancy.errors import InvalidInputError
 from redundancy.model.hydraulics import KILOJOULE
-from redundancy.model.robot import Robot
+from redundancy.model.robot import Robot, require_robot
 from redundancy.planning.bound import GlobalOptimum, global_optimum
 from redundancy.planning.ik import check_path
 from redundancy.planning.integral_optimum import EnergyOptimum, energy_optimum
@@ -365,6 +365,7 @@ def run_study(
     arguments (by default made here). A bound that fails does not stop the study: why is kept
     in `Study.bound_failures`.
     """
+    require_robot(robot)
     from tqdm import tqdm
 
     given = _given(objectives, samples, checked, method, energy_bound, circuit)
