@@ -15,7 +15,6 @@ which in C++ costs less than deriving the rates from the stored Jacobians in num
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
-from functools import cache
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -108,16 +107,16 @@ def remade(record: Any, **changes: Any) -> Any:
     makes it (what was derived and cached on ``record`` not carried over), without its
     __init__: a batch's records are remade at every take and join, where one
     object.__setattr__ per field costs more than taking the arrays."""
-    out = object.__new__(type(record))
+    cls = type(record)
+    if cls not in FIELD_NAMES:
+        FIELD_NAMES[cls] = tuple(f.name for f in fields(cls))
+    out = object.__new__(cls)
     values = vars(record)
-    vars(out).update({name: values[name] for name in field_names(type(record))}, **changes)
+    vars(out).update({name: values[name] for name in FIELD_NAMES[cls]}, **changes)
     return out
 
 
-@cache
-def field_names(cls: type) -> tuple[str, ...]:
-    """The names of a dataclass's fields."""
-    return tuple(f.name for f in fields(cls))
+FIELD_NAMES: dict[type, tuple[str, ...]] = {}  # a dataclass's field names, read once
 
 
 def take(array: np.ndarray | None, rows: np.ndarray) -> np.ndarray | None:
