@@ -132,11 +132,9 @@ class SearchResult:
         row = int(self.rows[self.samples.index(sample)])
         if row < 0:
             raise InvalidInputError(f"the start {sample.values} of {self.held} is unreachable")
-        for batch in self.batches:
-            if row < len(batch):
-                return batch.q[row, 0]
-            row -= len(batch)
-        raise AssertionError("rows count the batches' motions")
+        ends = np.cumsum([len(batch) for batch in self.batches])  # each batch's last row + 1
+        i = int(np.searchsorted(ends, row, side="right"))
+        return self.batches[i].q[row - ends[i] + len(self.batches[i]), 0]
 
     @property
     def values(self) -> np.ndarray:
