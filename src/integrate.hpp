@@ -302,12 +302,13 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
 // through x and ẋ at both ends, p(s) = a s³ + b s² + d₀ s + x₀ over s ∈ [0, 1] with d = h ẋ,
 // a = 2 (x₀ − x₁) + d₀ + d₁ and b = 3 (x₁ − x₀) − 2 d₀ − d₁, where p′ = 3 a s² + 2 b s + d₀
 // vanishes: s = (−b ± √(b² − 3 a d₀)) / 3a, or −d₀ / 2b where p is (nearly) quadratic. A
-// repeated last sample (h = 0) adds nothing.
+// repeated last sample (h = 0) adds nothing; motions of their start alone (T = 1: frozen there)
+// have none after it, +∞ and −∞.
 inline py::tuple stroke_extremes(const Array& t, const Array& x, const Array& x_dot) {
-  if (t.ndim() != 2 || t.shape(1) < 2 || x.ndim() != 3 || x.shape(0) != t.shape(0) ||
+  if (t.ndim() != 2 || t.shape(1) < 1 || x.ndim() != 3 || x.shape(0) != t.shape(0) ||
       x.shape(1) != t.shape(1) || x_dot.ndim() != 3 ||
       !std::equal(x.shape(), x.shape() + 3, x_dot.shape()))
-    throw py::value_error("stroke_extremes takes t (k, T), x and x_dot (k, T, n), T ≥ 2");
+    throw py::value_error("stroke_extremes takes t (k, T), x and x_dot (k, T, n), T ≥ 1");
   const auto k = x.shape(0), T = x.shape(1), n = x.shape(2);
   Array lowest({k, n}), highest({k, n});
   auto* low = lowest.mutable_data();
@@ -318,8 +319,8 @@ inline py::tuple stroke_extremes(const Array& t, const Array& x, const Array& x_
   for (py::ssize_t i = 0; i < k; ++i) {
     for (py::ssize_t j = 0; j < n; ++j) {
       const auto sample = [&](py::ssize_t u) { return strokes[(i * T + u) * n + j]; };
-      double least = sample(1), most = sample(1);
-      for (py::ssize_t u = 2; u < T; ++u) {  // a NaN sample stays, as numpy's minimum keeps it
+      double least = INFINITY, most = -INFINITY;
+      for (py::ssize_t u = 1; u < T; ++u) {  // a NaN sample stays, as numpy's minimum keeps it
         const double value = sample(u);
         if (std::isnan(least) || std::isnan(value)) {
           least = most = std::isnan(least) ? least : value;

@@ -85,8 +85,10 @@ def test_hermite_extremes_bound_the_interpolant_sampled_densely():
     x[0, -1, 0] = np.nan
     lowest, highest = stroke_extremes(t, x, x_dot)
     assert np.isnan(lowest[0, 0]) and np.isnan(highest[0, 0])
-    with pytest.raises(ValueError, match="T ≥ 2"):
-        stroke_extremes(t[:, :1], x[:, :1], x_dot[:, :1])
+    lowest, highest = stroke_extremes(t[:, :1], x[:, :1], x_dot[:, :1])  # the start alone
+    assert np.all(lowest == np.inf) and np.all(highest == -np.inf)
+    with pytest.raises(ValueError, match="T ≥ 1"):
+        stroke_extremes(t[:, :0], x[:, :0], x_dot[:, :0])
     with pytest.raises(ValueError, match=r"x_dot \(k, T, n\)"):
         stroke_extremes(t, x, x_dot[..., :1])
 

@@ -15,7 +15,7 @@ from redundancy.planning.ik import inverse_kinematics
 from redundancy.planning.integrate import simulate
 from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.resolution.laws import GradientProjection, MinFlow, Resolver
-from redundancy.resolution.objectives import ENERGY, VELOCITY
+from redundancy.resolution.objectives import ENERGY, LS_ENERGY, VELOCITY
 
 
 @pytest.fixture(scope="module")
@@ -118,6 +118,14 @@ def test_a_start_at_a_singular_actuator_jacobian_is_frozen_and_flagged(crane):
     assert trajectory.within_limits[0] == np.False_
     np.testing.assert_array_equal(trajectory.q[0], np.tile(q[0], (trajectory.t.shape[1], 1)))
     assert trajectory.max_tracking_error[1] <= 1e-6
+    # sampled at the steps, a motion frozen at its start has that sample alone: no margin, at
+    # rest; a dynamic objective (which reads ẍ) measures it, alone or beside a motion that runs
+    for starts in (q[:1], q):
+        frozen = simulate(crane, LS_ENERGY.resolver, segment, starts, sparse=True)
+        assert frozen.failed[0] and frozen.counts[0] == 1
+        assert frozen.margins[0] == -np.inf and not frozen.within_limits[0]
+        assert np.all(frozen.x_ddot[0] == 0) and frozen.score(LS_ENERGY)[0] == 0
+    assert frozen.score(LS_ENERGY)[1] > 0
 
 
 def test_a_segment_of_the_wrong_dimension_is_refused(crane):

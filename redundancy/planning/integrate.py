@@ -276,13 +276,14 @@ class Trajectory:
         """ẍ (k, T, n) in m/s², by differences of ẋ in time: on a uniform grid, fourth-order
         central differences inside and second-order ones at the two samples of each end;
         otherwise second-order ones of each motion's own samples (repeated last samples repeat
-        the last value)."""
-        if np.all(self.t == self.t[:1]):
+        the last value); a motion of its start alone, frozen there, is at rest."""
+        if self.t.shape[1] > 1 and np.all(self.t == self.t[:1]):
             return rate_on_grid(self.x_dot, self.t[0])
-        out = np.empty_like(self.x_dot)
+        out = np.zeros_like(self.x_dot)
         for i, (times, count) in enumerate(zip(self.t, self.counts)):
-            out[i, :count] = np.gradient(self.x_dot[i, :count], times[:count], axis=0)
-            out[i, count:] = out[i, count - 1]
+            if count > 1:
+                out[i, :count] = np.gradient(self.x_dot[i, :count], times[:count], axis=0)
+                out[i, count:] = out[i, count - 1]
         return out
 
     @cached_property
@@ -472,7 +473,8 @@ def stroke_extremes(
     t: np.ndarray, x: np.ndarray, x_dot: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """Least and greatest stroke of every actuator over each motion after its start (the start
-    itself excluded), (k, n) each, for samples at times t (k, T) of x and ẋ (k, T, n).
+    itself excluded; +∞ and −∞ for motions of one sample), (k, n) each, for samples at times
+    t (k, T) of x and ẋ (k, T, n).
 
     Between samples x follows the cubic Hermite interpolant through x and ẋ at both ends, p(s) =
     a s³ + b s² + d₀ s + x₀ over s ∈ [0, 1] with d = h ẋ; its interior extrema are where its
