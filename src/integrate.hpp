@@ -166,6 +166,12 @@ inline std::optional<Stage> rates_at(const py::object& rates, const py::object& 
                std::vector<bool>(bad.data(), bad.data() + r), out[0]};
 }
 
+// Whether the array `a` has exactly the shape `shape`.
+inline bool shaped(const py::array& a, std::initializer_list<py::ssize_t> shape) {
+  return a.ndim() == py::ssize_t(shape.size()) &&
+         std::equal(shape.begin(), shape.end(), a.shape());
+}
+
 // Dormand-Prince 5(4) with error control on q, every start with its own step size (the module
 // docstring of `redundancy.planning.integrate`): from q (k, n) at t = 0, whose slopes f (k, n)
 // and failures (k,) are known, to `duration`, on the tableau of nodes c (s,), stage weights a
@@ -184,10 +190,6 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
                                  bool stop, bool keep) {
   if (q.ndim() != 2) throw py::value_error("the starts q must have shape (k, n)");
   const auto k = q.shape(0), n = q.shape(1), s = c.shape(0);
-  const auto shaped = [](const py::array& a, std::vector<py::ssize_t> shape) {
-    return a.ndim() == py::ssize_t(shape.size()) &&
-           std::equal(shape.begin(), shape.end(), a.shape());
-  };
   if (!shaped(f, {k, n}) || !shaped(failed, {k}) || !shaped(lower, {n}) || !shaped(upper, {n}))
     throw py::value_error("the slopes f (k, n), failed (k,) and the strokes (n,) must fit q");
   if (s < 1 || !shaped(c, {s}) || !shaped(a, {s, s}) || !shaped(e, {s + 1}))
@@ -305,9 +307,9 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
 // repeated last sample (h = 0) adds nothing; motions of their start alone (T = 1: frozen there)
 // have none after it, +∞ and −∞.
 inline py::tuple stroke_extremes(const Array& t, const Array& x, const Array& x_dot) {
-  if (t.ndim() != 2 || t.shape(1) < 1 || x.ndim() != 3 || x.shape(0) != t.shape(0) ||
-      x.shape(1) != t.shape(1) || x_dot.ndim() != 3 ||
-      !std::equal(x.shape(), x.shape() + 3, x_dot.shape()))
+  if (t.ndim() != 2 || t.shape(1) < 1 || x.ndim() != 3 ||
+      !shaped(x, {t.shape(0), t.shape(1), x.shape(2)}) ||
+      !shaped(x_dot, {x.shape(0), x.shape(1), x.shape(2)}))
     throw py::value_error("stroke_extremes takes t (k, T), x and x_dot (k, T, n), T ≥ 1");
   const auto k = x.shape(0), T = x.shape(1), n = x.shape(2);
   Array lowest({k, n}), highest({k, n});
