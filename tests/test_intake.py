@@ -408,8 +408,8 @@ BAD = [
     ),
     (
         'task_axes = "xz"',
-        'task_axes = "xz"\nlocked_joints = {stick_joint = 9.0}',
-        "locked_joints stick_joint = 9 must be within the joint's range",
+        'task_axes = "xz"\nlocked_joints = {telescope_joint = 9.0}',
+        "locked_joints telescope_joint = 9 must be within the joint's range",
     ),
     (
         'task_axes = "xz"',

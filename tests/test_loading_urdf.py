@@ -124,7 +124,7 @@ def test_each_bundled_robots_model_is_pinocchios_own(name):
         (
             '<child link="boom"/>',
             '<child link="boom"/><mimic joint="stick_joint"/>',
-            "not a valid URDF: Graph - The parent joint of the mimic node is not in the kinematic",
+            "<mimic joint='stick_joint'> follows 'stick_joint', a joint below it on its branch",
         ),
         (
             '"boom_joint" type="revolute"',
@@ -133,8 +133,69 @@ def test_each_bundled_robots_model_is_pinocchios_own(name):
         ),
         ('<axis xyz="0 0 1"/>', '<axis xyz="0 0 0"/>', "joint 'a_lamp_joint': <axis xyz="),
         ('<child link="lamp"/>', '<child link="lump"/>', "<child link='lump'> is not a link"),
+        (
+            '<origin xyz="2 0 0"/>',
+            '<origin xyz="2 nan 0"/>',
+            'joint \'stick_joint\' <origin xyz="2 nan 0"/> must be xyz="x y z" rpy="r p y"',
+        ),
+        ('<origin xyz="2 0 0"/>', '<origin xyz="2 0 0 5"/>', '<origin xyz="2 0 0 5"/> must be'),
+        (
+            '<axis xyz="0 0 1"/>',
+            '<axis xyz="0 1"/>',
+            "joint 'a_lamp_joint' <axis xyz=\"0 1\"/> must",
+        ),
+        (
+            'lower="-2.5" upper="-0.2"',
+            'lower="${-pi}" upper="-0.2"',
+            'joint \'stick_joint\' <limit lower="${-pi}" upper="-0.2" effort="1" velocity',
+        ),
+        (
+            'multiplier="0.5"',
+            'multiplier="nan"',
+            "joint 'a_lamp_joint' <mimic joint=\"boom_joint\"",
+        ),
+        (
+            '<link name="lamp"/>',
+            '<link name="lamp"/><link name="boom"/>',
+            "given more than once: ['boom']",
+        ),
+        ('"a_lamp_joint"', '"stick_joint"', "joint names must differ; given more than once"),
+        ('<child link="lamp"/>', '<child link="boom"/>', "link 'boom' is the child of 2 joints"),
+        (
+            '<parent link="telescope"/><child link="left"/>',
+            '<child link="left"/>',
+            "joint 'b_left_joint': it needs <parent link=",
+        ),
+        (
+            '<mimic joint="boom_joint"',
+            '<mimic joint="a_lamp_joint"',
+            "follow one another in a circle",
+        ),
+        (
+            '<mimic joint="boom_joint" multiplier="0.5" offset="-0.2"/></joint>',
+            '<mimic joint="eye_joint"/></joint><link name="eye"/><joint name="eye_joint" '
+            'type="fixed"><parent link="lamp"/><child link="eye"/></joint>',
+            "<mimic joint='eye_joint'> follows a fixed joint, 'eye_joint'",
+        ),
     ],
-    ids=["unknown leader", "mimic above its leader", "joint type", "axis", "child"],
+    ids=[
+        "unknown leader",
+        "mimic above its leader",
+        "joint type",
+        "axis",
+        "child",
+        "NaN origin",
+        "four numbers",
+        "two-number axis",
+        "xacro leftover",
+        "NaN multiplier",
+        "link twice",
+        "joint twice",
+        "child twice",
+        "no parent",
+        "mimic circle",
+        "mimic of a fixed joint",
+    ],
 )
 def test_a_bad_joint_is_one_line_naming_it(tmp_path, capsys, old, new, said):
     assert old in SIBLINGS
@@ -142,6 +203,181 @@ def test_a_bad_joint_is_one_line_naming_it(tmp_path, capsys, old, new, said):
     status, errors = run(["describe", "--robot", str(tmp_path / "b.urdf")], capsys)
     assert status == 2 and len(errors) == 1, errors
     assert "b.urdf: " in errors[0] and said in errors[0], errors[0]
+
+
+# -- a URDF as it comes: what it may hold that a careful one would not ----------------------
+
+
+def loaded(tmp_path, text, name="arm.urdf", toml=None):
+    """The robot of the URDF ``text`` (with the robot.toml ``toml`` beside it, if given: its
+    task xyz, its tool the telescope unless it says)."""
+    (tmp_path / name).write_text(text)
+    if toml is None:
+        return quietly(tmp_path / name)
+    tool = "" if "tool" in toml else 'tool_frame = "telescope"\n'
+    (tmp_path / "robot.toml").write_text(f'urdf = "{name}"\ntask_axes = "xyz"\n{tool}{toml}')
+    return quietly(tmp_path / "robot.toml")
+
+
+def test_a_mimic_of_a_mimic_follows_its_leaders_leader(tmp_path):
+    """A third finger mimicking the right finger (itself mimicking the left, q_r = −q_l + 0.1)
+    with multiplier 2 and offset 0.3 is where the composed mimic q = 2 (−q_l + 0.1) + 0.3 =
+    −2 q_l + 0.5 of the left finger puts it, at random configurations."""
+    finger = (
+        '<link name="third"/><joint name="third_joint" type="revolute"><parent link="telescope"/>'
+        '<child link="third"/><origin xyz="0.8 0.1 0"/><axis xyz="0 -1 0"/>'
+        '<limit lower="-3" upper="3" effort="1" velocity="1"/>'
+    )
+    chained = SIBLINGS.replace(
+        "</robot>",
+        finger + '<mimic joint="a_right_joint" multiplier="2" offset="0.3"/></joint></robot>',
+    )
+    composed = SIBLINGS.replace(
+        "</robot>",
+        finger + '<mimic joint="b_left_joint" multiplier="-2" offset="0.5"/></joint></robot>',
+    )
+    (tmp_path / "chained").mkdir()
+    (tmp_path / "composed").mkdir()
+    robot = loaded(tmp_path / "chained", chained)
+    reference = loaded(tmp_path / "composed", composed)
+    assert robot.joint_names == reference.joint_names
+    for q in np.random.default_rng(5).uniform(robot.lower, robot.upper, size=(5, robot.n)):
+        ours, theirs = placements(robot.model, q), placements(reference.model, q)
+        angle = -2 * q[3] + 0.5  # the third finger turns about −y by it, from the telescope
+        turn = pin.AngleAxis(angle, np.array([0.0, -1.0, 0.0])).matrix()
+        np.testing.assert_allclose(ours["third"], theirs["third"], atol=1e-12)
+        np.testing.assert_allclose(
+            ours["telescope"][:3, :3] @ turn, ours["third"][:3, :3], atol=1e-12
+        )
+
+
+def test_a_chain_deeper_than_pythons_recursion_loads(tmp_path):
+    """600 fixed joints of 1 mm each between two revolute joints and a prismatic one: the tool
+    (the deepest link) is 0.6 m further out, on the x axis at q = 0."""
+    links = "".join(f'<link name="l{i}"/>' for i in range(600))
+    fixed = "".join(
+        f'<joint name="f{i}" type="fixed"><parent link="l{i}"/><child link="l{i + 1}"/>'
+        '<origin xyz="0.001 0 0"/></joint>'
+        for i in range(599)
+    )
+    moving = (
+        '<link name="base"/><link name="a"/><link name="b"/>'
+        '<joint name="ja" type="revolute"><parent link="base"/><child link="a"/><axis xyz="0 0 1"/>'
+        '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>'
+        '<joint name="jb" type="revolute"><parent link="a"/><child link="l0"/><axis xyz="0 0 1"/>'
+        '<origin xyz="1 0 0"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>'
+        '<joint name="jc" type="prismatic"><parent link="l599"/><child link="b"/>'
+        '<axis xyz="1 0 0"/><limit lower="0" upper="1" effort="1" velocity="1"/></joint>'
+    )
+    robot = loaded(tmp_path, f'<robot name="deep">{moving}{links}{fixed}</robot>')
+    assert robot.tool_frame == "b" and robot.joint_names == ["ja", "jb", "jc"]
+    np.testing.assert_allclose(placements(robot.model, np.zeros(3))["b"][:3, 3], [1.599, 0, 0])
+
+
+def test_the_default_tool_is_the_link_the_most_joints_move(tmp_path):
+    """A link fixed to the base, declared last (as UR arms declare theirs), is not the tool: of
+    the deepest links, the fingers at the telescope's end, the last is."""
+    mounted = SIBLINGS.replace(
+        "</robot>",
+        '<link name="mount"/><joint name="mount_joint" type="fixed"><parent link="base"/>'
+        '<child link="mount"/></joint></robot>',
+    )
+    robot = loaded(tmp_path, mounted)
+    depth = {f.name: len(robot.model.supports[f.parentJoint]) for f in robot.model.frames}
+    assert robot.tool_frame in ("left", "right") and depth[robot.tool_frame] == max(depth.values())
+
+
+def test_a_tool_point_keeps_its_place_beside_a_link_of_its_name(tmp_path):
+    """A link named "tool point" (on the base, 9 m away) does not take the place of the tool
+    point robot.toml puts 0.1 m along the telescope."""
+    clash = SIBLINGS.replace(
+        "</robot>",
+        '<link name="tool point"/><joint name="marker" type="fixed"><parent link="base"/>'
+        '<child link="tool point"/><origin xyz="9 9 9"/></joint></robot>',
+    )
+    robot = loaded(tmp_path, clash, toml='tool = {link = "telescope", xyz = [0.1, 0, 0]}')
+    q = np.array([0.3, -1.0, 0.5, 0.2])
+    tip = placements(robot.model, q)["telescope"] @ np.array([0.1, 0, 0, 1])
+    np.testing.assert_allclose(robot.task_point(robot.kinematics(q[None]))[0][0], tip[:3])
+
+
+@pytest.mark.filterwarnings("ignore:joints without an actuator declaration")
+def test_locked_joints_rest_inside_their_range_and_a_fixed_range_locks(tmp_path):
+    """Locked without a value, the stick (range [−2.5, −0.2]) rests at the end nearest 0; a
+    boom whose range is one value (lower = upper = 0.4) is locked there, with a warning."""
+    robot = loaded(tmp_path, SIBLINGS, toml='locked_joints = ["stick_joint"]')
+    explicit = loaded(tmp_path, SIBLINGS, toml="locked_joints = {stick_joint = -0.2}")
+    q = np.array([0.3, 0.5, 0.2])
+    np.testing.assert_allclose(
+        placements(robot.model, q)["telescope"], placements(explicit.model, q)["telescope"]
+    )
+    (tmp_path / "stuck.urdf").write_text(
+        SIBLINGS.replace('lower="-1" upper="1.2"', 'lower="0.4" upper="0.4"')
+    )
+    with pytest.warns(UserWarning, match=r"locked there: boom_joint = 0\.4"):
+        stuck = load_robot(tmp_path / "stuck.urdf")
+    assert stuck.joint_names == ["stick_joint", "telescope_joint", "b_left_joint"]
+    at = loaded(tmp_path, SIBLINGS, toml="locked_joints = {boom_joint = 0.4}")
+    q = np.array([-1.0, 0.5, 0.2])
+    np.testing.assert_allclose(placements(stuck.model, q)["left"], placements(at.model, q)["left"])
+
+
+def test_a_revolute_joint_limited_to_1e16_is_sought_within_a_turn(tmp_path):
+    """The "no limit" of a revolute joint some exporters write (±1e16 rad): its seeds span the
+    turn [−π, π], and inverse kinematics reaches the points it reaches with a range of ±π."""
+    from redundancy.planning.ik import inverse_kinematics
+
+    wide = loaded(
+        tmp_path, SIBLINGS.replace('lower="-1" upper="1.2"', 'lower="-1e16" upper="1e16"')
+    )
+    (tmp_path / "turn").mkdir()
+    turn = loaded(
+        tmp_path / "turn",
+        SIBLINGS.replace('lower="-1" upper="1.2"', 'lower="-3.14159" upper="3.14159"'),
+    )
+    np.testing.assert_allclose([s[0] for s in wide.span], [-np.pi, np.pi])
+    q = np.array([[0.5, -1.0, 0.4, 0.1], [-2.0, -2.0, 0.8, 0.0], [2.5, -0.5, 0.1, 0.0]])
+    points = turn.task_point(turn.kinematics(q))[0]
+    for point, held in zip(points, q[:, 2]):
+        solved = inverse_kinematics(wide, point, ["telescope_joint"], [[held]])
+        assert solved.reached[0] and solved.miss[0] < 1e-6, solved
+
+
+def test_odd_but_valid_choices_load(tmp_path):
+    """A tiny negative principal moment (a file's rounding) loads as 0; a continuous joint
+    locks at any angle (4.9 rad, past a turn: where 4.9 − 2π puts it); a robot's folder, and a
+    URDF whose suffix is upper case, load as their robot.toml and URDF."""
+    rounded = SIBLINGS.replace('ixx="2" iyy="70"', 'ixx="-1e-9" iyy="70"')
+    robot = loaded(tmp_path, rounded)
+    np.testing.assert_allclose(robot.model.inertias[1].inertia, np.diag([0.0, 70, 70]), atol=0)
+    spun = SIBLINGS.replace(
+        '"stick_joint" type="revolute"', '"stick_joint" type="continuous"'
+    ).replace('lower="-2.5" upper="-0.2" effort="1" velocity="1"', 'effort="1" velocity="1"')
+    turned = loaded(tmp_path, spun, toml="locked_joints = {stick_joint = 4.9}")
+    back = loaded(tmp_path, spun, toml=f"locked_joints = {{stick_joint = {4.9 - 2 * np.pi!r}}}")
+    q = np.array([0.3, 0.5, 0.2])
+    np.testing.assert_allclose(
+        placements(turned.model, q)["telescope"], placements(back.model, q)["telescope"], atol=1e-12
+    )
+    assert quietly(tmp_path).joint_names == back.joint_names
+    (tmp_path / "ARM.URDF").write_text(SIBLINGS)
+    assert quietly(tmp_path / "ARM.URDF").name == "ARM"
+
+
+def test_an_actuator_on_a_fixed_joint_says_it_is_fixed(tmp_path, capsys):
+    eye = SIBLINGS.replace(
+        "</robot>",
+        '<link name="eye"/><joint name="eye_joint" type="fixed"><parent link="lamp"/>'
+        '<child link="eye"/></joint></robot>',
+    )
+    (tmp_path / "arm.urdf").write_text(eye)
+    (tmp_path / "robot.toml").write_text(
+        'urdf = "arm.urdf"\ntool_frame = "telescope"\ntask_axes = "xyz"\n'
+        '[actuators.x9]\nkind = "Identity"\njoint = "eye_joint"\n'
+    )
+    status, errors = run(["describe", "--robot", str(tmp_path / "robot.toml")], capsys)
+    assert status == 2 and len(errors) == 1, errors
+    assert "actuator 'x9' drives joint 'eye_joint', which is fixed (or locked)" in errors[0]
 
 
 # -- a cylinder on its joint's axis: one line naming it and its table -----------------------

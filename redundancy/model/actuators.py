@@ -102,6 +102,11 @@ class ActuatorMap(ABC):
                 f"actuator {self.name!r} drives joint {self.joint!r}, which mimics another "
                 f"joint; declare the actuator on the joint it follows; joints: {', '.join(joints)}"
             )
+        if model.existFrame(self.joint, pin.FrameType.FIXED_JOINT):
+            raise RobotDescriptionError(
+                f"actuator {self.name!r} drives joint {self.joint!r}, which is fixed (or locked); "
+                f"an actuator drives a joint that moves; joints: {', '.join(joints)}"
+            )
         if self.joint not in joints:
             raise RobotDescriptionError(
                 f"actuator {self.name!r} drives joint {self.joint!r}, which does not exist; "

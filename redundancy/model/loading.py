@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import importlib.metadata
 import importlib.resources
+import itertools
 import os
 import re
 import warnings
@@ -42,8 +43,10 @@ def _describe(robot: str | Path) -> tuple[str, Path, Description, str]:
     if not isinstance(robot, str | Path):
         raise InvalidInputError(f"robot must be a name or a path; got {robot!r}")
     path = Path(robot)
-    urdf = path.suffix in URDF_SUFFIXES
-    if urdf or path.suffix == ".toml":
+    if path.is_dir() and (path / "robot.toml").is_file():  # a robot's folder
+        path = path / "robot.toml"
+    urdf = path.suffix.lower() in URDF_SUFFIXES
+    if urdf or path.suffix.lower() == ".toml":
         if not path.is_file():
             raise RobotDescriptionError(
                 f"no {'URDF file' if urdf else 'robot description'} at {path}"
@@ -55,10 +58,11 @@ def _describe(robot: str | Path) -> tuple[str, Path, Description, str]:
     else:
         raise RobotDescriptionError(
             f"unknown robot {str(robot)!r}; bundled robots: {', '.join(bundled_robots())}; "
-            "or give the path of a .urdf, .xacro or robot.toml file"
+            "or give the path of a .urdf, .xacro or robot.toml file, or of a folder holding a "
+            "robot.toml"
         )
     if urdf:  # named after the file, without its suffixes
-        name = re.sub(r"(\.urdf|\.xacro)+$", "", path.name) or path.name
+        name = re.sub(r"(\.urdf|\.xacro)+$", "", path.name, flags=re.IGNORECASE) or path.name
         return name, folder, Description(urdf=path.name, tool_frame=None, task_axes=AXES), str(path)
     table = read_toml(path, "robot description")
     description = validate(Description, table, str(path), error=RobotDescriptionError)
@@ -84,9 +88,16 @@ def _urdf_path(folder: Path, reference: str) -> Path:
     raise RobotDescriptionError(f"{reference}: no such file in the package {distribution!r}")
 
 
-def _lock(model: pin.Model, locked: dict[str, float | None], where: str, source: str) -> pin.Model:
+def _lock(
+    model: pin.Model,
+    locked: dict[str, float | None],
+    where: str,
+    source: str,
+    continuous: list[str],
+) -> pin.Model:
     """``model`` (of the URDF ``source``) with the ``locked`` joints (from ``where``) fixed at
-    their values (neutral where None)."""
+    their values (neutral where None): within the joint's range, any angle for a
+    ``continuous`` one."""
     joints = list(model.names)[1:]
     unknown = [j for j in locked if j not in joints]
     if unknown:
@@ -97,6 +108,8 @@ def _lock(model: pin.Model, locked: dict[str, float | None], where: str, source:
     for name, value in ((n, v) for n, v in locked.items() if v is not None):
         joint = model.joints[model.getJointId(name)]
         lower, upper = model.lowerPositionLimit[joint.idx_q], model.upperPositionLimit[joint.idx_q]
+        if name in continuous:
+            lower, upper = -np.inf, np.inf
         if joint.nq != 1 or not lower <= value <= upper:
             raise RobotDescriptionError(
                 f"{where}: locked_joints {name} = {value:g} must be within the joint's range "
@@ -109,23 +122,28 @@ def _lock(model: pin.Model, locked: dict[str, float | None], where: str, source:
 
 
 def _tool(model: pin.Model, description: Description, where: str) -> str:
-    """The tool frame: ``tool_frame``, a link (by default the last), or ``tool``, a point on a
-    link added to ``model`` as the frame `TOOL_POINT`."""
+    """The tool frame: ``tool_frame``, a link (by default the one the most joints move, of
+    several the last), or ``tool``, a point on a link added to ``model`` as a frame named
+    `TOOL_POINT` (numbered where the URDF has a frame of that name)."""
     tool = description.tool
     if tool is not None:
 
         def refused(links: str) -> str:
             return f"{where} tool.link = {tool.link!r} is not a link of the URDF; links: {links}"
 
-        attach_frame(model, TOOL_POINT, tool.link, np.array(tool.xyz), refused)
-        return TOOL_POINT
-    bodies = [f.name for f in model.frames if f.type == pin.FrameType.BODY]
-    tool_frame = description.tool_frame or bodies[-1]
-    if tool_frame not in bodies:
+        names = itertools.chain([TOOL_POINT], (f"{TOOL_POINT} {i}" for i in itertools.count(2)))
+        name = next(n for n in names if not model.existFrame(n))
+        attach_frame(model, name, tool.link, np.array(tool.xyz), refused)
+        return name
+    bodies = [f for f in model.frames if f.type == pin.FrameType.BODY]
+    if description.tool_frame is None:  # the deepest link: most joints between it and the root
+        return max(reversed(bodies), key=lambda f: len(model.supports[f.parentJoint])).name
+    if description.tool_frame not in (f.name for f in bodies):
         raise RobotDescriptionError(
-            f"{where}: tool frame {tool_frame!r} is not a link of the URDF; links: {bodies}"
+            f"{where}: tool frame {description.tool_frame!r} is not a link of the URDF; links: "
+            f"{[f.name for f in bodies]}"
         )
-    return tool_frame
+    return description.tool_frame
 
 
 TOOL_POINT = "tool point"  # the frame of a tool given as a point on a link
@@ -230,9 +248,10 @@ def load_robot(
     hydraulics: str | Path | None = None,
 ) -> Robot:
     """Load a bundled robot by name, or a robot from a ``robot.toml``, ``.urdf`` or ``.xacro``
-    path (the schema of ``robot.toml``: docs/machines.md). A bare URDF or xacro takes its last
-    link as the tool and "xyz" as the task axes. ``payload`` (kg, ≥ 0) is a point mass at the
-    tool frame (None: the description's, or 0); ``task_axes`` overrides the description's. The
+    path, or a folder holding a ``robot.toml`` (its schema: docs/machines.md). A bare URDF or
+    xacro takes the link the most joints move as the tool (of several, the last) and
+    "xyz" as the task axes. ``payload`` (kg, ≥ 0) is a point mass at the tool frame (None: the
+    description's, or 0); ``task_axes`` overrides the description's. The
     circuit is the ``[hydraulics]`` table of the TOML file ``hydraulics`` if given, else the
     description's. Meshes no file answers and links without inertia (a kinematic-only robot:
     anything needing masses refuses) are each named in one warning; an ``<inertial>`` that is
@@ -254,7 +273,7 @@ def load_robot(
     locked = description.locked_joints
     locked = dict(locked) if isinstance(locked, dict) else dict.fromkeys(locked)
     model, continuous = build_model(urdf, locked)
-    model = _lock(model, locked, where, urdf.source)
+    model = _lock(model, locked, where, urdf.source, continuous)
     for joint in set(continuous) - set(locked):  # unbounded, unless a stroke bounds it (below)
         index = model.joints[model.getJointId(joint)].idx_q
         model.lowerPositionLimit[index], model.upperPositionLimit[index] = -np.inf, np.inf

@@ -160,11 +160,15 @@ class Robot:
 
     @property
     def span(self) -> tuple[np.ndarray, np.ndarray]:
-        """A finite box of joint values, lower and upper (n,) each: the joint limits, and a full
-        turn [−π, π] rad for an unbounded (continuous) joint. Searches seed configurations in
+        """A finite box of joint values, lower and upper (n,) each: the joint limits, and of an
+        angle whose range is wider than a turn (unbounded, or a URDF's ±1e16 for "no limit"),
+        the turn within it nearest [−π, π]: every pose once. Searches seed configurations in
         it."""
-        lower = np.where(np.isfinite(self.lower), self.lower, -np.pi)
-        return lower, np.where(np.isfinite(self.upper), self.upper, np.pi)
+        lower, upper = self.lower.copy(), self.upper.copy()
+        wide = self.rotary_joints & (upper - lower > 2 * np.pi)
+        lower[wide] = np.clip(-np.pi, lower[wide], upper[wide] - 2 * np.pi)
+        upper[wide] = lower[wide] + 2 * np.pi
+        return lower, upper
 
     def configuration(self, q: np.ndarray | list[float], name: str = "q") -> np.ndarray:
         """``q`` as a checked (k, n) array: right shape, finite."""

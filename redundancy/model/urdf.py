@@ -13,6 +13,8 @@ from __future__ import annotations
 import contextlib
 import io
 import math
+import warnings
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -29,7 +31,9 @@ from redundancy.model.schema import EXCERPT, excerpt
 
 FREE = ("floating", "planar")  # URDF joint types of a base that moves freely
 LIMITED = ("revolute", "prismatic")  # URDF joint types that must give their <limit>
+MOVING = ("revolute", "continuous", "prismatic")  # URDF joint types of one coordinate
 INERTIA = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")  # <inertia>'s attributes, kg·m²
+ORIGIN = 'xyz="x y z" rpy="r p y", three finite numbers each (m, rad)'
 INERTIA_TOLERANCE = 1e-6  # of the largest principal moment: what a file's rounding may cost
 
 
@@ -51,7 +55,7 @@ class Urdf:
 
 def read_urdf(path: Path) -> Urdf:
     """The URDF of ``path`` (a ``.xacro`` file expanded by xacro), checked: XML, a ``<robot>``
-    yourdfpy reads, `_check_tree` and `_check_inertials`."""
+    with `_check_inertials` and `_check_joints`, which yourdfpy reads, and `_check_tree`."""
     source = path.name
     try:
         root = etree.fromstring(_document(path))
@@ -62,6 +66,7 @@ def read_urdf(path: Path) -> Urdf:
             f"{source}: not a valid URDF: Could not find the 'robot' element"
         )
     zero_masses = _check_inertials(root, source)
+    _check_joints(root, source)
     try:
         parse = yourdfpy.URDF.load(
             io.BytesIO(etree.tostring(root)), build_scene_graph=False, load_meshes=False
@@ -103,10 +108,17 @@ def _document(path: Path) -> bytes:
 
 
 def _check_tree(robot: yourdfpy.Robot, source: str) -> None:
-    """Every joint joins two links of the URDF and a mimic joint follows a joint, one link is
-    the root, and a revolute or prismatic joint gives its range, lower ≤ upper."""
+    """Every joint is of a URDF type and joins two links of the URDF, each link is the child
+    of one joint at most, one link is the root and every other hangs from it (no cycle), a
+    revolute or prismatic joint gives its range, lower ≤ upper, and a mimic joint follows a
+    joint it can follow (`mimics`)."""
     links, joints = {link.name for link in robot.links}, {joint.name for joint in robot.joints}
     for joint in robot.joints:
+        if joint.type not in JOINTS:
+            raise RobotDescriptionError(
+                f"{source}: joint {excerpt(joint.name)}: type={excerpt(joint.type)} must be one "
+                f"of {', '.join(JOINTS)}"
+            )
         where = f"{source}: not a valid URDF: joint {excerpt(joint.name)}"
         for end, name in (("parent", joint.parent), ("child", joint.child)):
             if name not in links:
@@ -129,30 +141,127 @@ def _check_tree(robot: yourdfpy.Robot, source: str) -> None:
         raise RobotDescriptionError(
             f"{source}: joint limits must have lower ≤ upper; inverted: {', '.join(inverted)}"
         )
-    roots = sorted(links - {joint.child for joint in robot.joints})
+    parents: dict[str, list[str]] = {}  # the joints each link is the child of
+    for joint in robot.joints:
+        parents.setdefault(joint.child, []).append(joint.name)
+    for link, above in parents.items():
+        if len(above) > 1:
+            raise RobotDescriptionError(
+                f"{source}: not a valid URDF: link {excerpt(link)} is the child of "
+                f"{len(above)} joints, {excerpt(above)}; a link hangs from one joint (a closed "
+                "chain is declared as an actuator, not as a second joint)"
+            )
+    roots = sorted(links - set(parents))
     if len(roots) != 1:
         raise RobotDescriptionError(
             f"{source}: not a valid URDF: it must have one root link, a link no joint is the "
             f"child of; it has {len(roots)}: {excerpt(roots)}"
         )
+    hanging = set(roots)  # the links reached from the root, down the joints
+    below = [roots[0]]
+    while below:
+        link = below.pop()
+        for joint in robot.joints:
+            if joint.parent == link and joint.child not in hanging:
+                hanging.add(joint.child)
+                below.append(joint.child)
+    if hanging != links:
+        cycle = [j.name for j in robot.joints if j.child not in hanging]
+        raise RobotDescriptionError(
+            f"{source}: not a valid URDF: joints {excerpt(cycle)} form a cycle that does not "
+            f"hang from the root link {roots[0]!r}; a URDF is a tree"
+        )
+    mimics(robot, source)
+
+
+def mimics(robot: yourdfpy.Robot, source: str) -> dict[str, tuple[str, float, float]]:
+    """Each mimic joint's leader (a joint that mimics none), multiplier a and offset b, q = a ·
+    q_leader + b: a mimic of a mimic follows its leader's leader, a = a₁a₂, b = a₁b₂ + b₁. A
+    leader moves along one coordinate (revolute, continuous or prismatic), and sits on another
+    branch or above its follower: Pinocchio builds a leader before the joints that follow it."""
+    joints = {joint.name: joint for joint in robot.joints}
+    above = {joint.child: joint.name for joint in robot.joints}  # the joint above each link
+    found = {}
+    for joint in (j for j in robot.joints if j.mimic is not None):
+        where = f"{source}: joint {excerpt(joint.name)} <mimic joint={excerpt(joint.mimic.joint)}>"
+        multiplier, offset, chain = 1.0, 0.0, [joint.name]
+        leader = joint
+        while leader.mimic is not None:
+            mimic = leader.mimic
+            multiplier, offset = multiplier * mimic.multiplier, multiplier * mimic.offset + offset
+            leader = joints[mimic.joint]
+            if leader.name in chain:
+                raise RobotDescriptionError(
+                    f"{where}: the mimic joints {excerpt(chain)} follow one another in a circle; "
+                    "one of them must follow a joint that mimics none"
+                )
+            chain.append(leader.name)
+        if leader.type not in MOVING:
+            raise RobotDescriptionError(
+                f"{where} follows a {leader.type} joint, {excerpt(leader.name)}; a mimic joint "
+                f"follows a {', '.join(MOVING[:-1])} or {MOVING[-1]} joint"
+            )
+        branch, link = set(), leader.parent  # the joints above the leader
+        while link in above:
+            branch.add(above[link])
+            link = joints[above[link]].parent
+        if joint.name in branch:
+            turned = (
+                f': make {excerpt(leader.name)} follow it instead, <mimic joint="{joint.name}" '
+                f'multiplier="{1 / multiplier:.12g}" offset="{0.0 - offset / multiplier:.12g}"/>'
+                if multiplier
+                else ""
+            )
+            raise RobotDescriptionError(
+                f"{where} follows {excerpt(leader.name)}, a joint below it on its branch; "
+                f"Pinocchio builds a leader before the joints that follow it{turned}"
+            )
+        found[joint.name] = (leader.name, multiplier, offset)
+    return found
 
 
 def build_model(urdf: Urdf, locked: dict[str, float | None]) -> tuple[pin.Model, list[str]]:
     """The Pinocchio model of ``urdf`` and its continuous joints (one coordinate each, rad, in
-    [−π, π] where a value is chosen to lock them; the caller unbounds the others). A mimic joint
-    following a ``locked`` joint is added to ``locked`` at multiplier · value + offset."""
+    [−π, π] where a value is chosen to lock them; the caller unbounds the others). A joint of
+    one coordinate ``locked`` without a value is locked at rest: 0, or the end of its range
+    nearest it; one whose range is one value (lower = upper) is added to ``locked`` there, with
+    a warning. A mimic joint following a locked joint is added to ``locked`` at multiplier ·
+    value + offset."""
     robot, model_graph = urdf.parse, graph.ModelGraph()
+    stuck = [
+        j
+        for j in robot.joints
+        if j.type in LIMITED
+        and j.mimic is None
+        and j.name not in locked
+        and j.limit.lower == j.limit.upper
+    ]
+    if stuck:
+        warnings.warn(
+            f"{urdf.source}: joints whose range is one value (lower = upper) are locked there: "
+            + ", ".join(f"{j.name} = {j.limit.lower:g}" for j in stuck),
+            stacklevel=3,
+        )
+        locked |= {j.name: j.limit.lower for j in stuck}
+    for joint in robot.joints:
+        if joint.name in locked and locked[joint.name] is None and joint.type in MOVING:
+            ends = (joint.limit.lower, joint.limit.upper) if joint.type in LIMITED else (-1, 1)
+            locked[joint.name] = float(np.clip(0.0, *ends))
     for link in robot.links:
         model_graph.addBody(link.name, _inertia(link.inertial))
-    leaders = {j.mimic.joint for j in robot.joints if j.mimic and j.name not in locked}
-    for joint in sorted(robot.joints, key=lambda j: not _leads(robot, j, leaders)):
-        mimic = joint.mimic
-        if mimic is not None and mimic.joint in locked and joint.name not in locked:
-            locked[joint.name] = mimic.multiplier * (locked[mimic.joint] or 0.0) + mimic.offset
+    followed = mimics(robot, urdf.source)
+    leaders = {leader for name, (leader, _, _) in followed.items() if name not in locked}
+    first = _branches(robot, leaders)
+    for joint in sorted(robot.joints, key=lambda j: j.name not in first):
+        mimic = followed.get(joint.name)
+        if mimic is not None and mimic[0] in locked and joint.name not in locked:
+            leader, multiplier, offset = mimic
+            locked[joint.name] = multiplier * (locked[leader] or 0.0) + offset
+        if joint.name in locked:
             mimic = None
         kind, lower, upper = _joint(joint, urdf.source, locked)
         if mimic is not None:
-            kind = graph.JointMimic(kind, mimic.joint, mimic.multiplier, mimic.offset)
+            kind = graph.JointMimic(kind, *mimic)
         edge = model_graph.edgeBuilder().withName(joint.name).withJointType(kind)
         edge = edge.withSourceVertex(joint.parent).withTargetVertex(joint.child)
         edge = edge.withSourcePose(_placement(joint.origin)).withTargetPose(pin.SE3.Identity())
@@ -169,11 +278,18 @@ def build_model(urdf: Urdf, locked: dict[str, float | None]) -> tuple[pin.Model,
     return model, [j.name for j in robot.joints if j.type == "continuous"]
 
 
-def _leads(robot: yourdfpy.Robot, joint: yourdfpy.Joint, leaders: set[str]) -> bool:
-    """Whether ``joint`` or a joint below it is among the ``leaders`` (joints mimic joints
-    follow): its branch is built first."""
-    below = [j for j in robot.joints if j.parent == joint.child]
-    return joint.name in leaders or any(_leads(robot, j, leaders) for j in below)
+def _branches(robot: yourdfpy.Robot, leaders: set[str]) -> set[str]:
+    """The joints from the root down to each of the ``leaders`` (joints mimic joints follow),
+    the leaders included: their branches are built first."""
+    joints = {joint.name: joint for joint in robot.joints}
+    above = {joint.child: joint.name for joint in robot.joints}  # the joint above each link
+    first: set[str] = set()
+    for leader in leaders:
+        name: str | None = leader
+        while name is not None and name not in first:
+            first.add(name)
+            name = above.get(joints[name].parent)
+    return first
 
 
 JOINTS = {  # URDF joint types: the model graph's joint of an axis (unit vector)
@@ -190,12 +306,8 @@ def _joint(joint: yourdfpy.Joint, source: str, locked: dict) -> tuple[Any, float
     """The model graph's joint of a URDF joint, and its range (rad or m; [−π, π] for a
     continuous joint)."""
     where = f"{source}: joint {excerpt(joint.name)}"
-    if joint.type not in JOINTS:
-        raise RobotDescriptionError(
-            f"{where}: type={excerpt(joint.type)} must be one of {', '.join(JOINTS)}"
-        )
     axis = np.asarray(joint.axis, dtype=float)
-    moves = joint.type in ("revolute", "continuous", "prismatic")
+    moves = joint.type in MOVING
     if moves and not (np.all(np.isfinite(axis)) and np.linalg.norm(axis) > 0):
         raise RobotDescriptionError(
             f"{where}: <axis xyz={excerpt(' '.join(map(str, axis)))}> must be three finite "
@@ -220,11 +332,15 @@ def _placement(transform: np.ndarray | None) -> pin.SE3:
 
 def _inertia(inertial: yourdfpy.Inertial | None) -> pin.Inertia:
     """A link's spatial inertia: its mass at the ``<inertial>``'s origin, its rotational inertia
-    turned from the origin's axes into the link's, I = R I' Rᵀ; none without an inertial."""
+    turned from the origin's axes into the link's, I = R I' Rᵀ, a principal moment rounded
+    below 0 taken as 0; none without an inertial."""
     if inertial is None or inertial.mass is None:
         return pin.Inertia.Zero()
     placement = _placement(inertial.origin)
     moments = placement.rotation @ inertial.inertia @ placement.rotation.T
+    eigenvalues, axes = np.linalg.eigh(moments)
+    if eigenvalues[0] < 0:  # a file's rounding (`_check_inertials`), which no body has
+        moments = axes @ np.diag(np.maximum(eigenvalues, 0.0)) @ axes.T
     return pin.Inertia(inertial.mass, placement.translation, moments)
 
 
@@ -237,30 +353,32 @@ def pinocchio_message(error: Exception) -> str:
     return lines[0] if lines else type(error).__name__
 
 
-def _inertial_values(
-    inertial: etree._Element,
+def _numbers(
+    parent: etree._Element,
     tag: str,
-    attributes: tuple[str, ...],
+    attributes: Mapping[str, str | None],
     where: str,
     meaning: str,
-    default: str | None = None,
     lower: float = -math.inf,
 ) -> np.ndarray:
-    """The finite numbers ≥ ``lower`` the ``attributes`` of the ``<inertial>``'s child ``tag``
-    hold, one each (as many as ``default`` holds where given: the text of an attribute left
-    out, or of all where the child is); else one line: the link (``where``), the child as
-    written and what it must be (``meaning``)."""
-    element = inertial.find(tag)
-    if element is None and default is None:
-        raise RobotDescriptionError(f"{where}: <inertial> has no <{tag}>; it needs one: {meaning}")
-    each = 1 if default is None else len(default.split())
+    """The finite numbers ≥ ``lower`` the ``attributes`` of ``parent``'s child ``tag`` hold:
+    as many each as its default holds (the text an attribute left out, or the child, stands
+    for), one where it has none and must be given; else one line: the element (``where``),
+    the child as written and what it must be (``meaning``)."""
+    element = parent.find(tag)
+    if element is None and None in attributes.values():
+        raise RobotDescriptionError(
+            f"{where}: <{parent.tag}> has no <{tag}>; it needs one: {meaning}"
+        )
     given = {} if element is None else dict(element.attrib)
-    texts = [given.get(a, default) or "" for a in attributes]
-    values = [number_or_text(v) for text in texts for v in text.split()]
-    if len(values) != each * len(attributes) or not all(
-        isinstance(v, float) and math.isfinite(v) and v >= lower for v in values
-    ):
-        raise RobotDescriptionError(f"{where} {written(element)} must be {meaning}")
+    values = []
+    for name, default in attributes.items():
+        numbers = [number_or_text(v) for v in (given.get(name, default) or "").split()]
+        if len(numbers) != (1 if default is None else len(default.split())) or not all(
+            isinstance(v, float) and math.isfinite(v) and v >= lower for v in numbers
+        ):
+            raise RobotDescriptionError(f"{where} {written(element)} must be {meaning}")
+        values += numbers
     return np.array(values)
 
 
@@ -282,13 +400,12 @@ def _check_inertials(root: etree._Element, source: str) -> tuple[str, ...]:
         if inertial is None:
             continue
         where = f"{source}: link {link.get('name')!r}"
-        origin = 'xyz="x y z" rpy="r p y", finite numbers (m, rad)'
-        _inertial_values(inertial, "origin", ("xyz", "rpy"), where, origin, "0 0 0")
+        _numbers(inertial, "origin", dict.fromkeys(("xyz", "rpy"), "0 0 0"), where, ORIGIN)
         mass = "a finite number ≥ 0 (the link's mass, kg)"
-        if _inertial_values(inertial, "mass", ("value",), where, mass, lower=0.0)[0] == 0:
+        if _numbers(inertial, "mass", {"value": None}, where, mass, lower=0.0)[0] == 0:
             zero_masses.append(link.get("name"))
         inertia = f"six finite numbers {', '.join(INERTIA)} (kg·m², about the centre of mass)"
-        entries = _inertial_values(inertial, "inertia", INERTIA, where, inertia)
+        entries = _numbers(inertial, "inertia", dict.fromkeys(INERTIA), where, inertia)
         moments = np.linalg.eigvalsh(entries[[[0, 1, 2], [1, 3, 4], [2, 4, 5]]])
         if moments[0] + moments[1] < moments[2] - INERTIA_TOLERANCE * np.abs(moments).max():
             raise RobotDescriptionError(
@@ -297,6 +414,42 @@ def _check_inertials(root: etree._Element, source: str) -> tuple[str, ...]:
                 "kg·m² must be ≥ 0 and each at most the sum of the other two"
             )
     return tuple(zero_masses)
+
+
+def _check_joints(root: etree._Element, source: str) -> None:
+    """Every link and joint has a name of its own, every joint names its parent and child links,
+    and its ``<origin>``, ``<axis>``, ``<limit>`` range and ``<mimic>`` hold finite numbers, as
+    many as they must (a parser may drop what it cannot read, or keep a NaN)."""
+    for kind in ("link", "joint"):
+        names = [element.get("name") for element in root.findall(kind)]
+        if None in names:
+            raise RobotDescriptionError(
+                f'{source}: not a valid URDF: a <{kind}> has no name="..."; each needs its own'
+            )
+        twice = sorted({name for name in names if names.count(name) > 1})
+        if twice:
+            raise RobotDescriptionError(
+                f"{source}: not a valid URDF: {kind} names must differ; given more than once: "
+                f"{excerpt(twice)}"
+            )
+    for joint in root.findall("joint"):
+        where = f"{source}: joint {joint.get('name')!r}"
+        for end in ("parent", "child"):
+            if joint.find(end) is None or joint.find(end).get("link") is None:
+                raise RobotDescriptionError(f'{where}: it needs <{end} link="..."/>')
+        _numbers(joint, "origin", dict.fromkeys(("xyz", "rpy"), "0 0 0"), where, ORIGIN)
+        _numbers(joint, "axis", {"xyz": "1 0 0"}, where, 'xyz="x y z", three finite numbers')
+        limit = joint.find("limit")
+        if limit is not None:
+            given = {a: "0" for a in ("lower", "upper") if a in limit.attrib}
+            _numbers(joint, "limit", given, where, "finite numbers lower and upper (rad or m)")
+        _numbers(
+            joint,
+            "mimic",
+            {"multiplier": "1", "offset": "0"},
+            where,
+            "finite numbers multiplier and offset (q = multiplier · q_joint + offset)",
+        )
 
 
 def _mesh_file(filename: str, folder: Path) -> Path | None:
