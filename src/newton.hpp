@@ -60,7 +60,8 @@ class HeldPass {
 };
 
 // Damped Gauss-Newton from q (k, n) to [y; x_h](q) = target (k, d): steps δ = (KᵀK + δ₀ I)⁻¹ Kᵀ r,
-// each iterate clipped to [lower, upper] (n,) when `bounded`; a row stops once |r| ≤
+// each iterate clipped to [lower, upper] (n,) when `bounded`, the joints at a limit the step
+// would carry past it held there and the step solved again without them; a row stops once |r| ≤
 // `tolerance` or its step moves no coordinate by `stalled` or more. The rows of a pass at one
 // configuration share it. `pass` is a `HeldPass` or a Python callable (unique (u, n), inverse
 // (a,)) → (values (u, d), K (u, d, n)); `first`, None or the values and K at q already known.
@@ -151,13 +152,27 @@ inline py::object newton(const py::object& pass, Array start, const Array& targe
     for (const auto i : active) {
       if (!(residual.row(i).norm() > tolerance)) continue;
       const ConstMatrix K(jacobians.row(i).data(), d, n);
-      const Eigen::VectorXd step = (K.transpose() * K + eye)
-                                       .partialPivLu()
-                                       .solve(K.transpose() * residual.row(i).transpose());
-      Eigen::RowVectorXd updated = q.row(i) - step.transpose();
-      if (bounded)
+      const auto step = [&](const auto& jacobian) -> Eigen::VectorXd {
+        return (jacobian.transpose() * jacobian + eye)
+            .partialPivLu()
+            .solve(jacobian.transpose() * residual.row(i).transpose());
+      };
+      Eigen::RowVectorXd updated = q.row(i) - step(K).transpose();
+      if (bounded) {
+        // A joint at a limit the step would carry past it stays there, and the step is solved
+        // again without it: the other joints then make the whole of their way (an active set).
+        Matrix free;  // K without the columns of the joints held
+        for (Eigen::Index j = 0; j < n; ++j) {
+          const double low = lower.data()[j], high = upper.data()[j];
+          if ((q(i, j) <= low && updated[j] < low) || (q(i, j) >= high && updated[j] > high)) {
+            if (!free.size()) free = K;
+            free.col(j).setZero();
+          }
+        }
+        if (free.size()) updated = q.row(i) - step(free).transpose();
         updated = updated.cwiseMax(Vector(lower.data(), n).transpose())
                       .cwiseMin(Vector(upper.data(), n).transpose());
+      }
       if (!((updated - q.row(i)).cwiseAbs().array() < stalled).all()) {
         q.row(i) = updated;
         moving.push_back(i);

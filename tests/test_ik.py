@@ -74,6 +74,23 @@ def test_check_path_refuses_a_segment_that_leaves_the_workspace_between_reachabl
     assert np.allclose(numbers, on_segment)  # the point named lies on the segment
 
 
+def test_a_path_out_to_where_joints_reach_their_limits_is_accepted(crane):
+    """The crane's farthest reach along y2 = −0.5 m has the boom at its lower limit and the
+    telescope out at its upper one, the stick's angle solved from Eqs. (4)-(5): 3.8234 m. A
+    path out to 1 mm short of it is followed (joints held at their limits while the others
+    step), and one 1 mm past it is refused."""
+    from scipy.optimize import brentq
+
+    q1, d3 = crane.lower[0], crane.upper[2]
+    q2 = brentq(lambda q2: tool([q1, q2, d3])[1] + 0.5, crane.lower[1], crane.upper[1])
+    farthest = tool([q1, q2, d3])[0]
+    assert farthest == pytest.approx(3.823423, abs=1e-6)
+    start = np.array([3.5, -0.5])
+    check_path(crane, Segment("edge", start, np.array([farthest - 1e-3, -0.5]), 0.5))
+    with pytest.raises(UnreachableError, match="out of reach"):
+        check_path(crane, Segment("edge", start, np.array([farthest + 1e-3, -0.5]), 0.5))
+
+
 @pytest.mark.parametrize("name", ["hiab031", "hiab031_slewing"])
 def test_ik_seeds_are_roberts_sequence_inside_the_joint_box(name):
     """Every seed 5 % inside the box; the ratio φ solves φ^(n+1) = φ + 1 and steps joint j by

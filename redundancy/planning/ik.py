@@ -91,8 +91,10 @@ def newton(
 ) -> Solved:
     """Damped Gauss-Newton on [y(q); x_h(q)] = target (k, n) from ``guess`` (k, n): steps
     δ = (KᵀK + δ₀ I)⁻¹ Kᵀ r with K = [J; A_h] (Eqs. 7, 11), each iterate clipped to the joint
-    limits when ``bounded`` (a projected Levenberg-Marquardt). A row stops once its residual is
-    below `TOLERANCE` or its step no longer moves it (`STALLED`).
+    limits when ``bounded`` (a projected Levenberg-Marquardt), a joint at a limit the step would
+    carry past it held there and δ solved again without its column of K, so that a point the
+    tool reaches only with a joint at its limit is reached in a few steps. A row stops once its
+    residual is below `TOLERANCE` or its step no longer moves it (`STALLED`).
 
     Each configuration is evaluated once: a row keeps the residual and K of its latest iterate,
     and the rows of a pass at one configuration (the seeds every target starts from, a corner
