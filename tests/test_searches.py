@@ -23,7 +23,8 @@ from redundancy import (
 )
 from redundancy.model.loading import bundled_root
 from redundancy.model.parameters import Number
-from redundancy.planning.brackets import interpolant_zeros
+from redundancy.planning import starts
+from redundancy.planning.brackets import interpolant_zeros, summit_probes
 from redundancy.planning.cycles import improved_cycle_start
 from redundancy.planning.ik import inverse_kinematics
 from redundancy.planning.integrate import simulate, stroke_extremes
@@ -210,6 +211,29 @@ def test_fast_searchs_best_start_keeps_every_stroke_on_the_grid(searches, name):
     assert VELOCITY.reduce(motion.t, motion.values(VELOCITY))[0] == pytest.approx(
         searches[name].best.peak, rel=1e-3
     )
+
+
+def test_a_feasible_set_narrower_than_the_first_grid_is_found(crane):
+    """Along y2 = −0.5 m out to 10 mm short of the crane's farthest reach (3.823 m), the starts
+    that keep every stroke span about 11 mm of x3, less than the first grid's spacing: none of
+    the grid's 12 is feasible, and all stop early. The margin's summit is climbed to a feasible
+    start, and its ends are located as a 400-sample sweep locates them, within its spacing."""
+    edge = Segment("edge", np.array([3.5, -0.5]), np.array([3.813423, -0.5]), 0.5)
+    fast = improved_start(crane, edge, VELOCITY, "x3")
+    assert not any(s.feasible for s in fast.samples[: starts.GRID])
+    sweep = improved_start(crane, edge, VELOCITY, "x3", 400, method="sweep")
+    lower, upper = sweep.feasible_range
+    assert upper - lower < 0.02
+    spacing = 1.09 / 399
+    assert np.abs(np.subtract(fast.feasible_range, sweep.feasible_range)).max() <= spacing
+    assert fast.best.peak <= sweep.best.peak
+
+
+def test_summit_probes_halve_the_intervals_beside_the_highest_margin():
+    values, margins = np.array([0.0, 1.0, 2.0, 3.0]), np.array([-3.0, -np.inf, -1.0, -2.0])
+    assert summit_probes(values, margins, 0.1) == [1.5, 2.5]
+    assert summit_probes(values, margins, 1.0) == []
+    assert summit_probes(values, np.full(4, -np.inf), 0.1) == []
 
 
 def test_fast_search_needs_few_simulations(searches):

@@ -4,8 +4,9 @@ The fast improved search (`redundancy.planning.starts`) samples the margin μ(v)
 least distance to a limit over the whole motion: continuous in v, so the ends of the feasible set
 are its zeros) and the objective's peak. These helpers choose the next values to sample:
 `bracket_probes` near each zero (μ may have a kink at its zero, where the binding limit changes,
-and then a side's own line through its two nearest values is the accurate fit), `vertex_probe`
-near the least peak, and `new_probes` of those, the ones not sampled already.
+and then a side's own line through its two nearest values is the accurate fit), `summit_probes`
+around the highest μ while no sample is inside, `vertex_probe` near the least peak, and
+`new_probes` of those, the ones not sampled already.
 """
 
 from __future__ import annotations
@@ -79,6 +80,21 @@ def new_probes(probes: list[float], values: np.ndarray, tolerance: float) -> np.
         ):
             kept.append(probe)
     return np.array(kept)
+
+
+def summit_probes(values, margins, tolerance) -> list[float]:
+    """The midpoints between the value of the highest finite margin and each neighbour more than
+    ``tolerance`` from it: where no sample is inside, the continuous margin's highest point
+    lies between those neighbours, and each round halves the interval around it."""
+    if not np.isfinite(margins).any():
+        return []
+    best = int(np.argmax(np.where(np.isfinite(margins), margins, -np.inf)))
+    neighbours = [j for j in (best - 1, best + 1) if 0 <= j < len(values)]
+    return [
+        (values[best] + values[j]) / 2
+        for j in neighbours
+        if abs(values[j] - values[best]) > tolerance
+    ]
 
 
 def vertex_probe(values, peaks, tolerance) -> list[float]:

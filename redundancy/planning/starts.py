@@ -14,7 +14,10 @@ is evaluated by `evaluate_starts`: feasible where its margin is ≥ −`TOLERANC
   v, so the ends of the feasible set are its zeros. The reachable starts are located first by
   continuation along v (no integration); `GRID` of them are integrated, and each round
   integrates the probes of every bracket of the feasible set (`redundancy.planning.brackets`)
-  and of the least peak, until every end is located to ``tolerance``.
+  and of the least peak, until every end is located to ``tolerance``. Where none of the grid's
+  starts is feasible, a feasible set narrower than its spacing may lie between them: rounds
+  first halve the interval around the highest margin (every motion run to its end), until a
+  start is feasible or that summit is located to ``tolerance``.
 - "sweep": the paper's uniform sweep of ``samples`` values (r = 1); for r > 1, ``samples``
   scrambled Halton points over the stroke box (a grid would cost samples^r), the best feasible
   ones then refined by compass search: each round tries every leader ± h along every held
@@ -38,7 +41,7 @@ import numpy as np
 from redundancy.errors import InvalidInputError, UnreachableError, placed
 from redundancy.model.robot import Robot, require_robot
 from redundancy.model.values import is_finite, is_whole
-from redundancy.planning.brackets import bracket_probes, new_probes, vertex_probe
+from redundancy.planning.brackets import bracket_probes, new_probes, summit_probes, vertex_probe
 from redundancy.planning.ik import (
     FOUND,
     continue_held,
@@ -554,6 +557,17 @@ def fast_search(configurations: Configurations, tolerance: float | None, evaluat
     reachable = configurations.reachable(tolerance)
     grid = configurations.at(np.linspace(reachable[0], reachable[-1], GRID))
     search = evaluate(grid, True)
+    if not search.feasible:  # between the grid's values, if anywhere: climb the margin there
+        if search.batches[0].stopped.any():  # whose margins the stopped motions do not know
+            search = evaluate(grid, False)
+        for _ in range(ROUNDS):
+            order = np.argsort(search.values[:, 0], kind="stable")
+            values = search.values[order, 0]
+            margins = np.array([search.samples[i].margin for i in order])
+            probes = new_probes(summit_probes(values, margins, tolerance), values, tolerance)
+            if search.feasible or not probes.size:
+                break
+            search = search.extended(evaluate(configurations.at(probes), False))
     for _ in range(ROUNDS):
         order = np.argsort(search.values[:, 0], kind="stable")
         ordered = [search.samples[i] for i in order]
