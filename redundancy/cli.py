@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import ipaddress
 import json
 import math
@@ -19,6 +20,7 @@ import shutil
 import signal
 import socket
 import sys
+import unicodedata
 import warnings
 from dataclasses import replace
 from functools import partial
@@ -358,7 +360,7 @@ def _play_motion(
 def _play_command(args: argparse.Namespace) -> None:
     html = None if args.html is None else writable(args.html, "--html")
     robot, cycle = _load_task(_robot(args), args.task)
-    segment = cycle[args.segment] if args.segment else cycle.segments[0]
+    segment = cycle.segments[0] if args.segment is None else cycle[args.segment]
     chosen = objective(args.objective)
     check_path(robot, segment)
     motion, start = _play_motion(robot, cycle, segment, chosen, args)
@@ -379,7 +381,7 @@ def _play_command(args: argparse.Namespace) -> None:
 
 def _map_command(args: argparse.Namespace) -> None:
     family = read_family(args.family)
-    target = Path(args.out or Path("maps") / Path(args.family).stem)
+    target = Path(Path("maps") / Path(args.family).stem if args.out is None else args.out)
     with OutputFolder(target) as out:  # committed only if everything below succeeds
         store = target.parent / f".{target.name}.chunks"  # finished chunks, kept for a rerun
         with (
@@ -594,6 +596,12 @@ class _Output:
         return getattr(self.stream, name)
 
 
+def one_line(text: str) -> str:
+    """``text`` with its control characters (a newline, a terminal's escape) written as
+    escapes: a message stays one line and shows what a value holds."""
+    return "".join(repr(c)[1:-1] if unicodedata.category(c) == "Cc" else c for c in text)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; exit status 0, 2 for a user's error (one line), 130 / 143 when
     interrupted / terminated, 1 for an internal error (one line with the exception's type)."""
@@ -627,12 +635,21 @@ def main(argv: list[str] | None = None) -> int:
             word, status = ending(received[-1] if received else default)
             print(f"redundancy: {word}", file=sys.stderr)
         elif isinstance(error, RedundancyError):
-            print(f"redundancy: error: {error}", file=sys.stderr)
+            print(f"redundancy: error: {one_line(str(error))}", file=sys.stderr)
+            status = 2
+        elif isinstance(error, OSError) and error.errno in (errno.ENOSPC, errno.EDQUOT):
+            where = getattr(args, "out", None) or getattr(args, "html", None) or "the output"
+            print(
+                f"redundancy: error: {one_line(str(where))}: {os.strerror(error.errno)}; this "
+                "run's output was not kept",
+                file=sys.stderr,
+            )
             status = 2
         elif isinstance(error, SystemExit):
             raise
         else:
-            print(f"redundancy: internal error: {type(error).__name__}: {error}", file=sys.stderr)
+            text = one_line(f"{type(error).__name__}: {error}")
+            print(f"redundancy: internal error: {text}", file=sys.stderr)
             status = 1
     finally:
         sys.stdout = stdout

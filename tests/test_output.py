@@ -1,6 +1,7 @@
 """All-or-nothing output: interrupted, killed, failed and concurrent runs leave one complete
 output, and nothing the toolkit did not write is lost."""
 
+import errno
 import hashlib
 import json
 import os
@@ -158,6 +159,53 @@ def test_a_report_overlapping_the_output_folder_is_refused_before_any_computing(
     run = run_cli(*STUDY, *NO_ROBOT, "--out", out, "--json", json, cwd=tmp_path)
     assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
     assert f"--json {json} overlaps --out {out}" in run.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_loop_of_links_and_a_path_inside_an_earlier_output_are_refused_at_once(tmp_path):
+    """An --out whose links lead round in a loop is refused before any computing (the commit's
+    rename would meet it forever); --out, --json or --html inside an output folder the toolkit
+    wrote would mix its files, and is refused, that folder untouched."""
+    (tmp_path / "a").symlink_to("b")
+    (tmp_path / "b").symlink_to("a")
+    run = run_cli("study", *NO_ROBOT, "--out", str(tmp_path / "a"))
+    assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
+    assert "--out " + str(tmp_path / "a") + ": cannot write there (Too many levels" in run.stderr
+    with OutputFolder(tmp_path / "earlier") as out:
+        (out / "report.json").write_text("{}")
+    before = sorted((p.name, p.read_bytes()) for p in (tmp_path / "earlier").iterdir())
+    for option, path in (("--out", "earlier/sub"), ("--json", "earlier/report.json")):
+        run = run_cli("study", *NO_ROBOT, "--out", "new", option, path, cwd=tmp_path)
+        assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
+        assert f"{option} {path} lies in {tmp_path / 'earlier'}, an output folder" in run.stderr
+    run = run_cli("play", "--html", "earlier/.redundancy-output", cwd=tmp_path)
+    assert run.returncode == 2 and "--html earlier/.redundancy-output lies in" in run.stderr
+    assert sorted((p.name, p.read_bytes()) for p in (tmp_path / "earlier").iterdir()) == before
+
+
+def test_a_value_with_a_newline_or_an_escape_stays_on_one_line(tmp_path):
+    run = run_cli("study", "--check", "x1\nx9\x1b[31m", "--out", str(tmp_path / "o"))
+    assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
+    assert "x1\\nx9\\x1b[31m" in run.stderr
+
+
+def test_a_full_disk_is_one_line_naming_the_output(tmp_path, monkeypatch, capsys):
+    """No space left while the figures are written: one line naming --out, status 2, and the
+    staged output gone."""
+    from redundancy.cli import main
+    from redundancy.viz import plots
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(plots, "write_pngs", full)
+    status = main(
+        ["study", "--samples", "3", "--cycles", "0", "--quiet", "--out", str(tmp_path / "o")]
+    )
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert status == 2 and len(lines) == 1, lines
+    said = f"{tmp_path / 'o'}: No space left on device; this run's output was not kept"
+    assert lines[0] == f"redundancy: error: {said}"
     assert list(tmp_path.iterdir()) == []
 
 

@@ -207,6 +207,13 @@ def test_a_task_file_declares_arcs_circles_polylines_angles_and_profiles(tmp_pat
     cycle.check_continuous()  # a-b-c-c-a closes
 
 
+@pytest.mark.parametrize("points", ["", "[points]\n"], ids=["none", "empty"])
+def test_a_task_of_polylines_alone_needs_no_points(tmp_path, points):
+    path = _task(tmp_path, f'segments = [{{ csv = "path.csv" }}]\n{points}', "1, 0\n2, 0.5\n")
+    (segment,) = WorkCycle.from_toml(path, dimension=2).segments
+    np.testing.assert_allclose(segment.start, [1, 0])
+
+
 @pytest.mark.parametrize(
     "text, message",
     [

@@ -447,8 +447,9 @@ def _task_segments(robot: Robot, table: TaskTable, folder: Path, where: str):
 def read_family(path: Path | str) -> MapFamily:
     """The family declared in the map file ``path`` (see the module docstring)."""
     path = Path(path)
+    table = read_toml(path, "map file")  # one line where it cannot be read (a loop of links)
     where, folder = str(path), path.resolve().parent
-    family = validate(Family, read_toml(path, "map file"), where)
+    family = validate(Family, table, where)
     robot_name = family.robot
     if not (robot_name in bundled_robots() and not (folder / robot_name).exists()):
         robot_name = str(folder / robot_name)

@@ -41,6 +41,7 @@ from redundancy.study.signals import check, deferred
 
 MARKER = ".redundancy-output"  # names the folder as one this toolkit wrote; holds its manifest
 RENAME_NOREPLACE, RENAME_EXCHANGE = 1, 2  # renameat2 flags, <linux/fs.h>
+RENAMES = 100  # tries of the commit's rename while other runs change the target under it
 
 
 def _unwritable(path: Path, error: OSError, option: str) -> InvalidInputError:
@@ -53,9 +54,28 @@ def _note(message: str) -> None:
     warnings.warn(message, stacklevel=3)
 
 
-def _followed(path: Path) -> Path:
-    """What the symbolic link ``path`` names (dangling or not), or ``path``."""
-    return Path(os.path.realpath(path)) if path.is_symlink() else path
+def _followed(path: Path, option: str) -> Path:
+    """What the symbolic link ``path`` names (dangling or not), or ``path``; one line naming
+    the ``option`` where the links lead round in a loop."""
+    if not path.is_symlink():
+        return path
+    try:
+        return Path(os.path.realpath(path, strict=True))
+    except FileNotFoundError:  # dangling: its target is made
+        return Path(os.path.realpath(path))
+    except OSError as error:
+        raise _unwritable(path, error, option) from None
+
+
+def inside_output(path: Path, option: str) -> None:
+    """Refuse, in one line naming the ``option``, a file ``path`` inside an output folder of
+    the toolkit's, whose files its manifest keeps together."""
+    for folder in Path(os.path.abspath(path)).parents:
+        if _manifest(folder) is not None:
+            raise InvalidInputError(
+                f"{option} {path} lies in {folder}, an output folder this toolkit wrote, "
+                "whose files belong together; give a path outside it"
+            )
 
 
 def _hidden(path: Path, kind: str) -> Path:
@@ -181,9 +201,10 @@ class OutputFolder:
         self.created: list[Path] = []  # the folders made to hold the target, outermost first
         self._committed = False
         try:
-            self.target = _followed(Path(target))
+            self.target = _followed(Path(target), option)
             if self.target.name in ("", ".", ".."):
                 raise InvalidInputError(f"{option} {target}: give a folder by its own name")
+            inside_output(self.target, option)
             self._check_target()
             self.created = _make_parent(self.target, option)
             _clean_up_after_killed_runs(self.target)
@@ -232,13 +253,14 @@ class OutputFolder:
         """Where to write the output file ``path`` kept outside the folder (e.g. ``--json``): a
         hidden file beside it, named in the staging folder's marker before it is made, renamed
         over it at `commit`. ``path`` may not be the folder, lie inside it or hold it."""
-        path = _followed(path)
+        path = _followed(path, option)
         a, b = Path(os.path.abspath(path)), Path(os.path.abspath(self.target))
         if a == b or a in b.parents or b in a.parents:
             raise InvalidInputError(
                 f"{option} {path} overlaps {self.option} {self.target}; give a file outside "
                 f"that folder (it holds its own report.json)"
             )
+        inside_output(path, option)
         suffix = self.staging.name.removeprefix(f".{self.target.name}")
         staged = path.parent / f".{path.name}{suffix}"
         self.others.append((staged, path))
@@ -264,14 +286,14 @@ class OutputFolder:
             _sync(path)
         writing = tuple({p.relative_to(self.staging).parts[0] for p in files})
         with deferred():
-            while True:  # until the rename finds the target as checked just before
+            for attempt in itertools.count():  # until the rename finds the target as checked
                 exists = self._check_target(writing)
                 try:
                     flags = RENAME_EXCHANGE if exists else RENAME_NOREPLACE
                     _rename(self.staging, self.target, flags)
                     break
                 except (FileExistsError, FileNotFoundError):
-                    if not self.staging.is_dir():
+                    if not self.staging.is_dir() or attempt == RENAMES:
                         raise
             self._committed = True
             for staged, final in self.others:
@@ -339,8 +361,10 @@ def _create_beside(path: Path, staged: Path, option: str) -> list[Path]:
 
 def writable(path: Path | str, option: str) -> Path:
     """``path`` (where it links to, for a link) after checking that a file can be written
-    beside it (its folder is created); one line naming the option otherwise."""
-    path = _followed(Path(path))
+    beside it (its folder is created) and that it lies in no output folder of the toolkit's
+    (`inside_output`); one line naming the option otherwise."""
+    path = _followed(Path(path), option)
+    inside_output(path, option)
     staged = _hidden(path, "check")
     _create_beside(path, staged, option)
     staged.unlink()
