@@ -30,7 +30,7 @@ from redundancy.cli import _play_motion, main, parser
 from redundancy.model.loading import bundled_root
 from redundancy.model.parameters import Choice, Number
 from redundancy.model.transmissions import read_actuator_tables, read_transmissions
-from redundancy.planning.ik import configuration_at
+from redundancy.planning.ik import configuration_at, free_configurations
 from redundancy.planning.integrate import simulate
 from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.objectives import VELOCITY
@@ -509,6 +509,27 @@ def test_check_finds_where_a_cylinder_line_passes_through_its_joint_axis(tmp_pat
     lengths = {round(v, 4) for v in x1.singular_x}
     assert lengths == {round(b + r, 4), round(abs(b - r), 4)}
     assert any("x1: A is singular at boom_joint" in line for line in found.blocking())
+
+
+def test_check_reaches_a_point_a_grid_of_four_held_joints_passes_between(tmp_path):
+    """The Panda holds four joints: a grid of 3 values each (81 combinations) reaches neither
+    of these points, which the arm reaches with its joints free, inside their ranges; check
+    finds them reached, and a point beyond its reach (2 m out) not."""
+    from redundancy.planning.ik import FOUND
+
+    (tmp_path / "t.toml").write_text(
+        'segments = ["a-b", "b-c"]\n[points]\na = [0.45, 0.0, 0.55]\nb = [0.5, 0.0, 0.5]\n'
+        "c = [2.0, 0.0, 0.5]\n"
+    )
+    robot = quietly("panda")
+    cycle = WorkCycle.from_toml(tmp_path / "t.toml", dimension=3)
+    found = check(robot, cycle)
+    by_point = {tuple(np.round(p, 3)): ok for p, ok in zip(found.points, found.reached)}
+    assert by_point == {(0.45, 0.0, 0.55): True, (0.5, 0.0, 0.5): True, (2.0, 0.0, 0.5): False}
+    free = free_configurations(robot, np.array([0.45, 0.0, 0.55]), 64)
+    assert len(free) and np.all((free >= robot.lower) & (free <= robot.upper))
+    y = robot.task_point(robot.kinematics(free))[0]
+    assert np.abs(y - [0.45, 0.0, 0.55]).max() < FOUND
 
 
 # -- play --start ----------------------------------------------------------------------------

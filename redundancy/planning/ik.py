@@ -209,6 +209,14 @@ def inverse_kinematics(
     return InverseKinematics(picked, np.any(converged, axis=1), error.min(axis=1))
 
 
+def free_configurations(robot: Robot, point: np.ndarray, seeds: int) -> np.ndarray:
+    """Configurations (j, n) inside the joint limits that reach ``point`` (m,) with every
+    actuator free, by Newton from ``seeds`` spread over the joint box; none where each misses."""
+    target = np.broadcast_to(np.asarray(point, dtype=float), (seeds, robot.m))
+    q, miss, _ = newton(robot, _seeds(robot, seeds), [], target, ITERATIONS, True)
+    return q[miss < FOUND]
+
+
 def continue_held(
     robot: Robot,
     point: np.ndarray,

@@ -23,7 +23,7 @@ import numpy as np
 from redundancy.errors import InvalidInputError, placed
 from redundancy.model.robot import Robot, require_robot
 from redundancy.planning.angles import task_labels
-from redundancy.planning.ik import inverse_kinematics
+from redundancy.planning.ik import free_configurations, inverse_kinematics
 from redundancy.planning.starts import held_actuators, stroke_box
 from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.limits import Limits, amount
@@ -33,6 +33,7 @@ SWEEP = 1441  # joint values per sweep: a quarter degree over a full turn
 REACH_SAMPLES = 20_000  # configurations sampled for the reachable area (the workspace figure)
 HELD_SAMPLES = 9  # held values tried for each task point, with one held actuator
 HELD_BUDGET = 81  # held value combinations tried for each task point, with several
+FREE_SEEDS = 64  # seeds of the free inverse kinematics where no held value reaches a point
 MISMATCH = 1e-3  # m or rad: a stroke end this far beyond the values reached is a mismatch
 
 
@@ -200,7 +201,9 @@ def _sweep(robot: Robot, column: int, row: int) -> tuple[tuple, tuple, tuple]:
 def _reached(robot: Robot, cycle: WorkCycle) -> tuple[np.ndarray, tuple[bool, ...]]:
     """The task's points (P, m) and whether each is reached inside the joint ranges with every
     stroke kept, for one of a grid of held values over their strokes: `HELD_SAMPLES` values
-    with one held actuator, at most `HELD_BUDGET` combinations with several."""
+    with one held actuator, at most `HELD_BUDGET` combinations with several; where none does,
+    by a configuration the actuators reach free (`FREE_SEEDS` seeds), which that grid, coarse
+    over several held actuators, may have passed between."""
     held = held_actuators(robot, cycle)
     count = min(HELD_SAMPLES, max(2, int(HELD_BUDGET ** (1 / len(held)) + 1e-9)))
     grids = [np.linspace(lower, upper, count) for lower, upper in stroke_box(robot, held)]
@@ -211,7 +214,11 @@ def _reached(robot: Robot, cycle: WorkCycle) -> tuple[np.ndarray, tuple[bool, ..
     for point in points:
         found = inverse_kinematics(robot, point, held, values)
         kept = strokes.margin(evaluate(robot, found.q).x) >= 0
-        reached.append(bool(np.any(found.reached & kept)))
+        ok = bool(np.any(found.reached & kept))
+        if not ok:  # a grid of several held actuators' values may pass between the solutions
+            free = free_configurations(robot, point, FREE_SEEDS)
+            ok = len(free) > 0 and bool(np.any(strokes.margin(evaluate(robot, free).x) >= 0))
+        reached.append(ok)
     return points, tuple(reached)
 
 
