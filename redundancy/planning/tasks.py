@@ -582,9 +582,7 @@ def _points(task: TaskFile, size: int | None, path: Path) -> dict[str, np.ndarra
     """A task file's named points, each of ``size`` coordinates where given (angles in rad);
     none are needed where every segment is a CSV polyline."""
     points = task.points
-    if not points and all(
-        isinstance(e, SegmentTable) and e.csv is not None for e in task.segments
-    ):
+    if not points and all(isinstance(e, SegmentTable) and e.csv is not None for e in task.segments):
         return {}
     if not points:
         raise InvalidInputError(f"{path}: needs a [points] table of name = [coordinates]")
