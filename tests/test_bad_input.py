@@ -1138,6 +1138,37 @@ API = [
         lambda r: _crane_with('<mass value="80"/>', '<mass value="nan"/>'),
         """crane.urdf: link 'boom1' <mass value="nan"/> must be a finite number ≥ 0""",
     ),
+    *[
+        (
+            f"simulate a law {law!r}",
+            lambda r, law=law: simulate(r, law, _segment(r), np.array([STATE])),
+            f"a law must be a Resolver (an objective's .resolver, MinVelocityNorm(), a subclass "
+            f"of your own); got {law!r}",
+        )
+        for law in (None, "velocity")
+    ],
+    (
+        "simulate_path a law per segment, one not a law",
+        lambda r: redundancy.simulate_path(
+            r, [VELOCITY.resolver, None, VELOCITY.resolver], _cycle(r), np.array([STATE])
+        ),
+        "a law must be a Resolver",
+    ),
+    (
+        "default_start of no segment",
+        lambda r: redundancy.default_start(r, None),
+        "segment must be a Segment or a Chain",
+    ),
+    (
+        "repeat an unknown strategy",
+        lambda r: repeat(r, _cycle(r), VELOCITY.resolver, np.array(STATE), 1, "bogus"),
+        "unknown strategy 'bogus'; strategies: free, periodic",
+    ),
+    (
+        "run_study an unknown objective's name",
+        lambda r: redundancy.run_study(r, _cycle(r), "speed", progress=False, cycles=0),
+        "unknown objective 'speed'; objectives: velocity, energy",
+    ),
     (
         "load_robot inertia not a body's",
         lambda r: _crane_with('iyy="17.0666666666667"', 'iyy="-17"'),

@@ -64,6 +64,7 @@ from redundancy.resolution.objectives import VELOCITY, Objective
 from redundancy.resolution.objectives import objective as as_objective
 
 CYCLES = 20  # repetitions by default
+STRATEGIES = ("free", "periodic")  # a repetition's law: the objective's, or drift-free
 SETTLED = 1e-6  # m (or rad): a cycle whose every actuator moves less than this is closed
 MAP_SAMPLES = 25  # starts the return map samples over the reachable held stroke
 GAP_SPEED = 0.1  # m/s (or rad/s): the held actuators' speed in a corner's self-motion, where
@@ -424,6 +425,10 @@ def repeat(
     the task (gain K, 1/s), adaptively to ``tolerance`` and sampled at the steps
     (`Repetition.motion` gives a cycle on the grid)."""
     require_robot(robot)
+    if strategy not in STRATEGIES:
+        raise InvalidInputError(
+            f"unknown strategy {strategy!r}; strategies: {', '.join(STRATEGIES)}"
+        )
     held = _held(robot, cycle, held)
     cycles = checked_cycles(cycles)
     q = robot.configuration(start, "start")

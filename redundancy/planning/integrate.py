@@ -41,7 +41,7 @@ from redundancy.model.kinematics import join
 from redundancy.model.robot import Robot, require_robot
 from redundancy.model.values import is_finite
 from redundancy.planning.tasks import Chain, Segment
-from redundancy.resolution.laws import Resolver, compiled_rates
+from redundancy.resolution.laws import Resolver, compiled_rates, require_resolver
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
 from redundancy.resolution.limits import Limits, Violation, hydraulic_values
 from redundancy.resolution.objectives import ENERGY, VELOCITY, Objective, integral
@@ -642,6 +642,7 @@ def simulate(
     hydraulic circuit's limits count for `Trajectory.within_limits` too.
     """
     require_robot(robot)
+    require_resolver(resolver)
     starts = robot.configuration(starts, "starts")
     if segment.start.shape != (robot.m,):
         raise InvalidInputError(

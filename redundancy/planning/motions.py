@@ -18,7 +18,7 @@ from redundancy.errors import InvalidInputError
 from redundancy.model.robot import Robot, require_robot
 from redundancy.planning.integrate import TIME_STEP, Trajectory, chained, simulate
 from redundancy.planning.tasks import Chain, Segment
-from redundancy.resolution.laws import Resolver
+from redundancy.resolution.laws import Resolver, require_resolver
 
 Laws = Resolver | Sequence[Resolver]  # one law for every segment of a chain, or one per segment
 
@@ -51,7 +51,9 @@ def per_segment(path: Chain, laws: Laws) -> tuple[Resolver, ...]:
     """One law per segment of ``path``: ``laws`` itself, or one law repeated."""
     if isinstance(laws, Resolver):
         return (laws,) * len(path.segments)
-    laws = tuple(laws)
+    if isinstance(laws, str) or not isinstance(laws, Sequence):
+        require_resolver(laws)  # neither one law nor a sequence of them: says what a law is
+    laws = tuple(require_resolver(law) for law in laws)
     if len(laws) != len(path.segments):
         raise InvalidInputError(
             f"{len(laws)} laws for the {len(path.segments)} segments of {path.name!r}"

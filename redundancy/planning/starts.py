@@ -61,7 +61,7 @@ from redundancy.planning.motions import simulate_path
 from redundancy.planning.tasks import Chain, Segment, WorkCycle, checked_path
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
 from redundancy.resolution.limits import Limits, Violation, amount
-from redundancy.resolution.objectives import Objective
+from redundancy.resolution.objectives import Objective, objectives_of
 from redundancy.resolution.objectives import objective as as_objective
 
 METHODS = ("fast", "sweep")
@@ -489,7 +489,7 @@ def improved_starts(
     search's reachable scan is done once."""
     require_robot(robot)
     segment = checked_path(segment)
-    objectives = tuple(as_objective(o) for o in objectives)
+    objectives = objectives_of(objectives)
     held = held_names(robot, held)
     method = search_method(held, samples, method)
 
@@ -631,6 +631,7 @@ def default_start(robot: Robot, segment: Segment | Chain, held: str | Sequence[s
     Returns (values (r,), q (n,)).
     """
     require_robot(robot)
+    segment = checked_path(segment)
     held = held_names(robot, held)
     box = stroke_box(robot, held)
     if len(held) == 1:

@@ -32,6 +32,7 @@ from redundancy import _core
 from redundancy.errors import InvalidInputError
 from redundancy.model.actuators import declared
 from redundancy.model.robot import Robot, require_robot
+from redundancy.model.schema import excerpt
 from redundancy.model.values import is_real
 from redundancy.resolution.state import (
     SINGULAR_TOLERANCE,
@@ -134,6 +135,16 @@ class Resolver:
                 f"{robot.written(robot.upper)})"
             )
         return Step(x_dot[0], q_dot[0], space.y[0])
+
+
+def require_resolver(resolver: object) -> Resolver:
+    """``resolver`` if it is a `Resolver`; else one line saying what a law is."""
+    if not isinstance(resolver, Resolver):
+        raise InvalidInputError(
+            f"a law must be a Resolver (an objective's .resolver, MinVelocityNorm(), a subclass "
+            f"of your own); got {excerpt(resolver)}"
+        )
+    return resolver
 
 
 class MinVelocityNorm(Resolver):

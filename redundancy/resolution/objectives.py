@@ -15,7 +15,7 @@ take it as they take these.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -112,7 +112,15 @@ CP_ENERGY = Objective(
 OBJECTIVES = {o.name: o for o in (VELOCITY, ENERGY, FLOW, LS_ENERGY, CP_ENERGY)}
 
 
-def objective(name: str | Objective) -> Objective:
+def objectives_of(given: object) -> tuple[Objective, ...]:
+    """``given``, an objective or its name or a sequence of them, as Objectives; the error names
+    the one that is none and lists the choices."""
+    if isinstance(given, str | Objective) or not isinstance(given, Sequence):
+        given = (given,)
+    return tuple(objective(o) for o in given)
+
+
+def objective(name: object) -> Objective:
     """The objective called ``name`` (an `Objective` is taken as it is); the error lists the
     choices."""
     if isinstance(name, Objective):

@@ -21,6 +21,7 @@ from redundancy.model.robot import Robot, require_robot
 from redundancy.planning.cycles import (
     CYCLES,
     SETTLED,
+    STRATEGIES,
     Corner,
     CyclePlan,
     FixedPoint,
@@ -40,7 +41,6 @@ from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import VELOCITY, Objective
 from redundancy.study.peers import pump_energies
 
-STRATEGIES = ("free", "periodic")
 CHOICES = (*STRATEGIES, "both")
 
 

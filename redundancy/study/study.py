@@ -53,7 +53,7 @@ from redundancy.planning.starts import (
 )
 from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.laws import GradientProjection, Resolver
-from redundancy.resolution.objectives import ENERGY, VELOCITY, Objective
+from redundancy.resolution.objectives import ENERGY, VELOCITY, Objective, objectives_of
 from redundancy.study.check import check, reachable_points
 from redundancy.study.cycles import CycleStudy, noted, report_header, run_cycle, search_report
 from redundancy.study.output import write_atomically
@@ -315,6 +315,7 @@ def study_searches(
     """Every segment's improved start search for each of ``objectives`` (`improved_starts`),
     and each best start's motion, as `run_study` makes them with these arguments; bad input is
     refused first, as `run_study` refuses it."""
+    objectives = objectives_of(objectives)
     held = held_actuators(robot, cycle)
     searched = method or ("fast" if len(held) == 1 else "sweep")
     if searched not in METHODS:
@@ -368,6 +369,7 @@ def run_study(
     require_robot(robot)
     from tqdm import tqdm
 
+    objectives = objectives_of(objectives)
     given = _given(objectives, samples, checked, method, energy_bound, circuit)
     if searches is None:
         searches = study_searches(
