@@ -230,10 +230,13 @@ def test_a_feasible_set_narrower_than_the_first_grid_is_found(crane):
 
 
 def test_summit_probes_halve_the_intervals_beside_the_highest_margin():
+    """Around the highest margin (−1 at 2), where twice the steepest slope seen (1 per unit,
+    from 2 to 3) lifts it above 0 within a neighbour's distance; not where it cannot."""
     values, margins = np.array([0.0, 1.0, 2.0, 3.0]), np.array([-3.0, -np.inf, -1.0, -2.0])
     assert summit_probes(values, margins, 0.1) == [1.5, 2.5]
     assert summit_probes(values, margins, 1.0) == []
     assert summit_probes(values, np.full(4, -np.inf), 0.1) == []
+    assert summit_probes(values, margins - 2.5, 0.1) == []  # −3.5 + 2 × 1 × 1 < 0
 
 
 def test_fast_search_needs_few_simulations(searches):

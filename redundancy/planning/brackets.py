@@ -82,14 +82,27 @@ def new_probes(probes: list[float], values: np.ndarray, tolerance: float) -> np.
     return np.array(kept)
 
 
+SUMMIT_SLOPE = 2.0  # how much steeper than the samples show the margin may rise between them
+
+
 def summit_probes(values, margins, tolerance) -> list[float]:
     """The midpoints between the value of the highest finite margin and each neighbour more than
     ``tolerance`` from it: where no sample is inside, the continuous margin's highest point
-    lies between those neighbours, and each round halves the interval around it."""
-    if not np.isfinite(margins).any():
+    lies between those neighbours, and each round halves the interval around it. None where
+    the margin cannot reach 0 there rising at `SUMMIT_SLOPE` times the steepest slope the
+    samples show: a summit that far below is the motions' own, not a narrow feasible set
+    between samples."""
+    finite = np.isfinite(margins)
+    if not finite.any():
         return []
-    best = int(np.argmax(np.where(np.isfinite(margins), margins, -np.inf)))
+    best = int(np.argmax(np.where(finite, margins, -np.inf)))
     neighbours = [j for j in (best - 1, best + 1) if 0 <= j < len(values)]
+    pairs = finite[:-1] & finite[1:]
+    slopes = np.abs(np.diff(margins)[pairs] / np.diff(values)[pairs])
+    steepest = SUMMIT_SLOPE * slopes.max() if slopes.size else np.inf
+    rise = steepest * max(abs(values[j] - values[best]) for j in neighbours) if neighbours else 0
+    if margins[best] + rise < 0:
+        return []
     return [
         (values[best] + values[j]) / 2
         for j in neighbours

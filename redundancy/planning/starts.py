@@ -16,8 +16,10 @@ is evaluated by `evaluate_starts`: feasible where its margin is ≥ −`TOLERANC
   integrates the probes of every bracket of the feasible set (`redundancy.planning.brackets`)
   and of the least peak, until every end is located to ``tolerance``. Where none of the grid's
   starts is feasible, a feasible set narrower than its spacing may lie between them: rounds
-  first halve the interval around the highest margin (every motion run to its end), until a
-  start is feasible or that summit is located to ``tolerance``.
+  first halve the interval around the highest margin (the grid's motions run to their end
+  where every one stopped early), until a start is feasible, that summit is located to
+  ``tolerance``, or it is too far below 0 to rise to it between the samples
+  (`redundancy.planning.brackets.summit_probes`).
 - "sweep": the paper's uniform sweep of ``samples`` values (r = 1); for r > 1, ``samples``
   scrambled Halton points over the stroke box (a grid would cost samples^r), the best feasible
   ones then refined by compass search: each round tries every leader ± h along every held
@@ -558,7 +560,7 @@ def fast_search(configurations: Configurations, tolerance: float | None, evaluat
     grid = configurations.at(np.linspace(reachable[0], reachable[-1], GRID))
     search = evaluate(grid, True)
     if not search.feasible:  # between the grid's values, if anywhere: climb the margin there
-        if search.batches[0].stopped.any():  # whose margins the stopped motions do not know
+        if not np.isfinite([s.margin for s in search.samples]).any():  # all stopped: unknown
             search = evaluate(grid, False)
         for _ in range(ROUNDS):
             order = np.argsort(search.values[:, 0], kind="stable")
