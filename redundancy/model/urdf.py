@@ -157,14 +157,15 @@ def _check_tree(robot: yourdfpy.Robot, source: str) -> None:
             f"{source}: not a valid URDF: it must have one root link, a link no joint is the "
             f"child of; it has {len(roots)}: {excerpt(roots)}"
         )
-    hanging = set(roots)  # the links reached from the root, down the joints
-    below = [roots[0]]
+    children: dict[str, list[str]] = {}  # the links hanging from each link
+    for joint in robot.joints:
+        children.setdefault(joint.parent, []).append(joint.child)
+    hanging, below = set(roots), [roots[0]]  # the links reached from the root, down the joints
     while below:
-        link = below.pop()
-        for joint in robot.joints:
-            if joint.parent == link and joint.child not in hanging:
-                hanging.add(joint.child)
-                below.append(joint.child)
+        for child in children.get(below.pop(), []):
+            if child not in hanging:
+                hanging.add(child)
+                below.append(child)
     if hanging != links:
         cycle = [j.name for j in robot.joints if j.child not in hanging]
         raise RobotDescriptionError(
