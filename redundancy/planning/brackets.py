@@ -97,8 +97,8 @@ def summit_probes(values, margins, tolerance) -> list[float]:
         return []
     best = int(np.argmax(np.where(finite, margins, -np.inf)))
     neighbours = [j for j in (best - 1, best + 1) if 0 <= j < len(values)]
-    pairs = finite[:-1] & finite[1:]
-    slopes = np.abs(np.diff(margins)[pairs] / np.diff(values)[pairs])
+    pairs = np.flatnonzero(finite[:-1] & finite[1:])  # neighbours whose margins are known
+    slopes = np.abs((margins[pairs + 1] - margins[pairs]) / (values[pairs + 1] - values[pairs]))
     steepest = SUMMIT_SLOPE * slopes.max() if slopes.size else np.inf
     rise = steepest * max(abs(values[j] - values[best]) for j in neighbours) if neighbours else 0
     if margins[best] + rise < 0:
