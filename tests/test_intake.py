@@ -521,8 +521,17 @@ def test_check_reaches_a_point_a_grid_of_four_held_joints_passes_between(tmp_pat
         'segments = ["a-b", "b-c"]\n[points]\na = [0.45, 0.0, 0.55]\nb = [0.5, 0.0, 0.5]\n'
         "c = [2.0, 0.0, 0.5]\n"
     )
+    import itertools
+
+    from redundancy.planning.ik import inverse_kinematics
+    from redundancy.planning.starts import held_actuators, stroke_box
+
     robot = quietly("panda")
     cycle = WorkCycle.from_toml(tmp_path / "t.toml", dimension=3)
+    held = held_actuators(robot, cycle)
+    grid = np.array(list(itertools.product(*(np.linspace(*b, 3) for b in stroke_box(robot, held)))))
+    for point in ([0.45, 0.0, 0.55], [0.5, 0.0, 0.5]):  # the grid passes between the solutions
+        assert not inverse_kinematics(robot, np.array(point), held, grid).reached.any()
     found = check(robot, cycle)
     by_point = {tuple(np.round(p, 3)): ok for p, ok in zip(found.points, found.reached)}
     assert by_point == {(0.45, 0.0, 0.55): True, (0.5, 0.0, 0.5): True, (2.0, 0.0, 0.5): False}
