@@ -164,11 +164,10 @@ class Robot:
         angle whose range is wider than a turn (unbounded, or a URDF's ±1e16 for "no limit"),
         the turn within it nearest [−π, π]: every pose once. Searches seed configurations in
         it."""
-        lower, upper = self.lower.copy(), self.upper.copy()
+        lower, upper = self.lower, self.upper
         wide = self.rotary_joints & (upper - lower > 2 * np.pi)
-        lower[wide] = np.clip(-np.pi, lower[wide], upper[wide] - 2 * np.pi)
-        upper[wide] = lower[wide] + 2 * np.pi
-        return lower, upper
+        turn = np.where(wide, np.minimum(np.maximum(lower, -np.pi), upper - 2 * np.pi), lower)
+        return turn, np.where(wide, turn + 2 * np.pi, upper)
 
     def configuration(self, q: np.ndarray | list[float], name: str = "q") -> np.ndarray:
         """``q`` as a checked (k, n) array: right shape, finite."""
