@@ -14,6 +14,7 @@ import contextlib
 import io
 import math
 import warnings
+from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -47,6 +48,7 @@ class Urdf:
     source: str
     missing_meshes: tuple[str, ...]
     zero_masses: tuple[str, ...]
+    mimics: dict[str, tuple[str, float, float]]  # `mimics`: each mimic joint's leader, a, b
 
     @property
     def text(self) -> str:
@@ -75,9 +77,9 @@ def read_urdf(path: Path) -> Urdf:
         raise RobotDescriptionError(
             f"{source}: not a valid URDF: {type(error).__name__}: {excerpt(str(error))}"
         ) from None
-    _check_tree(parse, source)
+    followed = _check_tree(parse, source)
     missing = _resolve_meshes(root, path.resolve().parent)
-    return Urdf(root, parse, source, missing, zero_masses)
+    return Urdf(root, parse, source, missing, zero_masses, followed)
 
 
 def _document(path: Path) -> bytes:
@@ -107,11 +109,11 @@ def _document(path: Path) -> bytes:
         raise RobotDescriptionError(f"{path}: xacro cannot expand it: {reason}") from error
 
 
-def _check_tree(robot: yourdfpy.Robot, source: str) -> None:
+def _check_tree(robot: yourdfpy.Robot, source: str) -> dict[str, tuple[str, float, float]]:
     """Every joint is of a URDF type and joins two links of the URDF, each link is the child
     of one joint at most, one link is the root and every other hangs from it (no cycle), a
     revolute or prismatic joint gives its range, lower ≤ upper, and a mimic joint follows a
-    joint it can follow (`mimics`)."""
+    joint it can follow; returns `mimics`."""
     links, joints = {link.name for link in robot.links}, {joint.name for joint in robot.joints}
     for joint in robot.joints:
         if joint.type not in JOINTS:
@@ -172,7 +174,7 @@ def _check_tree(robot: yourdfpy.Robot, source: str) -> None:
             f"{source}: not a valid URDF: joints {excerpt(cycle)} form a cycle that does not "
             f"hang from the root link {roots[0]!r}; a URDF is a tree"
         )
-    mimics(robot, source)
+    return mimics(robot, source)
 
 
 def mimics(robot: yourdfpy.Robot, source: str) -> dict[str, tuple[str, float, float]]:
@@ -250,7 +252,7 @@ def build_model(urdf: Urdf, locked: dict[str, float | None]) -> tuple[pin.Model,
             locked[joint.name] = float(np.clip(0.0, *ends))
     for link in robot.links:
         model_graph.addBody(link.name, _inertia(link.inertial))
-    followed = mimics(robot, urdf.source)
+    followed = urdf.mimics
     leaders = {leader for name, (leader, _, _) in followed.items() if name not in locked}
     first = _branches(robot, leaders)
     for joint in sorted(robot.joints, key=lambda j: j.name not in first):
@@ -309,7 +311,7 @@ def _joint(joint: yourdfpy.Joint, source: str, locked: dict) -> tuple[Any, float
     where = f"{source}: joint {excerpt(joint.name)}"
     axis = np.asarray(joint.axis, dtype=float)
     moves = joint.type in MOVING
-    if moves and not (np.all(np.isfinite(axis)) and np.linalg.norm(axis) > 0):
+    if moves and not np.linalg.norm(axis) > 0:  # finite: `_check_joints`
         raise RobotDescriptionError(
             f"{where}: <axis xyz={excerpt(' '.join(map(str, axis)))}> must be three finite "
             "numbers, not all zero"
@@ -427,7 +429,7 @@ def _check_joints(root: etree._Element, source: str) -> None:
             raise RobotDescriptionError(
                 f'{source}: not a valid URDF: a <{kind}> has no name="..."; each needs its own'
             )
-        twice = sorted({name for name in names if names.count(name) > 1})
+        twice = sorted(name for name, count in Counter(names).items() if count > 1)
         if twice:
             raise RobotDescriptionError(
                 f"{source}: not a valid URDF: {kind} names must differ; given more than once: "
