@@ -563,18 +563,13 @@ def fast_search(configurations: Configurations, tolerance: float | None, evaluat
         if not np.isfinite([s.margin for s in search.samples]).any():  # all stopped: unknown
             search = evaluate(grid, False)
         for _ in range(ROUNDS):
-            order = np.argsort(search.values[:, 0], kind="stable")
-            values = search.values[order, 0]
-            margins = np.array([search.samples[i].margin for i in order])
+            _, values, margins = _by_value(search)
             probes = new_probes(summit_probes(values, margins, tolerance), values, tolerance)
             if search.feasible or not probes.size:
                 break
             search = search.extended(evaluate(configurations.at(probes), False))
     for _ in range(ROUNDS):
-        order = np.argsort(search.values[:, 0], kind="stable")
-        ordered = [search.samples[i] for i in order]
-        values = np.array([s.value for s in ordered])
-        margins = np.array([s.margin for s in ordered])
+        ordered, values, margins = _by_value(search)
         feasible = np.array([s.feasible for s in ordered])
         peaks = np.array([s.peak if s.feasible else np.inf for s in ordered])
         candidates = bracket_probes(values, margins, feasible, tolerance)
@@ -585,6 +580,13 @@ def fast_search(configurations: Configurations, tolerance: float | None, evaluat
         starts = configurations.at(probes)
         search = search.extended(evaluate(starts, False))
     return search
+
+
+def _by_value(search: SearchResult) -> tuple[list[Sample], np.ndarray, np.ndarray]:
+    """A one-held-actuator search's samples in order of their value, with their values and
+    margins (k,) each."""
+    ordered = [search.samples[i] for i in np.argsort(search.values[:, 0], kind="stable")]
+    return ordered, np.array([s.value for s in ordered]), np.array([s.margin for s in ordered])
 
 
 def _compass(robot, segment, held, samples, run) -> SearchResult:
