@@ -1082,6 +1082,11 @@ API = [
         "x_ddot must be finite numbers of shape",
     ),
     (
+        "joint velocities of nan",
+        lambda r: actuator_space(r, [1.6, 1.0, 0.5]).joint_velocities([[0.1, np.nan, 0.0]]),
+        "x_dot must be finite numbers of shape (1, 3), a row per state; got [[0.1, nan, 0.0]]",
+    ),
+    (
         "segment at infinite speed",
         lambda r: Segment("a", np.array([3.5, -0.5]), np.array([1.0, -0.5]), np.inf),
         "segment a: speed must be > 0 and ≤ 10 m/s; got inf",

@@ -161,7 +161,7 @@ class ActuatorSpace:
 
     def joint_velocities(self, x_dot: np.ndarray) -> np.ndarray:
         """q̇ = A⁻¹ ẋ (Eq. 11) for actuator velocities ẋ (k, n)."""
-        return _core.solve(self.A, x_dot)
+        return _core.solve(self.A, per_state(x_dot, "x_dot", self.x.shape))
 
     def moving(self, v: np.ndarray, x_ddot: np.ndarray | None = None) -> ActuatorSpace:
         """These states at joint velocities v (k, n), once a law has solved for them, and
