@@ -55,7 +55,7 @@ from redundancy.study.cycles import CHOICES, named_values, run_cycle
 from redundancy.study.families import read_family
 from redundancy.study.maps import CONNECT_TIMEOUT, connect, design_map, summary
 from redundancy.study.output import OutputFolder, writable
-from redundancy.study.signals import Terminated, caught, ending, received
+from redundancy.study.signals import Terminated, announce, caught, received
 from redundancy.study.study import (
     STUDY_CYCLES,
     cycle_section,
@@ -632,8 +632,7 @@ def main(argv: list[str] | None = None) -> int:
         # cut short ends in ImportError)
         if received or isinstance(error, KeyboardInterrupt | Terminated):
             default = signal.SIGTERM if isinstance(error, Terminated) else signal.SIGINT
-            word, status = ending(received[-1] if received else default)
-            print(f"redundancy: {word}", file=sys.stderr)
+            status = announce(received[-1] if received else default, sys.stderr.write)
         elif isinstance(error, RedundancyError):
             print(f"redundancy: error: {one_line(str(error))}", file=sys.stderr)
             status = 2

@@ -297,6 +297,41 @@ def test_a_signal_python_had_to_ignore_still_ends_the_command(monkeypatch, capsy
     assert captured.err.splitlines() == ["redundancy: interrupted"], captured.err
 
 
+def test_a_second_signal_while_the_command_ends_adds_no_second_line():
+    """Ctrl-C twice: the second arrives once the command has written that it is interrupted,
+    and ends the process at once with the same status, saying nothing more."""
+    script = """
+import os, signal, sys
+from redundancy import cli
+from redundancy.study import signals
+
+class Stderr:  # the second Ctrl-C right after the command's line
+    def write(self, text):
+        sys.__stderr__.write(text)
+        sys.__stderr__.flush()
+        os.kill(os.getpid(), signal.SIGINT)
+
+    def reconfigure(self, **options):
+        pass
+
+    def flush(self):
+        pass
+
+def run(args):
+    raise KeyboardInterrupt
+
+signals.install()
+cli._robots_command = run
+sys.stderr = Stderr()
+sys.exit(cli.main(["robots"]))
+"""
+    done = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=600
+    )
+    assert done.stderr == "redundancy: interrupted\n", done.stderr
+    assert done.returncode == 130
+
+
 def test_a_signal_a_library_swallowed_stops_the_commit(tmp_path):
     """A Ctrl-C whose KeyboardInterrupt a weakref callback swallowed while the output was
     staged: the commit raises it instead of writing, and nothing is left."""

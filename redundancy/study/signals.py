@@ -19,21 +19,31 @@ import contextlib
 import os
 import signal
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 STOPPING = (signal.SIGINT, signal.SIGTERM)
 received: list[int] = []  # the signals received, whatever a library made of their exceptions
 _raising = False  # within `caught`: raise where the program is; before it, end at once
 _held: list[int] | None = None  # within `deferred`: the signals noted, handled at its end
+_announced = False  # the line that the command ends by a signal is written
 
 
 class Terminated(BaseException):
     """SIGTERM, raised where the program is so that clean-ups run as for Ctrl-C."""
 
 
-def ending(number: int) -> tuple[str, int]:
-    """The word and the exit status for the signal ``number``."""
-    return ("terminated", 143) if number == signal.SIGTERM else ("interrupted", 130)
+def announce(number: int, write: Callable[[str], object] | None = None) -> int:
+    """Write the line that says the command ends by the signal ``number``, by ``write`` (by
+    default straight to the standard error's descriptor, as a handler may); once in a command's
+    run, so that a second Ctrl-C while it ends adds no second line. Its exit status: 130
+    interrupted, 143 terminated."""
+    global _announced
+    word, status = ("terminated", 143) if number == signal.SIGTERM else ("interrupted", 130)
+    if not _announced:
+        _announced = True
+        line = f"redundancy: {word}\n"
+        write(line) if write else os.write(2, line.encode())
+    return status
 
 
 def stop(number: int, frame) -> None:
@@ -43,9 +53,7 @@ def stop(number: int, frame) -> None:
         return
     received.append(number)
     if not _raising:
-        word, status = ending(number)
-        os.write(2, f"redundancy: {word}\n".encode())
-        os._exit(status)
+        os._exit(announce(number))
     raise Terminated if number == signal.SIGTERM else KeyboardInterrupt
 
 
@@ -69,8 +77,9 @@ def check() -> None:
 @contextlib.contextmanager
 def caught(interrupt: bool = False) -> Iterator[None]:
     """`stop` raising where the program is, for the block (`install`); then as before."""
-    global _raising
+    global _raising, _announced
     received.clear()
+    _announced = False
     previous, was_raising, _raising = install(interrupt), _raising, True
     unraisable, sys.unraisablehook = sys.unraisablehook, _unraisable
     try:
