@@ -395,3 +395,29 @@ def test_an_objective_may_be_named(crane, paper_cycle):
     assert named.objective is ENERGY
     assert [s.values for s in named.samples] == [s.values for s in given.samples]
     assert named.best_peak == given.best_peak
+
+
+def test_a_round_whose_probes_are_all_unreachable_does_not_end_the_search(tmp_path):
+    """The Panda with its wrist locked, holding joint 3: between its feasible starts lies a band
+    of joint-3 values the arm reaches only outside its other joints' limits. A round of probes
+    that all fall into it is recorded (unreachable samples, no motion) and the search goes on;
+    it used to end in "cannot reach the start ... from any of the 1 sampled values". Its best
+    is no worse than a 40-sample sweep's."""
+    (tmp_path / "robot.toml").write_text(
+        'urdf = "package://example-robot-data/robots/panda_description/urdf/panda.urdf"\n'
+        "locked_joints = {panda_finger_joint1 = 0.04, panda_finger_joint2 = 0.04, "
+        "panda_joint5 = 0.0, panda_joint6 = 1.8, panda_joint7 = 0.8}\n"
+        'tool_frame = "panda_hand_tcp"\ntask_axes = "xyz"\npayload = 0.0\ntask = "task.toml"\n'
+    )
+    (tmp_path / "task.toml").write_text(
+        'name = "wrist locked"\nspeed = 0.25\nsegments = ["pick-lift"]\nheld = ["panda_joint3"]\n'
+        "[points]\npick = [0.55, -0.25, 0.25]\nlift = [0.45, 0.0, 0.55]\n"
+    )
+    with pytest.warns(UserWarning):  # the Panda's joints are driven directly
+        arm = load_robot(tmp_path / "robot.toml")
+    segment = WorkCycle.from_toml(arm.task_file, dimension=arm.m)["pick-lift"]
+    fast = improved_start(arm, segment, VELOCITY, held="panda_joint3")
+    sweep = improved_start(arm, segment, VELOCITY, held="panda_joint3", method="sweep", samples=40)
+    unreachable = [s for s in fast.samples if s.peak is None]
+    assert unreachable and all("outside them" in s.reason for s in unreachable)
+    assert fast.best.feasible and fast.best_peak <= sweep.best_peak

@@ -305,6 +305,11 @@ class Starts:
         order = np.argsort(both[0][:, 0], kind="stable")
         return Starts(*(values[order] for values in both))
 
+    def sample(self, i: int) -> Sample:
+        """Start i as the sample of a search, where it is unreachable."""
+        values = tuple(float(v) for v in self.values[i])
+        return Sample(values, None, False, self.joint_margins[i], (), self.reason(i))
+
     def reason(self, i: int) -> str:
         """Why start i is unreachable."""
         if self.miss[i] > 0:
@@ -383,6 +388,7 @@ def evaluate_starts(
     stop_past: bool = False,
     method: str = "sweep",
     circuit: bool = False,
+    extending: bool = False,
 ) -> SearchResult:
     """Steps iv-v along ``path`` (a segment, or a cycle's `Chain`) for the given held values,
     (k,) for one held actuator or (k, r), or for `Starts` already found: integrate the
@@ -390,7 +396,9 @@ def evaluate_starts(
     motions that, with both neighbours in the batch, are past a checked stroke (their margin is
     then unknown, −inf). A start is feasible where its margin μ (the motion's and the start's
     joint margin) is ≥ −`LIMIT_TOLERANCE` and the motion kept every other checked limit: with
-    ``circuit`` also the hydraulic circuit's (its margin stays the strokes')."""
+    ``circuit`` also the hydraulic circuit's (its margin stays the strokes'). No reachable start
+    is an `UnreachableError`, unless the batch is ``extending`` a search (a refinement's probes
+    between samples): then they are samples as any unreachable one, and no motion."""
     path, objective = checked_path(path, "path"), as_objective(objective)
     held = held_names(robot, held)
     starts = values
@@ -403,9 +411,12 @@ def evaluate_starts(
     rows = np.full(len(starts.values), -1)
     rows[reachable] = np.arange(reachable.size)
     if not reachable.size:
-        miss = starts.miss[starts.miss > 0]
-        how = f"from any of the {len(starts.values)} sampled values of {', '.join(held)}"
-        raise _unreachable(robot, path, how, miss.min() if miss.size else None)
+        if not extending:
+            miss = starts.miss[starts.miss > 0]
+            how = f"from any of the {len(starts.values)} sampled values of {', '.join(held)}"
+            raise _unreachable(robot, path, how, miss.min() if miss.size else None)
+        samples = tuple(starts.sample(i) for i in range(len(rows)))
+        return SearchResult(robot, path, objective, held, samples, (), rows, method)
     motions = simulate_path(
         robot,
         objective.resolver,
@@ -421,12 +432,10 @@ def evaluate_starts(
     scores, margins, within = motions.score(objective), motions.margins, motions.within_limits
     samples = []
     for i, row in enumerate(rows):
-        start = tuple(float(v) for v in starts.values[i])
         if row < 0:
-            samples.append(
-                Sample(start, None, False, starts.joint_margins[i], (), starts.reason(i))
-            )
+            samples.append(starts.sample(i))
             continue
+        start = tuple(float(v) for v in starts.values[i])
         margin = float(min(margins[row], starts.joint_margins[i]))
         feasible = margin >= -LIMIT_TOLERANCE and bool(within[row])
         found = tuple(motions.violations(row))
@@ -495,9 +504,19 @@ def improved_starts(
     held = held_names(robot, held)
     method = search_method(held, samples, method)
 
-    def run(objective, starts, stop_past=False):
+    def run(objective, starts, stop_past=False, extending=False):
         return evaluate_starts(
-            robot, segment, objective, held, starts, checked, TOLERANCE, stop_past, method, circuit
+            robot,
+            segment,
+            objective,
+            held,
+            starts,
+            checked,
+            TOLERANCE,
+            stop_past,
+            method,
+            circuit,
+            extending,
         )
 
     if len(held) > 1:
@@ -552,8 +571,8 @@ def end_tolerance(robot: Robot, held: str, tolerance: float | None) -> float:
 
 def fast_search(configurations: Configurations, tolerance: float | None, evaluate):
     """The fast search for one held actuator (see the module docstring) over the start
-    ``configurations`` of a path: ``evaluate(starts, stop_past)`` integrates `Starts` along it
-    and returns a search of their samples that can be ``extended``. The reachable scan is the
+    ``configurations`` of a path: ``evaluate(starts, stop_past, extending)`` integrates `Starts`
+    along it and returns a search of their samples that can be ``extended``. The reachable scan is the
     configurations' own, shared by every search that uses them."""
     tolerance = end_tolerance(configurations.robot, configurations.held, tolerance)
     reachable = configurations.reachable(tolerance)
@@ -567,7 +586,7 @@ def fast_search(configurations: Configurations, tolerance: float | None, evaluat
             probes = new_probes(summit_probes(values, margins, tolerance), values, tolerance)
             if search.feasible or not probes.size:
                 break
-            search = search.extended(evaluate(configurations.at(probes), False))
+            search = search.extended(evaluate(configurations.at(probes), False, True))
     for _ in range(ROUNDS):
         ordered, values, margins = _by_value(search)
         feasible = np.array([s.feasible for s in ordered])
@@ -578,7 +597,7 @@ def fast_search(configurations: Configurations, tolerance: float | None, evaluat
         if not probes.size:
             break
         starts = configurations.at(probes)
-        search = search.extended(evaluate(starts, False))
+        search = search.extended(evaluate(starts, False, True))
     return search
 
 
