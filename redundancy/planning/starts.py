@@ -415,8 +415,8 @@ def evaluate_starts(
             miss = starts.miss[starts.miss > 0]
             how = f"from any of the {len(starts.values)} sampled values of {', '.join(held)}"
             raise _unreachable(robot, path, how, miss.min() if miss.size else None)
-        samples = tuple(starts.sample(i) for i in range(len(rows)))
-        return SearchResult(robot, path, objective, held, samples, (), rows, method)
+        unreached = tuple(starts.sample(i) for i in range(len(rows)))
+        return SearchResult(robot, path, objective, held, unreached, (), rows, method)
     motions = simulate_path(
         robot,
         objective.resolver,
