@@ -11,30 +11,52 @@
 // The weighted pseudoinverse for one state at a time, its products kept from state to state (an
 // undamped state allocates nothing once they are sized):
 //   ẋ = J_W⁺ (ẏ − J_H z) + z,   J_W⁺ = W⁻¹ J_Hᵀ (J_H W⁻¹ J_Hᵀ)⁻¹,
-// for J_H (m, n), ẏ (m), W (n, n) or null for I, z (n) or null for 0. The Gram matrix
-// G = J_H W⁻¹ J_Hᵀ (m, m) is solved undamped where it is provably conditioned, det G ≥ ε (tr G)^m
-// (then σ_min / σ_max ≥ ε, and the Cholesky factor gives det G and the solve at once); otherwise
-// with λ² = ε σ_max (1 − (σ_min / (ε σ_max))²), clamped to [0, ε σ_max], added to its diagonal.
+// for J_H (m, n), ẏ (m), W (n, n) or null for I, z (n) or null for 0. It is computed without
+// W⁻¹, so that a weight near singular (a link of almost no mass in M_H) neither loses the task
+// nor passes for a singularity of J_H: first the least-norm solution d₀ = J_Hᵀ G⁻¹ (ẏ − J_H z)
+// with G = J_H J_Hᵀ (m, m), then, for a weight, the step along the null space of J_H that makes
+// d = d₀ + N u least in dᵀ W d: Nᵀ W d = 0, that is u = −(Nᵀ W N)⁻¹ Nᵀ W d₀, with N (n, n − m)
+// an orthonormal basis of that null space (the last columns of the Householder Q of J_Hᵀ). Then
+// W d lies in the range of J_Hᵀ and J_H d = J_H d₀: d = J_W⁺ J_H d₀, the formula above wherever
+// it is defined. G is solved undamped where it is provably conditioned, det G ≥ ε (tr G)^m (then
+// σ_min / σ_max ≥ ε, and the Cholesky factor gives det G and the solve at once); otherwise with
+// λ² = ε σ_max (1 − (σ_min / (ε σ_max))²), clamped to [0, ε σ_max], added to its diagonal.
 class Law {
  public:
   template <class JH, class Velocity>
   const Eigen::VectorXd& operator()(const JH& J, const Velocity& y_dot, const Dense* W,
                                     const Eigen::VectorXd* z, double ratio) {
-    if (W) {
-      weight_.compute(*W);
-      W_inv_J_T_ = weight_.solve(J.transpose());
-    } else {
-      W_inv_J_T_ = J.transpose();
-    }
     target_ = y_dot;
     if (z) target_.noalias() -= J * *z;
-    G_.noalias() = J * W_inv_J_T_;
-    x_dot_.noalias() = W_inv_J_T_ * gram(ratio);
+    G_.noalias() = J * J.transpose();
+    x_dot_.noalias() = J.transpose() * gram(ratio);
+    if (W && J.cols() > J.rows()) weigh(J, *W);
     if (z) x_dot_ += *z;
     return x_dot_;
   }
 
  private:
+  // d₀ (in x_dot_) moved along the null space of J_H to d = d₀ + N u, Nᵀ W d = 0.
+  template <class JH>
+  void weigh(const JH& J, const Dense& W) {
+    const auto n = J.cols(), r = n - J.rows();
+    qr_.compute(J.transpose());
+    N_.setZero(n, r);
+    N_.bottomRows(r).setIdentity();
+    N_.applyOnTheLeft(qr_.householderQ());  // Q's last r columns, without forming Q
+    W_N_.noalias() = W * N_;
+    reduced_.noalias() = N_.transpose() * W_N_;
+    W_d_.noalias() = W * x_dot_;
+    u_.noalias() = N_.transpose() * W_d_;
+    if (r == 1) {
+      u_(0) /= reduced_(0, 0);
+    } else {
+      factor_.compute(reduced_);
+      u_ = factor_.solve(u_);
+    }
+    x_dot_.noalias() -= N_ * u_;
+  }
+
   // (G + λ² I)⁻¹ (ẏ − J_H z), through Eigen's fixed-size Cholesky kernels for a task of up to
   // three coordinates (at m = 2 the dynamic ones spend most of their time deciding sizes), its
   // dynamic ones, kept from state to state, beyond.
@@ -67,10 +89,11 @@ class Law {
     return lambda_;
   }
 
-  Factor weight_;
-  Dense W_inv_J_T_, G_;
+  Eigen::HouseholderQR<Dense> qr_;
+  Dense G_, N_, W_N_, reduced_;
+  Factor factor_;
   Eigen::LLT<Dense> cholesky_;
-  Eigen::VectorXd target_, lambda_, x_dot_;
+  Eigen::VectorXd target_, lambda_, x_dot_, W_d_, u_;
 };
 
 // A law that moves the held actuators `rows` (h) at rates of its own and the others so as to

@@ -212,10 +212,10 @@ def test_the_core_refuses_a_kind_it_does_not_know():
 
 
 def gram_solution(J_H, W, z, y_dot, ratio):
-    """The law's closed form: ẋ = W⁻¹ J_Hᵀ (G + λ² I)⁻¹ (ẏ − J_H z) + z, G = J_H W⁻¹ J_Hᵀ, λ² by
-    `redundancy.resolution.laws`' rule from G's eigenvalues."""
-    W_inv_J_T = np.linalg.solve(W, J_H.mT)
-    G = J_H @ W_inv_J_T
+    """The law's closed form: ẋ = J_W⁺ J_H d₀ + z, J_W⁺ = W⁻¹ J_Hᵀ (J_H W⁻¹ J_Hᵀ)⁻¹, where d₀ =
+    J_Hᵀ (G + λ² I)⁻¹ (ẏ − J_H z), G = J_H J_Hᵀ, λ² by `redundancy.resolution.laws`' rule from
+    G's eigenvalues (undamped, J_H d₀ = ẏ − J_H z and ẋ = J_W⁺ (ẏ − J_H z) + z)."""
+    G = J_H @ J_H.mT
     eigenvalues = np.linalg.eigvalsh(G)
     threshold = ratio * eigenvalues[:, -1]
     conditioned = np.linalg.det(G) >= ratio * np.trace(G, axis1=1, axis2=2) ** G.shape[-1]
@@ -223,7 +223,9 @@ def gram_solution(J_H, W, z, y_dot, ratio):
     damping = np.where(conditioned, 0.0, threshold * (1 - share**2))
     target = y_dot - (J_H @ z[..., None])[..., 0]
     damped = G + damping[:, None, None] * np.eye(G.shape[-1])
-    return (W_inv_J_T @ np.linalg.solve(damped, target[..., None]))[..., 0] + z
+    d_0 = J_H.mT @ np.linalg.solve(damped, target[..., None])
+    W_inv_J_T = np.linalg.solve(W, J_H.mT)
+    return (W_inv_J_T @ np.linalg.solve(J_H @ W_inv_J_T, J_H @ d_0))[..., 0] + z
 
 
 @pytest.mark.parametrize("ratio", [SINGULAR_RATIO, 1.0], ids=["exact", "damped"])

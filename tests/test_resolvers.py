@@ -3,6 +3,7 @@ batch `resolve` and the one-state `step`: J_H ẋ = ẏ, weighted minimality aga
 of the equality-constrained least-squares problem, and a null-space term that leaves the task."""
 
 import dataclasses
+import shutil
 import warnings
 
 import numpy as np
@@ -10,7 +11,15 @@ import pytest
 from sampling import random_configurations
 
 import redundancy.resolution.laws as laws
-from redundancy import actuator_space, bundled_robots, load_robot
+from redundancy import (
+    WorkCycle,
+    actuator_space,
+    bundled_robots,
+    default_start,
+    load_robot,
+    simulate,
+)
+from redundancy.model.loading import bundled_root
 from redundancy.resolution.laws import GradientProjection, MinKineticEnergy, MinVelocityNorm
 
 RESOLVERS = [MinVelocityNorm(), MinKineticEnergy(), GradientProjection(gain=2.0)]
@@ -124,3 +133,42 @@ def test_singular_task_jacobian_gives_finite_bounded_velocities(crane, resolver)
     x_dot = resolver.resolve(space, np.tile([0.3, -0.2], (5, 1)))
     assert np.all(np.isfinite(x_dot))
     assert np.max(np.abs(x_dot)) < 1e3
+
+
+def test_a_weight_near_singular_keeps_the_task_and_its_least_weighted_norm(tmp_path):
+    """The crane with a telescope of 1e-12 kg and no payload: M_H is near singular (its ratio of
+    eigenvalues about 1e-16), yet J_H W⁻¹ J_Hᵀ is not what loses rank. The min ẋᵀ M_H ẋ law
+    still solves J_H ẋ = ẏ and is the KKT system's solution (well conditioned: M_H is positive
+    definite on the null space of J_H, where the booms move), and its motion keeps the path as the
+    unweighted law's does (it left it by 1.2 m when the law inverted W)."""
+    shutil.copytree(bundled_root() / "hiab031", tmp_path / "crane")
+    urdf = tmp_path / "crane" / "hiab031.urdf"
+    light = '<mass value="1e-12"/>\n      <inertia ixx="0" ixy="0" ixz="0" iyy="1e-12"'
+    text = urdf.read_text().replace(
+        '<mass value="36"/>\n      <inertia ixx="0" ixy="0" ixz="0" iyy="6.4827"', light
+    )
+    urdf.write_text(text.replace('izz="6.4827"', 'izz="1e-12"'))
+    toml = tmp_path / "crane" / "robot.toml"
+    toml.write_text(toml.read_text().replace("payload = 100.0", "payload = 0.0"))
+    crane = load_robot(toml)
+    space = actuator_space(crane, random_configurations(crane, 30, seed=35, margin=0.02))
+    eigenvalues = np.linalg.eigvalsh(space.M_H)
+    assert (eigenvalues[:, 0] / eigenvalues[:, -1]).max() < 1e-12
+    y_dot = np.random.default_rng(36).normal(scale=0.5, size=(30, crane.m))
+    law = MinKineticEnergy()
+    for x_dot in both_ways(law, crane, space, y_dot):
+        np.testing.assert_allclose(
+            np.einsum("kij,kj->ki", space.J_H, x_dot), y_dot, rtol=1e-9, atol=1e-10
+        )
+        expected = [
+            constrained_least_squares(W, J_H, y, np.zeros(crane.n))
+            for W, J_H, y in zip(space.M_H, space.J_H, y_dot)
+        ]
+        np.testing.assert_allclose(x_dot, expected, rtol=1e-7, atol=1e-9)
+    cycle = WorkCycle.from_toml(crane.task_file, dimension=crane.m)
+    _, start = default_start(crane, cycle["1-2"])
+    errors = [
+        simulate(crane, resolver, cycle["1-2"], start).max_tracking_error[0]
+        for resolver in (law, MinVelocityNorm())
+    ]
+    assert errors[0] < 1e-4 and errors[1] < 1e-4, errors

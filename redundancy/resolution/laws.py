@@ -9,11 +9,15 @@ the solution of J_H ẋ = ẏ (Eq. 16) nearest z in the norm ẋᵀ W ẋ: with 
 kinetic energy (Eqs. 29, 32), W = diag(A_A²) the least sum of squared piston-side flows
 (`MinFlow`); gradient projection is W = I with z = α ∇Φ (Eq. 1).
 
-Near a singularity of J_H (the task Jacobian losing rank), the m×m matrix G = J_H W⁻¹ J_Hᵀ is
-damped: λ² I is added to it, λ² = ε σ_max (1 − (σ_min / (ε σ_max))²), when the ratio of its
-smallest to its largest eigenvalue falls below ε (Nakamura and Hanafusa's variable damping,
-made scale-free). ẋ then stays finite and bounded, and J_H ẋ departs from ẏ by an amount the
-integrators report as tracking error; away from singularities the laws are exact.
+The kernel never inverts W: it takes the least-norm solution d₀ = J_Hᵀ G⁻¹ (ẏ − J_H z), G =
+J_H J_Hᵀ, then moves it along the null space N of J_H to the least dᵀ W d (u = −(Nᵀ W N)⁻¹ Nᵀ W
+d₀), which is J_W⁺ (ẏ − J_H z) wherever W is invertible, and stays exact where W is near
+singular but positive on the self-motions (a link of almost no mass makes M_H so). Near a
+singularity of J_H (the task Jacobian losing rank) the m×m matrix G is damped: λ² I is added
+to it, λ² = ε σ_max (1 − (σ_min / (ε σ_max))²), when the ratio of its smallest to its largest
+eigenvalue falls below ε (Nakamura and Hanafusa's variable damping, made scale-free). ẋ then
+stays finite and bounded, and J_H ẋ departs from ẏ by an amount the integrators report as
+tracking error; away from singularities the laws are exact.
 
 `Resolver.resolve` serves a batch of states, `Resolver.step` one configuration in a control
 loop; both run the same compiled kernel (`redundancy._core.resolve`), to which a law passes its
