@@ -208,6 +208,8 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
     const double size = std::sqrt((qi.array() / scale.array()).square().mean());
     const double speed = std::sqrt((fi.array() / scale.array()).square().mean());
     h[i] = std::min(duration, 0.01 * size / std::max(speed, 1e-12));
+    // at q = 0 that size is 0: start at 1e-6 of the duration, which the control then grows
+    if (!(h[i] >= 1e-6 * duration)) h[i] = 1e-6 * duration;
   }
   std::vector<py::ssize_t> rows_out;
   std::vector<double> t0_out, h_out, q0_out, slopes_out;

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from joint_space import fk, inverse_dynamics
 
-from redundancy import InvalidInputError, actuator_space
+from redundancy import InvalidInputError, actuator_space, load_robot
 from redundancy.planning import integrate
 from redundancy.planning.cycles import HeldReference
 from redundancy.planning.ik import inverse_kinematics
@@ -398,3 +398,48 @@ def test_a_start_whose_task_velocity_is_not_finite_is_frozen_on_either_right_han
         assert motion.failed.tolist() == [False, True]
     compiled, python = (motion.q[0, : motion.counts[0]] for motion in motions)
     np.testing.assert_allclose(python, compiled, rtol=0, atol=1e-9)
+
+
+def _bent_arm(folder):
+    """A planar 3R arm in the x-z plane whose elbow and wrist are bent in the URDF itself
+    (their origins turned by 1.2 and 1.0 rad), driven directly: q = 0 is a regular configuration
+    well inside its limits."""
+    links, joints = ['<link name="base"/>'], []
+    for i, (length, turn) in enumerate([(1.0, 0.0), (0.8, -1.2), (0.5, -1.0)], start=1):
+        parent = "base" if i == 1 else f"l{i - 1}"
+        offset = 0.0 if i == 1 else [1.0, 0.8][i - 2]
+        links.append(
+            f'<link name="l{i}"><inertial><origin xyz="{length / 2} 0 0"/><mass value="5"/>'
+            '<inertia ixx="0.01" ixy="0" ixz="0" iyy="0.4" iyz="0" izz="0.4"/></inertial></link>'
+        )
+        joints.append(
+            f'<joint name="j{i}" type="revolute"><parent link="{parent}"/><child link="l{i}"/>'
+            f'<origin xyz="{offset} 0 0" rpy="0 {turn} 0"/><axis xyz="0 -1 0"/>'
+            '<limit lower="-3" upper="3" effort="1" velocity="1"/></joint>'
+        )
+    tool = '<joint name="tj" type="fixed"><parent link="l3"/><child link="tool"/>'
+    tool += '<origin xyz="0.5 0 0"/></joint><link name="tool"/>'
+    body = "".join(links + joints) + tool
+    (folder / "arm.urdf").write_text(f'<?xml version="1.0"?><robot name="bent">{body}</robot>')
+    actuators = "".join(
+        f'[actuators.a{i}]\nkind = "Identity"\njoint = "j{i}"\nstroke = [-3, 3]\n'
+        for i in (1, 2, 3)
+    )
+    toml = folder / "robot.toml"
+    toml.write_text(f'urdf = "arm.urdf"\ntool_frame = "tool"\ntask_axes = "xz"\n{actuators}')
+    return load_robot(toml)
+
+
+def test_a_start_at_q_zero_is_integrated_as_one_beside_it(tmp_path):
+    """The first step's size scales with ‖q‖; at q = 0 exactly it was 0, and the motion from a
+    regular start was frozen and flagged as failed. It now moves as from q = 1e-7 beside it."""
+    arm = _bent_arm(tmp_path)
+    y_0 = actuator_space(arm, np.zeros(3)).y[0]
+    segment = Segment("l", y_0, y_0 + np.array([-0.3, -0.2]), 0.5)
+    at_zero, beside = (
+        simulate(arm, VELOCITY.resolver, segment, start)
+        for start in (np.zeros(3), np.array([0.0, 0.0, 1e-7]))
+    )
+    assert not at_zero.failed[0] and not beside.failed[0]
+    assert at_zero.max_tracking_error[0] < 1e-5
+    np.testing.assert_allclose(at_zero.q[0, -1], beside.q[0, -1], atol=1e-5)
