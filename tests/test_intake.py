@@ -491,6 +491,15 @@ def test_check_flags_a_stroke_the_joint_range_cannot_reach(tmp_path, capsys):
     )
 
 
+def test_check_sweeps_a_range_wider_than_a_turn_as_declared(capsys):
+    """The slewing crane's slew joint turns ±200°, its actuator's stroke the same: swept as
+    declared, not over one turn (which called the stroke a mismatch)."""
+    assert main(["check", "--robot", "hiab031_slewing"]) == 0
+    assert "slew_joint         reaches [-200°, 200°], stroke [-200°, 200°]: ok" in (
+        capsys.readouterr().out
+    )
+
+
 def test_check_finds_where_a_cylinder_line_passes_through_its_joint_axis(tmp_path):
     """With a stroke admitting every length, the boom joint turns a full turn, and x1's line
     passes through the boom's axis where the base point, the axis and the rod point are in

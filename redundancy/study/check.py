@@ -35,6 +35,7 @@ HELD_SAMPLES = 9  # held values tried for each task point, with one held actuato
 HELD_BUDGET = 81  # held value combinations tried for each task point, with several
 FREE_SEEDS = 64  # seeds of the free inverse kinematics where no held value reaches a point
 MISMATCH = 1e-3  # m or rad: a stroke end this far beyond the values reached is a mismatch
+NO_LIMIT = 1e3  # m or rad: a joint range wider is a URDF's "no limit" (±1e16), swept a turn
 
 
 @dataclass(frozen=True)
@@ -184,8 +185,12 @@ def span(lower: float, upper: float, unit: str) -> str:
 
 def _sweep(robot: Robot, column: int, row: int) -> tuple[tuple, tuple, tuple]:
     """Actuator ``row`` over joint ``column``'s range: its values' [min, max], and the joint
-    values where det A vanishes or changes sign, with the actuator's value there."""
-    lower, upper = robot.span
+    values where det A vanishes or changes sign, with the actuator's value there. A range is
+    swept as declared, wider than a turn too (a slew of ±200°), unless it is unbounded or a
+    URDF's "no limit" (`NO_LIMIT`): then over the turn of `Robot.span`."""
+    declared = robot.upper - robot.lower <= NO_LIMIT  # False where unbounded
+    lower = np.where(declared, robot.lower, robot.span[0])
+    upper = np.where(declared, robot.upper, robot.span[1])
     q = np.repeat(((lower + upper) / 2)[None], SWEEP, axis=0)
     q[:, column] = np.linspace(lower[column], upper[column], SWEEP)
     space = evaluate(robot, q)
