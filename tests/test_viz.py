@@ -681,3 +681,19 @@ def test_a_gauge_names_the_circuit_limit_a_cylinder_passes():
     )
     assert (expected == "speed").any() and (expected == "stroke").any()
     assert playback.alarms().tolist() == expected.tolist()
+
+
+def test_with_four_held_actuators_the_star_is_at_the_first_two_values(request):
+    """The Panda holds four joints; Fig. 4a draws over the first two, and the best start's
+    star sits at its values of those two (matplotlib read four values as two points)."""
+    from redundancy import improved_start
+    from redundancy.viz.plots import peak_map_figure, pyplot
+
+    with pytest.warns(UserWarning):  # the Panda's joints are driven directly
+        arm = load_robot("panda")
+    cycle = WorkCycle.from_toml(arm.task_file, dimension=arm.m)
+    search = improved_start(arm, cycle.segments[0], VELOCITY, held=cycle.held, samples=6)
+    figure = peak_map_figure((search,), "peak")
+    request.addfinalizer(lambda: pyplot().close(figure))
+    (star,) = [line for line in figure.axes[0].lines if line.get_marker() == "*"]
+    np.testing.assert_array_equal(star.get_xydata(), [search.best.values[:2]])

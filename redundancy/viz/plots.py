@@ -129,7 +129,7 @@ def peak_map_figure(
         if feasible.any() and (~feasible).any() and len(reachable) >= 3:
             pane.tricontour(x, y, feasible.astype(float), levels=[0.5], colors="crimson")
         if choice.best is not None:
-            pane.plot(*choice.best.values, "*", ms=14, color="crimson")
+            pane.plot(*choice.best.values[:2], "*", ms=14, color="crimson")
         actuators = search.robot.actuators
         box = [actuators[h] for h in held]
         pane.set_xlim(box[0].lower, box[0].upper)
