@@ -572,8 +572,8 @@ def end_tolerance(robot: Robot, held: str, tolerance: float | None) -> float:
 def fast_search(configurations: Configurations, tolerance: float | None, evaluate):
     """The fast search for one held actuator (see the module docstring) over the start
     ``configurations`` of a path: ``evaluate(starts, stop_past, extending)`` integrates `Starts`
-    along it and returns a search of their samples that can be ``extended``. The reachable scan is the
-    configurations' own, shared by every search that uses them."""
+    along it and returns a search of their samples that can be ``extended``. The reachable scan
+    is the configurations' own, shared by every search that uses them."""
     tolerance = end_tolerance(configurations.robot, configurations.held, tolerance)
     reachable = configurations.reachable(tolerance)
     grid = configurations.at(np.linspace(reachable[0], reachable[-1], GRID))
