@@ -393,7 +393,12 @@ def _map_command(args: argparse.Namespace) -> None:
         line = summary(table, family)
         print(line)
         table.to_parquet(out / "map.parquet")
-        outline = {"summary": line, "problems": len(family), "rows": len(table)}
+        outline = {
+            "name": family.name,
+            "summary": line,
+            "problems": len(family),
+            "rows": len(table),
+        }
         (out / "summary.json").write_text(json.dumps(outline) + "\n")
         figures = [out.final(p) for p in write_map_figures(table, family, out.staging)]
         write_index(out.staging)

@@ -12,6 +12,7 @@ import subprocess
 import sys
 import threading
 import time
+import types
 import warnings
 from pathlib import Path
 
@@ -266,6 +267,29 @@ attachment = {{actuator = "x1", end = "base", axis = "x", values = {moved}}}
     designs = rows.groupby(["payload", "speed", "attachment"])
     best = designs["peak"].mean()[designs["feasible"].all()].idxmin()
     assert f"payload = {best[0]:g}, speed = {best[1]:g}, attachment = {best[2]:g}" in line
+
+
+def test_the_summary_s_gain_counts_only_problems_where_both_starts_keep_the_strokes():
+    """A workspace map's line: the largest and the median gain among the problems whose best
+    and default starts both keep the strokes, as the heatmap shows them; a gain against a
+    default start that breaks a stroke (here the largest) is not one."""
+    family = types.SimpleNamespace(name="workspace", objectives=("velocity",), grid=())
+    table = pd.DataFrame(
+        {
+            "objective": "velocity",
+            "unit": "m²/s²",
+            "segment": ["1-2", "2-3", "3-1", "3-2"],
+            "start_x": [3.5, 2.25, 1.0, 1.0],
+            "feasible": [True, True, True, False],
+            "default_feasible": pd.array([True, True, False, True], dtype="boolean"),
+            "gain_pct": [62.5, 6.7, 70.1, np.nan],
+        }
+    )
+    line = summary(table, family)
+    assert "gains most, 62.5 % on the velocity peak, on segment 1-2" in line
+    assert "median gain 34.6 %" in line and "(3 of 4 problems feasible)" in line
+    table["default_feasible"] = False
+    assert "no problem has a best and a default start that both keep" in summary(table, family)
 
 
 def test_with_circuit_limits_a_heavier_payload_needs_a_wider_lift_cylinder(tmp_path, client):

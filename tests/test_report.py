@@ -168,11 +168,14 @@ def test_a_cycle_with_a_segment_no_start_keeps_gets_its_page(tmp_path):
 
 
 def test_a_map_folder_gets_its_own_index(tmp_path):
-    summary = {"summary": "best design: payload 0 kg", "problems": 4, "rows": 8}
-    (tmp_path / "summary.json").write_text(json.dumps(summary))
+    """Titled by the family's name, not by the folder it was written in (while staged, a hidden
+    one)."""
+    summary = {"name": "payloads", "summary": "best design: payload 0 kg", "problems": 4}
+    (tmp_path / "summary.json").write_text(json.dumps(summary | {"rows": 8}))
     (tmp_path / "map.parquet").write_bytes(b"")
     (tmp_path / "map_velocity.png").write_bytes(b"")
     page = html.fromstring(write_index(tmp_path).read_text())
+    assert page.xpath("//title")[0].text == "design map payloads"
     assert "best design: payload 0 kg" in page.text_content()
     assert {"map.parquet", "summary.json", "map_velocity.png"} <= set(referenced(page))
     caption = page.xpath("//figcaption")[0].text_content()

@@ -504,7 +504,8 @@ def axes_of(table, family: MapFamily) -> list[str]:
 def summary(table, family: MapFamily) -> str:
     """One line: for a design grid, the design whose problems are all feasible with the least
     mean best peak of the first objective over the segments; otherwise, where the improved
-    start gains most over the default start."""
+    start gains most over the default start, among the problems where both keep the strokes
+    (as the heatmap shows the gain)."""
     first = table[table["objective"] == family.objectives[0]]
     unit = first["unit"].iloc[0]
     counts = f"{int(first['feasible'].sum())} of {len(first)} problems feasible"
@@ -522,9 +523,13 @@ def summary(table, family: MapFamily) -> str:
             f"{family.name}: best design {words}: mean best {family.objectives[0]} peak "
             f"{mean_peak[best]:.4g} {unit} over {first['segment'].nunique()} segments ({counts})"
         )
-    gains = first.dropna(subset=["gain_pct"])
+    both = (first["feasible"] & first["default_feasible"]).fillna(False).astype(bool)
+    gains = first[both].dropna(subset=["gain_pct"])
     if gains.empty:
-        return f"{family.name}: no problem has both a best and a default start ({counts})"
+        return (
+            f"{family.name}: no problem has a best and a default start that both keep the "
+            f"strokes ({counts})"
+        )
     row = gains.loc[gains["gain_pct"].idxmax()]
     starts = [c for c in table.columns if c.startswith("start_")]
     where = ", ".join(f"{c[6:]} = {row[c]:.3g}" for c in starts)
