@@ -32,7 +32,7 @@ from redundancy.planning.cycles import (
 from redundancy.planning.integrate import simulate
 from redundancy.planning.starts import Configurations, evaluate_starts, improved_start
 from redundancy.planning.tasks import Segment, WorkCycle
-from redundancy.resolution.limits import Limits
+from redundancy.resolution.limits import Limits, amount
 from redundancy.resolution.objectives import VELOCITY
 from redundancy.resolution.state import evaluate
 from redundancy.study.cycles import repetition_report
@@ -336,6 +336,10 @@ def test_the_cycle_command_writes_its_report_figures_and_playback(tmp_path):
     page = (out / "playback_cycle_free.html").read_text()
     assert "planar4r: cycle" in page
     assert "work cycle" in run.stdout and "drift/cycle" in run.stdout
+    for strategy in report["strategies"].values():  # the table's tool drift is the page's
+        last = amount(strategy["repetition"]["tool_drift_per_cycle"][-1], "m")
+        (row,) = [line for line in run.stdout.splitlines() if line.startswith(strategy["name"])]
+        assert f"  {last}  " in row, (row, last)
 
 
 @pytest.mark.parametrize(

@@ -231,10 +231,10 @@ def _repetition_table(study: CycleStudy) -> str:
         first = repetition.first_violation
         passed = "none" if first is None else f"cycle {first[0]}: {first[1]}"
         settling = settling_words(repetition, study.fixed_points(name))
-        tool = amount(repetition.tool_drift.max(), "m")
+        tool = amount(repetition.tool_drift[-1], "m")
         cells = [str(repetition.cycles), first_cycle, last_cycle, tool, f"{passed}; {settling}"]
         rows.append([study.names[name], *cells])
-    columns = dict.fromkeys(["cycles", "drift/cycle: first", "last", "tool drift"], ">")
+    columns = dict.fromkeys(["cycles", "drift/cycle: first", "last", "tool drift: last"], ">")
     spec = {"strategy": "<"} | columns | {"first stroke passed; settling": "<"}
     return "\n".join(text_table(spec, rows))
 
