@@ -20,9 +20,12 @@ from sampling import random_configurations
 
 from redundancy import (
     ActuatorMap,
+    InvalidInputError,
     RedundancyError,
     RobotDescriptionError,
     actuator_space,
+    default_start,
+    improved_start,
     load_robot,
     run_study,
 )
@@ -634,6 +637,14 @@ def test_a_task_as_large_as_the_robot_is_refused_in_one_line(tmp_path, capsys):
         capsys,
     )
     assert status == 2 and len(errors) == 1 and "give fewer task_axes" in errors[0], errors
+    arm = quietly(urdf)
+    segment = WorkCycle.from_toml(task, dimension=arm.m).segments[0]
+    for call in (  # no actuator to hold: the same line, not an IndexError
+        lambda: improved_start(arm, segment, VELOCITY, held=[]),
+        lambda: default_start(arm, segment, []),
+    ):
+        with pytest.raises(InvalidInputError, match="no redundancy to resolve"):
+            call()
 
 
 def test_the_study_names_a_cylinder_whose_a_turns_singular_inside_its_stroke(tmp_path):

@@ -54,8 +54,19 @@ class InverseKinematics:
     miss: np.ndarray
 
 
+def require_redundancy(robot: Robot) -> None:
+    """One line where ``robot`` has no redundancy to resolve: n ≤ m."""
+    if robot.n <= robot.m:
+        raise InvalidInputError(
+            f"{robot.name} has n = {robot.n} joints for a task of m = {robot.m} coordinates "
+            f"(tool {robot.task_axes}): no redundancy to resolve; give fewer task_axes in its "
+            'robot.toml (e.g. "xz" for a planar task)'
+        )
+
+
 def held_indices(robot: Robot, held: str | Sequence[str]) -> list[int]:
     """Rows of the held actuators (one name, or several), checking there are exactly n − m."""
+    require_redundancy(robot)
     rows = robot.actuators.rows(held)
     if len(rows) != robot.n - robot.m:
         raise InvalidInputError(

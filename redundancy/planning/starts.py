@@ -50,6 +50,7 @@ from redundancy.planning.ik import (
     held_indices,
     held_names,
     inverse_kinematics,
+    require_redundancy,
 )
 from redundancy.planning.integrate import (
     FAILED,
@@ -238,12 +239,7 @@ class SearchResult:
 
 def held_actuators(robot: Robot, cycle: WorkCycle) -> tuple[str, ...]:
     """The actuators a search holds on ``cycle``: the task's ``held``, or the last n − m."""
-    if robot.n <= robot.m:
-        raise InvalidInputError(
-            f"{robot.name} has n = {robot.n} joints for a task of m = {robot.m} coordinates "
-            f"(tool {robot.task_axes}): no redundancy to resolve; give fewer task_axes in its "
-            'robot.toml (e.g. "xz" for a planar task)'
-        )
+    require_redundancy(robot)
     return cycle.held or tuple(robot.actuators.names[robot.m :])
 
 
