@@ -328,7 +328,7 @@ def _play_motion(
     _holdable(robot, cycle, sampled=args.start is None and args.x3init is None)
     held = held_actuators(robot, cycle)
     if args.best:
-        search = improved_start(robot, segment, chosen, held, args.samples)
+        search = improved_start(robot, segment, chosen, held, args.samples, method=args.method)
         motion = search.motion()  # the best; says so when no start keeps the limits
         values = search.best.values  # type: ignore[union-attr]
         return motion, f"best of {search.simulations} starts, {named_values(robot, held, values)}"
@@ -365,10 +365,11 @@ def _play_command(args: argparse.Namespace) -> None:
     check_path(robot, segment)
     motion, start = _play_motion(robot, cycle, segment, chosen, args)
     points = task_points(cycle)
-    if html is not None:
-        print(f"playback: {export_html(motion, html, points)}")
-        return
     heading = f"segment {segment.name}, {chosen.name} objective, {start}"
+    if html is not None:
+        page = export_html(motion, html, points, f"{chosen.name} objective, {start}")
+        print(f"playback: {page} ({heading})")
+        return
     # Ctrl-C and termination both stop the loop (`main` catches them, even where a shell started
     # the command with SIGINT ignored), and play's clean-up takes the meshcat server down with it.
     play(
@@ -422,12 +423,15 @@ def parser() -> argparse.ArgumentParser:
         "--samples",
         type=whole(1, MAX_SAMPLES),
         default=100,
-        help="starts sampled per sweep of the held stroke (play reads it with --best only)",
+        help="starts of the sweep over the held strokes (--method sweep, which several held "
+        "actuators always take; play reads it with --best only)",
+    )
+    sampled.add_argument(
+        "--method",
+        choices=METHODS,
+        help="the improved start's search (default: fast with one held actuator)",
     )
     search = argparse.ArgumentParser(add_help=False, parents=[sampled])
-    search.add_argument(
-        "--method", choices=METHODS, help="the improved start's search (default: fast)"
-    )
     search.add_argument(
         "--check", help="comma-separated actuators whose limits count (all; the paper: x1,x2)"
     )

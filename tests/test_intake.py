@@ -587,6 +587,19 @@ def test_play_starts_from_the_held_values_given_for_two_held_actuators(tmp_path,
     ]
 
 
+def test_a_played_page_says_from_which_start_and_best_takes_the_sweep_it_is_given(
+    tmp_path, capsys
+):
+    """play --best writes a page whose heading, and the line it prints, name the start: the
+    best of the fast search's starts, or with --method sweep of the --samples it sweeps."""
+    page = tmp_path / "p.html"
+    for extra, starts in (([], 12), (["--method", "sweep", "--samples", "20"], 6)):
+        assert main(["play", "--segment", "1-2", "--best", *extra, "--html", str(page)]) == 0
+        expected = f"velocity objective, best of {starts} starts, x3 = 1090 mm"
+        assert f"(segment 1-2, {expected})" in capsys.readouterr().out
+        assert f"hiab031: segment 1-2, {expected}" in page.read_text()
+
+
 def test_an_actuator_on_a_mimic_joint_names_the_joints_that_take_one(tmp_path, capsys):
     toml = sidecar(tmp_path, "mimic")
     toml.write_text(
