@@ -5,8 +5,9 @@ least distance to a limit over the whole motion: continuous in v, so the ends of
 are its zeros) and the objective's peak. These helpers choose the next values to sample:
 `bracket_probes` near each zero (μ may have a kink at its zero, where the binding limit changes,
 and then a side's own line through its two nearest values is the accurate fit), `summit_probes`
-around the highest μ while no sample is inside, `vertex_probe` near the least peak, and
-`new_probes` of those, the ones not sampled already.
+around the highest μ while no sample is inside, `vertex_probe` near the least peak, `end_probe`
+beside it where it lies at an end of the feasible set, and `new_probes` of those, the ones not
+sampled already.
 """
 
 from __future__ import annotations
@@ -82,6 +83,7 @@ def new_probes(probes: list[float], values: np.ndarray, tolerance: float) -> np.
     return np.array(kept)
 
 
+GOLDEN = (3 - math.sqrt(5)) / 2  # the golden section's share of an interval, 0.382
 SUMMIT_SLOPE = 2.0  # how much steeper than the samples show the margin may rise between them
 
 
@@ -121,4 +123,23 @@ def vertex_probe(values, peaks, tolerance) -> list[float]:
     if v[2] - v[0] <= 2 * tolerance or near == far:
         return []
     vertex = v[1] - ((v[1] - v[0]) * near - (v[1] - v[2]) * far) / (2 * (near - far))
+    wider = 0 if v[1] - v[0] > v[2] - v[1] else 2
+    if abs(vertex - v[1]) < abs(v[wider] - v[1]) / 8:  # creeping: a kink, not a parabola
+        vertex = v[1] + GOLDEN * (v[wider] - v[1])
     return [float(np.clip(vertex, v[0] + tolerance / 2, v[2] - tolerance / 2))]
+
+
+def end_probe(values, peaks, spacing) -> list[float]:
+    """The midpoint between the least finite peak and its one finite neighbour, where the
+    other side has none (the least peak at an end of the feasible set) and that neighbour is
+    farther than half ``spacing``: the peak may dip between them, where `vertex_probe`, which
+    needs a neighbour on either side, does not look. Once that side is sampled at half the
+    spacing, no more: a dip narrower stays unseen (a heuristic, as any sampling of a peak)."""
+    best = int(np.argmin(peaks))
+    sides = [j for j in (best - 1, best + 1) if 0 <= j < len(values) and np.isfinite(peaks[j])]
+    if not np.isfinite(peaks[best]) or len(sides) != 1:
+        return []
+    j = sides[0]
+    if abs(values[j] - values[best]) <= spacing / 2 * (1 + 1e-9):
+        return []
+    return [(values[best] + values[j]) / 2]

@@ -43,7 +43,13 @@ import numpy as np
 from redundancy.errors import InvalidInputError, UnreachableError, placed
 from redundancy.model.robot import Robot, require_robot
 from redundancy.model.values import is_finite, is_whole
-from redundancy.planning.brackets import bracket_probes, new_probes, summit_probes, vertex_probe
+from redundancy.planning.brackets import (
+    bracket_probes,
+    end_probe,
+    new_probes,
+    summit_probes,
+    vertex_probe,
+)
 from redundancy.planning.ik import (
     FOUND,
     continue_held,
@@ -573,6 +579,7 @@ def fast_search(configurations: Configurations, tolerance: float | None, evaluat
     tolerance = end_tolerance(configurations.robot, configurations.held, tolerance)
     reachable = configurations.reachable(tolerance)
     grid = configurations.at(np.linspace(reachable[0], reachable[-1], GRID))
+    spacing = (reachable[-1] - reachable[0]) / (GRID - 1)
     search = evaluate(grid, True)
     if not search.feasible:  # between the grid's values, if anywhere: climb the margin there
         if not np.isfinite([s.margin for s in search.samples]).any():  # all stopped: unknown
@@ -589,6 +596,7 @@ def fast_search(configurations: Configurations, tolerance: float | None, evaluat
         peaks = np.array([s.peak if s.feasible else np.inf for s in ordered])
         candidates = bracket_probes(values, margins, feasible, tolerance)
         candidates += vertex_probe(values, peaks, tolerance)
+        candidates += end_probe(values, peaks, spacing)
         probes = new_probes(candidates, values, tolerance)
         if not probes.size:
             break
