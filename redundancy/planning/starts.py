@@ -14,11 +14,12 @@ is evaluated by `evaluate_starts`: feasible where its margin is ≥ −`TOLERANC
   v, so the ends of the feasible set are its zeros. The reachable starts are located first by
   continuation along v (no integration); `GRID` of them are integrated, and each round
   integrates the probes of every bracket of the feasible set (`redundancy.planning.brackets`)
-  and of the least peak, until every end is located to ``tolerance``. Where none of the grid's
-  starts is feasible, a feasible set narrower than its spacing may lie between them: rounds
-  first halve the interval around the highest margin (the grid's motions run to their end
-  where every one stopped early), until a start is feasible, that summit is located to
-  ``tolerance``, or it is too far below 0 to rise to it between the samples
+  and of the least peak (beside it too where it lies at an end of the feasible set), until
+  every end is located to ``tolerance``. Where none of the grid's starts is feasible, a
+  feasible set narrower than its spacing may lie between them: rounds first halve the
+  interval around the highest margin (the grid's motions run to their end where every one
+  stopped early), until a start is feasible, that summit is located to ``tolerance``, or it is
+  too far below 0 to rise to it between the samples
   (`redundancy.planning.brackets.summit_probes`).
 - "sweep": the paper's uniform sweep of ``samples`` values (r = 1); for r > 1, ``samples``
   scrambled Halton points over the stroke box (a grid would cost samples^r), the best feasible
