@@ -129,6 +129,26 @@ def test_the_angle_branch_is_centred_where_the_task_asks(arm):
     assert isinstance(turned, ToolAngleRobot) and turned.m == 3
 
 
+def test_a_cycle_s_angle_branch_holds_every_angle_it_passes(tmp_path):
+    """170° and 190°, either side of ±180°: the branch is centred at 180°, where it was centred
+    at −180° (their circular mean), whose branch (−360°, 0] holds neither, so the start was
+    "missed by 6 m"; the motion from 170° to 190° is tracked through 180°. A turn from −60° to
+    200° is centred at 70°; a task turning a full turn or more is refused in one line."""
+    text = (
+        'tool_angle = true\nsegments = ["a-b"]\n[points]\na = [1.9, 0.0, 170]\nb = [1.5, 0.3, A]\n'
+    )
+    cycle = WorkCycle.from_toml(_task(tmp_path, text.replace("A", "190")), dimension=2)
+    assert cycle.angle_centre == pytest.approx(math.pi)
+    arm = task_robot(load_robot(ARM / "robot.toml"), cycle)
+    motion = _tracked(arm, cycle.segments[0], {"x1": 0.3})
+    assert motion.max_tracking_error[0] <= 1e-6
+    assert motion.y[0, -1, 2] == pytest.approx(math.radians(190), abs=1e-6)
+    turn = WorkCycle.from_toml(_task(tmp_path, text.replace("170", "-60").replace("A", "200")))
+    assert turn.angle_centre == pytest.approx(math.radians(70))
+    with pytest.raises(InvalidInputError, match="turns from 170° to 530°, a turn or more"):
+        WorkCycle.from_toml(_task(tmp_path, text.replace("A", "530")))
+
+
 def test_the_angle_needs_a_planar_task():
     with pytest.raises(InvalidInputError, match="two task axes"):
         with_tool_angle(load_robot("hiab031_slewing"))

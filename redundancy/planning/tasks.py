@@ -538,13 +538,21 @@ class WorkCycle(Chain):
                 )
 
     @property
-    def angle_centre(self) -> float:
-        """The middle of the tool angles the cycle's ends ask for (rad; 0 without the angle):
-        the branch `redundancy.planning.angles` measures the angle on is centred there."""
+    def angle_range(self) -> tuple[float, float]:
+        """The least and the greatest tool angle the cycle's paths pass (rad, as written: a
+        path moves its angle linearly between the values written at its points); (0, 0)
+        without the angle."""
         if not self.tool_angle:
-            return 0.0
-        ends = np.array([p[-1] for s in self.segments for p in (s.start, s.end)])
-        return float(np.arctan2(np.sin(ends).mean(), np.cos(ends).mean()))
+            return 0.0, 0.0
+        angles = np.concatenate([s.outline()[:, -1] for s in self.segments])
+        return float(angles.min()), float(angles.max())
+
+    @property
+    def angle_centre(self) -> float:
+        """The middle of the tool angles the cycle passes (rad; 0 without the angle): the branch
+        (c − π, c + π] that `redundancy.planning.angles` measures the angle on is centred
+        there, so that it holds every one of them (their range is less than a turn)."""
+        return sum(self.angle_range) / 2
 
     @classmethod
     def from_toml(cls, path: Path | str, dimension: int | None = None) -> WorkCycle:
@@ -575,7 +583,15 @@ class WorkCycle(Chain):
                 "leave it out for the default)"
             )
         name = path.stem if task.name is None else task.name
-        return cls(name, tuple(segments), tuple(task.held or ()), task.tool_angle, str(path))
+        cycle = cls(name, tuple(segments), tuple(task.held or ()), task.tool_angle, str(path))
+        lowest, highest = cycle.angle_range
+        if highest - lowest >= 2 * np.pi:
+            raise InvalidInputError(
+                f"{path}: the tool's angle turns from {np.degrees(lowest):g}° to "
+                f"{np.degrees(highest):g}°, a turn or more; the angle is measured within one "
+                "turn: keep its values less than 360° apart"
+            )
+        return cycle
 
 
 def _points(task: TaskFile, size: int | None, path: Path) -> dict[str, np.ndarray]:
