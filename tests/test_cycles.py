@@ -4,6 +4,7 @@ start beside the per-segment plan, repetition and drift, and the drift-free peri
 import itertools
 import json
 import math
+import re
 from dataclasses import replace
 from pathlib import Path
 
@@ -12,6 +13,7 @@ import pytest
 from commands import run_cli
 
 from redundancy import InvalidInputError, load_robot
+from redundancy.model.loading import bundled_root
 from redundancy.planning.angles import task_robot
 from redundancy.planning.bound import (
     Transcription,
@@ -103,6 +105,39 @@ def test_the_periodic_plan_is_periodic_and_keeps_the_strokes(arm_runs, circle):
     np.testing.assert_allclose(periodic.q[0], periodic.q[-1], atol=1e-9)
     limits = Limits.strokes(robot)
     assert limits.margin(evaluate(robot, periodic.q).x).min() > 0
+
+
+def test_a_slew_that_turns_once_around_a_cycle_does_not_drift(tmp_path):
+    """The slewing crane with a continuous slew joint and no slew stroke, following a full
+    circle about its column: each cycle turns the slew by 2π and leaves the machine as it
+    found it. Its drift is taken modulo a turn, ~1e-8 rad as the others', and the repetition
+    closes (it counted 2π of drift a cycle and never settled)."""
+    urdf = (bundled_root() / "hiab031_slewing" / "hiab031_slewing.urdf").read_text()
+    urdf = urdf.replace(
+        '<joint name="slew_joint" type="revolute">', '<joint name="slew_joint" type="continuous">'
+    )
+    urdf = re.sub(r'<transmission name="slew">.*?</transmission>', "", urdf, flags=re.S)
+    (tmp_path / "crane.urdf").write_text(urdf)
+    (tmp_path / "robot.toml").write_text(
+        'urdf = "crane.urdf"\ntool_frame = "tool"\ntask_axes = "xyz"\npayload = 100.0\n'
+    )
+    (tmp_path / "task.toml").write_text(
+        'name = "circle"\nspeed = 0.5\nheld = ["x3"]\nsegments = [\n'
+        '  { from = "a", to = "b", via = "n", name = "half1" },\n'
+        '  { from = "b", to = "a", via = "s", name = "half2" },\n]\n'
+        "[points]\na = [2.5, 0.0, 0.5]\nb = [-2.5, 0.0, 0.5]\nn = [0.0, 2.5, 0.5]\n"
+        "s = [0.0, -2.5, 0.5]\n"
+    )
+    with pytest.warns(UserWarning, match=r"driven directly \(Identity\): slew_joint"):
+        crane = load_robot(tmp_path / "robot.toml")
+    slew = crane.actuators["slew_joint"]
+    assert slew.rotary and slew.lower == -np.inf and slew.upper == np.inf
+    cycle = WorkCycle.from_toml(tmp_path / "task.toml", dimension=crane.m)
+    plan = plan_cycle(crane, cycle, VELOCITY)
+    repetition = repeat(crane, cycle, VELOCITY.resolver, plan.motion.q[0, 0], cycles=3)
+    np.testing.assert_allclose(np.diff(repetition.x[:, 0]), 2 * np.pi, atol=1e-6)
+    assert np.abs(repetition.drift).max() < 1e-6
+    assert repetition.settling.settles
 
 
 def test_the_drift_is_read_as_a_limit_cycle_or_not():

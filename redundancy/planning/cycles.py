@@ -377,8 +377,17 @@ class Repetition:
 
     @property
     def drift(self) -> np.ndarray:
-        """Each actuator's drift per cycle (N, n): stroke at its end − at its start, m or rad."""
-        return np.diff(self.x, axis=0)
+        """Each actuator's drift per cycle (N, n): stroke at its end − at its start, m or rad;
+        of a rotary actuator with no stroke (on a continuous joint), modulo a turn, within
+        [−π, π): a cycle that turns it once around (a slew following a circle) leaves the
+        machine as it found it."""
+        drift = np.diff(self.x, axis=0)
+        turning = [
+            a.rotary and not (np.isfinite(a.lower) or np.isfinite(a.upper))
+            for a in self.robot.actuators
+        ]
+        drift[:, turning] = np.remainder(drift[:, turning] + np.pi, 2 * np.pi) - np.pi
+        return drift
 
     @property
     def tool_drift(self) -> np.ndarray:
