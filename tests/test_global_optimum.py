@@ -3,11 +3,13 @@ kept, never above the improved method, converged, and exact gradients. Grids are
 (16 and 32 intervals) than in the benchmark (48, 96, 192) to keep the tests quick."""
 
 import dataclasses
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from scipy.interpolate import CubicSpline
 
+import redundancy.planning.bound as bound
 from redundancy import InvalidInputError, actuator_space, load_robot
 from redundancy.planning.bound import Transcription, global_optimum
 from redundancy.planning.ik import inverse_kinematics
@@ -55,6 +57,30 @@ def test_global_peak_is_never_above_the_improved_methods(crane, cycle, optima, n
     start, where the improved start already sits at the end of the telescope's stroke."""
     improved = improved_start(crane, cycle[name], VELOCITY).motion()
     assert optima[name].bound <= improved.peak_velocity_norm[0] * (1 + 1e-6)
+
+
+def test_a_solver_that_ends_worse_than_its_start_leaves_the_start(crane, cycle, monkeypatch):
+    """SLSQP can end above the history it started from, or where the task is out of reach (on
+    the Panda's four held joints it gave a "bound" twice the improved start's peak, called
+    converged). Simulated here by a solver that returns the held strokes 0.4 m lower, where
+    2-3's peak is 1.9 times its start's. Every grid keeps the history it started from, says
+    why, and is not converged; the bound stays at the improved start's peak (its history's,
+    from backward differences on the grid: 1e-4 above the law's own)."""
+
+    def lost(fun, x0, **options):
+        return SimpleNamespace(
+            x=np.append(x0[:-1] - 0.4, x0[-1]), success=True, nit=3, message="done"
+        )
+
+    monkeypatch.setattr(bound, "minimize", lost)
+    improved = improved_start(crane, cycle["2-3"], VELOCITY)
+    found = global_optimum(crane, cycle["2-3"], grids=(16, 32), search=improved)
+    for grid in found.grids:
+        assert not grid.success and grid.message.startswith("done; it ended at a peak 1.9")
+        assert grid.message.endswith("times the one it started from, kept the history before")
+    assert not found.converged and "NOT converged: the solver failed" in found.failure
+    assert found.bound <= improved.best_peak * (1 + 1e-3)
+    assert found.motion.within_limits[0] and found.motion.max_tracking_error[0] < 1e-9
 
 
 def test_global_optimum_beats_the_improved_method_where_the_history_matters(optima, cycle, crane):

@@ -23,8 +23,10 @@ Gradients: ∂q_j/∂r_j = K_j⁻¹ e and ∂x_j/∂r_j = A_j ∂q_j/∂r_j; the
 ṙ_j is a central difference along ∂ẋ_j/∂ṙ_j = A_j K_j⁻¹ e (exact for a quadratic measure), and
 through q_j at fixed ṙ_j a central difference along ∂q_j/∂r_j. SciPy's SLSQP solves the problem
 on a sequence of grids: the first from several pseudoinverse motions (the problem is not
-convex), each later one from the previous optimum. The optimum converges at second order in h;
-`GlobalOptimum.change` says how much the last refinement moved it.
+convex), each later one from the previous optimum. Where the solver ends above the history it
+started from, or where the task is out of reach, that history stays, and the grid counts as
+failed. The optimum converges at second order in h; `GlobalOptimum.change` says how much the
+last refinement moved it.
 """
 
 from __future__ import annotations
@@ -122,7 +124,9 @@ class GlobalOptimum(Refined):
 
     @property
     def bound(self) -> float:
-        """The optimal peak on the finest grid: the bound on every start's peak."""
+        """The optimal peak on the finest grid: the bound on every start's peak where the
+        optimum `converged`; otherwise `failure` says why it is none (the least peak the
+        solver found, at most its start's)."""
         return self.optimum
 
 
@@ -363,11 +367,19 @@ class Transcription:
         return value, np.append(gradient.ravel(), 1.0)
 
     def constraints(self, z):
-        nodes = self.evaluate(z)
+        return self.slack(z, self.evaluate(z))
+
+    def slack(self, z: np.ndarray, nodes: Nodes) -> np.ndarray:
+        """The constraints ≥ 0 at z, its ``nodes`` known: σ above each node's measure / s₀, and
+        the strokes' `margins`."""
+        return np.concatenate([z[-1] - nodes.measure / self.scale, self.margins(nodes)])
+
+    def margins(self, nodes: Nodes) -> np.ndarray:
+        """Each node's distance inside each checked finite stroke end of the actuators not held,
+        a fraction of the stroke."""
         strokes = nodes.space.x[:, self.columns]
         return np.concatenate(
-            [z[-1] - nodes.measure / self.scale]
-            + [
+            [
                 (sign * (strokes[:, kept] - end[kept]) / self.span[kept]).ravel()
                 for kept, end, sign in self.ends
             ]
@@ -415,9 +427,9 @@ def solve_transcription(
         raise problem.unreached(r0, start.missed)
     problem.scale = float(start.measure.max())
     problem.speed = float(np.einsum("ji,ji->j", start.x_dot, start.x_dot).max())
-    z = np.append(r0, 1.0)  # σ = s / s₀
+    z, nodes = np.append(r0, 1.0), start  # σ = s / s₀
     bounds = list(box) * len(r0) + [(0.0, None)]
-    iterations = 0
+    iterations, success, message = 0, True, ""
     for tie_break in (True, False) if polish else (True,):
         problem.tie_break = tie_break
         solution = minimize(
@@ -432,19 +444,55 @@ def solve_transcription(
                 "ftol": FUNCTION_TOLERANCE if tie_break else POLISH_TOLERANCE,
             },
         )
-        z, iterations = solution.x, iterations + solution.nit
-    nodes = problem.evaluate(z)
-    if nodes.missed.any():
-        raise problem.unreached(problem.held(z), nodes.missed)
+        iterations += solution.nit
+        found = problem.evaluate(solution.x)
+        worse = _worse(problem, box, (solution.x, found), (z, nodes))
+        if worse:  # kept where it was: the solver's answer is no optimum of this problem
+            success, message = False, f"{solution.message}; {worse}, kept the history before"
+            continue
+        z, nodes = solution.x, found
+        success, message = bool(solution.success), str(solution.message)
     grid = GridSolution(
         intervals,
         float(nodes.measure.max()),
-        bool(solution.success),
+        success,
         int(iterations),
-        str(solution.message),
-        float(max(0.0, -problem.constraints(z).min())),
+        message,
+        float(max(0.0, -problem.slack(z, nodes).min())),
     )
     return problem.held(z), grid, nodes
+
+
+def _worse(problem: Transcription, box: list, answer: tuple, before: tuple) -> str | None:
+    """Why the solver's ``answer`` (z, its nodes) is worse than the history it started from
+    (``before``, the same), or None: a node it does not reach; strokes further past their
+    limits (`excess`) by more than `LIMIT_MARGIN`; or, as far inside them, a peak higher by
+    more than the tie-break may trade (`SMOOTHING`). SLSQP may end so where the problem is
+    badly scaled (the Panda's four held joints); the least peak found then stays."""
+    (z, nodes), (z_0, nodes_0) = answer, before
+    if nodes.missed.any():
+        return f"it left the task at {int(nodes.missed.sum())} nodes"
+    excess, excess_0 = _excess(problem, box, z, nodes), _excess(problem, box, z_0, nodes_0)
+    if excess > excess_0 + LIMIT_MARGIN:
+        return f"it ended {excess:.3g} of a stroke past its limits ({excess_0:.3g} before)"
+    peak, peak_0 = float(nodes.measure.max()), float(nodes_0.measure.max())
+    if excess >= excess_0 - LIMIT_MARGIN and peak > peak_0 * (1 + SMOOTHING):
+        return f"it ended at a peak {peak / peak_0:.4g} times the one it started from"
+    return None
+
+
+def _excess(problem: Transcription, box: list, z: np.ndarray, nodes: Nodes) -> float:
+    """How far the history z (its ``nodes``) is past a checked stroke, a fraction of it: the
+    held actuators' beyond their ``box`` (lower, upper; None where open) too."""
+    held = problem.held(z)
+    past = [0.0, float(-problem.margins(nodes).min(initial=0.0))]
+    for column, (lower, upper) in enumerate(box):
+        span = upper - lower if lower is not None and upper is not None else 1.0
+        if lower is not None:
+            past.append(float((lower - held[:, column]).max()) / span)
+        if upper is not None:
+            past.append(float((held[:, column] - upper).max()) / span)
+    return max(past)
 
 
 def resampled(times: np.ndarray, t: np.ndarray, values: np.ndarray) -> np.ndarray:
