@@ -81,7 +81,8 @@ from redundancy.viz.tables import check_table, cycle_table, joint_lines, study_t
 def describe(robot: Robot) -> str:
     """A summary of a robot: joints, actuators and strokes (mm, degrees), mass, and at
     mid-range (every joint halfway between its limits) x, y and, where the robot has masses,
-    M_H (n, n) in kg and the forces F_H = N_H holding still (n,) in N."""
+    M_H (n, n) in kg and the forces F_H = N_H holding still (n,) in N (of a rotary actuator
+    kg·m or kg·m², and N·m)."""
     task = " + ".join([robot.task_axes, *task_labels(robot)[len(robot.task_axes) :]])
     lines = [f"{robot.name}: n = {robot.n} joints, task = tool {task} (m = {robot.m})"]
     lines += [*joint_lines(robot), "actuators:"]
@@ -106,9 +107,16 @@ def describe(robot: Robot) -> str:
         f"y = {task_point(robot, space.y[0])}"
     )
     if not robot.kinematic_only:
+        rotary = ", ".join(a.name for a in robot.actuators if a.rotary)
+        inertia, force = (
+            ("kg", "N")
+            if not rotary
+            else (f"kg; kg·m in a row or column of {rotary}, kg·m² in both", f"N; N·m for {rotary}")
+        )
         with np.printoptions(precision=4, suppress=True):
-            lines.append(f"M_H (kg) =\n{space.M_H[0]}")
-            lines.append(f"F_H holding still (N) = {space.forces(np.zeros_like(space.x))[0]}")
+            lines.append(f"M_H ({inertia}) =\n{space.M_H[0]}")
+            held = space.forces(np.zeros_like(space.x))[0]
+            lines.append(f"F_H holding still ({force}) = {held}")
     return "\n".join(lines)
 
 

@@ -53,6 +53,20 @@ def test_a_console_that_cannot_show_the_units_still_gets_the_run(tmp_path):
     assert b"M_H (kg)" in run.stdout and not run.stderr
 
 
+def test_describe_gives_a_rotary_actuator_s_units(capsys):
+    """The slewing crane's slew is an angle: its entries of M_H are kg·m (with a length) and
+    kg·m² (its own), its force a torque, N·m; the crane's numbers are the slewing one's, its
+    slew's row and column aside."""
+    from redundancy.cli import main
+
+    assert main(["describe", "--robot", "hiab031_slewing"]) == 0
+    out = capsys.readouterr().out
+    assert "M_H (kg; kg·m in a row or column of slew, kg·m² in both) =" in out
+    assert "F_H holding still (N; N·m for slew) = [    0.     18433.9429" in out
+    assert main(["describe"]) == 0
+    assert "M_H (kg) =" in capsys.readouterr().out
+
+
 def test_a_closed_standard_output_is_one_line():
     run = subprocess.run(
         [sys.executable, "-m", "redundancy", "robots"],
