@@ -55,8 +55,7 @@ def test_a_console_that_cannot_show_the_units_still_gets_the_run(tmp_path):
 
 def test_describe_gives_a_rotary_actuator_s_units(capsys):
     """The slewing crane's slew is an angle: its entries of M_H are kg·m (with a length) and
-    kg·m² (its own), its force a torque, N·m; the crane's numbers are the slewing one's, its
-    slew's row and column aside."""
+    kg·m² (its own), its force a torque, N·m; the crane's, all lengths, stay kg."""
     from redundancy.cli import main
 
     assert main(["describe", "--robot", "hiab031_slewing"]) == 0
