@@ -335,7 +335,7 @@ class Trajectory:
 
     @property
     def peak_kinetic(self) -> np.ndarray:
-        """max_t ẋᵀ M_H ẋ (k,), J."""
+        """max_t ẋᵀ M_H ẋ (k,), J: twice the peak kinetic energy."""
         return self.score(ENERGY)
 
     @property

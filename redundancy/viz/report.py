@@ -31,8 +31,8 @@ CAPTIONS = (
     ),
     (
         "fig5a_*",
-        "The paper's Fig. 5a: as Fig. 4a for the M_H-weighted pseudoinverse, the peak of the "
-        "kinetic energy ẋᵀ M_H ẋ (J). A segment with no feasible start has no solid curve and "
+        "The paper's Fig. 5a: as Fig. 4a for the M_H-weighted pseudoinverse, the peak of "
+        "ẋᵀ M_H ẋ, twice the kinetic energy (J). A segment with no feasible start has no solid curve and "
         "no ★; the legend says so.",
     ),
     (
