@@ -172,7 +172,8 @@ def test_limit_avoidance_on_an_unbounded_actuator_computes_no_invalid_value(tmp_
 def test_a_load_pressure_beyond_the_circuits_physics_is_flagged_not_reported(tmp_path):
     """The excavator's M_H-weighted law lifting to the truck (2-3) leaves the bucket's stroke
     towards its linkage's toggle, where the quasi-static model asks over 30,000 bar of the stick
-    cylinder: the table and the report page flag it, and print no such pressure."""
+    cylinder: the table and the report page flag it, and print no such pressure, nor the pump
+    energies that follow it."""
     excavator = load_robot("excavator")
     text = excavator.task_file.read_text().replace('["1-2", "2-3", "3-1"]', '["2-3"]')
     (tmp_path / "task.toml").write_text(text)
@@ -190,8 +191,10 @@ def test_a_load_pressure_beyond_the_circuits_physics_is_flagged_not_reported(tmp
     line = next(s for s in hydraulic_table(study).splitlines() if "M_H-weighted" in s)
     assert "(!) p_L beyond the circuit's physics, over 2 × the relief 300 bar" in line, line
     assert f"{weighted['max_load_pressure_bar']:.1f}" not in line
+    assert f"{weighted['ls_energy_kj']:.2f}" not in line
+    assert f"{weighted['cp_energy_kj']:.2f}" not in line
     page = _hydraulics(study.report()["comparison"], None)
-    assert page.count("beyond the circuit's physics") == 1
+    assert page.count("beyond the circuit's physics") == 3  # p_L and the two energies
 
 
 def test_the_playback_draws_every_link_with_its_cylinders_points_inside_mesh_less_hulls(tmp_path):

@@ -32,8 +32,8 @@ CAPTIONS = (
     (
         "fig5a_*",
         "The paper's Fig. 5a: as Fig. 4a for the M_H-weighted pseudoinverse, the peak of "
-        "ẋᵀ M_H ẋ, twice the kinetic energy (J). A segment with no feasible start has no solid curve and "
-        "no ★; the legend says so.",
+        "ẋᵀ M_H ẋ, twice the kinetic energy (J). A segment with no feasible start has no solid "
+        "curve and no ★; the legend says so.",
     ),
     (
         "fig*a_peak_*",
@@ -263,16 +263,15 @@ def _hydraulics(comparison: list[dict], bounds: dict | None) -> str:
         if h is None:
             continue
         above = h.get("above_energy_bound_percent", {})
+        beyond = "beyond the circuit's physics" if h.get("unphysical") else None
         rows.append(
             {
                 "segment": r["segment"],
                 "strategy": r["strategy"],
                 "peak pump flow Q_P (L/min)": _number(h["peak_pump_flow_l_min"], 3),
-                "highest load pressure (bar)": "beyond the circuit's physics"
-                if h.get("unphysical")
-                else _number(h["max_load_pressure_bar"], 3),
-                "LS energy (kJ)": _number(h["ls_energy_kj"]),
-                "CP energy (kJ)": _number(h["cp_energy_kj"]),
+                "highest load pressure (bar)": beyond or _number(h["max_load_pressure_bar"], 3),
+                "LS energy (kJ)": beyond or _number(h["ls_energy_kj"]),
+                "CP energy (kJ)": beyond or _number(h["cp_energy_kj"]),
                 "above LS bound (%)": _percent(above.get("LS")),
                 "above CP bound (%)": _percent(above.get("CP")),
                 "shortest duration (s)": _number(h["shortest_duration_s"], 3),

@@ -108,9 +108,15 @@ def hydraulic_table(study: Study) -> str:
                 run.segment,
                 run.strategy,
                 f"{figures['peak_pump_flow_l_min']:.1f}",
-                "(!)" if unphysical else f"{pressure:.1f}",
-                f"{figures['ls_energy_kj']:.2f}",
-                f"{figures['cp_energy_kj']:.2f}",
+                *(
+                    ("(!)",) * 3  # the pump's pressure, and so its energy, follow that p_L
+                    if unphysical
+                    else (
+                        f"{pressure:.1f}",
+                        f"{figures['ls_energy_kj']:.2f}",
+                        f"{figures['cp_energy_kj']:.2f}",
+                    )
+                ),
                 *(f"{above[s]:.1f}" if s in above else "-" for s in ("LS", "CP")),
                 "-" if shortest is None else f"{shortest:.2f}",
                 note + ("held" if figures["within_limits"] else "; ".join(figures["violations"])),
