@@ -3,6 +3,7 @@ for the pass, the closed forms of a cylinder's span and of the laws' kernel, to 
 relative; and Python kinds and laws of a user's own, through every path."""
 
 import gc
+import pickle
 import warnings
 import weakref
 from dataclasses import fields
@@ -589,6 +590,19 @@ def test_a_controller_is_freed_once_dropped(crane):
     del controller
     gc.collect()
     assert dropped() is None
+
+
+def test_a_compiled_controller_is_pickled_as_its_robot_and_law(crane):
+    """Sent to another process (pickled), it is built again there: compiled, and stepping the
+    same to the last bit."""
+    controller = Controller(crane, MinKineticEnergy())
+    copy = pickle.loads(pickle.dumps(controller))
+    assert copy.is_compiled and type(copy.law) is MinKineticEnergy
+    q = random_configurations(crane, 5, seed=63, margin=0.05)
+    for state in q:
+        np.testing.assert_array_equal(
+            copy.step(state, [0.3, -0.2]).x_dot, controller.step(state, [0.3, -0.2]).x_dot
+        )
 
 
 def test_the_held_law_solves_its_defining_equations(crane):

@@ -290,6 +290,10 @@ class Controller:
     def __repr__(self) -> str:
         return f"Controller({self.robot!r}, {self.law!r})"
 
+    def __reduce__(self):
+        """Pickled as its robot and law, and built again (its compiled object is not data)."""
+        return Controller, (self.robot, self.law)
+
     @property
     def is_compiled(self) -> bool:
         """Whether each step is one call of the compiled core."""
