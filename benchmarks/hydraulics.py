@@ -29,7 +29,7 @@ def main() -> None:
     print(f"{'segment':<8}{'supply':<8}{'bound kJ':>9}  grids: energy kJ")
     for segment, found in (study.energy_bounds or {}).items():
         for supply, bound in found.items():
-            grids = ", ".join(f"N={g.intervals}: {g.energy / 1e3:.4f}" for g in bound.grids)
+            grids = ", ".join(f"N={g.intervals}: {g.optimum / 1e3:.4f}" for g in bound.grids)
             print(
                 f"{segment:<8}{supply:<8}{bound.energy / 1e3:>9.3f}  {grids} "
                 f"(change {100 * (bound.change or 0):.2f} %)"
