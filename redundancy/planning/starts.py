@@ -25,7 +25,9 @@ is evaluated by `evaluate_starts`: feasible where its margin is ≥ −`TOLERANC
   scrambled Halton points over the stroke box (a grid would cost samples^r), the best feasible
   ones then refined by compass search: each round tries every leader ± h along every held
   actuator (one batch), moves a leader to its best feasible improvement, and halves h when none
-  improved, from h = stroke / samples^(1/r) down to stroke / 1000.
+  improved, from h = stroke / samples^(1/r) down to stroke / 1000. That refinement is local:
+  where the peak has several basins over the box, the best start found may lie in the wrong
+  one; more ``samples`` sample the box more finely.
 
 Each round's samples are integrated as one batch, adaptively and sampled sparsely
 (`redundancy.planning.integrate`); they rank the starts. The best start's figure,
