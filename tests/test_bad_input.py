@@ -16,6 +16,7 @@ from redundancy import (
     Controller,
     GradientProjection,
     RedundancyError,
+    Resolver,
     actuator_space,
     configuration_at,
     global_optimum,
@@ -1082,6 +1083,12 @@ API = [
         "x_ddot must be finite numbers of shape",
     ),
     (
+        "a law of one's own whose step overflows",  # named as the law's, not as a ẋ given
+        lambda r: _Overflowing().step(r, [1.6, 1.0, 0.5], [0.5, 0.0]),
+        "overflowing: the step at q = [1.6, 1, 0.5] for ẏ = [0.5, 0] is not finite: the law's "
+        "numbers overflow",
+    ),
+    (
         "joint velocities of nan",
         lambda r: actuator_space(r, [1.6, 1.0, 0.5]).joint_velocities([[0.1, np.nan, 0.0]]),
         "x_dot must be finite numbers of shape (1, 3), a row per state; got [[0.1, nan, 0.0]]",
@@ -1180,6 +1187,15 @@ API = [
         """iyy="-17" iyz="0" izz="17.0666666666667"/> is not a body's rotational inertia""",
     ),
 ]
+
+
+class _Overflowing(Resolver):
+    """A law of one's own whose null-space term overflows the step."""
+
+    name = "overflowing"
+
+    def null_space(self, space):
+        return np.full(space.x.shape, 1e308)
 
 
 def _crane_with(old, new):

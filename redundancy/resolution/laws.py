@@ -130,8 +130,9 @@ class Resolver:
         space = evaluate(robot, states)
         check_invertible(space)
         x_dot = self.resolve(space, velocities)
-        q_dot = space.joint_velocities(x_dot)
-        if not (np.isfinite(x_dot).all() and np.isfinite(q_dot).all()):
+        finite = np.isfinite(x_dot).all()  # else q̇ is not solved for: the law's ẋ is named
+        q_dot = space.joint_velocities(x_dot) if finite else x_dot
+        if not (finite and np.isfinite(q_dot).all()):
             raise InvalidInputError(
                 f"{self.name}: the step at q = {robot.written(states[0])} for ẏ = "
                 f"{robot.written(velocities[0])} is not finite: the law's numbers overflow or "
