@@ -587,9 +587,7 @@ def test_play_starts_from_the_held_values_given_for_two_held_actuators(tmp_path,
     ]
 
 
-def test_a_played_page_says_from_which_start_and_best_takes_the_sweep_it_is_given(
-    tmp_path, capsys
-):
+def test_a_played_page_says_from_which_start_and_best_takes_the_sweep_it_is_given(tmp_path, capsys):
     """play --best writes a page whose heading, and the line it prints, name the start: the
     best of the fast search's starts, or with --method sweep of the --samples it sweeps."""
     page = tmp_path / "p.html"
