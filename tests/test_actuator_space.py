@@ -6,7 +6,13 @@ import pytest
 from joint_space import gravity, inverse_dynamics, mass
 from sampling import random_configurations, random_velocities
 
-from redundancy import SingularConfigurationError, actuator_space, load_robot
+from redundancy import (
+    InvalidInputError,
+    MinVelocityNorm,
+    SingularConfigurationError,
+    actuator_space,
+    load_robot,
+)
 from redundancy.resolution.state import singular
 
 CRANES = ["hiab031", "hiab031_slewing"]
@@ -74,6 +80,16 @@ def test_one_state_is_a_batch_of_one(crane):
     single = actuator_space(crane, q[1])
     np.testing.assert_allclose(single.M_H[0], batch.M_H[1], rtol=1e-14)
     assert single.J_H.shape == (1, 2, 3)
+    # and its rates, accelerations and task velocities may be given as one row (n,) or (m,)
+    rates = np.array([0.1, -0.2, 0.05])
+    np.testing.assert_array_equal(single.forces(rates), single.forces(rates[None]))
+    np.testing.assert_array_equal(single.joint_velocities(rates), single.joint_velocities([rates]))
+    law = MinVelocityNorm()
+    np.testing.assert_array_equal(
+        law.resolve(single, [0.3, 0.1]), law.resolve(single, [[0.3, 0.1]])
+    )
+    with pytest.raises(InvalidInputError, match=r"x_ddot must be finite numbers of shape \(3, 3\)"):
+        batch.forces(rates)  # a row for a batch of three: which state's?
 
 
 def test_states_taken_or_joined_are_the_states_evaluated_there(crane):

@@ -35,12 +35,14 @@ from redundancy.model.schema import excerpt
 
 
 def per_state(values, name: str, shape: tuple[int, ...]) -> np.ndarray:
-    """``values`` as finite numbers of ``shape``, a row per state of a batch; one line naming
-    ``name`` (`InvalidInputError`) otherwise."""
+    """``values`` as finite numbers of ``shape``, a row per state of a batch (for a batch of
+    one, its row alone too); one line naming ``name`` (`InvalidInputError`) otherwise."""
     try:
         checked = np.asarray(values, dtype=float)
     except (TypeError, ValueError):
         checked = None
+    if checked is not None and shape[0] == 1 and checked.shape == shape[1:]:
+        checked = checked[None]
     if checked is None or checked.shape != shape or not np.isfinite(checked).all():
         shown = values.tolist() if isinstance(values, np.ndarray) else values  # on one line
         raise InvalidInputError(
