@@ -177,14 +177,17 @@ inline bool shaped(const py::array& a, std::initializer_list<py::ssize_t> shape)
 // and failures (k,) are known, to `duration`, on the tableau of nodes c (s,), stage weights a
 // (s, s) (the last row the 5th-order step), error weights e (s + 1,). A step's relative and
 // absolute error ≤ `tolerance`; a start whose state turns bad, or whose step shrinks below
-// 1e-9 × duration, is frozen (failed). With `stop`, a motion whose end of step is past a stroke
+// 1e-9 × duration, is frozen (failed). No step crosses one of the sorted times `breaks` in
+// (0, duration), where the path's ẏ_d is not smooth (a speed profile's ramp ends): a step that
+// straddles one is as accurate as its order there, not as the error estimate says. With `stop`,
+// a motion whose end of step is past a stroke
 // [lower, upper] (n,) by more than `allowance`, as are its neighbours in the batch, stops. A
 // start whose error estimate is not finite (a Python right-hand side's q̇ NaN) is frozen too.
 // The accepted steps (rows, t0, h, q0 and the stage slopes (p, s + 1, n)), failed and stopped
 // (k,), and, with `keep`, each batch of ends of accepted steps as (record, positions in it); None
 // where `Rates` could not serve a batch.
 inline py::object dormand_prince(const py::object& rates, const py::object& velocity, Array q,
-                                 Array f, Flags failed, double duration,
+                                 Array f, Flags failed, double duration, const Array& breaks,
                                  double tolerance, const Array& c, const Array& a, const Array& e,
                                  const Array& lower, const Array& upper, double allowance,
                                  bool stop, bool keep) {
@@ -196,6 +199,15 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
     throw py::value_error("the tableau is c (s,), a (s, s) and e (s + 1,), s ≥ 1");
   if (!(duration > 0 && std::isfinite(duration) && tolerance > 0 && std::isfinite(tolerance)))
     throw py::value_error("the duration and the tolerance must be finite and > 0");
+  if (breaks.ndim() != 1 || !std::is_sorted(breaks.data(), breaks.data() + breaks.size()))
+    throw py::value_error("the breaks must be sorted times (b,)");
+  // the end of a step from t: the first break past t (one reached, to rounding, is passed),
+  // else the duration
+  const auto reach = [&](double from) {
+    const double* next = std::upper_bound(breaks.data(), breaks.data() + breaks.size(),
+                                          from + 1e-12 * duration);
+    return next == breaks.data() + breaks.size() ? duration : std::min(*next, duration);
+  };
   q = Array(q.request());  // own copies: the loop writes them
   f = Array(f.request());
   failed = Flags(failed.request());
@@ -225,7 +237,7 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
     Matrix increment(r, n), states(r, n);
     Eigen::VectorXd times(r);
     for (py::ssize_t i = 0; i < r; ++i) {
-      step[i] = std::min(h[rows[i]], duration - t[rows[i]]);
+      step[i] = std::min(h[rows[i]], reach(t[rows[i]]) - t[rows[i]]);
       slopes[0].row(i) = at(f, rows[i], 1, n);
     }
     std::optional<Stage> end;

@@ -47,6 +47,7 @@ from redundancy.resolution.state import SINGULAR_TOLERANCE, _evaluated, evaluate
 WORLD = pin.LOCAL_WORLD_ALIGNED
 MIMIC = Path(__file__).parent / "fixtures" / "intake" / "mimic" / "robot.toml"
 MASSLESS = Path(__file__).parent / "fixtures" / "intake" / "massless" / "robot.toml"
+NONE = np.empty(0)  # no breaks in a segment: the loop may step anywhere in it
 
 
 def assert_equal_relative(ours, theirs):
@@ -267,7 +268,19 @@ def test_the_integration_loop_refuses_states_it_cannot_read(crane):
         zeros, n = np.zeros_like(starts), starts.shape[1]
         flags, bounds = np.zeros(len(starts), dtype=bool), (np.full(n, -np.inf), np.full(n, np.inf))
         return _core.dormand_prince(
-            rates, velocity, starts, zeros, flags, 1.0, 1e-6, *TABLEAU, *bounds, 0.0, False, False
+            rates,
+            velocity,
+            starts,
+            zeros,
+            flags,
+            1.0,
+            NONE,
+            1e-6,
+            *TABLEAU,
+            *bounds,
+            0.0,
+            False,
+            False,
         )
 
     assert loop(compiled_rates(crane, MinVelocityNorm()), np.zeros((3, 4))) is None
@@ -288,7 +301,7 @@ def test_the_loop_refuses_arrays_that_do_not_fit_and_freezes_a_start_it_cannot_s
         f = np.zeros_like(q) if f is None else f
         failed = np.zeros(len(q), dtype=bool) if failed is None else failed
         return _core.dormand_prince(
-            rates, None, q, f, failed, duration, 1e-6, c, a, e, *strokes, 0.0, False, False
+            rates, None, q, f, failed, duration, NONE, 1e-6, c, a, e, *strokes, 0.0, False, False
         )
 
     def still(flags):  # a right-hand side at rest, its flags given as ``flags(r)``

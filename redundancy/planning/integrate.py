@@ -730,7 +730,8 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
     module docstring), by the core's loop (`redundancy._core.dormand_prince`) on the law's
     compiled right-hand side, or on `Law.stage` for a kind or law of your own; samples on
     ``grid`` (T,) or, ``sparse``, at the steps and midpoints, and the accepted `Steps`.
-    ``bounds`` = (limits, allowance) stops motions that with both neighbours passed them."""
+    ``bounds`` = (limits, allowance) stops motions that with both neighbours passed them. No
+    step crosses the segment's `breaks` (a speed profile's ramp ends)."""
     k, n = starts.shape
     first = law(np.zeros(k), starts)
     lower, upper = np.full(n, -np.inf), np.full(n, np.inf)
@@ -742,6 +743,7 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
         first.q_dot,
         first.bad,
         duration,
+        law.segment.breaks,
         tolerance,
         *TABLEAU,
         lower,

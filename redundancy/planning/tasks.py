@@ -365,6 +365,15 @@ class Segment:
         """t_f, in s: |Q − P| / speed for a line at constant speed."""
         return self.shape.length / self.peak + self.ramp
 
+    @cached_property
+    def breaks(self) -> np.ndarray:
+        """The times in (0, duration), s, where ẏ_d is not smooth: where the trapezoidal
+        profile's ramps end and begin (its acceleration jumps), (b,); none at constant speed.
+        The adaptive integration ends a step at each (`redundancy.planning.integrate`)."""
+        if self.profile == "constant" or self.ramp <= 0:
+            return np.empty(0)
+        return np.unique([self.ramp, self.duration - self.ramp])
+
     def progress(self, t) -> tuple[np.ndarray, np.ndarray]:
         """Arc length s and its rate ṡ at times t (...,) in s, both (...,); for the trapezoidal
         profile t is clipped to [0, duration] (at rest outside), and with a = acceleration,
