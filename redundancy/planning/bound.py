@@ -112,9 +112,9 @@ class GlobalOptimum(Refined):
     and ẋ from the transcribed held rates, so that its peak of the objective is the optimum;
     its ``resolver`` is the objective's law, whose measure the motion minimises. It is the
     optimum at its nodes, not a plan to run: its held history interpolated between them, with
-    the task solved exactly, peaks higher (a few per cent) and may pass a stroke by a hair. ``held`` names
-    the held actuator (the names, with several), ``start`` its stroke at t = 0 (m or rad; the
-    strokes, with several).
+    the task solved exactly, peaks higher (a few per cent) and may pass a stroke by a hair.
+    ``held`` names the held actuator (the names, with several), ``start`` its stroke at t = 0
+    (m or rad; the strokes, with several).
     """
 
     segment: Segment | Chain
