@@ -13,7 +13,14 @@ import pytest
 import umsgpack
 from scipy.spatial import Delaunay
 
-from redundancy import VELOCITY, GradientProjection, actuator_space, load_robot, run_study
+from redundancy import (
+    ENERGY,
+    VELOCITY,
+    GradientProjection,
+    actuator_space,
+    load_robot,
+    run_study,
+)
 from redundancy.cli import _load_task, _play_motion, main, parser
 from redundancy.model.hydraulics import BAR
 from redundancy.planning.integrate import simulate
@@ -272,3 +279,20 @@ def test_the_report_page_gives_turning_actuators_velocity_peaks_in_rad_per_secon
     assert status == 0, lines
     page = (tmp_path / "o" / "index.html").read_text()
     assert "peak ẋᵀẋ (rad²/s²)" in page and "m²/s²" not in out
+
+
+def test_a_mix_of_turning_and_sliding_actuators_gives_velocity_peaks_in_both_units():
+    """The slewing crane's ẋᵀẋ adds the slew's (rad/s)² to the cylinders' (m/s)²: its unit
+    says so (it was labelled m²/s²); the crane's alone is m²/s², the Panda's rad²/s², and the
+    kinetic-energy objective's J on every one."""
+    units = {}
+    for name in ("hiab031", "hiab031_slewing", "panda"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the Panda's joints are driven directly
+            actuators = load_robot(name).actuators
+        units[name] = (VELOCITY.unit_of(actuators), ENERGY.unit_of(actuators))
+    assert units == {
+        "hiab031": ("m²/s²", "J"),
+        "hiab031_slewing": ("m²/s²; rad²/s² for slew", "J"),
+        "panda": ("rad²/s²", "J"),
+    }

@@ -50,6 +50,17 @@ class Objective:
                 f"{', '.join(REDUCTIONS)}"
             )
 
+    def unit_of(self, actuators) -> str:
+        """``unit`` on these actuators: ẋᵀẋ (`velocity_norm`) adds the squared rates of lengths
+        (m²/s²) and of angles (rad²/s²), so that of rotary ones is in rad²/s², and of a mix in
+        both, each actuator in its own."""
+        rotary = [a.name for a in actuators if a.rotary]
+        if self.measure is not velocity_norm or not rotary:
+            return self.unit
+        if len(rotary) == len(actuators):
+            return "rad²/s²"
+        return f"m²/s²; rad²/s² for {', '.join(rotary)}"
+
     def reduce(self, t: np.ndarray, values: np.ndarray) -> np.ndarray:
         """The objective of k motions from the measure ``values`` (k, T) at times t (k, T)."""
         if self.reduction == "peak":

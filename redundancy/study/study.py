@@ -199,6 +199,9 @@ class Study:
                 {
                     "objective": name,
                     "measure": searches[0].objective.label if searches else None,
+                    "unit": searches[0].objective.unit_of(self.robot.actuators)
+                    if searches
+                    else None,
                     "segments": [
                         self._segment_report(name, search.segment.name) for search in searches
                     ],

@@ -48,13 +48,6 @@ def unit(actuators, rate: str = "") -> str:
     return f"m{rate}; rad{rate} for {', '.join(rotary)}"
 
 
-def measure_unit(objective, actuators) -> str:
-    """The objective's unit; ẋᵀẋ of actuators that all turn is in rad²/s², not m²/s²."""
-    if objective.name == "velocity" and all(a.rotary for a in actuators):
-        return objective.unit.replace("m", "rad")
-    return objective.unit
-
-
 def peaks_figure(
     searches: tuple[SearchResult, ...], title: str, chosen: tuple[SearchResult, ...] | None = None
 ):
@@ -91,7 +84,7 @@ def peaks_figure(
         if choice.best is not None:
             axes.plot(choice.best.values[0], choice.best.peak, "*", ms=12, color=colour)
     objective, held = searches[0].objective, searches[0].held[0]
-    measure = measure_unit(objective, searches[0].robot.actuators)
+    measure = objective.unit_of(searches[0].robot.actuators)
     along = f"initial {held} ({searches[0].robot.actuators[held].unit})"
     segments = {"loc": "upper left", "fontsize": 8}
     _labelled(figure, title, (f"peak {objective.label} ({measure})",), along, segments)
@@ -138,7 +131,7 @@ def peak_map_figure(
         pane.set_ylabel(f"initial {held[1]} ({actuators[held[1]].unit})")
         pane.set_title(f"segment {search.segment.name}")
         if feasible.any():
-            measure = measure_unit(objective, actuators)
+            measure = objective.unit_of(actuators)
             figure.colorbar(shown, ax=pane, label=f"peak {objective.label} ({measure})")
     rest = held[2:]  # drawn over the first two; the others vary among the samples
     over = f"\nover {held[0]} and {held[1]}; {', '.join(rest)} as sampled" if rest else ""

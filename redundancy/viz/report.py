@@ -16,8 +16,9 @@ from collections.abc import Iterable
 from fnmatch import fnmatch
 from pathlib import Path
 from string import Template
+from types import SimpleNamespace
 
-from redundancy.resolution.objectives import OBJECTIVES
+from redundancy.resolution.objectives import OBJECTIVES, VELOCITY
 from redundancy.study.output import write_atomically
 
 # What each figure shows and how to read it, by file-name pattern; the first match captions it.
@@ -165,10 +166,6 @@ def _table(rows: list[dict], caption: str = "") -> str:
     return (f"<p>{_e(caption)}</p>\n" if caption else "") + text + "\n"
 
 
-def _unit(objective: str) -> str:
-    return getattr(OBJECTIVES.get(objective), "unit", "")
-
-
 def _units(report: dict, names: str | list[str] | None = None) -> str:
     """The SI unit of the actuators ``names`` (all where None), from the report's units."""
     units = report["units"]
@@ -192,7 +189,7 @@ def _headline(study: dict, s: dict, held: str) -> str:
     return (
         f"<li>{study['objective']}, segment {_e(s['name'])}: improved start {held} = "
         f"{_number(s['best']['value'])}, peak {study['measure']} "
-        f"{s['best']['peak']:.4g} {_unit(study['objective'])}{above}</li>"
+        f"{s['best']['peak']:.4g} {study['unit']}{above}</li>"
     )
 
 
@@ -213,8 +210,7 @@ def _study_page(report: dict) -> tuple[str, str]:
     )
     body = summary + "<h2>Improved start and bound, per segment</h2>\n"
     for study in studies:
-        unit = _unit(study["objective"])
-        measure = f"{study['measure']} ({unit})"
+        measure = f"{study['measure']} ({study['unit']})"
         rows = [
             {
                 "segment": s["name"],
@@ -231,7 +227,8 @@ def _study_page(report: dict) -> tuple[str, str]:
         ]
         body += f"<h3>{_e(study['objective'])} objective: min {_e(study['measure'])}</h3>\n"
         body += _table(rows)
-    squared = "rad²/s²" if set(report["units"].values()) == {"rad"} else "m²/s²"
+    actuators = [SimpleNamespace(name=n, rotary=u == "rad") for n, u in report["units"].items()]
+    squared = VELOCITY.unit_of(actuators)
     rows = [
         {
             "segment": r["segment"],
@@ -305,8 +302,7 @@ def _hydraulics(comparison: list[dict], bounds: dict | None) -> str:
 def _cycle_body(cycle: dict) -> str:
     """The work cycle: plans, corners, strategies with their drift, the return map."""
     held, held_unit = _number(cycle["held_actuator"]), _units(cycle, cycle["held_actuator"])
-    unit = _unit(cycle["objective"])
-    measure = f"{cycle['measure']} ({unit})"
+    measure = f"{cycle['measure']} ({cycle['unit']})"
     whole = cycle["whole_cycle"]
     per = cycle["per_segment"]
     path = " → ".join(s["name"] for s in cycle["segments"])

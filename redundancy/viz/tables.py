@@ -17,7 +17,6 @@ from redundancy.resolution.objectives import VELOCITY
 from redundancy.study.check import Check, span, task_point
 from redundancy.study.cycles import CycleStudy, named_values, settling_words
 from redundancy.study.study import Study
-from redundancy.viz.plots import measure_unit
 
 RUN_COLUMNS = {"segment": "<", "strategy": "<"}  # the first columns of a table of runs
 HYDRAULIC_COLUMNS = dict.fromkeys(
@@ -54,13 +53,13 @@ def study_table(study: Study) -> str:
         values = ",".join(amount(v, unit) for v, unit in zip(run.start, units))
         peak = f"{row['peak_velocity_norm']:.5f}"
         rows.append([run.segment, run.strategy, values, peak, kinetic, held + more])
-    squared = measure_unit(VELOCITY, actuators)
+    squared = VELOCITY.unit_of(actuators)
     start = "start " + ",".join(study.held)
     columns = dict.fromkeys([start, f"peak ẋᵀẋ {squared}", "peak ẋᵀM_Hẋ J"], ">")
     lines = text_table(RUN_COLUMNS | columns | {"limits": "<"}, rows)
     bounds = []
     for name, searches in study.searches.items():
-        unit = measure_unit(searches[0].objective, actuators)
+        unit = searches[0].objective.unit_of(actuators)
         for search in searches:
             segment = search.segment.name
             head = [segment, name, unit]
@@ -156,7 +155,7 @@ def cycle_table(study: CycleStudy) -> str:
 def _plan_lines(study: CycleStudy) -> list[str]:
     """The whole-cycle improved start and the per-segment plan's starts."""
     plan, held = study.plan, study.held
-    unit, label = measure_unit(study.objective, study.robot.actuators), study.objective.label
+    unit, label = study.objective.unit_of(study.robot.actuators), study.objective.label
     units = [study.robot.actuators[h].unit for h in held]
     search = plan.search
     if search.best is None:
@@ -214,7 +213,7 @@ def _corner_lines(study: CycleStudy) -> list[str]:
 def _price_line(study: CycleStudy) -> str:
     """The drift-free strategy's peak and pump energies against the free improved cycle's."""
     price, label = study.price() or {}, study.objective.label
-    unit = measure_unit(study.objective, study.robot.actuators)
+    unit = study.objective.unit_of(study.robot.actuators)
     free, periodic = study.costs["free"].figures(), study.costs["periodic"].figures()
     parts = [
         f"peak {label} {free['objective']:.5g} → {periodic['objective']:.5g} {unit} "
