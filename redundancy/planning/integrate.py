@@ -584,7 +584,7 @@ class Law:
             y_dot = self.velocity(t, space.y)
         bad |= ~np.isfinite(y_dot).all(axis=1)
         x_dot = self.resolver.resolve_at(space, np.where(bad[:, None], 0.0, y_dot), t)
-        q_dot = space.joint_velocities(x_dot)
+        q_dot = _core.solve(space.A, x_dot)  # q̇ = A⁻¹ ẋ of any ẋ: one not finite makes it bad
         bad |= ~np.isfinite(q_dot).all(axis=1)
         if bad.any():
             q_dot[bad], x_dot[bad] = 0.0, 0.0
