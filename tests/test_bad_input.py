@@ -888,7 +888,7 @@ API = [
             lambda r, v=velocities: VELOCITY.resolver.resolve(actuator_space(r, STATE), v),
             "y_dot must be finite numbers of shape (1, 2), a row per state",
         )
-        for velocities in ([[np.nan, 0.0]], [[0.1]], [0.1, 0.0], "ab", np.zeros((2, 2)))
+        for velocities in ([[np.nan, 0.0]], [[0.1]], [0.1, 0.0, 0.0], "ab", np.zeros((2, 2)))
     ],
     (
         "controller step far outside the joints' limits",
@@ -923,9 +923,9 @@ API = [
         "load_robot: task_axes = 'xq' must be distinct letters",
     ),
     (
-        "forces of a vector",
-        lambda r: actuator_space(r, [1.6, 1.0, 0.5]).forces(np.zeros(3)),
-        "x_ddot must be finite numbers of shape (1, 3), a row per state",
+        "forces of one row for two states",  # one row serves a batch of one alone
+        lambda r: actuator_space(r, [[1.6, 1.0, 0.5], [1.7, 1.0, 0.5]]).forces(np.zeros(3)),
+        "x_ddot must be finite numbers of shape (2, 3), a row per state",
     ),
     ("space of a wrong shape", lambda r: actuator_space(r, [1.0, 2.0]), "q must have shape"),
     ("space of nan", lambda r: actuator_space(r, [np.nan, 1.0, 0.5]), "NaN or infinite"),
