@@ -9,7 +9,7 @@
 #include "space.hpp"
 
 // The weighted pseudoinverse for one state at a time, its products kept from state to state (an
-// undamped state allocates nothing once they are sized):
+// undamped state of an unweighted law allocates nothing once they are sized):
 //   ẋ = J_W⁺ (ẏ − J_H z) + z,   J_W⁺ = W⁻¹ J_Hᵀ (J_H W⁻¹ J_Hᵀ)⁻¹,
 // for J_H (m, n), ẏ (m), W (n, n) or null for I, z (n) or null for 0. It is computed without
 // W⁻¹, so that a weight near singular (a link of almost no mass in M_H) neither loses the task
