@@ -178,9 +178,12 @@ inline bool shaped(const py::array& a, std::initializer_list<py::ssize_t> shape)
 // (s, s) (the last row the 5th-order step), error weights e (s + 1,). A step's relative and
 // absolute error ≤ `tolerance`; a start whose state turns bad, or whose step shrinks below
 // 1e-9 × duration, is frozen (failed). No step crosses one of the sorted times `breaks` in
-// (0, duration), where the path's ẏ_d is not smooth (a speed profile's ramp ends): a step that
-// straddles one is as accurate as its order there, not as the error estimate says. With `stop`,
-// a motion whose end of step is past a stroke
+// (0, duration), where the path's ẏ_d is not smooth (a speed profile's ramp ends, a polyline's
+// corners): a step that straddles one is as accurate as its order there, not as the error
+// estimate says. Where ẏ_d jumps there, a step that ends on a break reads its last stage just
+// before it (the piece it integrated), and the next step's first slope is the law's at the break
+// (the next piece), one more evaluation per break. With `stop`, a motion whose end of step is
+// past a stroke
 // [lower, upper] (n,) by more than `allowance`, as are its neighbours in the batch, stops. A
 // start whose error estimate is not finite (a Python right-hand side's q̇ NaN) is frozen too.
 // The accepted steps (rows, t0, h, q0 and the stage slopes (p, s + 1, n)), failed and stopped
@@ -213,7 +216,7 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
   failed = Flags(failed.request());
   auto* dead = failed.mutable_data();
   std::vector<double> t(k, 0.0), h(k);
-  std::vector<bool> past(k, false), stopped(k, false);
+  std::vector<bool> past(k, false), stopped(k, false), broken(k, false);
   for (py::ssize_t i = 0; i < k; ++i) {  // the first step's size, from q and its slope
     const auto qi = at(q, i, 1, n), fi = at(f, i, 1, n);
     const Eigen::RowVectorXd scale = tolerance * (1 + qi.array().abs());
@@ -231,13 +234,35 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
     for (py::ssize_t i = 0; i < k; ++i)
       if (!dead[i] && !stopped[i] && t[i] < duration) rows.push_back(i);
     if (rows.empty()) break;
+    std::vector<py::ssize_t> fresh;  // at a break they reached: their slope there, afresh
+    for (const auto row : rows)
+      if (broken[row]) fresh.push_back(row);
+    if (!fresh.empty()) {
+      Eigen::VectorXd when(py::ssize_t(fresh.size()));
+      Matrix where(py::ssize_t(fresh.size()), n);
+      for (std::size_t i = 0; i < fresh.size(); ++i) {
+        when(py::ssize_t(i)) = t[fresh[i]] + 1e-12 * duration;  // ẏ_d of the piece after it
+        where.row(py::ssize_t(i)) = at(q, fresh[i], 1, n);
+      }
+      const auto slope = rates_at(rates, velocity, when, where, false);
+      if (!slope) return py::none();
+      for (std::size_t i = 0; i < fresh.size(); ++i) {
+        at(f, fresh[i], 1, n) = slope->q_dot.row(py::ssize_t(i));
+        if (slope->bad[i]) dead[fresh[i]] = true;
+        broken[fresh[i]] = false;
+      }
+      rows.erase(std::remove_if(rows.begin(), rows.end(), [&](auto row) { return dead[row]; }),
+                 rows.end());
+      if (rows.empty()) continue;
+    }
     const auto r = py::ssize_t(rows.size());
-    std::vector<double> step(r);
+    std::vector<double> step(r), ends(r);
     std::vector<Matrix> slopes(s + 1, Matrix(r, n));  // the stages' q̇
     Matrix increment(r, n), states(r, n);
     Eigen::VectorXd times(r);
     for (py::ssize_t i = 0; i < r; ++i) {
-      step[i] = std::min(h[rows[i]], reach(t[rows[i]]) - t[rows[i]]);
+      ends[i] = reach(t[rows[i]]);
+      step[i] = std::min(h[rows[i]], ends[i] - t[rows[i]]);
       slopes[0].row(i) = at(f, rows[i], 1, n);
     }
     std::optional<Stage> end;
@@ -247,6 +272,8 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
         for (py::ssize_t j = 0; j < stage; ++j)
           increment.row(i) += a.at(stage - 1, j) * slopes[j].row(i);
         times(i) = t[rows[i]] + c.at(stage - 1) * step[i];
+        if (stage == s && step[i] == ends[i] - t[rows[i]] && ends[i] < duration)
+          times(i) -= 1e-12 * duration;  // ending on a break: ẏ_d of the piece before it
         states.row(i) = at(q, rows[i], 1, n) + step[i] * increment.row(i);
       }
       // the last stage is the step's end: recorded where the ends are kept (a sample each)
@@ -277,12 +304,15 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
         for (py::ssize_t j = 0; j <= s; ++j)
           slopes_out.insert(slopes_out.end(), slopes[j].row(i).data(),
                             slopes[j].row(i).data() + n);
-        t[row] += step[i];
+        broken[row] = step[i] == ends[i] - t[row] && ends[i] < duration;
+        t[row] = broken[row] ? ends[i] : t[row] + step[i];
         at(q, row, 1, n) = q_new;
         at(f, row, 1, n) = slopes[s].row(i);
       }
       const double growth = std::clamp(0.9 * std::pow(std::max(error, 1e-10), -0.2), 0.2, 10.0);
-      h[row] = step[i] * (accept ? growth : std::min(growth, 1.0));
+      const double proposed = step[i] * (accept ? growth : std::min(growth, 1.0));
+      // a step cut short by a break says nothing against the size it was cut from
+      h[row] = accept && step[i] < h[row] ? std::max(h[row], proposed) : proposed;
       if (!(h[row] >= 1e-9 * duration)) dead[row] = true;  // NaN too: an error not finite
       if (accept && stop) {
         const auto x = end->x.row(i);

@@ -731,7 +731,7 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
     compiled right-hand side, or on `Law.stage` for a kind or law of your own; samples on
     ``grid`` (T,) or, ``sparse``, at the steps and midpoints, and the accepted `Steps`.
     ``bounds`` = (limits, allowance) stops motions that with both neighbours passed them. No
-    step crosses the segment's `breaks` (a speed profile's ramp ends)."""
+    step crosses the segment's `breaks` (a speed profile's ramp ends, a polyline's corners)."""
     k, n = starts.shape
     first = law(np.zeros(k), starts)
     lower, upper = np.full(n, -np.inf), np.full(n, np.inf)

@@ -367,12 +367,35 @@ class Segment:
 
     @cached_property
     def breaks(self) -> np.ndarray:
-        """The times in (0, duration), s, where ẏ_d is not smooth: where the trapezoidal
-        profile's ramps end and begin (its acceleration jumps), (b,); none at constant speed.
-        The adaptive integration ends a step at each (`redundancy.planning.integrate`)."""
-        if self.profile == "constant" or self.ramp <= 0:
-            return np.empty(0)
-        return np.unique([self.ramp, self.duration - self.ramp])
+        """The times in (0, duration), s, where ẏ_d is not smooth, (b,): where the trapezoidal
+        profile's ramps end and begin (its acceleration jumps) and where a polyline turns at a
+        corner (ẏ_d jumps); none on a line at constant speed. The adaptive integration ends a
+        step at each (`redundancy.planning.integrate`)."""
+        corners = getattr(self.shape, "cumulative", np.empty(0))[1:-1]
+        ramps = [] if self.profile == "constant" else [self.ramp, self.duration - self.ramp]
+        times = np.concatenate([self.time_at(corners), ramps])
+        return np.unique(times[(times > 0) & (times < self.duration)])
+
+    def time_at(self, s: np.ndarray) -> np.ndarray:
+        """The times (...,) in s at which the path has come the arc lengths s (...,), within
+        [0, length]: `progress` inverted, s / v at constant speed; on the trapezoidal profile
+        √(2 s / a) on the first ramp, s / v + t_a / 2 between, T − √(2 (L − s) / a) on the
+        last."""
+        s = np.asarray(s, dtype=float)
+        if self.profile == "constant":
+            return s / self.speed
+        a, ramp, peak, length = (
+            float(self.acceleration or 0.0),
+            self.ramp,
+            self.peak,
+            self.shape.length,
+        )
+        cruise = s / peak + ramp / 2
+        first = np.sqrt(2 * np.maximum(s, 0.0) / a)
+        last = self.duration - np.sqrt(2 * np.maximum(length - s, 0.0) / a)
+        return np.where(
+            s < peak * ramp / 2, first, np.where(s > length - peak * ramp / 2, last, cruise)
+        )
 
     def progress(self, t) -> tuple[np.ndarray, np.ndarray]:
         """Arc length s and its rate ṡ at times t (...,) in s, both (...,); for the trapezoidal
