@@ -257,12 +257,14 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
     }
     const auto r = py::ssize_t(rows.size());
     std::vector<double> step(r), ends(r);
+    std::vector<bool> on_break(r);  // the step ends on a break
     std::vector<Matrix> slopes(s + 1, Matrix(r, n));  // the stages' q̇
     Matrix increment(r, n), states(r, n);
     Eigen::VectorXd times(r);
     for (py::ssize_t i = 0; i < r; ++i) {
       ends[i] = reach(t[rows[i]]);
       step[i] = std::min(h[rows[i]], ends[i] - t[rows[i]]);
+      on_break[i] = step[i] == ends[i] - t[rows[i]] && ends[i] < duration;
       slopes[0].row(i) = at(f, rows[i], 1, n);
     }
     std::optional<Stage> end;
@@ -272,8 +274,8 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
         for (py::ssize_t j = 0; j < stage; ++j)
           increment.row(i) += a.at(stage - 1, j) * slopes[j].row(i);
         times(i) = t[rows[i]] + c.at(stage - 1) * step[i];
-        if (stage == s && step[i] == ends[i] - t[rows[i]] && ends[i] < duration)
-          times(i) -= 1e-12 * duration;  // ending on a break: ẏ_d of the piece before it
+        // ending on a break: ẏ_d of the piece before it
+        if (stage == s && on_break[i]) times(i) -= 1e-12 * duration;
         states.row(i) = at(q, rows[i], 1, n) + step[i] * increment.row(i);
       }
       // the last stage is the step's end: recorded where the ends are kept (a sample each)
@@ -304,8 +306,8 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
         for (py::ssize_t j = 0; j <= s; ++j)
           slopes_out.insert(slopes_out.end(), slopes[j].row(i).data(),
                             slopes[j].row(i).data() + n);
-        broken[row] = step[i] == ends[i] - t[row] && ends[i] < duration;
-        t[row] = broken[row] ? ends[i] : t[row] + step[i];
+        broken[row] = on_break[i];
+        t[row] = on_break[i] ? ends[i] : t[row] + step[i];
         at(q, row, 1, n) = q_new;
         at(f, row, 1, n) = slopes[s].row(i);
       }

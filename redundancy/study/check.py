@@ -189,8 +189,9 @@ def _sweep(robot: Robot, column: int, row: int) -> tuple[tuple, tuple, tuple]:
     swept as declared, wider than a turn too (a slew of ±200°), unless it is unbounded or a
     URDF's "no limit" (`NO_LIMIT`): then over the turn of `Robot.span`."""
     declared = robot.upper - robot.lower <= NO_LIMIT  # False where unbounded
-    lower = np.where(declared, robot.lower, robot.span[0])
-    upper = np.where(declared, robot.upper, robot.span[1])
+    turn_lower, turn_upper = robot.span
+    lower = np.where(declared, robot.lower, turn_lower)
+    upper = np.where(declared, robot.upper, turn_upper)
     q = np.repeat(((lower + upper) / 2)[None], SWEEP, axis=0)
     q[:, column] = np.linspace(lower[column], upper[column], SWEEP)
     space = evaluate(robot, q)

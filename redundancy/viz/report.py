@@ -110,7 +110,7 @@ def write_index(folder: Path | str, report: Path | str | None = None) -> Path:
     data = json.loads(source.read_text(encoding="utf-8"))
     files = sorted(p.name for p in folder.iterdir())
     if "summary" in data:
-        title, body = _map_page(data, data.get("name", folder.name))
+        title, body = _map_page(data, data["name"])
     elif "studies" in data:
         title, body = _study_page(data)
     else:
