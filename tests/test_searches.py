@@ -423,6 +423,47 @@ def test_one_sample_is_the_default_start_for_two_held_actuators_and_for_a_whole_
     assert whole.samples[0].peak is not None
 
 
+PLANAR_ARM = Path(__file__).parent / "data" / "planar4r"
+
+
+def test_the_compass_search_polls_along_bases_that_turn_round_by_round():
+    """Each round's poll directions are an orthonormal basis (± its rows); the first is the held
+    actuators' own axes, and over the rounds the directions fill the circle (r = 2): no gap of
+    more than 20° between the directions of 30 rounds."""
+    bases = starts._poll_bases(2, starts.REFINEMENT_ROUNDS)
+    for basis in bases:
+        np.testing.assert_allclose(basis @ basis.T, np.eye(2), atol=1e-14)
+    np.testing.assert_allclose(np.abs(bases[0]), [[0, 1], [1, 0]], atol=1e-14)
+    angles = np.sort(np.concatenate([np.arctan2(b[:, 1], b[:, 0]) for b in bases]) % np.pi)
+    assert np.degrees(np.diff(np.append(angles, angles[0] + np.pi))).max() < 20
+    four = starts._poll_bases(4, starts.REFINEMENT_ROUNDS)
+    np.testing.assert_allclose(
+        four @ four.transpose(0, 2, 1), np.broadcast_to(np.eye(4), four.shape), atol=1e-14
+    )
+
+
+def test_the_compass_search_follows_a_limit_oblique_to_the_held_strokes():
+    """A peak v₁ + 3 v₂ + 10 over two held strokes [−2.9, 2.9], feasible where v₁ + v₂ ≥ 0.5:
+    its least value, 5.7, lies at (2.9, −2.4), where that limit meets the box. At a point of
+    the limit every poll along a stroke either leaves the feasible set or raises the peak, so
+    the axes alone stalled at the first such point (5.93, 0.15 from the corner); the turning
+    bases reach the corner to the search's finest step (1/1000 of the stroke, 5.8 mm)."""
+    arm = load_robot(PLANAR_ARM / "robot.toml")
+
+    def run(values, extending=False):
+        samples = tuple(
+            starts.Sample(tuple(v), v[0] + 3 * v[1] + 10, v[0] + v[1] >= 0.5)
+            for v in values.tolist()
+        )
+        return starts.SearchResult(
+            arm, None, None, ("x3", "x4"), samples, (), np.full(len(samples), -1)
+        )
+
+    best = starts._compass(arm, None, ("x3", "x4"), 100, run).best
+    assert np.linalg.norm(np.subtract(best.values, (2.9, -2.4))) < 5.8e-3
+    assert best.peak == pytest.approx(5.7, abs=2 * 5.8e-3)
+
+
 def test_an_objective_may_be_named(crane, paper_cycle):
     """improved_start takes an objective's name as the objective itself."""
     named = improved_start(crane, paper_cycle["1-2"], "energy")

@@ -23,11 +23,12 @@ is evaluated by `evaluate_starts`: feasible where its margin is ≥ −`TOLERANC
   (`redundancy.planning.brackets.summit_probes`).
 - "sweep": the paper's uniform sweep of ``samples`` values (r = 1); for r > 1, ``samples``
   scrambled Halton points over the stroke box (a grid would cost samples^r), the best feasible
-  ones then refined by compass search: each round tries every leader ± h along every held
-  actuator (one batch), moves a leader to its best feasible improvement, and halves h when none
-  improved, from h = stroke / samples^(1/r) down to stroke / 1000. That refinement is local:
-  where the peak has several basins over the box, the best start found may lie in the wrong
-  one; more ``samples`` sample the box more finely.
+  ones then refined by compass search: each round tries every leader ± h along each direction
+  of an orthonormal basis that turns from round to round (`_poll_bases`; the first is the held
+  actuators' own axes), one batch, moves a leader to its best feasible improvement, and halves
+  h when none improved, from h = stroke / samples^(1/r) down to stroke / 1000. That refinement
+  is local: where the peak has several basins over the box, the best start found may lie in
+  the wrong one; more ``samples`` sample the box more finely.
 
 Each round's samples are integrated as one batch, adaptively and sampled sparsely
 (`redundancy.planning.integrate`); they rank the starts. The best start's figure,
@@ -626,10 +627,10 @@ def _compass(robot, segment, held, samples, run) -> SearchResult:
         result = run(_halton(box, samples, seed=1))
     leaders = sorted(result.feasible, key=lambda s: s.peak)[:REFINED_AROUND]  # type: ignore[arg-type,return-value]
     step = 1 / samples ** (1 / len(held))  # fraction of each stroke
-    directions = np.concatenate([np.eye(len(held)), -np.eye(len(held))])
-    for _ in range(REFINEMENT_ROUNDS):
+    for turn in _poll_bases(len(held), REFINEMENT_ROUNDS):
         if not leaders or step < FINEST_STEP:
             break
+        directions = np.concatenate([turn, -turn])
         centres = np.array([s.values for s in leaders])
         trials = centres[:, None] + step * span * directions  # (leaders, 2r, r)
         tried = run(np.clip(trials, box[:, 0], box[:, 1]).reshape(-1, len(held)))
@@ -644,6 +645,20 @@ def _compass(robot, segment, held, samples, run) -> SearchResult:
         if not improved:
             step /= 2
     return result
+
+
+def _poll_bases(r: int, rounds: int) -> np.ndarray:
+    """The orthonormal bases (rounds, r, r) the compass search polls along, ± each row, one a
+    round: the Householder matrices H = I − 2 v vᵀ / vᵀv of v = 2u − 1, u the round's point of
+    the (unscrambled) Halton sequence, as in OrthoMADS (Abramson, Audet, Dennis and Le Digabel,
+    SIAM J. Optim. 20(2), 2009). The first is the held actuators' own axes; the next ones turn,
+    and over the rounds the directions fill the sphere, so that a leader in a narrow oblique
+    valley of the peak, or on a limit that crosses the strokes obliquely, still finds the way
+    along it, where polls along the strokes alone stall."""
+    from scipy.stats import qmc
+
+    v = 2 * qmc.Halton(r, scramble=False).random(rounds) - 1
+    return np.eye(r) - 2 * v[:, :, None] * v[:, None, :] / np.sum(v * v, axis=1)[:, None, None]
 
 
 def _halton(box: np.ndarray, count: int, seed: int) -> np.ndarray:
