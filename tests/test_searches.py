@@ -464,6 +464,20 @@ def test_the_compass_search_follows_a_limit_oblique_to_the_held_strokes():
     assert best.peak == pytest.approx(5.7, abs=2 * 5.8e-3)
 
 
+def test_a_compass_round_whose_trials_are_all_unreachable_does_not_end_the_search():
+    """The planar 4R arm holding joints 1 and 4 from (1, 0) m: much of that box is out of reach,
+    and a round of the compass refinement whose trials all fall outside it is recorded
+    (unreachable samples, no motion), as a fast search's round is; it used to end the search in
+    "cannot reach the start ... from any of the 12 sampled values"."""
+    arm = load_robot(PLANAR_ARM / "robot.toml")
+    segment = Segment("out", np.array([1.0, 0.0]), np.array([2.2, 0.2]), 0.3)
+    search = improved_start(arm, segment, VELOCITY, ("x1", "x4"), samples=2000)
+    trials = search.samples[2000:]
+    rounds = [trials[i : i + 12] for i in range(0, len(trials), 12)]  # 3 leaders × 4 directions
+    assert any(all(s.peak is None for s in batch) for batch in rounds)
+    assert search.best is not None and search.best.feasible
+
+
 def test_an_objective_may_be_named(crane, paper_cycle):
     """improved_start takes an objective's name as the objective itself."""
     named = improved_start(crane, paper_cycle["1-2"], "energy")

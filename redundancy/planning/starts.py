@@ -26,9 +26,10 @@ is evaluated by `evaluate_starts`: feasible where its margin is ≥ −`TOLERANC
   ones then refined by compass search: each round tries every leader ± h along each direction
   of an orthonormal basis that turns from round to round (`_poll_bases`; the first is the held
   actuators' own axes), one batch, moves a leader to its best feasible improvement, and halves
-  h when none improved, from h = stroke / samples^(1/r) down to stroke / 1000. That refinement
-  is local: where the peak has several basins over the box, the best start found may lie in
-  the wrong one; more ``samples`` sample the box more finely.
+  h when none improved, from h = stroke / samples^(1/r) down to stroke / 1000; a round whose
+  trials are all out of reach is recorded as unreachable samples. That refinement is local:
+  where the peak has several basins over the box, the best start found may lie in the wrong
+  one; more ``samples`` sample the box more finely.
 
 Each round's samples are integrated as one batch, adaptively and sampled sparsely
 (`redundancy.planning.integrate`); they rank the starts. The best start's figure,
@@ -633,7 +634,7 @@ def _compass(robot, segment, held, samples, run) -> SearchResult:
         directions = np.concatenate([turn, -turn])
         centres = np.array([s.values for s in leaders])
         trials = centres[:, None] + step * span * directions  # (leaders, 2r, r)
-        tried = run(np.clip(trials, box[:, 0], box[:, 1]).reshape(-1, len(held)))
+        tried = run(np.clip(trials, box[:, 0], box[:, 1]).reshape(-1, len(held)), extending=True)
         result = result.extended(tried)
         improved = False
         for i, leader in enumerate(leaders):
