@@ -478,6 +478,26 @@ def test_a_compass_round_whose_trials_are_all_unreachable_does_not_end_the_searc
     assert search.best is not None and search.best.feasible
 
 
+def test_a_start_out_of_reach_at_mid_stroke_is_continued_from_one_with_the_held_actuator_free(
+    crane, paper_cycle
+):
+    """The paper's point 1 is out of reach with the telescope at mid-stroke: the fast search's
+    configurations then continue from configurations reaching it with the telescope free (one
+    Newton solve from 8 seeds, where inverse kinematics at each of the 24 scanned strokes took
+    192). They are the configurations multi-seed inverse kinematics finds at each reachable
+    stroke, to Newton's tolerance."""
+    segment = paper_cycle["1-2"]
+    configurations = starts.Configurations(crane, segment, "x3")
+    middle = np.mean(starts.stroke_box(crane, ("x3",))[0])
+    assert not inverse_kinematics(crane, segment.start, ["x3"], [[middle]]).reached[0]
+    values = configurations.reachable(starts.end_tolerance(crane, "x3", None))
+    assert values.size > 10
+    continued = configurations.at(values)
+    solved = inverse_kinematics(crane, segment.start, ["x3"], values[:, None])
+    assert solved.reached.all()
+    np.testing.assert_allclose(continued.q, solved.q, atol=1e-9)
+
+
 def test_an_objective_may_be_named(crane, paper_cycle):
     """improved_start takes an objective's name as the objective itself."""
     named = improved_start(crane, paper_cycle["1-2"], "energy")

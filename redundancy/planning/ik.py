@@ -220,12 +220,13 @@ def inverse_kinematics(
     return InverseKinematics(picked, np.any(converged, axis=1), error.min(axis=1))
 
 
-def free_configurations(robot: Robot, point: np.ndarray, seeds: int) -> np.ndarray:
+def free_configurations(robot: Robot, point: np.ndarray, seeds: int) -> tuple[np.ndarray, float]:
     """Configurations (j, n) inside the joint limits that reach ``point`` (m,) with every
-    actuator free, by Newton from ``seeds`` spread over the joint box; none where each misses."""
+    actuator free, by Newton from ``seeds`` spread over the joint box (none where each misses),
+    and the least distance by which a seed's configuration misses it, m."""
     target = np.broadcast_to(np.asarray(point, dtype=float), (seeds, robot.m))
     q, miss, _ = newton(robot, _seeds(robot, seeds), [], target, ITERATIONS, True)
-    return q[miss < FOUND]
+    return q[miss < FOUND], float(miss.min())
 
 
 def continue_held(

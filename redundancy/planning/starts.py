@@ -58,6 +58,7 @@ from redundancy.planning.brackets import (
 from redundancy.planning.ik import (
     FOUND,
     continue_held,
+    free_configurations,
     held_indices,
     held_names,
     inverse_kinematics,
@@ -77,11 +78,13 @@ from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
 from redundancy.resolution.limits import Limits, Violation, amount
 from redundancy.resolution.objectives import Objective, objectives_of
 from redundancy.resolution.objectives import objective as as_objective
+from redundancy.resolution.state import evaluate
 
 METHODS = ("fast", "sweep")
 MAX_SAMPLES = 10_000  # starts of one sweep, integrated as one batch: about 47 MB per 1,000
 GRID = 12  # integrated starts of the fast search's first round, evenly over the reachable ones
 REACH_GRID = 24  # starts whose reachability the fast search checks first, over the stroke
+ANCHOR_SEEDS = 8  # where mid-stroke is out of reach: seeds of the search for any start
 END_TOLERANCE = 5e-4  # of the held stroke: the fast search locates the feasible ends to this,
 # half the spacing of a 1,000-sample sweep
 ROUNDS = 8  # refinement rounds of the fast search, at most, per phase
@@ -329,7 +332,8 @@ class Starts:
 
 class Configurations:
     """Start configurations at the point of a segment for one held actuator, by continuation
-    from those found so far; seeded by multi-seed inverse kinematics at mid-stroke."""
+    from those found so far; seeded by multi-seed inverse kinematics at mid-stroke or, where the
+    point is out of reach there, with the held actuator free (its value where it reaches it)."""
 
     def __init__(self, robot: Robot, segment: Segment | Chain, held: str):
         point = segment.start
@@ -338,16 +342,16 @@ class Configurations:
         self.row = held_indices(robot, [held])[0]
         self.joints = Limits.joints(robot)
         self.scan = scan = sweep_values(robot, held, REACH_GRID)
-        order = np.argsort(np.abs(scan - scan.mean()), kind="stable")
-        anchor = inverse_kinematics(robot, point, [held], scan[order[:1], None])
-        if not anchor.reached[0]:
-            anchor = inverse_kinematics(robot, point, [held], scan[:, None])
-        found = anchor.reached
-        if not found.any():
+        middle = scan[np.argsort(np.abs(scan - scan.mean()), kind="stable")[:1]]
+        anchor = inverse_kinematics(robot, point, [held], middle[:, None])
+        if anchor.reached[0]:
+            self.known = (middle, anchor.q)
+            return
+        q, miss = free_configurations(robot, point, ANCHOR_SEEDS)  # the held actuator free
+        if not len(q):
             how = f"with {held} anywhere in its stroke inside its joint limits"
-            raise _unreachable(robot, segment, how, anchor.miss.min())
-        values = scan[order[:1]] if len(anchor.q) == 1 else scan
-        self.known = (values[found], anchor.q[found])
+            raise _unreachable(robot, segment, how, min(miss, anchor.miss[0]))
+        self.known = (evaluate(robot, q).x[:, self.row], q)
 
     def reachable(self, tolerance: float) -> np.ndarray:
         """The reachable held values, in order, of `REACH_GRID` starts over the stroke with the

@@ -222,7 +222,7 @@ def _reached(robot: Robot, cycle: WorkCycle) -> tuple[np.ndarray, tuple[bool, ..
         kept = strokes.margin(evaluate(robot, found.q).x) >= 0
         ok = bool(np.any(found.reached & kept))
         if not ok:  # a grid of several held actuators' values may pass between the solutions
-            free = free_configurations(robot, point, FREE_SEEDS)
+            free, _ = free_configurations(robot, point, FREE_SEEDS)
             ok = len(free) > 0 and bool(np.any(strokes.margin(evaluate(robot, free).x) >= 0))
         reached.append(ok)
     return points, tuple(reached)
