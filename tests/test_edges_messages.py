@@ -180,7 +180,7 @@ def test_a_load_pressure_beyond_the_circuits_physics_is_flagged_not_reported(tmp
     """The excavator's M_H-weighted law lifting to the truck (2-3) leaves the bucket's stroke
     towards its linkage's toggle, where the quasi-static model asks over 30,000 bar of the stick
     cylinder: the table and the report page flag it, and print no such pressure, nor the pump
-    energies that follow it."""
+    energies that follow it, nor their excess over an energy bound."""
     excavator = load_robot("excavator")
     text = excavator.task_file.read_text().replace('["1-2", "2-3", "3-1"]', '["2-3"]')
     (tmp_path / "task.toml").write_text(text)
@@ -201,7 +201,7 @@ def test_a_load_pressure_beyond_the_circuits_physics_is_flagged_not_reported(tmp
     assert f"{weighted['ls_energy_kj']:.2f}" not in line
     assert f"{weighted['cp_energy_kj']:.2f}" not in line
     page = _hydraulics(study.report()["comparison"], None)
-    assert page.count("beyond the circuit's physics") == 3  # p_L and the two energies
+    assert page.count("beyond the circuit's physics") == 5  # p_L, the energies, their excess
 
 
 def test_the_playback_draws_every_link_with_its_cylinders_points_inside_mesh_less_hulls(tmp_path):

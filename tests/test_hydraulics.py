@@ -5,6 +5,7 @@ import dataclasses
 import itertools
 import json
 import math
+import pickle
 import re
 from pathlib import Path
 
@@ -211,6 +212,47 @@ def test_hydraulic_objectives_run_through_the_searches(crane, cycle):
         best = search.motion()
         kilojoules = best.energy(getattr(crane.circuit(), supply))[0] / 1e3
         assert kilojoules == pytest.approx(search.best.peak, rel=5e-3)
+
+
+def test_a_pump_energy_study_runs_its_cycle_section_and_names_energies_as_energies(tmp_path):
+    """`study --objective ls_energy` with its cycle section, which runs in a second process:
+    the objective (a measure of a module function's partial) is sent back from it, where its
+    measure used to be a closure that could not be pickled (an internal error). Its value is
+    the integral of the pump power, in kJ: the tables, report.json and the figures' names say
+    so (they said "peak LS pump power (kW)"), and the per-segment plan's value over the cycle is
+    the sum of its segments' energies, not the largest."""
+    out = tmp_path / "out"
+    run = run_cli(
+        "study", "--objective", "ls_energy", "--samples", "10", "--cycles", "1", "--out", str(out)
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    report = json.loads((out / "report.json").read_text())
+    assert (report["studies"][0]["measure"], report["studies"][0]["unit"]) == (
+        "∫ LS pump power dt",
+        "kJ",
+    )
+    cycle = report["cycle"]
+    assert (cycle["measure"], cycle["unit"]) == ("∫ LS pump power dt", "kJ")
+    energies = [s["best"]["peak"] for s in cycle["per_segment"]["segments"]]
+    plan = re.search(r"per-segment plan: .*, ∫ LS pump power dt ([0-9.]+) kJ", run.stdout)
+    assert plan and float(plan.group(1)) == pytest.approx(sum(energies), rel=1e-4)
+    assert "peak LS" not in run.stdout and " kW" not in run.stdout
+    assert (out / "figa_peak_ls_energy.png").exists()
+
+
+def test_objectives_pickle_and_name_their_values():
+    """Every built-in objective survives pickling with the same measure; a peak is named as
+    one in the measure's unit, an integral of a power as an energy."""
+    space = actuator_space(load_robot("hiab031"), np.array([[0.3, -0.8, 0.5]]))
+    x_dot = np.array([[0.02, -0.03, 0.1]])
+    for objective in (VELOCITY, ENERGY, FLOW, LS_ENERGY, CP_ENERGY):
+        again = pickle.loads(pickle.dumps(objective))
+        if not objective.dynamic:
+            assert again.measure(space, x_dot) == objective.measure(space, x_dot)
+    units = {
+        o.name: (o.value_label, o.value_unit(space.robot.actuators)) for o in (VELOCITY, LS_ENERGY)
+    }
+    assert units == {"velocity": ("peak ẋᵀẋ", "m²/s²"), "ls_energy": ("∫ LS pump power dt", "kJ")}
 
 
 def test_limits_of_the_circuit_are_named(crane, motions):

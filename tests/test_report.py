@@ -186,7 +186,7 @@ def test_each_written_figure_name_has_a_caption():
     names = [
         "fig4a_peak_velocity.png",
         "fig5a_peak_energy.png",
-        "figflowa_peak_flow.png",
+        "figa_peak_flow.png",
         "fig4b_best_velocity_1-2.png",
         "fig4c_nonoptimal_velocity_1-2.png",
         "hydraulics_best_velocity_1-2.png",

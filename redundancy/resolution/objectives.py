@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 
@@ -61,6 +62,28 @@ class Objective:
             return "rad²/s²"
         return f"m²/s²; rad²/s² for {', '.join(rotary)}"
 
+    @property
+    def value_label(self) -> str:
+        """What the objective's value over a motion is called: "peak ẋᵀẋ", or for an integral
+        "∫ LS pump power dt"."""
+        return f"peak {self.label}" if self.reduction == "peak" else f"∫ {self.label} dt"
+
+    def value_unit(self, actuators) -> str:
+        """The unit of that value on these actuators: the measure's (`unit_of`), or for an
+        integral the measure's times a second (kW·s is kJ, W·s is J)."""
+        unit = self.unit_of(actuators)
+        if self.reduction == "peak":
+            return unit
+        return {"kW": "kJ", "W": "J"}.get(unit, f"{unit}·s")
+
+    def over_segments(self, values: Sequence[float | None]) -> float | None:
+        """The objective over consecutive segments from each one's value (None where unknown):
+        the largest peak known, or the sum of the integrals where every one is known."""
+        known = [v for v in values if v is not None]
+        if self.reduction == "peak":
+            return max(known) if known else None
+        return sum(known) if known and len(known) == len(values) else None
+
     def reduce(self, t: np.ndarray, values: np.ndarray) -> np.ndarray:
         """The objective of k motions from the measure ``values`` (k, T) at times t (k, T)."""
         if self.reduction == "peak":
@@ -90,13 +113,14 @@ def pump_flow(space: ActuatorSpace, x_dot: np.ndarray) -> np.ndarray:
 
 def pump_power(supply: str) -> Callable[[ActuatorSpace, np.ndarray], np.ndarray]:
     """The measure p_P Q_P (k,) in kW (its integral in kJ) under the circuit's ``supply``,
-    "load_sensing" or "constant_pressure", with the forces F_H of the states."""
+    "load_sensing" or "constant_pressure", with the forces F_H of the states: a partial of a
+    module function, so that an objective of it is sent to another process as any other."""
+    return partial(_pump_power, supply)
 
-    def power(space: ActuatorSpace, x_dot: np.ndarray) -> np.ndarray:
-        circuit = space.robot.circuit()
-        return circuit.flows(x_dot, space.F_H).power(getattr(circuit, supply)) / KILOJOULE
 
-    return power
+def _pump_power(supply: str, space: ActuatorSpace, x_dot: np.ndarray) -> np.ndarray:
+    circuit = space.robot.circuit()
+    return circuit.flows(x_dot, space.F_H).power(getattr(circuit, supply)) / KILOJOULE
 
 
 VELOCITY = Objective("velocity", MinVelocityNorm(), velocity_norm, "ẋᵀẋ", "m²/s²")

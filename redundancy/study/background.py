@@ -55,7 +55,11 @@ def _run(sender: Connection, parent: int, function: Callable[..., Any], args: tu
     signal.pthread_sigmask(signal.SIG_UNBLOCK, STOPPING)
     if "tqdm" in sys.modules:
         sys.modules["tqdm"].tqdm.set_lock(threading.RLock())
-    sender.send(_outcome(function, args))
+    outcome = _outcome(function, args)
+    try:
+        sender.send(outcome)
+    except Exception as error:  # a result that cannot be pickled: said there, in one line
+        sender.send(("error", RuntimeError(f"its result cannot be sent back: {error}")))
     sender.close()
     os._exit(0)
 

@@ -149,8 +149,8 @@ class CycleStudy:
         return {
             **report_header(self.robot, self.cycle, self.checked, self.circuit),
             "objective": self.objective.name,
-            "measure": self.objective.label,
-            "unit": self.objective.unit_of(self.robot.actuators),
+            "measure": self.objective.value_label,
+            "unit": self.objective.value_unit(self.robot.actuators),
             "held_actuator": self.held[0] if len(self.held) == 1 else list(self.held),
             "cycles": self.cycles,
             "duration_s": self.cycle.duration,

@@ -102,14 +102,19 @@ def solve_problem(family: MapFamily, index: int, segment, design: Design) -> lis
         values, q = default_start(robot, segment, family.held)
     except (UnreachableError, SingularConfigurationError) as error:  # a finding, not a fault
         return [
-            {**problem, "objective": o.name, "unit": o.unit, **empty, "reason": str(error)}
+            {**problem, "objective": o.name, "unit": o.value_unit(robot.actuators), **empty}
+            | {"reason": str(error)}
             for o in objectives
         ]
     margin = Limits.joints(robot).margin(q[None])
     start = Starts(values[None], q[None], margin, np.zeros(1))
     rows = []
     for objective, search in zip(objectives, searches):
-        row = {**problem, "objective": objective.name, "unit": objective.unit}
+        row = {
+            **problem,
+            "objective": objective.name,
+            "unit": objective.value_unit(robot.actuators),
+        }
         fallback = evaluate_starts(
             robot, segment, objective, family.held, start, circuit=family.circuit
         ).samples[0]

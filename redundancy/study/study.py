@@ -198,8 +198,8 @@ class Study:
             "studies": [
                 {
                     "objective": name,
-                    "measure": searches[0].objective.label if searches else None,
-                    "unit": searches[0].objective.unit_of(self.robot.actuators)
+                    "measure": searches[0].objective.value_label if searches else None,
+                    "unit": searches[0].objective.value_unit(self.robot.actuators)
                     if searches
                     else None,
                     "segments": [

@@ -84,10 +84,10 @@ def peaks_figure(
         if choice.best is not None:
             axes.plot(choice.best.values[0], choice.best.peak, "*", ms=12, color=colour)
     objective, held = searches[0].objective, searches[0].held[0]
-    measure = objective.unit_of(searches[0].robot.actuators)
+    measure = f"{objective.value_label} ({objective.value_unit(searches[0].robot.actuators)})"
     along = f"initial {held} ({searches[0].robot.actuators[held].unit})"
     segments = {"loc": "upper left", "fontsize": 8}
-    _labelled(figure, title, (f"peak {objective.label} ({measure})",), along, segments)
+    _labelled(figure, title, (measure,), along, segments)
     axes.add_artist(axes.get_legend())  # kept beside the encodings' own legend
     grey = "0.35"
     encodings = [
@@ -131,8 +131,8 @@ def peak_map_figure(
         pane.set_ylabel(f"initial {held[1]} ({actuators[held[1]].unit})")
         pane.set_title(f"segment {search.segment.name}")
         if feasible.any():
-            measure = objective.unit_of(actuators)
-            figure.colorbar(shown, ax=pane, label=f"peak {objective.label} ({measure})")
+            measure = f"{objective.value_label} ({objective.value_unit(actuators)})"
+            figure.colorbar(shown, ax=pane, label=measure)
     rest = held[2:]  # drawn over the first two; the others vary among the samples
     over = f"\nover {held[0]} and {held[1]}; {', '.join(rest)} as sampled" if rest else ""
     figure.suptitle(f"{title}; red: the feasible set's edge, ★ best, hollow: not feasible{over}")
@@ -156,7 +156,7 @@ def motion_figure(trajectory: Trajectory, title: str):
         f"actuator displacement x ({unit(actuators)})",
         f"actuator velocity ẋ ({unit(actuators, rate='/s')})",
     )
-    return _labelled(figure, title + "; dashed: stroke limits", labels)
+    return _labelled(figure, title + "\ndashed: stroke limits", labels)
 
 
 def hydraulics_figure(trajectory: Trajectory, title: str):
@@ -227,14 +227,15 @@ def study_figures(study: Study, segment: str | None = None) -> dict:
     """
     segment = segment or study.cycle.segments[0].name
     figures = {}
-    numbers = {"velocity": "4", "energy": "5"}
+    numbers = {"velocity": "4", "energy": "5"}  # the paper's figures; the others unnumbered
     for name, searches in study.searches.items():
-        number = numbers.get(name, name)
+        number = numbers.get(name, "")
         objective = searches[0].objective
+        value = objective.value_label
         drawn = peaks_figure if len(study.held) == 1 else peak_map_figure
         figures[f"fig{number}a_peak_{name}.png"] = drawn(
             study.sweeps[name],
-            f"Peak {objective.label} against the initial {' and '.join(study.held)}",
+            f"{value[0].upper()}{value[1:]} against the initial {' and '.join(study.held)}",
             searches,
         )
         search = study.search(name, segment)
@@ -242,17 +243,17 @@ def study_figures(study: Study, segment: str | None = None) -> dict:
             best = search.best_motion  # as the study ran it
             start = named_values(study.robot, study.held, search.best.values)
             figures[f"fig{number}b_best_{name}_{segment}.png"] = motion_figure(
-                best, f"min {objective.label}, segment {segment}, optimal start {start}"
+                best, f"min {value}, segment {segment}, optimal start {start}"
             )
             if study.robot.hydraulics is not None:
                 figures[f"hydraulics_best_{name}_{segment}.png"] = hydraulics_figure(
-                    best, f"Pump flow and pressures: min {objective.label}, segment {segment}"
+                    best, f"Pump flow and pressures: min {value}, segment {segment}"
                 )
         if name == "velocity":
             other, motion = study.nonoptimal(segment)
             nonoptimal = motion_figure(
                 motion,
-                f"min {objective.label}, segment {segment}, non-optimal start "
+                f"min {value}, segment {segment}, non-optimal start "
                 f"{named_values(study.robot, study.held, other.values)}",
             )
             figures[f"fig4c_nonoptimal_{name}_{segment}.png"] = nonoptimal

@@ -38,9 +38,10 @@ CAPTIONS = (
     ),
     (
         "fig*a_peak_*",
-        "The peak of the objective against the held actuators' initial values: colour the "
-        "peak, filled the feasible starts, hollow the others, the red line the feasible set's "
-        "edge, ★ the improved start.",
+        "The objective (its peak, or its integral) against the held actuators' initial "
+        "values: for one held actuator as Fig. 4a; for several, colour the objective, filled "
+        "the feasible starts, hollow the others, the red line the feasible set's edge, ★ the "
+        "improved start.",
     ),
     (
         "fig*b_best_*",
@@ -188,7 +189,7 @@ def _headline(study: dict, s: dict, held: str) -> str:
     above = "" if gap is None else f", {_percent(gap)} % above the bound"
     return (
         f"<li>{study['objective']}, segment {_e(s['name'])}: improved start {held} = "
-        f"{_number(s['best']['value'])}, peak {study['measure']} "
+        f"{_number(s['best']['value'])}, {study['measure']} "
         f"{s['best']['peak']:.4g} {study['unit']}{above}</li>"
     )
 
@@ -217,8 +218,8 @@ def _study_page(report: dict) -> tuple[str, str]:
                 "held": _number(s["held_actuator"]),
                 f"feasible starts ({held_unit})": _range(s["feasible_range"]),
                 f"best start ({held_unit})": _number(s["best"] and s["best"]["value"]),
-                f"peak {measure}": _number(s["best"] and s["best"]["peak"]),
-                f"bound {measure}": _number(s["bound"] and s["bound"]["peak"]),
+                measure: _number(s["best"] and s["best"]["peak"]),
+                f"bound, {measure}": _number(s["bound"] and s["bound"]["peak"]),
                 "gap to bound (%)": _percent(s["gap_percent"]),
                 "motions": s["simulations"],
                 "note": s["closest_violation"] or s.get("bound_failure") or "",
@@ -269,8 +270,8 @@ def _hydraulics(comparison: list[dict], bounds: dict | None) -> str:
                 "highest load pressure (bar)": beyond or _number(h["max_load_pressure_bar"], 3),
                 "LS energy (kJ)": beyond or _number(h["ls_energy_kj"]),
                 "CP energy (kJ)": beyond or _number(h["cp_energy_kj"]),
-                "above LS bound (%)": _percent(above.get("LS")),
-                "above CP bound (%)": _percent(above.get("CP")),
+                "above LS bound (%)": beyond or _percent(above.get("LS")),
+                "above CP bound (%)": beyond or _percent(above.get("CP")),
                 "shortest duration (s)": _number(h["shortest_duration_s"], 3),
                 "overrunning": _number(h["overrunning"]),
                 "circuit": _limits(h["violations"]),
@@ -312,7 +313,7 @@ def _cycle_body(cycle: dict) -> str:
         f"continuously, {cycle['cycles']} cycles, {_e(cycle['objective'])} objective, held "
         f"actuator {_e(held)} (values in {held_unit}). Whole-cycle improved start: "
         + (
-            f"{held} = {_number(best['value'])} (feasible {_range(whole['feasible_range'])}), peak "
+            f"{held} = {_number(best['value'])} (feasible {_range(whole['feasible_range'])}), "
             f"{measure} {best['peak']:.4g}."
             if best
             else f"none keeps the limits ({_e(whole.get('closest_violation'))})."
@@ -335,7 +336,7 @@ def _cycle_body(cycle: dict) -> str:
             "segment": s["name"],
             f"best start ({held_unit})": _number(s["best"] and s["best"]["value"]),
         }
-        | {f"peak {measure}": _number(s["best"] and s["best"]["peak"])}
+        | {measure: _number(s["best"] and s["best"]["peak"])}
         for s in per["segments"]
     ]
     text += _table(plan, "The paper's per-segment plan: each segment from its own best start.")
@@ -371,7 +372,7 @@ def _cycle_body(cycle: dict) -> str:
         strategies.append(
             {
                 "strategy": s["name"],
-                f"peak {measure}": _number(s["objective"]),
+                measure: _number(s["objective"]),
                 "LS energy per cycle (kJ)": _number(s.get("ls_energy_kj")),
                 "CP energy per cycle (kJ)": _number(s.get("cp_energy_kj")),
                 f"largest drift, first cycle ({_units(cycle)})": _number(drift[0], 3),

@@ -59,7 +59,7 @@ def study_table(study: Study) -> str:
     lines = text_table(RUN_COLUMNS | columns | {"limits": "<"}, rows)
     bounds = []
     for name, searches in study.searches.items():
-        unit = searches[0].objective.unit_of(actuators)
+        unit = searches[0].objective.value_unit(actuators)
         for search in searches:
             segment = search.segment.name
             head = [segment, name, unit]
@@ -116,7 +116,10 @@ def hydraulic_table(study: Study) -> str:
                         f"{figures['cp_energy_kj']:.2f}",
                     )
                 ),
-                *(f"{above[s]:.1f}" if s in above else "-" for s in ("LS", "CP")),
+                *(  # per cent above a bound, of energies not shown: not shown either
+                    f"{above[s]:.1f}" if s in above and not unphysical else "-"
+                    for s in ("LS", "CP")
+                ),
                 "-" if shortest is None else f"{shortest:.2f}",
                 note + ("held" if figures["within_limits"] else "; ".join(figures["violations"])),
             ]
@@ -155,7 +158,8 @@ def cycle_table(study: CycleStudy) -> str:
 def _plan_lines(study: CycleStudy) -> list[str]:
     """The whole-cycle improved start and the per-segment plan's starts."""
     plan, held = study.plan, study.held
-    unit, label = study.objective.unit_of(study.robot.actuators), study.objective.label
+    objective = study.objective
+    unit, label = objective.value_unit(study.robot.actuators), objective.value_label
     units = [study.robot.actuators[h].unit for h in held]
     search = plan.search
     if search.best is None:
@@ -168,17 +172,17 @@ def _plan_lines(study: CycleStudy) -> list[str]:
         ranges = ", ".join(span(lo, hi, u) for (lo, hi), u in zip(box, units))  # type: ignore[arg-type]
         whole = (
             f"whole-cycle improved start: {named_values(study.robot, held, search.best.values)} "
-            f"(feasible {ranges}), peak {label} {search.best_peak:.5g} {unit} "
+            f"(feasible {ranges}), {label} {search.best_peak:.5g} {unit} "
             f"({search.simulations} motions)"
         )
     starts = [
         "none" if s.best is None else ",".join(amount(v, u) for v, u in zip(s.best.values, units))
         for s in plan.segments
     ]
-    peaks = [peak for s in plan.segments if (peak := s.best_peak) is not None]
+    whole_plan = objective.over_segments([s.best_peak for s in plan.segments])
     per_segment = (
         f"per-segment plan: best starts {' / '.join(starts)}"
-        + (f", peak {label} {max(peaks):.5g} {unit}" if peaks else "")
+        + ("" if whole_plan is None else f", {label} {whole_plan:.5g} {unit}")
         + ", with a self-motion at every corner:"
     )
     return [whole, per_segment]
@@ -212,11 +216,11 @@ def _corner_lines(study: CycleStudy) -> list[str]:
 
 def _price_line(study: CycleStudy) -> str:
     """The drift-free strategy's peak and pump energies against the free improved cycle's."""
-    price, label = study.price() or {}, study.objective.label
-    unit = study.objective.unit_of(study.robot.actuators)
+    price, label = study.price() or {}, study.objective.value_label
+    unit = study.objective.value_unit(study.robot.actuators)
     free, periodic = study.costs["free"].figures(), study.costs["periodic"].figures()
     parts = [
-        f"peak {label} {free['objective']:.5g} → {periodic['objective']:.5g} {unit} "
+        f"{label} {free['objective']:.5g} → {periodic['objective']:.5g} {unit} "
         f"({price['objective']:+.1f} %)"
     ]
     for key, name in (("ls_energy_kj", "LS"), ("cp_energy_kj", "CP")):
