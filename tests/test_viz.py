@@ -655,11 +655,13 @@ def test_the_reachable_area_is_the_free_one_less_what_passes_a_stroke(crane):
     assert np.array_equal(kept, free[inside])
 
 
-def test_a_gauge_names_the_circuit_limit_a_cylinder_passes():
+def test_a_gauge_names_every_limit_a_cylinder_is_at_or_past():
     """The M_H-weighted law from the default start of 1-2 drives the telescope faster than its
-    cylinder's maximum speed, then past its stroke: at each shown sample each actuator's alarm
-    is "speed" past the cylinder's speed, else "pressure" past the load pressure the supply
-    serves, else "stroke" within 1 mm of a stroke end or past it, else none."""
+    cylinder's maximum speed, then past its stroke: at each shown sample each actuator's gauge
+    says "at its stroke limit" within 1 mm of a stroke end, "past its stroke limit" beyond it,
+    and "past its speed limit" and "past its pressure limit" past the cylinder's speed and the
+    load pressure the supply serves, each that holds. A gauge used to say "at its stroke limit"
+    a metre past it, and only the speed where both were passed."""
     from redundancy import ENERGY
     from redundancy.planning.starts import default_start
 
@@ -672,15 +674,32 @@ def test_a_gauge_names_the_circuit_limit_a_cylinder_passes():
     circuit = robot.circuit()
     x, x_dot = motion.x[0, shown], motion.x_dot[0, shown]
     lower, upper = robot.actuators.lower, robot.actuators.upper
-    expected = np.where(np.minimum(x - lower, upper - x) <= 1e-3, "stroke", "").astype(object)
-    cylinders = circuit.columns
-    pressure = motion.flows.load[0, shown] > circuit.supply.available(circuit.relief)
-    speed = np.abs(x_dot[:, cylinders]) > circuit.max_speeds
-    expected[:, cylinders] = np.where(
-        speed, "speed", np.where(pressure, "pressure", expected[:, cylinders])
+    past = np.maximum(lower - x, x - upper) > 1e-3
+    at = np.minimum(x - lower, upper - x) <= 1e-3
+    speed = np.zeros_like(past)
+    pressure = np.zeros_like(past)
+    speed[:, circuit.columns] = np.abs(x_dot[:, circuit.columns]) > circuit.max_speeds
+    pressure[:, circuit.columns] = motion.flows.load[0, shown] > circuit.supply.available(
+        circuit.relief
     )
-    assert (expected == "speed").any() and (expected == "stroke").any()
-    assert playback.alarms().tolist() == expected.tolist()
+    expected = [
+        [
+            "; ".join(
+                word
+                for word, holds in (
+                    ("past its stroke limit", p),
+                    ("at its stroke limit", a and not p),
+                    ("past its speed limit", v),
+                    ("past its pressure limit", f),
+                )
+                if holds
+            )
+            for p, a, v, f in zip(*row)
+        ]
+        for row in zip(past, at, speed, pressure)
+    ]
+    assert past.any() and speed.any()
+    assert playback.alarms().tolist() == expected
 
 
 def test_with_four_held_actuators_the_star_is_at_the_first_two_values(request):

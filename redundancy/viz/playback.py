@@ -439,25 +439,26 @@ class Playback:
         return placed, limited
 
     def alarms(self) -> np.ndarray:
-        """Which limit each actuator is at or past at each shown sample, (S, n) text: "stroke"
-        within `LIMIT_MARGIN` of a stroke's end; with a hydraulic circuit and masses, "speed" or
-        "pressure" past the cylinder's maximum speed or the load pressure the supply serves (the
-        motion's own `hydraulic_values`); else ""."""
+        """Which limits each actuator is at or past at each shown sample, (S, n) text: "at its
+        stroke limit" within `LIMIT_MARGIN` of a stroke's end, "past its stroke limit" beyond it;
+        with a hydraulic circuit and masses also "past its speed limit" or "past its pressure
+        limit" past the cylinder's maximum speed or the load pressure the supply serves (the
+        motion's own `hydraulic_values`), each that holds, joined by "; "; else ""."""
         motion, robot = self.motion, self.robot
         actuators = robot.actuators
-        found = np.where(
-            at_stroke_limit(motion.x[0, self.samples], actuators.lower, actuators.upper),
-            "stroke",
-            "",
-        ).astype(object)
+        x = motion.x[0, self.samples]
+        beyond = np.maximum(actuators.lower - x, x - actuators.upper) > LIMIT_MARGIN
+        at = at_stroke_limit(x, actuators.lower, actuators.upper)
+        stroke = np.where(beyond, "past its stroke limit", np.where(at, "at its stroke limit", ""))
+        found = [[[word] if word else [] for word in row] for row in stroke.tolist()]
         if robot.hydraulics is not None and not robot.kinematic_only:
             circuit = robot.circuit()
             c = len(circuit.names)
             past = motion.hydraulic_limits.excess(motion.hydraulic_values[0, self.samples]) > 0
-            for kind, columns in (("pressure", slice(0, c)), ("speed", slice(c + 1, 2 * c + 1))):
-                rows, cylinders = np.nonzero(past[:, columns])
-                found[rows, circuit.columns[cylinders]] = kind
-        return found
+            for kind, columns in (("speed", slice(c + 1, 2 * c + 1)), ("pressure", slice(0, c))):
+                for row, cylinder in zip(*np.nonzero(past[:, columns])):
+                    found[row][circuit.columns[cylinder]].append(f"past its {kind} limit")
+        return np.array([["; ".join(words) for words in row] for row in found], dtype=object)
 
     def overlay(self, title: str) -> dict:
         """What the page shows over the scene, JSON-ready: its ``title``, the grid's spacing (m),
