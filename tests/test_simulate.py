@@ -69,6 +69,26 @@ def test_actuator_forces_along_a_motion_match_inverse_dynamics(crane, cycle):
     np.testing.assert_allclose(trajectory.forces[0, inner], expected, rtol=1e-3)
 
 
+def test_accelerations_of_a_lone_motion_sampled_at_its_steps_are_taken_at_its_own_times(
+    crane, cycle
+):
+    """ẍ of motions sampled at their adaptive steps is differenced at each motion's own times.
+    A batch of one motion has one row of times, which used to pass for a uniform grid: its ẍ
+    by fourth-order differences with the first interval as h was off by up to 1.3 m/s² (the
+    motion's largest is 0.07), and its LS energy 8.5 % low, where the searches and the design
+    maps integrate a probe alone. Alone or beside another start, the motion's ẍ is the same,
+    and its LS energy within 0.2 % of the motion's on a 10 ms grid."""
+    segment = cycle["1-2"]
+    (a, b) = reachable_starts(crane, segment, [1.085, 1.0])
+    resolver = LS_ENERGY.resolver
+    alone = simulate(crane, resolver, segment, a[None], sparse=True)
+    pair = simulate(crane, resolver, segment, np.stack([a, b]), sparse=True)
+    count = alone.counts[0]
+    np.testing.assert_allclose(alone.x_ddot[0, :count], pair.x_ddot[0, :count], atol=1e-12)
+    grid = simulate(crane, resolver, segment, a[None], tolerance=1e-10)
+    assert alone.score(LS_ENERGY)[0] == pytest.approx(grid.score(LS_ENERGY)[0], rel=2e-3)
+
+
 def test_limits_are_flagged_with_actuator_time_and_excess(crane, cycle):
     segment = cycle["3-1"]
     values = np.linspace(0.0, 0.9, 10)
@@ -489,6 +509,28 @@ def test_a_polyline_is_integrated_to_its_tolerance_across_its_corners(crane):
     reference = simulate(crane, VELOCITY.resolver, path, start, tolerance=1e-10)
     assert motion.max_tracking_error[0] < 1e-4
     assert np.abs(motion.x - reference.x).max() < integrate.ALLOWANCE * integrate.TOLERANCE
+
+
+def test_accelerations_and_forces_do_not_grow_at_a_corner_as_the_samples_get_closer(crane):
+    """Turning a polyline's corner at speed ẋ jumps: differences of ẋ across the corner made ẍ,
+    the forces and the load pressures there grow as 1/Δt (353 bar at 10 ms, 2,775 at 1 ms on a
+    forwarder crane). ẍ is taken within each piece between corners now: the largest ẍ and
+    load pressure of the motion sampled every 10 ms and every 2.5 ms agree to 2 %, and beside
+    the corners ẍ is the motion's own (against the finer grid, to 1e-3 of the largest)."""
+    corners = np.array([[3.5, -0.5], [3.0, 0.5], [2.5, -0.2]])
+    path = Segment.along("recorded", Polyline(corners), 0.5)
+    _, start = default_start(crane, path)
+    coarse, fine = (
+        simulate(crane, ENERGY.resolver, path, start, step, tolerance=1e-10)
+        for step in (0.01, 0.0025)
+    )
+    largest = np.abs(fine.x_ddot).max()
+    assert np.abs(coarse.x_ddot).max() == pytest.approx(largest, rel=0.02)
+    load = [m.flows.load[0].max() for m in (coarse, fine)]
+    assert load[0] == pytest.approx(load[1], rel=0.02)
+    far = np.abs(coarse.t[0][:, None] - path.breaks).min(axis=1) > 0.05
+    on_fine = np.interp(coarse.t[0][far], fine.t[0], fine.x_ddot[0, :, 1])
+    assert np.abs(coarse.x_ddot[0, far, 1] - on_fine).max() < 1e-3 * largest
 
 
 def test_the_time_at_an_arc_length_inverts_the_speed_profile():

@@ -273,17 +273,23 @@ class Trajectory:
 
     @cached_property
     def x_ddot(self) -> np.ndarray:
-        """ẍ (k, T, n) in m/s², by differences of ẋ in time: on a uniform grid, fourth-order
-        central differences inside and second-order ones at the two samples of each end;
-        otherwise second-order ones of each motion's own samples (repeated last samples repeat
-        the last value); a motion of its start alone, frozen there, is at rest."""
-        if self.t.shape[1] > 1 and np.all(self.t == self.t[:1]):
-            return rate_on_grid(self.x_dot, self.t[0])
+        """ẍ (k, T, n) in m/s², by differences of ẋ in time (`rate_on_grid`) within each piece
+        of the path between its `breaks`, where ẏ_d is not smooth: no difference spans a corner
+        the path turns at speed, where ẋ jumps, so ẍ does not grow as the samples get closer
+        there (the corner's impulse is not in it), nor a ramp's end, where ẍ jumps. A sample at
+        a break ends the piece before it (its ẋ is that piece's). Each motion's own samples
+        (repeated last samples repeat the last value); a motion of its start alone, frozen
+        there, is at rest."""
         out = np.zeros_like(self.x_dot)
+        breaks, duration = self.segment.breaks, self.segment.duration
+        if np.all(self.t == self.t[:1]):  # one time for every motion: at once
+            for piece in _pieces(self.t[0], breaks, duration):
+                out[:, piece] = rate_on_grid(self.x_dot[:, piece], self.t[0, piece])
+            return out
         for i, (times, count) in enumerate(zip(self.t, self.counts)):
-            if count > 1:
-                out[i, :count] = np.gradient(self.x_dot[i, :count], times[:count], axis=0)
-                out[i, count:] = out[i, count - 1]
+            for piece in _pieces(times[:count], breaks, duration):
+                out[i, piece] = rate_on_grid(self.x_dot[i : i + 1, piece], times[piece])[0]
+            out[i, count:] = out[i, count - 1]
         return out
 
     @cached_property
@@ -484,13 +490,32 @@ def stroke_extremes(
 
 
 def rate_on_grid(values: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """d/dt of ``values`` (k, T, ...) sampled on the uniform grid t (T,): (f₋₂ − 8 f₋₁ + 8 f₁ −
-    f₂) / 12h inside, O(h⁴), and second-order differences at the two samples of each end."""
-    rate = np.gradient(values, t, axis=1, edge_order=2)
-    if len(t) >= 5:
-        f, h = values, t[1] - t[0]
+    """d/dt of ``values`` (k, T, ...) sampled at times t (T,): second-order differences (first-
+    order ones of two samples, 0 for one), and on a uniform grid of five samples or more
+    (f₋₂ − 8 f₋₁ + 8 f₁ − f₂) / 12h inside, O(h⁴)."""
+    if len(t) < 2:
+        return np.zeros_like(values)
+    rate = np.gradient(values, t, axis=1, edge_order=2 if len(t) > 2 else 1)
+    steps = np.diff(t)
+    if len(t) >= 5 and np.all(np.abs(steps - steps[0]) <= 1e-9 * steps[0]):
+        f, h = values, steps[0]
         rate[:, 2:-2] = (f[:, :-4] - 8 * f[:, 1:-3] + 8 * f[:, 3:-1] - f[:, 4:]) / (12 * h)
     return rate
+
+
+def _pieces(t: np.ndarray, breaks: np.ndarray, duration: float) -> list[slice]:
+    """The runs of samples at times t (T,) between the ``breaks`` (a sample within 1e-9 of the
+    ``duration`` after a break, or before it, ends the run before), as slices; a run of one
+    sample joins the one before it (or after it, first), where its ẋ alone gives no rate."""
+    piece = np.searchsorted(breaks, t - 1e-9 * duration, side="left")
+    starts = [0, *(np.flatnonzero(np.diff(piece)) + 1)]
+    runs: list[list[int]] = []
+    for a, b in zip(starts, [*starts[1:], len(t)]):
+        if runs and (b - a == 1 or runs[-1][1] - runs[-1][0] == 1):
+            runs[-1][1] = b
+        else:
+            runs.append([a, b])
+    return [slice(a, b) for a, b in runs]
 
 
 def time_grid(segment: Segment, time_step: float = TIME_STEP) -> np.ndarray:

@@ -505,6 +505,13 @@ class Chain:
         """One pass through every segment, s."""
         return float(self.offsets[-1])
 
+    @cached_property
+    def breaks(self) -> np.ndarray:
+        """The times in (0, duration), s, where ẏ_d is not smooth, (b,): the corners between
+        segments and each segment's own `Segment.breaks`."""
+        inner = [s.breaks + offset for s, offset in zip(self.segments, self.offsets)]
+        return np.unique(np.concatenate([self.offsets[1:-1], *inner]))
+
     def _each(self, t, method):
         t, piece = _piece(self.offsets, t)
         out = np.empty((*t.shape, len(self.start)))
