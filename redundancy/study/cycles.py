@@ -184,6 +184,7 @@ class CycleStudy:
                 "start_value": scalar_or_list(np.atleast_1d(self.periodic.r[0])),
                 "change": self.periodic.change,
                 "converged": self.periodic.converged,
+                "failure": self.periodic.failure,
                 "grids": [g.intervals for g in self.periodic.grids],
             },
             "periodic_versus_free_percent": self.price(),

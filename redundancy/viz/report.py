@@ -388,7 +388,12 @@ def _cycle_body(cycle: dict) -> str:
     versus = cycle.get("periodic_versus_free_percent")
     if versus:
         change = ", ".join(f"{k.replace('_kj', '')} {v:+.1f} %" for k, v in versus.items())
-        text += f"<p>The drift-free strategy against the free improved cycle: {_e(change)}.</p>\n"
+        failure = (cycle.get("periodic") or {}).get("failure")
+        caveat = f" The periodic plan is not shown optimal: {failure}." if failure else ""
+        text += (
+            f"<p>The drift-free strategy against the free improved cycle: {_e(change)}."
+            f"{_e(caveat)}</p>\n"
+        )
     mapped = cycle.get("return_map") or {}
     points = [
         {

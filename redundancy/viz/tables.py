@@ -228,7 +228,11 @@ def _price_line(study: CycleStudy) -> str:
             parts.append(
                 f"{name} pump energy {free[key]:.2f} → {periodic[key]:.2f} kJ ({price[key]:+.1f} %)"
             )
-    return "drift-free against the free improved cycle: " + "; ".join(parts)
+    line = "drift-free against the free improved cycle: " + "; ".join(parts)
+    failure = study.periodic.failure if study.periodic is not None else None
+    if failure is not None:  # the motions compare; the plan is not shown to be the optimum
+        line += f" (the periodic plan is not shown optimal: {failure})"
+    return line
 
 
 def _repetition_table(study: CycleStudy) -> str:
