@@ -523,6 +523,24 @@ def test_check_finds_where_a_cylinder_line_passes_through_its_joint_axis(tmp_pat
     assert any("x1: A is singular at boom_joint" in line for line in found.blocking())
 
 
+def test_check_refuses_a_segment_the_study_refuses_between_reachable_ends(tmp_path, capsys):
+    """An arc from the crane's point 1 to point 2 through (2.25, 4.5) m leaves the crane's
+    reach between its ends, which check found reached and called the task "ready for a study";
+    the study then refused it. Check now says what the study says, naming the segment and the
+    point out of reach, and exits 2; with the arc through (2.25, 1.0) m it is ready."""
+    task = tmp_path / "task.toml"
+    text = 'held = ["x3"]\nsegments = [{{ from = "1", to = "2", via = "v" }}]\n[points]\n'
+    text += "1 = [3.5, -0.5]\n2 = [1.0, -0.5]\nv = [2.25, {height}]\n"
+    task.write_text(text.format(height=4.5))
+    status = main(["check", "--robot", "hiab031", "--task", str(task)])
+    out = capsys.readouterr().out
+    assert status == 2
+    assert "task points:" in out and "NOT reached" not in out
+    assert "cannot follow segment 1-2: its point" in out and "out of reach" in out
+    task.write_text(text.format(height=1.0))
+    assert main(["check", "--robot", "hiab031", "--task", str(task)]) == 0
+
+
 def test_check_reaches_a_point_a_grid_of_four_held_joints_passes_between(tmp_path):
     """The Panda holds four joints: a grid of 3 values each (81 combinations) reaches neither
     of these points, which the arm reaches with its joints free, inside their ranges; check
@@ -547,7 +565,7 @@ def test_check_reaches_a_point_a_grid_of_four_held_joints_passes_between(tmp_pat
     found = check(robot, cycle)
     by_point = {tuple(np.round(p, 3)): ok for p, ok in zip(found.points, found.reached)}
     assert by_point == {(0.45, 0.0, 0.55): True, (0.5, 0.0, 0.5): True, (2.0, 0.0, 0.5): False}
-    free = free_configurations(robot, np.array([0.45, 0.0, 0.55]), 64)
+    free, _ = free_configurations(robot, np.array([0.45, 0.0, 0.55]), 64)
     assert len(free) and np.all((free >= robot.lower) & (free <= robot.upper))
     y = robot.task_point(robot.kinematics(free))[0]
     assert np.abs(y - [0.45, 0.0, 0.55]).max() < FOUND

@@ -20,10 +20,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from redundancy.errors import InvalidInputError, placed
+from redundancy.errors import (
+    InvalidInputError,
+    SingularConfigurationError,
+    UnreachableError,
+    placed,
+)
 from redundancy.model.robot import Robot, require_robot
 from redundancy.planning.angles import task_labels
-from redundancy.planning.ik import free_configurations, inverse_kinematics
+from redundancy.planning.ik import check_path, free_configurations, inverse_kinematics
 from redundancy.planning.starts import held_actuators, stroke_box
 from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.limits import Limits, amount
@@ -93,6 +98,7 @@ class Check:
     points: np.ndarray | None
     reached: tuple[bool, ...]
     held: tuple[str, ...] = ()  # why the task's held actuators cannot be held (`held_problems`)
+    paths: tuple[str, ...] = ()  # the segments a study refuses between their ends (`_paths`)
 
     def blocking(self) -> list[str]:
         """What stops a study, one line each (empty when the robot is ready)."""
@@ -115,7 +121,7 @@ class Check:
                 for p, ok in zip(self.points, self.reached)
                 if not ok
             ]
-        return found
+        return found + list(self.paths)
 
 
 def held_problems(robot: Robot, cycle: WorkCycle, sampled: bool = True) -> list[str]:
@@ -245,11 +251,28 @@ def check(robot: Robot, cycle: WorkCycle | None = None) -> Check:
     points: np.ndarray | None = None
     reached_points: tuple[bool, ...] = ()
     held: list[str] = []
+    paths: tuple[str, ...] = ()
     if cycle is not None and robot.n > robot.m:  # with no redundancy, the one blocking line
         held = held_problems(robot, cycle)
         if not held:
             points, reached_points = _reached(robot, cycle)
-    return Check(robot, actuators, points, reached_points, tuple(held))
+            paths = _paths(robot, cycle, points[~np.array(reached_points)])
+    return Check(robot, actuators, points, reached_points, tuple(held), paths)
+
+
+def _paths(robot: Robot, cycle: WorkCycle, missed: np.ndarray) -> tuple[str, ...]:
+    """Why a study refuses a segment between its ends, as the study says it (`check_path`):
+    a point of an arc or a recorded path out of reach, or a start where the tool cannot move
+    along some task direction; segments ending at a ``missed`` point are named by that."""
+    found = []
+    for segment in cycle.segments:
+        if any(np.array_equal(segment.start, p) or np.array_equal(segment.end, p) for p in missed):
+            continue
+        try:
+            check_path(robot, segment)
+        except (UnreachableError, SingularConfigurationError) as error:
+            found.append(str(error))
+    return tuple(found)
 
 
 def reachable_points(robot: Robot, checked: tuple[str, ...], seed: int = 0) -> np.ndarray:
