@@ -523,6 +523,34 @@ def test_check_finds_where_a_cylinder_line_passes_through_its_joint_axis(tmp_pat
     assert any("x1: A is singular at boom_joint" in line for line in found.blocking())
 
 
+def test_check_names_where_a_linkage_cannot_close_and_why_it_is_singular(tmp_path, capsys):
+    """The excavator's bucket linkage with a rocker of 0.25 m instead of 0.454 m closes only
+    from 63.5° of the bucket joint on, whose range starts at 60.15°: check printed the values
+    reached as [∞, ∞] (a numpy warning beside) or ended in the kind's error; it now names the
+    range where the linkage cannot close as a problem that blocks a study, and the values
+    reached where it closes. Where A is singular on a linkage, it says so of the linkage, not
+    of the cylinder's line through the joint axis."""
+    from redundancy.model.loading import bundled_root
+
+    source = bundled_root() / "excavator"
+    for name in ("robot.toml", "task.toml"):
+        (tmp_path / name).write_text((source / name).read_text())
+    urdf = (source / "excavator.urdf").read_text()
+    (tmp_path / "excavator.urdf").write_text(urdf.replace('length="0.4539"', 'length="0.25"'))
+    status = main(["check", "--robot", str(tmp_path / "robot.toml")])
+    out, err = capsys.readouterr()
+    assert status == 2 and not err, err
+    assert "bucket   on bucket_joint       reaches [1087 mm, 1524 mm]" in out
+    assert (
+        "1 problem blocks a study: bucket: its linkage cannot close for bucket_joint within "
+        "[60.15°, 63.5°]" in out
+    )
+    robot = quietly(tmp_path / "robot.toml")
+    bucket = check(robot).actuators[2]
+    assert bucket.linkage and "linkage" in bucket.why_singular
+    assert not check(robot).actuators[0].linkage
+
+
 def test_check_refuses_a_segment_the_study_refuses_between_reachable_ends(tmp_path, capsys):
     """An arc from the crane's point 1 to point 2 through (2.25, 4.5) m leaves the crane's
     reach between its ends, which check found reached and called the task "ready for a study";

@@ -26,6 +26,7 @@ from redundancy.errors import (
     UnreachableError,
     placed,
 )
+from redundancy.model.linkage import LinkageCylinder
 from redundancy.model.robot import Robot, require_robot
 from redundancy.planning.angles import task_labels
 from redundancy.planning.ik import check_path, free_configurations, inverse_kinematics
@@ -46,17 +47,28 @@ NO_LIMIT = 1e3  # m or rad: a joint range wider is a URDF's "no limit" (±1e16),
 @dataclass(frozen=True)
 class ActuatorCheck:
     """One actuator over its joint's range: the ``reached`` values [min, max] of x_i against
-    its ``stroke``, and the joint values (its joint's unit) where A is ``singular``, with x_i
-    there (``singular_x``)."""
+    its ``stroke``, the joint values (its joint's unit) where A is ``singular``, with x_i
+    there (``singular_x``), and the joint values [min, max] where x_i is ``undefined`` (a
+    linkage that cannot close), or None. ``linkage``: it drives its joint through a four-bar
+    linkage."""
 
     name: str
     joint: str
     rotary: bool
     joint_rotary: bool
+    linkage: bool
     stroke: tuple[float, float]
     reached: tuple[float, float]
     singular: tuple[float, ...]
     singular_x: tuple[float, ...]
+    undefined: tuple[float, float] | None
+
+    @property
+    def why_singular(self) -> str:
+        """Why A is singular where it is: the actuator cannot move its joint there."""
+        if self.linkage:
+            return "a line of its linkage passes through a pivot (a dead centre)"
+        return "its line passes through the joint axis"
 
     @property
     def unreachable(self) -> bool:
@@ -78,14 +90,22 @@ class ActuatorCheck:
 
     def singular_lines(self) -> list[str]:
         """One line per singular configuration inside the stroke, naming the joint value and
-        the actuator's value there."""
+        the actuator's value there, and one where the actuator is not defined over part of its
+        joint's range."""
         unit = "rad" if self.rotary else "m"
-        return [
+        found = [
             f"{self.name}: A is singular at {self.joint} = {self.joint_value(joint)} "
             f"({self.name} = {amount(x, unit)}, inside its stroke)"
             for joint, x in zip(self.singular, self.singular_x)
             if self.stroke[0] <= x <= self.stroke[1]
         ]
+        if self.undefined is not None:
+            low, high = (self.joint_value(v) for v in self.undefined)
+            found.append(
+                f"{self.name}: its linkage cannot close for {self.joint} within [{low}, {high}], "
+                f"inside the joint's range: keep {self.joint}'s limits where it closes"
+            )
+        return found
 
 
 @dataclass(frozen=True)
@@ -189,11 +209,12 @@ def span(lower: float, upper: float, unit: str) -> str:
     return f"[{ends[0]}, {ends[1]}]"
 
 
-def _sweep(robot: Robot, column: int, row: int) -> tuple[tuple, tuple, tuple]:
-    """Actuator ``row`` over joint ``column``'s range: its values' [min, max], and the joint
-    values where det A vanishes or changes sign, with the actuator's value there. A range is
-    swept as declared, wider than a turn too (a slew of ±200°), unless it is unbounded or a
-    URDF's "no limit" (`NO_LIMIT`): then over the turn of `Robot.span`."""
+def _sweep(robot: Robot, column: int, row: int) -> tuple:
+    """Actuator ``row`` over joint ``column``'s range: its values' [min, max] where defined,
+    the joint values where det A vanishes or changes sign, with the actuator's value there, and
+    the joint values [min, max] where the actuator is not defined (None where it is
+    everywhere). A range is swept as declared, wider than a turn too (a slew of ±200°), unless
+    it is unbounded or a URDF's "no limit" (`NO_LIMIT`): then over the turn of `Robot.span`."""
     declared = robot.upper - robot.lower <= NO_LIMIT  # False where unbounded
     turn_lower, turn_upper = robot.span
     lower = np.where(declared, robot.lower, turn_lower)
@@ -201,13 +222,21 @@ def _sweep(robot: Robot, column: int, row: int) -> tuple[tuple, tuple, tuple]:
     q = np.repeat(((lower + upper) / 2)[None], SWEEP, axis=0)
     q[:, column] = np.linspace(lower[column], upper[column], SWEEP)
     space = evaluate(robot, q)
-    x, det = space.x[:, row], np.linalg.det(space.A)
+    x = space.x[:, row]
+    defined = np.isfinite(x) & np.isfinite(space.A).all(axis=(1, 2))
+    det = np.full(SWEEP, np.nan)  # no sign, so no singular configuration, where undefined
+    det[defined] = np.linalg.det(space.A[defined])
     i = np.flatnonzero((np.sign(det[:-1]) * np.sign(det[1:]) < 0) | (det[:-1] == 0))
     step = det[i] - det[i + 1]  # nonzero where the sign changes
     weight = np.divide(det[i], step, out=np.zeros_like(step), where=det[i] != 0)
     singular = q[i, column] + weight * (q[i + 1, column] - q[i, column])
     singular_x = x[i] + weight * (x[i + 1] - x[i])
-    return (float(x.min()), float(x.max())), tuple(singular.tolist()), tuple(singular_x.tolist())
+    reached = (
+        (float(x[defined].min()), float(x[defined].max())) if defined.any() else (np.inf, -np.inf)
+    )
+    outside = q[~defined, column]
+    undefined = (float(outside.min()), float(outside.max())) if outside.size else None
+    return reached, tuple(singular.tolist()), tuple(singular_x.tolist()), undefined
 
 
 def _reached(robot: Robot, cycle: WorkCycle) -> tuple[np.ndarray, tuple[bool, ...]]:
@@ -243,6 +272,7 @@ def check(robot: Robot, cycle: WorkCycle | None = None) -> Check:
             a.joint,
             bool(a.rotary),
             bool(robot.rotary_joints[a.index]),
+            isinstance(a, LinkageCylinder),
             (a.lower, a.upper),
             *_sweep(robot, a.index, row),
         )
@@ -254,7 +284,7 @@ def check(robot: Robot, cycle: WorkCycle | None = None) -> Check:
     paths: tuple[str, ...] = ()
     if cycle is not None and robot.n > robot.m:  # with no redundancy, the one blocking line
         held = held_problems(robot, cycle)
-        if not held:
+        if not held and not any(a.undefined for a in actuators):  # its points next, if it can
             points, reached_points = _reached(robot, cycle)
             paths = _paths(robot, cycle, points[~np.array(reached_points)])
     return Check(robot, actuators, points, reached_points, tuple(held), paths)

@@ -295,8 +295,13 @@ def check_table(found: Check) -> str:
             inside = a.stroke[0] <= x <= a.stroke[1]
             lines.append(
                 f"    A singular at {a.joint} = {a.joint_value(value)} ({a.name} = "
-                f"{amount(x, unit)}, {'inside' if inside else 'outside'} the stroke): its "
-                "line passes through the joint axis"
+                f"{amount(x, unit)}, {'inside' if inside else 'outside'} the stroke): "
+                + a.why_singular
+            )
+        if a.undefined is not None:
+            low, high = (a.joint_value(v) for v in a.undefined)
+            lines.append(
+                f"    not defined for {a.joint} within [{low}, {high}]: its linkage cannot close"
             )
     if robot.kinematic_only:
         lines.append(
@@ -324,6 +329,8 @@ def check_table(found: Check) -> str:
     lines.append(
         "ready for a study"
         if not problems
-        else f"{len(problems)} problems block a study: " + "; ".join(problems)
+        else ("1 problem blocks" if len(problems) == 1 else f"{len(problems)} problems block")
+        + " a study: "
+        + "; ".join(problems)
     )
     return "\n".join(lines)
