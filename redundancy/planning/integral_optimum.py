@@ -181,14 +181,18 @@ EnergyOptimum = IntegralOptimum  # the energy bound's result, by its earlier nam
 
 
 def _nodes(robot: Robot, segment: Segment, rows: list[int], values: np.ndarray, t: np.ndarray):
-    """Configurations q (N + 1, G, n) inside the joint ranges reaching y_d(t_j) with the held
+    """Configurations q (N + 1, G, n) reaching y_d(t_j) with the held
     actuators ``rows`` at each of ``values`` (G, r), and where they were found (N + 1, G):
     projected Newton steps (`newton`, bounded) from the previous node's configuration, or from
     `inverse_kinematics`'s spread of seeds where none was found, then, where that misses, from
     the configuration found at the nearest held values of the same node. Keeping to the joint
-    ranges keeps to one assembly branch: a cylinder's length is the same at q and −q."""
+    ranges keeps to one assembly branch: a cylinder's length is the same at q and −q. Last,
+    held values a grid step beyond those found are continued from them past the joint ranges
+    (unbounded), so that a cell reaches across a joint limit and a path can ride the limit
+    (the tables check the joint ranges where they interpolate)."""
     held = [robot.actuators.names[row] for row in rows]
     points = segment.position(t)
+    step = np.array([np.diff(np.unique(v)).min(initial=np.inf) for v in values.T])
     q = np.empty((len(t), len(values), robot.n))
     found = np.zeros((len(t), len(values)), dtype=bool)
     target = np.column_stack([np.empty((len(values), robot.m)), values])
@@ -200,13 +204,18 @@ def _nodes(robot: Robot, segment: Segment, rows: list[int], values: np.ndarray, 
         if not found[j].any():
             seeded = inverse_kinematics(robot, point, held, values)
             q[j], found[j] = seeded.q, seeded.reached
-        missing = np.flatnonzero(~found[j])
-        if missing.size and found[j].any():
+        for bounded in (True, False):
+            missing = np.flatnonzero(~found[j])
+            if not (missing.size and found[j].any()):
+                break
             known = np.flatnonzero(found[j])
-            apart = np.linalg.norm(values[missing, None] - values[known], axis=2)
-            nearest = known[np.argmin(apart, axis=1)]
+            apart = np.abs(values[missing, None] - values[known])  # (missing, known, r)
+            if not bounded:  # past the joint ranges: only a grid step beyond a value found
+                beside = (apart <= step * (1 + 1e-9)).all(axis=2).any(axis=1)
+                missing, apart = missing[beside], apart[beside]
+            nearest = known[np.argmin(np.linalg.norm(apart, axis=2), axis=1)]
             q[j, missing], residual, _ = newton(
-                robot, q[j, nearest], rows, target[missing], ITERATIONS, bounded=True
+                robot, q[j, nearest], rows, target[missing], ITERATIONS, bounded=bounded
             )
             found[j, missing] = residual < FOUND
     return q, found
@@ -229,7 +238,8 @@ class Tables:
         q, found = _nodes(robot, segment, rows, values, t)
         flat = q.reshape(-1, robot.n)
         space, bad = regularised(evaluate(robot, flat))
-        usable = found.ravel() & ~bad & (Limits.joints(robot).margin(flat) >= -TOLERANCE)
+        usable = found.ravel() & ~bad  # the joint ranges, as the strokes, are checked at r
+        self.joints = Limits.joints(robot)
         forces = np.where(usable[:, None], space.N_H, 0.0)  # A⁻ᵀ G at rest
         self.usable = usable.reshape(len(t), len(values))
         branch = np.sign(np.linalg.det(np.concatenate([space.J, space.A[:, rows]], axis=1)))
@@ -253,7 +263,8 @@ class Tables:
 
     def at(self, r: np.ndarray):
         """x, F_H and q (N + 1, G, n) and where usable (N + 1, G) at held values r
-        (N + 1, G, r): in a usable cell, every stroke within its limits."""
+        (N + 1, G, r): in a usable cell, every stroke and every joint within its limits (so
+        that a path may ride a limit between two solved values, one of them past it)."""
         n = self.n
         both = np.stack([table(row) for table, row in zip(self.interpolants, r)])
         x, forces, q = both[..., :n], both[..., n : 2 * n], both[..., 2 * n :]
@@ -263,7 +274,8 @@ class Tables:
             for k, a in enumerate(self.axes)
         ]
         usable = self.cells[(np.arange(len(r))[:, None], *cell)]
-        return x, forces, q, usable & (self.strokes.margin(x) >= -TOLERANCE)
+        inside = (self.strokes.margin(x) >= -TOLERANCE) & (self.joints.margin(q) >= -TOLERANCE)
+        return x, forces, q, usable & inside
 
     def solved(self, r: np.ndarray, q: np.ndarray):
         """The states (N + 1) G, node by node, at held values r (N + 1, G, r) solved exactly by
