@@ -38,6 +38,7 @@ from typing import NamedTuple, cast
 import numpy as np
 from scipy.linalg import block_diag
 from scipy.optimize import minimize
+from threadpoolctl import threadpool_limits
 
 from redundancy.errors import InvalidInputError, UnreachableError
 from redundancy.model.robot import Robot, require_robot
@@ -434,18 +435,21 @@ def solve_transcription(
     iterations, success, message = 0, True, ""
     for tie_break in (True, False) if polish else (True,):
         problem.tie_break = tie_break
-        solution = minimize(
-            problem.cost,
-            z,
-            jac=True,
-            method="SLSQP",
-            bounds=bounds,
-            constraints=[{"type": "ineq", "fun": problem.constraints, "jac": problem.jacobian}],
-            options={
-                "maxiter": ITERATIONS,
-                "ftol": FUNCTION_TOLERANCE if tie_break else POLISH_TOLERANCE,
-            },
-        )
+        # one BLAS thread: the sums SLSQP's steps take, and so where it ends, are then the same
+        # in any process (a notebook, a map's Dask worker, the command), however many cores
+        with threadpool_limits(limits=1, user_api="blas"):
+            solution = minimize(
+                problem.cost,
+                z,
+                jac=True,
+                method="SLSQP",
+                bounds=bounds,
+                constraints=[{"type": "ineq", "fun": problem.constraints, "jac": problem.jacobian}],
+                options={
+                    "maxiter": ITERATIONS,
+                    "ftol": FUNCTION_TOLERANCE if tie_break else POLISH_TOLERANCE,
+                },
+            )
         iterations += solution.nit
         found = problem.evaluate(solution.x)
         worse = _worse(problem, box, (solution.x, found), (z, nodes))
