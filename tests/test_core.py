@@ -618,6 +618,18 @@ def test_a_compiled_controller_is_pickled_as_its_robot_and_law(crane):
         )
 
 
+def test_a_robot_with_its_compiled_passes_pickles_with_every_protocol(crane):
+    """A robot that has evaluated states holds compiled passes, which pickle protocols 0 and 1
+    cannot rebuild: pickling it so aborted the interpreter. The passes are not sent; the copy
+    builds its own and evaluates the same states to the last bit."""
+    q = random_configurations(crane, 3, seed=64, margin=0.05)
+    space = actuator_space(crane, q)
+    for protocol in range(pickle.HIGHEST_PROTOCOL + 1):
+        copy = actuator_space(pickle.loads(pickle.dumps(crane, protocol=protocol)), q)
+        np.testing.assert_array_equal(copy.x, space.x)
+        np.testing.assert_array_equal(copy.M_H, space.M_H)
+
+
 def test_the_held_law_solves_its_defining_equations(crane):
     """`_core.held`: the task resolved, J_H ẋ = ẏ, and the held actuators at their rates,
     ẋ_h = E_h ẋ, to 1e-12 relative, on states of the crane with x3 or x1 held; numpy's

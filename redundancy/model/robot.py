@@ -112,9 +112,12 @@ class Robot:
         self._held_passes: dict[ActuatorSet, HeldPass | None] = {}
 
     def __getstate__(self) -> dict:
-        """What a copy sent to a worker process is rebuilt from; its evaluators are built there
-        again, when first asked for."""
-        return {**vars(self), "_evaluators": {}, "_held_passes": {}}
+        """What a copy sent to a worker process is rebuilt from: none of its compiled passes
+        and evaluators, which are built there again when first asked for (and which pickle
+        protocols 0 and 1 cannot rebuild: the interpreter aborted)."""
+        state = {**vars(self), "_tracking": {}, "_evaluators": {}, "_held_passes": {}}
+        state.pop("_dynamics", None)
+        return state
 
     def __repr__(self) -> str:
         return f"Robot({self.name!r}, n={self.n}, m={self.m}, payload={self.payload} kg)"
