@@ -193,6 +193,24 @@ def _robot(args: argparse.Namespace) -> Robot:
     return load_robot(args.robot, payload=args.payload, hydraulics=args.hydraulics)
 
 
+def _not_an_input(path: str, option: str, robot: Robot, cycle: WorkCycle, args) -> None:
+    """Check that ``path`` (of ``option``, a file the command writes) is none of the files the
+    command reads: the robot's URDF and TOML, the task file, a hydraulics file (where it was,
+    the command overwrote it); one line naming it otherwise."""
+    read = {
+        "URDF": robot.urdf,
+        "robot file": robot.actuators.source,
+        "task file": cycle.source,
+        "hydraulics file": args.hydraulics,
+    }
+    for what, source in read.items():
+        found = source and Path(source).is_file() and Path(path).is_file()
+        if found and os.path.samefile(source, path):
+            raise InvalidInputError(
+                f"{option} {path} is the {what} this command reads; give another path"
+            )
+
+
 def _load_task(robot: Robot, path: str | None) -> tuple[Robot, WorkCycle]:
     """The task file's work cycle and the robot it is read on (with the tool's angle as a task
     coordinate where the task asks for it)."""
@@ -242,6 +260,8 @@ def _planned_command(args: argparse.Namespace) -> None:
     with OutputFolder(args.out) as out:  # committed only if everything below succeeds
         report = out / "report.json" if args.json is None else out.beside(Path(args.json), "--json")
         robot, cycle = _load_task(_robot(args), args.task)
+        if args.json is not None:
+            _not_an_input(args.json, "--json", robot, cycle, args)
         _holdable(robot, cycle)
         checked = None if args.check is None else tuple(args.check.split(","))
         with prefixed(f"--check {args.check}"):
@@ -368,6 +388,8 @@ def _play_motion(
 def _play_command(args: argparse.Namespace) -> None:
     html = None if args.html is None else writable(args.html, "--html")
     robot, cycle = _load_task(_robot(args), args.task)
+    if html is not None:
+        _not_an_input(args.html, "--html", robot, cycle, args)
     segment = cycle.segments[0] if args.segment is None else cycle[args.segment]
     chosen = objective(args.objective)
     check_path(robot, segment)

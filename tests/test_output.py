@@ -6,6 +6,7 @@ import hashlib
 import json
 import os
 import random
+import shutil
 import signal
 import subprocess
 import sys
@@ -18,6 +19,7 @@ import pytest
 from commands import as_foreground, run_cli
 
 from redundancy.errors import InvalidInputError
+from redundancy.model.loading import bundled_root
 from redundancy.study import output
 from redundancy.study.output import MARKER, OutputFolder, _manifest, writable
 from redundancy.study.signals import deferred
@@ -160,6 +162,28 @@ def test_a_report_overlapping_the_output_folder_is_refused_before_any_computing(
     assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
     assert f"--json {json} overlaps --out {out}" in run.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_report_or_page_naming_an_input_file_is_refused_and_the_input_kept(tmp_path):
+    """--json or --html naming a file the command reads (its task file, robot file or URDF)
+    replaced it with the report: one line naming it now, exit 2, the file as it was."""
+    robot = tmp_path / "crane"
+    shutil.copytree(bundled_root() / "hiab031", robot)
+    runs = {
+        "task.toml": ("study", "--json", "task file"),
+        "robot.toml": ("cycle", "--json", "robot file"),
+        "hiab031.urdf": ("play", "--html", "URDF"),
+    }
+    for name, (command, option, what) in runs.items():
+        path = robot / name
+        before = path.read_bytes()
+        extra = () if command == "play" else ("--samples", "3", "--out", str(tmp_path / "o"))
+        run = run_cli(command, "--robot", str(robot / "robot.toml"), option, str(path), *extra)
+        assert run.returncode == 2 and path.read_bytes() == before
+        assert run.stderr.strip().splitlines() == [
+            f"redundancy: error: {option} {path} is the {what} this command reads; give "
+            "another path"
+        ]
 
 
 def test_a_loop_of_links_and_a_path_inside_an_earlier_output_are_refused_at_once(tmp_path):
