@@ -683,6 +683,10 @@ def main(argv: list[str] | None = None) -> int:
                 file=sys.stderr,
             )
             status = 2
+        elif isinstance(error, OSError) and error.errno == errno.ENAMETOOLONG:
+            name = one_line(str(error.filename))  # a path given on the command line
+            print(f"redundancy: error: {name}: {os.strerror(error.errno)}", file=sys.stderr)
+            status = 2
         elif isinstance(error, SystemExit):
             raise
         else:

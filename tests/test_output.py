@@ -164,6 +164,21 @@ def test_a_report_overlapping_the_output_folder_is_refused_before_any_computing(
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_path_with_a_name_too_long_is_one_line(tmp_path):
+    """A path whose name is longer than the file system allows (255 bytes) was an internal
+    error, status 1; it is one line naming it, status 2, given as the robot or the report."""
+    name = "b" * 300
+    for arguments in (
+        ("describe", "--robot", str(tmp_path / name)),
+        (*STUDY, "--out", str(tmp_path / "o"), "--json", str(tmp_path / f"{name}.json")),
+    ):
+        run = run_cli(*arguments)
+        assert run.returncode == 2, run.stderr
+        lines = run.stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].endswith(": File name too long"), lines
+        assert name in lines[0]
+
+
 def test_a_report_or_page_naming_an_input_file_is_refused_and_the_input_kept(tmp_path):
     """--json or --html naming a file the command reads (its task file, robot file or URDF)
     replaced it with the report: one line naming it now, exit 2, the file as it was."""
