@@ -702,6 +702,24 @@ def test_a_gauge_names_every_limit_a_cylinder_is_at_or_past():
     assert playback.alarms().tolist() == expected
 
 
+def test_a_mirrored_mesh_is_posed_as_the_scene_decomposes_it():
+    """A mirrored mesh (<mesh scale="-1 1 1">, a left part drawn from a right one) has a
+    placement whose block R diag(s) has det < 0, which has no nearest rotation: its playback
+    ended in an internal error after the whole study. three.js takes such a matrix's scale
+    along x as negative, so its rotation is R diag(−1, 1, 1) diag(s) / |s|: R itself for a
+    mirror in x, R diag(−1, −1, 1) for one in y."""
+    from scipy.spatial.transform import Rotation
+
+    from redundancy.viz.playback import quaternions
+
+    R = Rotation.from_euler("xyz", [0.3, -0.7, 1.1]).as_matrix()
+    for scale, rotation in (((-1, 1, 1), R), ((1, -2, 1), R @ np.diag([-1.0, -1.0, 1.0]))):
+        T = np.eye(4)
+        T[:3, :3] = R @ np.diag(scale)
+        expected = Rotation.from_matrix(rotation).as_quat(canonical=True)
+        np.testing.assert_allclose(quaternions(T[None])[0], expected, atol=1e-12)
+
+
 def test_with_four_held_actuators_the_star_is_at_the_first_two_values(request):
     """The Panda holds four joints; Fig. 4a draws over the first two, and the best start's
     star sits at its values of those two (matplotlib read four values as two points)."""

@@ -112,10 +112,15 @@ def quaternions(transforms: np.ndarray) -> np.ndarray:
     """The rotations of transforms (k, 4, 4) as quaternions (k, 4), [x, y, z, w] with w ≥ 0, as
     meshcat's `quaternion_from_matrix` gives them one matrix at a time: scipy's takes the same
     method (Bar-Itzhack's), the quaternion of the rotation nearest the upper-left block even
-    where it is not orthonormal (a scaled mesh's transform)."""
+    where it is not orthonormal (a scaled mesh's transform). A mirrored mesh's block (a scale
+    with one negative entry, det < 0) has no rotation near it: as the scene's three.js takes its
+    scale along x as negative there, the rotation is that of the block with its first column
+    turned."""
     from scipy.spatial.transform import Rotation
 
-    return Rotation.from_matrix(transforms[:, :3, :3]).as_quat(canonical=True)
+    blocks = transforms[:, :3, :3].copy()
+    blocks[np.linalg.det(blocks) < 0, :, 0] *= -1
+    return Rotation.from_matrix(blocks).as_quat(canonical=True)
 
 
 def task_points(cycle: WorkCycle) -> np.ndarray:
