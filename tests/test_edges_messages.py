@@ -108,12 +108,14 @@ def test_a_declared_held_actuator_without_a_stroke_names_its_own_table(tmp_path,
 
 def test_too_few_held_actuators_point_at_locked_joints_and_the_joints_to_lock(tmp_path, capsys):
     """A machine whose undeclared joints move freely (a chassis, say) has more redundant degrees
-    than its task holds: the message names ``locked_joints``, the file and the joints."""
+    than its task holds: the message names the task file's held list, ``locked_joints``, the
+    robot's file and the joints."""
     path = arm(tmp_path, held='["x3"]', axes="x", one="[2.8]", two="[2.6]")
     for command in (["study", "--quiet", "--out", str(tmp_path / "o")], ["check"]):
         status, out, lines = run([command[0], "--robot", path, *command[1:]], capsys)
         message = errors(lines)[0] if command[0] == "study" else out
         assert status == 2, lines
+        assert "task.toml: held: task " in message
         assert "holds ['x3'], but arm has n − m = 3 − 1 = 2 redundant degrees" in message
         assert (
             f"or lock the joints the task does not move with locked_joints in {path} (joints "

@@ -173,7 +173,7 @@ def held_problems(robot: Robot, cycle: WorkCycle, sampled: bool = True) -> list[
                 f", or lock the joints the task does not move with locked_joints in {source} "
                 f"(joints without an actuator declaration: {', '.join(free)})"
             )
-        return [line]
+        return [placed(cycle.source and f"{cycle.source}: held", line)]
     problems = []
     for name in held if sampled else ():
         actuator = robot.actuators[name]
