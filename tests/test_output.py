@@ -55,6 +55,26 @@ def test_a_committed_folder_replaces_the_old_one_whole(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
 
 
+def test_a_signal_after_the_commit_says_the_output_was_written(tmp_path):
+    """A signal while the command lists what it wrote used to say only "interrupted", status
+    130, as if the earlier folder were kept, where the new one had replaced it whole: the line
+    now says so. Before any commit it says what it always said."""
+    from redundancy.study.signals import announce, caught
+
+    target = tmp_path / "out"
+    lines: list[str] = []
+    with caught():
+        assert announce(signal.SIGINT, lines.append) == 130
+    with caught():
+        with OutputFolder(target) as out:
+            (out / "report.json").write_text("1")
+        assert announce(signal.SIGTERM, lines.append) == 143
+    assert lines == [
+        "redundancy: interrupted\n",
+        f"redundancy: terminated after writing {target} whole\n",
+    ]
+
+
 def test_a_failed_run_leaves_the_old_folder_and_no_staging(tmp_path):
     target = tmp_path / "out"
     with OutputFolder(target) as out:

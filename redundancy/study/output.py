@@ -37,7 +37,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from redundancy.errors import InvalidInputError
-from redundancy.study.signals import check, deferred
+from redundancy.study.signals import check, deferred, written
 
 MARKER = ".redundancy-output"  # names the folder as one this toolkit wrote; holds its manifest
 RENAME_NOREPLACE, RENAME_EXCHANGE = 1, 2  # renameat2 flags, <linux/fs.h>
@@ -298,6 +298,7 @@ class OutputFolder:
             self._committed = True
             for staged, final in self.others:
                 os.replace(staged, final)
+            written.extend(str(path) for path in (self.target, *(f for _, f in self.others)))
             for folder in {self.target.parent, *(final.parent for _, final in self.others)}:
                 _sync(folder)
             if exists:  # the earlier output, now where the staged one was

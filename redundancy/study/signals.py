@@ -26,6 +26,7 @@ received: list[int] = []  # the signals received, whatever a library made of the
 _raising = False  # within `caught`: raise where the program is; before it, end at once
 _held: list[int] | None = None  # within `deferred`: the signals noted, handled at its end
 _announced = False  # the line that the command ends by a signal is written
+written: list[str] = []  # the outputs the command has committed whole, for that line
 
 
 class Terminated(BaseException):
@@ -41,7 +42,8 @@ def announce(number: int, write: Callable[[str], object] | None = None) -> int:
     word, status = ("terminated", 143) if number == signal.SIGTERM else ("interrupted", 130)
     if not _announced:
         _announced = True
-        line = f"redundancy: {word}\n"
+        done = f" after writing {', '.join(written)} whole" if written else ""
+        line = f"redundancy: {word}{done}\n"
         write(line) if write else os.write(2, line.encode())
     return status
 
@@ -79,6 +81,7 @@ def caught(interrupt: bool = False) -> Iterator[None]:
     """`stop` raising where the program is, for the block (`install`); then as before."""
     global _raising, _announced
     received.clear()
+    written.clear()
     _announced = False
     previous, was_raising, _raising = install(interrupt), _raising, True
     unraisable, sys.unraisablehook = sys.unraisablehook, _unraisable
