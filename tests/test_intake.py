@@ -313,6 +313,24 @@ def test_a_robot_without_inertias_is_kinematic_only(capsys):
     )
 
 
+def test_a_kinematic_only_robot_with_a_circuit_names_the_table_in_the_way(tmp_path, capsys):
+    """The crane with one massless link keeps its [hydraulics] table, whose load pressures need
+    the forces: the study of the velocity objective refused with "use ... the velocity
+    objective", the one asked for. The line now names the table as what stands in the way."""
+    from redundancy.model.loading import bundled_root
+
+    shutil.copytree(bundled_root() / "hiab031", tmp_path / "crane")
+    urdf = tmp_path / "crane" / "hiab031.urdf"
+    urdf.write_text(urdf.read_text().replace('<mass value="80"/>', '<mass value="0"/>', 1))
+    status, errors = run(
+        ["study", "--robot", str(tmp_path / "crane" / "robot.toml"), "--objective", "velocity",
+         "--samples", "3", "--cycles", "0", "--quiet", "--out", str(tmp_path / "o")],
+        capsys,
+    )  # fmt: skip
+    assert status == 2 and len(errors) == 1, errors
+    assert "(the velocity objective without its [hydraulics] table, play, check)" in errors[0]
+
+
 def test_a_floating_root_is_refused_with_the_fix_and_loads_once_locked(tmp_path):
     text = (FIXTURES / "continuous" / "arm.urdf").read_text()
     text = text.replace(

@@ -287,10 +287,12 @@ class Robot:
     def require_masses(self, what: str) -> None:
         """Refuse ``what`` (e.g. "M(q)") on a kinematic-only robot, naming its massless links."""
         if self.kinematic_only:
+            # a circuit's load pressures need the forces, and a study reports them
+            circuit = "" if self.hydraulics is None else " without its [hydraulics] table"
             raise InvalidInputError(
                 f"{self.name} is kinematic only: {self.massless}, and {what} needs masses; give "
                 "them <inertial> elements with a mass > 0, or use what needs none (the velocity "
-                "objective, play, check)"
+                f"objective{circuit}, play, check)"
             )
 
     def mass_matrices(self, q: np.ndarray) -> np.ndarray:
