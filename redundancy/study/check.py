@@ -64,6 +64,11 @@ class ActuatorCheck:
     undefined: tuple[float, float] | None
 
     @property
+    def why_undefined(self) -> str:
+        """Why x_i has no value over part of its joint's range."""
+        return "its linkage cannot close" if self.linkage else "its geometry gives it no value"
+
+    @property
     def why_singular(self) -> str:
         """Why A is singular where it is: the actuator cannot move its joint there."""
         if self.linkage:
@@ -102,8 +107,8 @@ class ActuatorCheck:
         if self.undefined is not None:
             low, high = (self.joint_value(v) for v in self.undefined)
             found.append(
-                f"{self.name}: its linkage cannot close for {self.joint} within [{low}, {high}], "
-                f"inside the joint's range: keep {self.joint}'s limits where it closes"
+                f"{self.name}: {self.why_undefined} for {self.joint} within [{low}, {high}], "
+                f"inside the joint's range: keep {self.joint}'s limits where it has one"
             )
         return found
 
@@ -223,9 +228,10 @@ def _sweep(robot: Robot, column: int, row: int) -> tuple:
     q[:, column] = np.linspace(lower[column], upper[column], SWEEP)
     space = evaluate(robot, q)
     x = space.x[:, row]
-    defined = np.isfinite(x) & np.isfinite(space.A).all(axis=(1, 2))
+    defined = np.isfinite(x) & np.isfinite(space.A[:, row]).all(axis=1)
+    whole = np.isfinite(space.A).all(axis=(1, 2))
     det = np.full(SWEEP, np.nan)  # no sign, so no singular configuration, where undefined
-    det[defined] = np.linalg.det(space.A[defined])
+    det[whole] = np.linalg.det(space.A[whole])
     i = np.flatnonzero((np.sign(det[:-1]) * np.sign(det[1:]) < 0) | (det[:-1] == 0))
     step = det[i] - det[i + 1]  # nonzero where the sign changes
     weight = np.divide(det[i], step, out=np.zeros_like(step), where=det[i] != 0)

@@ -300,9 +300,7 @@ def check_table(found: Check) -> str:
             )
         if a.undefined is not None:
             low, high = (a.joint_value(v) for v in a.undefined)
-            lines.append(
-                f"    not defined for {a.joint} within [{low}, {high}]: its linkage cannot close"
-            )
+            lines.append(f"    not defined for {a.joint} within [{low}, {high}]: {a.why_undefined}")
     if robot.kinematic_only:
         lines.append(
             f"masses: none on {', '.join(robot.massless_links)} (kinematic only: the "
