@@ -183,9 +183,9 @@ inline bool shaped(const py::array& a, std::initializer_list<py::ssize_t> shape)
 // estimate says. Where ẏ_d jumps there, a step that ends on a break reads its last stage just
 // before it (the piece it integrated), and the next step's first slope is the law's at the break
 // (the next piece), one more evaluation per break. With `stop`, a motion whose end of step is
-// past a stroke
-// [lower, upper] (n,) by more than `allowance`, as are its neighbours in the batch, stops. A
-// start whose error estimate is not finite (a Python right-hand side's q̇ NaN) is frozen too.
+// past a stroke [lower, upper] (n,) by more than `allowance`, as are its neighbours in the
+// batch, stops. A start whose error estimate is not finite (a Python right-hand side's q̇ NaN)
+// is frozen too.
 // The accepted steps (rows, t0, h, q0 and the stage slopes (p, s + 1, n)), failed and stopped
 // (k,), and, with `keep`, each batch of ends of accepted steps as (record, positions in it); None
 // where `Rates` could not serve a batch.

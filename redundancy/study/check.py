@@ -69,6 +69,12 @@ class ActuatorCheck:
         return "its linkage cannot close" if self.linkage else "its geometry gives it no value"
 
     @property
+    def undefined_range(self) -> str:
+        """Where x_i has no value, in words: "for joint within [low, high]"."""
+        low, high = (self.joint_value(v) for v in self.undefined or ())
+        return f"for {self.joint} within [{low}, {high}]"
+
+    @property
     def why_singular(self) -> str:
         """Why A is singular where it is: the actuator cannot move its joint there."""
         if self.linkage:
@@ -105,10 +111,9 @@ class ActuatorCheck:
             if self.stroke[0] <= x <= self.stroke[1]
         ]
         if self.undefined is not None:
-            low, high = (self.joint_value(v) for v in self.undefined)
             found.append(
-                f"{self.name}: {self.why_undefined} for {self.joint} within [{low}, {high}], "
-                f"inside the joint's range: keep {self.joint}'s limits where it has one"
+                f"{self.name}: {self.why_undefined} {self.undefined_range}, inside the joint's "
+                f"range: keep {self.joint}'s limits where it has one"
             )
         return found
 

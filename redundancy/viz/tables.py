@@ -299,8 +299,7 @@ def check_table(found: Check) -> str:
                 + a.why_singular
             )
         if a.undefined is not None:
-            low, high = (a.joint_value(v) for v in a.undefined)
-            lines.append(f"    not defined for {a.joint} within [{low}, {high}]: {a.why_undefined}")
+            lines.append(f"    not defined {a.undefined_range}: {a.why_undefined}")
     if robot.kinematic_only:
         lines.append(
             f"masses: none on {', '.join(robot.massless_links)} (kinematic only: the "
