@@ -30,7 +30,7 @@ from test_bad_input import CASES  # noqa: E402
 
 from redundancy.cli import main  # noqa: E402
 
-CRANE = Path(__file__).parents[1] / "robots" / "hiab031"
+CRANE = Path(__file__).parents[1] / "redundancy" / "robots" / "hiab031"
 INTAKE = TESTS / "fixtures" / "intake"
 SECRET = "root:x:0:0:root:/root:/bin/bash\nnobody:x:65534:65534:the-rest-of-the-secret-line\n"
 ROD = '<attachment link="boom1" xyz="0.369583691280232 0 -0.0691657078303828"/>'

@@ -91,7 +91,8 @@ def main() -> None:
             ["git", "archive", args.against], cwd=ROOT, check=True, capture_output=True
         ).stdout
         subprocess.run(["tar", "-x", "-C", str(earlier)], input=archive, check=True)
-        (earlier / "redundancy" / "robots").symlink_to(earlier / "robots")  # as installed
+        if (earlier / "robots").is_dir():  # a tree from before the robots moved into the package
+            (earlier / "redundancy" / "robots").symlink_to(earlier / "robots")
         compiled_core(earlier, Path(scratch))
         for source in (ROOT, earlier):  # each side imports its own package, or nothing is measured
             python, env = environment(source)

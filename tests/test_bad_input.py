@@ -32,7 +32,7 @@ from redundancy import (
 from redundancy.cli import main
 from redundancy.planning.tasks import Segment, WorkCycle
 
-CRANE = Path(__file__).parent.parent / "robots" / "hiab031"
+CRANE = Path(__file__).parent.parent / "redundancy" / "robots" / "hiab031"
 URDF = (CRANE / "hiab031.urdf").read_text()
 TASK = (CRANE / "task.toml").read_text()
 ROBOT = (CRANE / "robot.toml").read_text()

@@ -11,7 +11,7 @@ from redundancy import VELOCITY, actuator_space, load_robot
 from redundancy.planning.tasks import WorkCycle
 from redundancy.study.study import run_study
 
-FOLDER = Path(__file__).parents[1] / "robots" / "excavator"
+FOLDER = Path(__file__).parents[1] / "redundancy" / "robots" / "excavator"
 
 
 def generator():

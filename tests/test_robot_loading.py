@@ -51,7 +51,7 @@ def test_every_bundled_robot_loads_and_its_files_exist():
 
 def test_committed_crane_urdfs_are_what_the_generator_writes():
     spec = importlib.util.spec_from_file_location(
-        "generate", REPO / "robots" / "hiab031" / "generate.py"
+        "generate", REPO / "redundancy" / "robots" / "hiab031" / "generate.py"
     )
     generate = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(generate)
@@ -215,6 +215,21 @@ def test_bundled_robots_load_after_a_plain_install_elsewhere(tmp_path):
     assert [row[0] for row in installed] == bundled_robots()
     assert ["hiab031", "3", "2", "True"] in installed
     assert all(row[3] == "True" for row in installed)
+
+
+def test_the_install_puts_no_folder_above_the_repository_on_the_import_path(tmp_path):
+    """An editable install adds the repository to ``sys.path``, never a folder above it: a
+    module lying beside the clone would run at every start of the interpreter."""
+    run = subprocess.run(
+        [sys.executable, "-c", "import sys; print('\\n'.join(sys.path))"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    paths = [Path(line).resolve() for line in run.stdout.splitlines() if line]
+    above = [str(path) for path in paths if path != REPO and REPO.is_relative_to(path)]
+    assert not above, above
 
 
 def test_a_joint_named_like_the_tool_link_is_not_taken_for_it(tmp_path):

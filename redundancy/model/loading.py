@@ -25,7 +25,7 @@ from redundancy.model.urdf import Urdf, build_model, read_urdf
 
 
 def bundled_root() -> Path:
-    """Folder holding the bundled robots (``robots/`` in the source tree)."""
+    """Folder holding the bundled robots (``redundancy/robots/`` in the source tree)."""
     return Path(str(importlib.resources.files("redundancy.robots")))
 
 

@@ -1,7 +1,7 @@
 """Write ``hiab031.urdf`` from the seed paper's parameters (section 3, Fig. 1), and its slewing
 variant ``../hiab031_slewing/hiab031_slewing.urdf`` (the same crane on its slewing column).
 
-Run ``python robots/hiab031/generate.py`` after changing a number here; a test checks that the
+Run ``python redundancy/robots/hiab031/generate.py`` after changing a number here; a test checks that the
 committed URDFs are exactly what this script writes.
 
 Frame (see DESIGN.md): the task plane is the URDF world x-z plane, world x = y1, world z = y2,
