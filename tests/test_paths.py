@@ -298,6 +298,9 @@ def test_bad_segments_are_named_in_one_line(tmp_path, text, message):
         ("1.0,0.0\n1.0,0.0\n", r"one point \(lines 1-2\)"),
         ("1.0,0.0\nnan,1.0\n", r"path.csv line 2: cell 1 \('nan'\) is not a finite number"),
         ("1.0,0.0\n2.0,inf\n", r"path.csv line 2: cell 2 \('inf'\) is not a finite number"),
+        # a first line of numbers that are not finite is a bad point, not a line of names
+        ("inf,nan\n1.0,0.0\n2.0,1.0\n", r"path.csv line 1: cell 1 \('inf'\) is not a finite"),
+        ("x,nan\n1.0,0.0\n2.0,1.0\n", r"path.csv line 1: cell 1 \('x'\) is not a finite"),
         ("1.0,0.0\n2.0,1.0,3.0\n", r"path.csv line 2: 3 values; the task has 2 coordinates"),
         ("1.0,0.0\n1e308,1.0\n", r"path.csv line 2: 1e308 lies beyond ±1000 \(m, or degrees"),
         ("1.0,0.0\n2.0,-1000.5\n", r"path.csv line 2: -1000.5 lies beyond ±1000"),

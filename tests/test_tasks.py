@@ -40,6 +40,13 @@ def test_the_paper_cycle_ships_with_the_crane():
         ('segments = ["1-4"]\n[points]\n1 = [0, 0]\n2 = [1, 0]\n', "points among 1, 2"),
         ('segments = ["1-2"]\n', r"\[points\] table"),
         ('segments = ["1-1"]\n[points]\n1 = [0, 0]\n', "coincide"),
+        # closer than a nanometre: one point, as a recorded polyline's repeated points are
+        ('segments = ["1-2"]\n[points]\n1 = [1, 0]\n2 = [1.0000000000001, 0]\n', "coincide"),
+        (
+            'segments = [{ from = "1", to = "2", centre = "o", direction = "ccw" }]\n[points]\n'
+            "1 = [1e-10, 0]\n2 = [0, 1e-10]\no = [0, 0]\n",
+            "its start lies on its centre",
+        ),
         ("not toml [", "not valid TOML"),
     ],
 )

@@ -105,9 +105,9 @@ class Polyline(Shape):
     def __post_init__(self) -> None:
         if len(self.points) < 2:
             raise InvalidInputError("a polyline needs at least two points")
-        if not np.all(np.diff(self.cumulative) > 0):
+        if not np.all(np.diff(self.cumulative) > CLOSED):
             what = "start and end" if self.kind == "line" else "consecutive points of a polyline"
-            raise InvalidInputError(f"{what} coincide in position")
+            raise InvalidInputError(f"{what} coincide in position (closer than {CLOSED:g} m)")
 
     @property
     def start(self) -> np.ndarray:  # type: ignore[override]
@@ -242,8 +242,8 @@ class Arc(Shape):
                 f"direction = {direction!r} must be one of {', '.join(DIRECTIONS)}"
             )
         radius, far = float(np.linalg.norm(a - centre)), float(np.linalg.norm(c - centre))
-        if not radius > 0:
-            raise InvalidInputError("its start lies on its centre")
+        if not radius > CLOSED:
+            raise InvalidInputError(f"its start lies on its centre (closer than {CLOSED:g} m)")
         if abs(far - radius) > ARC_MISMATCH * radius:
             raise InvalidInputError(
                 f"its ends lie {radius:.6g} m and {far:.6g} m from the centre; an arc's ends lie "
@@ -769,7 +769,8 @@ def read_polyline(path: Path | str, dimension: int | None, tool_angle: bool = Fa
 
 def _csv_points(path: Path):
     """(line number, point) of each line of a CSV file that holds one: blank lines, comments
-    ("#") and a first line of names (no cell a number) are skipped."""
+    ("#") and a first line of names (no cell a number, ``inf`` and ``nan`` being numbers) are
+    skipped."""
     lines = read_text(path, "CSV file").splitlines()
     header = True  # the first line that holds anything may be one of names
     for number, cells in enumerate(csv.reader(lines), start=1):
@@ -780,21 +781,20 @@ def _csv_points(path: Path):
         if names:
             continue
         where = f"{path} line {number}"
-        if None in values:
-            bad = values.index(None)
-            text = excerpt(cells[bad].strip())
-            raise InvalidInputError(f"{where}: cell {bad + 1} ({text}) is not a finite number")
+        bad = [i for i, v in enumerate(values) if v is None or not math.isfinite(v)]
+        if bad:
+            text = excerpt(cells[bad[0]].strip())
+            raise InvalidInputError(f"{where}: cell {bad[0] + 1} ({text}) is not a finite number")
         _check_reach(np.array(values), where, [c.strip() for c in cells])
         yield number, np.array(values)
 
 
 def _cell(text: str) -> float | None:
-    """The finite number a CSV cell writes, or None."""
+    """The number a CSV cell writes, finite or not, or None where it writes none."""
     try:
-        value = decimal(text)
+        return decimal(text)
     except ValueError:
         return None
-    return value if math.isfinite(value) else None
 
 
 def checked_path(path: object, name: str = "segment") -> Segment | Chain:
