@@ -234,13 +234,14 @@ class CylinderTable(Table):
 
     bore: float = quantity("bore D", "mm", 5.0, 1000.0, below="did you give m? 1 m = 1000 mm")
     rod: float = quantity("rod d", "mm", 0.0, 1000.0)
-    max_speed: float = quantity("maximum speed", "m/s", 0.0, 10.0, open_lower=True, above=MM_PER_S)
+    # a cylinder slower than a millimetre per second, or accelerating slower than one per s², is
+    # no machine's: such a value is a slip of the exponent
+    max_speed: float = quantity("maximum speed", "m/s", 1e-3, 10.0, above=MM_PER_S)
     max_acceleration: float = quantity(
         "maximum acceleration",
         "m/s²",
-        0.0,
+        1e-3,
         100.0,
-        open_lower=True,
         above="did you give mm/s²? 1 m/s² = 1000 mm/s²",
     )
 

@@ -29,6 +29,7 @@ from pinocchio import graph
 from redundancy.errors import RobotDescriptionError
 from redundancy.model.parameters import number_or_text
 from redundancy.model.schema import EXCERPT, excerpt
+from redundancy.model.values import MAX_INERTIA, MAX_LINK_MASS
 
 FREE = ("floating", "planar")  # URDF joint types of a base that moves freely
 LIMITED = ("revolute", "prismatic")  # URDF joint types that must give their <limit>
@@ -363,8 +364,10 @@ def _numbers(
     where: str,
     meaning: str,
     lower: float = -math.inf,
+    upper: float = math.inf,
 ) -> np.ndarray:
-    """The finite numbers ≥ ``lower`` the ``attributes`` of ``parent``'s child ``tag`` hold:
+    """The finite numbers in [``lower``, ``upper``] the ``attributes`` of ``parent``'s child
+    ``tag`` hold:
     as many each as its default holds (the text an attribute left out, or the child, stands
     for), one where it has none and must be given; else one line: the element (``where``),
     the child as written and what it must be (``meaning``)."""
@@ -378,7 +381,7 @@ def _numbers(
     for name, default in attributes.items():
         numbers = [number_or_text(v) for v in (given.get(name, default) or "").split()]
         if len(numbers) != (1 if default is None else len(default.split())) or not all(
-            isinstance(v, float) and math.isfinite(v) and v >= lower for v in numbers
+            isinstance(v, float) and math.isfinite(v) and lower <= v <= upper for v in numbers
         ):
             raise RobotDescriptionError(f"{where} {written(element)} must be {meaning}")
         values += numbers
@@ -392,11 +395,11 @@ def written(element: etree._Element | None) -> str:
 
 def _check_inertials(root: etree._Element, source: str) -> tuple[str, ...]:
     """Every link's ``<inertial>`` holds numbers a body can have (a parser may drop one it
-    cannot read without a word, or keep a negative mass): its origin finite, its mass finite
-    and ≥ 0, its inertia a body's rotational inertia, symmetric positive semi-definite with
-    each principal moment at most the sum of the other two (six entries make it symmetric;
-    with the moments a ≤ b ≤ c, a + b ≥ c gives the rest), to `INERTIA_TOLERANCE`. Returns
-    the links whose mass is 0."""
+    cannot read without a word, or keep a negative mass): its origin finite, its mass within
+    [0, `MAX_LINK_MASS`], its inertia's entries within ±`MAX_INERTIA` and a body's rotational
+    inertia, symmetric positive semi-definite with each principal moment at most the sum of the
+    other two (six entries make it symmetric; with the moments a ≤ b ≤ c, a + b ≥ c gives the
+    rest), to `INERTIA_TOLERANCE`. Returns the links whose mass is 0."""
     zero_masses = []
     for link in root.findall("link"):
         inertial = link.find("inertial")
@@ -404,11 +407,16 @@ def _check_inertials(root: etree._Element, source: str) -> tuple[str, ...]:
             continue
         where = f"{source}: link {link.get('name')!r}"
         _numbers(inertial, "origin", dict.fromkeys(("xyz", "rpy"), "0 0 0"), where, ORIGIN)
-        mass = "a finite number ≥ 0 (the link's mass, kg)"
-        if _numbers(inertial, "mass", {"value": None}, where, mass, lower=0.0)[0] == 0:
+        mass = f"a number within [0, {MAX_LINK_MASS:g}] (the link's mass, kg)"
+        if _numbers(inertial, "mass", {"value": None}, where, mass, 0.0, MAX_LINK_MASS)[0] == 0:
             zero_masses.append(link.get("name"))
-        inertia = f"six finite numbers {', '.join(INERTIA)} (kg·m², about the centre of mass)"
-        entries = _numbers(inertial, "inertia", dict.fromkeys(INERTIA), where, inertia)
+        inertia = (
+            f"six numbers {', '.join(INERTIA)} within ±{MAX_INERTIA:g} (kg·m², about the centre "
+            "of mass)"
+        )
+        entries = _numbers(
+            inertial, "inertia", dict.fromkeys(INERTIA), where, inertia, -MAX_INERTIA, MAX_INERTIA
+        )
         moments = np.linalg.eigvalsh(entries[[[0, 1, 2], [1, 3, 4], [2, 4, 5]]])
         if moments[0] + moments[1] < moments[2] - INERTIA_TOLERANCE * np.abs(moments).max():
             raise RobotDescriptionError(

@@ -10,6 +10,8 @@ import math
 import numpy as np
 
 MAX_PAYLOAD = 1e5  # kg: beyond any hydraulic machine this toolkit models
+MAX_LINK_MASS = 1e6  # kg: a link of a URDF; a mining shovel's boom is about a tenth of it
+MAX_INERTIA = 1e8  # kg·m²: an inertia entry of a URDF link; such a boom's is about a tenth
 MAX_SPEED = 10.0  # m/s along a task path: beyond any hydraulic manipulator's tool
 MAX_ACCELERATION = 100.0  # m/s² along a task path: beyond any hydraulic manipulator's tool
 
