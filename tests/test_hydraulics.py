@@ -253,6 +253,7 @@ def test_objectives_pickle_and_name_their_values():
         o.name: (o.value_label, o.value_unit(space.robot.actuators)) for o in (VELOCITY, LS_ENERGY)
     }
     assert units == {"velocity": ("peak ẋᵀẋ", "m²/s²"), "ls_energy": ("∫ LS pump power dt", "kJ")}
+    assert LS_ENERGY.value_axis(space.robot.actuators) == "∫ LS pump power dt (kJ)"
 
 
 def test_limits_of_the_circuit_are_named(crane, motions):

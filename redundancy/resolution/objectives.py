@@ -76,6 +76,10 @@ class Objective:
             return unit
         return {"kW": "kJ", "W": "J"}.get(unit, f"{unit}·s")
 
+    def value_axis(self, actuators) -> str:
+        """That value with its unit, as a figure's axis names it: "peak ẋᵀẋ (m²/s²)"."""
+        return f"{self.value_label} ({self.value_unit(actuators)})"
+
     def over_segments(self, values: Sequence[float | None]) -> float | None:
         """The objective over consecutive segments from each one's value (None where unknown):
         the largest peak known, or the sum of the integrals where every one is known."""

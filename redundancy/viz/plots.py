@@ -84,7 +84,7 @@ def peaks_figure(
         if choice.best is not None:
             axes.plot(choice.best.values[0], choice.best.peak, "*", ms=12, color=colour)
     objective, held = searches[0].objective, searches[0].held[0]
-    measure = f"{objective.value_label} ({objective.value_unit(searches[0].robot.actuators)})"
+    measure = objective.value_axis(searches[0].robot.actuators)
     along = f"initial {held} ({searches[0].robot.actuators[held].unit})"
     segments = {"loc": "upper left", "fontsize": 8}
     _labelled(figure, title, (measure,), along, segments)
@@ -131,8 +131,7 @@ def peak_map_figure(
         pane.set_ylabel(f"initial {held[1]} ({actuators[held[1]].unit})")
         pane.set_title(f"segment {search.segment.name}")
         if feasible.any():
-            measure = f"{objective.value_label} ({objective.value_unit(actuators)})"
-            figure.colorbar(shown, ax=pane, label=measure)
+            figure.colorbar(shown, ax=pane, label=objective.value_axis(actuators))
     rest = held[2:]  # drawn over the first two; the others vary among the samples
     over = f"\nover {held[0]} and {held[1]}; {', '.join(rest)} as sampled" if rest else ""
     figure.suptitle(f"{title}; red: the feasible set's edge, ★ best, hollow: not feasible{over}")
