@@ -314,6 +314,7 @@ def _study(args: argparse.Namespace, folder: Path, robot, cycle, options) -> tup
             cycle,
             objectives,
             **options,
+            bound=not args.no_bound,
             progress=args.progress,
             energy_bound=bound,
             cycles=0,
@@ -517,6 +518,12 @@ def parser() -> argparse.ArgumentParser:
         choices=[*OBJECTIVES, "both"],
         default="both",
         help="what to minimise; both: the paper's velocity and energy",
+    )
+    study.add_argument(
+        "--no-bound",
+        action="store_true",
+        help="leave out the min-max bound and the gaps to it (on a robot of many joints it may "
+        "take minutes per segment)",
     )
     study.add_argument(
         "--energy-bound",

@@ -146,6 +146,23 @@ def test_study_command_writes_the_report_and_the_five_figures(tmp_path):
     assert 'href="motion_velocity_1-2.csv"' in (out / "index.html").read_text()
 
 
+def test_a_study_without_bounds_says_so_where_the_bounds_would_be(tmp_path):
+    """``--no-bound`` (a robot of many joints, whose bound takes minutes): the improved starts
+    as with bounds, and each bound's place says why it has none."""
+    out = tmp_path / "out"
+    args = ["--objective", "velocity", "--samples", "5", "--cycles", "0", "--quiet"]
+    run = run_cli("study", *args, "--no-bound", "--out", str(out))
+    assert run.returncode == 0, run.stderr
+    (entry,) = json.loads((out / "report.json").read_text())["studies"]
+    assert [s["name"] for s in entry["segments"]] == SEGMENTS
+    for segment in entry["segments"]:
+        assert segment["bound"] is None and segment["gap_percent"] is None
+        assert segment["bound_failure"] == "the study was run without bounds"
+        assert segment["best"]["peak"] > 0
+    assert run.stdout.count("no bound: the study was run without bounds") == 3
+    assert "the study was run without bounds" in (out / "index.html").read_text()
+
+
 @pytest.mark.parametrize(
     "args, message",
     [
