@@ -31,6 +31,7 @@ from redundancy.planning.cycles import (
     Repetition,
     ReturnMap,
     checked_cycles,
+    cycle_accelerations,
     periodic_optimum,
     plan_cycle,
     repeat,
@@ -93,22 +94,23 @@ class Cost(NamedTuple):
         return figures
 
 
-def circuit_violations(motion: Trajectory) -> list[Violation]:
-    """Every interval over which the first motion of ``motion`` passes a limit of the circuit
-    or a cylinder's acceleration limit, at its samples, in order of time (t in the motion's
-    time: a cycle's from the cycle's start). The circuit's limits are the per-segment study's
-    check (`Trajectory.hydraulic_violations`): each load pressure p_L at most what the machine's
+def circuit_violations(cycle: WorkCycle, motion: Trajectory) -> list[Violation]:
+    """Every interval over which the first motion of ``motion``, one whole ``cycle``, passes a
+    limit of the circuit or a cylinder's acceleration limit, at its samples, in order of time
+    (t in the cycle's time). The circuit's limits are the per-segment study's check
+    (`Trajectory.hydraulic_violations`): each load pressure p_L at most what the machine's
     supply serves (relief − Δp_LS under LS, p_S under CP), the pump flow Q_P = Σ Q at most its
     maximum, each cylinder's speed |ẋ| at most its maximum. The accelerations' are
     −a_max ≤ ẍ ≤ a_max (`Limits.accelerations`), with ẍ = dẋ/dt by differences of the
-    motion's own samples within each piece of its path (`Trajectory.x_ddot`): the step in ẋ
-    where the path turns a corner at speed is the path's own and not in ẍ."""
-    accelerations = Limits.accelerations(motion.robot).violations(motion.t[:1], motion.x_ddot[:1])
+    motion's own samples, through the corners where the path asks no step of ẋ
+    (`cycle_accelerations`)."""
+    x_ddot = cycle_accelerations(cycle, motion)[None]
+    accelerations = Limits.accelerations(motion.robot).violations(motion.t[:1], x_ddot)
     return sorted(motion.hydraulic_violations(0) + accelerations[0], key=lambda v: v.start)
 
 
-def cost(motion: Trajectory, objective: Objective) -> Cost:
-    """The `Cost` of the first motion of ``motion``."""
+def cost(cycle: WorkCycle, motion: Trajectory, objective: Objective) -> Cost:
+    """The `Cost` of the first motion of ``motion``, one whole ``cycle``."""
     hydraulic = motion.robot.hydraulics is not None
     return Cost(
         float(motion.score(objective)[0]),
@@ -116,7 +118,7 @@ def cost(motion: Trajectory, objective: Objective) -> Cost:
         float(motion.max_tracking_error[0]),
         bool(motion.within_limits[0]),
         **(pump_energies(motion) if hydraulic else {}),
-        circuit_violations=tuple(circuit_violations(motion)) if hydraulic else None,
+        circuit_violations=tuple(circuit_violations(cycle, motion)) if hydraulic else None,
     )
 
 
@@ -424,7 +426,7 @@ def run_cycle(
         plan,
         repetitions,
         firsts,
-        {name: cost(motion, objective) for name, motion in firsts.items()},
+        {name: cost(cycle, motion, objective) for name, motion in firsts.items()},
         periodic,
         mapped,
         free_start,
