@@ -596,3 +596,34 @@ def test_a_cycle_that_keeps_every_limit_of_the_circuit_flags_none(crane_study):
         assert report["strategies"][name]["circuit_violations"] == []
     assert "circuit's limits" not in cycle_table(crane_study)
     assert "circuit, first cycle" not in _cycle_body(report)
+
+
+def test_a_held_speed_stepped_at_a_corner_where_the_tool_rests_passes_its_acceleration(
+    crane, paper_cycle
+):
+    """With trapezoidal profiles the tool rests at every corner, so the task asks no step of ẋ
+    there; the drift-free plan, solved segment by segment, steps the telescope's speed at the
+    corner 1-2 → 2-3 all the same. Across that corner ẋ changes by Δẋ between the samples on
+    either side, a mean acceleration Δẋ / Δt past the telescope's 1 m/s², which the cycle study
+    names at the corner's time; the free law, smooth through it, is not flagged."""
+    segments = tuple(
+        replace(s, profile="trapezoidal", acceleration=0.5) for s in paper_cycle.segments
+    )
+    cycle = replace(paper_cycle, segments=segments)
+    study = run_cycle(crane, cycle, VELOCITY, cycles=1)
+    corner = cycle.offsets[1]
+    motion = study.firsts["periodic"]
+    t, x3 = motion.t[0], motion.x_dot[0][:, crane.actuators.rows("x3")[0]]
+    c = int(np.argmin(np.abs(t - corner)))
+    assert t[c] == pytest.approx(corner) and abs(x3[c + 1] - x3[c]) > 0.05  # the step
+    across = (x3[c + 1] - x3[c - 1]) / (t[c + 1] - t[c - 1])
+    maximum = crane.circuit().max_accelerations[2]
+    assert across > maximum
+    at_corner = [v for v in study.costs["periodic"].circuit_violations if v.start == t[c]]
+    assert [(v.actuator, v.bound, v.end) for v in at_corner if "x3" in v.actuator] == [
+        ("x3 acceleration", "upper", t[c])
+    ]
+    found = next(v for v in at_corner if v.actuator == "x3 acceleration")
+    assert found.excess == pytest.approx(across - maximum, rel=1e-12)
+    assert f"x3 acceleration {across - maximum:.4g} m/s² past its upper limit" in cycle_table(study)
+    assert study.costs["free"].circuit_violations == ()
