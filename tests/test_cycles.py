@@ -1,6 +1,7 @@
 """Work cycles as a machine runs them: continuous through the corners, the whole-cycle improved
 start beside the per-segment plan, repetition and drift, and the drift-free periodic strategy."""
 
+import html
 import itertools
 import json
 import math
@@ -37,7 +38,7 @@ from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.resolution.limits import Limits, amount
 from redundancy.resolution.objectives import VELOCITY
 from redundancy.resolution.state import evaluate
-from redundancy.study.cycles import repetition_report
+from redundancy.study.cycles import repetition_report, run_cycle
 from redundancy.viz.tables import cycle_table
 
 ARM = Path(__file__).parent / "data" / "planar4r"
@@ -453,3 +454,176 @@ def test_the_periodic_transcription_is_one_code_on_a_segment_and_on_a_cycle(circ
     for name in ("t", "owner", "D", "points", "y_dot"):
         np.testing.assert_array_equal(*(getattr(p, name) for p in problems))
     assert problems[0].owner[-1] == 0 and problems[0].D.shape == (25, 24)
+
+
+@pytest.fixture(scope="module")
+def lowered_circuit(crane, paper_cycle, tmp_path_factory):
+    """The crane's cycle, one repetition, on its circuit with the relief lowered to 60 bar (a
+    load-sensing pump then serves 40 bar, below the lift's and the fold's 45 bar; p_S 50 bar)
+    and the telescope's acceleration limited to 0.2 m/s² (the free cycle starts it at 0.28)."""
+    text = (crane.urdf.parent / "robot.toml").read_text()
+    table = text[text.index("[hydraulics]") :]
+    table = table.replace("relief = 210.0", "relief = 60.0")
+    table = table.replace("cp_pressure = 180.0", "cp_pressure = 50.0")
+    telescope = table.index("[hydraulics.cylinders.x3]")
+    table = table[:telescope] + table[telescope:].replace(
+        "max_acceleration = 1.0", "max_acceleration = 0.2"
+    )
+    path = tmp_path_factory.mktemp("circuit") / "lowered.toml"
+    path.write_text(table)
+    robot = load_robot("hiab031", hydraulics=path)
+    return run_cycle(robot, paper_cycle, VELOCITY, cycles=1)
+
+
+def _load_pressures(motion) -> np.ndarray:
+    """Each cylinder's load pressure p_L (T, c) in Pa along the first motion, by the meter-in
+    model from its own samples of ẋ and F_H: extending, (F + p_T A_B) / A_A; retracting,
+    (−F + p_T A_A) / A_B; at least p_T."""
+    circuit = motion.robot.circuit()
+    bore = np.array([c.bore for c in circuit.cylinders])
+    rod = np.array([c.rod for c in circuit.cylinders])
+    a, b, p_t = np.pi * bore**2 / 4, np.pi * (bore**2 - rod**2) / 4, circuit.tank
+    v = motion.x_dot[0][:, circuit.columns]
+    force = motion.forces[0][:, circuit.columns]
+    load = np.where(v >= 0, (force + p_t * b) / a, (p_t * a - force) / b)
+    return np.maximum(load, p_t)
+
+
+def _accelerations(motion, cycle) -> np.ndarray:
+    """ẍ (T, n) along the first motion: dẋ/dt by central differences of its own samples within
+    each segment (a sample at a corner ends the segment before it), one-sided of second order
+    at each segment's ends."""
+    t, v = motion.t[0], motion.x_dot[0]
+    ends = [0, *(int(np.searchsorted(t, b - 1e-9)) + 1 for b in cycle.breaks), len(t)]
+    rate = np.empty_like(v)
+    for a, b in itertools.pairwise(ends):
+        tt, vv = t[a:b], v[a:b]
+        rate[a + 1 : b - 1] = (vv[2:] - vv[:-2]) / (tt[2:] - tt[:-2])[:, None]
+        rate[a] = (-3 * vv[0] + 4 * vv[1] - vv[2]) / (tt[2] - tt[0])
+        rate[b - 1] = (3 * vv[-1] - 4 * vv[-2] + vv[-3]) / (tt[-1] - tt[-3])
+    return rate
+
+
+def _runs(t: np.ndarray, excess: np.ndarray) -> list[tuple[float, float, float]]:
+    """Each run of samples with ``excess`` > 0: its first and last time and its largest excess."""
+    outside = np.flatnonzero(excess > 0)
+    runs = np.split(outside, np.flatnonzero(np.diff(outside) > 1) + 1) if outside.size else []
+    return [(t[r[0]], t[r[-1]], excess[r].max()) for r in runs]
+
+
+def test_a_cycle_strategy_past_a_load_pressure_limit_is_named_where_and_by_how_much(
+    lowered_circuit,
+):
+    """On a circuit serving 40 bar, both strategies' cycles pass it on the lift and the fold:
+    each interval is named in the violations' words (its excess in bar, its times in the
+    cycle's), with the excess and times of the load pressures computed here from the motion's
+    own ẋ and F_H, in the cycle study, its report, its table and its page."""
+    from redundancy.viz.report import _cycle_body
+
+    study = lowered_circuit
+    circuit = study.robot.circuit()
+    served = circuit.relief - circuit.load_sensing.margin
+    assert served == pytest.approx(40e5)
+    report = json.loads(json.dumps(study.report(), allow_nan=False))
+    table, page = cycle_table(study), _cycle_body(report)
+    for name in ("free", "periodic"):
+        motion, found = study.firsts[name], study.costs[name].circuit_violations
+        pressures = _load_pressures(motion)
+        expected = sorted(
+            (start, f"{cylinder} load pressure", end, excess)
+            for c, cylinder in enumerate(circuit.names)
+            for start, end, excess in _runs(motion.t[0], pressures[:, c] - served)
+        )
+        assert {limit for _, limit, *_ in expected} == {"x1 load pressure", "x2 load pressure"}
+        passed = [v for v in found if v.unit == "Pa"]
+        assert [(v.start, v.actuator, v.end) for v in passed] == [e[:3] for e in expected]
+        for violation, (*_, excess) in zip(passed, expected):
+            assert violation.bound == "upper"
+            assert violation.excess == pytest.approx(excess, rel=1e-9)
+        words = [str(v) for v in found]
+        assert report["strategies"][name]["circuit_violations"] == words
+        line = f"{study.names[name]} passes the circuit's limits in its first cycle: "
+        assert line + "; ".join(words) in table.splitlines()
+        assert html.escape("; ".join(words)) in page
+    worst = max(study.costs["free"].circuit_violations, key=lambda v: v.excess * (v.unit == "Pa"))
+    assert str(worst).startswith("x1 load pressure 5.564 bar past its upper limit over t = 8.95")
+
+
+def test_a_cycle_strategy_past_an_acceleration_limit_is_named_where_and_by_how_much(
+    lowered_circuit,
+):
+    """With the telescope's acceleration limited to 0.2 m/s², the free cycle, which starts it
+    at 0.28 m/s², passes that limit over its first 0.1 s, as ẍ = dẋ/dt from its own samples
+    says; the drift-free cycle, at most 0.12 m/s², keeps it."""
+    study = lowered_circuit
+    free = study.firsts["free"]
+    x3 = study.robot.actuators.rows("x3")[0]
+    x_ddot = _accelerations(free, study.cycle)[:, x3]
+    expected = _runs(free.t[0], np.maximum(x_ddot - 0.2, -0.2 - x_ddot))
+    assert len(expected) == 1
+    passed = [v for v in study.costs["free"].circuit_violations if v.unit == "m/s²"]
+    assert [(v.actuator, v.bound, v.start, v.end) for v in passed] == [
+        ("x3 acceleration", "upper", *expected[0][:2])
+    ]
+    # a second-order difference against the study's fourth-order one: 8e-5 m/s² apart
+    assert passed[0].excess == pytest.approx(expected[0][2], abs=1e-4)
+    assert str(passed[0]).startswith("x3 acceleration 0.08358 m/s² past its upper limit over t")
+    periodic = study.costs["periodic"].circuit_violations
+    assert not [v for v in periodic if v.unit == "m/s²"]
+    held = np.abs(_accelerations(study.firsts["periodic"], study.cycle)[:, x3]).max()
+    assert held < 0.2
+
+
+def test_a_cycle_that_keeps_every_limit_of_the_circuit_flags_none(crane_study):
+    """On the crane's own circuit both strategies' cycles keep every load pressure, the pump
+    flow, every speed and acceleration, by the values computed here from their own samples:
+    no strategy is flagged, the report says so with an empty list, and the table and the page
+    add nothing."""
+    from redundancy.viz.report import _cycle_body
+
+    circuit = crane_study.robot.circuit()
+    served = circuit.relief - circuit.load_sensing.margin
+    report = json.loads(json.dumps(crane_study.report(), allow_nan=False))
+    for name, motion in crane_study.firsts.items():
+        v = motion.x_dot[0][:, circuit.columns]
+        flows = np.where(v >= 0, circuit.piston_areas * v, -circuit.rod_side_areas * v)
+        accelerations = _accelerations(motion, crane_study.cycle)[:, circuit.columns]
+        assert _load_pressures(motion).max() < served
+        assert flows.sum(axis=1).max() < circuit.pump_flow
+        assert np.all(np.abs(v) < circuit.max_speeds)
+        assert np.all(np.abs(accelerations) < circuit.max_accelerations)
+        assert crane_study.costs[name].circuit_violations == ()
+        assert report["strategies"][name]["circuit_violations"] == []
+    assert "circuit's limits" not in cycle_table(crane_study)
+    assert "circuit, first cycle" not in _cycle_body(report)
+
+
+def test_a_held_speed_stepped_at_a_corner_where_the_tool_rests_passes_its_acceleration(
+    crane, paper_cycle
+):
+    """With trapezoidal profiles the tool rests at every corner, so the task asks no step of ẋ
+    there; the drift-free plan, solved segment by segment, steps the telescope's speed at the
+    corner 1-2 → 2-3 all the same. Across that corner ẋ changes by Δẋ between the samples on
+    either side, a mean acceleration Δẋ / Δt past the telescope's 1 m/s², which the cycle study
+    names at the corner's time; the free law, smooth through it, is not flagged."""
+    segments = tuple(
+        replace(s, profile="trapezoidal", acceleration=0.5) for s in paper_cycle.segments
+    )
+    cycle = replace(paper_cycle, segments=segments)
+    study = run_cycle(crane, cycle, VELOCITY, cycles=1)
+    corner = cycle.offsets[1]
+    motion = study.firsts["periodic"]
+    t, x3 = motion.t[0], motion.x_dot[0][:, crane.actuators.rows("x3")[0]]
+    c = int(np.argmin(np.abs(t - corner)))
+    assert t[c] == pytest.approx(corner) and abs(x3[c + 1] - x3[c]) > 0.05  # the step
+    across = (x3[c + 1] - x3[c - 1]) / (t[c + 1] - t[c - 1])
+    maximum = crane.circuit().max_accelerations[2]
+    assert across > maximum
+    at_corner = [v for v in study.costs["periodic"].circuit_violations if v.start == t[c]]
+    assert [(v.actuator, v.bound, v.end) for v in at_corner if "x3" in v.actuator] == [
+        ("x3 acceleration", "upper", t[c])
+    ]
+    found = next(v for v in at_corner if v.actuator == "x3 acceleration")
+    assert found.excess == pytest.approx(across - maximum, rel=1e-12)
+    assert f"x3 acceleration {across - maximum:.4g} m/s² past its upper limit" in cycle_table(study)
+    assert study.costs["free"].circuit_violations == ()

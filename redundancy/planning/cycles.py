@@ -19,7 +19,9 @@ stroke kept at every node: its price against the free improved cycle is a measur
 null-space return term z = −k ∇‖x − x*‖² only contracts towards a periodic motion, by a factor
 per cycle set by k; closing within 1e-6 from the first cycle needs a stiff k, which raises the
 peak.) A machine runs it by `HeldReference`: the held actuators follow r(t), the others resolve
-the task, J_H ẋ = ẏ, in closed loop. It minimises a peak objective only.
+the task, J_H ẋ = ẏ, in closed loop. It minimises a peak objective only, and keeps the
+strokes alone: the cylinders' accelerations along a cycle, through its corners too, are
+`cycle_accelerations`.
 """
 
 from __future__ import annotations
@@ -81,6 +83,8 @@ PERIODIC_MARGIN = 5e-4  # m (or rad): the periodic plan keeps the strokes this f
 # its nodes, so that the motion a machine runs between them keeps them too
 SMOOTHNESS = 1e-4  # s²: the periodic plan's tie-break on mean r̈², beside the bound's on ṙ²
 # (on the crane it halves the rms of ẍ_h and moves the peak by 2e-4 of itself)
+STEADY_CORNER = 1e-9  # m/s (or rad/s): a corner where the path's ẏ_d changes less asks no
+# step of ẋ
 
 
 def improved_cycle_start(
@@ -271,6 +275,38 @@ def plan_cycle(
     return CyclePlan(
         robot, cycle, objective, held, search, motion, searches, tuple(motions), corners
     )
+
+
+def cycle_accelerations(cycle: WorkCycle, motion: Trajectory) -> np.ndarray:
+    """ẍ (T, n) in m/s² (or rad/s²) along the first motion of ``motion``, one whole ``cycle``
+    on a grid, as a machine that repeats the cycle meets it.
+
+    Within each piece of the path it is `Trajectory.x_ddot`, which takes no difference across
+    a corner: where the path turns at speed, ẏ_d jumps and so does ẋ, the path's own step. Where
+    ẏ_d is continuous through a corner (within `STEADY_CORNER`: a trapezoidal profile at rest
+    there), and at the cycle's end, where the next cycle starts, when it is continuous there
+    too, the task asks no step, yet a strategy may take one (the drift-free plan's held rates
+    are solved segment by segment). At such a corner's sample t_c, ẍ is the mean acceleration
+    across it, from the samples on either side:
+
+        ẍ(t_c) = (ẋ(t_c + h₊) − ẋ(t_c − h₋)) / (h₊ + h₋),
+
+    the next cycle's samples after its start being the first's (each cycle runs the same path
+    from where the last ended). Smooth through the corner, it is the central difference; a step
+    Δẋ there makes it at least about |Δẋ| / 2h, which no grid step h bounds."""
+    t, x_dot = motion.t[0], motion.x_dot[0]
+    x_ddot = motion.x_ddot[0].copy()
+    segments = cycle.segments
+    for k, (before, after) in enumerate(zip(segments, (*segments[1:], segments[0]))):
+        step = before.velocity_at(before.duration) - after.velocity_at(0.0)
+        if np.abs(step).max() > STEADY_CORNER:
+            continue
+        if k == len(segments) - 1:  # the cycle's end, the next cycle's start
+            x_ddot[-1] = (x_dot[1] - x_dot[-2]) / (t[-1] + t[1] - t[0] - t[-2])
+        else:
+            c = int(np.argmin(np.abs(t - cycle.offsets[k + 1])))
+            x_ddot[c] = (x_dot[c + 1] - x_dot[c - 1]) / (t[c + 1] - t[c - 1])
+    return x_ddot
 
 
 class Settling(NamedTuple):

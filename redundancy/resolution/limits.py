@@ -6,7 +6,7 @@ distance inside (m, or rad for rotary actuators and revolute joints), negative p
 set of limits' margin is the least of its members'. Whoever checks limits (the integrators, both
 searches, the bound, the playback) reads this one definition; a value within `TOLERANCE` past a
 limit counts as inside. Messages give lengths in mm, angles in degrees, pressures in bar, flows
-in L/min and speeds in m/s.
+in L/min, speeds in m/s and accelerations in m/s².
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ SHOWN = {
     "Pa": (1e-5, " bar"),
     "m³/s": (6e4, " L/min"),
     "m/s": (1.0, " m/s"),
+    "m/s²": (1.0, " m/s²"),
 }
 
 
@@ -118,6 +119,15 @@ class Limits:
         )
         units = ("Pa",) * c + ("m³/s",) + ("m/s",) * c
         return cls(names, np.arange(2 * c + 1), np.full(2 * c + 1, -np.inf), upper, units)
+
+    @classmethod
+    def accelerations(cls, robot: Robot) -> Limits:
+        """Each cylinder's acceleration within its maximum either way, −a_max ≤ ẍ ≤ a_max
+        (m/s², `redundancy.model.hydraulics.Cylinder`), on accelerations ẍ (..., n)."""
+        circuit = robot.circuit()
+        a_max = circuit.max_accelerations
+        names = tuple(f"{name} acceleration" for name in circuit.names)
+        return cls(names, circuit.columns.copy(), -a_max, a_max, ("m/s²",) * len(names))
 
     def excess(self, values: np.ndarray) -> np.ndarray:
         """How far each checked value is past its limit, (..., c): positive past, negative

@@ -4,7 +4,9 @@ the strategies, each repeated for ``cycles`` cycles (`repeat`): "free", the obje
 from the whole-cycle improved start, which drifts, and "periodic", the drift-free periodic
 optimum (`periodic_optimum`) run by the law that follows its plan; the drift, settling and
 return map; and the drift-free strategy's price against the free one, in the objective's peak
-and, with hydraulics, the pump energy under load sensing and constant pressure.
+and, with hydraulics, the pump energy under load sensing and constant pressure, and the limits
+of the circuit and of the cylinders' accelerations each strategy's first cycle passes
+(`circuit_violations`).
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ from redundancy.planning.cycles import (
     Repetition,
     ReturnMap,
     checked_cycles,
+    cycle_accelerations,
     periodic_optimum,
     plan_cycle,
     repeat,
@@ -37,7 +40,7 @@ from redundancy.planning.cycles import (
 from redundancy.planning.integrate import Trajectory
 from redundancy.planning.starts import SearchResult, default_start, held_actuators, scalar_or_list
 from redundancy.planning.tasks import WorkCycle
-from redundancy.resolution.limits import amount
+from redundancy.resolution.limits import Limits, Violation, amount
 from redundancy.resolution.objectives import VELOCITY, Objective
 from redundancy.study.peers import pump_energies
 
@@ -71,7 +74,8 @@ def free_start_of(search: SearchResult) -> tuple[str, np.ndarray, str]:
 class Cost(NamedTuple):
     """A strategy's first cycle: the peak (or integral) of the objective, the peak ẋᵀẋ (m²/s²),
     the largest tracking error (m, and rad), whether it kept every checked limit and, with
-    hydraulics, the pump energies under load sensing and constant pressure (kJ)."""
+    hydraulics, the pump energies under load sensing and constant pressure (kJ) and the limits of
+    the circuit and of the cylinders' accelerations it passes (`circuit_violations`)."""
 
     objective: float
     peak_velocity_norm: float
@@ -79,20 +83,42 @@ class Cost(NamedTuple):
     within_limits: bool
     ls_energy_kj: float | None = None
     cp_energy_kj: float | None = None
+    circuit_violations: tuple[Violation, ...] | None = None
 
     def figures(self) -> dict:
-        """The cost as the report gives it (the energies only with hydraulics)."""
-        return {k: v for k, v in self._asdict().items() if v is not None}
+        """The cost as the report gives it (the energies and the circuit's limits passed, in
+        words, only with hydraulics)."""
+        figures = {k: v for k, v in self._asdict().items() if v is not None}
+        if self.circuit_violations is not None:
+            figures["circuit_violations"] = [str(v) for v in self.circuit_violations]
+        return figures
 
 
-def cost(motion: Trajectory, objective: Objective) -> Cost:
-    """The `Cost` of the first motion of ``motion``."""
+def circuit_violations(cycle: WorkCycle, motion: Trajectory) -> list[Violation]:
+    """Every interval over which the first motion of ``motion``, one whole ``cycle``, passes a
+    limit of the circuit or a cylinder's acceleration limit, at its samples, in order of time
+    (t in the cycle's time). The circuit's limits are the per-segment study's check
+    (`Trajectory.hydraulic_violations`): each load pressure p_L at most what the machine's
+    supply serves (relief − Δp_LS under LS, p_S under CP), the pump flow Q_P = Σ Q at most its
+    maximum, each cylinder's speed |ẋ| at most its maximum. The accelerations' are
+    −a_max ≤ ẍ ≤ a_max (`Limits.accelerations`), with ẍ = dẋ/dt by differences of the
+    motion's own samples, through the corners where the path asks no step of ẋ
+    (`cycle_accelerations`)."""
+    x_ddot = cycle_accelerations(cycle, motion)[None]
+    accelerations = Limits.accelerations(motion.robot).violations(motion.t[:1], x_ddot)
+    return sorted(motion.hydraulic_violations(0) + accelerations[0], key=lambda v: v.start)
+
+
+def cost(cycle: WorkCycle, motion: Trajectory, objective: Objective) -> Cost:
+    """The `Cost` of the first motion of ``motion``, one whole ``cycle``."""
+    hydraulic = motion.robot.hydraulics is not None
     return Cost(
         float(motion.score(objective)[0]),
         float(motion.peak_velocity_norm[0]),
         float(motion.max_tracking_error[0]),
         bool(motion.within_limits[0]),
-        **({} if motion.robot.hydraulics is None else pump_energies(motion)),
+        **(pump_energies(motion) if hydraulic else {}),
+        circuit_violations=tuple(circuit_violations(cycle, motion)) if hydraulic else None,
     )
 
 
@@ -400,7 +426,7 @@ def run_cycle(
         plan,
         repetitions,
         firsts,
-        {name: cost(motion, objective) for name, motion in firsts.items()},
+        {name: cost(cycle, motion, objective) for name, motion in firsts.items()},
         periodic,
         mapped,
         free_start,

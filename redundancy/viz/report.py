@@ -385,6 +385,17 @@ def _cycle_body(cycle: dict) -> str:
     text += _table(
         strategies, "Each strategy repeated; drift: where a cycle ends minus where it began."
     )
+    passed = [
+        {"strategy": s["name"], "circuit, first cycle": _limits(s["circuit_violations"])}
+        for s in cycle["strategies"].values()
+        if s.get("circuit_violations")
+    ]
+    text += _table(
+        passed,
+        "The limits of the circuit (load pressures, pump flow, cylinder speeds) and of the "
+        "cylinders' accelerations each strategy passes in its first cycle, t in the cycle's "
+        "time.",
+    )
     versus = cycle.get("periodic_versus_free_percent")
     if versus:
         change = ", ".join(f"{k.replace('_kj', '')} {v:+.1f} %" for k, v in versus.items())

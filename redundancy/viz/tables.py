@@ -145,6 +145,7 @@ def cycle_table(study: CycleStudy) -> str:
         *_corner_lines(study),
         "",
         _repetition_table(study),
+        *_circuit_lines(study),
     ]
     if study.price() is not None:
         lines.append(_price_line(study))
@@ -233,6 +234,18 @@ def _price_line(study: CycleStudy) -> str:
     if failure is not None:  # the motions compare; the plan is not shown to be the optimum
         line += f" (the periodic plan is not shown optimal: {failure})"
     return line
+
+
+def _circuit_lines(study: CycleStudy) -> list[str]:
+    """Each strategy whose first cycle passes a limit of the circuit or of a cylinder's
+    acceleration, with every limit it passes (its times in the cycle's); none where every
+    strategy keeps them all."""
+    return [
+        f"{study.names[name]} passes the circuit's limits in its first cycle: "
+        + "; ".join(str(v) for v in cost.circuit_violations)
+        for name, cost in study.costs.items()
+        if cost.circuit_violations
+    ]
 
 
 def _repetition_table(study: CycleStudy) -> str:
