@@ -13,6 +13,7 @@ from redundancy.model.hydraulics import KILOJOULE
 from redundancy.model.robot import Robot
 from redundancy.planning.integral_optimum import energy_optimum
 from redundancy.planning.tasks import WorkCycle
+from redundancy.resolution.objectives import LS_ENERGY
 from redundancy.study.output import MARKER, OutputFolder, write_atomically
 from redundancy.study.study import run_study
 from redundancy.viz.tables import study_table
@@ -161,6 +162,16 @@ def test_a_study_without_bounds_says_so_where_the_bounds_would_be(tmp_path):
         assert segment["best"]["peak"] > 0
     assert run.stdout.count("no bound: the study was run without bounds") == 3
     assert "the study was run without bounds" in (out / "index.html").read_text()
+
+
+def test_an_integral_objective_s_bound_says_where_it_is(crane, paper_cycle):
+    """The min-max bound bounds peaks: an integral objective's place in the bounds table says
+    so and where its least value is found, instead of staying blank."""
+    study = run_study(crane, paper_cycle, (LS_ENERGY,), samples=3, progress=False, cycles=0)
+    for segment in SEGMENTS:
+        assert study.bound("ls_energy", segment) is None
+        assert study.withheld("ls_energy", segment).startswith("the min-max bound bounds peaks")
+    assert study_table(study).count("redundancy.integral_optimum (the pump energy's") == 3
 
 
 @pytest.mark.parametrize(

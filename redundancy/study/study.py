@@ -60,6 +60,11 @@ from redundancy.study.output import write_atomically
 from redundancy.study.peers import StrategyRun, fixed_start_run
 
 NOT_ASKED = "the study was run without bounds"  # a bound's reason, `bound=False`
+INTEGRAL = (  # an integral objective's: its optimum by dynamic programming takes about a minute
+    # per segment on the crane, left to `integral_optimum`
+    "the min-max bound bounds peaks; an integral's least value: redundancy.integral_optimum (the "
+    "pump energy's within the circuit: --energy-bound)"
+)
 ABOVE = 1e-4  # a bound above the improved start's peak by more than this fraction is withheld:
 # below it, the improved motion's 10 ms grid and the bound's nodes sample a peak every history
 # shares (the slewing crane's lift-swing, 1e-5)
@@ -485,9 +490,11 @@ def _on_segment(
         if search.best is not None:
             strategy = f"improved, {objective.name} objective"
             runs.append(StrategyRun(segment.name, strategy, search.best.values, search.best_motion))
-            if not bound and objective.reduction == "peak":
+            if objective.reduction != "peak":
+                failures[f"{objective.name}/{segment.name}"] = INTEGRAL
+            elif not bound:
                 failures[f"{objective.name}/{segment.name}"] = NOT_ASKED
-            elif objective.reduction == "peak":
+            else:
                 bar.set_description(f"{segment.name}: bound, {objective.name}")
                 with noted(failures, f"{objective.name}/{segment.name}"):
                     optimum = global_optimum(
