@@ -651,3 +651,21 @@ def test_killed_at_any_instant_of_its_writing_a_run_leaves_the_old_or_the_new_ou
         assert report.read_text() == versions.pop()
         assert (target / "notes.html").read_text() == "mine"
         assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "report.json"]
+
+
+@pytest.mark.skipif(not os.path.ismount("/proc"), reason="/proc is no mount point here")
+def test_a_mount_point_as_the_output_folder_is_refused_before_any_work(tmp_path):
+    """A mount point cannot be exchanged with the staged folder (the rename fails, EBUSY): it
+    is refused as the folder is named, in one line, not after the computing; so is a link to
+    one."""
+    said = (
+        "is a mount point: the output replaces its folder whole, by a rename, which cannot "
+        "move a mount point; give a folder inside it or elsewhere"
+    )
+    with pytest.raises(InvalidInputError, match=f"^--out /proc {said}$"):
+        OutputFolder("/proc")
+    (tmp_path / "link").symlink_to("/proc")
+    run = run_cli("study", *NO_ROBOT, "--out", str(tmp_path / "link"))
+    assert run.returncode == 2, run.stderr
+    assert run.stderr == f"redundancy: error: --out {tmp_path / 'link'} {said}\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link"]

@@ -1,7 +1,8 @@
 """All-or-nothing output: a run's files appear together or not at all, and nothing else is lost.
 
 `OutputFolder` stages a run's output in a hidden folder beside the target,
-``.NAME.partial-PID-*``, made before any computing so that an unwritable target fails at once.
+``.NAME.partial-PID-*``, made before any computing so that an unwritable target fails at once,
+as does a mount point, which the commit's rename cannot move.
 Its commit writes the manifest of the staged files into the folder's marker file (`MARKER`),
 flushes them to the disk and exchanges the staged folder with the target in one rename (Linux's
 ``renameat2``): killed at any instant, the old or the new complete folder sits at the target.
@@ -204,6 +205,12 @@ class OutputFolder:
             self.target = _followed(Path(target), option)
             if self.target.name in ("", ".", ".."):
                 raise InvalidInputError(f"{option} {target}: give a folder by its own name")
+            if os.path.ismount(self.target):  # refused now, not after the computing
+                raise InvalidInputError(
+                    f"{option} {target} is a mount point: the output replaces its folder whole, "
+                    "by a rename, which cannot move a mount point; give a folder inside it or "
+                    "elsewhere"
+                )
             inside_output(self.target, option)
             self._check_target()
             self.created = _make_parent(self.target, option)
