@@ -268,6 +268,44 @@ def test_a_full_disk_is_one_line_naming_the_output(tmp_path, monkeypatch, capsys
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_full_disk_under_the_json_report_names_that_file(tmp_path, monkeypatch, capsys):
+    """No space left for --json's report, kept outside --out: the line names that file, which
+    it used to blame on --out, and nothing of the run is left."""
+    from redundancy import cli
+
+    def full(path):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(
+        cli, "write_report", lambda result, path: output.write_atomically(path, full)
+    )
+    report = tmp_path / "json" / "report.json"
+    status = cli.main([*STUDY, "--out", str(tmp_path / "o"), "--json", str(report)])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert status == 2 and len(lines) == 1, lines
+    said = f"{report}: No space left on device; this run's output was not kept"
+    assert lines[0] == f"redundancy: error: {said}"
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full here")
+def test_a_full_standard_output_names_it(tmp_path):
+    """Standard output on a full disk (/dev/full): one line naming it, not --out, status 2,
+    and no second report as the interpreter flushes it on its way out."""
+    for command in (["robots"], [*STUDY, "--out", str(tmp_path / "out")]):
+        with open("/dev/full", "w") as full:
+            process = subprocess.run(
+                [sys.executable, "-m", "redundancy", *command],
+                stdout=full,
+                stderr=subprocess.PIPE,
+                text=True,
+            )
+        said = "standard output: No space left on device; this run's output was not kept"
+        assert process.stderr == f"redundancy: error: {said}\n"
+        assert process.returncode == 2
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_reader_that_goes_away_stops_nothing(tmp_path):
     """stdout piped into a reader that has gone (``| head -1``): the run still ends well, its
     output written, and says nothing about the pipe."""
