@@ -359,6 +359,35 @@ def test_a_signal_while_the_libraries_load_ends_the_command_with_one_line(tmp_pa
         assert list(tmp_path.iterdir()) == []
 
 
+def test_a_signal_while_the_command_module_loads_its_handler_ends_it_with_one_line():
+    """Ctrl-C at the first import the command's entry makes (its console script runs
+    ``from redundancy.__main__ import main``), before the handler is in place: held back until
+    it is, then one line and status 130, where it used to print a KeyboardInterrupt
+    traceback."""
+    script = """
+import os, signal, sys
+
+class Interrupt:  # Ctrl-C as the entry module imports the handler's package
+    def find_spec(self, name, path, target=None):
+        if name == "redundancy.study":
+            sys.meta_path.remove(self)
+            os.kill(os.getpid(), signal.SIGINT)
+
+sys.meta_path.insert(0, Interrupt())
+from redundancy.__main__ import main
+sys.exit(main())
+"""
+    done = subprocess.run(
+        [sys.executable, "-c", script, "robots"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        preexec_fn=as_foreground,
+    )
+    assert done.stderr == "redundancy: interrupted\n", done.stderr
+    assert done.returncode == 130 and done.stdout == ""
+
+
 def test_a_signal_while_the_staging_folder_is_made_leaves_nothing(tmp_path, monkeypatch):
     """Ctrl-C between making the staging folder and marking it, before any `with` block could
     discard it: the folder is removed, and the target's parent holds nothing new."""
