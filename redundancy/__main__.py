@@ -1,11 +1,23 @@
 """The ``redundancy`` command (and ``python -m redundancy``): Ctrl-C and SIGTERM end it with one
 line from its first moment, while the libraries still load (`redundancy.study.signals`), and
-`redundancy.cli.main` handles them from there on."""
+`redundancy.cli.main` handles them from there on.
 
-import gc
-import sys
+Its first statements hold the two signals back (blocked, not lost) until their handler is in
+place: one that arrives while this module loads what the handler needs then ends the command
+with that line, where Python's default would print a KeyboardInterrupt traceback. (The
+interpreter's own start, before this module runs, is beyond its reach.)"""
 
-from redundancy.study import signals
+import signal
+
+_before = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+
+import gc  # noqa: E402  (after the signals are held back)
+import sys  # noqa: E402
+
+from redundancy.study import signals  # noqa: E402
+
+signals.install()
+signal.pthread_sigmask(signal.SIG_SETMASK, _before)  # a signal held back is handled now
 
 
 def main() -> int:
@@ -16,7 +28,6 @@ def main() -> int:
     of the process the study forks) do not trace them again and again, and the command's own
     once it has returned, so that the interpreter's shutdown does not trace them all to free
     memory the process gives back as it exits (about a tenth of a study's wall time)."""
-    signals.install()
     from redundancy.cli import main as run
 
     gc.freeze()

@@ -56,6 +56,7 @@ from redundancy.study.families import read_family
 from redundancy.study.maps import CONNECT_TIMEOUT, connect, design_map, summary
 from redundancy.study.output import OutputFolder, writable
 from redundancy.study.signals import Terminated, announce, caught, received
+from redundancy.study.signals import written as committed  # the outputs committed whole
 from redundancy.study.study import (
     STUDY_CYCLES,
     cycle_section,
@@ -630,13 +631,16 @@ class _Output:
 
     def _unless_gone(self, call, *args) -> None:
         """``call(*args)``; where the reader has gone, what is written from now on, and what is
-        still buffered, goes to /dev/null."""
+        still buffered, goes to /dev/null. Any other failure (a full disk) does too, so that
+        the interpreter's last flush fails no second time, and is raised naming the stream."""
         try:
             call(*args)
-        except BrokenPipeError:
+        except OSError as error:
             null = os.open(os.devnull, os.O_WRONLY)
             os.dup2(null, self.stream.fileno())
             os.close(null)
+            if not isinstance(error, BrokenPipeError):
+                raise OSError(error.errno, error.strerror, "standard output") from None
 
     def __getattr__(self, name: str):
         return getattr(self.stream, name)
@@ -683,11 +687,17 @@ def main(argv: list[str] | None = None) -> int:
             print(f"redundancy: error: {one_line(str(error))}", file=sys.stderr)
             status = 2
         elif isinstance(error, OSError) and error.errno in (errno.ENOSPC, errno.EDQUOT):
-            where = getattr(args, "out", None) or getattr(args, "html", None) or "the output"
+            # the file or stream that could not be written (output.py names a staged one by
+            # the path given), else the command's output
+            output = getattr(args, "out", None) or getattr(args, "html", None) or "the output"
+            where = one_line(str(error.filename or output))
+            kept = (
+                f"wrote {', '.join(committed)} whole"
+                if committed
+                else "this run's output was not kept"
+            )
             print(
-                f"redundancy: error: {one_line(str(where))}: {os.strerror(error.errno)}; this "
-                "run's output was not kept",
-                file=sys.stderr,
+                f"redundancy: error: {where}: {os.strerror(error.errno)}; {kept}", file=sys.stderr
             )
             status = 2
         elif isinstance(error, OSError) and error.errno == errno.ENAMETOOLONG:

@@ -653,9 +653,44 @@ def test_a_scheduler_lost_mid_map_ends_in_one_line_and_keeps_the_finished_chunks
     assert f"{len(kept)}/24" in rerun.stderr
 
 
-def test_ctrl_c_to_a_local_maps_process_group_ends_in_one_line(tmp_path):
-    """A Ctrl-C at a terminal reaches the command and its local workers alike: the command
-    alone answers, in one line, and closes them."""
+def _workers(pid: int) -> list[int]:
+    """The worker processes the process ``pid`` has started (multiprocessing's spawned
+    children), read from /proc."""
+    found = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        with contextlib.suppress(OSError):
+            parent = int(stat.read_text().rpartition(")")[2].split()[1])
+            if parent == pid and b"spawn_main" in (stat.parent / "cmdline").read_bytes():
+                found.append(int(stat.parent.name))
+    return found
+
+
+def _catches_ctrl_c(pid: int) -> bool:
+    """Whether the process ``pid`` has a handler of its own for SIGINT: in a worker, Python
+    has started and is loading distributed (the workers of a map never ignore it)."""
+    with contextlib.suppress(OSError):
+        status = Path(f"/proc/{pid}/status").read_text()
+        caught = next(line for line in status.splitlines() if line.startswith("SigCgt:"))
+        return bool(int(caught.split()[1], 16) & 1 << (signal.SIGINT - 1))
+    return False
+
+
+def _alive(pid: int) -> bool:
+    """Whether the process ``pid`` still runs (an exited one waiting to be reaped does not)."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()[0]
+    except OSError:
+        return False
+    return state not in ("Z", "X")
+
+
+@pytest.mark.parametrize("moment", ["workers starting", "solving"])
+def test_ctrl_c_to_a_local_maps_process_group_ends_in_one_line(tmp_path, moment):
+    """A Ctrl-C at a terminal reaches the command and its local workers alike, whether they
+    are still starting (loading distributed) or solving: the command alone answers, in one
+    line, and closes them before it exits; the output folder is not made. A Ctrl-C while the
+    workers started used to print their tracebacks and distributed's, and to leave them
+    running after the command (about 2 s, until they saw their parent gone)."""
     # 120 one-problem chunks: the map is still running when its first chunk is seen, however
     # slowly this test is scheduled (a finished map removes its store, and the signal would
     # then reach a command that already succeeded)
@@ -669,20 +704,32 @@ def test_ctrl_c_to_a_local_maps_process_group_ends_in_one_line(tmp_path):
         start_new_session=True,
         preexec_fn=as_foreground,
     )
+
+    def ready() -> bool:
+        if moment == "solving":
+            return bool(list(store.glob("chunk-*.parquet")))
+        # a worker's Python runs: it loads distributed for about a second
+        return any(_catches_ctrl_c(pid) for pid in _workers(process.pid))
+
     deadline = time.monotonic() + 600  # guards a hang only
-    while not list(store.glob("chunk-*.parquet")) and time.monotonic() < deadline:
-        assert process.poll() is None, "the map ended before its first chunk was seen"
-        time.sleep(0.05)
+    while not ready() and time.monotonic() < deadline:
+        assert process.poll() is None, f"the map ended before {moment} was seen"
+        time.sleep(0.01)
     # the group is frozen while the test makes sure the map is still solving, so that the
     # Ctrl-C, delivered as the group goes on, cannot reach a map that has meanwhile finished
     os.killpg(process.pid, signal.SIGSTOP)
     try:
         solved = len(list(store.glob("chunk-*.parquet")))
-        assert process.poll() is None and 0 < solved < 120, f"{solved} chunks at the signal"
+        assert process.poll() is None and solved < 120, f"{solved} chunks at the signal"
+        workers = _workers(process.pid)
+        assert workers and ready()
         os.killpg(process.pid, signal.SIGINT)
     finally:
         os.killpg(process.pid, signal.SIGCONT)
     _, stderr = process.communicate(timeout=600)
     assert process.returncode == 130, stderr
     assert stderr == "redundancy: interrupted\n"
-    assert list(store.glob("chunk-*.parquet"))
+    assert not [pid for pid in workers if _alive(pid)], "workers outlived the command"
+    assert sorted(p.name for p in tmp_path.iterdir()) == [".out.chunks", "ws.toml"]
+    if moment == "solving":
+        assert list(store.glob("chunk-*.parquet"))

@@ -268,6 +268,44 @@ def test_a_full_disk_is_one_line_naming_the_output(tmp_path, monkeypatch, capsys
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_full_disk_under_the_json_report_names_that_file(tmp_path, monkeypatch, capsys):
+    """No space left for --json's report, kept outside --out: the line names that file, which
+    it used to blame on --out, and nothing of the run is left."""
+    from redundancy import cli
+
+    def full(path):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(
+        cli, "write_report", lambda result, path: output.write_atomically(path, full)
+    )
+    report = tmp_path / "json" / "report.json"
+    status = cli.main([*STUDY, "--out", str(tmp_path / "o"), "--json", str(report)])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert status == 2 and len(lines) == 1, lines
+    said = f"{report}: No space left on device; this run's output was not kept"
+    assert lines[0] == f"redundancy: error: {said}"
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full here")
+def test_a_full_standard_output_names_it(tmp_path):
+    """Standard output on a full disk (/dev/full): one line naming it, not --out, status 2,
+    and no second report as the interpreter flushes it on its way out."""
+    for command in (["robots"], [*STUDY, "--out", str(tmp_path / "out")]):
+        with open("/dev/full", "w") as full:
+            process = subprocess.run(
+                [sys.executable, "-m", "redundancy", *command],
+                stdout=full,
+                stderr=subprocess.PIPE,
+                text=True,
+            )
+        said = "standard output: No space left on device; this run's output was not kept"
+        assert process.stderr == f"redundancy: error: {said}\n"
+        assert process.returncode == 2
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_reader_that_goes_away_stops_nothing(tmp_path):
     """stdout piped into a reader that has gone (``| head -1``): the run still ends well, its
     output written, and says nothing about the pipe."""
@@ -319,6 +357,35 @@ def test_a_signal_while_the_libraries_load_ends_the_command_with_one_line(tmp_pa
         assert stderr.splitlines() == [f"redundancy: {ending}"], stderr
         assert process.returncode == (143 if stop == signal.SIGTERM else 130)
         assert list(tmp_path.iterdir()) == []
+
+
+def test_a_signal_while_the_command_module_loads_its_handler_ends_it_with_one_line():
+    """Ctrl-C at the first import the command's entry makes (its console script runs
+    ``from redundancy.__main__ import main``), before the handler is in place: held back until
+    it is, then one line and status 130, where it used to print a KeyboardInterrupt
+    traceback."""
+    script = """
+import os, signal, sys
+
+class Interrupt:  # Ctrl-C as the entry module imports the handler's package
+    def find_spec(self, name, path, target=None):
+        if name == "redundancy.study":
+            sys.meta_path.remove(self)
+            os.kill(os.getpid(), signal.SIGINT)
+
+sys.meta_path.insert(0, Interrupt())
+from redundancy.__main__ import main
+sys.exit(main())
+"""
+    done = subprocess.run(
+        [sys.executable, "-c", script, "robots"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        preexec_fn=as_foreground,
+    )
+    assert done.stderr == "redundancy: interrupted\n", done.stderr
+    assert done.returncode == 130 and done.stdout == ""
 
 
 def test_a_signal_while_the_staging_folder_is_made_leaves_nothing(tmp_path, monkeypatch):
@@ -651,3 +718,21 @@ def test_killed_at_any_instant_of_its_writing_a_run_leaves_the_old_or_the_new_ou
         assert report.read_text() == versions.pop()
         assert (target / "notes.html").read_text() == "mine"
         assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "report.json"]
+
+
+@pytest.mark.skipif(not os.path.ismount("/proc"), reason="/proc is no mount point here")
+def test_a_mount_point_as_the_output_folder_is_refused_before_any_work(tmp_path):
+    """A mount point cannot be exchanged with the staged folder (the rename fails, EBUSY): it
+    is refused as the folder is named, in one line, not after the computing; so is a link to
+    one."""
+    said = (
+        "is a mount point: the output replaces its folder whole, by a rename, which cannot "
+        "move a mount point; give a folder inside it or elsewhere"
+    )
+    with pytest.raises(InvalidInputError, match=f"^--out /proc {said}$"):
+        OutputFolder("/proc")
+    (tmp_path / "link").symlink_to("/proc")
+    run = run_cli("study", *NO_ROBOT, "--out", str(tmp_path / "link"))
+    assert run.returncode == 2, run.stderr
+    assert run.stderr == f"redundancy: error: --out {tmp_path / 'link'} {said}\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link"]

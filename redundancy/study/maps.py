@@ -66,14 +66,10 @@ from redundancy.resolution.objectives import OBJECTIVES
 from redundancy.study.families import Design, MapFamily, read_family
 from redundancy.study.output import write_atomically
 from redundancy.study.peers import pump_energies
-from redundancy.study.signals import check
+from redundancy.study.signals import check, deferred, unheard
 
 CONNECT_TIMEOUT = 10.0  # s a scheduler has to answer
 FAMILY_FILE = "family.json"
-# run in each local worker process as it starts: a Ctrl-C at a terminal reaches the whole
-# process group, and the map, not each of its workers with a traceback of its own, ends in one
-# line and closes them
-IGNORE_INTERRUPTS = "import signal\nsignal.signal(signal.SIGINT, signal.SIG_IGN)\n"
 MANIFEST = "chunks.jsonl"  # a line per finished chunk: {"chunk", "problems", "sha256"}
 
 
@@ -436,14 +432,17 @@ def design_map(
             )
         )
         if pending:
-            if client is None:
+            local = client is None
+            if local:
                 client = stack.enter_context(local_client(workers))
             from distributed import as_completed
 
             run = uuid.uuid4().hex[:8]  # keys of this run alone: a shared client may hold others
             # the family goes to each worker once, not with every chunk (a workspace family of
-            # 100,000 starts pickles to 23 MB)
-            shared = client.scatter(family, broadcast=True, hash=False)
+            # 100,000 starts pickles to 23 MB); a local cluster closed while its scheduler copies
+            # it between workers logs that scheduler's failure: a signal waits for the copy
+            with deferred() if local else contextlib.nullcontext():
+                shared = client.scatter(family, broadcast=True, hash=False)
             futures = {
                 client.submit(solve_chunk, shared, c, key=f"map-{run}-chunk-{c}"): c
                 for c in pending
@@ -479,21 +478,33 @@ def design_map(
 @contextlib.contextmanager
 def local_client(workers: int | None):
     """A `distributed.Client` on a local cluster of ``workers`` worker processes (default: the
-    core count), one thread each, closed with the block."""
+    core count), one thread each, closed with the block.
+
+    A Ctrl-C at a terminal reaches the whole process group: the map, not each of its workers
+    with a traceback of its own, ends in one line and closes them. The workers never hear it
+    (`unheard`), and the cluster is made whole before a signal is handled (`deferred`): one cut
+    short half-way could be neither closed nor told to stop its workers, which would outlive
+    the command with tracebacks of distributed's."""
+    from multiprocessing import resource_tracker
+
     from distributed import Client, LocalCluster
 
     count = workers or os.cpu_count() or 1
-    with (
-        LocalCluster(
-            n_workers=count,
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address="127.0.0.1:0",  # a free port: two maps can run at once
-            silence_logs=logging.CRITICAL,  # a worker's restarts are not the user's business
-            preload=[IGNORE_INTERRUPTS],
-        ) as cluster,
-        Client(cluster, set_as_default=False) as client,
-    ):
+    # Python's tracker of the processes' shared resources unblocks SIGINT in the thread that
+    # starts it, with the first worker: started first, from here
+    resource_tracker.ensure_running()
+    with contextlib.ExitStack() as stack:
+        with deferred(), unheard():
+            cluster = stack.enter_context(
+                LocalCluster(
+                    n_workers=count,
+                    threads_per_worker=1,
+                    processes=True,
+                    dashboard_address="127.0.0.1:0",  # a free port: two maps can run at once
+                    silence_logs=logging.CRITICAL,  # a worker's restarts: not the user's business
+                )
+            )
+            client = stack.enter_context(Client(cluster, set_as_default=False))
         yield client
 
 

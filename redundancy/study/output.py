@@ -1,7 +1,8 @@
 """All-or-nothing output: a run's files appear together or not at all, and nothing else is lost.
 
 `OutputFolder` stages a run's output in a hidden folder beside the target,
-``.NAME.partial-PID-*``, made before any computing so that an unwritable target fails at once.
+``.NAME.partial-PID-*``, made before any computing so that an unwritable target fails at once,
+as does a mount point, which the commit's rename cannot move.
 Its commit writes the manifest of the staged files into the folder's marker file (`MARKER`),
 flushes them to the disk and exchanges the staged folder with the target in one rename (Linux's
 ``renameat2``): killed at any instant, the old or the new complete folder sits at the target.
@@ -204,6 +205,12 @@ class OutputFolder:
             self.target = _followed(Path(target), option)
             if self.target.name in ("", ".", ".."):
                 raise InvalidInputError(f"{option} {target}: give a folder by its own name")
+            if os.path.ismount(self.target):  # refused now, not after the computing
+                raise InvalidInputError(
+                    f"{option} {target} is a mount point: the output replaces its folder whole, "
+                    "by a rename, which cannot move a mount point; give a folder inside it or "
+                    "elsewhere"
+                )
             inside_output(self.target, option)
             self._check_target()
             self.created = _make_parent(self.target, option)
@@ -321,10 +328,20 @@ class OutputFolder:
     def __enter__(self) -> OutputFolder:
         return self
 
+    def shown(self, path: Path | str) -> Path:
+        """The path the user gave for ``path``: the target for anything in the staging folder,
+        the final file for one staged beside it; ``path`` itself otherwise."""
+        path = Path(path)
+        if path == self.staging or self.staging in path.parents:
+            return self.target
+        return next((final for staged, final in self.others if staged == path), path)
+
     def __exit__(self, kind, value, traceback) -> None:
         try:
             if kind is None:
                 self.commit()
+            elif isinstance(value, OSError) and value.filename is not None:
+                value.filename = str(self.shown(value.filename))  # for its message
         except OSError as error:
             raise _unwritable(self.target, error, self.option) from None
         finally:
@@ -376,7 +393,8 @@ def write_atomically(path: Path, write: Callable[[Path], object]) -> None:
     """Call ``write(temporary_path)``, then move the result over ``path`` in one step, so a
     failure never leaves ``path`` half-written or loses what it held. A ``path`` that is a
     folder, anything but a regular file (a device or a pipe, which the move would replace) or
-    cannot be written is refused in one line (`_create_beside`)."""
+    cannot be written is refused in one line (`_create_beside`); a write that fails (a full
+    disk) raises its error naming ``path``."""
     temporary = Path(f"{_hidden(path, 'new')}{path.suffix}")  # a writer may read the suffix
     try:
         _create_beside(path, temporary, "output")
@@ -384,7 +402,9 @@ def write_atomically(path: Path, write: Callable[[Path], object]) -> None:
         _sync(temporary)
         os.replace(temporary, path)
         _sync(path.parent)
-    except BaseException:
+    except BaseException as error:
         with contextlib.suppress(OSError):  # where it could not be made, the first error says why
             temporary.unlink(missing_ok=True)
+        if isinstance(error, OSError) and error.filename is None:  # a write (a full disk)
+            error.filename = str(path)
         raise

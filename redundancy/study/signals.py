@@ -9,6 +9,9 @@ status. `received` keeps the signals for where a library turned the exception in
 Python could only ignore it (raised in a weakref callback; that report is silenced). Within
 `deferred` it only notes them, for the end of a block that must not be cut short.
 
+Threads started within `unheard` (and every process they start) never receive SIGINT: a
+terminal's Ctrl-C reaches the whole process group, and the command alone answers it.
+
 A command started with SIGINT ignored (a shell's background job: a Ctrl-C meant for the
 foreground leaves it running) keeps ignoring it, unless ``interrupt=True`` (play's loop).
 """
@@ -119,3 +122,18 @@ def deferred() -> Iterator[None]:
                 handler(late, None)
             elif handler == signal.SIG_DFL:
                 signal.raise_signal(late)
+
+
+@contextlib.contextmanager
+def unheard() -> Iterator[None]:
+    """SIGINT blocked in the threads started during the block, for good, and so in every
+    process they start (a child inherits its thread's mask, across exec): a Ctrl-C at a
+    terminal, which reaches the whole process group, leaves such a child alone from its first
+    instruction, where a handler of its own could only be installed once its imports are done.
+    The calling thread's mask is restored at the end: a Ctrl-C during the block reaches the
+    command then, or at once through another of its threads."""
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
