@@ -13,11 +13,7 @@ below are what type checkers read, and the one list of the public names.
 
 from __future__ import annotations
 
-import ast
-import importlib
-from pathlib import Path
-from typing import TYPE_CHECKING
-
+TYPE_CHECKING = False  # typing's flag, which type checkers read as true, without typing's import
 if TYPE_CHECKING:
     from redundancy.errors import (
         InvalidInputError,
@@ -104,29 +100,39 @@ if TYPE_CHECKING:
     from redundancy.study.study import Study, run_study
 
 
+_EXPORTS: dict[str, str] = {}  # each public name and its module, once first asked for
+
+
 def _exports() -> dict[str, str]:
-    """Each public name and the module it comes from, read from the imports above."""
-    tree = ast.parse(Path(__file__).read_text(encoding="utf-8"))
-    block = next(node for node in tree.body if isinstance(node, ast.If))
-    return {
-        alias.name: str(node.module)
-        for node in block.body
-        if isinstance(node, ast.ImportFrom)
-        for alias in node.names
-    }
+    """Each public name and the module it comes from, read from the imports above when a name
+    is first asked for (parsing this file at import would cost the command's start
+    milliseconds before it handles Ctrl-C)."""
+    if not _EXPORTS:
+        import ast
 
-
-_EXPORTS = _exports()
-__all__ = sorted(_EXPORTS)
+        with open(__file__, encoding="utf-8") as source:
+            tree = ast.parse(source.read())
+        block = next(node for node in tree.body if isinstance(node, ast.If))
+        _EXPORTS.update(
+            (alias.name, str(node.module))
+            for node in block.body
+            if isinstance(node, ast.ImportFrom)
+            for alias in node.names
+        )
+    return _EXPORTS
 
 
 def __getattr__(name: str):
-    if name not in _EXPORTS:
+    if name == "__all__":
+        return sorted(_exports())
+    if name not in _exports():
         raise AttributeError(f"module 'redundancy' has no attribute {name!r}")
-    value = getattr(importlib.import_module(_EXPORTS[name]), name)
+    import importlib
+
+    value = getattr(importlib.import_module(_exports()[name]), name)
     globals()[name] = value  # imported once
     return value
 
 
 def __dir__() -> list[str]:
-    return sorted({*globals(), *__all__})
+    return sorted({*globals(), *_exports()})

@@ -2,6 +2,8 @@
 and each layer imports only the layers below it."""
 
 import ast
+import subprocess
+import sys
 from pathlib import Path
 
 import redundancy
@@ -59,3 +61,21 @@ def test_each_layer_imports_only_the_layers_below_it():
             continue  # the flat public API re-exports every layer
         for target in targets:
             assert layer(target) <= layer(module), f"{module} imports {target} from above"
+
+
+def test_importing_the_package_loads_none_of_its_modules_until_a_name_is_used(tmp_path):
+    """``import redundancy`` loads no library, not even typing or ast: the command handles
+    Ctrl-C from its first moment. Every public name is imported when first used, and the
+    public list is the type checkers' imports, each of which resolves."""
+    code = (
+        "import sys, redundancy\n"
+        "print([m for m in ('numpy', 'pinocchio', 'typing', 'ast') if m in sys.modules])\n"
+    )
+    run = subprocess.run(
+        [sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, check=True
+    )
+    assert run.stdout == "[]\n", run.stdout
+    names = redundancy.__all__
+    assert {"load_robot", "run_study", "Controller", "VELOCITY"} <= set(names)
+    assert set(names) <= set(dir(redundancy))
+    assert all(getattr(redundancy, name) is not None for name in names)
