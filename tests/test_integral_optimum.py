@@ -257,6 +257,24 @@ def test_two_held_actuators_get_a_global_optimum(arm):
     assert found.optimum < search.best_peak
 
 
+def test_a_speed_limit_finer_than_the_first_pass_s_values_still_finds_the_optimum(arm):
+    """r = 2 on the circle (20 intervals): at 0.5 rad/s a held joint cannot move one step of
+    the first pass's values per interval (0.35 and 0.70 rad/s), which kept both still and found
+    no motion. The pass is repeated on values twice as fine, and finds the optimum at 0.7
+    rad/s, whose path moves no joint faster than 0.45 rad/s and so keeps 0.5 too: both
+    optima are one, to the last passes' resolution (4e-8 apart)."""
+    base, _, _ = arm
+    circle = Segment.along(
+        "circle", Arc.about([10.0, 4.0], [10.0, 4.0], [6.0, 4.0], "ccw"), 3.5, "trapezoidal", 2.0
+    )
+    held = ("x3", "x4")
+    looser = integral_optimum(base, circle, SQUARED, held, grids=(20,), speeds=0.7)
+    assert np.abs(np.diff(looser.x, axis=0)).max() / looser.t[1] < 0.5
+    found = integral_optimum(base, circle, SQUARED, held, grids=(20,), speeds=0.5)
+    assert np.abs(np.diff(found.x, axis=0)).max() / found.t[1] <= 0.5 + 1e-9
+    assert found.optimum == pytest.approx(looser.optimum, rel=1e-6)
+
+
 def test_the_integral_optimum_refuses_a_peak_objective_and_bad_limits(arm, plain):
     _, robot, circle = arm
     with pytest.raises(InvalidInputError, match="'joint_speeds' is no energy bound"):

@@ -35,9 +35,12 @@ cost of the same recursion, as in Ferrentino et al. (Robotics 10(1) 42, 2021).
   transition's acceleration is checked from (to) ẋ = 0;
 - the least cost to each node is the least over its predecessors; start and end are free. The
   first pass spans the strokes with `SPANNING` values per held actuator (`SPANNING_EACH` for
-  r = 2); each later one a band `NARROWING` times as wide around the last path with `VALUES`
-  (`VALUES_EACH`) values (iterative dynamic programming), at a cost of G² N per pass, up to
-  G³ N with an acceleration limit. On a finer grid, where the first band around the coarser
+  r = 2), and where it finds no path, once more with values twice as fine: a held actuator
+  moves by whole steps of those values, and a step per interval can be faster than its speed
+  limit (the circuit's, or ``speeds``) allows, which keeps it still on that pass; each later
+  one a band `NARROWING` times as wide around the last path with `VALUES` (`VALUES_EACH`)
+  values (iterative dynamic programming), at a cost of G² N per pass, up to G³ N with an
+  acceleration limit. On a finer grid, where the first band around the coarser
   grid's path holds no path that keeps the limits (an acceleration limit wants held values
   closer than h² ẍ_max), the band narrows around that path until one does.
 
@@ -472,8 +475,10 @@ def _optimum(
             width = (upper - lower) / 2 * NARROWING
         reached = False  # whether a pass on this grid found a path
         widest, without_limit = width, False  # the first band; whether a pass found a path
+        spanning = counts[0]
         for done in range(PASSES):
-            each = counts[path is not None or done > 0]
+            first = path is None and not reached  # a pass over the whole strokes
+            each = spanning if first else counts[1]
             axes = [np.linspace(-w, w, each) for w in width]
             offsets = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, len(rows))
             values = np.clip(centre[:, None] + offsets, lower, upper)
@@ -481,6 +486,9 @@ def _optimum(
             optimum, index, free = _pass(x, usable, stage, t, speeds, accelerations, rest)
             without_limit |= bool(np.isfinite(free))  # without the acceleration limit
             if not np.isfinite(optimum):
+                if first and spanning == counts[0]:  # once more, on values twice as fine
+                    spanning = 2 * spanning - 1
+                    continue
                 if path is not None and not reached and done < PASSES - 1:
                     width = width * NARROWING  # finer values about the coarser grid's path
                     continue
