@@ -311,6 +311,15 @@ def test_an_energy_bound_is_a_result_only_where_it_converged(study, crane):
     ls, cp = [row for row in study_table(raised).splitlines() if "energy bound" in row]
     assert ls.endswith(f"{steady.energy / KILOJOULE:.2f}")
     assert cp.endswith("no bound: no path keeps every limit")
+    report = json.loads(json.dumps(raised.report(), allow_nan=False))["energy_bounds"]["1-2"]
+    assert report["CP"] == {  # in the report too, where the page reads it
+        "energy_kj": None,
+        "change": None,
+        "converged": False,
+        "grids": [],
+        "start": None,
+        "failure": "no path keeps every limit",
+    }
 
 
 def test_every_reported_motion_is_a_csv_that_reads_back_to_its_arrays(study, tmp_path):

@@ -42,6 +42,7 @@ BAR = 1e5  # Pa
 LITRES_PER_MINUTE = 1e-3 / 60  # m³/s
 MM = 1e-3  # m
 KILOJOULE = 1e3  # J
+SUPPLIES = ("LS", "CP")  # the supplies' names: load sensing, constant pressure
 MOVING = 1e-9  # m/s: a cylinder slower than this does not count as moving for LS
 
 

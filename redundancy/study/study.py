@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from redundancy.errors import InvalidInputError
-from redundancy.model.hydraulics import KILOJOULE
+from redundancy.model.hydraulics import KILOJOULE, SUPPLIES
 from redundancy.model.robot import Robot, require_robot
 from redundancy.planning.bound import GlobalOptimum, global_optimum
 from redundancy.planning.ik import check_path
@@ -241,18 +241,21 @@ class Study:
         return summary
 
     def _energy_report(self) -> dict:
+        """Each segment's energy bound under each supply, one whose solve raised too: its
+        figures null, its failure the reason."""
         return {
             segment: {
                 supply: {
-                    "energy_kj": None if failure else bound.energy / KILOJOULE,
-                    "change": bound.change,
-                    "converged": bound.converged,
-                    "grids": [g.intervals for g in bound.grids],
-                    "start": None if failure else scalar_or_list(np.atleast_1d(bound.r[0])),
-                    "failure": failure,
+                    "energy_kj": None if result is None else result.energy / KILOJOULE,
+                    "change": None if bound is None else bound.change,
+                    "converged": bound is not None and bound.converged,
+                    "grids": [] if bound is None else [g.intervals for g in bound.grids],
+                    "start": None if result is None else scalar_or_list(np.atleast_1d(result.r[0])),
+                    "failure": self.energy_withheld(segment, supply),
                 }
-                for supply, bound in bounds.items()
-                for failure in [self.energy_withheld(segment, supply)]
+                for supply in SUPPLIES
+                for bound in [bounds.get(supply)]
+                for result in [self.energy_result(segment, supply)]
             }
             for segment, bounds in (self.energy_bounds or {}).items()
         }

@@ -290,7 +290,9 @@ def _hydraulics(comparison: list[dict], bounds: dict | None) -> str:
             "segment": segment,
             "supply": supply,
             "energy bound (kJ)": _number(b["energy_kj"]),
-            "last refinement's change": _number(b["change"], 2),
+            "last refinement's change (%)": _percent(
+                None if b["change"] is None else 100 * b["change"]
+            ),
             "converged": _number(b["converged"]),
             "note": b.get("failure") or "",
         }

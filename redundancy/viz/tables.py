@@ -10,7 +10,7 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
-from redundancy.model.hydraulics import BAR, BEYOND_RELIEF, KILOJOULE
+from redundancy.model.hydraulics import BAR, BEYOND_RELIEF, KILOJOULE, SUPPLIES
 from redundancy.planning.cycles import ReturnMap
 from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import VELOCITY
@@ -117,15 +117,14 @@ def hydraulic_table(study: Study) -> str:
                     )
                 ),
                 *(  # per cent above a bound, of energies not shown: not shown either
-                    f"{above[s]:.1f}" if s in above and not unphysical else "-"
-                    for s in ("LS", "CP")
+                    f"{above[s]:.1f}" if s in above and not unphysical else "-" for s in SUPPLIES
                 ),
                 "-" if shortest is None else f"{shortest:.2f}",
                 note + ("held" if figures["within_limits"] else "; ".join(figures["violations"])),
             ]
         )
     for segment in study.energy_bounds or {}:
-        for supply in ("LS", "CP"):  # a bound whose solve raised is named with its reason too
+        for supply in SUPPLIES:  # a bound whose solve raised is named with its reason too
             failure = study.energy_withheld(segment, supply)
             bound = study.energy_result(segment, supply)
             energy = "-" if bound is None else f"{bound.energy / KILOJOULE:.2f}"
