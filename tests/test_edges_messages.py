@@ -23,6 +23,7 @@ from redundancy import (
 )
 from redundancy.cli import _load_task, _play_motion, main, parser
 from redundancy.model.hydraulics import BAR
+from redundancy.model.loading import bundled_root
 from redundancy.planning.integrate import simulate
 from redundancy.planning.tasks import WorkCycle
 from redundancy.viz.playback import Playback, Recording
@@ -198,12 +199,53 @@ def test_a_load_pressure_beyond_the_circuits_physics_is_flagged_not_reported(tmp
         r["unphysical"] for name, r in rows.items() if name != "M_H-weighted, default start"
     )
     line = next(s for s in hydraulic_table(study).splitlines() if "M_H-weighted" in s)
-    assert "(!) p_L beyond the circuit's physics, over 2 × the relief 300 bar" in line, line
+    pressure = weighted["max_load_pressure_bar"]
+    said = f"(!) p_L {pressure:.0f} bar, over 2 × the relief 300 bar: no circuit delivers it (a "
+    assert said in line, line
     assert f"{weighted['max_load_pressure_bar']:.1f}" not in line
     assert f"{weighted['ls_energy_kj']:.2f}" not in line
     assert f"{weighted['cp_energy_kj']:.2f}" not in line
     page = _hydraulics(study.report()["comparison"], None)
     assert page.count("beyond the circuit's physics") == 5  # p_L, the energies, their excess
+
+
+def test_an_energy_no_supply_could_deliver_is_flagged_not_reported(tmp_path):
+    """The crane on a circuit with its relief at 60 bar: load sensing serves 40 bar, the
+    constant pressure 50. A motion whose moving cylinders ask more of a supply than it serves
+    (p_L by the meter-in model from the motion's own ẋ and F_H) has no energy under it: the
+    table says so by how much, the page too, and the other supply's energy stays."""
+    text = (bundled_root() / "hiab031" / "robot.toml").read_text()
+    table = text[text.index("[hydraulics]") :].replace("relief = 210.0", "relief = 60.0")
+    (tmp_path / "low.toml").write_text(table.replace("cp_pressure = 180.0", "cp_pressure = 50.0"))
+    robot = load_robot("hiab031", hydraulics=tmp_path / "low.toml")
+    task = robot.task_file.read_text().replace('["1-2", "2-3", "3-1"]', '["1-2"]')
+    (tmp_path / "task.toml").write_text(task)
+    cycle = WorkCycle.from_toml(tmp_path / "task.toml", dimension=robot.m)
+    study = run_study(robot, cycle, (VELOCITY,), samples=5, bound=False, progress=False, cycles=0)
+    served = {"LS": 40, "CP": 50}  # bar: the relief less the LS margin, and p_S
+    circuit = robot.circuit()
+    area_a, area_b = circuit.piston_areas, circuit.rod_side_areas
+    lines = hydraulic_table(study).splitlines()
+    flagged = 0
+    for run in study.runs:
+        motion, figures = run.trajectory, run.summary()["hydraulics"]
+        v = motion.x_dot[0][:, circuit.columns]
+        force = motion.forces[0][:, circuit.columns]
+        load = np.where(v >= 0, (force + circuit.tank * area_b) / area_a, 0.0)
+        load = np.where(v < 0, (circuit.tank * area_a - force) / area_b, load)
+        moving = np.where(np.abs(v) > 1e-9, np.maximum(load, circuit.tank), -np.inf).max()
+        expected = [s for s, bar in served.items() if moving > bar * BAR]
+        assert figures["unserved"] == expected, run.strategy
+        line = next(s for s in lines if run.strategy in s)
+        for supply in ("LS", "CP"):
+            energy = f"{figures[f'{supply.lower()}_energy_kj']:.2f}"
+            assert (energy in line) == (supply not in expected), line
+        if expected:
+            flagged += 1
+            assert f"past what {expected[0]} ({served[expected[0]]} bar)" in line
+    assert flagged  # the crane's lift and fold ask about 45 bar
+    page = _hydraulics(study.report()["comparison"], None)
+    assert "past what LS serves" in page
 
 
 def test_the_playback_draws_every_link_with_its_cylinders_points_inside_mesh_less_hulls(tmp_path):

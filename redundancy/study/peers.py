@@ -64,10 +64,13 @@ def hydraulics(motion: Trajectory) -> dict:
     peak pump flow (L/min), highest load pressure (bar), pump energy under load sensing and
     constant pressure (kJ), whether a load overran, the circuit's limits passed, the
     shortest duration of its path within the circuit's limits (s, `shortest_duration`; None
-    where TOPP-RA finds no timing), and whether the highest load pressure is one the relief
-    valve never lets build (`Circuit.unphysical`)."""
-    flows = motion.flows
+    where TOPP-RA finds no timing), whether the highest load pressure is one the relief
+    valve never lets build (`Circuit.unphysical`), and the supplies that cannot serve the
+    highest load pressure of a moving cylinder (``unserved``: its pump would run past what
+    `Supply.available` gives under the relief, so its energy is no machine's)."""
+    flows, circuit = motion.flows, motion.robot.circuit()
     violations = motion.hydraulic_violations(0)
+    moving = np.where(flows.moving[0], flows.load[0], -np.inf).max(initial=-np.inf)
     try:
         shortest: float | None = shortest_duration(motion).duration
     except RedundancyError:
@@ -80,7 +83,12 @@ def hydraulics(motion: Trajectory) -> dict:
         "within_limits": not violations,
         "violations": [str(v) for v in violations],
         "shortest_duration_s": shortest,
-        "unphysical": motion.robot.circuit().unphysical(float(flows.load[0].max())),
+        "unphysical": circuit.unphysical(float(flows.load[0].max())),
+        "unserved": [
+            supply.name
+            for supply in (circuit.load_sensing, circuit.constant_pressure)
+            if moving > supply.available(circuit.relief)
+        ],
     }
 
 

@@ -262,16 +262,17 @@ def _hydraulics(comparison: list[dict], bounds: dict | None) -> str:
             continue
         above = h.get("above_energy_bound_percent", {})
         beyond = "beyond the circuit's physics" if h.get("unphysical") else None
+        unserved = {s: beyond or f"past what {s} serves" for s in h.get("unserved", [])}
         rows.append(
             {
                 "segment": r["segment"],
                 "strategy": r["strategy"],
                 "peak pump flow Q_P (L/min)": _number(h["peak_pump_flow_l_min"], 3),
                 "highest load pressure (bar)": beyond or _number(h["max_load_pressure_bar"], 3),
-                "LS energy (kJ)": beyond or _number(h["ls_energy_kj"]),
-                "CP energy (kJ)": beyond or _number(h["cp_energy_kj"]),
-                "above LS bound (%)": beyond or _percent(above.get("LS")),
-                "above CP bound (%)": beyond or _percent(above.get("CP")),
+                "LS energy (kJ)": beyond or unserved.get("LS") or _number(h["ls_energy_kj"]),
+                "CP energy (kJ)": beyond or unserved.get("CP") or _number(h["cp_energy_kj"]),
+                "above LS bound (%)": beyond or unserved.get("LS") or _percent(above.get("LS")),
+                "above CP bound (%)": beyond or unserved.get("CP") or _percent(above.get("CP")),
                 "shortest duration (s)": _number(h["shortest_duration_s"], 3),
                 "overrunning": _number(h["overrunning"]),
                 "circuit": _limits(h["violations"]),

@@ -96,28 +96,31 @@ def hydraulic_table(study: Study) -> str:
         figures, above = run.summary()["hydraulics"], study.above_energy_bound(run)
         shortest, pressure = figures["shortest_duration_s"], figures["max_load_pressure_bar"]
         unphysical = circuit.unphysical(pressure * BAR)
-        note = (
-            f"(!) p_L beyond the circuit's physics, over {BEYOND_RELIEF:g} × the relief "
-            f"{circuit.relief / BAR:g} bar (the model's, where the motion leaves a stroke); "
-            if unphysical
-            else ""
-        )
+        # a supply that cannot serve the load pressure: its energy is a pump's past its relief
+        unserved = list(SUPPLIES) if unphysical else figures["unserved"]
+        note = ""
+        if unphysical:
+            note = (
+                f"(!) p_L {pressure:.0f} bar, over {BEYOND_RELIEF:g} × the relief "
+                f"{circuit.relief / BAR:g} bar: no circuit delivers it (a cylinder too small "
+                "for its load, or the model's forces past a stroke or a linkage's dead centre); "
+            )
+        elif unserved:
+            served = " and ".join(f"{s} ({_served(circuit, s):g} bar)" for s in unserved)
+            verb = "serves" if len(unserved) == 1 else "serve"
+            note = f"(!) p_L {pressure:.1f} bar, past what {served} {verb}: no energy; "
+        energies = [
+            "(!)" if s in unserved else f"{figures[f'{s.lower()}_energy_kj']:.2f}" for s in SUPPLIES
+        ]
         rows.append(
             [
                 run.segment,
                 run.strategy,
                 f"{figures['peak_pump_flow_l_min']:.1f}",
-                *(
-                    ("(!)",) * 3  # the pump's pressure, and so its energy, follow that p_L
-                    if unphysical
-                    else (
-                        f"{pressure:.1f}",
-                        f"{figures['ls_energy_kj']:.2f}",
-                        f"{figures['cp_energy_kj']:.2f}",
-                    )
-                ),
+                "(!)" if unphysical else f"{pressure:.1f}",
+                *energies,
                 *(  # per cent above a bound, of energies not shown: not shown either
-                    f"{above[s]:.1f}" if s in above and not unphysical else "-" for s in SUPPLIES
+                    f"{above[s]:.1f}" if s in above and s not in unserved else "-" for s in SUPPLIES
                 ),
                 "-" if shortest is None else f"{shortest:.2f}",
                 note + ("held" if figures["within_limits"] else "; ".join(figures["violations"])),
@@ -132,6 +135,12 @@ def hydraulic_table(study: Study) -> str:
             note = "" if failure is None else f"no bound: {failure}"
             rows.append([segment, f"energy bound, {supply}", "", "", ls, cp, "", "", "", note])
     return "\n".join(text_table(RUN_COLUMNS | HYDRAULIC_COLUMNS | {"circuit": "<"}, rows))
+
+
+def _served(circuit, supply: str) -> float:
+    """The highest load pressure ``supply`` (its name) serves under the circuit's relief, bar."""
+    found = {s.name: s for s in (circuit.load_sensing, circuit.constant_pressure)}[supply]
+    return found.available(circuit.relief) / BAR
 
 
 def cycle_table(study: CycleStudy) -> str:
