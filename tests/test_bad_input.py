@@ -205,7 +205,7 @@ CASES = [
             ("[1e308, 0]", "point 1: 1e+308 lies beyond ±1000 (m, or degrees for the tool's"),
             ('"3.5, -0.5"', "[points] 1 = '3.5, -0.5' must be a list of finite numbers"),
             ("[true, 0]", "[points] 1 = [True, 0] must be a list of finite numbers"),
-            ("[100.0, -0.5]", "cannot follow segment 1-2: its point [100.0, -0.5] (t = 0 s)"),
+            ("[100.0, -0.5]", "cannot follow segment 1-2: its point [100.0, -0.5] m (t = 0 s)"),
         )
     ],
     (
@@ -536,7 +536,7 @@ CASES = [
         "unreachable end",
         ["study", "--task", "t.toml"],
         {"t.toml": TASK.replace("2 = [1.0, -0.5]", "2 = [100.0, -0.5]")},
-        "cannot follow segment 1-2: its point [9.53125, -0.5] (t = 12.1 s)",
+        "cannot follow segment 1-2: its point [9.53125, -0.5] m (t = 12.1 s)",
     ),
     # hydraulics files
     (
@@ -603,8 +603,9 @@ CASES = [
             f"[hydraulics] {key} = {v} must be within [{bounds}] ({meaning}); did you give {unit}",
         )
         for key, v, bounds, meaning, unit in [
-            ("relief", "21000000.0", "1, 1000", "relief pressure, bar", "Pa? 1 bar = 1e5 Pa"),
-            ("tank", "200000.0", "0, 1000", "tank pressure p_T, bar", "Pa?"),
+            ("relief", "21000000.0", "1, 1000", "relief pressure, bar", "psi or Pa? 1 bar = 14.5"),
+            ("relief", "3600.0", "1, 1000", "relief pressure, bar", "psi or Pa? 1 bar = 14.5 psi"),
+            ("tank", "200000.0", "0, 1000", "tank pressure p_T, bar", "psi or Pa?"),
             ("ls_margin", "0.5", "1, 1000", "LS margin Δp_LS, bar", "MPa? 1 MPa = 10 bar"),
             ("pump_flow", "0.0016", "0.1, 10000", "pump's maximum flow, L/min", "m³/s?"),
         ]
@@ -683,7 +684,7 @@ CASES = [
         for command in ("study", "play")
         for name, a, b, point in [
             ("end 100 m away", [3.5, -0.5], [100.0, -0.5], "[9.53125, -0.5]"),
-            ("middle", [0.0, -1.0], [2.0, 3.0], "[0.625, 0.25] (t = 2.8 s)"),
+            ("middle", [0.0, -1.0], [2.0, 3.0], "[0.625, 0.25] m (t = 2.8 s)"),
         ]
     ],
     # design maps: argument errors and families that fail before any worker starts

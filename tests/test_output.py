@@ -617,6 +617,10 @@ def test_a_folder_of_pictures_is_refused_and_kept(tmp_path):
     assert "holds files this toolkit did not write (beach.png)" in run.stderr
     assert _contents(pictures) == {"beach.png": hashlib.sha256(b"\x89PNG mine").hexdigest()}
     assert sorted(p.name for p in tmp_path.iterdir()) == ["holiday"]
+    for name in ("dune.png", "sea.png", "sun.png"):  # more than it lists: how many more
+        (pictures / name).write_bytes(b"mine")
+    run = run_cli(*STUDY, "--out", str(pictures))
+    assert "did not write (beach.png, dune.png, sea.png and 1 more); give" in run.stderr
 
 
 def test_a_file_of_the_outputs_name_not_in_its_manifest_is_not_replaced(tmp_path):

@@ -250,7 +250,8 @@ def test_a_task_of_polylines_alone_needs_no_points(tmp_path, points):
         (
             'segments = [{ from = "a", to = "b", profile = "trapezoidal" }]\n[points]\n'
             "a = [0, 0]\nb = [1, 0]\n",
-            r"segments\[0\]: segment a-b: a trapezoidal profile needs acceleration",
+            r"segments\[0\]: segment a-b: a trapezoidal profile needs acceleration > 0 and ≤ 100 "
+            r"m/s² \(the tool's maximum\); none given$",
         ),
         (
             'profile = "smooth"\nsegments = ["a-b"]\n[points]\na = [0, 0]\nb = [1, 0]\n',
@@ -329,5 +330,5 @@ def test_a_point_out_of_reach_is_shown_with_its_angle_in_degrees(arm):
     with pytest.raises(UnreachableError) as refused:
         check_path(arm, far)
     message = str(refused.value)
-    assert f"its point [5.0, 0.0] at {math.degrees(0.3):.4g}° (t = 0 s)" in message
+    assert f"its point [5.0, 0.0] m at {math.degrees(0.3):.4g}° (t = 0 s)" in message
     assert re.search(r"missed by [\d.]+ mm in position and [\d.]+° in angle$", message)

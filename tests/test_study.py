@@ -181,6 +181,10 @@ def test_an_integral_objective_s_bound_says_where_it_is(crane, paper_cycle):
         (["--objective", "speed"], "invalid choice: 'speed'"),
         (["--robot", "hiab32"], "unknown robot 'hiab32'; bundled robots: excavator, hiab031"),
         (["--check", "x1,x9"], "unknown actuators ['x9']"),
+        (
+            ["--robot", "panda", "--method", "fast"],
+            "'panda_joint7'] are 4: use the sweep (method='sweep', --method sweep)",
+        ),
     ],
 )
 def test_bad_study_options_exit_with_a_message_and_no_traceback(tmp_path, args, message):
@@ -201,7 +205,7 @@ def test_an_unreachable_segment_point_fails_cleanly_and_keeps_the_old_report(tmp
     report = out / "report.json"
     run = run_cli("study", "--task", str(task), "--out", str(out), "--quiet")
     assert run.returncode == 2
-    assert "cannot follow segment 1-2: its point [9.0, 9.0] (t = 0 s)" in run.stderr
+    assert "cannot follow segment 1-2: its point [9.0, 9.0] m (t = 0 s)" in run.stderr
     assert "Traceback" not in run.stderr
     assert report.read_text() == '{"previous": true}\n'
     assert sorted(p.name for p in tmp_path.iterdir()) == ["far.toml", "out"]

@@ -119,7 +119,7 @@ def bar(meaning: str, lower: float = 1.0, default: Any = ...) -> Any:
         lower,
         1000.0,
         default,
-        above="did you give Pa? 1 bar = 1e5 Pa",
+        above="did you give psi or Pa? 1 bar = 14.5 psi = 1e5 Pa",
         below="did you give MPa? 1 MPa = 10 bar" if lower > 0 else "",
     )
 

@@ -363,7 +363,7 @@ def _point_text(robot: Robot, y: np.ndarray) -> str:
     """A task point y (m,) as messages show it: its position in m, and the tool's angle in
     degrees where the task has one."""
     size = len(robot.task_axes)
-    text = str(np.round(y[:size], 6).tolist())
+    text = f"{np.round(y[:size], 6).tolist()} m"
     return text if size == robot.m else f"{text} at {amount(float(y[size]), 'rad')}"
 
 

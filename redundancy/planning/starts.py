@@ -562,7 +562,8 @@ def search_method(held: tuple[str, ...], samples: int, method: str | None) -> st
         raise InvalidInputError(f"unknown method {method!r}; methods: {', '.join(METHODS)}")
     if method == "fast" and len(held) != 1:
         raise InvalidInputError(
-            f"the fast search holds one actuator; {list(held)} are {len(held)}: use method='sweep'"
+            f"the fast search holds one actuator; {list(held)} are {len(held)}: use the sweep "
+            "(method='sweep', --method sweep)"
         )
     return method
 

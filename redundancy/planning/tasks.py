@@ -333,9 +333,10 @@ class Segment:
         if self.profile == "trapezoidal" and not (
             is_real(acceleration) and 0 < acceleration <= MAX_ACCELERATION  # type: ignore[operator]
         ):
+            given = "none given" if acceleration is None else f"got {acceleration!r}"
             raise InvalidInputError(
                 f"a trapezoidal profile needs acceleration > 0 and ≤ {MAX_ACCELERATION:g} m/s² "
-                f"(the tool's maximum); got {acceleration!r}"
+                f"(the tool's maximum); {given}"
             )
         if not self.duration <= MAX_DURATION:
             pace = f"speed {self.speed:g} m/s" + (

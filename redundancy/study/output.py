@@ -235,10 +235,10 @@ class OutputFolder:
         manifest = _manifest(self.target)
         names = sorted(e.name for e in self.target.iterdir())
         if manifest is None and names:
+            shown = ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
             raise InvalidInputError(
-                f"{self.option} {self.target} holds files this toolkit did not write "
-                f"({', '.join(names[:3])}); give a new or empty folder, or an earlier "
-                "output folder"
+                f"{self.option} {self.target} holds files this toolkit did not write ({shown}); "
+                "give a new or empty folder, or an earlier output folder"
             )
         own = {Path(f).parts[0] for f in (manifest or {}).get("files", [])}
         if clashing := sorted(set(names) & set(writing) - own):
