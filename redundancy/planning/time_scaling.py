@@ -13,6 +13,23 @@ between its grid points. The limits hold at its grid points; where the dense re-
 pass one by a hair, the timing is stretched uniformly by the least factor k that brings it back
 (velocities scale by 1/k, accelerations by 1/k²). Actuators that are not cylinders are left
 unconstrained.
+
+Corners. Where the task's path turns at once (a polyline's inner point, or a cycle's corner
+between segments: the `corners` among the path's breaks), the strokes' path turns too: its
+tangent x' jumps from x'(s_c⁻) to x'(s_c⁺). Across the corner ẋ = x' ṡ jumps by
+(x'(s_c⁺) − x'(s_c⁻)) ṡ, which no finite acceleration delivers unless ṡ(s_c) = 0: the tool
+stops there. The fastest timing of such a path is therefore the fastest timing of each piece
+between corners from rest to rest, one after the other,
+
+    t_min = Σ_k T_k,   T_k the shortest duration of piece k with ṡ = 0 at both its ends,
+
+each piece timed along its own samples (a spline through them that does not cross a corner).
+The stroke at a corner the samples miss is read from the samples either side,
+x(t_c) ≈ x_i + ẋ_i δ + ẍ_i δ²/2 with δ = t_c − t_i from the nearest one on each side, the two
+averaged (each is O(δ³) off); a sample closer to a corner than half the spacing of the samples
+TOPP-RA is given is replaced by it, so that no spline knot sits a hair from another. Where the
+path does not turn at a break (where a speed profile's ramp ends, where a polyline's points lie
+on one line), ẋ is continuous, and the piece goes on through it.
 """
 
 from __future__ import annotations
@@ -25,8 +42,13 @@ from redundancy.errors import InvalidInputError, RedundancyError
 from redundancy.model.robot import Robot
 from redundancy.model.values import is_whole
 from redundancy.planning.integrate import FAILED, Trajectory
+from redundancy.planning.tasks import Chain, Segment
 
-SAMPLES = 400  # path points fed to TOPP-RA (at most; fewer if the motion has fewer)
+SAMPLES = 400  # path points fed to TOPP-RA (at most; fewer if the motion has fewer), corners
+# aside
+TURN = 1e-6  # rad: ẏ_d's directions either side of a break closer than this are one (round-off
+# in a recorded polyline's points on one line, a curve's own turn over the `PROBE`)
+PROBE = 1e-9  # of the shortest time between breaks: how far either side of one ẏ_d is read
 
 
 @dataclass(frozen=True)
@@ -60,10 +82,28 @@ def pumped_volume(robot: Robot, x: np.ndarray) -> np.ndarray:
     return np.concatenate([[0.0], np.cumsum(oil)])
 
 
+def corners(path: Segment | Chain) -> np.ndarray:
+    """The times (c,) s among the path's `breaks` where the direction of ẏ_d turns: its unit
+    vectors u± = ẏ_d(t ± ε) / |ẏ_d(t ± ε)| differ by more than `TURN` (|u₊ − u₋| = 2 sin(θ/2)
+    for a turn by θ), ε = `PROBE` × the shortest time between two breaks or a break and an
+    end, so that no probe reaches past the next break. A polyline's inner points and a cycle's
+    corners between segments, where the path turns; not a speed profile's ramp ends, nor a
+    polyline's point on the line through its neighbours."""
+    breaks = path.breaks
+    probe = PROBE * np.diff(np.concatenate([[0.0], breaks, [path.duration]])).min()
+    before, after = (path.velocity_at(breaks + side * probe) for side in (-1.0, 1.0))
+    unit_before, unit_after = (
+        v / np.linalg.norm(v, axis=-1, keepdims=True) for v in (before, after)
+    )
+    return breaks[np.linalg.norm(unit_after - unit_before, axis=-1) > TURN]
+
+
 def shortest_duration(motion: Trajectory, row: int = 0, samples: int = SAMPLES) -> Retimed:
-    """The fastest timing, from rest to rest, of the path of motion ``row`` within the
-    cylinders' speeds and accelerations and the pump's flow (see the module docstring); a
-    motion that failed has no path to time (`InvalidInputError`)."""
+    """The fastest timing, from rest to rest and at rest at each of its path's `corners`, of
+    the path of motion ``row`` within the cylinders' speeds and accelerations and the pump's
+    flow (see the module docstring): the pieces between corners one after the other, each
+    corner's sample twice in the result (the end of the piece before, at rest, and the start
+    of the one after); a motion that failed has no path to time (`InvalidInputError`)."""
     if not is_whole(row, 0, len(motion.t) - 1):
         raise InvalidInputError(
             f"row must be one of the {len(motion.t)} motions' rows; got {row!r}"
@@ -75,15 +115,68 @@ def shortest_duration(motion: Trajectory, row: int = 0, samples: int = SAMPLES) 
             f"motion {row} along segment {motion.segment.name} failed, {FAILED}: it has no "
             "path to time"
         )
-    import toppra  # its algorithms and constraints come with it
-
     robot = motion.robot
-    circuit = robot.circuit()
+    robot.circuit()  # says how to declare one before any work
     t = motion.t[row]
     last = int(motion.counts[row])  # a motion repeats its last sample to pad
     chosen = np.unique(np.linspace(0, last - 1, min(samples, last)).round().astype(int))
-    x = motion.x[row, chosen]
-    s = t[chosen] / t[last - 1]
+    turns = corners(motion.segment)
+    turns = turns[turns < t[last - 1]]  # a motion stopped early ends before some
+    ends = np.concatenate([[0.0], turns, [t[last - 1]]])
+    points = np.concatenate([[motion.x[row, 0]], _at_corners(motion, row, turns)])
+    points = np.concatenate([points, [motion.x[row, last - 1]]])
+    gap = 0.5 * float(np.median(np.diff(t[chosen]))) if turns.size else 0.0
+    inner = chosen[(chosen > 0) & (chosen < last - 1)]
+    near = np.abs(t[inner, None] - turns[None]).min(axis=1, initial=np.inf) < gap
+    inner = inner[~near]
+    timings = []
+    for k in range(len(ends) - 1):
+        within = inner[(t[inner] > ends[k]) & (t[inner] < ends[k + 1])]
+        s = np.concatenate([[ends[k]], t[within], [ends[k + 1]]]) / t[last - 1]
+        x = np.concatenate([points[k : k + 1], motion.x[row, within], points[k + 1 : k + 2]])
+        timings.append(_fastest(robot, s, x, motion.segment.name))
+    offsets = np.cumsum([0.0] + [timing.duration for timing in timings])
+    return Retimed(
+        float(offsets[-1]),
+        np.concatenate([timing.t + offset for timing, offset in zip(timings, offsets)]),
+        *(
+            np.concatenate([getattr(timing, name) for timing in timings])
+            for name in ("x", "x_dot", "x_ddot", "pump_flow")
+        ),
+    )
+
+
+def _at_corners(motion: Trajectory, row: int, turns: np.ndarray) -> np.ndarray:
+    """The strokes x (c, n) of motion ``row`` at the corner times ``turns`` (c,): a sample's
+    own where one lies within 1e-9 of the motion's duration of the corner; otherwise the mean
+    of the two second-order Taylor steps, x_i + ẋ_i δ + ẍ_i δ²/2 with δ = t_c − t_i, from the
+    nearest sample on each side (ẋ and ẍ of its own side of the corner)."""
+    if not len(turns):
+        return np.empty((0, motion.x.shape[2]))
+    t = motion.t[row, : int(motion.counts[row])]
+    x, rate, second = (values[row] for values in (motion.x, motion.x_dot, motion.x_ddot))
+    out = np.empty((len(turns), x.shape[1]))
+    for c, time in enumerate(turns):
+        on = np.flatnonzero(np.abs(t - time) <= 1e-9 * t[-1])
+        if on.size:
+            out[c] = x[on[0]]
+            continue
+        after = int(np.searchsorted(t, time))
+        steps = [
+            x[i] + rate[i] * (time - t[i]) + second[i] * (time - t[i]) ** 2 / 2
+            for i in (after - 1, after)
+        ]
+        out[c] = (steps[0] + steps[1]) / 2
+    return out
+
+
+def _fastest(robot: Robot, s: np.ndarray, x: np.ndarray, name: str) -> Retimed:
+    """TOPP-RA's fastest timing from rest to rest of the path through the strokes x (p, n) at
+    the path parameters s (p,), increasing (see the module docstring), stretched by the least
+    k that keeps every limit at the dense re-timed samples."""
+    import toppra  # its algorithms and constraints come with it
+
+    circuit = robot.circuit()
     strokes = x[:, circuit.columns]
     volume = pumped_volume(robot, x)
     path = toppra.SplineInterpolator(s, np.column_stack([strokes, volume]))
@@ -96,12 +189,12 @@ def shortest_duration(motion: Trajectory, row: int = 0, samples: int = SAMPLES) 
     instance = toppra.algorithm.TOPPRA(
         [velocity, acceleration],
         path,
-        gridpoints=np.linspace(0, 1, 2 * len(s) + 1),
+        gridpoints=np.linspace(s[0], s[-1], 2 * len(s) + 1),
         parametrizer="ParametrizeConstAccel",
     )
     timing = instance.compute_trajectory(0, 0)
     if timing is None:
-        raise RedundancyError(f"TOPP-RA found no timing of segment {motion.segment.name}'s path")
+        raise RedundancyError(f"TOPP-RA found no timing of segment {name}'s path")
     times = np.linspace(0.0, timing.duration, 4 * len(s) + 1)
     c = len(circuit.columns)
     state, rate, second = (timing(times, order)[:, :c] for order in (0, 1, 2))
