@@ -112,7 +112,10 @@ def test_a_slew_that_turns_once_around_a_cycle_does_not_drift(tmp_path):
     """The slewing crane with a continuous slew joint and no slew stroke, following a full
     circle about its column: each cycle turns the slew by 2π and leaves the machine as it
     found it. Its drift is taken modulo a turn, ~1e-8 rad as the others', and the repetition
-    closes (it counted 2π of drift a cycle and never settled)."""
+    closes (it counted 2π of drift a cycle and never settled). So is the per-segment plan's
+    change at a corner, where the slew ends one half at π and starts the next at −π, one pose:
+    no change, and the corner's self-motion ends at the next start (it said 2π, and another
+    branch)."""
     urdf = (bundled_root() / "hiab031_slewing" / "hiab031_slewing.urdf").read_text()
     urdf = urdf.replace(
         '<joint name="slew_joint" type="revolute">', '<joint name="slew_joint" type="continuous">'
@@ -135,6 +138,10 @@ def test_a_slew_that_turns_once_around_a_cycle_does_not_drift(tmp_path):
     assert slew.rotary and slew.lower == -np.inf and slew.upper == np.inf
     cycle = WorkCycle.from_toml(tmp_path / "task.toml", dimension=crane.m)
     plan = plan_cycle(crane, cycle, VELOCITY)
+    raw = [abs(c.start[0] - c.end[0]) for c in plan.corners]
+    assert max(raw) == pytest.approx(2 * np.pi)  # the two halves' starts a turn apart
+    for corner in plan.corners:
+        assert abs(corner.delta[0]) < 1e-9 and corner.within_limits and corner.reason is None
     repetition = repeat(crane, cycle, VELOCITY.resolver, plan.motion.q[0, 0], cycles=3)
     np.testing.assert_allclose(np.diff(repetition.x[:, 0]), 2 * np.pi, atol=1e-6)
     assert np.abs(repetition.drift).max() < 1e-6

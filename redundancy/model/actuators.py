@@ -25,6 +25,7 @@ from redundancy.errors import (
 )
 from redundancy.model.kinematics import Kinematics
 from redundancy.model.parameters import Number, Parameter, Point
+from redundancy.model.values import modulo_turn
 
 
 def driven_joints(model: pin.Model) -> list[str]:
@@ -439,6 +440,15 @@ class ActuatorSet:
     def rotary(self) -> np.ndarray:
         """Which actuators are angles (rad) rather than lengths (m), (n,) bool."""
         return np.array([a.rotary for a in self.maps])
+
+    def turned(self, change: np.ndarray) -> np.ndarray:
+        """Changes of the strokes (..., n), those of rotary actuators with no stroke end (on a
+        continuous joint) modulo a turn, within [−π, π): turning one once around leaves the
+        machine as it was."""
+        turning = self.rotary & ~(np.isfinite(self.lower) | np.isfinite(self.upper))
+        change = np.array(change, dtype=float)
+        change[..., turning] = modulo_turn(change[..., turning])
+        return change
 
     def _groups(self) -> list[tuple[type[ActuatorMap], list[ActuatorMap], slice | np.ndarray]]:
         """The maps by kind, with their rows (a slice where they are consecutive):

@@ -24,6 +24,7 @@ from redundancy.errors import InvalidInputError
 from redundancy.model.actuators import ActuatorSet, CompiledMap, declared, driven_joints, prismatic
 from redundancy.model.hydraulics import Circuit
 from redundancy.model.kinematics import Kinematics, PointMotion, Tracking, track
+from redundancy.model.values import modulo_turn
 
 AXES = "xyz"
 SINGULAR_TOLERANCE = 1e-9  # A counts as singular below σ_min / σ_max = 1e-9
@@ -167,10 +168,22 @@ class Robot:
         angle whose range is wider than a turn (unbounded, or a URDF's ±1e16 for "no limit"),
         the turn within it nearest [−π, π]: every pose once. Searches seed configurations in
         it."""
-        lower, upper = self.lower, self.upper
-        wide = self.rotary_joints & (upper - lower > 2 * np.pi)
+        lower, upper, wide = self.lower, self.upper, self.turning
         turn = np.where(wide, np.minimum(np.maximum(lower, -np.pi), upper - 2 * np.pi), lower)
         return turn, np.where(wide, turn + 2 * np.pi, upper)
+
+    @property
+    def turning(self) -> np.ndarray:
+        """Which joints are angles whose range is wider than a turn (n,) bool: a continuous
+        joint's among them, whose values a whole turn apart are one pose."""
+        return self.rotary_joints & (self.upper - self.lower > 2 * np.pi)
+
+    def same_pose(self, q: np.ndarray, other: np.ndarray, tolerance: float) -> bool:
+        """Whether configurations ``q`` and ``other`` (n,) are one pose to ``tolerance``: each
+        joint within it, a `turning` one modulo a turn."""
+        apart = np.asarray(q - other, dtype=float)
+        apart[self.turning] = modulo_turn(apart[self.turning])
+        return bool(np.all(np.abs(apart) <= tolerance))
 
     def configuration(self, q: np.ndarray | list[float], name: str = "q") -> np.ndarray:
         """``q`` as a checked (k, n) array: right shape, finite."""

@@ -24,6 +24,11 @@ def decimal(text: str) -> float:
     return float(text)
 
 
+def modulo_turn(angle: np.ndarray) -> np.ndarray:
+    """Angles (rad) within [−π, π), a whole number of turns from ``angle``."""
+    return np.remainder(angle + np.pi, 2 * np.pi) - np.pi
+
+
 def is_real(value: object) -> bool:
     """Whether ``value`` is a real number (Python's or numpy's), not a bool or text."""
     return isinstance(value, int | float | np.integer | np.floating) and not isinstance(value, bool)

@@ -36,6 +36,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from redundancy.errors import InvalidInputError
+from redundancy.model.actuators import ActuatorSet
 from redundancy.model.robot import Robot, require_robot
 from redundancy.model.values import is_real, is_whole
 from redundancy.planning.bound import (
@@ -127,7 +128,8 @@ class Corner:
     Between them the tool is held at the point while the held actuators move along a line from
     end to start, the fastest at ``speed`` (m/s or rad/s); ``within_limits`` whether that
     self-motion keeps every checked stroke, ``reason`` why it fails or there is no gap, ``path``
-    its configurations (k, n) as far as it was followed."""
+    its configurations (k, n) as far as it was followed; ``actuators`` say which Δ count modulo
+    a turn."""
 
     after: str
     before: str
@@ -140,11 +142,16 @@ class Corner:
     within_limits: bool | None = None
     reason: str | None = None
     path: np.ndarray | None = field(default=None, repr=False)
+    actuators: ActuatorSet | None = field(default=None, repr=False, compare=False)
 
     @property
     def delta(self) -> np.ndarray | None:
-        """Δx = start − end of every actuator (n,), or None."""
-        return None if self.start is None or self.end is None else self.start - self.end
+        """Δx = start − end of every actuator (n,), or None; of one on a continuous joint
+        modulo a turn (`ActuatorSet.turned`)."""
+        if self.start is None or self.end is None:
+            return None
+        change = self.start - self.end
+        return change if self.actuators is None else self.actuators.turned(change)
 
     @property
     def held_delta(self) -> np.ndarray | None:
@@ -174,7 +181,9 @@ def _corner(robot, after, end, before, start, held, speed, checked) -> Corner:
     best motion ``end`` along one and the start of the best motion ``start`` along the other
     (None where a segment has no feasible start)."""
     names = tuple(robot.actuators.names)
-    corner = partial(Corner, after.name, before.name, after.end, names, held)
+    corner = partial(
+        Corner, after.name, before.name, after.end, names, held, actuators=robot.actuators
+    )
     if end is None or start is None:
         missing = after.name if end is None else before.name
         return corner(None, None, speed, None, f"segment {missing} has no feasible start")
@@ -195,7 +204,7 @@ def _corner(robot, after, end, before, start, held, speed, checked) -> Corner:
             return found(False, f"the self-motion loses the task point at {at}", q[:i])
         q[i] = solved.q[0]
         spaces.append(solved.space)  # type: ignore[arg-type]
-    if not np.allclose(q[-1], start.q[0, 0], atol=1e-6):
+    if not robot.same_pose(q[-1], start.q[0, 0], 1e-6):
         reason = "the self-motion reaches another configuration (branch)"
         return found(False, reason, q)
     x = np.concatenate([space.x for space in spaces])
@@ -417,13 +426,7 @@ class Repetition:
         of a rotary actuator with no stroke (on a continuous joint), modulo a turn, within
         [−π, π): a cycle that turns it once around (a slew following a circle) leaves the
         machine as it found it."""
-        drift = np.diff(self.x, axis=0)
-        turning = [
-            a.rotary and not (np.isfinite(a.lower) or np.isfinite(a.upper))
-            for a in self.robot.actuators
-        ]
-        drift[:, turning] = np.remainder(drift[:, turning] + np.pi, 2 * np.pi) - np.pi
-        return drift
+        return self.robot.actuators.turned(np.diff(self.x, axis=0))
 
     @property
     def tool_drift(self) -> np.ndarray:
