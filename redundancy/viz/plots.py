@@ -19,6 +19,7 @@ from redundancy.model.robot import AXES
 from redundancy.planning.cycles import ReturnMap
 from redundancy.planning.integrate import Trajectory
 from redundancy.planning.starts import SearchResult
+from redundancy.resolution.objectives import VELOCITY
 from redundancy.study.cycles import CycleStudy, named_values
 from redundancy.study.output import write_atomically
 from redundancy.study.study import Study
@@ -221,44 +222,24 @@ def write_figures(study: Study, folder: Path, segment: str | None = None) -> lis
 def study_figures(study: Study, segment: str | None = None) -> dict:
     """The paper's figures for the study by file name.
 
-    ``segment`` is the one shown in the motion figures (default: the cycle's first). With a
-    cycle section, the cycle's figures too (`cycle_figures`).
+    ``segment`` is the one shown in the motion figures (default: per objective, the first with
+    an improved start, `Study.shown_segment`). With a cycle section, the cycle's figures too
+    (`cycle_figures`).
     """
-    segment = segment or study.cycle.segments[0].name
     figures = {}
     numbers = {"velocity": "4", "energy": "5"}  # the paper's figures; the others unnumbered
     for name, searches in study.searches.items():
         number = numbers.get(name, "")
-        objective = searches[0].objective
-        value = objective.value_label
+        value = searches[0].objective.value_label
         drawn = peaks_figure if len(study.held) == 1 else peak_map_figure
         figures[f"fig{number}a_peak_{name}.png"] = drawn(
             study.sweeps[name],
             f"{value[0].upper()}{value[1:]} against the initial {' and '.join(study.held)}",
             searches,
         )
-        search = study.search(name, segment)
-        if search.best is not None:
-            best = search.best_motion  # as the study ran it
-            start = named_values(study.robot, study.held, search.best.values)
-            figures[f"fig{number}b_best_{name}_{segment}.png"] = motion_figure(
-                best, f"min {value}, segment {segment}, optimal start {start}"
-            )
-            if study.robot.hydraulics is not None:
-                figures[f"hydraulics_best_{name}_{segment}.png"] = hydraulics_figure(
-                    best, f"Pump flow and pressures: min {value}, segment {segment}"
-                )
-        if name == "velocity":
-            other, motion = study.nonoptimal(segment)
-            nonoptimal = motion_figure(
-                motion,
-                f"min {value}, segment {segment}, non-optimal start "
-                f"{named_values(study.robot, study.held, other.values)}",
-            )
-            figures[f"fig4c_nonoptimal_{name}_{segment}.png"] = nonoptimal
-            optimal = figures.get(f"fig4b_best_{name}_{segment}.png")
-            if optimal is not None:  # Fig. 4c on Fig. 4b's velocity scale, to compare
-                nonoptimal.axes[1].sharey(optimal.axes[1])  # one range: the union of theirs
+        shown = segment or study.shown_segment(name)
+        if shown is not None:
+            figures |= motion_figures(study, name, shown, number)
     if len(study.robot.task_axes) >= 2:  # a task along one axis has no plane to draw
         objective = study.searches[next(iter(study.searches))][0].objective
         figures["workspace.png"] = workspace_figure(
@@ -268,6 +249,36 @@ def study_figures(study: Study, segment: str | None = None) -> dict:
         )
     if study.cycle_study is not None:
         figures.update(cycle_figures(study.cycle_study))
+    return figures
+
+
+def motion_figures(study: Study, objective: str, segment: str, number: str) -> dict:
+    """The motions of ``objective`` on ``segment`` by file name, where it has an improved
+    start: the best one (the paper's Figs. 4b, 5b; numbered ``number``) and the circuit along
+    it; for the velocity objective, Fig. 4c too, the motion from the sweep's least extended
+    feasible start (`Study.nonoptimal`), on Fig. 4b's velocity scale."""
+    search = study.search(objective, segment)
+    if search.best is None:
+        return {}
+    value = search.objective.value_label
+    best = search.best_motion  # as the study ran it
+    start = named_values(study.robot, study.held, search.best.values)
+    optimal = motion_figure(best, f"min {value}, segment {segment}, optimal start {start}")
+    figures = {f"fig{number}b_best_{objective}_{segment}.png": optimal}
+    if study.robot.hydraulics is not None:
+        figures[f"hydraulics_best_{objective}_{segment}.png"] = hydraulics_figure(
+            best, f"Pump flow and pressures: min {value}, segment {segment}"
+        )
+    found = study.nonoptimal(segment) if objective == VELOCITY.name else None
+    if found is not None:
+        other, motion = found
+        nonoptimal = motion_figure(
+            motion,
+            f"min {value}, segment {segment}, non-optimal feasible start "
+            f"{named_values(study.robot, study.held, other.values)}",
+        )
+        nonoptimal.axes[1].sharey(optimal.axes[1])  # one range, the union of theirs: to compare
+        figures[f"fig4c_nonoptimal_{objective}_{segment}.png"] = nonoptimal
     return figures
 
 

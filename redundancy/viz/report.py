@@ -51,8 +51,9 @@ CAPTIONS = (
     ),
     (
         "fig4c_*",
-        "The paper's Fig. 4c: the same from a non-optimal feasible start (the least extended "
-        "one), on the velocity scale of Fig. 4b, so the two compare at a glance.",
+        "The paper's Fig. 4c: the same on Fig. 4b's segment from a non-optimal start, the "
+        "velocity sweep's least extended feasible start, on the velocity scale of Fig. 4b, so "
+        "the two compare at a glance.",
     ),
     (
         "hydraulics_*",

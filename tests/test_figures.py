@@ -1,0 +1,59 @@
+"""The study's figures say what they draw: the motion figures on a segment that has a feasible
+start."""
+
+import pytest
+
+from redundancy import VELOCITY, WorkCycle, run_study
+from redundancy.viz.plots import pyplot, study_figures
+
+# The paper's points with 3 raised out of 2-3's reach (no start keeps its strokes), 2-3 first.
+LATE_TASK = (
+    'segments = ["2-3", "3-1", "1-2"]\n[points]\n1 = [3.5, -0.5]\n2 = [1.0, -0.5]\n'
+    "3 = [2.25, 4.45]\n"
+)
+
+
+@pytest.fixture(scope="module")
+def late_cycle(crane, tmp_path_factory):
+    task = tmp_path_factory.mktemp("late") / "late.toml"
+    task.write_text(LATE_TASK)
+    return WorkCycle.from_toml(task, dimension=crane.m)
+
+
+def test_the_motion_figures_show_the_first_segment_with_a_feasible_start(
+    crane, late_cycle, request
+):
+    """2-3 has no feasible start: Figs. 4b, 4c and the circuit show 3-1, the first segment with
+    an improved start, and Fig. 4c starts from the velocity sweep's least extended feasible
+    start; nothing is drawn along 2-3."""
+    study = run_study(crane, late_cycle, (VELOCITY,), bound=False, progress=False, cycles=0)
+    figures = study_figures(study)
+    request.addfinalizer(lambda: [pyplot().close(figure) for figure in figures.values()])
+    assert study.search("velocity", "2-3").best is None
+    shown = {
+        "fig4b_best_velocity_3-1.png",
+        "fig4c_nonoptimal_velocity_3-1.png",
+        "hydraulics_best_velocity_3-1.png",
+    }
+    assert shown <= set(figures)
+    assert not [name for name in figures if "2-3" in name]
+    start, motion = study.nonoptimal("3-1")
+    feasible = study.sweep("velocity", "3-1").feasible
+    assert start.feasible and start == min(feasible, key=lambda s: s.values)
+    assert motion.violations(0) == []
+    title = figures["fig4c_nonoptimal_velocity_3-1.png"].axes[0].get_title()
+    assert "non-optimal feasible start" in title
+    assert study.nonoptimal("2-3") is None
+
+
+def test_fig_4c_is_left_out_where_the_sweep_has_no_feasible_start(crane, late_cycle, request):
+    """With 20 samples the velocity sweep misses 3-1's narrow feasible range the search finds:
+    Fig. 4b shows 3-1 and no Fig. 4c is drawn from a start that breaks a stroke."""
+    study = run_study(
+        crane, late_cycle, (VELOCITY,), samples=20, bound=False, progress=False, cycles=0
+    )
+    figures = study_figures(study)
+    request.addfinalizer(lambda: [pyplot().close(figure) for figure in figures.values()])
+    assert not study.sweep("velocity", "3-1").feasible
+    assert "fig4b_best_velocity_3-1.png" in figures
+    assert not [name for name in figures if name.startswith("fig4c_")]
