@@ -57,3 +57,22 @@ def test_fig_4c_is_left_out_where_the_sweep_has_no_feasible_start(crane, late_cy
     assert not study.sweep("velocity", "3-1").feasible
     assert "fig4b_best_velocity_3-1.png" in figures
     assert not [name for name in figures if name.startswith("fig4c_")]
+
+
+def test_figs_4b_and_4c_share_one_velocity_scale_that_holds_both_motions(
+    crane, paper_cycle, request
+):
+    """On the paper's 1-2 the non-optimal start's velocities exceed the best motion's: the
+    scale the two figures share is the union of theirs, so neither curve is cut."""
+    study = run_study(
+        crane, paper_cycle, (VELOCITY,), samples=20, bound=False, progress=False, cycles=0
+    )
+    figures = study_figures(study)
+    request.addfinalizer(lambda: [pyplot().close(figure) for figure in figures.values()])
+    optimal, other = (figures[f"fig4{k}_velocity_1-2.png"] for k in ("b_best", "c_nonoptimal"))
+    for figure in (optimal, other):
+        figure.canvas.draw()
+    assert optimal.axes[1].get_ylim() == other.axes[1].get_ylim()
+    low, high = other.axes[1].get_ylim()
+    for motion in (study.search("velocity", "1-2").best_motion, study.nonoptimal("1-2")[1]):
+        assert low <= motion.x_dot.min() and motion.x_dot.max() <= high

@@ -278,6 +278,7 @@ def motion_figures(study: Study, objective: str, segment: str, number: str) -> d
             f"{named_values(study.robot, study.held, other.values)}",
         )
         nonoptimal.axes[1].sharey(optimal.axes[1])  # one range, the union of theirs: to compare
+        nonoptimal.axes[1].autoscale_view(scalex=False)  # sharing alone keeps Fig. 4b's range
         figures[f"fig4c_nonoptimal_{objective}_{segment}.png"] = nonoptimal
     return figures
 
