@@ -1,10 +1,12 @@
 """The study's figures say what they draw: the motion figures on a segment that has a feasible
-start."""
+start, titles whole."""
 
 import pytest
 
-from redundancy import VELOCITY, WorkCycle, run_study
-from redundancy.viz.plots import pyplot, study_figures
+from redundancy import VELOCITY, WorkCycle, load_robot, run_study
+from redundancy.study.study import write_report
+from redundancy.viz.plots import pyplot, study_figures, write_pngs
+from redundancy.viz.report import write_index
 
 # The paper's points with 3 raised out of 2-3's reach (no start keeps its strokes), 2-3 first.
 LATE_TASK = (
@@ -13,11 +15,41 @@ LATE_TASK = (
 )
 
 
+# The crane along world x alone, the fold and the telescope held: a closed cycle of two
+# segments whose names make the motion figures' titles long.
+LINE_TASK = """held = ["x2", "x3"]
+segments = [
+  { from = "a", to = "b", name = "reach-out" },
+  { from = "b", to = "a", name = "pull-back" },
+]
+[points]
+a = [2.0]
+b = [3.0]
+"""
+
+
 @pytest.fixture(scope="module")
 def late_cycle(crane, tmp_path_factory):
     task = tmp_path_factory.mktemp("late") / "late.toml"
     task.write_text(LATE_TASK)
     return WorkCycle.from_toml(task, dimension=crane.m)
+
+
+@pytest.fixture(scope="module")
+def two_held(tmp_path_factory):
+    """The line task's study with its cycle section, written as `redundancy study` writes it
+    (figures, report, page): its folder and the study."""
+    folder = tmp_path_factory.mktemp("two_held")
+    robot = load_robot("hiab031", task_axes="x")
+    (folder / "line.toml").write_text(LINE_TASK)
+    cycle = WorkCycle.from_toml(folder / "line.toml", dimension=1)
+    study = run_study(robot, cycle, (VELOCITY,), samples=12, bound=False, progress=False, cycles=2)
+    out = folder / "out"
+    out.mkdir()
+    write_pngs(study_figures(study), out)
+    write_report(study, out / "report.json")
+    write_index(out)
+    return out, study
 
 
 def test_the_motion_figures_show_the_first_segment_with_a_feasible_start(
@@ -76,3 +108,24 @@ def test_figs_4b_and_4c_share_one_velocity_scale_that_holds_both_motions(
     low, high = other.axes[1].get_ylim()
     for motion in (study.search("velocity", "1-2").best_motion, study.nonoptimal("1-2")[1]):
         assert low <= motion.x_dot.min() and motion.x_dot.max() <= high
+
+
+def test_no_title_reaches_past_its_figure(two_held):
+    """The motion figures' titles (long with two held starts and long segment names) and the
+    peak maps' are broken into lines that lie within the figure as drawn."""
+    _, study = two_held
+    figures = study_figures(study)
+    try:
+        for name, figure in figures.items():
+            figure.canvas.draw()
+            width = figure.bbox.width
+            titles = [axes.title for axes in figure.axes]
+            titles += [figure._suptitle] if figure._suptitle is not None else []
+            for title in titles:
+                if title.get_text():
+                    extent = title.get_window_extent()
+                    assert extent.x0 >= 0 and extent.x1 <= width, (name, title.get_text())
+        title = figures["fig4b_best_velocity_reach-out.png"].axes[0].get_title()
+        assert "\n" in title.split("dashed")[0]  # it was too long for one line
+    finally:
+        pyplot().close("all")

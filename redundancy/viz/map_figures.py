@@ -13,7 +13,7 @@ from pathlib import Path
 
 from redundancy.study.families import MapFamily
 from redundancy.study.maps import axes_of
-from redundancy.viz.plots import pyplot, write_pngs
+from redundancy.viz.plots import pyplot, suptitled, write_pngs
 
 PANELS = (("gain_pct", "gain over the default start (%)"), ("feasible", "feasible share"))
 # The unit of each axis a map can vary over: the workspace starts and the design parameters.
@@ -49,9 +49,10 @@ def map_figure(table, family: MapFamily, objective: str):
         figure.colorbar(image, ax=pane)
     rest = axes_names[2:]
     suffix = f" (mean over {', '.join(rest)})" if rest else ""
-    figure.suptitle(
+    suptitled(
+        figure,
         f"{family.name}: {objective} objective{suffix}; blank: no value (a gain needs both "
-        "starts feasible)"
+        "starts feasible)",
     )
     return figure
 

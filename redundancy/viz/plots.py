@@ -7,6 +7,7 @@ Figures read results; they compute nothing of their own.
 
 from __future__ import annotations
 
+import re
 from functools import partial
 from pathlib import Path
 
@@ -26,6 +27,8 @@ from redundancy.study.study import Study
 
 DPI = 110  # dots per inch of the written figures
 PNG_COMPRESSION = 1  # zlib level of the written figures: the fastest
+TITLE_SPAN = 0.9  # of a figure's width, the most its title takes: clear of the edges by more
+# than the layout's padding, so that laying the figure out again does not move it
 
 
 def pyplot():
@@ -135,7 +138,8 @@ def peak_map_figure(
             figure.colorbar(shown, ax=pane, label=objective.value_axis(actuators))
     rest = held[2:]  # drawn over the first two; the others vary among the samples
     over = f"\nover {held[0]} and {held[1]}; {', '.join(rest)} as sampled" if rest else ""
-    figure.suptitle(f"{title}; red: the feasible set's edge, ★ best, hollow: not feasible{over}")
+    figure.tight_layout()
+    suptitled(figure, f"{title}; red: the feasible set's edge, ★ best, hollow: not feasible{over}")
     figure.tight_layout()
     return figure
 
@@ -198,20 +202,71 @@ def hydraulics_figure(trajectory: Trajectory, title: str):
 
 
 def _labelled(
-    figure, title: str, labels: tuple[str, ...], along: str = "t (s)", legend: dict | None = None
+    figure,
+    title: str,
+    labels: tuple[str, ...],
+    along: str = "t (s)",
+    legend: dict | None = None,
+    pad: float | None = None,
 ):
     """Label a figure of one or more plots over one horizontal axis (by default time t, s), from the
-    top down by ``labels``: title, grids and a legend in each, placed by ``legend`` (matplotlib's
-    `legend` options; default: where it hides least, small; {}: no legend)."""
+    top down by ``labels``: title (``pad`` points above the top plot, by default matplotlib's),
+    grids and a legend in each, placed by ``legend`` (matplotlib's `legend` options; default:
+    where it hides least, small; {}: no legend)."""
     for axes, label in zip(figure.axes, labels):
         axes.set_ylabel(label)
         axes.grid(alpha=0.3)
         if legend != {}:
             axes.legend(**(legend or {"loc": "best", "fontsize": 8}))
     figure.axes[-1].set_xlabel(along)
-    figure.axes[0].set_title(title)
-    figure.tight_layout()
+    titled(figure.axes[0], title, pad=pad)
     return figure
+
+
+def titled(axes, title: str, **options) -> None:
+    """Lay out ``axes``' figure, then title ``axes`` (matplotlib's `set_title` ``options``)
+    with ``title`` broken into lines (`wrapped`) that, centred over the axes, stay within
+    `TITLE_SPAN` of the figure, and lay it out again: a title wider than its figure is cut at
+    the edges, which no layout can undo."""
+    figure = axes.figure
+    figure.tight_layout()
+    text = axes.set_title(title, **options)
+    centre = axes.bbox.x0 + axes.bbox.width / 2
+    room = 2 * min(centre, figure.bbox.width - centre) * TITLE_SPAN
+    text.set_text(wrapped(title, figure, room, text.get_fontproperties()))
+    figure.tight_layout()
+
+
+def suptitled(figure, title: str) -> None:
+    """Title ``figure`` with ``title`` broken into lines (`wrapped`) within `TITLE_SPAN` of its
+    width, so that nothing is cut at its edges."""
+    text = figure.suptitle(title)
+    room = figure.bbox.width * TITLE_SPAN
+    text.set_text(wrapped(title, figure, room, text.get_fontproperties()))
+
+
+def wrapped(text: str, figure, room: float, font) -> str:
+    """``text`` with each of its lines broken so that none is wider than ``room`` (display units
+    of ``figure``) in ``font``: after a comma where that is enough ("x2 = 1375 mm" stays whole),
+    else between words; a word wider than that stays whole."""
+    renderer = figure.canvas.get_renderer()
+
+    def fits(line: str) -> bool:
+        return renderer.get_text_width_height_descent(line, font, ismath=False)[0] <= room
+
+    def filled(pieces: list[str]) -> list[str]:
+        """The pieces joined by spaces, as many to a line as fit."""
+        lines = [pieces[0]]
+        for piece in pieces[1:]:
+            joined = f"{lines[-1]} {piece}"
+            lines[-1:] = [joined] if fits(joined) else [lines[-1], piece]
+        return lines
+
+    return "\n".join(
+        line if fits(line) else "\n".join(filled(line.split(" ")))
+        for paragraph in text.split("\n")
+        for line in filled(re.split(r"(?<=,) ", paragraph))
+    )
 
 
 def write_figures(study: Study, folder: Path, segment: str | None = None) -> list[Path]:
@@ -357,8 +412,6 @@ def cycle_figure(study: CycleStudy, title: str):
     above = {"ha": "center", "va": "bottom", "transform": top.get_xaxis_transform(), "fontsize": 9}
     for start, end, segment in zip(offsets[:-1], offsets[1:], study.cycle.segments):
         top.text((start + end) / 2, 1.01, segment.name, **above)
-    labels = (f"stroke x ({unit(actuators)})", f"velocity ẋ ({unit(actuators, rate='/s')})")
-    _labelled(figure, title, labels, legend={})
     from matplotlib.lines import Line2D
 
     key = [Line2D([], [], color=colours.get(a.name), label=a.name) for a in actuators]
@@ -368,9 +421,8 @@ def cycle_figure(study: CycleStudy, title: str):
     ]
     key.append(Line2D([], [], ls="--", lw=0.6, color="0.5", label="stroke limits"))
     top.legend(handles=key, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
-    top.set_title(title, pad=16)
-    figure.tight_layout()
-    return figure
+    labels = (f"stroke x ({unit(actuators)})", f"velocity ẋ ({unit(actuators, rate='/s')})")
+    return _labelled(figure, title, labels, legend={}, pad=16)  # above the segments' names
 
 
 def drift_figure(study: CycleStudy, title: str):
