@@ -1,10 +1,15 @@
 """The study's figures say what they draw: the motion figures on a segment that has a feasible
-start, titles whole."""
+start, every held actuator shown, titles whole."""
 
+import types
+
+import pandas as pd
 import pytest
+from lxml import html
 
 from redundancy import VELOCITY, WorkCycle, load_robot, run_study
 from redundancy.study.study import write_report
+from redundancy.viz.map_figures import map_figure
 from redundancy.viz.plots import pyplot, study_figures, write_pngs
 from redundancy.viz.report import write_index
 
@@ -50,6 +55,15 @@ def two_held(tmp_path_factory):
     write_report(study, out / "report.json")
     write_index(out)
     return out, study
+
+
+def captions(folder) -> dict[str, str]:
+    """Each figure's caption on the folder's page, by file name."""
+    page = html.fromstring((folder / "index.html").read_text())
+    return {
+        figure.xpath("img/@src")[0]: figure.xpath("figcaption")[0].text_content()
+        for figure in page.xpath("//figure")
+    }
 
 
 def test_the_motion_figures_show_the_first_segment_with_a_feasible_start(
@@ -108,6 +122,52 @@ def test_figs_4b_and_4c_share_one_velocity_scale_that_holds_both_motions(
     low, high = other.axes[1].get_ylim()
     for motion in (study.search("velocity", "1-2").best_motion, study.nonoptimal("1-2")[1]):
         assert low <= motion.x_dot.min() and motion.x_dot.max() <= high
+
+
+def test_every_held_actuator_is_drawn_and_captioned(two_held):
+    """With two held actuators: the drift figure's lower panel has a curve per held actuator
+    and strategy, and the page captions Fig. 4a as the maps it is."""
+    out, study = two_held
+    figure = study_figures(study)["cycle_drift.png"]
+    try:
+        below = figure.axes[1]
+        drawn = {text.get_text().split(",")[0] for text in below.get_legend().get_texts()}
+        assert drawn == {"x2", "x3"}
+        assert len(below.get_lines()) == 2 * len(study.cycle_study.repetitions)
+        assert below.get_ylabel().startswith("x2 and x3 at the cycle's start")
+    finally:
+        pyplot().close("all")
+    caption = captions(out)["fig4a_peak_velocity.png"]
+    assert "hollow" in caption and "red line" in caption and "first two held" in caption
+    assert "dotted" not in caption and "shaded" not in caption
+
+
+def test_the_map_figure_has_a_panel_per_held_actuator(crane, request):
+    """The best initial value of each held actuator, one panel each, in its unit."""
+    family = types.SimpleNamespace(
+        name="two held",
+        held=("x2", "x3"),
+        held_unit="m",
+        grid=(("payload", (0.0, 250.0)),),
+        segments=(types.SimpleNamespace(name="1-2"),),
+        robot_for=lambda design: crane,
+    )
+    table = pd.DataFrame(
+        {
+            "segment": "1-2",
+            "objective": "velocity",
+            "payload": [0.0, 250.0],
+            "feasible": True,
+            "default_feasible": pd.array([True, True], dtype="boolean"),
+            "gain_pct": [10.0, 12.0],
+            "best_x2": [1.1, 1.2],
+            "best_x3": [0.9, 1.0],
+        }
+    )
+    figure = map_figure(table, family, "velocity")
+    request.addfinalizer(lambda: pyplot().close(figure))
+    titles = [axes.get_title() for axes in figure.axes if axes.get_label() != "<colorbar>"]
+    assert titles[1:3] == ["best initial x2 (m)", "best initial x3 (m)"]
 
 
 def test_no_title_reaches_past_its_figure(two_held):

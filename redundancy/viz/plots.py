@@ -427,30 +427,32 @@ def cycle_figure(study: CycleStudy, title: str):
 
 def drift_figure(study: CycleStudy, title: str):
     """Each actuator's |drift| per cycle against cycle number, per strategy (log scale);
-    below, the held actuator's start of each cycle less its first."""
+    below, each held actuator's start of each cycle less its first."""
     from redundancy.planning.cycles import SETTLED
 
     plt = pyplot()
     figure, (top, bottom) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
-    actuators, held = study.robot.actuators, study.held[0]
-    names = actuators.names
+    actuators = study.robot.actuators
+    held = [actuators[name] for name in study.held]
     markers = {"free": "o-", "periodic": "s--"}
     for name, repetition in study.repetitions.items():
         cycles = np.arange(1, repetition.cycles + 1)
         drift = np.maximum(np.abs(repetition.drift), 1e-17)
         marker = markers.get(name, "o-")
-        for j, actuator in enumerate(names):
-            top.semilogy(cycles, drift[:, j], marker, ms=3, lw=1, label=f"{actuator}, {name}")
-        start = repetition.held_values[:, 0]
-        shown = f"{name}, from {start[0]:.4f} {actuators[held].unit}"
-        bottom.plot(np.arange(repetition.cycles + 1), start - start[0], marker, ms=3, label=shown)
+        for j, moved in enumerate(actuators.names):
+            top.semilogy(cycles, drift[:, j], marker, ms=3, lw=1, label=f"{moved}, {name}")
+        for actuator, start in zip(held, repetition.held_values.T):
+            shown = f"{actuator.name}, {name}, from {start[0]:.4f} {actuator.unit}"
+            change = start - start[0]
+            bottom.plot(np.arange(repetition.cycles + 1), change, marker, ms=3, label=shown)
     top.axhline(SETTLED, ls=":", color="k", lw=0.8, label=f"closed: {SETTLED:g}")
     # the change, not the value: its scale is the drift's, however far the stroke's ends are
     bottom.ticklabel_format(axis="y", useOffset=False)
     bottom.xaxis.get_major_locator().set_params(integer=True)
+    names = " and ".join(study.held)
     labels = (
         f"|drift| per cycle ({unit(actuators)})",
-        f"{held} at the cycle's start, change ({actuators[held].unit})",
+        f"{names} at the cycle's start, change ({unit(held)})",
     )
     return _labelled(figure, title, labels, "cycle")
 

@@ -75,14 +75,14 @@ CAPTIONS = (
         "cycle_strokes*",
         "Each actuator over one work cycle, one colour each: each strategy's first cycle "
         "(solid: free, dashed: drift-free), the per-segment plan's best motions dotted (they "
-        "jump at the corners by the self-motions the plan leaves out); thick: the held "
+        "jump at the corners by the self-motions the plan leaves out); thick: each held "
         "actuator; thin dashed: stroke limits; grey lines: the corners between the segments "
         "named above. Below, the velocities.",
     ),
     (
         "cycle_drift*",
         "Above, how far each actuator ends a cycle from where it began (|drift| per cycle, log "
-        "scale), per strategy, the closing threshold dotted; below, how far the held actuator "
+        "scale), per strategy, the closing threshold dotted; below, how far each held actuator "
         "at each cycle's start has moved from its first value.",
     ),
     (
@@ -95,8 +95,29 @@ CAPTIONS = (
     (
         "map_*",
         "Per objective, over the map's first two axes: the improved start's gain over the "
-        "default start (%), only where both keep the strokes; the best initial value of the "
-        "held actuator; and the share of problems with a feasible start. Blank: no value.",
+        "default start (%), only where both keep the strokes; the best initial value of each "
+        "held actuator, one panel each; and the share of problems with a feasible start. "
+        "Blank: no value.",
+    ),
+)
+
+
+# With several held actuators the paper's peak curves are maps (`plots.peak_map_figure`): these
+# caption them, before `CAPTIONS`.
+MAP_CAPTIONS = (
+    (
+        "fig4a_*",
+        "The paper's Fig. 4a over several held actuators: one panel per segment, over the "
+        "initial values of the first two held actuators (any others as sampled, as the title "
+        "says). Filled: the starts whose motion under the unweighted pseudoinverse keeps every "
+        "checked stroke, coloured by its peak of ẋᵀẋ (m²/s²); hollow: the other reachable "
+        "starts; red line: the feasible set's edge; ★ the improved start.",
+    ),
+    (
+        "fig5a_*",
+        "The paper's Fig. 5a over several held actuators: as Fig. 4a for the M_H-weighted "
+        "pseudoinverse, coloured by the peak of ẋᵀ M_H ẋ, twice the kinetic energy (J). A "
+        "segment with no feasible start has no filled start and no ★.",
     ),
 )
 
@@ -117,7 +138,8 @@ def write_index(folder: Path | str, report: Path | str | None = None) -> Path:
         title, body = _study_page(data)
     else:
         title, body = f"{data['robot']}: work cycle {data['task']}", _cycle_body(data)
-    body += _figures(files) + _playbacks(files) + _data_files(files)
+    several = isinstance(_held(data), list)
+    body += _figures(files, several) + _playbacks(files) + _data_files(files)
     page = Template((Path(__file__).parent / "report.html").read_text(encoding="utf-8"))
     text = page.substitute(title=_e(title), body=body)
     path = folder / "index.html"
@@ -199,7 +221,7 @@ def _study_page(report: dict) -> tuple[str, str]:
     title = f"{report['robot']}: {report['task']}"
     studies = report["studies"]
     segments = [s["name"] for s in studies[0]["segments"]] if studies else []
-    names = studies[0]["segments"][0]["held_actuator"] if segments else None
+    names = _held(report)
     held, held_unit = (_number(names), _units(report, names)) if names else ("–", "")
     lines = [_headline(study, s, held) for study in studies for s in study["segments"]]
     summary = (
@@ -430,14 +452,28 @@ def _map_page(summary: dict, name: str) -> tuple[str, str]:
     return f"design map {name}", text
 
 
-def _caption(name: str) -> str:
-    return next((text for pattern, text in CAPTIONS if fnmatch(name, pattern)), "")
+def _held(report: dict) -> str | list[str] | None:
+    """The held actuator's name, or the held actuators' names, from a study's or a cycle's
+    report; None in a map's summary or a study of no segment."""
+    if "held_actuator" in report:
+        return report["held_actuator"]
+    studies = report.get("studies") or [{}]
+    segments = studies[0].get("segments") or [{}]
+    return segments[0].get("held_actuator")
 
 
-def _figures(files: Iterable[str]) -> str:
+def _caption(name: str, several_held: bool = False) -> str:
+    """The caption of figure file ``name``: the first of `CAPTIONS` whose pattern it matches,
+    with several held actuators the first of `MAP_CAPTIONS` before them."""
+    captions = (*MAP_CAPTIONS, *CAPTIONS) if several_held else CAPTIONS
+    return next((text for pattern, text in captions if fnmatch(name, pattern)), "")
+
+
+def _figures(files: Iterable[str], several_held: bool = False) -> str:
+    """Every figure among ``files``, captioned (`_caption`)."""
     shown = [
         f'<figure><img src="{_e(f)}" alt="{_e(f)}"><figcaption><b>{_e(f)}</b>. '
-        f"{_e(_caption(f))}</figcaption></figure>\n"
+        f"{_e(_caption(f, several_held))}</figcaption></figure>\n"
         for f in sorted(files, key=lambda f: (f.startswith("cycle_"), f))
         if f.endswith(".png")
     ]
