@@ -1,6 +1,7 @@
 """The study's figures say what they draw: the motion figures on a segment that has a feasible
-start, every held actuator shown, titles whole."""
+start, every held actuator shown, titles whole, the page in the tables' words."""
 
+import json
 import types
 
 import pandas as pd
@@ -189,3 +190,17 @@ def test_no_title_reaches_past_its_figure(two_held):
         assert "\n" in title.split("dashed")[0]  # it was too long for one line
     finally:
         pyplot().close("all")
+
+
+def test_the_page_names_the_search_and_the_price_as_the_tables_do(two_held):
+    """With two held actuators the summary names Halton points and compass refinement, not a
+    sweep; the drift-free strategy's price uses the strategies' table's words."""
+    out, _ = two_held
+    text = html.fromstring((out / "index.html").read_text()).text_content()
+    assert "Halton points over the held strokes" in text and "compass search" in text
+    assert "sweep search" not in text
+    price = next(line for line in text.splitlines() if "against the free improved cycle" in line)
+    assert "peak ẋᵀẋ" in price and "objective" not in price
+    report = json.loads((out / "report.json").read_text())
+    versus = report["cycle"]["periodic_versus_free_percent"]
+    assert versus and "LS energy per cycle" in price and "ls_energy" not in price

@@ -217,6 +217,21 @@ def _headline(study: dict, s: dict, held: str) -> str:
     )
 
 
+def _search(report: dict, several_held: bool) -> str:
+    """How the study searched the improved starts, in the words of docs/machines.md: the fast
+    search, the paper's uniform sweep, or, with ``several_held`` actuators, Halton points
+    refined by compass search; with the samples of the sweep behind the figures."""
+    samples = report["samples"]
+    if report["method"] == "fast":
+        return f"{samples} samples, the fast search"
+    if several_held:
+        return (
+            f"{samples} Halton points over the held strokes, the best feasible refined by "
+            "compass search"
+        )
+    return f"{samples} samples, the uniform sweep"
+
+
 def _study_page(report: dict) -> tuple[str, str]:
     title = f"{report['robot']}: {report['task']}"
     studies = report["studies"]
@@ -228,8 +243,8 @@ def _study_page(report: dict) -> tuple[str, str]:
         f'<div class="summary"><p>The improved start of the held <b>{_e(held)}</b> on '
         f"segments {_e(', '.join(segments))} of the task {_e(report['task'])!r}, objectives "
         f"{_e(' and '.join(s['objective'] for s in studies))}: payload "
-        f"{report['payload']:g} kg, {report['samples']} samples, the {_e(report['method'])} "
-        f"search, strokes checked: {_e(', '.join(report['checked_actuators']))}. Held values "
+        f"{report['payload']:g} kg, {_e(_search(report, isinstance(names, list)))}, strokes "
+        f"checked: {_e(', '.join(report['checked_actuators']))}. Held values "
         f"are in {held_unit}.</p><ul>{''.join(lines)}</ul></div>\n"
     )
     body = summary + "<h2>Improved start and bound, per segment</h2>\n"
@@ -323,10 +338,21 @@ def _hydraulics(comparison: list[dict], bounds: dict | None) -> str:
     return text + _table(bound_rows, "The least pump energy over every held actuator history.")
 
 
+def _priced(cycle: dict) -> dict[str, str]:
+    """The words the strategies' table heads the cycle's figures with, units aside, by their
+    keys in the report (a strategy's, and ``periodic_versus_free_percent``'s)."""
+    return {
+        "objective": cycle["measure"],
+        "ls_energy_kj": "LS energy per cycle",
+        "cp_energy_kj": "CP energy per cycle",
+    }
+
+
 def _cycle_body(cycle: dict) -> str:
     """The work cycle: plans, corners, strategies with their drift, the return map."""
     held, held_unit = _number(cycle["held_actuator"]), _units(cycle, cycle["held_actuator"])
-    measure = f"{cycle['measure']} ({cycle['unit']})"
+    priced = _priced(cycle)
+    measure = f"{priced['objective']} ({cycle['unit']})"
     whole = cycle["whole_cycle"]
     per = cycle["per_segment"]
     path = " → ".join(s["name"] for s in cycle["segments"])
@@ -396,8 +422,8 @@ def _cycle_body(cycle: dict) -> str:
             {
                 "strategy": s["name"],
                 measure: _number(s["objective"]),
-                "LS energy per cycle (kJ)": _number(s.get("ls_energy_kj")),
-                "CP energy per cycle (kJ)": _number(s.get("cp_energy_kj")),
+                f"{priced['ls_energy_kj']} (kJ)": _number(s.get("ls_energy_kj")),
+                f"{priced['cp_energy_kj']} (kJ)": _number(s.get("cp_energy_kj")),
                 f"largest drift, first cycle ({_units(cycle)})": _number(drift[0], 3),
                 f"largest drift, last cycle ({_units(cycle)})": _number(drift[-1], 3),
                 "tool drift, last cycle (m)": _number(tool[-1], 3),
@@ -421,7 +447,7 @@ def _cycle_body(cycle: dict) -> str:
     )
     versus = cycle.get("periodic_versus_free_percent")
     if versus:
-        change = ", ".join(f"{k.replace('_kj', '')} {v:+.1f} %" for k, v in versus.items())
+        change = ", ".join(f"{priced[k]} {v:+.1f} %" for k, v in versus.items())
         failure = (cycle.get("periodic") or {}).get("failure")
         caveat = f" The periodic plan is not shown optimal: {failure}." if failure else ""
         text += (
