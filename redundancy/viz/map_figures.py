@@ -12,12 +12,10 @@ from __future__ import annotations
 from pathlib import Path
 
 from redundancy.study.families import Design, MapFamily
-from redundancy.study.maps import axes_of
+from redundancy.study.maps import UNITS, axes_of
 from redundancy.viz.plots import pyplot, suptitled, write_pngs
 
 PANELS = (("gain_pct", "gain over the default start (%)"), ("feasible", "feasible share"))
-# The unit of each axis a map can vary over: the workspace starts and the design parameters.
-UNITS = {"payload": "kg", "speed": "m/s", "attachment": "m", "bore": "m"}
 
 
 def map_figure(table, family: MapFamily, objective: str):
