@@ -265,8 +265,11 @@ attachment = {{actuator = "x1", end = "base", axis = "x", values = {moved}}}
     np.testing.assert_allclose(by_speed[0.5] / by_speed[0.25], 4.0, rtol=2e-3)
     line = summary(rows, family)
     designs = rows.groupby(["payload", "speed", "attachment"])
-    best = designs["peak"].mean()[designs["feasible"].all()].idxmin()
-    assert f"payload = {best[0]:g}, speed = {best[1]:g}, attachment = {best[2]:g}" in line
+    means = designs["peak"].mean()[designs["feasible"].all()]
+    for payload, speed, attachment in means.index[means == means.min()]:
+        said = f"payload = {payload:g} kg, speed = {speed:g} m/s, attachment = {attachment:g} m"
+        assert said in line
+    assert "2 designs tie" in line  # each payload: the velocity peak does not depend on it
 
 
 def test_the_summary_s_gain_counts_only_problems_where_both_starts_keep_the_strokes():
@@ -290,6 +293,33 @@ def test_the_summary_s_gain_counts_only_problems_where_both_starts_keep_the_stro
     assert "median gain 34.6 %" in line and "(3 of 4 problems feasible)" in line
     table["default_feasible"] = False
     assert "no problem has a best and a default start that both keep" in summary(table, family)
+
+
+def test_the_map_summary_gives_units_and_says_where_designs_tie():
+    """Payload in kg and the attachment in m; designs whose mean best peak is the same (the
+    velocity peak does not depend on the payload) are named together as a tie."""
+    family = types.SimpleNamespace(
+        name="lift base",
+        objectives=("velocity",),
+        grid=(("payload", (250.0, 500.0)), ("attachment", (0.3, 0.35))),
+    )
+    table = pd.DataFrame(
+        {
+            "objective": "velocity",
+            "unit": "m²/s²",
+            "segment": "pull-in",
+            "payload": [250.0, 250.0, 500.0, 500.0],
+            "attachment": [0.3, 0.35, 0.3, 0.35],
+            "feasible": True,
+            "peak": [0.02, 0.013, 0.02, 0.013],
+        }
+    )
+    line = summary(table, family)
+    assert "2 designs tie" in line
+    assert "payload = 250 kg, attachment = 0.35 m; payload = 500 kg, attachment = 0.35 m" in line
+    table.loc[3, "peak"] = np.nextafter(0.013, 1.0)
+    line = summary(table, family)
+    assert "best design payload = 250 kg, attachment = 0.35 m:" in line and "tie" not in line
 
 
 def test_with_circuit_limits_a_heavier_payload_needs_a_wider_lift_cylinder(tmp_path, client):

@@ -71,6 +71,8 @@ from redundancy.study.signals import check, deferred, unheard
 CONNECT_TIMEOUT = 10.0  # s a scheduler has to answer
 FAMILY_FILE = "family.json"
 MANIFEST = "chunks.jsonl"  # a line per finished chunk: {"chunk", "problems", "sha256"}
+UNITS = {"payload": "kg", "speed": "m/s", "attachment": "m", "bore": "m"}  # each design
+# parameter's, as its column holds it
 
 
 def solve_chunk(family: MapFamily, chunk: int):
@@ -517,9 +519,17 @@ def axes_of(table, family: MapFamily) -> list[str]:
     return where + [key for key, values in family.grid if len(values) > 1]
 
 
+def design_words(parameters: list[str], design) -> str:
+    """A design's values of the design ``parameters`` with their units (`UNITS`), as words:
+    "payload = 250 kg, attachment = 0.35 m"; ``design`` is one value or a tuple of them."""
+    values = design if isinstance(design, tuple) else (design,)
+    return ", ".join(f"{key} = {value:g} {UNITS[key]}" for key, value in zip(parameters, values))
+
+
 def summary(table, family: MapFamily) -> str:
     """One line: for a design grid, the design whose problems are all feasible with the least
-    mean best peak of the first objective over the segments; otherwise, where the improved
+    mean best peak of the first objective over the segments, or every design that ties with it
+    exactly (the velocity peak does not depend on the payload); otherwise, where the improved
     start gains most over the default start, among the problems where both keep the strokes
     (as the heatmap shows the gain)."""
     first = table[table["objective"] == family.objectives[0]]
@@ -532,13 +542,19 @@ def summary(table, family: MapFamily) -> str:
         mean_peak = grouped["peak"].mean()[everywhere]
         if mean_peak.empty:
             return f"{family.name}: no design keeps every stroke on every segment ({counts})"
-        best = mean_peak.idxmin()
-        values = best if isinstance(best, tuple) else (best,)
-        words = ", ".join(f"{key} = {value:g}" for key, value in zip(designs, values))
-        return (
-            f"{family.name}: best design {words}: mean best {family.objectives[0]} peak "
-            f"{mean_peak[best]:.4g} {unit} over {first['segment'].nunique()} segments ({counts})"
+        least = mean_peak.min()
+        tied = [design_words(designs, d) for d in mean_peak.index[mean_peak == least]]
+        segments = first["segment"].nunique()
+        peak = (
+            f"mean best {family.objectives[0]} peak {least:.4g} {unit} over {segments} "
+            f"segment{'s' if segments > 1 else ''}"
         )
+        if len(tied) > 1:
+            return (
+                f"{family.name}: {len(tied)} designs tie for the least {peak}: "
+                f"{'; '.join(tied)} ({counts})"
+            )
+        return f"{family.name}: best design {tied[0]}: {peak} ({counts})"
     both = (first["feasible"] & first["default_feasible"]).fillna(False).astype(bool)
     gains = first[both].dropna(subset=["gain_pct"])
     if gains.empty:

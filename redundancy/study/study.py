@@ -102,9 +102,9 @@ class Study:
     cycle_skipped: str | None = None  # why the study has no cycle section
     reachable: np.ndarray | None = None  # (k, m) task points reached with the strokes kept,
     # sampled (`reachable_points`); None where the task has no plane
-    nonoptimal_motions: dict[str, tuple[Sample, Trajectory]] = field(
+    nonoptimal_motions: dict[str, tuple[Sample, Trajectory] | None] = field(
         default_factory=dict, repr=False, compare=False
-    )  # by segment, `nonoptimal`'s start and motion, once computed
+    )  # by segment, `nonoptimal`'s start and motion (None: no feasible start), once computed
 
     def search(self, objective: str, segment: str) -> SearchResult:
         return self.searches[objective][self._segment(segment)]
@@ -134,15 +134,22 @@ class Study:
     def sweep(self, objective: str, segment: str) -> SearchResult:
         return self.sweeps[objective][self._segment(segment)]
 
-    def nonoptimal(self, segment: str) -> tuple[Sample, Trajectory]:
+    def shown_segment(self, objective: str) -> str | None:
+        """The segment whose motions the figures show for ``objective`` (the paper's Figs. 4b,
+        4c and 5b, and the circuit along the best motion): the first with an improved start,
+        as the paper's 1-2; None where no segment has one."""
+        searches = self.searches[objective]
+        return next((s.segment.name for s in searches if s.best is not None), None)
+
+    def nonoptimal(self, segment: str) -> tuple[Sample, Trajectory] | None:
         """The paper's Fig. 4c start on ``segment``, the velocity sweep's least extended feasible
-        start (else its lowest reachable), and its motion on the grid, computed once (the
-        study computes the first segment's)."""
+        start, and its motion on the grid, computed once (the study computes it on the
+        velocity objective's `shown_segment`); None where the sweep has no feasible start."""
         if segment not in self.nonoptimal_motions:
             sweep = self.sweep(VELOCITY.name, segment)
-            candidates = sweep.feasible or [s for s in sweep.samples if s.peak is not None]
-            start = min(candidates, key=lambda s: s.values)
-            self.nonoptimal_motions[segment] = start, sweep.motion(start)
+            start = min(sweep.feasible, key=lambda s: s.values, default=None)
+            motion = None if start is None else (start, sweep.motion(start))
+            self.nonoptimal_motions[segment] = motion
         return self.nonoptimal_motions[segment]
 
     def bound(self, objective: str, segment: str) -> GlobalOptimum | None:
@@ -449,8 +456,9 @@ def run_study(
         skipped,
         reachable_points(robot, kept) if len(robot.task_axes) >= 2 else None,
     )
-    if VELOCITY.name in study.sweeps:  # the figures' Fig. 4c
-        study.nonoptimal(cycle.segments[0].name)
+    shown = study.shown_segment(VELOCITY.name) if VELOCITY.name in study.sweeps else None
+    if shown is not None:  # the figures' Fig. 4c
+        study.nonoptimal(shown)
     return study
 
 

@@ -1,8 +1,8 @@
 """Heatmaps of a design map (`redundancy.study.maps`): per objective, the improved start's gain
-over the default start (%, where both keep the strokes), the best held value and the share of
-feasible problems, over the
-map's first two axes (workspace start coordinates, or segments and design parameters). Where
-the map varies more than two, each cell is the mean over the others, as its title says.
+over the default start (%, where both keep the strokes), the best initial value of each held
+actuator and the share of feasible problems, over the map's first two axes (workspace start
+coordinates, or segments and design parameters). Where the map varies more than two, each cell
+is the mean over the others, as its title says.
 
 Figures read the table; they compute nothing of their own.
 """
@@ -11,17 +11,16 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from redundancy.study.families import MapFamily
-from redundancy.study.maps import axes_of
-from redundancy.viz.plots import pyplot, write_pngs
+from redundancy.study.families import Design, MapFamily
+from redundancy.study.maps import UNITS, axes_of
+from redundancy.viz.plots import pyplot, suptitled, write_pngs
 
 PANELS = (("gain_pct", "gain over the default start (%)"), ("feasible", "feasible share"))
-# The unit of each axis a map can vary over: the workspace starts and the design parameters.
-UNITS = {"payload": "kg", "speed": "m/s", "attachment": "m", "bore": "m"}
 
 
 def map_figure(table, family: MapFamily, objective: str):
-    """Three heatmaps side by side for ``objective``: gain %, best held value, feasible."""
+    """Heatmaps side by side for ``objective``: gain %, the best initial value of each held
+    actuator (one panel each), feasible share."""
     plt = pyplot()
     rows = table[table["objective"] == objective].copy()
     # a gain is only one where both starts keep the strokes: elsewhere it has no meaning
@@ -29,9 +28,12 @@ def map_figure(table, family: MapFamily, objective: str):
     rows["feasible"] = rows["feasible"].astype(float)
     axes_names = axes_of(rows, family) or ["segment"]
     x, y = axes_names[0], (axes_names[1] if len(axes_names) > 1 else None)
-    held = family.held[0]
-    panels = (PANELS[0], (f"best_{held}", f"best initial {held} ({family.held_unit})"), PANELS[1])
-    figure, panes = plt.subplots(1, 3, figsize=(15, 4.6), constrained_layout=True)
+    actuators = family.robot_for(Design()).actuators
+    best = [(f"best_{h}", f"best initial {h} ({actuators[h].unit})") for h in family.held]
+    panels = (PANELS[0], *best, PANELS[1])
+    figure, panes = plt.subplots(
+        1, len(panels), figsize=(5 * len(panels), 4.6), constrained_layout=True
+    )
     for pane, (column, label) in zip(panes, panels):
         grid = (
             rows.pivot_table(index=y, columns=x, values=column, aggfunc="mean", dropna=False)
@@ -49,9 +51,10 @@ def map_figure(table, family: MapFamily, objective: str):
         figure.colorbar(image, ax=pane)
     rest = axes_names[2:]
     suffix = f" (mean over {', '.join(rest)})" if rest else ""
-    figure.suptitle(
+    suptitled(
+        figure,
         f"{family.name}: {objective} objective{suffix}; blank: no value (a gain needs both "
-        "starts feasible)"
+        "starts feasible)",
     )
     return figure
 

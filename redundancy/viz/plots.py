@@ -7,6 +7,7 @@ Figures read results; they compute nothing of their own.
 
 from __future__ import annotations
 
+import re
 from functools import partial
 from pathlib import Path
 
@@ -19,12 +20,15 @@ from redundancy.model.robot import AXES
 from redundancy.planning.cycles import ReturnMap
 from redundancy.planning.integrate import Trajectory
 from redundancy.planning.starts import SearchResult
+from redundancy.resolution.objectives import VELOCITY
 from redundancy.study.cycles import CycleStudy, named_values
 from redundancy.study.output import write_atomically
 from redundancy.study.study import Study
 
 DPI = 110  # dots per inch of the written figures
 PNG_COMPRESSION = 1  # zlib level of the written figures: the fastest
+TITLE_SPAN = 0.9  # of a figure's width, the most its title takes: clear of the edges by more
+# than the layout's padding, so that laying the figure out again does not move it
 
 
 def pyplot():
@@ -134,7 +138,8 @@ def peak_map_figure(
             figure.colorbar(shown, ax=pane, label=objective.value_axis(actuators))
     rest = held[2:]  # drawn over the first two; the others vary among the samples
     over = f"\nover {held[0]} and {held[1]}; {', '.join(rest)} as sampled" if rest else ""
-    figure.suptitle(f"{title}; red: the feasible set's edge, ★ best, hollow: not feasible{over}")
+    figure.tight_layout()
+    suptitled(figure, f"{title}; red: the feasible set's edge, ★ best, hollow: not feasible{over}")
     figure.tight_layout()
     return figure
 
@@ -197,20 +202,71 @@ def hydraulics_figure(trajectory: Trajectory, title: str):
 
 
 def _labelled(
-    figure, title: str, labels: tuple[str, ...], along: str = "t (s)", legend: dict | None = None
+    figure,
+    title: str,
+    labels: tuple[str, ...],
+    along: str = "t (s)",
+    legend: dict | None = None,
+    pad: float | None = None,
 ):
     """Label a figure of one or more plots over one horizontal axis (by default time t, s), from the
-    top down by ``labels``: title, grids and a legend in each, placed by ``legend`` (matplotlib's
-    `legend` options; default: where it hides least, small; {}: no legend)."""
+    top down by ``labels``: title (``pad`` points above the top plot, by default matplotlib's),
+    grids and a legend in each, placed by ``legend`` (matplotlib's `legend` options; default:
+    where it hides least, small; {}: no legend)."""
     for axes, label in zip(figure.axes, labels):
         axes.set_ylabel(label)
         axes.grid(alpha=0.3)
         if legend != {}:
             axes.legend(**(legend or {"loc": "best", "fontsize": 8}))
     figure.axes[-1].set_xlabel(along)
-    figure.axes[0].set_title(title)
-    figure.tight_layout()
+    titled(figure.axes[0], title, pad=pad)
     return figure
+
+
+def titled(axes, title: str, **options) -> None:
+    """Lay out ``axes``' figure, then title ``axes`` (matplotlib's `set_title` ``options``)
+    with ``title`` broken into lines (`wrapped`) that, centred over the axes, stay within
+    `TITLE_SPAN` of the figure, and lay it out again: a title wider than its figure is cut at
+    the edges, which no layout can undo."""
+    figure = axes.figure
+    figure.tight_layout()
+    text = axes.set_title(title, **options)
+    centre = axes.bbox.x0 + axes.bbox.width / 2
+    room = 2 * min(centre, figure.bbox.width - centre) * TITLE_SPAN
+    text.set_text(wrapped(title, figure, room, text.get_fontproperties()))
+    figure.tight_layout()
+
+
+def suptitled(figure, title: str) -> None:
+    """Title ``figure`` with ``title`` broken into lines (`wrapped`) within `TITLE_SPAN` of its
+    width, so that nothing is cut at its edges."""
+    text = figure.suptitle(title)
+    room = figure.bbox.width * TITLE_SPAN
+    text.set_text(wrapped(title, figure, room, text.get_fontproperties()))
+
+
+def wrapped(text: str, figure, room: float, font) -> str:
+    """``text`` with each of its lines broken so that none is wider than ``room`` (display units
+    of ``figure``) in ``font``: after a comma where that is enough ("x2 = 1375 mm" stays whole),
+    else between words; a word wider than that stays whole."""
+    renderer = figure.canvas.get_renderer()
+
+    def fits(line: str) -> bool:
+        return renderer.get_text_width_height_descent(line, font, ismath=False)[0] <= room
+
+    def filled(pieces: list[str]) -> list[str]:
+        """The pieces joined by spaces, as many to a line as fit."""
+        lines = [pieces[0]]
+        for piece in pieces[1:]:
+            joined = f"{lines[-1]} {piece}"
+            lines[-1:] = [joined] if fits(joined) else [lines[-1], piece]
+        return lines
+
+    return "\n".join(
+        line if fits(line) else "\n".join(filled(line.split(" ")))
+        for paragraph in text.split("\n")
+        for line in filled(re.split(r"(?<=,) ", paragraph))
+    )
 
 
 def write_figures(study: Study, folder: Path, segment: str | None = None) -> list[Path]:
@@ -221,44 +277,24 @@ def write_figures(study: Study, folder: Path, segment: str | None = None) -> lis
 def study_figures(study: Study, segment: str | None = None) -> dict:
     """The paper's figures for the study by file name.
 
-    ``segment`` is the one shown in the motion figures (default: the cycle's first). With a
-    cycle section, the cycle's figures too (`cycle_figures`).
+    ``segment`` is the one shown in the motion figures (default: per objective, the first with
+    an improved start, `Study.shown_segment`). With a cycle section, the cycle's figures too
+    (`cycle_figures`).
     """
-    segment = segment or study.cycle.segments[0].name
     figures = {}
     numbers = {"velocity": "4", "energy": "5"}  # the paper's figures; the others unnumbered
     for name, searches in study.searches.items():
         number = numbers.get(name, "")
-        objective = searches[0].objective
-        value = objective.value_label
+        value = searches[0].objective.value_label
         drawn = peaks_figure if len(study.held) == 1 else peak_map_figure
         figures[f"fig{number}a_peak_{name}.png"] = drawn(
             study.sweeps[name],
             f"{value[0].upper()}{value[1:]} against the initial {' and '.join(study.held)}",
             searches,
         )
-        search = study.search(name, segment)
-        if search.best is not None:
-            best = search.best_motion  # as the study ran it
-            start = named_values(study.robot, study.held, search.best.values)
-            figures[f"fig{number}b_best_{name}_{segment}.png"] = motion_figure(
-                best, f"min {value}, segment {segment}, optimal start {start}"
-            )
-            if study.robot.hydraulics is not None:
-                figures[f"hydraulics_best_{name}_{segment}.png"] = hydraulics_figure(
-                    best, f"Pump flow and pressures: min {value}, segment {segment}"
-                )
-        if name == "velocity":
-            other, motion = study.nonoptimal(segment)
-            nonoptimal = motion_figure(
-                motion,
-                f"min {value}, segment {segment}, non-optimal start "
-                f"{named_values(study.robot, study.held, other.values)}",
-            )
-            figures[f"fig4c_nonoptimal_{name}_{segment}.png"] = nonoptimal
-            optimal = figures.get(f"fig4b_best_{name}_{segment}.png")
-            if optimal is not None:  # Fig. 4c on Fig. 4b's velocity scale, to compare
-                nonoptimal.axes[1].sharey(optimal.axes[1])  # one range: the union of theirs
+        shown = segment or study.shown_segment(name)
+        if shown is not None:
+            figures |= motion_figures(study, name, shown, number)
     if len(study.robot.task_axes) >= 2:  # a task along one axis has no plane to draw
         objective = study.searches[next(iter(study.searches))][0].objective
         figures["workspace.png"] = workspace_figure(
@@ -268,6 +304,37 @@ def study_figures(study: Study, segment: str | None = None) -> dict:
         )
     if study.cycle_study is not None:
         figures.update(cycle_figures(study.cycle_study))
+    return figures
+
+
+def motion_figures(study: Study, objective: str, segment: str, number: str) -> dict:
+    """The motions of ``objective`` on ``segment`` by file name, where it has an improved
+    start: the best one (the paper's Figs. 4b, 5b; numbered ``number``) and the circuit along
+    it; for the velocity objective, Fig. 4c too, the motion from the sweep's least extended
+    feasible start (`Study.nonoptimal`), on Fig. 4b's velocity scale."""
+    search = study.search(objective, segment)
+    if search.best is None:
+        return {}
+    value = search.objective.value_label
+    best = search.best_motion  # as the study ran it
+    start = named_values(study.robot, study.held, search.best.values)
+    optimal = motion_figure(best, f"min {value}, segment {segment}, optimal start {start}")
+    figures = {f"fig{number}b_best_{objective}_{segment}.png": optimal}
+    if study.robot.hydraulics is not None:
+        figures[f"hydraulics_best_{objective}_{segment}.png"] = hydraulics_figure(
+            best, f"Pump flow and pressures: min {value}, segment {segment}"
+        )
+    found = study.nonoptimal(segment) if objective == VELOCITY.name else None
+    if found is not None:
+        other, motion = found
+        nonoptimal = motion_figure(
+            motion,
+            f"min {value}, segment {segment}, non-optimal feasible start "
+            f"{named_values(study.robot, study.held, other.values)}",
+        )
+        nonoptimal.axes[1].sharey(optimal.axes[1])  # one range, the union of theirs: to compare
+        nonoptimal.axes[1].autoscale_view(scalex=False)  # sharing alone keeps Fig. 4b's range
+        figures[f"fig4c_nonoptimal_{objective}_{segment}.png"] = nonoptimal
     return figures
 
 
@@ -345,8 +412,6 @@ def cycle_figure(study: CycleStudy, title: str):
     above = {"ha": "center", "va": "bottom", "transform": top.get_xaxis_transform(), "fontsize": 9}
     for start, end, segment in zip(offsets[:-1], offsets[1:], study.cycle.segments):
         top.text((start + end) / 2, 1.01, segment.name, **above)
-    labels = (f"stroke x ({unit(actuators)})", f"velocity ẋ ({unit(actuators, rate='/s')})")
-    _labelled(figure, title, labels, legend={})
     from matplotlib.lines import Line2D
 
     key = [Line2D([], [], color=colours.get(a.name), label=a.name) for a in actuators]
@@ -356,37 +421,38 @@ def cycle_figure(study: CycleStudy, title: str):
     ]
     key.append(Line2D([], [], ls="--", lw=0.6, color="0.5", label="stroke limits"))
     top.legend(handles=key, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
-    top.set_title(title, pad=16)
-    figure.tight_layout()
-    return figure
+    labels = (f"stroke x ({unit(actuators)})", f"velocity ẋ ({unit(actuators, rate='/s')})")
+    return _labelled(figure, title, labels, legend={}, pad=16)  # above the segments' names
 
 
 def drift_figure(study: CycleStudy, title: str):
     """Each actuator's |drift| per cycle against cycle number, per strategy (log scale);
-    below, the held actuator's start of each cycle less its first."""
+    below, each held actuator's start of each cycle less its first."""
     from redundancy.planning.cycles import SETTLED
 
     plt = pyplot()
     figure, (top, bottom) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
-    actuators, held = study.robot.actuators, study.held[0]
-    names = actuators.names
+    actuators = study.robot.actuators
+    held = [actuators[name] for name in study.held]
     markers = {"free": "o-", "periodic": "s--"}
     for name, repetition in study.repetitions.items():
         cycles = np.arange(1, repetition.cycles + 1)
         drift = np.maximum(np.abs(repetition.drift), 1e-17)
         marker = markers.get(name, "o-")
-        for j, actuator in enumerate(names):
-            top.semilogy(cycles, drift[:, j], marker, ms=3, lw=1, label=f"{actuator}, {name}")
-        start = repetition.held_values[:, 0]
-        shown = f"{name}, from {start[0]:.4f} {actuators[held].unit}"
-        bottom.plot(np.arange(repetition.cycles + 1), start - start[0], marker, ms=3, label=shown)
+        for j, moved in enumerate(actuators.names):
+            top.semilogy(cycles, drift[:, j], marker, ms=3, lw=1, label=f"{moved}, {name}")
+        for actuator, start in zip(held, repetition.held_values.T):
+            shown = f"{actuator.name}, {name}, from {start[0]:.4f} {actuator.unit}"
+            change = start - start[0]
+            bottom.plot(np.arange(repetition.cycles + 1), change, marker, ms=3, label=shown)
     top.axhline(SETTLED, ls=":", color="k", lw=0.8, label=f"closed: {SETTLED:g}")
     # the change, not the value: its scale is the drift's, however far the stroke's ends are
     bottom.ticklabel_format(axis="y", useOffset=False)
     bottom.xaxis.get_major_locator().set_params(integer=True)
+    names = " and ".join(study.held)
     labels = (
         f"|drift| per cycle ({unit(actuators)})",
-        f"{held} at the cycle's start, change ({actuators[held].unit})",
+        f"{names} at the cycle's start, change ({unit(held)})",
     )
     return _labelled(figure, title, labels, "cycle")
 

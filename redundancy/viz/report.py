@@ -51,8 +51,9 @@ CAPTIONS = (
     ),
     (
         "fig4c_*",
-        "The paper's Fig. 4c: the same from a non-optimal feasible start (the least extended "
-        "one), on the velocity scale of Fig. 4b, so the two compare at a glance.",
+        "The paper's Fig. 4c: the same on Fig. 4b's segment from a non-optimal start, the "
+        "velocity sweep's least extended feasible start, on the velocity scale of Fig. 4b, so "
+        "the two compare at a glance.",
     ),
     (
         "hydraulics_*",
@@ -74,14 +75,14 @@ CAPTIONS = (
         "cycle_strokes*",
         "Each actuator over one work cycle, one colour each: each strategy's first cycle "
         "(solid: free, dashed: drift-free), the per-segment plan's best motions dotted (they "
-        "jump at the corners by the self-motions the plan leaves out); thick: the held "
+        "jump at the corners by the self-motions the plan leaves out); thick: each held "
         "actuator; thin dashed: stroke limits; grey lines: the corners between the segments "
         "named above. Below, the velocities.",
     ),
     (
         "cycle_drift*",
         "Above, how far each actuator ends a cycle from where it began (|drift| per cycle, log "
-        "scale), per strategy, the closing threshold dotted; below, how far the held actuator "
+        "scale), per strategy, the closing threshold dotted; below, how far each held actuator "
         "at each cycle's start has moved from its first value.",
     ),
     (
@@ -94,8 +95,29 @@ CAPTIONS = (
     (
         "map_*",
         "Per objective, over the map's first two axes: the improved start's gain over the "
-        "default start (%), only where both keep the strokes; the best initial value of the "
-        "held actuator; and the share of problems with a feasible start. Blank: no value.",
+        "default start (%), only where both keep the strokes; the best initial value of each "
+        "held actuator, one panel each; and the share of problems with a feasible start. "
+        "Blank: no value.",
+    ),
+)
+
+
+# With several held actuators the paper's peak curves are maps (`plots.peak_map_figure`): these
+# caption them, before `CAPTIONS`.
+MAP_CAPTIONS = (
+    (
+        "fig4a_*",
+        "The paper's Fig. 4a over several held actuators: one panel per segment, over the "
+        "initial values of the first two held actuators (any others as sampled, as the title "
+        "says). Filled: the starts whose motion under the unweighted pseudoinverse keeps every "
+        "checked stroke, coloured by its peak of ẋᵀẋ (m²/s²); hollow: the other reachable "
+        "starts; red line: the feasible set's edge; ★ the improved start.",
+    ),
+    (
+        "fig5a_*",
+        "The paper's Fig. 5a over several held actuators: as Fig. 4a for the M_H-weighted "
+        "pseudoinverse, coloured by the peak of ẋᵀ M_H ẋ, twice the kinetic energy (J). A "
+        "segment with no feasible start has no filled start and no ★.",
     ),
 )
 
@@ -116,7 +138,8 @@ def write_index(folder: Path | str, report: Path | str | None = None) -> Path:
         title, body = _study_page(data)
     else:
         title, body = f"{data['robot']}: work cycle {data['task']}", _cycle_body(data)
-    body += _figures(files) + _playbacks(files) + _data_files(files)
+    several = isinstance(_held(data), list)
+    body += _figures(files, several) + _playbacks(files) + _data_files(files)
     page = Template((Path(__file__).parent / "report.html").read_text(encoding="utf-8"))
     text = page.substitute(title=_e(title), body=body)
     path = folder / "index.html"
@@ -194,19 +217,34 @@ def _headline(study: dict, s: dict, held: str) -> str:
     )
 
 
+def _search(report: dict, several_held: bool) -> str:
+    """How the study searched the improved starts, in the words of docs/machines.md: the fast
+    search, the paper's uniform sweep, or, with ``several_held`` actuators, Halton points
+    refined by compass search; with the samples of the sweep behind the figures."""
+    samples = report["samples"]
+    if report["method"] == "fast":
+        return f"{samples} samples, the fast search"
+    if several_held:
+        return (
+            f"{samples} Halton points over the held strokes, the best feasible refined by "
+            "compass search"
+        )
+    return f"{samples} samples, the uniform sweep"
+
+
 def _study_page(report: dict) -> tuple[str, str]:
     title = f"{report['robot']}: {report['task']}"
     studies = report["studies"]
     segments = [s["name"] for s in studies[0]["segments"]] if studies else []
-    names = studies[0]["segments"][0]["held_actuator"] if segments else None
+    names = _held(report)
     held, held_unit = (_number(names), _units(report, names)) if names else ("–", "")
     lines = [_headline(study, s, held) for study in studies for s in study["segments"]]
     summary = (
         f'<div class="summary"><p>The improved start of the held <b>{_e(held)}</b> on '
         f"segments {_e(', '.join(segments))} of the task {_e(report['task'])!r}, objectives "
         f"{_e(' and '.join(s['objective'] for s in studies))}: payload "
-        f"{report['payload']:g} kg, {report['samples']} samples, the {_e(report['method'])} "
-        f"search, strokes checked: {_e(', '.join(report['checked_actuators']))}. Held values "
+        f"{report['payload']:g} kg, {_e(_search(report, isinstance(names, list)))}, strokes "
+        f"checked: {_e(', '.join(report['checked_actuators']))}. Held values "
         f"are in {held_unit}.</p><ul>{''.join(lines)}</ul></div>\n"
     )
     body = summary + "<h2>Improved start and bound, per segment</h2>\n"
@@ -303,10 +341,21 @@ def _hydraulics(comparison: list[dict], bounds: dict | None) -> str:
     return text + _table(bound_rows, "The least pump energy over every held actuator history.")
 
 
+def _priced(cycle: dict) -> dict[str, str]:
+    """The words the strategies' table heads the cycle's figures with, units aside, by their
+    keys in the report (a strategy's, and ``periodic_versus_free_percent``'s)."""
+    return {
+        "objective": cycle["measure"],
+        "ls_energy_kj": "LS energy per cycle",
+        "cp_energy_kj": "CP energy per cycle",
+    }
+
+
 def _cycle_body(cycle: dict) -> str:
     """The work cycle: plans, corners, strategies with their drift, the return map."""
     held, held_unit = _number(cycle["held_actuator"]), _units(cycle, cycle["held_actuator"])
-    measure = f"{cycle['measure']} ({cycle['unit']})"
+    priced = _priced(cycle)
+    measure = f"{priced['objective']} ({cycle['unit']})"
     whole = cycle["whole_cycle"]
     per = cycle["per_segment"]
     path = " → ".join(s["name"] for s in cycle["segments"])
@@ -376,8 +425,8 @@ def _cycle_body(cycle: dict) -> str:
             {
                 "strategy": s["name"],
                 measure: _number(s["objective"]),
-                "LS energy per cycle (kJ)": _number(s.get("ls_energy_kj")),
-                "CP energy per cycle (kJ)": _number(s.get("cp_energy_kj")),
+                f"{priced['ls_energy_kj']} (kJ)": _number(s.get("ls_energy_kj")),
+                f"{priced['cp_energy_kj']} (kJ)": _number(s.get("cp_energy_kj")),
                 f"largest drift, first cycle ({_units(cycle)})": _number(drift[0], 3),
                 f"largest drift, last cycle ({_units(cycle)})": _number(drift[-1], 3),
                 "tool drift, last cycle (m)": _number(tool[-1], 3),
@@ -401,7 +450,7 @@ def _cycle_body(cycle: dict) -> str:
     )
     versus = cycle.get("periodic_versus_free_percent")
     if versus:
-        change = ", ".join(f"{k.replace('_kj', '')} {v:+.1f} %" for k, v in versus.items())
+        change = ", ".join(f"{priced[k]} {v:+.1f} %" for k, v in versus.items())
         failure = (cycle.get("periodic") or {}).get("failure")
         caveat = f" The periodic plan is not shown optimal: {failure}." if failure else ""
         text += (
@@ -432,14 +481,28 @@ def _map_page(summary: dict, name: str) -> tuple[str, str]:
     return f"design map {name}", text
 
 
-def _caption(name: str) -> str:
-    return next((text for pattern, text in CAPTIONS if fnmatch(name, pattern)), "")
+def _held(report: dict) -> str | list[str] | None:
+    """The held actuator's name, or the held actuators' names, from a study's or a cycle's
+    report; None in a map's summary or a study of no segment."""
+    if "held_actuator" in report:
+        return report["held_actuator"]
+    studies = report.get("studies") or [{}]
+    segments = studies[0].get("segments") or [{}]
+    return segments[0].get("held_actuator")
 
 
-def _figures(files: Iterable[str]) -> str:
+def _caption(name: str, several_held: bool = False) -> str:
+    """The caption of figure file ``name``: the first of `CAPTIONS` whose pattern it matches,
+    with several held actuators the first of `MAP_CAPTIONS` before them."""
+    captions = (*MAP_CAPTIONS, *CAPTIONS) if several_held else CAPTIONS
+    return next((text for pattern, text in captions if fnmatch(name, pattern)), "")
+
+
+def _figures(files: Iterable[str], several_held: bool = False) -> str:
+    """Every figure among ``files``, captioned (`_caption`)."""
     shown = [
         f'<figure><img src="{_e(f)}" alt="{_e(f)}"><figcaption><b>{_e(f)}</b>. '
-        f"{_e(_caption(f))}</figcaption></figure>\n"
+        f"{_e(_caption(f, several_held))}</figcaption></figure>\n"
         for f in sorted(files, key=lambda f: (f.startswith("cycle_"), f))
         if f.endswith(".png")
     ]
