@@ -9,9 +9,9 @@ with the lowest peak (or integral) of the objective. Every sample, whichever sea
 is evaluated by `evaluate_starts`: feasible where its margin is ≥ −`TOLERANCE`
 (`redundancy.resolution.limits`). A held value has one start configuration: with one held
 actuator the one continuation from the first found reaches, with several the one inverse
-kinematics reaches from its seeds, so one assembly branch; where the task has two inside the joint ranges at
-that value (an arm's elbow up and down), the other is not searched, and the best start is the
-best of the branch found. Methods:
+kinematics reaches from its seeds, so one assembly branch; where the task has two inside the
+joint ranges at that value (an arm's elbow up and down), the other is not searched, and the
+best start is the best of the branch found. Methods:
 
 - "fast" (r = 1, the default): the margin μ(v) of a start v, the least distance of a checked
   stroke to its limits over the motion and of the start to its joint limits, is continuous in
