@@ -377,10 +377,13 @@ def _play_motion(
         stroke = robot.actuators[name]
         if not stroke.lower <= value <= stroke.upper:
             shown = f"{name}={value:g}" if option == "--start" else f"{value:g}"
+            # a length a thousand times one inside the stroke: given in mm
+            in_mm = stroke.unit == "m" and stroke.lower <= value / 1000 <= stroke.upper
             raise InvalidInputError(
                 f"{option} {shown} is outside the stroke of {name}: "
                 f"{amount(value, stroke.unit) if np.isfinite(value) else value}, stroke "
                 f"{span(stroke.lower, stroke.upper, stroke.unit)}"
+                + ("; did you give mm? the value is in m" if in_mm else "")
             )
     values = [given[h] for h in held]
     q = configuration_at(robot, segment.start, dict(zip(held, values)))

@@ -649,6 +649,11 @@ def test_play_starts_from_the_held_values_given_for_two_held_actuators(tmp_path,
         "redundancy: error: --start x2=2 is outside the stroke of x2: 2000 mm, stroke [830 mm, "
         "1375 mm]"
     ]
+    status, errors = run([*argv[:-1], "x2=1100,x3=0.5", "--html", str(tmp_path / "p.html")], capsys)
+    assert status == 2 and errors == [  # a length given in mm, as the strokes are shown
+        "redundancy: error: --start x2=1100 is outside the stroke of x2: 1.1e+06 mm, stroke "
+        "[830 mm, 1375 mm]; did you give mm? the value is in m"
+    ]
 
 
 def test_a_played_page_says_from_which_start_and_best_takes_the_sweep_it_is_given(tmp_path, capsys):
