@@ -300,7 +300,7 @@ def _hydraulics(comparison: list[dict], bounds: dict | None) -> str:
             continue
         above = h.get("above_energy_bound_percent", {})
         beyond = "beyond the circuit's physics" if h.get("unphysical") else None
-        unserved = {s: beyond or f"past what {s} serves" for s in h.get("unserved", [])}
+        unserved = {s: f"past what {s} serves" for s in h.get("unserved", [])}
         rows.append(
             {
                 "segment": r["segment"],
