@@ -26,6 +26,8 @@ from redundancy.model.hydraulics import BAR
 from redundancy.model.loading import bundled_root
 from redundancy.planning.integrate import simulate
 from redundancy.planning.tasks import WorkCycle
+from redundancy.resolution.limits import amount
+from redundancy.study.check import span
 from redundancy.viz.playback import Playback, Recording
 from redundancy.viz.report import _hydraulics
 from redundancy.viz.tables import hydraulic_table
@@ -340,3 +342,11 @@ def test_a_mix_of_turning_and_sliding_actuators_gives_velocity_peaks_in_both_uni
         "hiab031_slewing": ("m²/s²; rad²/s² for slew", "J"),
         "panda": ("rad²/s²", "J"),
     }
+
+
+def test_a_round_off_is_shown_as_zero_not_as_a_tiny_number():
+    """A continuous joint's stroke written [0, 2π] read back as [1.8e-15, 2π] was shown as
+    "[1.033e-13°, 360°]"; values below a converged residual, 1e-12 in SI units, are 0."""
+    assert span(1.8e-15, 2 * np.pi, "rad") == "[0°, 360°]"
+    assert amount(-1.2e-72, "rad") == "0°" and amount(-1e-13, "m") == "0 mm"
+    assert amount(2e-12, "m") == "2e-09 mm" and amount(0.8279, "m") == "827.9 mm"

@@ -22,6 +22,7 @@ TOLERANCE = 1e-9  # m or rad: a value this close past a limit counts as inside
 
 
 # SI unit → (factor, shown unit) for messages
+SHOWN_ZERO = 1e-12  # SI units: what Newton's converged residual is (1e-12 m), shown as 0
 SHOWN = {
     "m": (1e3, " mm"),
     "rad": (180 / np.pi, "°"),
@@ -34,9 +35,10 @@ SHOWN = {
 
 def amount(value: float, unit: str) -> str:
     """``value`` in the SI ``unit`` (a key of `SHOWN`) as messages show it: m in mm, rad in
-    degrees, Pa in bar, m³/s in L/min."""
+    degrees, Pa in bar, m³/s in L/min; one below `SHOWN_ZERO` as 0 (a round-off's 1e-13 rad
+    is no 6e-12°)."""
     factor, shown = SHOWN[unit]
-    return f"{value * factor:.4g}{shown}"
+    return f"{(0.0 if abs(value) < SHOWN_ZERO else value) * factor:z.4g}{shown}"
 
 
 @dataclass(frozen=True)
