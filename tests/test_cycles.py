@@ -306,7 +306,7 @@ def test_the_free_cycle_settles_only_towards_the_return_maps_stable_fixed_point(
     ((value, slope, _),) = crane_study.map.fixed_points
     report = crane_study.report()["strategies"]["free"]["repetition"]
     assert report["settles"] and report["limit_cycle_value"] == value
-    words = f"converging to the return map's stable limit cycle at {value:.6g} m"
+    words = f"converging to the return map's stable limit cycle at {1000 * value:.4g} mm"
     assert report["settling"].startswith(words)
     assert words in cycle_table(crane_study)
     distance = abs(free.held_values[-1, 0] - value)

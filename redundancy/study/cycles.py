@@ -298,8 +298,8 @@ def repetition_report(repetition: Repetition, fixed_points: Sequence[FixedPoint]
 
 def settling_words(repetition: Repetition, fixed_points: Sequence[FixedPoint] = ()) -> str:
     """Whether the held actuator settles to a limit cycle (one of the return map's stable
-    ``fixed_points``), in words, each value with its SI unit (the limit cycle in the held
-    actuator's, the drift threshold in each actuator's)."""
+    ``fixed_points``), in words: the limit cycle as the tables show the first held actuator's
+    values (mm, degrees), the drift threshold in each actuator's SI unit."""
     settled, actuators = repetition.settling_with(fixed_points), repetition.robot.actuators
     if settled.settled_at is not None:
         units = " or ".join(sorted({a.unit for a in actuators}))
@@ -307,10 +307,10 @@ def settling_words(repetition: Repetition, fixed_points: Sequence[FixedPoint] = 
     ratio = (
         "" if settled.contraction is None else f"drift ratio {settled.contraction:.3g} per cycle"
     )
-    if settled.settles:
-        held = " or ".join(sorted({actuators[name].unit for name in repetition.held}))
+    if settled.settles and settled.limit is not None:  # settling towards that fixed point
+        limit = amount(settled.limit, actuators[repetition.held[0]].unit)
         return (
-            f"converging to the return map's stable limit cycle at {settled.limit:.6g} {held} "
+            f"converging to the return map's stable limit cycle at {limit} "
             f"({ratio + ', ' if ratio else ''}closed in about {settled.cycles_to_settle} more "
             "cycles)"
         )
