@@ -164,6 +164,12 @@ class Circuit:
     pump_flow: float
     tank: float
 
+    @property
+    def supplies(self) -> tuple[Supply, Supply]:
+        """Both supplies the toolkit compares, in `SUPPLIES`' order: load sensing, constant
+        pressure."""
+        return self.load_sensing, self.constant_pressure
+
     def unphysical(self, load_pressure: float) -> bool:
         """Whether a load pressure (Pa) is beyond the circuit's physics: above `BEYOND_RELIEF` ×
         the relief pressure, the valve opens long before. Such a value is the quasi-static

@@ -85,9 +85,7 @@ def hydraulics(motion: Trajectory) -> dict:
         "shortest_duration_s": shortest,
         "unphysical": circuit.unphysical(float(flows.load[0].max())),
         "unserved": [
-            supply.name
-            for supply in (circuit.load_sensing, circuit.constant_pressure)
-            if moving > supply.available(circuit.relief)
+            supply.name for supply in circuit.supplies if moving > supply.available(circuit.relief)
         ],
     }
 

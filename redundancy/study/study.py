@@ -415,7 +415,7 @@ def run_study(
         machine, energy_bounds = robot.circuit(), {}
         for segment in tqdm(cycle.segments, desc="energy bounds", disable=not progress):
             found = energy_bounds[segment.name] = {}
-            for supply in (machine.load_sensing, machine.constant_pressure):
+            for supply in machine.supplies:
                 with noted(failures, f"energy bound {supply.name}/{segment.name}"):
                     found[supply.name] = energy_optimum(robot, segment, supply, held, checked)
     runs = tuple(run for part in parts for run in part[0])

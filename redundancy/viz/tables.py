@@ -139,7 +139,7 @@ def hydraulic_table(study: Study) -> str:
 
 def _served(circuit, supply: str) -> float:
     """The highest load pressure ``supply`` (its name) serves under the circuit's relief, bar."""
-    found = {s.name: s for s in (circuit.load_sensing, circuit.constant_pressure)}[supply]
+    found = next(s for s in circuit.supplies if s.name == supply)
     return found.available(circuit.relief) / BAR
 
 
