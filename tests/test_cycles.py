@@ -15,6 +15,7 @@ from commands import run_cli
 
 from redundancy import InvalidInputError, load_robot
 from redundancy.model.loading import bundled_root
+from redundancy.model.values import modulo_turn
 from redundancy.planning.angles import task_robot
 from redundancy.planning.bound import (
     Transcription,
@@ -24,6 +25,7 @@ from redundancy.planning.bound import (
 )
 from redundancy.planning.cycles import (
     SETTLED,
+    TASK_GAIN,
     FixedPoint,
     improved_cycle_start,
     periodic_optimum,
@@ -33,6 +35,7 @@ from redundancy.planning.cycles import (
     settling,
 )
 from redundancy.planning.integrate import simulate
+from redundancy.planning.motions import simulate_path
 from redundancy.planning.starts import Configurations, evaluate_starts, improved_start
 from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.resolution.limits import Limits, amount
@@ -42,6 +45,7 @@ from redundancy.study.cycles import repetition_report, run_cycle
 from redundancy.viz.tables import cycle_table
 
 ARM = Path(__file__).parent / "data" / "planar4r"
+SLEWING = Path(__file__).parent / "data" / "slewing3r"
 
 
 @pytest.fixture(scope="module")
@@ -296,6 +300,49 @@ def test_the_return_map_finds_the_free_cycles_limit_cycle(crane, paper_cycle, cr
     assert np.all(np.sign(np.diff(held)) == np.sign(value - held[:-1]))
     again = return_map(crane, paper_cycle, VELOCITY.resolver, "x3", values=np.array([value]))
     assert again.following[0] == pytest.approx(value, abs=2e-4)
+
+
+def _slewing_start(v: float, elbow: int) -> np.ndarray:
+    """The slewing 3R arm's configuration at its circle's start (1.8, 0) m with x3 = v on the
+    ``elbow`` (±1) branch, in closed form: links 2 and 3 as one rigid w = (0.8 + 0.5 cos v,
+    0.5 sin v) m, the triangle base-elbow-tool of sides 1 m, |w| and 1.8 m gives the base angle
+    q1 = ±arccos((1 + 1.8² − |w|²) / 3.6) by the law of cosines, and q2 closes it."""
+    w = np.array([0.8 + 0.5 * np.cos(v), 0.5 * np.sin(v)])
+    q1 = elbow * np.arccos((1 + 1.8**2 - w @ w) / (2 * 1.8))
+    r = np.array([1.8 - np.cos(q1), -np.sin(q1)])  # elbow to tool
+    q2 = modulo_turn(np.arctan2(r[1], r[0]) - q1 - np.arctan2(w[1], w[0]))
+    return np.array([q1, q2, v])
+
+
+def test_the_return_map_follows_the_branch_the_free_cycles_run_on():
+    """The 3R arm slewing its tool once around its base, x3 held: from the plan's start the
+    first cycle flips the arm to the other elbow, where the held value contracts to 0 by about
+    0.17 a cycle. The study's return map lies on that branch (its values are the motions from
+    that elbow's closed-form starts) and its one fixed point is that limit, the slope that
+    contraction: the settling verdict names it. Mapped on the branch found at mid-stroke, the
+    other elbow's, the stable fixed point was 1.377 rad, which the cycles never near."""
+    robot = load_robot(SLEWING / "robot.toml")
+    cycle = WorkCycle.from_toml(robot.task_file, dimension=robot.m)
+    study = run_cycle(robot, cycle, VELOCITY, cycles=6, strategy="free")
+    free = study.repetitions["free"]
+    held = free.held_values[:, 0]
+    start, end = free.motions[0].q[0, 0], free.motions[-1].q[0, -1]
+    assert robot.same_pose(start, _slewing_start(held[0], 1), 1e-6)
+    assert robot.same_pose(end, _slewing_start(held[-1], -1), 1e-6)
+    for elbow, mapped in (
+        (-1, study.map),
+        (1, return_map(robot, cycle, VELOCITY.resolver, values=study.map.values)),
+    ):
+        starts = np.array([_slewing_start(v, elbow) for v in mapped.values])
+        direct = simulate_path(
+            robot, VELOCITY.resolver, cycle, starts, sparse=True, gain=TASK_GAIN
+        ).x[:, -1, 2]
+        np.testing.assert_allclose(mapped.following, direct, atol=1e-6)
+    ((limit, slope, keeps),) = study.map.fixed_points
+    contraction = np.diff(held)[-1] / np.diff(held)[-2]
+    assert abs(limit) < 1e-6 and keeps and slope == pytest.approx(contraction, abs=0.01)
+    settled = free.settling_with(study.fixed_points("free"))
+    assert settled.settles and settled.limit == limit and settled.cycles_to_settle <= 3
 
 
 def test_the_free_cycle_settles_only_towards_the_return_maps_stable_fixed_point(crane_study):

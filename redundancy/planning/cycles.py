@@ -540,9 +540,13 @@ def return_map(
     values: np.ndarray | None = None,
     checked: tuple[str, ...] | None = None,
     count: int = MAP_SAMPLES,
+    near: np.ndarray | None = None,
 ) -> ReturnMap:
     """P sampled at ``values`` of the held actuator (default ``count`` evenly over the reachable
-    part of its stroke at the cycle's start), all integrated as one batch."""
+    part of its stroke at the cycle's start), all integrated as one batch. Its starts lie on the
+    assembly branch of ``near``, a configuration (n,) at the cycle's start (a repetition's last
+    one: the branch it runs on, where its first cycle changed branch), by default on the branch
+    inverse kinematics finds at mid-stroke."""
     require_robot(robot)
     found = _held(robot, cycle, held)
     if len(found) != 1:
@@ -552,7 +556,7 @@ def return_map(
             "tells instead"
         )
     name = found[0]
-    configurations = Configurations(robot, cycle, name)
+    configurations = Configurations(robot, cycle, name, near)
     if values is None:
         if not is_whole(count, 2, MAX_SAMPLES):
             raise InvalidInputError(

@@ -336,16 +336,27 @@ class Starts:
 
 class Configurations:
     """Start configurations at the point of a segment for one held actuator, by continuation
-    from those found so far; seeded by multi-seed inverse kinematics at mid-stroke or, where the
-    point is out of reach there, with the held actuator free (its value where it reaches it)."""
+    from those found so far; seeded by ``near``, a configuration at that point on the assembly
+    branch to follow, or else by multi-seed inverse kinematics at mid-stroke or, where the point
+    is out of reach there, with the held actuator free (its value where it reaches it)."""
 
-    def __init__(self, robot: Robot, segment: Segment | Chain, held: str):
+    def __init__(
+        self,
+        robot: Robot,
+        segment: Segment | Chain,
+        held: str,
+        near: np.ndarray | None = None,
+    ):
         point = segment.start
         self.robot, self.point, self.held, self.segment = robot, point, held, segment
         self._reach: dict[float, np.ndarray] = {}
         self.row = held_indices(robot, [held])[0]
         self.joints = Limits.joints(robot)
         self.scan = scan = sweep_values(robot, held, REACH_GRID)
+        if near is not None:
+            q = robot.configuration(near, "near")[:1]
+            self.known = (evaluate(robot, q).x[:, self.row], q)
+            return
         middle = scan[np.argsort(np.abs(scan - scan.mean()), kind="stable")[:1]]
         anchor = inverse_kinematics(robot, point, [held], middle[:, None])
         if anchor.reached[0]:

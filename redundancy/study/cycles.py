@@ -414,8 +414,10 @@ def run_cycle(
             bar.update()
         bar.set_description("cycle: return map")
         mapped = None
+        free = repetitions.get("free")  # the map follows the branch the free cycles run on
+        near = None if free is None else free.motions[-1].q[0, -1]
         with noted(failures, "return map"):
-            mapped = return_map(robot, cycle, objective.resolver, held, checked=checked)
+            mapped = return_map(robot, cycle, objective.resolver, held, checked=checked, near=near)
     return CycleStudy(
         robot,
         cycle,
