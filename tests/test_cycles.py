@@ -314,16 +314,24 @@ def _slewing_start(v: float, elbow: int) -> np.ndarray:
     return np.array([q1, q2, v])
 
 
-def test_the_return_map_follows_the_branch_the_free_cycles_run_on():
+@pytest.fixture(scope="module")
+def slewing_study():
     """The 3R arm slewing its tool once around its base, x3 held: from the plan's start the
     first cycle flips the arm to the other elbow, where the held value contracts to 0 by about
-    0.17 a cycle. The study's return map lies on that branch (its values are the motions from
-    that elbow's closed-form starts) and its one fixed point is that limit, the slope that
-    contraction: the settling verdict names it. Mapped on the branch found at mid-stroke, the
-    other elbow's, the stable fixed point was 1.377 rad, which the cycles never near."""
+    0.17 a cycle. Both strategies, six cycles."""
     robot = load_robot(SLEWING / "robot.toml")
     cycle = WorkCycle.from_toml(robot.task_file, dimension=robot.m)
-    study = run_cycle(robot, cycle, VELOCITY, cycles=6, strategy="free")
+    return run_cycle(robot, cycle, VELOCITY, cycles=6)
+
+
+def test_the_return_map_follows_the_branch_the_free_cycles_run_on(slewing_study):
+    """The study's return map lies on the branch the free cycles settle on (its values are the
+    motions from that elbow's closed-form starts) and its one fixed point is their limit, the
+    slope their contraction: the settling verdict names it. Mapped on the branch found at
+    mid-stroke, the other elbow's, the stable fixed point was 1.377 rad, which the cycles never
+    near."""
+    study = slewing_study
+    robot, cycle = study.robot, study.cycle
     free = study.repetitions["free"]
     held = free.held_values[:, 0]
     start, end = free.motions[0].q[0, 0], free.motions[-1].q[0, -1]
@@ -343,6 +351,22 @@ def test_the_return_map_follows_the_branch_the_free_cycles_run_on():
     assert abs(limit) < 1e-6 and keeps and slope == pytest.approx(contraction, abs=0.01)
     settled = free.settling_with(study.fixed_points("free"))
     assert settled.settles and settled.limit == limit and settled.cycles_to_settle <= 3
+
+
+def test_a_plan_that_changes_branch_still_finds_the_periodic_optimum(slewing_study):
+    """The plan's cycle ends on the other elbow, so no periodic motion lies near it (the
+    optimum seeded from it found no configuration at t = 5.655 s): it is sought again from the
+    free repetition's last cycle, and found. It closes in one cycle, and its peak is no higher
+    than that of the free cycles' limit, a periodic motion among those it minimises over."""
+    study = slewing_study
+    found = r"no configuration reaches the task at t = 5\.655 s with x3 = -109\.1°"
+    with pytest.raises(InvalidInputError, match=found):
+        periodic_optimum(study.robot, study.cycle, study.plan.motion, VELOCITY)
+    assert "periodic" not in study.failures and study.periodic is not None
+    periodic = study.repetitions["periodic"]
+    assert periodic.settling.settled_at == 1
+    limit = study.repetitions["free"].motions[-1].score(VELOCITY)[0]
+    assert study.periodic.peak <= limit * (1 + 1e-6)
 
 
 def test_the_free_cycle_settles_only_towards_the_return_maps_stable_fixed_point(crane_study):

@@ -55,7 +55,7 @@ from redundancy.planning.motions import simulate_path
 from redundancy.planning.refinement import Refined, checked_grids
 from redundancy.planning.starts import SearchResult, improved_start
 from redundancy.planning.tasks import Chain, Segment, checked_path
-from redundancy.resolution.limits import Limits
+from redundancy.resolution.limits import Limits, amount
 from redundancy.resolution.objectives import VELOCITY, Objective
 from redundancy.resolution.objectives import objective as as_objective
 from redundancy.resolution.state import ActuatorSpace, evaluate
@@ -273,10 +273,12 @@ class Transcription:
         """The error for held strokes r (U, r) whose ``missed`` nodes no configuration
         reaches."""
         first = int(np.flatnonzero(missed)[0])
-        strokes = ", ".join(f"{v:.4f}" for v in r[self.owner[first]])
+        held = [self.robot.actuators.maps[row] for row in self.rows]
+        strokes = ", ".join(
+            f"{a.name} = {amount(v, a.unit)}" for a, v in zip(held, r[self.owner[first]])
+        )
         return InvalidInputError(
-            f"no configuration reaches the task at t = {self.t[first]:.3f} s "
-            f"with the held stroke {strokes}"
+            f"no configuration reaches the task at t = {self.t[first]:.3f} s with {strokes}"
         )
 
     def configurations(self, r: np.ndarray) -> np.ndarray:

@@ -406,7 +406,16 @@ def run_cycle(
                     robot, cycle, objective.resolver, start_q, 1, "free", held, checked
                 ).motion(1)
             with noted(failures, "periodic"):
-                periodic = periodic_optimum(robot, cycle, guess, objective, held, checked)
+                try:
+                    periodic = periodic_optimum(robot, cycle, guess, objective, held, checked)
+                except InvalidInputError:
+                    if "free" not in repetitions:
+                        raise
+                    # a plan's cycle that changes assembly branch (an arm flipping its elbow as
+                    # it slews around its base) has no periodic motion near it; the free
+                    # repetition's last cycle runs on the branch the cycles settle on
+                    last = repetitions["free"].motion(cycles)
+                    periodic = periodic_optimum(robot, cycle, last, objective, held, checked)
             bar.update()
             if periodic is not None:
                 bar.set_description("cycle: periodic, repeated")
