@@ -12,10 +12,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 from commands import run_cli
+from slewing3r_closed_form import start_configuration
 
 from redundancy import InvalidInputError, load_robot
 from redundancy.model.loading import bundled_root
-from redundancy.model.values import modulo_turn
 from redundancy.planning.angles import task_robot
 from redundancy.planning.bound import (
     Transcription,
@@ -196,7 +196,7 @@ def test_with_trapezoidal_profiles_the_tool_velocity_is_continuous_at_the_corner
             replace(s, profile=profile, acceleration=0.5) for s in paper_cycle.segments
         )
         cycle = replace(paper_cycle, segments=segments)
-        q = Configurations(crane, segments[0], "x3").at(np.array([0.82])).q
+        q = Configurations.branches(crane, segments[0], "x3")[0].at(np.array([0.82])).q
         pieces = []  # each segment from where the one before ended, as the cycle runs them
         for segment in cycle.segments:
             pieces.append(simulate(crane, VELOCITY.resolver, segment, q, gain=20.0))
@@ -225,7 +225,11 @@ def test_the_whole_cycle_improved_start_keeps_every_stroke_over_the_full_cycle(
     assert own == pytest.approx(1.09, abs=1e-3)
     chain = paper_cycle.chain()
     later = evaluate_starts(
-        crane, chain, VELOCITY, "x3", Configurations(crane, chain, "x3").at(np.array([own]))
+        crane,
+        chain,
+        VELOCITY,
+        "x3",
+        Configurations.branches(crane, chain, "x3")[0].at(np.array([own])),
     )
     assert not later.samples[0].feasible and later.samples[0].violations
 
@@ -302,18 +306,6 @@ def test_the_return_map_finds_the_free_cycles_limit_cycle(crane, paper_cycle, cr
     assert again.following[0] == pytest.approx(value, abs=2e-4)
 
 
-def _slewing_start(v: float, elbow: int) -> np.ndarray:
-    """The slewing 3R arm's configuration at its circle's start (1.8, 0) m with x3 = v on the
-    ``elbow`` (±1) branch, in closed form: links 2 and 3 as one rigid w = (0.8 + 0.5 cos v,
-    0.5 sin v) m, the triangle base-elbow-tool of sides 1 m, |w| and 1.8 m gives the base angle
-    q1 = ±arccos((1 + 1.8² − |w|²) / 3.6) by the law of cosines, and q2 closes it."""
-    w = np.array([0.8 + 0.5 * np.cos(v), 0.5 * np.sin(v)])
-    q1 = elbow * np.arccos((1 + 1.8**2 - w @ w) / (2 * 1.8))
-    r = np.array([1.8 - np.cos(q1), -np.sin(q1)])  # elbow to tool
-    q2 = modulo_turn(np.arctan2(r[1], r[0]) - q1 - np.arctan2(w[1], w[0]))
-    return np.array([q1, q2, v])
-
-
 @pytest.fixture(scope="module")
 def slewing_study():
     """The 3R arm slewing its tool once around its base, x3 held: from the plan's start the
@@ -335,13 +327,13 @@ def test_the_return_map_follows_the_branch_the_free_cycles_run_on(slewing_study)
     free = study.repetitions["free"]
     held = free.held_values[:, 0]
     start, end = free.motions[0].q[0, 0], free.motions[-1].q[0, -1]
-    assert robot.same_pose(start, _slewing_start(held[0], 1), 1e-6)
-    assert robot.same_pose(end, _slewing_start(held[-1], -1), 1e-6)
+    assert robot.same_pose(start, start_configuration(held[0], 1, cycle.start), 1e-6)
+    assert robot.same_pose(end, start_configuration(held[-1], -1, cycle.start), 1e-6)
     for elbow, mapped in (
         (-1, study.map),
         (1, return_map(robot, cycle, VELOCITY.resolver, values=study.map.values)),
     ):
-        starts = np.array([_slewing_start(v, elbow) for v in mapped.values])
+        starts = np.array([start_configuration(v, elbow, cycle.start) for v in mapped.values])
         direct = simulate_path(
             robot, VELOCITY.resolver, cycle, starts, sparse=True, gain=TASK_GAIN
         ).x[:, -1, 2]

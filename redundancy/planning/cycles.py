@@ -556,7 +556,11 @@ def return_map(
             "tells instead"
         )
     name = found[0]
-    configurations = Configurations(robot, cycle, name, near)
+    configurations = (
+        Configurations.branches(robot, cycle, name)[0]
+        if near is None
+        else Configurations.near(robot, cycle, name, near)
+    )
     if values is None:
         if not is_whole(count, 2, MAX_SAMPLES):
             raise InvalidInputError(

@@ -41,6 +41,7 @@ CONTINUATION_ITERATIONS = 10  # from a configuration nearby, Newton converges in
 DAMPING = 1e-10
 STALLED = 1e-12  # m or rad: a step this small no longer moves a row: it has converged (its
 # residual is then far below FOUND) or, clipped to the joint limits, it is stuck in a corner
+SAME_POSE = 1e-6  # m or rad: configurations Newton found this close are one pose
 MOST_SEEDS = 1000  # starts per point of inverse_kinematics: each is a Newton solve per value
 
 
@@ -206,18 +207,44 @@ def inverse_kinematics(
         raise InvalidInputError(
             f"held values must be finite numbers, shape (k, {len(rows)}); got {given!r}"
         )
+    per_seed, error, order = _from_seeds(robot, point, rows, values, seeds)
+    picked = per_seed[np.arange(len(values)), order[:, 0]]
+    return InverseKinematics(picked, np.any(error < FOUND, axis=1), error.min(axis=1))
+
+
+def _from_seeds(robot: Robot, point: np.ndarray, rows: list[int], values: np.ndarray, seeds: int):
+    """Newton from ``seeds`` starts for each of the held ``values`` (k, r): the configurations
+    (k, seeds, n), their residuals (k, seeds) and, per value, the seeds in order of preference:
+    the converged ones nearest the joint box's middle first, then the others by residual."""
     k, starts = len(values), _seeds(robot, seeds)
     guess = np.repeat(starts[None], k, axis=0).reshape(k * seeds, robot.n)
     target = np.concatenate([np.repeat(point[None], k, 0), values], axis=1)
     q, error, _ = newton(robot, guess, rows, np.repeat(target, seeds, axis=0), ITERATIONS, True)
     error = error.reshape(k, seeds)
     per_seed = q.reshape(k, seeds, robot.n)
-    converged = error < FOUND
     lower, upper = robot.span
     distance = np.linalg.norm((per_seed - (lower + upper) / 2) / (upper - lower), axis=2)
-    choice = np.argmin(np.where(converged, distance, 1e6 + error), axis=1)
-    picked = per_seed[np.arange(k), choice]
-    return InverseKinematics(picked, np.any(converged, axis=1), error.min(axis=1))
+    order = np.argsort(np.where(error < FOUND, distance, 1e6 + error), axis=1, kind="stable")
+    return per_seed, error, order
+
+
+def assembly_branches(
+    robot: Robot, point: np.ndarray, held: str | Sequence[str], values: ArrayLike, seeds: int = 8
+) -> np.ndarray:
+    """The distinct configurations (b, n) inside the joint limits that reach ``point`` (m,)
+    with the actuators ``held`` at ``values`` (r,), one per assembly branch there (an arm's
+    elbow up and elbow down), by Newton from ``seeds`` starts: the first the one
+    `inverse_kinematics` picks, the others in its order of preference; none where no seed
+    reaches the point. Two are one pose where no joint differs by more than `SAME_POSE` (a
+    turning joint modulo a turn)."""
+    rows = held_indices(robot, held)
+    target = np.asarray(values, dtype=float).reshape(1, len(rows))
+    per_seed, error, order = _from_seeds(robot, np.asarray(point, float), rows, target, seeds)
+    found: list[np.ndarray] = []
+    for q in per_seed[0, order[0][error[0, order[0]] < FOUND]]:
+        if not any(robot.same_pose(q, other, SAME_POSE) for other in found):
+            found.append(q)
+    return np.array(found).reshape(-1, robot.n)
 
 
 def free_configurations(robot: Robot, point: np.ndarray, seeds: int) -> tuple[np.ndarray, float]:

@@ -7,11 +7,13 @@ the objective's law along the path (a segment, or a work cycle's `Chain`, search
 the samples whose motion stays inside the actuator limits the whole way, and return the one
 with the lowest peak (or integral) of the objective. Every sample, whichever search asks for it,
 is evaluated by `evaluate_starts`: feasible where its margin is ≥ −`TOLERANCE`
-(`redundancy.resolution.limits`). A held value has one start configuration: with one held
-actuator the one continuation from the first found reaches, with several the one inverse
-kinematics reaches from its seeds, so one assembly branch; where the task has two inside the
-joint ranges at that value (an arm's elbow up and down), the other is not searched, and the
-best start is the best of the branch found. Methods:
+(`redundancy.resolution.limits`). With one held actuator, each assembly branch that reaches
+the path's start at mid-stroke inside the joint ranges (an arm's elbow up and elbow down) is
+searched on its own, its starts continued along the held value from that configuration, and
+the best start is the best of them all (`Configurations.branches`); a branch that reaches the
+start only at other held values is searched only where that continuation comes upon it. With
+several, a held value has the one start configuration inverse kinematics reaches from its
+seeds. Methods:
 
 - "fast" (r = 1, the default): the margin μ(v) of a start v, the least distance of a checked
   stroke to its limits over the motion and of the start to its joint limits, is continuous in
@@ -43,9 +45,10 @@ can fall between sparse samples (1 % above them on the slewing crane's lift-swin
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field, fields, replace
 from functools import cached_property, partial, reduce
+from typing import cast
 
 import numpy as np
 
@@ -61,6 +64,7 @@ from redundancy.planning.brackets import (
 )
 from redundancy.planning.ik import (
     FOUND,
+    assembly_branches,
     continue_held,
     free_configurations,
     held_indices,
@@ -335,38 +339,52 @@ class Starts:
 
 
 class Configurations:
-    """Start configurations at the point of a segment for one held actuator, by continuation
-    from those found so far; seeded by ``near``, a configuration at that point on the assembly
-    branch to follow, or else by multi-seed inverse kinematics at mid-stroke or, where the point
-    is out of reach there, with the held actuator free (its value where it reaches it)."""
+    """Start configurations at the point of a segment for one held actuator on one assembly
+    branch, by continuation from those found so far (``known``: held values (j,) and their
+    configurations (j, n)): `branches` seeds one per branch, `near` one on a given branch."""
 
     def __init__(
         self,
         robot: Robot,
         segment: Segment | Chain,
         held: str,
-        near: np.ndarray | None = None,
+        known: tuple[np.ndarray, np.ndarray],
     ):
-        point = segment.start
-        self.robot, self.point, self.held, self.segment = robot, point, held, segment
+        self.robot, self.point, self.held, self.segment = robot, segment.start, held, segment
         self._reach: dict[float, np.ndarray] = {}
         self.row = held_indices(robot, [held])[0]
         self.joints = Limits.joints(robot)
-        self.scan = scan = sweep_values(robot, held, REACH_GRID)
-        if near is not None:
-            q = robot.configuration(near, "near")[:1]
-            self.known = (evaluate(robot, q).x[:, self.row], q)
-            return
+        self.scan = sweep_values(robot, held, REACH_GRID)
+        self.known = known
+
+    @classmethod
+    def branches(cls, robot: Robot, segment: Segment | Chain, held: str) -> list[Configurations]:
+        """One per assembly branch that reaches the segment's start at mid-stroke
+        (`assembly_branches`), the one `inverse_kinematics` picks first. Where mid-stroke does
+        not reach it, one, seeded by every configuration that reaches it with the held actuator
+        free, each at its own held value. A branch that does not reach the start at mid-stroke
+        is searched only where continuation along the held value comes upon it."""
+        scan, point = sweep_values(robot, held, REACH_GRID), segment.start
         middle = scan[np.argsort(np.abs(scan - scan.mean()), kind="stable")[:1]]
-        anchor = inverse_kinematics(robot, point, [held], middle[:, None])
-        if anchor.reached[0]:
-            self.known = (middle, anchor.q)
-            return
-        q, miss = free_configurations(robot, point, ANCHOR_SEEDS)  # the held actuator free
-        if not len(q):
+        found = assembly_branches(robot, point, [held], middle)
+        if len(found):
+            return [cls(robot, segment, held, (middle, q[None])) for q in found]
+        free, miss = free_configurations(robot, point, ANCHOR_SEEDS)  # the held actuator free
+        if not len(free):
             how = f"with {held} anywhere in its stroke inside its joint limits"
-            raise _unreachable(robot, segment, how, min(miss, anchor.miss[0]))
-        self.known = (evaluate(robot, q).x[:, self.row], q)
+            raise _unreachable(robot, segment, how, miss)
+        values = evaluate(robot, free).x[:, held_indices(robot, [held])[0]]
+        return [cls(robot, segment, held, (values, free))]
+
+    @classmethod
+    def near(
+        cls, robot: Robot, segment: Segment | Chain, held: str, q: np.ndarray
+    ) -> Configurations:
+        """On the branch of ``q`` (n,), a configuration at the segment's start."""
+        q = robot.configuration(q, "near")[:1]
+        return cls(
+            robot, segment, held, (evaluate(robot, q).x[:, held_indices(robot, [held])[0]], q)
+        )
 
     def reachable(self, tolerance: float) -> np.ndarray:
         """The reachable held values, in order, of `REACH_GRID` starts over the stroke with the
@@ -553,16 +571,46 @@ def improved_starts(
     if method == "fast":
         tolerance = end_tolerance(robot, held[0], tolerance)
     Limits.strokes(robot, checked)  # names checked before any work
-    configurations = Configurations(robot, segment, held[0])
+    branches = Configurations.branches(robot, segment, held[0])
     if method == "fast":
         return tuple(
-            fast_search(configurations, tolerance, partial(run, objective))
+            _best_branch(
+                partial(fast_search, branch, tolerance, partial(run, objective))
+                for branch in branches
+            )
             for objective in objectives
         )
-    # one sample is the default start: mid-stroke, or the reachable value nearest it
-    values = default_start(robot, segment, held)[0] if samples == 1 else None
-    starts = configurations.at(sweep_values(robot, held[0], samples) if values is None else values)
-    return tuple(run(objective, starts) for objective in objectives)
+    if samples == 1:  # the default start: mid-stroke, or the reachable value nearest it
+        branches, values = branches[:1], default_start(robot, segment, held)[0]
+    else:
+        values = sweep_values(robot, held[0], samples)
+    starts = [branch.at(values) for branch in branches]
+    return tuple(
+        _best_branch(partial(run, objective, each) for each in starts) for objective in objectives
+    )
+
+
+def _best_branch(searches: Iterable[Callable[[], SearchResult]]) -> SearchResult:
+    """Of the searches of each assembly branch, the one whose best start has the least peak
+    (or integral) or, where no start is feasible on any, the highest margin; the first branch
+    on a tie. A branch with no reachable start is left out unless none has one."""
+    found: list[SearchResult] = []
+    failure: UnreachableError | None = None
+    for search in searches:
+        try:
+            found.append(search())
+        except UnreachableError as error:
+            failure = failure or error
+    if not found:
+        raise cast(UnreachableError, failure)
+
+    def rank(result: SearchResult) -> tuple[float, float]:
+        best = result.best
+        if best is not None:
+            return 0.0, cast(float, best.peak)
+        return 1.0, -max(sample.margin for sample in result.samples)
+
+    return min(found, key=rank)
 
 
 def search_method(held: tuple[str, ...], samples: int, method: str | None) -> str:

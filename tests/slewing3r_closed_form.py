@@ -1,0 +1,26 @@
+"""Closed forms of the slewing 3R arm of the tests (tests/data/slewing3r): links of 1.0, 0.8 and
+0.5 m in the horizontal plane, each joint driven directly (x = q)."""
+
+import numpy as np
+
+from redundancy.model.values import modulo_turn
+
+LINKS = (1.0, 0.8, 0.5)  # m
+
+
+def start_configuration(v: float, elbow: int, point: np.ndarray) -> np.ndarray | None:
+    """The configuration (3,) that puts the tool at ``point`` (2,) m with x3 = v on the
+    ``elbow`` (±1) branch, or None where none does: links 2 and 3 as one rigid
+    w = (0.8 + 0.5 cos v, 0.5 sin v) m, the triangle base-elbow-tool of sides 1 m, |w| and
+    D = |point| gives the base angle q1 = atan2(point) ± arccos((1 + D² − |w|²) / 2D) by the
+    law of cosines, and q2 closes it."""
+    first, second, third = LINKS
+    w = np.array([second + third * np.cos(v), third * np.sin(v)])
+    reach = float(np.hypot(*point))
+    cosine = (first**2 + reach**2 - w @ w) / (2 * first * reach)
+    if abs(cosine) > 1:
+        return None
+    q1 = np.arctan2(point[1], point[0]) + elbow * np.arccos(cosine)
+    r = np.asarray(point) - first * np.array([np.cos(q1), np.sin(q1)])  # elbow to tool
+    q2 = modulo_turn(np.arctan2(r[1], r[0]) - q1 - np.arctan2(w[1], w[0]))
+    return np.array([q1, q2, v])
