@@ -23,7 +23,7 @@ from redundancy.study.study import (
     study_searches,
 )
 from redundancy.viz.playback import write_playbacks
-from redundancy.viz.plots import study_figures, write_figures
+from redundancy.viz.plots import pyplot, study_figures, write_figures
 
 OBJECTIVES = (VELOCITY, ENERGY)
 SEGMENTS = ("1-2", "2-3", "3-1")
@@ -106,6 +106,8 @@ def test_the_study_figures_only_read_finished_numbers(crane, paper_cycle):
     )
     with counting() as counts:
         figures = study_figures(study)
+    for figure in figures.values():  # pyplot keeps them open; the next test's count would warn
+        pyplot().close(figure)
     assert "fig4c_nonoptimal_velocity_1-2.png" in figures
     assert counts.evaluated == 0
 

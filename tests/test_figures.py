@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 from lxml import html
 
-from redundancy import VELOCITY, WorkCycle, load_robot, run_study
+from redundancy import VELOCITY, InvalidInputError, WorkCycle, load_robot, run_study
 from redundancy.study.study import write_report
 from redundancy.viz.map_figures import map_figure
 from redundancy.viz.plots import pyplot, study_figures, write_pngs
@@ -204,3 +204,15 @@ def test_the_page_names_the_search_and_the_price_as_the_tables_do(two_held):
     report = json.loads((out / "report.json").read_text())
     versus = report["cycle"]["periodic_versus_free_percent"]
     assert versus and "LS energy per cycle" in price and "ls_energy" not in price
+
+
+def test_figures_are_closed_when_a_write_fails(tmp_path):
+    """A "folder" that is a file cannot take the first figure: the error reaches the caller,
+    and none of the figures is left open in pyplot (in a long process, a notebook or a test
+    run, they piled up until matplotlib warned of more than 20)."""
+    plt = pyplot()
+    figures = {f"f{i}.png": plt.figure() for i in range(3)}
+    (tmp_path / "file").write_text("")
+    with pytest.raises(InvalidInputError, match="is a file, not a folder"):
+        write_pngs(figures, tmp_path / "file")
+    assert not set(plt.get_fignums()) & {figure.number for figure in figures.values()}

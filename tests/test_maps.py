@@ -121,10 +121,12 @@ def test_a_map_on_a_dask_cluster_by_address_equals_the_local_run(tmp_path, clien
 def test_the_map_figure_gives_the_held_actuators_values_their_unit(tmp_path, client):
     """The crane's telescope is a length: its best initial values are headed in m."""
     from redundancy.viz.map_figures import map_figure
+    from redundancy.viz.plots import pyplot
 
     family = read_family(write(tmp_path, "ws.toml", WORKSPACE.format(chunk=2, nx=2)))
     assert family.held_unit == "m"
     figure = map_figure(design_map(family, client), family, "velocity")
+    pyplot().close(figure)
     assert figure.axes[1].get_title() == f"best initial {family.held[0]} (m)"
 
 

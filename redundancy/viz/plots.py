@@ -517,17 +517,21 @@ def write_cycle_figures(study: CycleStudy, folder: Path) -> list[Path]:
 
 def write_pngs(figures: dict, folder: Path, dpi: float = DPI) -> list[Path]:
     """Write each figure (by file name) into ``folder`` as a PNG at ``dpi``, through its Agg
-    canvas, and close it; return their paths. Through the canvas: `savefig` would draw it once
-    more, to redo the layout its `tight_layout` already fixed; the files are the same. At zlib's
+    canvas, and close them all, a write that failed too; return their paths. Through the
+    canvas: `savefig` would draw it once more, to redo the layout its `tight_layout` already
+    fixed; the files are the same. At zlib's
     fastest level (`PNG_COMPRESSION`) a figure is written in two thirds of the time PIL's
     default level takes, into a file about a quarter larger."""
     plt = pyplot()
     paths = []
-    for filename, figure in figures.items():
-        path = folder / filename
-        figure.set_dpi(dpi)
-        write = partial(figure.canvas.print_png, pil_kwargs={"compress_level": PNG_COMPRESSION})
-        write_atomically(path, write)
-        plt.close(figure)
-        paths.append(path)
+    try:
+        for filename, figure in figures.items():
+            path = folder / filename
+            figure.set_dpi(dpi)
+            write = partial(figure.canvas.print_png, pil_kwargs={"compress_level": PNG_COMPRESSION})
+            write_atomically(path, write)
+            paths.append(path)
+    finally:  # all of them, a write that failed too: pyplot would keep them for the process
+        for figure in figures.values():
+            plt.close(figure)
     return paths
