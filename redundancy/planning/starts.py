@@ -10,10 +10,10 @@ is evaluated by `evaluate_starts`: feasible where its margin is ≥ −`TOLERANC
 (`redundancy.resolution.limits`). With one held actuator, each assembly branch that reaches
 the path's start at mid-stroke inside the joint ranges (an arm's elbow up and elbow down) is
 searched on its own, its starts continued along the held value from that configuration, and
-the best start is the best of them all (`Configurations.branches`); a branch that reaches the
-start only at other held values is searched only where that continuation comes upon it. With
-several, a held value has the one start configuration inverse kinematics reaches from its
-seeds. Methods:
+the best start is the best of them all (`Configurations.branches`); where mid-stroke does not
+reach the start, each configuration found with the held actuator free seeds a branch, unless
+one seeded before comes upon it. With several held actuators, a held value has the one start
+configuration inverse kinematics reaches from its seeds. Methods:
 
 - "fast" (r = 1, the default): the margin μ(v) of a start v, the least distance of a checked
   stroke to its limits over the motion and of the start to its joint limits, is continuous in
@@ -64,6 +64,7 @@ from redundancy.planning.brackets import (
 )
 from redundancy.planning.ik import (
     FOUND,
+    SAME_POSE,
     assembly_branches,
     continue_held,
     free_configurations,
@@ -361,9 +362,10 @@ class Configurations:
     def branches(cls, robot: Robot, segment: Segment | Chain, held: str) -> list[Configurations]:
         """One per assembly branch that reaches the segment's start at mid-stroke
         (`assembly_branches`), the one `inverse_kinematics` picks first. Where mid-stroke does
-        not reach it, one, seeded by every configuration that reaches it with the held actuator
-        free, each at its own held value. A branch that does not reach the start at mid-stroke
-        is searched only where continuation along the held value comes upon it."""
+        not reach it, one per configuration that reaches it with the held actuator free, each at
+        its own held value, nearest mid-stroke first, unless a branch seeded before reaches it
+        by continuation. A branch that reaches the start at neither is searched only where
+        continuation along the held value comes upon it."""
         scan, point = sweep_values(robot, held, REACH_GRID), segment.start
         middle = scan[np.argsort(np.abs(scan - scan.mean()), kind="stable")[:1]]
         found = assembly_branches(robot, point, [held], middle)
@@ -374,7 +376,17 @@ class Configurations:
             how = f"with {held} anywhere in its stroke inside its joint limits"
             raise _unreachable(robot, segment, how, miss)
         values = evaluate(robot, free).x[:, held_indices(robot, [held])[0]]
-        return [cls(robot, segment, held, (values, free))]
+        branches: list[Configurations] = []
+        for i in np.argsort(np.abs(values - scan.mean()), kind="stable"):
+            value, q = values[i : i + 1], free[i]
+            if not any(branch.reaches(value, q) for branch in branches):
+                branches.append(cls(robot, segment, held, (value, q[None])))
+        return branches
+
+    def reaches(self, value: np.ndarray, q: np.ndarray) -> bool:
+        """Whether this branch's start at the held ``value`` (1,) is the pose ``q`` (n,)."""
+        start = self.at(value)
+        return bool(start.reachable[0]) and self.robot.same_pose(start.q[0], q, SAME_POSE)
 
     @classmethod
     def near(
