@@ -404,7 +404,8 @@ CASES = [
             ),
             "m.toml": _description(urdf='"m.urdf"'),
         },
-        'rod <attachment link="boom1" xyz="1e300 0 -0.0691657078303828"/> must be',
+        'rod <attachment link="boom1" xyz="1e300 0 -0.0691657078303828"/>: xyz must be within '
+        "±100 m of the link's frame: 1e+300 m is beyond",
     ),
     (
         "no masses",
@@ -630,8 +631,9 @@ CASES = [
                 "attachment in mm",
                 'xyz="0.383427387292961 0 -0.963510476680816"',
                 'xyz="383 0 -964"',
-                '<attachment link="column" xyz="383 0 -964"/> must be {link = "<a link>", '
-                "xyz = [x, y, z]} with three numbers within ±100 m (in m: 1 m = 1000 mm)",
+                '<attachment link="column" xyz="383 0 -964"/>: xyz must be within ±100 m of '
+                "the link's frame: 383 m is beyond; did you give mm? 1 m = 1000 mm (the "
+                "cylinder's base point)",
             ),
         ]
     ],

@@ -350,3 +350,19 @@ def test_a_round_off_is_shown_as_zero_not_as_a_tiny_number():
     assert span(1.8e-15, 2 * np.pi, "rad") == "[0°, 360°]"
     assert amount(-1.2e-72, "rad") == "0°" and amount(-1e-13, "m") == "0 mm"
     assert amount(2e-12, "m") == "2e-09 mm" and amount(0.8279, "m") == "827.9 mm"
+
+
+def test_a_cylinder_point_in_mm_names_the_number_and_the_fix(tmp_path, capsys):
+    """A rod pin written in mm in robot.toml: the line named the pin only as a cut excerpt
+    of its table and the general shape; it names the coordinate out of range and the fix."""
+    path = arm(tmp_path)
+    text = Path(path).read_text().replace("xyz = [0.9, 0.0, -0.2]", "xyz = [900.0, 0.0, -200.0]")
+    Path(path).write_text(text)
+    status, _, lines = run(["check", "--robot", path], capsys)
+    found = errors(lines)
+    assert status == 2 and len(found) == 1, found
+    assert "[actuators.x1] rod = " in found[0]
+    assert (
+        "xyz must be within ±100 m of the link's frame: 900 m is beyond; did you give mm? "
+        "1 m = 1000 mm (the cylinder's rod point)" in found[0]
+    ), found[0]

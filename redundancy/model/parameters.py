@@ -16,7 +16,7 @@ import numpy as np
 from pydantic import AfterValidator, AllowInfNan, Strict, TypeAdapter, ValidationError
 
 from redundancy.errors import RobotDescriptionError
-from redundancy.model.schema import MAX_OFFSET, ArmOnLink, PointOnLink
+from redundancy.model.schema import DECLARED, MAX_OFFSET, ArmOnLink, PointOnLink
 from redundancy.model.values import decimal
 
 REQUIRED = object()  # the default of a parameter that must be given
@@ -45,7 +45,12 @@ class Parameter:
         the file, the actuator and the value as written, for the message."""
         try:
             return self.convert(TypeAdapter(self.annotation).validate_python(value))
-        except ValidationError:
+        except ValidationError as error:
+            declared = [e for e in error.errors() if e["type"] == DECLARED]
+            if declared:  # a rule of the schema's own, whose words name the value and the fix
+                field = ".".join(str(part) for part in declared[0]["loc"])
+                said = f"{where}: {field} {declared[0]['msg']}"
+                raise RobotDescriptionError(f"{said} ({self.meaning})") from None
             raise RobotDescriptionError(f"{where} must be {self.shape} ({self.meaning})") from None
 
     def convert(self, value: Any) -> Any:
