@@ -178,12 +178,16 @@ class Robot:
         joint's among them, whose values a whole turn apart are one pose."""
         return self.rotary_joints & (self.upper - self.lower > 2 * np.pi)
 
+    def same_poses(self, q: np.ndarray, other: np.ndarray, tolerance: float) -> np.ndarray:
+        """Whether configurations ``q`` and ``other`` (..., n), broadcast against each other,
+        are one pose to ``tolerance``: each joint within it, a `turning` one modulo a turn."""
+        apart = np.asarray(q, dtype=float) - np.asarray(other, dtype=float)
+        apart = np.where(self.turning, modulo_turn(apart), apart)
+        return np.all(np.abs(apart) <= tolerance, axis=-1)
+
     def same_pose(self, q: np.ndarray, other: np.ndarray, tolerance: float) -> bool:
-        """Whether configurations ``q`` and ``other`` (n,) are one pose to ``tolerance``: each
-        joint within it, a `turning` one modulo a turn."""
-        apart = np.asarray(q - other, dtype=float)
-        apart[self.turning] = modulo_turn(apart[self.turning])
-        return bool(np.all(np.abs(apart) <= tolerance))
+        """`same_poses` of two configurations (n,)."""
+        return bool(self.same_poses(q, other, tolerance))
 
     def configuration(self, q: np.ndarray | list[float], name: str = "q") -> np.ndarray:
         """``q`` as a checked (k, n) array: right shape, finite."""

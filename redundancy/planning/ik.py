@@ -240,11 +240,13 @@ def assembly_branches(
     rows = held_indices(robot, held)
     target = np.asarray(values, dtype=float).reshape(1, len(rows))
     per_seed, error, order = _from_seeds(robot, np.asarray(point, float), rows, target, seeds)
-    found: list[np.ndarray] = []
-    for q in per_seed[0, order[0][error[0, order[0]] < FOUND]]:
-        if not any(robot.same_pose(q, other, SAME_POSE) for other in found):
-            found.append(q)
-    return np.array(found).reshape(-1, robot.n)
+    q = per_seed[0, order[0][error[0, order[0]] < FOUND]]
+    same = robot.same_poses(q[:, None], q[None], SAME_POSE)
+    kept: list[int] = []
+    for i in range(len(q)):
+        if not same[i, kept].any():
+            kept.append(i)
+    return q[kept]
 
 
 def free_configurations(robot: Robot, point: np.ndarray, seeds: int) -> tuple[np.ndarray, float]:

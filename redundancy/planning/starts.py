@@ -377,16 +377,14 @@ class Configurations:
             raise _unreachable(robot, segment, how, miss)
         values = evaluate(robot, free).x[:, held_indices(robot, [held])[0]]
         branches: list[Configurations] = []
-        for i in np.argsort(np.abs(values - scan.mean()), kind="stable"):
-            value, q = values[i : i + 1], free[i]
-            if not any(branch.reaches(value, q) for branch in branches):
-                branches.append(cls(robot, segment, held, (value, q[None])))
+        pending = np.argsort(np.abs(values - scan.mean()), kind="stable")
+        while pending.size:  # the first pending seeds a branch; those it reaches are on it
+            first, rest = pending[0], pending[1:]
+            branch = cls(robot, segment, held, (values[first : first + 1], free[first, None]))
+            branches.append(branch)
+            starts = branch.at(values[rest])
+            pending = rest[~(starts.reachable & robot.same_poses(starts.q, free[rest], SAME_POSE))]
         return branches
-
-    def reaches(self, value: np.ndarray, q: np.ndarray) -> bool:
-        """Whether this branch's start at the held ``value`` (1,) is the pose ``q`` (n,)."""
-        start = self.at(value)
-        return bool(start.reachable[0]) and self.robot.same_pose(start.q[0], q, SAME_POSE)
 
     @classmethod
     def near(
