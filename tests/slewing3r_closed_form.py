@@ -24,19 +24,3 @@ def start_configuration(v: float, elbow: int, point: np.ndarray) -> np.ndarray |
     r = np.asarray(point) - first * np.array([np.cos(q1), np.sin(q1)])  # elbow to tool
     q2 = modulo_turn(np.arctan2(r[1], r[0]) - q1 - np.arctan2(w[1], w[0]))
     return np.array([q1, q2, v])
-
-
-def held_slew_configuration(q1: float, elbow: int, point: np.ndarray) -> np.ndarray | None:
-    """The configuration (3,) that puts the tool at ``point`` (2,) m with the slew at q1 on the
-    ``elbow`` (±1) branch, or None where none does: from the end of link 1 the tool lies at
-    r = point − (cos q1, sin q1) m, and links 2 and 3 reach it where
-    cos q3 = (|r|² − 0.8² − 0.5²) / (2 · 0.8 · 0.5), q2 = atan2(r) − atan2(0.5 sin q3,
-    0.8 + 0.5 cos q3) − q1."""
-    first, second, third = LINKS
-    r = np.asarray(point) - first * np.array([np.cos(q1), np.sin(q1)])
-    cosine = (r @ r - second**2 - third**2) / (2 * second * third)
-    if abs(cosine) > 1:
-        return None
-    q3 = elbow * np.arccos(cosine)
-    q2 = np.arctan2(r[1], r[0]) - np.arctan2(third * np.sin(q3), second + third * np.cos(q3))
-    return np.array([q1, modulo_turn(q2 - q1), q3])

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from declarations import write_transmissions
-from slewing3r_closed_form import held_slew_configuration, start_configuration
+from slewing3r_closed_form import start_configuration
 
 import redundancy.planning.integrate as integrate
 from redundancy import (
@@ -556,26 +556,3 @@ def test_the_improved_start_searches_every_elbow_that_reaches_the_start(method):
     peak, start = least[-1]
     assert search.best_peak == pytest.approx(peak, rel=2e-4)
     assert robot.same_pose(search.motion().q[0, 0], start, 0.02)
-
-
-@pytest.mark.parametrize("method", ["fast", "sweep"])
-def test_the_improved_start_searches_each_branch_where_mid_stroke_does_not_reach(method):
-    """The slewing 3R arm with its slew held, its stroke written [−π, π], along a line whose
-    start no slew near mid-stroke reaches: the search is seeded by configurations found with
-    the slew free, at several values and on both elbows. Seeded all together, each start
-    continued from the nearest of them, whatever its elbow, the fast search gave 0.0561 rad²/s²
-    (5.3 % above the least) and the sweep 0.0569; each seeding a branch of its own, both find
-    the least peak of a brute force over 721 slews on each elbow from closed-form
-    configurations."""
-    robot = load_robot(SLEWING / "held_slew.toml")
-    line = WorkCycle.from_toml(robot.task_file, dimension=robot.m)["a-b"]
-    least = np.inf
-    for elbow in (1, -1):
-        found = [
-            held_slew_configuration(v, elbow, line.start) for v in np.linspace(-np.pi, np.pi, 721)
-        ]
-        q = np.array([each for each in found if each is not None and np.abs(each[1:]).max() <= 2.8])
-        motions = simulate(robot, VELOCITY.resolver, line, q)
-        least = min(least, np.where(motions.within_limits, motions.score(VELOCITY), np.inf).min())
-    search = improved_start(robot, line, VELOCITY, "x1", samples=721, method=method)
-    assert search.best_peak == pytest.approx(least, rel=2e-4)

@@ -11,9 +11,10 @@ is evaluated by `evaluate_starts`: feasible where its margin is ≥ −`TOLERANC
 the path's start at mid-stroke inside the joint ranges (an arm's elbow up and elbow down) is
 searched on its own, its starts continued along the held value from that configuration, and
 the best start is the best of them all (`Configurations.branches`); where mid-stroke does not
-reach the start, each configuration found with the held actuator free seeds a branch, unless
-one seeded before comes upon it. With several held actuators, a held value has the one start
-configuration inverse kinematics reaches from its seeds. Methods:
+reach the start, the configurations found with the held actuator free seed one search together,
+each start continued from the nearest of them, so its branch is that one's (a branch found only
+that way is not searched on its own). With several held actuators, a held value has the one
+start configuration inverse kinematics reaches from its seeds. Methods:
 
 - "fast" (r = 1, the default): the margin μ(v) of a start v, the least distance of a checked
   stroke to its limits over the motion and of the start to its joint limits, is continuous in
@@ -64,7 +65,6 @@ from redundancy.planning.brackets import (
 )
 from redundancy.planning.ik import (
     FOUND,
-    SAME_POSE,
     assembly_branches,
     continue_held,
     free_configurations,
@@ -362,10 +362,10 @@ class Configurations:
     def branches(cls, robot: Robot, segment: Segment | Chain, held: str) -> list[Configurations]:
         """One per assembly branch that reaches the segment's start at mid-stroke
         (`assembly_branches`), the one `inverse_kinematics` picks first. Where mid-stroke does
-        not reach it, one per configuration that reaches it with the held actuator free, each at
-        its own held value, nearest mid-stroke first, unless a branch seeded before reaches it
-        by continuation. A branch that reaches the start at neither is searched only where
-        continuation along the held value comes upon it."""
+        not reach it, one, seeded by every configuration that reaches it with the held actuator
+        free, each at its own held value: a start is continued from the nearest of them, on
+        whichever branch that one lies. A branch that does not reach the start at mid-stroke is
+        searched only where continuation along the held value comes upon it."""
         scan, point = sweep_values(robot, held, REACH_GRID), segment.start
         middle = scan[np.argsort(np.abs(scan - scan.mean()), kind="stable")[:1]]
         found = assembly_branches(robot, point, [held], middle)
@@ -376,15 +376,7 @@ class Configurations:
             how = f"with {held} anywhere in its stroke inside its joint limits"
             raise _unreachable(robot, segment, how, miss)
         values = evaluate(robot, free).x[:, held_indices(robot, [held])[0]]
-        branches: list[Configurations] = []
-        pending = np.argsort(np.abs(values - scan.mean()), kind="stable")
-        while pending.size:  # the first pending seeds a branch; those it reaches are on it
-            first, rest = pending[0], pending[1:]
-            branch = cls(robot, segment, held, (values[first : first + 1], free[first, None]))
-            branches.append(branch)
-            starts = branch.at(values[rest])
-            pending = rest[~(starts.reachable & robot.same_poses(starts.q, free[rest], SAME_POSE))]
-        return branches
+        return [cls(robot, segment, held, (values, free))]
 
     @classmethod
     def near(
