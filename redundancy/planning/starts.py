@@ -99,6 +99,7 @@ END_TOLERANCE = 5e-4  # of the held stroke: the fast search locates the feasible
 ROUNDS = 8  # refinement rounds of the fast search, at most, per phase
 REFINED_AROUND = 3  # best feasible samples the compass search refines (r > 1)
 REFINEMENT_ROUNDS = 30  # at most, each one batch of REFINED_AROUND · 2r simulations
+TIE = 1e-6  # relative: the best peaks of two branches this close are one (`_best_branch`)
 FINEST_STEP = 1e-3  # compass step at which refinement stops, as a fraction of each stroke
 
 
@@ -594,8 +595,11 @@ def improved_starts(
 
 def _best_branch(searches: Iterable[Callable[[], SearchResult]]) -> SearchResult:
     """Of the searches of each assembly branch, the one whose best start has the least peak
-    (or integral) or, where no start is feasible on any, the highest margin; the first branch
-    on a tie. A branch with no reachable start is left out unless none has one."""
+    (or integral) over its motion on the grid (`SearchResult.best_peak`: the samples' figures
+    can miss a peak between them by a per cent, more than branches may differ) or, where no
+    start is feasible on any, the highest margin; the first branch on a tie within `TIE`
+    (branches mirror each other on a symmetric task). A branch with no reachable start is
+    left out unless none has one. One branch is returned as it is, its motion not computed."""
     found: list[SearchResult] = []
     failure: UnreachableError | None = None
     for search in searches:
@@ -606,13 +610,17 @@ def _best_branch(searches: Iterable[Callable[[], SearchResult]]) -> SearchResult
     if not found:
         raise cast(UnreachableError, failure)
 
+    if len(found) == 1:
+        return found[0]
+
     def rank(result: SearchResult) -> tuple[float, float]:
-        best = result.best
-        if best is not None:
-            return 0.0, cast(float, best.peak)
+        if result.best is not None:
+            return 0.0, cast(float, result.best_peak)
         return 1.0, -max(sample.margin for sample in result.samples)
 
-    return min(found, key=rank)
+    ranks = [rank(result) for result in found]
+    kind, least = min(ranks)
+    return next(r for r, k in zip(found, ranks) if k <= (kind, least + TIE * abs(least)))
 
 
 def search_method(held: tuple[str, ...], samples: int, method: str | None) -> str:
