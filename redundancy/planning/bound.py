@@ -53,7 +53,7 @@ from redundancy.planning.ik import (
 from redundancy.planning.integrate import Trajectory
 from redundancy.planning.motions import simulate_path
 from redundancy.planning.refinement import Refined, checked_grids
-from redundancy.planning.starts import SearchResult, improved_start
+from redundancy.planning.starts import Configurations, SearchResult, improved_start
 from redundancy.planning.tasks import Chain, Segment, checked_path
 from redundancy.resolution.limits import Limits, amount
 from redundancy.resolution.objectives import VELOCITY, Objective
@@ -545,8 +545,9 @@ def global_optimum(
             f"{objective.reduction!r}"
         )
     limits = Limits.strokes(robot, checked)
+    near = None
     if initial is None:
-        initial = _initial(robot, segment, objective, names, checked, search)
+        initial, near = _initial(robot, segment, objective, names, checked, search)
     values = np.array(initial, dtype=float).reshape(len(initial), len(rows))
     others = Limits.strokes(robot, [name for name in limits.names if name not in names])
     box = [
@@ -562,7 +563,7 @@ def global_optimum(
         r = resampled(problem.unknown_times(), t, r)
         return (*solve_transcription(problem, r, box, intervals, polish=True), problem)
 
-    candidates = _from_each_start(robot, segment, objective, names, values, grids[0], solve)
+    candidates = _from_each_start(robot, segment, objective, names, values, grids[0], solve, near)
     r, grid, nodes, problem = min(candidates, key=lambda c: c[1].peak)
     solutions = [grid]
     finer = list(grids[1:])
@@ -596,8 +597,11 @@ def global_optimum(
     )
 
 
-def _initial(robot, segment, objective, names, checked, search) -> list[tuple]:
-    """The bound's default starts of `global_optimum`, distinct and best first."""
+def _initial(
+    robot, segment, objective, names, checked, search
+) -> tuple[list[tuple], np.ndarray | None]:
+    """The bound's default starts of `global_optimum`, distinct and best first, and, with one
+    held actuator, the best start's configuration, on the branch the search chose."""
     if search is None:
         search = improved_start(robot, segment, objective, names, checked=checked)
     if search.best is None:
@@ -607,25 +611,33 @@ def _initial(robot, segment, objective, names, checked, search) -> list[tuple]:
         )
     reachable = np.array([s.values for s in search.samples if s.peak is not None])
     spread = np.linspace(reachable.min(0), reachable.max(0), CANDIDATES)
-    return list(dict.fromkeys(map(tuple, [search.best.values, *spread.tolist()])))
+    near = search.start_configuration(search.best) if len(names) == 1 else None
+    return list(dict.fromkeys(map(tuple, [search.best.values, *spread.tolist()]))), near
 
 
-def _from_each_start(robot, segment, objective, names, values, intervals, solve) -> list:
+def _from_each_start(robot, segment, objective, names, values, intervals, solve, near) -> list:
     """``solve`` on the first grid of ``intervals`` from the law's motion from each start of
-    ``values`` (k, r) that reaches the path's start; the solutions, or one line naming why
-    each start failed."""
+    ``values`` (k, r) that reaches the path's start: on the assembly branch of ``near`` (a
+    start configuration (n,), one held actuator) by continuation from it, else the
+    configuration inverse kinematics picks; the solutions, or one line naming why each start
+    failed."""
     rows = held_indices(robot, names)
-    starts = inverse_kinematics(robot, segment.start, names, values)
-    if not starts.reached.any():
+    if near is None:
+        found = inverse_kinematics(robot, segment.start, names, values)
+        q, reached = found.q, found.reached
+    else:
+        starts = Configurations.near(robot, segment, names[0], near).at(values[:, 0])
+        q, reached = starts.q, starts.reachable
+    if not reached.any():
         raise UnreachableError(
             f"{robot.name} cannot reach the start {segment.start.tolist()} of {segment.label} "
             f"with {', '.join(names)} at any of {values.tolist()}"
         )
     motions = simulate_path(
-        robot, objective.resolver, segment, starts.q[starts.reached], segment.duration / intervals
+        robot, objective.resolver, segment, q[reached], segment.duration / intervals
     )
     candidates, failures = [], []
-    for i, value in enumerate(values[starts.reached]):
+    for i, value in enumerate(values[reached]):
         try:
             t = motions.t[i]
             candidates.append(solve(intervals, t, motions.x[i][:, rows], t, motions.q[i]))
