@@ -72,6 +72,7 @@ from redundancy.planning.ik import (
     CONTINUATION_ITERATIONS,
     FOUND,
     ITERATIONS,
+    continue_held,
     held_indices,
     inverse_kinematics,
     newton,
@@ -183,11 +184,13 @@ class IntegralOptimum(Refined):
 EnergyOptimum = IntegralOptimum  # the energy bound's result, by its earlier name
 
 
-def _nodes(robot: Robot, segment: Segment, rows: list[int], values: np.ndarray, t: np.ndarray):
+def _nodes(robot, segment, rows: list[int], values: np.ndarray, t: np.ndarray, near=None):
     """Configurations q (N + 1, G, n) reaching y_d(t_j) with the held
     actuators ``rows`` at each of ``values`` (G, r), and where they were found (N + 1, G):
-    projected Newton steps (`newton`, bounded) from the previous node's configuration, or from
-    `inverse_kinematics`'s spread of seeds where none was found, then, where that misses, from
+    projected Newton steps (`newton`, bounded) from the previous node's configuration, or, at
+    the first node, by continuation along the held value from ``near`` (a configuration (n,)
+    at the segment's start, one held actuator: the assembly branch to keep to) or else from
+    `inverse_kinematics`'s spread of seeds, and where none was found, then, where that misses, from
     the configuration found at the nearest held values of the same node. Keeping to the joint
     ranges keeps to one assembly branch: a cylinder's length is the same at q and −q. Last,
     held values a grid step beyond those found are continued from them past the joint ranges
@@ -204,6 +207,10 @@ def _nodes(robot: Robot, segment: Segment, rows: list[int], values: np.ndarray, 
         if j:
             q[j], residual, _ = newton(robot, q[j - 1], rows, target, ITERATIONS, bounded=True)
             found[j] = residual < FOUND
+        elif near is not None:
+            seed = (evaluate(robot, near[None]).x[:, rows[0]], near[None])
+            q[j], residual = continue_held(robot, point, rows[0], seed, values[:, 0])
+            found[j] = (residual < FOUND) & (Limits.joints(robot).margin(q[j]) >= -TOLERANCE)
         if not found[j].any():
             seeded = inverse_kinematics(robot, point, held, values)
             q[j], found[j] = seeded.q, seeded.reached
@@ -233,12 +240,12 @@ class Tables:
     cell whose corners lie on both sides of a fold (K singular, where the task's two solutions
     meet) would interpolate across both."""
 
-    def __init__(self, robot, segment, rows: list[int], strokes: Limits, t: np.ndarray):
+    def __init__(self, robot, segment, rows: list[int], strokes: Limits, t: np.ndarray, near=None):
         actuators = robot.actuators
         count = EXACT if len(rows) == 1 else EXACT_EACH
         self.axes = [np.linspace(actuators.lower[r], actuators.upper[r], count) for r in rows]
         values = np.stack(np.meshgrid(*self.axes, indexing="ij"), -1).reshape(-1, len(rows))
-        q, found = _nodes(robot, segment, rows, values, t)
+        q, found = _nodes(robot, segment, rows, values, t, near)
         flat = q.reshape(-1, robot.n)
         space, bad = regularised(evaluate(robot, flat))
         usable = found.ravel() & ~bad  # the joint ranges, as the strokes, are checked at r
@@ -441,12 +448,14 @@ def _optimum(
     build: Builder,
     speeds: np.ndarray,
     accelerations: np.ndarray,
+    near: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, tuple[OptimumGrid, ...]]:
     """Iterative dynamic programming over the ``held`` actuators' values with the stage costs
     ``build`` makes (see the module docstring), on each of ``grids`` in turn: the node times t
     (N + 1,), the held values (N + 1, r), strokes x and configurations q (N + 1, n) on the path
     of the finest grid where the recursion found one, and every grid's least cost (a grid
-    without a path after one with a path ends the refinement, marked failed)."""
+    without a path after one with a path ends the refinement, marked failed). With one held
+    actuator, the configurations keep to the assembly branch of ``near`` where it is given."""
     rows = held_indices(robot, held)
     names = [robot.actuators.names[row] for row in rows]
     if len(rows) > 2:
@@ -467,7 +476,7 @@ def _optimum(
     path: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None  # t, r, x, q
     for intervals in grids:
         t = np.linspace(0.0, segment.duration, intervals + 1)
-        tables = Tables(robot, segment, rows, strokes, t)
+        tables = Tables(robot, segment, rows, strokes, t, near if len(rows) == 1 else None)
         if path is None:
             centre, width = np.tile((lower + upper) / 2, (len(t), 1)), (upper - lower) / 2
         else:
@@ -531,6 +540,7 @@ def integral_optimum(
     speeds=None,
     accelerations=None,
     supply: Supply | None = None,
+    near: np.ndarray | None = None,
 ) -> IntegralOptimum:
     """The motion along ``segment`` of least ∫ c dt, c the measure of ``objective`` (one with
     an integral measure, yours included), over the histories of the ``held`` actuators (one or
@@ -538,7 +548,10 @@ def integral_optimum(
     names the actuators whose strokes bind (default all); ``speeds`` and ``accelerations``
     limit every actuator's |ẋ| and |ẍ| (one number, or one per actuator; m/s and m/s², rad/s
     and rad/s² for a rotary one; default none); a ``supply`` of the robot's circuit keeps the
-    circuit's limits under it (default none kept)."""
+    circuit's limits under it (default none kept). With one held actuator, ``near``, a
+    configuration (n,) at the segment's start, names the assembly branch to keep to (the
+    improved start's, `SearchResult.start_configuration`); by default the one inverse
+    kinematics picks."""
     require_robot(robot)
     objective = named(objective)
     if objective.reduction != "integral":
@@ -557,7 +570,7 @@ def integral_optimum(
         return x, q, usable & found, stage
 
     limits = _limit(robot, speeds, "speeds"), _limit(robot, accelerations, "accelerations")
-    found = _optimum(robot, segment, held, checked, grids, build, *limits)
+    found = _optimum(robot, segment, held, checked, grids, build, *limits, near)
     return _result(robot, segment, objective.name, held, *found)
 
 
