@@ -361,6 +361,19 @@ def test_a_plan_that_changes_branch_still_finds_the_periodic_optimum(slewing_stu
     assert study.periodic.peak <= limit * (1 + 1e-6)
 
 
+def test_without_the_free_strategy_the_branch_is_that_of_the_free_cycles_all_the_same():
+    """The periodic strategy alone on the slewing arm: the free cycles, not asked for, are run
+    where the optimum needs where they settle, and the return map follows their branch too
+    (it found no periodic motion and mapped the other elbow, stable at 78.9°)."""
+    robot = load_robot(SLEWING / "robot.toml")
+    cycle = WorkCycle.from_toml(robot.task_file, dimension=robot.m)
+    study = run_cycle(robot, cycle, VELOCITY, cycles=6, strategy="periodic")
+    assert not study.failures and study.periodic is not None
+    assert set(study.repetitions) == {"periodic"}
+    ((limit, slope, _),) = study.map.fixed_points
+    assert abs(limit) < 1e-6 and 0 < slope < 0.2
+
+
 def test_the_free_cycle_settles_only_towards_the_return_maps_stable_fixed_point(crane_study):
     """Three cycles of the crane's free law head for the return map's stable fixed point: the
     verdict names that point, not a value extrapolated from the drifts. Without the map's

@@ -394,6 +394,18 @@ def run_cycle(
             )
             firsts[strategy] = repetitions[strategy].motion(1)
 
+        settled: list[Repetition] = []  # the free cycles, where a strategy reads where they end
+
+        def free_cycles() -> Repetition:
+            """The free strategy's repetition: run here, once, where it was not asked for."""
+            if "free" in repetitions:
+                return repetitions["free"]
+            if not settled:
+                settled.append(
+                    repeat(robot, cycle, objective.resolver, start_q, cycles, "free", held, checked)
+                )
+            return settled[0]
+
         if "free" in chosen:
             bar.set_description("cycle: free, repeated")
             repeated("free", objective.resolver, start_q)
@@ -409,12 +421,10 @@ def run_cycle(
                 try:
                     periodic = periodic_optimum(robot, cycle, guess, objective, held, checked)
                 except InvalidInputError:
-                    if "free" not in repetitions:
-                        raise
                     # a plan's cycle that changes assembly branch (an arm flipping its elbow as
                     # it slews around its base) has no periodic motion near it; the free
                     # repetition's last cycle runs on the branch the cycles settle on
-                    last = repetitions["free"].motion(cycles)
+                    last = free_cycles().motion(cycles)
                     periodic = periodic_optimum(robot, cycle, last, objective, held, checked)
             bar.update()
             if periodic is not None:
@@ -423,7 +433,8 @@ def run_cycle(
             bar.update()
         bar.set_description("cycle: return map")
         mapped = None
-        free = repetitions.get("free")  # the map follows the branch the free cycles run on
+        # the map follows the branch the free cycles run on
+        free = repetitions.get("free") or (settled[0] if settled else None)
         near = None if free is None else free.motions[-1].q[0, -1]
         with noted(failures, "return map"):
             mapped = return_map(robot, cycle, objective.resolver, held, checked=checked, near=near)
