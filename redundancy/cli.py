@@ -36,7 +36,7 @@ from redundancy.model.robot import Robot
 from redundancy.model.values import MAX_PAYLOAD
 from redundancy.planning.angles import task_labels, task_robot
 from redundancy.planning.cycles import CYCLES
-from redundancy.planning.ik import check_path, configuration_at
+from redundancy.planning.ik import assembly_branches, check_path, configuration_at
 from redundancy.planning.integrate import Trajectory, simulate
 from redundancy.planning.starts import (
     MAX_SAMPLES,
@@ -387,7 +387,14 @@ def _play_motion(
             )
     values = [given[h] for h in held]
     q = configuration_at(robot, segment.start, dict(zip(held, values)))
-    return simulate(robot, chosen.resolver, segment, q[None]), named_values(robot, held, values)
+    label = named_values(robot, held, values)
+    branches = len(assembly_branches(robot, segment.start, held, values))
+    if branches > 1:  # the start is the branch inverse kinematics picks; the search's may differ
+        label += (
+            f", one of {branches} start configurations there (assembly branches), the one "
+            "inverse kinematics picks first; --best plays the improved start's"
+        )
+    return simulate(robot, chosen.resolver, segment, q[None]), label
 
 
 def _play_command(args: argparse.Namespace) -> None:

@@ -366,3 +366,18 @@ def test_a_cylinder_point_in_mm_names_the_number_and_the_fix(tmp_path, capsys):
         "xyz must be within ±100 m of the link's frame: 900 m is beyond; did you give mm? "
         "1 m = 1000 mm (the cylinder's rod point)" in found[0]
     ), found[0]
+
+
+def test_a_held_value_with_two_start_configurations_is_said_so_in_play(tmp_path, capsys):
+    """The slewing 3R arm's line: the improved start's held value is reached on both elbows;
+    played from that value, the motion is of the elbow inverse kinematics picks, whose peak is
+    not the search's (0.158 against 0.0739 rad²/s²), and the playback says so and how to play
+    the search's own. The crane, one configuration a value, is played without the words."""
+    data = Path(__file__).parent / "data" / "slewing3r"
+    argv = ["play", "--robot", str(data / "robot.toml"), "--task", str(data / "line.toml")]
+    status, out, _ = run([*argv, "--x3init", "0.7881", "--html", str(tmp_path / "a.html")], capsys)
+    assert status == 0
+    assert "one of 2 start configurations there (assembly branches)" in out
+    assert "--best plays the improved start's" in out
+    status, out, _ = run(["play", "--x3init", "1.0", "--html", str(tmp_path / "b.html")], capsys)
+    assert status == 0 and "start configurations" not in out
