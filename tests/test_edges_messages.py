@@ -155,7 +155,7 @@ def test_a_rotary_held_start_is_shown_in_degrees(capsys):
     robot, cycle = _load_task(load_robot(PLANAR / "robot.toml"), None)
     args = parser().parse_args(["play", "--start", "x1=-0.1336"])
     _, label = _play_motion(robot, cycle, cycle.segments[0], VELOCITY, args)
-    assert label == "x1 = -7.655°", label
+    assert label.startswith("x1 = -7.655°, one of 2 start configurations there"), label
 
 
 def test_the_cycle_of_turning_actuators_gives_its_velocity_peaks_in_rad_per_second(
