@@ -187,10 +187,10 @@ EnergyOptimum = IntegralOptimum  # the energy bound's result, by its earlier nam
 def _nodes(robot, segment, rows: list[int], values: np.ndarray, t: np.ndarray, near=None):
     """Configurations q (N + 1, G, n) reaching y_d(t_j) with the held
     actuators ``rows`` at each of ``values`` (G, r), and where they were found (N + 1, G):
-    projected Newton steps (`newton`, bounded) from the previous node's configuration, or, at
-    the first node, by continuation along the held value from ``near`` (a configuration (n,)
-    at the segment's start, one held actuator: the assembly branch to keep to) or else from
-    `inverse_kinematics`'s spread of seeds, and where none was found, then, where that misses, from
+    projected Newton steps (`newton`, bounded) from the previous node's configuration; at the
+    first node, by continuation along the held value from ``near`` (a configuration (n,) at
+    the segment's start, one held actuator: the assembly branch to keep to), or from
+    `inverse_kinematics`'s spread of seeds where none was found; then, where that misses, from
     the configuration found at the nearest held values of the same node. Keeping to the joint
     ranges keeps to one assembly branch: a cylinder's length is the same at q and −q. Last,
     held values a grid step beyond those found are continued from them past the joint ranges
