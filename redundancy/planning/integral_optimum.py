@@ -72,12 +72,12 @@ from redundancy.planning.ik import (
     CONTINUATION_ITERATIONS,
     FOUND,
     ITERATIONS,
-    continue_held,
     held_indices,
     inverse_kinematics,
     newton,
 )
 from redundancy.planning.refinement import Refined, checked_grids
+from redundancy.planning.starts import Configurations
 from redundancy.planning.tasks import Segment
 from redundancy.resolution.limits import TOLERANCE, Limits, hydraulic_values
 from redundancy.resolution.objectives import Objective
@@ -208,9 +208,8 @@ def _nodes(robot, segment, rows: list[int], values: np.ndarray, t: np.ndarray, n
             q[j], residual, _ = newton(robot, q[j - 1], rows, target, ITERATIONS, bounded=True)
             found[j] = residual < FOUND
         elif near is not None:
-            seed = (evaluate(robot, near[None]).x[:, rows[0]], near[None])
-            q[j], residual = continue_held(robot, point, rows[0], seed, values[:, 0])
-            found[j] = (residual < FOUND) & (Limits.joints(robot).margin(q[j]) >= -TOLERANCE)
+            starts = Configurations.near(robot, segment, held[0], near).at(values[:, 0])
+            q[j], found[j] = starts.q, starts.reachable
         if not found[j].any():
             seeded = inverse_kinematics(robot, point, held, values)
             q[j], found[j] = seeded.q, seeded.reached

@@ -21,8 +21,8 @@ from redundancy.model.robot import Robot
 TOLERANCE = 1e-9  # m or rad: a value this close past a limit counts as inside
 
 
-# SI unit → (factor, shown unit) for messages
 SHOWN_ZERO = 1e-12  # SI units: what Newton's converged residual is (1e-12 m), shown as 0
+# SI unit → (factor, shown unit) for messages
 SHOWN = {
     "m": (1e3, " mm"),
     "rad": (180 / np.pi, "°"),
