@@ -350,3 +350,22 @@ def test_the_optimum_keeps_to_the_branch_of_the_improved_start():
         near=improved_start(robot, line, SQUARED, "x3").best_motion.q[0, 0],
     )
     assert robot.same_pose(optimum.q[0], start_configuration(optimum.r[0], -1, line.start), 1e-6)
+
+
+def test_without_a_branch_the_optimum_is_the_least_over_both_elbows():
+    """The slewing 3R arm along the line across its reach (one coarse grid): with no branch
+    named, the optimum is the least of both elbows' recursions (each seeded at the start by the
+    closed form here), on the elbow that holds it. It was the recursion on the elbow inverse
+    kinematics picks first, the higher one: no bound over the held histories."""
+    robot = load_robot(SLEWING / "robot.toml")
+    line = WorkCycle.from_toml(SLEWING / "line.toml", dimension=robot.m)["a-b"]
+    middle, grids = 0.0, (25,)  # x3's stroke is [-2.8, 2.8] rad
+
+    def optimum(near=None):
+        return integral_optimum(robot, line, SQUARED, "x3", grids=grids, near=near)
+
+    per_elbow = {e: optimum(start_configuration(middle, e, line.start)) for e in (-1, 1)}
+    assert per_elbow[-1].optimum < 0.9 * per_elbow[1].optimum
+    found = optimum()
+    assert found.optimum == pytest.approx(per_elbow[-1].optimum, rel=1e-12)
+    assert robot.same_pose(found.q[0], start_configuration(found.r[0], -1, line.start), 1e-6)

@@ -19,8 +19,11 @@ cost of the same recursion, as in Ferrentino et al. (Robotics 10(1) 42, 2021).
   past its limit. The tables hold one branch per held value and node and leave out the region
   next to the fold, so a motion that crosses the fold is not searched: an optimum whose tables
   left out a cell across it (`IntegralOptimum.folded`) may lie above a feasible motion's cost
-  and is withheld as no bound (not converged; `failure` says why). For an objective's
-  measure, each pass's states are solved again exactly from the interpolated configurations;
+  and is withheld as no bound (not converged; `failure` says why). With one held actuator,
+  each assembly branch that reaches the start at mid-stroke (an arm's elbow up and elbow down,
+  as the improved start searches them) has tables and a recursion of its own, and the optimum
+  is the least of them; for an objective's measure, each pass's states are solved again
+  exactly from the interpolated configurations;
 - a transition from r at t_j to r' at t_j+1 moves every actuator at ẋ = (x_j+1(r') − x_j(r))/h
   (J_H ẋ = ẏ_d to first order, Eq. 16). Its cost is the measure c at both nodes with that ẋ,
   by the trapezoidal rule, h (c_j + c_j+1)/2, or for the energy bound h p_P Q_P from the
@@ -60,6 +63,8 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from functools import partial
+from typing import cast
 
 import numpy as np
 from scipy.interpolate import CubicSpline, RegularGridInterpolator
@@ -77,7 +82,7 @@ from redundancy.planning.ik import (
     newton,
 )
 from redundancy.planning.refinement import Refined, checked_grids
-from redundancy.planning.starts import Configurations
+from redundancy.planning.starts import Configurations, branch_starts
 from redundancy.planning.tasks import Segment
 from redundancy.resolution.limits import TOLERANCE, Limits, hydraulic_values
 from redundancy.resolution.objectives import Objective
@@ -438,6 +443,9 @@ def _limit(robot: Robot, value, what: str) -> np.ndarray:
 Builder = Callable[[Tables, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray, Stage]]
 
 
+Path = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, tuple[OptimumGrid, ...]]
+
+
 def _optimum(
     robot: Robot,
     segment: Segment,
@@ -448,13 +456,16 @@ def _optimum(
     speeds: np.ndarray,
     accelerations: np.ndarray,
     near: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, tuple[OptimumGrid, ...]]:
+) -> Path:
     """Iterative dynamic programming over the ``held`` actuators' values with the stage costs
     ``build`` makes (see the module docstring), on each of ``grids`` in turn: the node times t
     (N + 1,), the held values (N + 1, r), strokes x and configurations q (N + 1, n) on the path
     of the finest grid where the recursion found one, and every grid's least cost (a grid
     without a path after one with a path ends the refinement, marked failed). With one held
-    actuator, the configurations keep to the assembly branch of ``near`` where it is given."""
+    actuator, the configurations keep to the assembly branch of ``near`` where it is given,
+    else the optimum is the least over every branch the improved start searches
+    (`branch_starts`): a motion cannot pass from one elbow to the other inside the joint
+    ranges, so each is a recursion of its own."""
     rows = held_indices(robot, held)
     names = [robot.actuators.names[row] for row in rows]
     if len(rows) > 2:
@@ -463,6 +474,38 @@ def _optimum(
             f"has {len(rows)} redundant degrees ({', '.join(names)})"
         )
     grids = checked_grids(grids, 1)
+    on_branch = partial(
+        _on_branch, robot, segment, rows, checked, grids, build, speeds, accelerations
+    )
+    if len(rows) == 2 or near is not None:
+        return on_branch(near)
+    found: list[Path] = []
+    failure: InvalidInputError | None = None
+    for start in branch_starts(robot, segment, names[0]):
+        try:
+            found.append(on_branch(start))
+        except InvalidInputError as error:  # no path on this branch: the others may have one
+            failure = failure or error
+    if not found:
+        raise cast(InvalidInputError, failure)
+    return min(found, key=lambda path: next(g.optimum for g in reversed(path[-1]) if g.success))
+
+
+def _on_branch(
+    robot: Robot,
+    segment: Segment,
+    rows: list[int],
+    checked: tuple[str, ...] | None,
+    grids: tuple[int, ...],
+    build: Builder,
+    speeds: np.ndarray,
+    accelerations: np.ndarray,
+    near: np.ndarray | None,
+) -> Path:
+    """`_optimum` on the assembly branch of ``near`` (one held actuator; None: the
+    configurations inverse kinematics picks), the held actuators' ``rows`` and the ``grids``
+    checked."""
+    names = [robot.actuators.names[row] for row in rows]
     strokes = Limits.strokes(robot, checked)
     lower, upper = robot.actuators.lower[rows], robot.actuators.upper[rows]
     if not np.all(np.isfinite(upper - lower)):
@@ -549,8 +592,8 @@ def integral_optimum(
     and rad/s² for a rotary one; default none); a ``supply`` of the robot's circuit keeps the
     circuit's limits under it (default none kept). With one held actuator, ``near``, a
     configuration (n,) at the segment's start, names the assembly branch to keep to (the
-    improved start's, `SearchResult.start_configuration`); by default the one inverse
-    kinematics picks."""
+    improved start's, `SearchResult.start_configuration`); by default the optimum is the least
+    over every branch the improved start searches."""
     require_robot(robot)
     objective = named(objective)
     if objective.reduction != "integral":
@@ -592,8 +635,9 @@ def energy_optimum(
     """The energy bound: the motion along ``segment`` of least pump energy under ``supply``
     (None: the machine's) over every history of the ``held`` actuators (one or two), every
     stroke and every limit of the hydraulic circuit kept (see the module docstring), on each of
-    ``grids`` (intervals) in turn. ``checked`` names the actuators whose strokes bind (default
-    all)."""
+    ``grids`` (intervals) in turn; with one held actuator, the least over every assembly branch
+    the improved start searches, so that it bounds a strategy on any of them. ``checked`` names
+    the actuators whose strokes bind (default all)."""
     require_robot(robot)
     supply = supply or robot.circuit().supply
 

@@ -424,6 +424,15 @@ class Configurations:
         return Starts(values[:, None], q, margins, np.zeros(len(values)))
 
 
+def branch_starts(robot: Robot, segment: Segment | Chain, held: str) -> list[np.ndarray | None]:
+    """A configuration (n,) at the start of ``segment`` on each assembly branch the improved
+    start searches (`Configurations.branches`), the held actuator at mid-stroke; [None] where
+    mid-stroke does not reach the start and several configurations found with it free seed the
+    search together (their branches are not told apart)."""
+    seeds = [branch.known[1] for branch in Configurations.branches(robot, segment, held)]
+    return [q[0] for q in seeds] if all(len(q) == 1 for q in seeds) else [None]
+
+
 def evaluate_starts(
     robot: Robot,
     path: Segment | Chain,

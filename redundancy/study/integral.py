@@ -77,16 +77,8 @@ def compare(
         )
         for name, motion in motions.items()
     ]
-    near = None if search.best is None else search.start_configuration(search.best)
     optimum = integral_optimum(
-        robot,
-        segment,
-        objective,
-        held,
-        grids=grids,
-        speeds=speeds,
-        accelerations=accelerations,
-        near=near,
+        robot, segment, objective, held, grids=grids, speeds=speeds, accelerations=accelerations
     )
     h = optimum.t[1]
     x_dot = np.gradient(optimum.x, h, axis=0)  # at the nodes; the transitions' own below
