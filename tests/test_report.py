@@ -101,8 +101,11 @@ def test_the_summary_comes_first_with_the_headline_numbers(study, rendered):
     report = json.loads((study / "report.json").read_text())
     summary = rendered.xpath("//div[@class='summary']")[0]
     assert summary.getparent().index(summary) <= 1  # after the title
-    best = report["studies"][0]["segments"][0]["best"]
+    segment = report["studies"][0]["segments"][0]
+    best, held = segment["best"], segment["held_actuator"]
     assert f"{best['peak']:.4g} m²/s²" in summary.text_content()
+    others = [f"{name} = {x:.4g} m" for name, x in best["strokes"].items() if name != held]
+    assert len(others) == 2 and all(text in summary.text_content() for text in others)
 
 
 def test_the_index_renders_in_a_browser(study, tmp_path):

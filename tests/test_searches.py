@@ -39,6 +39,7 @@ from redundancy.planning.starts import evaluate_starts
 from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.resolution.laws import GradientProjection, MinVelocityNorm
 from redundancy.resolution.objectives import ENERGY, VELOCITY
+from redundancy.study.cycles import best_report
 
 SEGMENTS = ["1-2", "2-3", "3-1"]
 SLEWING = Path(__file__).parent / "data" / "slewing3r"
@@ -556,6 +557,21 @@ def test_the_improved_start_searches_every_elbow_that_reaches_the_start(method):
     peak, start = least[-1]
     assert search.best_peak == pytest.approx(peak, rel=2e-4)
     assert robot.same_pose(search.motion().q[0, 0], start, 0.02)
+
+
+def test_the_report_names_the_configuration_of_the_best_start():
+    """On the slewing arm's line both elbows reach the start at every held x3 near the best, so
+    the held value alone does not name the start: the report gives every actuator's stroke
+    there (x = q), those of the elbow the search chose, as the closed form puts it."""
+    robot = load_robot(SLEWING / "robot.toml")
+    line = WorkCycle.from_toml(SLEWING / "line.toml", dimension=robot.m)["a-b"]
+    best = best_report(improved_start(robot, line, VELOCITY, "x3"))
+    assert list(best["strokes"]) == ["x1", "x2", "x3"]
+    strokes = np.array(list(best["strokes"].values()))
+    assert strokes[2] == pytest.approx(best["value"], abs=1e-9)
+    chosen, other = (start_configuration(best["value"], e, line.start) for e in (-1, 1))
+    assert robot.same_pose(strokes, chosen, 1e-6)
+    assert other is not None and not robot.same_pose(strokes, other, 0.1)
 
 
 def test_mirrored_branches_are_a_tie_and_the_first_is_kept():

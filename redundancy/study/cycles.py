@@ -233,11 +233,18 @@ def report_header(robot: Robot, cycle: WorkCycle, checked: tuple[str, ...], circ
 
 
 def best_report(search: SearchResult) -> dict | None:
-    """A search's best start, its held values and their peak, as JSON-ready data (None where no
-    start is feasible)."""
+    """A search's best start, its held values, every actuator's stroke there (m, or rad for a
+    rotary one; they name the configuration where the held values alone do not, as on an arm
+    whose two elbows reach the start) and their peak, as JSON-ready data (None where no start
+    is feasible)."""
     if search.best is None:
         return None
-    return {"value": scalar_or_list(search.best.values), "peak": search.best_peak}
+    strokes = dict(zip(search.robot.actuators.names, search.best_motion.x[0, 0].tolist()))
+    return {
+        "value": scalar_or_list(search.best.values),
+        "strokes": strokes,
+        "peak": search.best_peak,
+    }
 
 
 def search_report(search: SearchResult, violations: SearchResult | None = None) -> dict:

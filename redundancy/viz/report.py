@@ -201,8 +201,10 @@ def _limits(violations: list[str]) -> str:
     return "held" if not violations else "; ".join(violations)
 
 
-def _headline(study: dict, s: dict, held: str) -> str:
-    """One segment's best start and peak under one objective, as a list item."""
+def _headline(study: dict, s: dict, held: str, units: dict[str, str]) -> str:
+    """One segment's best start and peak under one objective, as a list item: the held values,
+    and the other actuators' strokes there, which name the configuration where the held values
+    alone do not (an arm whose two elbows reach the start)."""
     if s["best"] is None:
         return (
             f"<li>{study['objective']}, segment {_e(s['name'])}: no start keeps the "
@@ -210,9 +212,17 @@ def _headline(study: dict, s: dict, held: str) -> str:
         )
     gap = s["gap_percent"]
     above = "" if gap is None else f", {_percent(gap)} % above the bound"
+    held_names = (
+        s["held_actuator"] if isinstance(s["held_actuator"], list) else [s["held_actuator"]]
+    )
+    others = ", ".join(
+        f"{name} = {_number(value)} {units[name]}"
+        for name, value in s["best"]["strokes"].items()
+        if name not in held_names
+    )
     return (
         f"<li>{study['objective']}, segment {_e(s['name'])}: improved start {held} = "
-        f"{_number(s['best']['value'])}, {study['measure']} "
+        f"{_number(s['best']['value'])} ({_e(others)}), {study['measure']} "
         f"{s['best']['peak']:.4g} {study['unit']}{above}</li>"
     )
 
@@ -238,7 +248,9 @@ def _study_page(report: dict) -> tuple[str, str]:
     segments = [s["name"] for s in studies[0]["segments"]] if studies else []
     names = _held(report)
     held, held_unit = (_number(names), _units(report, names)) if names else ("–", "")
-    lines = [_headline(study, s, held) for study in studies for s in study["segments"]]
+    lines = [
+        _headline(study, s, held, report["units"]) for study in studies for s in study["segments"]
+    ]
     summary = (
         f'<div class="summary"><p>The improved start of the held <b>{_e(held)}</b> on '
         f"segments {_e(', '.join(segments))} of the task {_e(report['task'])!r}, objectives "
