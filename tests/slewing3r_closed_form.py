@@ -24,3 +24,20 @@ def start_configuration(v: float, elbow: int, point: np.ndarray) -> np.ndarray |
     r = np.asarray(point) - first * np.array([np.cos(q1), np.sin(q1)])  # elbow to tool
     q2 = modulo_turn(np.arctan2(r[1], r[0]) - q1 - np.arctan2(w[1], w[0]))
     return np.array([q1, q2, v])
+
+
+def slew_held_configuration(v: float, elbow: int, point: np.ndarray) -> np.ndarray | None:
+    """The configuration (3,) that puts the tool at ``point`` (2,) m with the slew x1 = v on the
+    ``elbow`` (±1: the sign of q3) branch, or None where none does: the elbow at
+    e = (cos v, sin v) m, links 2 and 3 reach r = point − e, |r| = d, so by the law of cosines
+    q3 = ±(π − arccos((0.8² + 0.5² − d²) / (2 · 0.8 · 0.5))), and q2 turns
+    w = (0.8 + 0.5 cos q3, 0.5 sin q3) onto r."""
+    first, second, third = LINKS
+    r = np.asarray(point) - first * np.array([np.cos(v), np.sin(v)])
+    cosine = (second**2 + third**2 - r @ r) / (2 * second * third)
+    if abs(cosine) > 1:
+        return None
+    q3 = elbow * (np.pi - np.arccos(cosine))
+    w = np.array([second + third * np.cos(q3), third * np.sin(q3)])
+    q2 = modulo_turn(np.arctan2(r[1], r[0]) - v - np.arctan2(w[1], w[0]))
+    return np.array([v, q2, q3])

@@ -1,21 +1,30 @@
 """Inverse kinematics with held actuators: round trips, branch choice, and unreachable points."""
 
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
 from hiab031_closed_form import tool
+from slewing3r_closed_form import slew_held_configuration
 
 from redundancy import (
     InvalidInputError,
     Segment,
     UnreachableError,
-    WorkCycle,
     actuator_space,
     load_robot,
 )
 from redundancy.model.robot import Robot
-from redundancy.planning.ik import _seeds, check_path, configuration_at, inverse_kinematics
+from redundancy.model.values import modulo_turn
+from redundancy.planning.ik import (
+    _seeds,
+    check_path,
+    configuration_at,
+    continue_held,
+    inverse_kinematics,
+)
+from redundancy.planning.tasks import WorkCycle
 
 
 def test_round_trip_reaches_the_point_with_the_held_actuator_at_its_value(crane):
@@ -36,6 +45,24 @@ def test_the_branch_inside_the_joint_limits_is_chosen(crane):
     assert np.all((q >= crane.lower) & (q <= crane.upper))
     # the other branch (boom 2 folded the other way) has q2 < 0, outside [12.4°, 137.6°]
     assert q[1] > 0
+
+
+@pytest.mark.parametrize("elbow", [1, -1])
+def test_continuation_along_the_held_value_keeps_to_its_elbow(elbow):
+    """The slewing 3R arm's line start with its slew x1 held, continued from one elbow at
+    x1 = −122° to 24 values across its reach at once: every configuration is that elbow's (the
+    closed form's). Newton from the far start landed on the other elbow at 5 of them from the
+    elbow up (q3 > 0), so a search along x1 mixed both."""
+    slewing = Path(__file__).parent / "data" / "slewing3r"
+    robot = load_robot(slewing / "robot.toml")
+    point = WorkCycle.from_toml(slewing / "line.toml", dimension=robot.m)["a-b"].start
+    start, values = np.radians(-122.0), np.radians(np.linspace(-191.0, -65.0, 24))
+    known = (np.array([start]), slew_held_configuration(start, elbow, point)[None])
+    q, residual = continue_held(robot, point, 0, known, values)  # joint ranges not kept
+    assert np.all(residual < 1e-9)
+    for v, found in zip(values, q):  # every joint an angle: one pose modulo a turn each
+        apart = modulo_turn(found - slew_held_configuration(v, elbow, point))
+        assert np.abs(apart).max() < 1e-9
 
 
 def test_unreachable_point_says_by_how_much(crane):

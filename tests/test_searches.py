@@ -10,13 +10,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 from declarations import write_transmissions
-from slewing3r_closed_form import start_configuration
+from slewing3r_closed_form import slew_held_configuration, start_configuration
 
 import redundancy.planning.integrate as integrate
 from redundancy import (
     ActuatorMap,
     InvalidInputError,
     Objective,
+    UnreachableError,
     actuator_space,
     default_start,
     global_optimum,
@@ -25,6 +26,7 @@ from redundancy import (
 )
 from redundancy.model.loading import bundled_root
 from redundancy.model.parameters import Number
+from redundancy.model.values import modulo_turn
 from redundancy.planning import starts
 from redundancy.planning.brackets import (
     end_probe,
@@ -33,12 +35,13 @@ from redundancy.planning.brackets import (
     vertex_probe,
 )
 from redundancy.planning.cycles import improved_cycle_start
-from redundancy.planning.ik import inverse_kinematics
+from redundancy.planning.ik import fold_side, inverse_kinematics
 from redundancy.planning.integrate import simulate, stroke_extremes
 from redundancy.planning.starts import evaluate_starts
 from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.resolution.laws import GradientProjection, MinVelocityNorm
 from redundancy.resolution.objectives import ENERGY, VELOCITY
+from redundancy.resolution.state import evaluate
 from redundancy.study.cycles import best_report
 
 SEGMENTS = ["1-2", "2-3", "3-1"]
@@ -510,12 +513,37 @@ def test_an_objective_may_be_named(crane, paper_cycle):
     assert named.best_peak == given.best_peak
 
 
-def test_a_round_whose_probes_are_all_unreachable_does_not_end_the_search(tmp_path):
-    """The Panda with its wrist locked, holding joint 3: between its feasible starts lies a band
-    of joint-3 values the arm reaches only outside its other joints' limits. A round of probes
-    that all fall into it is recorded (unreachable samples, no motion) and the search goes on;
-    it used to end in "cannot reach the start ... from any of the 1 sampled values". Its best
-    is no worse than a 40-sample sweep's."""
+def test_a_round_whose_probes_are_all_unreachable_does_not_end_the_search(crane, paper_cycle):
+    """Probes of a round that all fall where no configuration reaches the start inside the
+    joint limits (the paper's point 1 with the telescope near mid-stroke) are recorded as
+    unreachable samples, each saying why, with no motion, and the search goes on from the
+    samples before them; it used to end in "cannot reach the start ... from any of the 3
+    sampled values", as a first batch out of reach still does."""
+    segment = paper_cycle["1-2"]
+    configurations = starts.Configurations.branches(crane, segment, "x3")[0]
+    middle = np.mean(starts.stroke_box(crane, ("x3",))[0])
+    probes = configurations.at(middle + np.array([-0.01, 0.0, 0.01]))
+    assert not probes.reachable.any()
+
+    def run(values, extending=False):
+        return evaluate_starts(crane, segment, VELOCITY, "x3", values, extending=extending)
+
+    with pytest.raises(UnreachableError, match="from any of the 3 sampled values of x3"):
+        run(probes)
+    first = run(configurations.at(np.linspace(0.8, 1.09, 4)))
+    extended = first.extended(run(probes, extending=True))
+    assert extended.samples[:4] == first.samples and extended.best == first.best
+    assert all(s.peak is None and "start unreachable" in s.reason for s in extended.samples[4:])
+    assert len(extended.samples) == 7 and extended.simulations == first.simulations
+
+
+def test_the_fast_search_keeps_to_the_side_of_the_fold_of_its_branch(tmp_path):
+    """The Panda with its wrist locked, holding joint 3: inverse kinematics reaches the start at
+    mid-stroke on one branch, and continuation along joint 3 keeps every start on its side of
+    the fold (det [J; A_h] of one sign). Beyond a band of values the arm reaches only outside
+    its other joints' limits it used to land on the other side, and 16 of the search's 25
+    starts mixed that branch into this one's. Its best is no worse than a 40-sample sweep's,
+    which takes inverse kinematics' pick at each value, on either side."""
     (tmp_path / "robot.toml").write_text(
         'urdf = "package://example-robot-data/robots/panda_description/urdf/panda.urdf"\n'
         "locked_joints = {panda_finger_joint1 = 0.04, panda_finger_joint2 = 0.04, "
@@ -531,8 +559,10 @@ def test_a_round_whose_probes_are_all_unreachable_does_not_end_the_search(tmp_pa
     segment = WorkCycle.from_toml(arm.task_file, dimension=arm.m)["pick-lift"]
     fast = improved_start(arm, segment, VELOCITY, held="panda_joint3")
     sweep = improved_start(arm, segment, VELOCITY, held="panda_joint3", method="sweep", samples=40)
-    unreachable = [s for s in fast.samples if s.peak is None]
-    assert unreachable and all("outside them" in s.reason for s in unreachable)
+    reached = [fast.start_configuration(s) for s in fast.samples if s.peak is not None]
+    row = arm.actuators.names.index("panda_joint3")
+    sides = fold_side(evaluate(arm, np.array(reached)), [row])
+    assert len(reached) > 10 and np.all(sides == sides[0])
     assert fast.best.feasible and fast.best_peak <= sweep.best_peak
 
 
@@ -557,6 +587,31 @@ def test_the_improved_start_searches_every_elbow_that_reaches_the_start(method):
     peak, start = least[-1]
     assert search.best_peak == pytest.approx(peak, rel=2e-4)
     assert robot.same_pose(search.motion().q[0, 0], start, 0.02)
+
+
+def test_a_slew_held_over_one_turn_is_searched_on_both_elbows_beyond_the_stroke_end():
+    """The slewing arm's line with its slew x1 held over a stroke of one turn: mid-stroke does
+    not reach the start, and the slews that do run across the stroke's end (from 168° through
+    ±180° to −64°). The least peak over both elbows, by brute force over x1 in steps of 0.25°
+    from the closed form, lies on the elbow up just short of 180° (0.0739 rad²/s² at 173.4°),
+    cut off along x1 from the rest of that elbow by the stroke's end. The search found 0.0942
+    there, on the elbow down: its one search was seeded by configurations of both elbows, and
+    continuation jumped between them."""
+    robot = load_robot(SLEWING / "slew_held.toml")
+    line = WorkCycle.from_toml(SLEWING / "line.toml", dimension=robot.m)["a-b"]
+    values = np.radians(np.arange(-180.0, 180.0, 0.25))
+    least = {}
+    for elbow in (1, -1):
+        found = [slew_held_configuration(v, elbow, line.start) for v in values]
+        q = np.array([each for each in found if each is not None and np.all(abs(each[1:]) <= 2.8)])
+        motions = simulate(robot, VELOCITY.resolver, line, q)
+        least[elbow] = np.where(motions.within_limits, motions.score(VELOCITY), np.inf).min()
+    assert least[1] < 0.8 * least[-1]
+    search = improved_start(robot, line, VELOCITY, "x1")
+    assert search.best_peak <= least[1] * (1 + 2e-4)
+    best = search.start_configuration(search.best)
+    up = slew_held_configuration(search.best.value, 1, line.start)
+    assert np.abs(modulo_turn(best - up)).max() < 1e-6
 
 
 def test_the_report_names_the_configuration_of_the_best_start():

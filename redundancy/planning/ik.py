@@ -249,6 +249,20 @@ def assembly_branches(
     return q[kept]
 
 
+def every_configuration(
+    robot: Robot, point: np.ndarray, held: str | Sequence[str], values: ArrayLike, seeds: int = 8
+) -> tuple[np.ndarray, np.ndarray]:
+    """Every configuration inside the joint limits that Newton from ``seeds`` starts finds
+    reaching ``point`` (m,) with the actuators ``held`` at each of ``values`` (k, r), (j, n), and
+    the held values of each, (j, r): every assembly branch that some seed finds there, once per
+    seed that found it."""
+    rows = held_indices(robot, held)
+    values = np.asarray(values, dtype=float).reshape(-1, len(rows))
+    per_seed, error, _ = _from_seeds(robot, np.asarray(point, float), rows, values, seeds)
+    found = error < FOUND
+    return per_seed[found], np.repeat(values, seeds, axis=0)[found.ravel()]
+
+
 def free_configurations(robot: Robot, point: np.ndarray, seeds: int) -> tuple[np.ndarray, float]:
     """Configurations (j, n) inside the joint limits that reach ``point`` (m,) with every
     actuator free, by Newton from ``seeds`` spread over the joint box (none where each misses),
@@ -256,6 +270,15 @@ def free_configurations(robot: Robot, point: np.ndarray, seeds: int) -> tuple[np
     target = np.broadcast_to(np.asarray(point, dtype=float), (seeds, robot.m))
     q, miss, _ = newton(robot, _seeds(robot, seeds), [], target, ITERATIONS, True)
     return q[miss < FOUND], float(miss.min())
+
+
+def fold_side(space: ActuatorSpace, rows: list[int]) -> np.ndarray:
+    """The side of the fold each state of ``space`` lies on, sign det K with K = [J; A_h]
+    (Eqs. 7, 11) for the held actuators ``rows``: (k,) of ±1. K is singular on the fold, where
+    the configurations that reach a point with the held values meet (an arm's elbow up and
+    elbow down, at the edge of its reach); followed along the held values, an assembly branch
+    keeps its side."""
+    return np.sign(np.linalg.det(np.concatenate([space.J, space.A[:, rows]], axis=1)))
 
 
 def continue_held(
@@ -268,8 +291,12 @@ def continue_held(
     """Configurations reaching ``point`` with the held actuator ``row`` at ``values`` (k,),
     Newton-continued from the found configurations ``known`` = (held values (j,), q (j, n))
     nearest each, and again from a nearer one whenever a pass finds one. The joint limits do not
-    bind. Returns q (k, n) and the residuals (k,), in m (below `FOUND` where found)."""
+    bind. A configuration counts as found only on its origin's side of the fold (`fold_side`):
+    Newton from far away can land on the other assembly branch, which continuation along the
+    held value does not reach without crossing the fold (it tries again from a nearer one).
+    Returns q (k, n) and the residuals (k,), in m (below `FOUND` where found)."""
     known_values, configurations = known
+    sides = fold_side(evaluate(robot, configurations), [row])
     q = np.empty((len(values), robot.n))
     residual = np.full(len(values), np.inf)
     tried = np.full(len(values), np.inf)  # distance of the value last continued from
@@ -287,9 +314,12 @@ def continue_held(
         q[pending], residual[pending], _ = newton(
             robot, configurations[nearest], [row], target, CONTINUATION_ITERATIONS
         )
+        side = fold_side(evaluate(robot, q[pending]), [row])
+        residual[pending[side != sides[nearest]]] = np.inf  # on the other branch: not found
         done = residual[pending] < FOUND
         known_values = np.concatenate([known_values, values[pending[done]]])
         configurations = np.concatenate([configurations, q[pending[done]]])
+        sides = np.concatenate([sides, side[done]])
         pending = pending[~done]
     return q, residual
 

@@ -77,6 +77,7 @@ from redundancy.planning.ik import (
     CONTINUATION_ITERATIONS,
     FOUND,
     ITERATIONS,
+    fold_side,
     held_indices,
     inverse_kinematics,
     newton,
@@ -256,7 +257,7 @@ class Tables:
         self.joints = Limits.joints(robot)
         forces = np.where(usable[:, None], space.N_H, 0.0)  # A⁻ᵀ G at rest
         self.usable = usable.reshape(len(t), len(values))
-        branch = np.sign(np.linalg.det(np.concatenate([space.J, space.A[:, rows]], axis=1)))
+        branch = fold_side(space, rows)
         grid = (len(t), *(count,) * len(rows))
         sides = [(usable & (branch == side)).reshape(grid) for side in (-1, 1)]
         self.cells = _cells(sides[0]) | _cells(sides[1])  # (N + 1, G − 1[, G − 1])

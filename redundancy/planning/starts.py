@@ -11,10 +11,12 @@ is evaluated by `evaluate_starts`: feasible where its margin is ≥ −`TOLERANC
 the path's start at mid-stroke inside the joint ranges (an arm's elbow up and elbow down) is
 searched on its own, its starts continued along the held value from that configuration, and
 the best start is the best of them all (`Configurations.branches`); where mid-stroke does not
-reach the start, the configurations found with the held actuator free seed one search together,
-each start continued from the nearest of them, so its branch is that one's (a branch found only
-that way is not searched on its own). With several held actuators, a held value has the one
-start configuration inverse kinematics reaches from its seeds. Methods:
+reach the start, the configurations found with the held actuator free seed the search, and
+where they lie on both sides of the fold (where det [J; A_h] changes sign: elbow up or down),
+each side is searched on its own, seeded also by the configurations found at values over the
+stroke. Continuation keeps a start on the side of the configuration it continues from. With
+several held actuators, a held value has the one start configuration inverse kinematics reaches
+from its seeds. Methods:
 
 - "fast" (r = 1, the default): the margin μ(v) of a start v, the least distance of a checked
   stroke to its limits over the motion and of the start to its joint limits, is continuous in
@@ -67,6 +69,8 @@ from redundancy.planning.ik import (
     FOUND,
     assembly_branches,
     continue_held,
+    every_configuration,
+    fold_side,
     free_configurations,
     held_indices,
     held_names,
@@ -363,21 +367,34 @@ class Configurations:
     def branches(cls, robot: Robot, segment: Segment | Chain, held: str) -> list[Configurations]:
         """One per assembly branch that reaches the segment's start at mid-stroke
         (`assembly_branches`), the one `inverse_kinematics` picks first. Where mid-stroke does
-        not reach it, one, seeded by every configuration that reaches it with the held actuator
-        free, each at its own held value: a start is continued from the nearest of them, on
-        whichever branch that one lies. A branch that does not reach the start at mid-stroke is
-        searched only where continuation along the held value comes upon it."""
+        not reach it, one per side of the fold (`fold_side`: elbow up, elbow down) of the
+        configurations that reach it with the held actuator free, seeded by those on its side,
+        each at its own held value: a start is continued from the nearest of them. Where they
+        lie on both sides, also by every configuration on that side that reaches the start at
+        `REACH_GRID` held values over the stroke, so that a piece of a branch cut off from the
+        others along the held value (by the end of a slew's stroke, where the slew turns on) is
+        searched too. Otherwise a piece of a branch that continuation does not reach from the
+        seeds is not searched."""
         scan, point = sweep_values(robot, held, REACH_GRID), segment.start
         middle = scan[np.argsort(np.abs(scan - scan.mean()), kind="stable")[:1]]
         found = assembly_branches(robot, point, [held], middle)
         if len(found):
             return [cls(robot, segment, held, (middle, q[None])) for q in found]
-        free, miss = free_configurations(robot, point, ANCHOR_SEEDS)  # the held actuator free
-        if not len(free):
+        seeds, miss = free_configurations(robot, point, ANCHOR_SEEDS)  # the held actuator free
+        if not len(seeds):
             how = f"with {held} anywhere in its stroke inside its joint limits"
             raise _unreachable(robot, segment, how, miss)
-        values = evaluate(robot, free).x[:, held_indices(robot, [held])[0]]
-        return [cls(robot, segment, held, (values, free))]
+        row = held_indices(robot, [held])[0]
+        space = evaluate(robot, seeds)
+        values, sides = space.x[:, row], fold_side(space, [row])
+        if len(set(sides)) > 1:  # both sides of the fold: seed each over the whole stroke
+            found, at = every_configuration(robot, point, [held], scan, ANCHOR_SEEDS)
+            seeds, values = np.concatenate([found, seeds]), np.concatenate([at[:, 0], values])
+            sides = np.concatenate([fold_side(evaluate(robot, found), [row]), sides])
+        return [
+            cls(robot, segment, held, (values[sides == side], seeds[sides == side]))
+            for side in dict.fromkeys(sides)  # in the order of the seeds
+        ]
 
     @classmethod
     def near(
