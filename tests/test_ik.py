@@ -22,9 +22,11 @@ from redundancy.planning.ik import (
     check_path,
     configuration_at,
     continue_held,
+    fold_side,
     inverse_kinematics,
 )
 from redundancy.planning.tasks import WorkCycle
+from redundancy.resolution.state import evaluate
 
 
 def test_round_trip_reaches_the_point_with_the_held_actuator_at_its_value(crane):
@@ -57,8 +59,9 @@ def test_continuation_along_the_held_value_keeps_to_its_elbow(elbow):
     robot = load_robot(slewing / "robot.toml")
     point = WorkCycle.from_toml(slewing / "line.toml", dimension=robot.m)["a-b"].start
     start, values = np.radians(-122.0), np.radians(np.linspace(-191.0, -65.0, 24))
-    known = (np.array([start]), slew_held_configuration(start, elbow, point)[None])
-    q, residual = continue_held(robot, point, 0, known, values)  # joint ranges not kept
+    seed = slew_held_configuration(start, elbow, point)[None]
+    known = (np.array([start]), seed, fold_side(evaluate(robot, seed), [0]))
+    q, residual, _ = continue_held(robot, point, 0, known, values)  # joint ranges not kept
     assert np.all(residual < 1e-9)
     for v, found in zip(values, q):  # every joint an angle: one pose modulo a turn each
         apart = modulo_turn(found - slew_held_configuration(v, elbow, point))

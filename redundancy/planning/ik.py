@@ -28,7 +28,7 @@ from redundancy.errors import (
 )
 from redundancy.model.actuators import ActuatorSet
 from redundancy.model.robot import Robot, require_robot
-from redundancy.model.values import is_real, is_whole
+from redundancy.model.values import is_real, is_whole, modulo_turn
 from redundancy.planning.angles import task_labels
 from redundancy.planning.tasks import Segment
 from redundancy.resolution.limits import amount
@@ -255,12 +255,14 @@ def every_configuration(
     """Every configuration inside the joint limits that Newton from ``seeds`` starts finds
     reaching ``point`` (m,) with the actuators ``held`` at each of ``values`` (k, r), (j, n), and
     the held values of each, (j, r): every assembly branch that some seed finds there, once per
-    seed that found it."""
+    seed that found it, value by value, each value's in `inverse_kinematics`' order of
+    preference (its pick first)."""
     rows = held_indices(robot, held)
     values = np.asarray(values, dtype=float).reshape(-1, len(rows))
-    per_seed, error, _ = _from_seeds(robot, np.asarray(point, float), rows, values, seeds)
-    found = error < FOUND
-    return per_seed[found], np.repeat(values, seeds, axis=0)[found.ravel()]
+    per_seed, error, order = _from_seeds(robot, np.asarray(point, float), rows, values, seeds)
+    each = np.arange(len(values))[:, None]
+    found = error[each, order] < FOUND
+    return per_seed[each, order][found], np.repeat(values, seeds, axis=0)[found.ravel()]
 
 
 def free_configurations(robot: Robot, point: np.ndarray, seeds: int) -> tuple[np.ndarray, float]:
@@ -281,23 +283,43 @@ def fold_side(space: ActuatorSpace, rows: list[int]) -> np.ndarray:
     return np.sign(np.linalg.det(np.concatenate([space.J, space.A[:, rows]], axis=1)))
 
 
+def _nearest_turn(
+    robot: Robot, q: np.ndarray, origin: np.ndarray, target: np.ndarray, row: int
+) -> tuple[np.ndarray, ActuatorSpace]:
+    """Configurations q (k, n) continued from ``origin`` (k, n), each revolute joint of a
+    bounded range moved by whole turns to the turn nearest its origin (Newton from far away can
+    land on the pose a turn or more away, outside the joint's range), where the moved
+    configuration still meets ``target`` [y*, x_h*] (k, m + 1) with the held actuator ``row``
+    (one driven directly is not moved by a turn); and the states at them."""
+    bounded = robot.rotary_joints & ~robot.turning
+    moved = np.where(bounded, origin + modulo_turn(q - origin), q)
+    space = evaluate(robot, moved)
+    reached = np.concatenate([space.y, space.x[:, [row]]], axis=1) - target
+    keep = np.linalg.norm(reached, axis=1) < FOUND
+    if keep.all():
+        return moved, space
+    q = np.where(keep[:, None], moved, q)
+    return q, evaluate(robot, q)
+
+
 def continue_held(
     robot: Robot,
     point: np.ndarray,
     row: int,
-    known: tuple[np.ndarray, np.ndarray],
+    known: tuple[np.ndarray, np.ndarray, np.ndarray],
     values: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Configurations reaching ``point`` with the held actuator ``row`` at ``values`` (k,),
-    Newton-continued from the found configurations ``known`` = (held values (j,), q (j, n))
-    nearest each, and again from a nearer one whenever a pass finds one. The joint limits do not
-    bind. A configuration counts as found only on its origin's side of the fold (`fold_side`):
-    Newton from far away can land on the other assembly branch, which continuation along the
-    held value does not reach without crossing the fold (it tries again from a nearer one).
-    Returns q (k, n) and the residuals (k,), in m (below `FOUND` where found)."""
-    known_values, configurations = known
-    sides = fold_side(evaluate(robot, configurations), [row])
+    Newton-continued from the found configurations ``known`` = (held values (j,), q (j, n), their
+    sides of the fold (j,)) nearest each, and again from a nearer one whenever a pass finds one.
+    The joint limits do not bind. A configuration counts as found only on its origin's side of
+    the fold (`fold_side`): Newton from far away can land on the other assembly branch, which
+    continuation along the held value does not reach without crossing the fold (it tries again
+    from a nearer one). Returns q (k, n), the residuals (k,), in m (below `FOUND` where found),
+    and the sides (k,)."""
+    known_values, configurations, sides = known
     q = np.empty((len(values), robot.n))
+    found_sides = np.zeros(len(values))
     residual = np.full(len(values), np.inf)
     tried = np.full(len(values), np.inf)  # distance of the value last continued from
     pending = np.arange(len(values))
@@ -311,17 +333,19 @@ def continue_held(
         target = np.concatenate(
             [np.broadcast_to(point, (pending.size, robot.m)), values[pending, None]], axis=1
         )
+        origin = configurations[nearest]
         q[pending], residual[pending], _ = newton(
-            robot, configurations[nearest], [row], target, CONTINUATION_ITERATIONS
+            robot, origin, [row], target, CONTINUATION_ITERATIONS
         )
-        side = fold_side(evaluate(robot, q[pending]), [row])
+        q[pending], space = _nearest_turn(robot, q[pending], origin, target, row)
+        found_sides[pending] = side = fold_side(space, [row])
         residual[pending[side != sides[nearest]]] = np.inf  # on the other branch: not found
         done = residual[pending] < FOUND
         known_values = np.concatenate([known_values, values[pending[done]]])
         configurations = np.concatenate([configurations, q[pending[done]]])
         sides = np.concatenate([sides, side[done]])
         pending = pending[~done]
-    return q, residual
+    return q, residual, found_sides
 
 
 def configuration_at(robot: Robot, point: np.ndarray, held: dict[str, float]) -> np.ndarray:

@@ -83,7 +83,7 @@ from redundancy.planning.ik import (
     newton,
 )
 from redundancy.planning.refinement import Refined, checked_grids
-from redundancy.planning.starts import Configurations, branch_starts
+from redundancy.planning.starts import Configurations
 from redundancy.planning.tasks import Segment
 from redundancy.resolution.limits import TOLERANCE, Limits, hydraulic_values
 from redundancy.resolution.objectives import Objective
@@ -190,12 +190,12 @@ class IntegralOptimum(Refined):
 EnergyOptimum = IntegralOptimum  # the energy bound's result, by its earlier name
 
 
-def _nodes(robot, segment, rows: list[int], values: np.ndarray, t: np.ndarray, near=None):
+def _nodes(robot, segment, rows: list[int], values: np.ndarray, t: np.ndarray, branch=None):
     """Configurations q (N + 1, G, n) reaching y_d(t_j) with the held
     actuators ``rows`` at each of ``values`` (G, r), and where they were found (N + 1, G):
     projected Newton steps (`newton`, bounded) from the previous node's configuration; at the
-    first node, by continuation along the held value from ``near`` (a configuration (n,) at
-    the segment's start, one held actuator: the assembly branch to keep to), or from
+    first node, by continuation along the held value on ``branch`` (the `Configurations` of
+    one assembly branch, one held actuator: the branch to keep to), or from
     `inverse_kinematics`'s spread of seeds where none was found; then, where that misses, from
     the configuration found at the nearest held values of the same node. Keeping to the joint
     ranges keeps to one assembly branch: a cylinder's length is the same at q and −q. Last,
@@ -213,8 +213,8 @@ def _nodes(robot, segment, rows: list[int], values: np.ndarray, t: np.ndarray, n
         if j:
             q[j], residual, _ = newton(robot, q[j - 1], rows, target, ITERATIONS, bounded=True)
             found[j] = residual < FOUND
-        elif near is not None:
-            starts = Configurations.near(robot, segment, held[0], near).at(values[:, 0])
+        elif branch is not None:
+            starts = branch.at(values[:, 0])
             q[j], found[j] = starts.q, starts.reachable
         if not found[j].any():
             seeded = inverse_kinematics(robot, point, held, values)
@@ -245,12 +245,14 @@ class Tables:
     cell whose corners lie on both sides of a fold (K singular, where the task's two solutions
     meet) would interpolate across both."""
 
-    def __init__(self, robot, segment, rows: list[int], strokes: Limits, t: np.ndarray, near=None):
+    def __init__(
+        self, robot, segment, rows: list[int], strokes: Limits, t: np.ndarray, branch=None
+    ):
         actuators = robot.actuators
         count = EXACT if len(rows) == 1 else EXACT_EACH
         self.axes = [np.linspace(actuators.lower[r], actuators.upper[r], count) for r in rows]
         values = np.stack(np.meshgrid(*self.axes, indexing="ij"), -1).reshape(-1, len(rows))
-        q, found = _nodes(robot, segment, rows, values, t, near)
+        q, found = _nodes(robot, segment, rows, values, t, branch)
         flat = q.reshape(-1, robot.n)
         space, bad = regularised(evaluate(robot, flat))
         usable = found.ravel() & ~bad  # the joint ranges, as the strokes, are checked at r
@@ -465,8 +467,9 @@ def _optimum(
     without a path after one with a path ends the refinement, marked failed). With one held
     actuator, the configurations keep to the assembly branch of ``near`` where it is given,
     else the optimum is the least over every branch the improved start searches
-    (`branch_starts`): a motion cannot pass from one elbow to the other inside the joint
-    ranges, so each is a recursion of its own."""
+    (`Configurations.branches`), each on the finest grid where it found a path: a motion
+    cannot pass from one elbow to the other inside the joint ranges, so each is a recursion of
+    its own."""
     rows = held_indices(robot, held)
     names = [robot.actuators.names[row] for row in rows]
     if len(rows) > 2:
@@ -478,13 +481,15 @@ def _optimum(
     on_branch = partial(
         _on_branch, robot, segment, rows, checked, grids, build, speeds, accelerations
     )
-    if len(rows) == 2 or near is not None:
-        return on_branch(near)
+    if len(rows) == 2:
+        return on_branch(None)
+    if near is not None:
+        return on_branch(Configurations.near(robot, segment, names[0], near))
     found: list[Path] = []
     failure: InvalidInputError | None = None
-    for start in branch_starts(robot, segment, names[0]):
+    for branch in Configurations.branches(robot, segment, names[0]):
         try:
-            found.append(on_branch(start))
+            found.append(on_branch(branch))
         except InvalidInputError as error:  # no path on this branch: the others may have one
             failure = failure or error
     if not found:
@@ -501,11 +506,10 @@ def _on_branch(
     build: Builder,
     speeds: np.ndarray,
     accelerations: np.ndarray,
-    near: np.ndarray | None,
+    branch: Configurations | None,
 ) -> Path:
-    """`_optimum` on the assembly branch of ``near`` (one held actuator; None: the
-    configurations inverse kinematics picks), the held actuators' ``rows`` and the ``grids``
-    checked."""
+    """`_optimum` on one assembly ``branch`` (one held actuator; None: the configurations
+    inverse kinematics picks), the held actuators' ``rows`` and the ``grids`` checked."""
     names = [robot.actuators.names[row] for row in rows]
     strokes = Limits.strokes(robot, checked)
     lower, upper = robot.actuators.lower[rows], robot.actuators.upper[rows]
@@ -519,7 +523,7 @@ def _on_branch(
     path: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None  # t, r, x, q
     for intervals in grids:
         t = np.linspace(0.0, segment.duration, intervals + 1)
-        tables = Tables(robot, segment, rows, strokes, t, near if len(rows) == 1 else None)
+        tables = Tables(robot, segment, rows, strokes, t, branch)
         if path is None:
             centre, width = np.tile((lower + upper) / 2, (len(t), 1)), (upper - lower) / 2
         else:

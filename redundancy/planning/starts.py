@@ -7,16 +7,13 @@ the objective's law along the path (a segment, or a work cycle's `Chain`, search
 the samples whose motion stays inside the actuator limits the whole way, and return the one
 with the lowest peak (or integral) of the objective. Every sample, whichever search asks for it,
 is evaluated by `evaluate_starts`: feasible where its margin is ≥ −`TOLERANCE`
-(`redundancy.resolution.limits`). With one held actuator, each assembly branch that reaches
-the path's start at mid-stroke inside the joint ranges (an arm's elbow up and elbow down) is
-searched on its own, its starts continued along the held value from that configuration, and
-the best start is the best of them all (`Configurations.branches`); where mid-stroke does not
-reach the start, the configurations found with the held actuator free seed the search, and
-where they lie on both sides of the fold (where det [J; A_h] changes sign: elbow up or down),
-each side is searched on its own, seeded also by the configurations found at values over the
-stroke. Continuation keeps a start on the side of the configuration it continues from. With
-several held actuators, a held value has the one start configuration inverse kinematics reaches
-from its seeds. Methods:
+(`redundancy.resolution.limits`). With one held actuator, each side of the fold (det [J; A_h]
+of one sign: an arm's elbow up, elbow down) on which inverse kinematics reaches the path's start
+inside the joint ranges, at `SEEDED` held values over the stroke or with the held actuator
+free, is searched on its own, its starts continued along the held value from the nearest of
+those configurations and kept on its side, and the best start is the best of them all
+(`Configurations.branches`). With several held actuators, a held value has the one start
+configuration inverse kinematics reaches from its seeds. Methods:
 
 - "fast" (r = 1, the default): the margin μ(v) of a start v, the least distance of a checked
   stroke to its limits over the motion and of the start to its joint limits, is continuous in
@@ -67,7 +64,6 @@ from redundancy.planning.brackets import (
 )
 from redundancy.planning.ik import (
     FOUND,
-    assembly_branches,
     continue_held,
     every_configuration,
     fold_side,
@@ -97,7 +93,8 @@ METHODS = ("fast", "sweep")
 MAX_SAMPLES = 10_000  # starts of one sweep, integrated as one batch: about 47 MB per 1,000
 GRID = 12  # integrated starts of the fast search's first round, evenly over the reachable ones
 REACH_GRID = 24  # starts whose reachability the fast search checks first, over the stroke
-ANCHOR_SEEDS = 8  # where mid-stroke is out of reach: seeds of the search for any start
+ANCHOR_SEEDS = 8  # Newton's seeds per value where the branches' configurations are sought
+SEEDED = 9  # held values, over the stroke, where they are sought (mid-stroke among them)
 END_TOLERANCE = 5e-4  # of the held stroke: the fast search locates the feasible ends to this,
 # half the spacing of a 1,000-sample sweep
 ROUNDS = 8  # refinement rounds of the fast search, at most, per phase
@@ -346,8 +343,9 @@ class Starts:
 
 class Configurations:
     """Start configurations at the point of a segment for one held actuator on one assembly
-    branch, by continuation from those found so far (``known``: held values (j,) and their
-    configurations (j, n)): `branches` seeds one per branch, `near` one on a given branch."""
+    branch, by continuation from those found so far (``known``: held values (j,), their
+    configurations (j, n) and sides of the fold (j,); given without the sides): `branches`
+    seeds one per branch, `near` one on a given branch."""
 
     def __init__(
         self,
@@ -361,36 +359,32 @@ class Configurations:
         self.row = held_indices(robot, [held])[0]
         self.joints = Limits.joints(robot)
         self.scan = sweep_values(robot, held, REACH_GRID)
-        self.known = known
+        self.known = (*known, fold_side(evaluate(robot, known[1]), [self.row]))
 
     @classmethod
     def branches(cls, robot: Robot, segment: Segment | Chain, held: str) -> list[Configurations]:
-        """One per assembly branch that reaches the segment's start at mid-stroke
-        (`assembly_branches`), the one `inverse_kinematics` picks first. Where mid-stroke does
-        not reach it, one per side of the fold (`fold_side`: elbow up, elbow down) of the
-        configurations that reach it with the held actuator free, seeded by those on its side,
-        each at its own held value: a start is continued from the nearest of them. Where they
-        lie on both sides, also by every configuration on that side that reaches the start at
-        `REACH_GRID` held values over the stroke, so that a piece of a branch cut off from the
-        others along the held value (by the end of a slew's stroke, where the slew turns on) is
-        searched too. Otherwise a piece of a branch that continuation does not reach from the
-        seeds is not searched."""
-        scan, point = sweep_values(robot, held, REACH_GRID), segment.start
-        middle = scan[np.argsort(np.abs(scan - scan.mean()), kind="stable")[:1]]
-        found = assembly_branches(robot, point, [held], middle)
-        if len(found):
-            return [cls(robot, segment, held, (middle, q[None])) for q in found]
-        seeds, miss = free_configurations(robot, point, ANCHOR_SEEDS)  # the held actuator free
+        """One per side of the fold (`fold_side`: an arm's elbow up, elbow down) on which the
+        segment's start is reached inside the joint ranges, seeded by every configuration on
+        that side that Newton from `ANCHOR_SEEDS` seeds finds at `SEEDED` held values over
+        the stroke or with the held actuator free: a start is continued from the nearest of
+        them on its side, so that a piece of a branch cut off from the others along the held
+        value (by the joint ranges, or by the end of a slew's stroke where the slew turns on) is
+        searched too, as far as a scanned value lands on it. The first is the side of the
+        configuration `inverse_kinematics` picks nearest mid-stroke."""
+        scan, point = sweep_values(robot, held, SEEDED), segment.start
+        middle_first = scan[np.argsort(np.abs(scan - scan.mean()), kind="stable")]
+        found, at = every_configuration(robot, point, [held], middle_first, ANCHOR_SEEDS)
+        free, miss = free_configurations(robot, point, ANCHOR_SEEDS)  # the held actuator free
+        seeds = np.concatenate([found, free])
         if not len(seeds):
             how = f"with {held} anywhere in its stroke inside its joint limits"
             raise _unreachable(robot, segment, how, miss)
         row = held_indices(robot, [held])[0]
         space = evaluate(robot, seeds)
-        values, sides = space.x[:, row], fold_side(space, [row])
-        if len(set(sides)) > 1:  # both sides of the fold: seed each over the whole stroke
-            found, at = every_configuration(robot, point, [held], scan, ANCHOR_SEEDS)
-            seeds, values = np.concatenate([found, seeds]), np.concatenate([at[:, 0], values])
-            sides = np.concatenate([fold_side(evaluate(robot, found), [row]), sides])
+        values, sides = (
+            np.concatenate([at[:, 0], space.x[len(found) :, row]]),
+            fold_side(space, [row]),
+        )
         return [
             cls(robot, segment, held, (values[sides == side], seeds[sides == side]))
             for side in dict.fromkeys(sides)  # in the order of the seeds
@@ -430,24 +424,17 @@ class Configurations:
 
     def at(self, values: np.ndarray) -> Starts:
         """Starts at held ``values`` (k,)."""
-        q, residual = continue_held(self.robot, self.point, self.row, self.known, values)
+        q, residual, sides = continue_held(self.robot, self.point, self.row, self.known, values)
         found = residual < FOUND
         margins = np.where(found, self.joints.margin(q), -np.inf)
         inside = found & (margins >= -LIMIT_TOLERANCE)
+        known_values, known_q, known_sides = self.known
         self.known = (
-            np.concatenate([self.known[0], values[inside]]),
-            np.concatenate([self.known[1], q[inside]]),
+            np.concatenate([known_values, values[inside]]),
+            np.concatenate([known_q, q[inside]]),
+            np.concatenate([known_sides, sides[inside]]),
         )
         return Starts(values[:, None], q, margins, np.zeros(len(values)))
-
-
-def branch_starts(robot: Robot, segment: Segment | Chain, held: str) -> list[np.ndarray | None]:
-    """A configuration (n,) at the start of ``segment`` on each assembly branch the improved
-    start searches (`Configurations.branches`), the held actuator at mid-stroke; [None] where
-    mid-stroke does not reach the start and several configurations found with it free seed the
-    search together (their branches are not told apart)."""
-    seeds = [branch.known[1] for branch in Configurations.branches(robot, segment, held)]
-    return [q[0] for q in seeds] if all(len(q) == 1 for q in seeds) else [None]
 
 
 def evaluate_starts(
