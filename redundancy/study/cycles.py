@@ -233,16 +233,17 @@ def report_header(robot: Robot, cycle: WorkCycle, checked: tuple[str, ...], circ
 
 
 def best_report(search: SearchResult) -> dict | None:
-    """A search's best start, its held values, every actuator's stroke there (m, or rad for a
-    rotary one; they name the configuration where the held values alone do not, as on an arm
-    whose two elbows reach the start) and their peak, as JSON-ready data (None where no start
-    is feasible)."""
+    """A search's best start, its held values, every actuator's stroke and every joint's value
+    there (m, or rad for an angle: the configuration, which the held values alone do not name
+    where an arm's two elbows reach the start) and their peak, as JSON-ready data (None where
+    no start is feasible)."""
     if search.best is None:
         return None
-    strokes = dict(zip(search.robot.actuators.names, search.best_motion.x[0, 0].tolist()))
+    robot, start = search.robot, search.best_motion
     return {
         "value": scalar_or_list(search.best.values),
-        "strokes": strokes,
+        "strokes": dict(zip(robot.actuators.names, start.x[0, 0].tolist())),
+        "joints": dict(zip(robot.joint_names, start.q[0, 0].tolist())),
         "peak": search.best_peak,
     }
 

@@ -203,8 +203,9 @@ def _limits(violations: list[str]) -> str:
 
 def _headline(study: dict, s: dict, held: str, units: dict[str, str]) -> str:
     """One segment's best start and peak under one objective, as a list item: the held values,
-    and the other actuators' strokes there, which name the configuration where the held values
-    alone do not (an arm whose two elbows reach the start)."""
+    and the other actuators' strokes there, which tell the configuration where the held values
+    alone do not (an arm whose two elbows reach the start; a report written before the strokes
+    were, without them)."""
     if s["best"] is None:
         return (
             f"<li>{study['objective']}, segment {_e(s['name'])}: no start keeps the "
@@ -217,12 +218,13 @@ def _headline(study: dict, s: dict, held: str, units: dict[str, str]) -> str:
     )
     others = ", ".join(
         f"{name} = {_number(value)} {units[name]}"
-        for name, value in s["best"]["strokes"].items()
+        for name, value in s["best"].get("strokes", {}).items()
         if name not in held_names
     )
+    beside = f" ({_e(others)})" if others else ""
     return (
         f"<li>{study['objective']}, segment {_e(s['name'])}: improved start {held} = "
-        f"{_number(s['best']['value'])} ({_e(others)}), {study['measure']} "
+        f"{_number(s['best']['value'])}{beside}, {study['measure']} "
         f"{s['best']['peak']:.4g} {study['unit']}{above}</li>"
     )
 
