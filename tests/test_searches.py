@@ -533,6 +533,7 @@ def test_a_round_whose_probes_are_all_unreachable_does_not_end_the_search(crane,
     extended = first.extended(run(probes, extending=True))
     assert extended.samples[:4] == first.samples and extended.best == first.best
     assert all(s.peak is None and "start unreachable" in s.reason for s in extended.samples[4:])
+    assert probes.reason(1) == "start unreachable (no configuration on this branch reaches it)"
     assert len(extended.samples) == 7 and extended.simulations == first.simulations
 
 

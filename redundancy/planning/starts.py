@@ -336,7 +336,7 @@ class Starts:
         if self.miss[i] > 0:
             return f"start unreachable (misses by {amount(self.miss[i], 'm')})"
         if not np.isfinite(self.joint_margins[i]):
-            return "start unreachable (no configuration reaches it)"
+            return "start unreachable (no configuration on this branch reaches it)"
         outside = -self.joint_margins[i]
         return f"start unreachable inside the joint limits (outside them by {outside:.3g})"
 
