@@ -333,17 +333,18 @@ def continue_held(
         target = np.concatenate(
             [np.broadcast_to(point, (pending.size, robot.m)), values[pending, None]], axis=1
         )
-        origin = configurations[nearest]
         q[pending], residual[pending], _ = newton(
-            robot, origin, [row], target, CONTINUATION_ITERATIONS
+            robot, configurations[nearest], [row], target, CONTINUATION_ITERATIONS
         )
-        q[pending], space = _nearest_turn(robot, q[pending], origin, target, row)
-        found_sides[pending] = side = fold_side(space, [row])
-        residual[pending[side != sides[nearest]]] = np.inf  # on the other branch: not found
+        ok = residual[pending] < FOUND  # the states of those found alone are read again
+        at, origin = pending[ok], configurations[nearest[ok]]
+        q[at], space = _nearest_turn(robot, q[at], origin, target[ok], row)
+        found_sides[at] = side = fold_side(space, [row])
+        residual[at[side != sides[nearest[ok]]]] = np.inf  # on the other branch: not found
         done = residual[pending] < FOUND
         known_values = np.concatenate([known_values, values[pending[done]]])
         configurations = np.concatenate([configurations, q[pending[done]]])
-        sides = np.concatenate([sides, side[done]])
+        sides = np.concatenate([sides, found_sides[pending[done]]])
         pending = pending[~done]
     return q, residual, found_sides
 

@@ -344,7 +344,7 @@ class Starts:
 class Configurations:
     """Start configurations at the point of a segment for one held actuator on one assembly
     branch, by continuation from those found so far (``known``: held values (j,), their
-    configurations (j, n) and sides of the fold (j,); given without the sides): `branches`
+    configurations (j, n) and ``sides`` of the fold (j,), found where not given): `branches`
     seeds one per branch, `near` one on a given branch."""
 
     def __init__(
@@ -353,13 +353,16 @@ class Configurations:
         segment: Segment | Chain,
         held: str,
         known: tuple[np.ndarray, np.ndarray],
+        sides: np.ndarray | None = None,
     ):
         self.robot, self.point, self.held, self.segment = robot, segment.start, held, segment
         self._reach: dict[float, np.ndarray] = {}
         self.row = held_indices(robot, [held])[0]
         self.joints = Limits.joints(robot)
         self.scan = sweep_values(robot, held, REACH_GRID)
-        self.known = (*known, fold_side(evaluate(robot, known[1]), [self.row]))
+        if sides is None:
+            sides = fold_side(evaluate(robot, known[1]), [self.row])
+        self.known = (*known, sides)
 
     @classmethod
     def branches(cls, robot: Robot, segment: Segment | Chain, held: str) -> list[Configurations]:
@@ -386,7 +389,13 @@ class Configurations:
             fold_side(space, [row]),
         )
         return [
-            cls(robot, segment, held, (values[sides == side], seeds[sides == side]))
+            cls(
+                robot,
+                segment,
+                held,
+                (values[sides == side], seeds[sides == side]),
+                sides[sides == side],
+            )
             for side in dict.fromkeys(sides)  # in the order of the seeds
         ]
 
