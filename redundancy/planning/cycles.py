@@ -559,8 +559,9 @@ def return_map(
     """P sampled at ``values`` of the held actuator (default ``count`` evenly over the reachable
     part of its stroke at the cycle's start), all integrated as one batch. Its starts lie on the
     assembly branch of ``near``, a configuration (n,) at the cycle's start (a repetition's last
-    one: the branch it runs on, where its first cycle changed branch), by default on the branch
-    inverse kinematics finds at mid-stroke."""
+    one: the branch it runs on, where its first cycle changed branch), by default on the side
+    of the fold of the configuration inverse kinematics picks at mid-stroke (the first of
+    `Configurations.branches`)."""
     require_robot(robot)
     found = _held(robot, cycle, held)
     if len(found) != 1:

@@ -20,10 +20,10 @@ cost of the same recursion, as in Ferrentino et al. (Robotics 10(1) 42, 2021).
   next to the fold, so a motion that crosses the fold is not searched: an optimum whose tables
   left out a cell across it (`IntegralOptimum.folded`) may lie above a feasible motion's cost
   and is withheld as no bound (not converged; `failure` says why). With one held actuator,
-  each assembly branch that reaches the start at mid-stroke (an arm's elbow up and elbow down,
-  as the improved start searches them) has tables and a recursion of its own, and the optimum
-  is the least of them; for an objective's measure, each pass's states are solved again
-  exactly from the interpolated configurations;
+  each assembly branch the improved start searches (a side of the fold: an arm's elbow up or
+  elbow down, `Configurations.branches`) has tables and a recursion of its own, and the
+  optimum is the least of them; for an objective's measure, each pass's states are solved
+  again exactly from the interpolated configurations;
 - a transition from r at t_j to r' at t_j+1 moves every actuator at ẋ = (x_j+1(r') − x_j(r))/h
   (J_H ẋ = ẏ_d to first order, Eq. 16). Its cost is the measure c at both nodes with that ẋ,
   by the trapezoidal rule, h (c_j + c_j+1)/2, or for the energy bound h p_P Q_P from the
