@@ -237,10 +237,7 @@ def assembly_branches(
     `inverse_kinematics` picks, the others in its order of preference; none where no seed
     reaches the point. Two are one pose where no joint differs by more than `SAME_POSE` (a
     turning joint modulo a turn)."""
-    rows = held_indices(robot, held)
-    target = np.asarray(values, dtype=float).reshape(1, len(rows))
-    per_seed, error, order = _from_seeds(robot, np.asarray(point, float), rows, target, seeds)
-    q = per_seed[0, order[0][error[0, order[0]] < FOUND]]
+    q, _ = every_configuration(robot, point, held, values, seeds)  # values: one row (r,)
     same = robot.same_poses(q[:, None], q[None], SAME_POSE)
     kept: list[int] = []
     for i in range(len(q)):
