@@ -4,12 +4,17 @@
 #pragma once
 
 #include <algorithm>
+#include <map>
 #include <numeric>
 #include <optional>
+#include <tuple>
 #include <utility>
 #include <vector>
 
 #include "space.hpp"
+
+// The sign of `value`: −1, 0 or +1.
+inline double sign(double value) { return double((value > 0) - (value < 0)); }
 
 // [y; x_h] (m + r) and K = [J; A_h] (m + r, n) of the task rows and r held actuators, read from
 // one pass at each of a batch of states.
@@ -62,11 +67,13 @@ class HeldPass {
 // Damped Gauss-Newton from q (k, n) to [y; x_h](q) = target (k, d): steps δ = (KᵀK + δ₀ I)⁻¹ Kᵀ r,
 // each iterate clipped to [lower, upper] (n,) when `bounded`, the joints at a limit the step
 // would carry past it held there and the step solved again without them; a row stops once |r| ≤
-// `tolerance` or its step moves no coordinate by `stalled` or more. The rows of a pass at one
-// configuration share it. `pass` is a `HeldPass` or a Python callable (unique (u, n), inverse
-// (a,)) → (values (u, d), K (u, d, n)); `first`, None or the values and K at q already known.
-// Returns q, |r| (k,) and each row's latest state among the rows passed in order (the first
-// k at q); None where a `HeldPass` refused a state.
+// `tolerance` or its step moves no coordinate by `stalled` or more. Each configuration is passed
+// once: the rows at one share its pass, and so do the rows that come back to one with a joint
+// at a limit. `pass` is a `HeldPass` or a Python callable (distinct states (u, n)) → (values
+// (u, d), K (u, d, n)); `first`, None or the values and K at q already known (then the first k
+// states passed). Returns q, |r| (k,), each row's latest state among the distinct states
+// passed in order, and the side of the fold at q, sign det K (k,) where K is square (0
+// elsewhere), from the K its last pass read; None where a `HeldPass` refused a state.
 inline py::object newton(const py::object& pass, Array start, const Array& target,
                          const py::object& first, int iterations, bool bounded,
                          const Array& lower, const Array& upper, double tolerance, double damping,
@@ -91,17 +98,46 @@ inline py::object newton(const py::object& pass, Array start, const Array& targe
   Matrix q = ConstMatrix(start.data(), k, n);
   const ConstMatrix goal(target.data(), k, d);
   Matrix values(k, d), jacobians(k, d * n);
-  // The values and K at the rows `active` of q, one pass per distinct configuration.
+  py::array_t<py::ssize_t> latest(k);
+  auto* last = latest.mutable_data();
+  py::ssize_t passes = 0;  // distinct states passed so far, in order
+  // The states passed so far with a joint at a limit (where clipping brings rows of different
+  // targets, and again in a later iteration): their values, K and place among those passed.
+  using Entry = std::tuple<Eigen::RowVectorXd, Eigen::RowVectorXd, py::ssize_t>;
+  std::map<std::vector<double>, Entry> clipped;
+  const auto state = [&](py::ssize_t i) {
+    return std::vector<double>(q.row(i).data(), q.row(i).data() + n);
+  };
+  const auto at_limit = [&](py::ssize_t i) {
+    return bounded && ((q.row(i).array() <= Vector(lower.data(), n).transpose().array()) ||
+                       (q.row(i).array() >= Vector(upper.data(), n).transpose().array()))
+                          .any();
+  };
+  // The values and K at the rows `active` of q: one pass per distinct configuration not passed
+  // yet; each row's place among the states passed in `latest`.
   auto passed = [&](const std::vector<py::ssize_t>& active) -> bool {
-    std::vector<py::ssize_t> order(active.size());
+    std::vector<py::ssize_t> fresh;
+    for (const auto i : active) {
+      const auto known = at_limit(i) ? clipped.find(state(i)) : clipped.end();
+      if (known == clipped.end()) {
+        fresh.push_back(i);
+        continue;
+      }
+      const auto& [v, K, place] = known->second;
+      values.row(i) = v;
+      jacobians.row(i) = K;
+      last[i] = place;
+    }
+    if (fresh.empty()) return true;
+    std::vector<py::ssize_t> order(fresh.size());
     std::iota(order.begin(), order.end(), 0);
-    auto row = [&](py::ssize_t i) { return q.row(active[i]); };
+    auto row = [&](py::ssize_t a) { return q.row(fresh[a]); };
     auto less = [&](py::ssize_t a, py::ssize_t b) {
       return std::lexicographical_compare(row(a).begin(), row(a).end(), row(b).begin(),
                                           row(b).end());
     };
     std::stable_sort(order.begin(), order.end(), less);
-    std::vector<py::ssize_t> inverse(active.size()), unique;
+    std::vector<py::ssize_t> inverse(fresh.size()), unique;
     for (std::size_t j = 0; j < order.size(); ++j) {
       if (j == 0 || row(order[j]) != row(order[j - 1])) unique.push_back(order[j]);
       inverse[order[j]] = py::ssize_t(unique.size()) - 1;
@@ -114,20 +150,22 @@ inline py::object newton(const py::object& pass, Array start, const Array& targe
       if (!found) return false;
       std::tie(found_values, found_jacobians) = std::move(*found);
     } else {
-      py::array_t<py::ssize_t> where(py::ssize_t(inverse.size()));
-      std::copy(inverse.begin(), inverse.end(), where.mutable_data());
       Array unique_states({py::ssize_t(states.rows()), py::ssize_t(n)});
       at(unique_states, 0, states.rows(), n) = states;
-      const auto out = pass(unique_states, where).cast<py::tuple>();
+      const auto out = pass(unique_states).cast<py::tuple>();
       const auto v = out[0].cast<Array>(), K = out[1].cast<Array>();
       fits(v, K, states.rows());
       found_values = ConstMatrix(v.data(), states.rows(), d);
       found_jacobians = ConstMatrix(K.data(), states.rows(), d * n);
     }
-    for (std::size_t i = 0; i < active.size(); ++i) {
-      values.row(active[i]) = found_values.row(inverse[i]);
-      jacobians.row(active[i]) = found_jacobians.row(inverse[i]);
+    for (std::size_t a = 0; a < fresh.size(); ++a) {
+      const auto i = fresh[a];
+      values.row(i) = found_values.row(inverse[a]);
+      jacobians.row(i) = found_jacobians.row(inverse[a]);
+      last[i] = passes + inverse[a];
+      if (at_limit(i)) clipped.try_emplace(state(i), values.row(i), jacobians.row(i), last[i]);
     }
+    passes += py::ssize_t(unique.size());
     return true;
   };
   std::vector<py::ssize_t> active(k);
@@ -140,12 +178,10 @@ inline py::object newton(const py::object& pass, Array start, const Array& targe
     fits(v, K, k);
     values = ConstMatrix(v.data(), k, d);
     jacobians = ConstMatrix(K.data(), k, d * n);
+    std::iota(last, last + k, 0);
+    passes = k;
   }
   Matrix residual = values - goal;
-  py::array_t<py::ssize_t> latest(k);
-  auto* last = latest.mutable_data();
-  std::iota(last, last + k, 0);
-  py::ssize_t offset = k;
   const Eigen::MatrixXd eye = damping * Eigen::MatrixXd::Identity(n, n);
   for (int iteration = 0; iteration < iterations; ++iteration) {
     std::vector<py::ssize_t> moving;
@@ -181,14 +217,14 @@ inline py::object newton(const py::object& pass, Array start, const Array& targe
     active = std::move(moving);
     if (active.empty()) break;
     if (!passed(active)) return py::none();
-    for (std::size_t j = 0; j < active.size(); ++j) {
-      residual.row(active[j]) = values.row(active[j]) - goal.row(active[j]);
-      last[active[j]] = offset + py::ssize_t(j);
-    }
-    offset += py::ssize_t(active.size());
+    for (const auto i : active) residual.row(i) = values.row(i) - goal.row(i);
   }
-  Array solved({k, n}), miss(k);
+  Array solved({k, n}), miss(k), side(k);
   at(solved, 0, k, n) = q;
-  for (py::ssize_t i = 0; i < k; ++i) miss.mutable_data()[i] = residual.row(i).norm();
-  return py::make_tuple(solved, miss, latest);
+  for (py::ssize_t i = 0; i < k; ++i) {
+    miss.mutable_data()[i] = residual.row(i).norm();
+    const ConstMatrix K(jacobians.row(i).data(), d, n);
+    side.mutable_data()[i] = d == n ? sign(K.partialPivLu().determinant()) : 0.0;
+  }
+  return py::make_tuple(solved, miss, latest, side);
 }

@@ -10,6 +10,7 @@ from counting import counting
 from redundancy.errors import InvalidInputError
 from redundancy.planning.bound import global_optimum
 from redundancy.planning.cycles import plan_cycle
+from redundancy.planning.ik import ITERATIONS, _seeds, newton
 from redundancy.planning.integrate import rate_on_grid
 from redundancy.planning.starts import default_start, improved_start, improved_starts
 from redundancy.resolution.objectives import ENERGY, VELOCITY
@@ -149,3 +150,19 @@ def test_reported_motions_keep_the_power_balance_on_their_grid(crane, searches, 
     inside = slice(2, -2)
     error = np.abs(power[inside] - stored[inside]).max()
     assert error <= 1e-5 * np.abs(power).max(), error
+
+
+def test_newton_passes_a_configuration_it_clips_rows_to_once(crane):
+    """Bounded Newton from 8 seeds towards a point 6 m out, beyond the crane's reach, for two
+    telescope lengths: most rows run to one corner of the joint box (q1 and q2 at their limits,
+    the telescope at its longest), each in an iteration of its own, for either length. Each
+    distinct configuration goes through the pass once all the same."""
+    targets = np.array([[6.0, 3.0, 0.7], [6.0, 3.0, 0.9]])
+    guess = np.tile(_seeds(crane, 8), (2, 1))
+    with counting() as counts:
+        solved = newton(crane, guess, [2], np.repeat(targets, 8, axis=0), ITERATIONS, True)
+    assert np.all(solved.miss > 2.0)  # out of reach: none converged
+    corner = np.array([crane.lower[0], crane.upper[1], crane.upper[2]])
+    at_corner = np.all(solved.q == corner, axis=1)
+    assert at_corner[:8].sum() >= 2 and at_corner[8:].sum() >= 2, solved.q
+    assert counts.evaluated == counts.distinct, counts.ratio

@@ -18,12 +18,14 @@ from redundancy import (
 from redundancy.model.robot import Robot
 from redundancy.model.values import modulo_turn
 from redundancy.planning.ik import (
+    CONTINUATION_ITERATIONS,
     _seeds,
     check_path,
     configuration_at,
     continue_held,
     fold_side,
     inverse_kinematics,
+    newton,
 )
 from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.state import evaluate
@@ -66,6 +68,30 @@ def test_continuation_along_the_held_value_keeps_to_its_elbow(elbow):
     for v, found in zip(values, q):  # every joint an angle: one pose modulo a turn each
         apart = modulo_turn(found - slew_held_configuration(v, elbow, point))
         assert np.abs(apart).max() < 1e-9
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_newton_gives_the_side_of_the_fold_of_its_solution(compiled, monkeypatch):
+    """With its slew held, the slewing 3R arm's K = [J; A_h] has the row e₁ᵀ under the task's
+    two: det K = det [∂y/∂q2, ∂y/∂q3] = 0.8 · 0.5 · sin q3 (the last two links' closed form),
+    so the side of the fold Newton gives with each solution is its elbow, sign q3. Newton
+    starts 0.05 rad off the closed form's configuration at 12 slews across its reach, elbow up
+    and down, on the core's pass of the task and the slew, and on the Python one (a kind of
+    your own); the side is also `fold_side` of the state evaluated there."""
+    if not compiled:
+        monkeypatch.setattr(Robot, "held_pass", lambda robot, part: None)
+    slewing = Path(__file__).parent / "data" / "slewing3r"
+    robot = load_robot(slewing / "robot.toml")
+    point = WorkCycle.from_toml(slewing / "line.toml", dimension=robot.m)["a-b"].start
+    values = np.radians(np.linspace(-180.0, -70.0, 12))
+    for elbow in (1, -1):
+        exact = np.array([slew_held_configuration(v, elbow, point) for v in values])
+        target = np.column_stack([np.tile(point, (len(values), 1)), values])
+        solved = newton(robot, exact + 0.05, [0], target, CONTINUATION_ITERATIONS)
+        assert np.all(solved.miss < 1e-9)
+        assert np.abs(modulo_turn(solved.q - exact)).max() < 1e-9
+        assert np.array_equal(solved.side, np.full(len(values), float(elbow)))
+        assert np.array_equal(solved.side, fold_side(evaluate(robot, solved.q), [0]))
 
 
 def test_unreachable_point_says_by_how_much(crane):

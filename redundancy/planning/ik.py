@@ -85,11 +85,13 @@ def held_names(robot: Robot, held: str | Sequence[str]) -> tuple[str, ...]:
 
 class Solved(NamedTuple):
     """Newton's answer: q (k, n), the residuals |[y − y*, x_h − x_h*]| (k,) in m (and rad),
-    and, where it read every actuator, the states at q."""
+    where it read every actuator the states at q, and the side of the fold at q (`fold_side`,
+    from the K its last pass read; 0 where K is not square)."""
 
     q: np.ndarray
     miss: np.ndarray
     space: ActuatorSpace | None
+    side: np.ndarray
 
 
 def newton(
@@ -120,12 +122,12 @@ def newton(
     part = robot.actuators.part(rows)
     parts: list[ActuatorSpace] = [] if start is None else [start]  # every pass's states
 
-    def held(unique: np.ndarray, inverse: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def held(unique: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return _held_pass(robot, part, unique)
 
-    def evaluated(unique: np.ndarray, inverse: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def evaluated(unique: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         space = evaluate(robot, unique)
-        parts.append(space.take(inverse))
+        parts.append(space)
         return _read(space, rows)
 
     arguments = (
@@ -144,9 +146,9 @@ def newton(
     found = None if compiled is None else _core.newton(compiled, *arguments)
     if found is None:  # a kind or a task of your own, a state a kind refused, or the states kept
         found = _core.newton(held if start is None else evaluated, *arguments)
-    q, miss, latest = found
+    q, miss, latest, side = found
     space = None if start is None else ActuatorSpace.joined(parts).take(latest)
-    return Solved(q, miss, space)
+    return Solved(q, miss, space, side)
 
 
 def _held_pass(robot: Robot, part: ActuatorSet, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -219,7 +221,7 @@ def _from_seeds(robot: Robot, point: np.ndarray, rows: list[int], values: np.nda
     k, starts = len(values), _seeds(robot, seeds)
     guess = np.repeat(starts[None], k, axis=0).reshape(k * seeds, robot.n)
     target = np.concatenate([np.repeat(point[None], k, 0), values], axis=1)
-    q, error, _ = newton(robot, guess, rows, np.repeat(target, seeds, axis=0), ITERATIONS, True)
+    q, error, *_ = newton(robot, guess, rows, np.repeat(target, seeds, axis=0), ITERATIONS, True)
     error = error.reshape(k, seeds)
     per_seed = q.reshape(k, seeds, robot.n)
     lower, upper = robot.span
@@ -267,7 +269,7 @@ def free_configurations(robot: Robot, point: np.ndarray, seeds: int) -> tuple[np
     actuator free, by Newton from ``seeds`` spread over the joint box (none where each misses),
     and the least distance by which a seed's configuration misses it, m."""
     target = np.broadcast_to(np.asarray(point, dtype=float), (seeds, robot.m))
-    q, miss, _ = newton(robot, _seeds(robot, seeds), [], target, ITERATIONS, True)
+    q, miss, *_ = newton(robot, _seeds(robot, seeds), [], target, ITERATIONS, True)
     return q[miss < FOUND], float(miss.min())
 
 
@@ -281,22 +283,31 @@ def fold_side(space: ActuatorSpace, rows: list[int]) -> np.ndarray:
 
 
 def _nearest_turn(
-    robot: Robot, q: np.ndarray, origin: np.ndarray, target: np.ndarray, row: int
-) -> tuple[np.ndarray, ActuatorSpace]:
+    robot: Robot,
+    q: np.ndarray,
+    origin: np.ndarray,
+    target: np.ndarray,
+    row: int,
+    side: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
     """Configurations q (k, n) continued from ``origin`` (k, n), each revolute joint of a
     bounded range moved by whole turns to the turn nearest its origin (Newton from far away can
     land on the pose a turn or more away, outside the joint's range), where the moved
     configuration still meets ``target`` [y*, x_h*] (k, m + 1) with the held actuator ``row``
-    (one driven directly is not moved by a turn); and the states at them."""
+    (one driven directly is not moved by a turn); and their sides of the fold: Newton's
+    ``side`` (k,) at q, read again at a moved configuration alone."""
     bounded = robot.rotary_joints & ~robot.turning
-    moved = np.where(bounded, origin + modulo_turn(q - origin), q)
-    space = evaluate(robot, moved)
-    reached = np.concatenate([space.y, space.x[:, [row]]], axis=1) - target
+    nearest = np.where(bounded, origin + modulo_turn(q - origin), q)
+    turned = np.flatnonzero((np.abs(nearest - q) > np.pi).any(axis=1))
+    if not turned.size:
+        return q, side
+    space = evaluate(robot, nearest[turned])
+    reached = np.concatenate([space.y, space.x[:, [row]]], axis=1) - target[turned]
     keep = np.linalg.norm(reached, axis=1) < FOUND
-    if keep.all():
-        return moved, space
-    q = np.where(keep[:, None], moved, q)
-    return q, evaluate(robot, q)
+    q, side = q.copy(), side.copy()
+    q[turned[keep]] = nearest[turned[keep]]
+    side[turned[keep]] = fold_side(space, [row])[keep]
+    return q, side
 
 
 def continue_held(
@@ -330,14 +341,13 @@ def continue_held(
         target = np.concatenate(
             [np.broadcast_to(point, (pending.size, robot.m)), values[pending, None]], axis=1
         )
-        q[pending], residual[pending], _ = newton(
+        q[pending], residual[pending], _, side = newton(
             robot, configurations[nearest], [row], target, CONTINUATION_ITERATIONS
         )
-        ok = residual[pending] < FOUND  # the states of those found alone are read again
+        ok = residual[pending] < FOUND
         at, origin = pending[ok], configurations[nearest[ok]]
-        q[at], space = _nearest_turn(robot, q[at], origin, target[ok], row)
-        found_sides[at] = side = fold_side(space, [row])
-        residual[at[side != sides[nearest[ok]]]] = np.inf  # on the other branch: not found
+        q[at], found_sides[at] = _nearest_turn(robot, q[at], origin, target[ok], row, side[ok])
+        residual[at[found_sides[at] != sides[nearest[ok]]]] = np.inf  # the other branch: not found
         done = residual[pending] < FOUND
         known_values = np.concatenate([known_values, values[pending[done]]])
         configurations = np.concatenate([configurations, q[pending[done]]])
@@ -421,7 +431,7 @@ def check_path(robot: Robot, segment: Segment, seeds: int = 8) -> None:
     for i, (t, point) in enumerate(zip(times, segment.position(times))):
         for guess in (q, fresh):  # the seeds again wherever continuation misses
             target = np.broadcast_to(point, (len(guess), robot.m))
-            q, miss, _ = newton(robot, guess, [], target, ITERATIONS, True)
+            q, miss, *_ = newton(robot, guess, [], target, ITERATIONS, True)
             if miss.min() < FOUND:
                 break
         if not miss.min() < PATH_TOLERANCE:

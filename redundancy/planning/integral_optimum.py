@@ -211,7 +211,7 @@ def _nodes(robot, segment, rows: list[int], values: np.ndarray, t: np.ndarray, b
     for j, point in enumerate(points):
         target[:, : robot.m] = point
         if j:
-            q[j], residual, _ = newton(robot, q[j - 1], rows, target, ITERATIONS, bounded=True)
+            q[j], residual, *_ = newton(robot, q[j - 1], rows, target, ITERATIONS, bounded=True)
             found[j] = residual < FOUND
         elif branch is not None:
             starts = branch.at(values[:, 0])
@@ -229,7 +229,7 @@ def _nodes(robot, segment, rows: list[int], values: np.ndarray, t: np.ndarray, b
                 beside = (apart <= step * (1 + 1e-9)).all(axis=2).any(axis=1)
                 missing, apart = missing[beside], apart[beside]
             nearest = known[np.argmin(np.linalg.norm(apart, axis=2), axis=1)]
-            q[j, missing], residual, _ = newton(
+            q[j, missing], residual, *_ = newton(
                 robot, q[j, nearest], rows, target[missing], ITERATIONS, bounded=bounded
             )
             found[j, missing] = residual < FOUND
@@ -301,7 +301,7 @@ class Tables:
         (N + 1, G)."""
         robot, (nodes, count) = self.robot, r.shape[:2]
         target = np.concatenate([np.repeat(self.points, count, 0), r.reshape(nodes * count, -1)], 1)
-        flat, miss, _ = newton(
+        flat, miss, *_ = newton(
             robot, q.reshape(-1, robot.n), self.rows, target, CONTINUATION_ITERATIONS, True
         )
         space, bad = regularised(evaluate(robot, flat))
