@@ -176,8 +176,10 @@ inline bool shaped(const py::array& a, std::initializer_list<py::ssize_t> shape)
 // docstring of `redundancy.planning.integrate`): from q (k, n) at t = 0, whose slopes f (k, n)
 // and failures (k,) are known, to `duration`, on the tableau of nodes c (s,), stage weights a
 // (s, s) (the last row the 5th-order step), error weights e (s + 1,). A step's relative and
-// absolute error ≤ `tolerance`; a start whose state turns bad, or whose step shrinks below
-// 1e-9 × duration, is frozen (failed). No step crosses one of the sorted times `breaks` in
+// absolute error ≤ `tolerance`; a start whose state turns bad, whose step shrinks below
+// 1e-9 × duration, or that has tried `max_steps` steps (accepted or not) short of the end, is
+// frozen (failed): where a law chatters (a path that leaves the arm's reach), steps a millionth
+// of the duration would otherwise run on for a million steps, and keep them all. No step crosses one of the sorted times `breaks` in
 // (0, duration), where the path's ẏ_d is not smooth (a speed profile's ramp ends, a polyline's
 // corners): a step that straddles one is as accurate as its order there, not as the error
 // estimate says. Where ẏ_d jumps there, a step that ends on a break reads its last stage just
@@ -193,7 +195,7 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
                                  Array f, Flags failed, double duration, const Array& breaks,
                                  double tolerance, const Array& c, const Array& a, const Array& e,
                                  const Array& lower, const Array& upper, double allowance,
-                                 bool stop, bool keep) {
+                                 bool stop, bool keep, long max_steps) {
   if (q.ndim() != 2) throw py::value_error("the starts q must have shape (k, n)");
   const auto k = q.shape(0), n = q.shape(1), s = c.shape(0);
   if (!shaped(f, {k, n}) || !shaped(failed, {k}) || !shaped(lower, {n}) || !shaped(upper, {n}))
@@ -202,6 +204,7 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
     throw py::value_error("the tableau is c (s,), a (s, s) and e (s + 1,), s ≥ 1");
   if (!(duration > 0 && std::isfinite(duration) && tolerance > 0 && std::isfinite(tolerance)))
     throw py::value_error("the duration and the tolerance must be finite and > 0");
+  if (max_steps < 1) throw py::value_error("max_steps must be at least 1");
   if (breaks.ndim() != 1 || !std::is_sorted(breaks.data(), breaks.data() + breaks.size()))
     throw py::value_error("the breaks must be sorted times (b,)");
   // the end of a step from t: the first break past t (one reached, to rounding, is passed),
@@ -216,6 +219,7 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
   failed = Flags(failed.request());
   auto* dead = failed.mutable_data();
   std::vector<double> t(k, 0.0), h(k);
+  std::vector<long> tried(k, 0);
   std::vector<bool> past(k, false), stopped(k, false), broken(k, false);
   for (py::ssize_t i = 0; i < k; ++i) {  // the first step's size, from q and its slope
     const auto qi = at(q, i, 1, n), fi = at(f, i, 1, n);
@@ -316,6 +320,7 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
       // a step cut short by a break says nothing against the size it was cut from
       h[row] = accept && step[i] < h[row] ? std::max(h[row], proposed) : proposed;
       if (!(h[row] >= 1e-9 * duration)) dead[row] = true;  // NaN too: an error not finite
+      if (++tried[row] >= max_steps && t[row] < duration) dead[row] = true;
       if (accept && stop) {
         const auto x = end->x.row(i);
         for (py::ssize_t j = 0; j < n; ++j)

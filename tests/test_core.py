@@ -27,7 +27,7 @@ from redundancy import (
 )
 from redundancy.model.actuators import ActuatorSet
 from redundancy.planning.cycles import repeat
-from redundancy.planning.integrate import TABLEAU
+from redundancy.planning.integrate import MAX_STEPS, TABLEAU
 from redundancy.planning.starts import improved_start
 from redundancy.resolution import laws
 from redundancy.resolution.laws import (
@@ -281,6 +281,7 @@ def test_the_integration_loop_refuses_states_it_cannot_read(crane):
             0.0,
             False,
             False,
+            MAX_STEPS,
         )
 
     assert loop(compiled_rates(crane, MinVelocityNorm()), np.zeros((3, 4))) is None
@@ -301,7 +302,22 @@ def test_the_loop_refuses_arrays_that_do_not_fit_and_freezes_a_start_it_cannot_s
         f = np.zeros_like(q) if f is None else f
         failed = np.zeros(len(q), dtype=bool) if failed is None else failed
         return _core.dormand_prince(
-            rates, None, q, f, failed, duration, NONE, 1e-6, c, a, e, *strokes, 0.0, False, False
+            rates,
+            None,
+            q,
+            f,
+            failed,
+            duration,
+            NONE,
+            1e-6,
+            c,
+            a,
+            e,
+            *strokes,
+            0.0,
+            False,
+            False,
+            MAX_STEPS,
         )
 
     def still(flags):  # a right-hand side at rest, its flags given as ``flags(r)``

@@ -3,10 +3,12 @@ limits, failures. The adaptive method is checked against it in test_searches.py.
 
 import pickle
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
 from joint_space import fk, inverse_dynamics
+from slewing3r_closed_form import slew_held_configuration
 
 from redundancy import InvalidInputError, actuator_space, default_start, load_robot
 from redundancy.planning import integrate
@@ -297,6 +299,7 @@ def test_the_loop_s_inner_stages_are_the_recorded_ones_to_the_last_bit(crane, cy
             segment.breaks,
             *fixed,
             keep,
+            integrate.MAX_STEPS,
         )
         for keep in (False, True)
     )
@@ -540,3 +543,21 @@ def test_the_time_at_an_arc_length_inverts_the_speed_profile():
     np.testing.assert_allclose(path.progress(path.time_at(s))[0], s, atol=1e-12)
     steady = Segment("c", np.array([3.5, -0.5]), np.array([1.0, -0.5]), 0.5)
     np.testing.assert_allclose(steady.time_at(s), s / 0.5)
+
+
+def test_a_motion_whose_path_leaves_the_reach_fails_at_its_edge_within_max_steps():
+    """The slewing 3R arm (links 1, 0.8 and 0.5 m: it reaches 2.3 m at most) from the closed
+    form's elbow up at (2, 0) m, along x at 0.2 m/s to 2.6 m: the path leaves the reach at
+    t = 1.5 s. There the law holds the tool at the edge, stretched, and chatters; its steps
+    shrank to a few microseconds and ran on, each kept, until the process ran out of memory
+    (a random line of a search did so at 24 GB). The motion is now frozen as failed once it has
+    tried `MAX_STEPS` steps: at the edge, just past 1.5 s, far short of the end at 3 s."""
+    robot = load_robot(Path(__file__).parent / "data" / "slewing3r" / "robot.toml")
+    segment = Segment("out", np.array([2.0, 0.0]), np.array([2.6, 0.0]), 0.2)
+    start = slew_held_configuration(0.0, 1, segment.start)[None]
+    motion = simulate(robot, VELOCITY.resolver, segment, start, sparse=True)
+    assert motion.failed[0]
+    assert len(motion.steps.rows) <= integrate.MAX_STEPS
+    frozen = (motion.steps.t0 + motion.steps.h).max()
+    assert 1.5 <= frozen < 1.6
+    assert abs(np.linalg.norm(motion.y[0, -1]) - 2.3) < 1e-6  # stretched at the edge

@@ -21,7 +21,9 @@ Two methods, one result type (`Trajectory`):
 A start whose actuator Jacobian turns singular, whose state stops being finite, or where an
 actuator cannot be evaluated (a cylinder of zero length, a four-bar linkage that cannot close,
 past its toggle) is frozen there and flagged (`Trajectory.failed`, `FAILED`), so one bad start
-never spoils the batch.
+never spoils the batch. So is an adaptive one that has tried `MAX_STEPS` steps short of the end:
+where the law chatters (the path leaves the arm's reach, and the tool is held at its edge), the
+steps shrink to a millionth of the duration and would run on for a million of them, each kept.
 """
 
 from __future__ import annotations
@@ -57,9 +59,12 @@ if TYPE_CHECKING:
     import pandas as pd
 
 TIME_STEP = 0.01  # s
+MAX_STEPS = 10_000  # an adaptive motion's steps, tried, per segment (the bundled robots' take
+# 3-40 at the reports' tolerance)
 FAILED = (  # why a motion failed (`Trajectory.failed`), in words
     "where A turned singular or an actuator could not be evaluated (a cylinder of zero length, "
-    "a linkage that cannot close)"
+    f"a linkage that cannot close), or where its steps shrank to a crawl ({MAX_STEPS:,} steps "
+    "short of the end: the law chattering, as where the path leaves the arm's reach)"
 )
 MIN_INTERVALS = 10  # of a motion's grid, however short its segment
 MAX_INTERVALS = 1_000_000  # of a motion's grid: 24 MB of q alone for a 3-joint robot
@@ -776,6 +781,7 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
         allowance,
         bounds is not None,
         sparse,
+        MAX_STEPS,
     )
     rates, velocity = law.compiled, law.loop_velocity
     found = None if rates is None else _core.dormand_prince(rates, velocity, *arguments)
