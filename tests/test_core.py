@@ -257,6 +257,11 @@ def test_the_compiled_right_hand_side_refuses_times_that_are_not_one_per_state(c
         rates(np.zeros(2), q, np.array([0.5, 0.0]))
 
 
+# The integration loop's last arguments where the strokes do not matter: no error allowance, no
+# motion stopped past a stroke, no ends of steps kept, the documented cap on steps.
+PLAIN = (0.0, False, False, MAX_STEPS)
+
+
 def test_the_integration_loop_refuses_states_it_cannot_read(crane):
     """The core's loop integrates only what it can read: states of another robot's n come back
     as None from the compiled right-hand side (Python then names what is wrong), and a Python
@@ -278,10 +283,7 @@ def test_the_integration_loop_refuses_states_it_cannot_read(crane):
             1e-6,
             *TABLEAU,
             *bounds,
-            0.0,
-            False,
-            False,
-            MAX_STEPS,
+            *PLAIN,
         )
 
     assert loop(compiled_rates(crane, MinVelocityNorm()), np.zeros((3, 4))) is None
@@ -314,10 +316,7 @@ def test_the_loop_refuses_arrays_that_do_not_fit_and_freezes_a_start_it_cannot_s
             a,
             e,
             *strokes,
-            0.0,
-            False,
-            False,
-            MAX_STEPS,
+            *PLAIN,
         )
 
     def still(flags):  # a right-hand side at rest, its flags given as ``flags(r)``
