@@ -59,7 +59,7 @@ if TYPE_CHECKING:
     import pandas as pd
 
 TIME_STEP = 0.01  # s
-MAX_STEPS = 10_000  # an adaptive motion's steps, tried, per segment (the bundled robots' take
+MAX_STEPS = 2_000  # an adaptive motion's steps, tried, per segment (the bundled robots' take
 # 3-40 at the reports' tolerance)
 FAILED = (  # why a motion failed (`Trajectory.failed`), in words
     "where A turned singular or an actuator could not be evaluated (a cylinder of zero length, "
