@@ -179,15 +179,15 @@ inline bool shaped(const py::array& a, std::initializer_list<py::ssize_t> shape)
 // absolute error ≤ `tolerance`; a start whose state turns bad, whose step shrinks below
 // 1e-9 × duration, or that has tried `max_steps` steps (accepted or not) short of the end, is
 // frozen (failed): where a law chatters (a path that leaves the arm's reach), steps a millionth
-// of the duration would otherwise run on for a million steps, and keep them all. No step crosses one of the sorted times `breaks` in
-// (0, duration), where the path's ẏ_d is not smooth (a speed profile's ramp ends, a polyline's
-// corners): a step that straddles one is as accurate as its order there, not as the error
-// estimate says. Where ẏ_d jumps there, a step that ends on a break reads its last stage just
-// before it (the piece it integrated), and the next step's first slope is the law's at the break
-// (the next piece), one more evaluation per break. With `stop`, a motion whose end of step is
-// past a stroke [lower, upper] (n,) by more than `allowance`, as are its neighbours in the
-// batch, stops. A start whose error estimate is not finite (a Python right-hand side's q̇ NaN)
-// is frozen too.
+// of the duration would otherwise run on for a million steps, and keep them all. No step
+// crosses one of the sorted times `breaks` in (0, duration), where the path's ẏ_d is not smooth
+// (a speed profile's ramp ends, a polyline's corners): a step that straddles one is as accurate
+// as its order there, not as the error estimate says. Where ẏ_d jumps there, a step that ends on a
+// break reads its last stage just before it (the piece it integrated), and the next step's first
+// slope is the law's at the break (the next piece), one more evaluation per break. With `stop`, a
+// motion whose end of step is past a stroke [lower, upper] (n,) by more than `allowance`, as are
+// its neighbours in the batch, stops. A start whose error estimate is not finite (a Python
+// right-hand side's q̇ NaN) is frozen too.
 // The accepted steps (rows, t0, h, q0 and the stage slopes (p, s + 1, n)), failed and stopped
 // (k,), and, with `keep`, each batch of ends of accepted steps as (record, positions in it); None
 // where `Rates` could not serve a batch.
