@@ -561,3 +561,23 @@ def test_a_motion_whose_path_leaves_the_reach_fails_at_its_edge_within_max_steps
     frozen = (motion.steps.t0 + motion.steps.h).max()
     assert 1.5 <= frozen < 1.6
     assert abs(np.linalg.norm(motion.y[0, -1]) - 2.3) < 1e-6  # stretched at the edge
+
+
+def test_a_recorded_path_of_many_points_is_not_cut_short_by_the_step_cap(crane):
+    """No step crosses a break, and a recorded path has one at each inner point, so a polyline
+    of 2,500 points along a straight line needs 2,500 steps at least, more than `MAX_STEPS`:
+    every start failed, as if its steps had shrunk to a crawl. The cap counts the steps beyond
+    one per break: the motion runs to its end, a step ending on every point, and its strokes are
+    those along the line as one piece, within the sparse samples' allowance."""
+    line = np.linspace([3.5, -0.5], [2.0, 0.8], 2_500)
+    path = Segment.along("recorded", Polyline(line), 0.5)
+    assert len(path.breaks) > integrate.MAX_STEPS
+    _, start = default_start(crane, path)
+    motion = simulate(crane, VELOCITY.resolver, path, start, sparse=True)
+    assert not motion.failed[0]
+    ends = motion.steps.t0 + motion.steps.h
+    assert abs(ends.max() - path.duration) < 1e-9 * path.duration
+    assert np.abs(ends[:, None] - path.breaks).min(axis=0).max() < 1e-12
+    straight = Segment("straight", line[0], line[-1], 0.5)
+    whole = simulate(crane, VELOCITY.resolver, straight, start, tolerance=1e-10)
+    assert np.abs(motion.on_grid().x - whole.x).max() < integrate.ALLOWANCE * integrate.TOLERANCE

@@ -21,7 +21,8 @@ Two methods, one result type (`Trajectory`):
 A start whose actuator Jacobian turns singular, whose state stops being finite, or where an
 actuator cannot be evaluated (a cylinder of zero length, a four-bar linkage that cannot close,
 past its toggle) is frozen there and flagged (`Trajectory.failed`, `FAILED`), so one bad start
-never spoils the batch. So is an adaptive one that has tried `MAX_STEPS` steps short of the end:
+never spoils the batch. So is an adaptive one that has tried `MAX_STEPS` steps short of the end,
+beyond the one step each of the path's breaks (a recorded path's points) forces:
 where the law chatters (the path leaves the arm's reach, and the tool is held at its edge), the
 steps shrink to a millionth of the duration and would run on for a million of them, each kept.
 """
@@ -59,8 +60,8 @@ if TYPE_CHECKING:
     import pandas as pd
 
 TIME_STEP = 0.01  # s
-MAX_STEPS = 2_000  # an adaptive motion's steps, tried, per segment (the bundled robots' take
-# 3-40 at the reports' tolerance)
+MAX_STEPS = 2_000  # an adaptive motion's steps, tried, per segment beyond one per break (the
+# bundled robots' take 3-40 at the reports' tolerance; a recorded path has a break per point)
 FAILED = (  # why a motion failed (`Trajectory.failed`), in words
     "where A turned singular or an actuator could not be evaluated (a cylinder of zero length, "
     f"a linkage that cannot close), or where its steps shrank to a crawl ({MAX_STEPS:,} steps "
@@ -781,7 +782,7 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
         allowance,
         bounds is not None,
         sparse,
-        MAX_STEPS,
+        MAX_STEPS + len(law.segment.breaks),  # no step crosses a break
     )
     rates, velocity = law.compiled, law.loop_velocity
     found = None if rates is None else _core.dormand_prince(rates, velocity, *arguments)
