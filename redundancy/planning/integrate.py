@@ -22,9 +22,9 @@ A start whose actuator Jacobian turns singular, whose state stops being finite, 
 actuator cannot be evaluated (a cylinder of zero length, a four-bar linkage that cannot close,
 past its toggle) is frozen there and flagged (`Trajectory.failed`, `FAILED`), so one bad start
 never spoils the batch. So is an adaptive one that has tried `MAX_STEPS` steps short of the end,
-beyond the one step each of the path's breaks (a recorded path's points) forces:
-where the law chatters (the path leaves the arm's reach, and the tool is held at its edge), the
-steps shrink to a millionth of the duration and would run on for a million of them, each kept.
+beyond the one step each of the path's breaks (a recorded path's points) forces: where the law
+chatters (the path leaves the arm's reach, and the tool is held at its edge), the steps shrink
+to a millionth of the duration and would run on for a million of them, each kept.
 """
 
 from __future__ import annotations
