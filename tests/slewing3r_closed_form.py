@@ -41,3 +41,22 @@ def slew_held_configuration(v: float, elbow: int, point: np.ndarray) -> np.ndarr
     w = np.array([second + third * np.cos(q3), third * np.sin(q3)])
     q2 = modulo_turn(np.arctan2(r[1], r[0]) - v - np.arctan2(w[1], w[0]))
     return np.array([v, q2, q3])
+
+
+def shoulder_held_configuration(v: float, elbow: int, point: np.ndarray) -> np.ndarray | None:
+    """The configuration (3,) that puts the tool at ``point`` (2,) m with x2 = v on the
+    ``elbow`` (±1) branch, or None where none does: links 1 and 2 as one rigid
+    u = (1 + 0.8 cos v, 0.8 sin v) m put the wrist at distance |u| from the base and 0.5 m
+    from the point, D = |point| away, so by the law of cosines its angle is
+    atan2(point) ± arccos((|u|² + D² − 0.5²) / 2 |u| D); q1 turns u onto it and q3 closes the
+    last link onto the point."""
+    first, second, third = LINKS
+    u = np.array([first + second * np.cos(v), second * np.sin(v)])
+    reach = float(np.hypot(*point))
+    cosine = (u @ u + reach**2 - third**2) / (2 * np.sqrt(u @ u) * reach)
+    if abs(cosine) > 1:
+        return None
+    wrist = np.arctan2(point[1], point[0]) + elbow * np.arccos(cosine)
+    q1 = wrist - np.arctan2(u[1], u[0])
+    r = np.asarray(point) - np.sqrt(u @ u) * np.array([np.cos(wrist), np.sin(wrist)])
+    return np.array([q1, v, modulo_turn(np.arctan2(r[1], r[0]) - q1 - v)])

@@ -3,11 +3,13 @@
 The fast improved search (`redundancy.planning.starts`) samples the margin μ(v) of a start v (its
 least distance to a limit over the whole motion: continuous in v, so the ends of the feasible set
 are its zeros) and the objective's peak. These helpers choose the next values to sample:
-`bracket_probes` near each zero (μ may have a kink at its zero, where the binding limit changes,
-and then a side's own line through its two nearest values is the accurate fit), `summit_probes`
-around the highest μ while no sample is inside, `vertex_probe` near the least peak, `end_probe`
-beside it where it lies at an end of the feasible set, and `new_probes` of those, the ones not
-sampled already.
+`grid_over` the first ones over pieces of the values, `bracket_probes` near each zero (μ may have
+a kink at its zero, where the binding limit changes, and then a side's own line through its two
+nearest values is the accurate fit), `edge_probes` towards the end of the values where μ is
+defined at all, `summit_probes` around the highest μ while no sample is inside, `vertex_probes`
+near the least peak and in any other basin of the peak that may hold a lower one, `end_probe`
+beside the least where it lies at an end of the feasible set, and `new_probes` of those, the
+ones not sampled already.
 """
 
 from __future__ import annotations
@@ -43,6 +45,36 @@ def bracket_probes(values, margins, inside, tolerance) -> list[float]:
             probes.append((a + b) / 2)
         for zero in clusters(sorted(zeros), tolerance):
             probes += list(np.clip(zero + tolerance * np.array([-0.45, 0.45]), a, b))
+    return probes
+
+
+def grid_over(pieces, count) -> np.ndarray:
+    """``count`` values evenly from the first of the intervals ``pieces`` (p, 2), in order, to
+    the end of the last, and the middle of each piece none of them falls in: a piece narrower
+    than the grid's spacing is sampled too, so that the margin's brackets around it are seen."""
+    grid = np.linspace(pieces[0, 0], pieces[-1, 1], count)
+    missed = [(a + b) / 2 for a, b in pieces if not ((grid >= a) & (grid <= b)).any()]
+    return np.sort(np.concatenate([grid, missed]))
+
+
+def edge_probes(values, margins, tolerance) -> list[float]:
+    """The midpoints of the intervals wider than ``tolerance`` between a value whose margin is
+    finite and below 0 and a neighbour where it is not defined (−inf: past the end of a branch
+    of inverse-kinematics solutions, no configuration there), where the margin rises towards
+    that end (from the value's other neighbour, if that has a margin). Such a branch ends at a
+    fold, where its configuration changes as the square root of the distance to the end, so
+    the margin may rise through 0 between the samples however steeply: no slope seen elsewhere
+    bounds it, and each round halves the interval, as bisection locates the end. A margin that
+    falls towards the end is taken to fall on to it (the square root's term dominates near
+    the fold; a margin that turns up only closer to the end than the samples is not seen)."""
+    defined = np.isfinite(margins)
+    probes = []
+    for i in np.flatnonzero(defined[:-1] != defined[1:]):
+        inner, outer = (i, i - 1) if defined[i] else (i + 1, i + 2)
+        rising = not (0 <= outer < len(values) and defined[outer])
+        rising = rising or margins[inner] >= margins[outer]
+        if values[i + 1] - values[i] > tolerance and margins[inner] < 0 and rising:
+            probes.append((values[i] + values[i + 1]) / 2)
     return probes
 
 
@@ -112,15 +144,39 @@ def summit_probes(values, margins, tolerance) -> list[float]:
     ]
 
 
-def vertex_probe(values, peaks, tolerance) -> list[float]:
-    """The vertex of the parabola through the least finite peak and its two neighbours, when
-    both are finite and higher and they span more than twice ``tolerance``."""
-    best = int(np.argmin(peaks))
-    if not (0 < best < len(values) - 1 and np.all(np.isfinite(peaks[best - 1 : best + 2]))):
-        return []
-    v, p = values[best - 1 : best + 2], peaks[best - 1 : best + 2]
+def vertex_probes(values, peaks, tolerance) -> list[float]:
+    """Probes of the least peak's basin and of every other basin that may hold a lower one.
+
+    Around the least finite peak, and around every other local minimum of the peaks whose
+    parabola dips below that least peak (a second basin of the peak over the values, sampled
+    above the first's least sample by the grid, may hold the least of all): the vertex of the
+    parabola through it and its two neighbours, when both are finite and they span more than
+    twice ``tolerance``. The parabola p(v) = p₁ + d (v − v₁) + a (v − v₁)², a the second
+    divided difference, dips to p₁ − d² / 4a at its vertex."""
+    least = int(np.argmin(peaks))
+    probes = []
+    for i in range(1, len(values) - 1):
+        v, p = values[i - 1 : i + 2], peaks[i - 1 : i + 2]
+        if not np.all(np.isfinite(p)) or v[2] - v[0] <= 2 * tolerance:
+            continue
+        if i != least:
+            slopes = np.diff(p) / np.diff(v)
+            curvature = (slopes[1] - slopes[0]) / (v[2] - v[0])
+            if not (p[1] < p[0] and p[1] < p[2]):
+                continue
+            slope = slopes[0] + curvature * (v[1] - v[0])  # d, the parabola's slope at v₁
+            if p[1] - slope**2 / (4 * curvature) >= peaks[least]:
+                continue
+        probes += _vertex_probe(v, p, tolerance)
+    return probes
+
+
+def _vertex_probe(v, p, tolerance) -> list[float]:
+    """The vertex of the parabola through (v, p) (3,) each, kept ``tolerance`` / 2 inside its
+    span; where it creeps (within an eighth of the wider side from the middle value, as at a
+    kink of the peak), the golden section of that side."""
     near, far = (v[1] - v[0]) * (p[1] - p[2]), (v[1] - v[2]) * (p[1] - p[0])
-    if v[2] - v[0] <= 2 * tolerance or near == far:
+    if near == far:
         return []
     vertex = v[1] - ((v[1] - v[0]) * near - (v[1] - v[2]) * far) / (2 * (near - far))
     wider = 0 if v[1] - v[0] > v[2] - v[1] else 2

@@ -47,6 +47,7 @@ from redundancy.planning.bound import (
     resampled,
     solve_transcription,
 )
+from redundancy.planning.brackets import grid_over
 from redundancy.planning.ik import CONTINUATION_ITERATIONS, FOUND, held_names, newton
 from redundancy.planning.integrate import FAILED, TIME_STEP, Trajectory
 from redundancy.planning.motions import Laws, per_segment, simulate_path
@@ -557,10 +558,11 @@ def return_map(
     near: np.ndarray | None = None,
 ) -> ReturnMap:
     """P sampled at ``values`` of the held actuator (default ``count`` evenly over the reachable
-    part of its stroke at the cycle's start), all integrated as one batch. Its starts lie on the
-    assembly branch of ``near``, a configuration (n,) at the cycle's start (a repetition's last
-    one: the branch it runs on, where its first cycle changed branch), by default on the side
-    of the fold of the configuration inverse kinematics picks at mid-stroke (the first of
+    part of its stroke at the cycle's start, and inside a narrower piece of it they step over:
+    `grid_over`), all integrated as one batch. Its starts lie on the assembly branch of
+    ``near``, a configuration (n,) at the cycle's start (a repetition's last one: the branch it
+    runs on, where its first cycle changed branch), by default on the side of the fold of the
+    configuration inverse kinematics picks at mid-stroke (the first of
     `Configurations.branches`)."""
     require_robot(robot)
     found = _held(robot, cycle, held)
@@ -581,8 +583,7 @@ def return_map(
             raise InvalidInputError(
                 f"count must be a whole number within [2, {MAX_SAMPLES:,}]; got {count!r}"
             )
-        reachable = configurations.reachable(end_tolerance(robot, name, None))
-        values = np.linspace(reachable[0], reachable[-1], count)
+        values = grid_over(configurations.reachable(end_tolerance(robot, name, None)), count)
     given, values = values, finite_vector(values)
     if values is None:
         raise InvalidInputError(

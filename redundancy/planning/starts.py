@@ -18,7 +18,10 @@ configuration inverse kinematics reaches from its seeds. Methods:
 - "fast" (r = 1, the default): the margin μ(v) of a start v, the least distance of a checked
   stroke to its limits over the motion and of the start to its joint limits, is continuous in
   v, so the ends of the feasible set are its zeros. The reachable starts are located first by
-  continuation along v (no integration); `GRID` of them are integrated, and each round
+  continuation along v (no integration), pieces of them cut off from the rest too (a piece
+  at the end of the branch, narrower than the scan's spacing, by bisection towards that end);
+  `GRID` of them are integrated, evenly from the first piece to the last and one inside each
+  piece they step over, and each round
   integrates the probes of every bracket of the feasible set (`redundancy.planning.brackets`)
   and of the least peak (beside it too where it lies at an end of the feasible set), until
   every end is located to ``tolerance``. Where none of the grid's starts is feasible, a
@@ -57,10 +60,12 @@ from redundancy.model.robot import Robot, require_robot
 from redundancy.model.values import is_finite, is_whole
 from redundancy.planning.brackets import (
     bracket_probes,
+    edge_probes,
     end_probe,
+    grid_over,
     new_probes,
     summit_probes,
-    vertex_probe,
+    vertex_probes,
 )
 from redundancy.planning.ik import (
     FOUND,
@@ -410,22 +415,28 @@ class Configurations:
         )
 
     def reachable(self, tolerance: float) -> np.ndarray:
-        """The reachable held values, in order, of `REACH_GRID` starts over the stroke with the
-        ends of the reachable ones located to ``tolerance`` by bisection of the joint margin: no
-        integration, so one scan serves every objective's search (kept per tolerance)."""
+        """The pieces (p, 2) of the held stroke over which the start is reachable, in order,
+        from `REACH_GRID` starts over the stroke with the ends of the reachable ones located to
+        ``tolerance`` by bisection of the joint margin, and the end of the branch located where
+        a start outside the joint limits beside it comes closer to them towards it
+        (`edge_probes`: a piece inside them, narrower than the scan's spacing, may lie at that
+        end): no integration, so one scan serves every objective's search (kept per
+        tolerance)."""
         if tolerance not in self._reach:
             reach = self.at(self.scan)
             for _ in range(ROUNDS):
-                values = reach.values[:, 0]
+                values, margins = reach.values[:, 0], reach.joint_margins
                 probes = new_probes(
-                    bracket_probes(values, reach.joint_margins, reach.reachable, tolerance),
+                    bracket_probes(values, margins, reach.reachable, tolerance)
+                    + edge_probes(values, margins, tolerance),
                     values,
                     tolerance,
                 )
                 if not probes.size:
                     break
                 reach = reach.merged(self.at(probes))
-            self._reach[tolerance] = reach.values[reach.reachable, 0]
+            ends = np.flatnonzero(np.diff(np.concatenate([[0], reach.reachable, [0]])))
+            self._reach[tolerance] = reach.values[np.stack([ends[::2], ends[1::2] - 1], 1), 0]
         if not self._reach[tolerance].size:
             how = f"inside its joint limits with {self.held} anywhere in its stroke"
             raise _unreachable(self.robot, self.segment, how)
@@ -682,9 +693,9 @@ def fast_search(configurations: Configurations, tolerance: float | None, evaluat
     along it and returns a search of their samples that can be ``extended``. The reachable scan
     is the configurations' own, shared by every search that uses them."""
     tolerance = end_tolerance(configurations.robot, configurations.held, tolerance)
-    reachable = configurations.reachable(tolerance)
-    grid = configurations.at(np.linspace(reachable[0], reachable[-1], GRID))
-    spacing = (reachable[-1] - reachable[0]) / (GRID - 1)
+    pieces = configurations.reachable(tolerance)
+    grid = configurations.at(grid_over(pieces, GRID))
+    spacing = (pieces[-1, 1] - pieces[0, 0]) / (GRID - 1)
     search = evaluate(grid, True)
     if not search.feasible:  # between the grid's values, if anywhere: climb the margin there
         if not np.isfinite([s.margin for s in search.samples]).any():  # all stopped: unknown
@@ -700,7 +711,7 @@ def fast_search(configurations: Configurations, tolerance: float | None, evaluat
         feasible = np.array([s.feasible for s in ordered])
         peaks = np.array([s.peak if s.feasible else np.inf for s in ordered])
         candidates = bracket_probes(values, margins, feasible, tolerance)
-        candidates += vertex_probe(values, peaks, tolerance)
+        candidates += vertex_probes(values, peaks, tolerance)
         candidates += end_probe(values, peaks, spacing)
         probes = new_probes(candidates, values, tolerance)
         if not probes.size:
