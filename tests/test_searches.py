@@ -257,17 +257,19 @@ def test_summit_probes_halve_the_intervals_beside_the_highest_margin():
     assert summit_probes(values, margins - 2.5, 0.1) == []  # −3.5 + 2 × 1 × 1 < 0
 
 
-def test_edge_probes_halve_the_intervals_to_a_branchs_end_where_its_margin_rises_to_it():
-    """The branch has no configuration at 0 and 5 (margin −inf). Beside 0 the margin rises
-    towards the end (−2 at 2, −1 at 1): the midpoint 0.5, until the interval is within the
-    tolerance. Beside 5 it falls towards the end (−1 at 3, −2 at 4): no probe. Nor where the
-    margin beside the end is ≥ 0 (the reachable brackets locate that end)."""
+def test_edge_probes_divide_the_intervals_beside_a_branchs_end_where_its_margin_is_below_0():
+    """The branch has no configuration at 0 and 5 (margin −inf); beside 0 the margin is −1,
+    beside 5 −2: each interval is divided into five, until it is within the tolerance,
+    whether the margin rises towards the end (at 1) or falls (at 4). Not where the margin
+    beside the end is ≥ 0: the reachable brackets locate that end."""
     values = np.arange(6.0)
     margins = np.array([-np.inf, -1.0, -2.0, -1.0, -2.0, -np.inf])
-    assert edge_probes(values, margins, 0.1) == [0.5]
+    fifths = [0.2, 0.4, 0.6, 0.8]
+    assert edge_probes(values, margins, 0.1) == pytest.approx(fifths + [4 + f for f in fifths])
     assert edge_probes(values, margins, 1.0) == []
-    assert edge_probes(values, np.where(values == 1, 0.5, margins), 0.1) == []
-    assert edge_probes(values[:2], margins[:2], 0.1) == [0.5]  # no other neighbour to compare
+    assert edge_probes(values, np.where(values == 1, 0.5, margins), 0.1) == pytest.approx(
+        [4 + f for f in fifths]
+    )
 
 
 def test_the_grid_over_pieces_samples_the_middle_of_a_piece_it_steps_over():
@@ -346,6 +348,37 @@ def test_the_fast_search_finds_the_least_peak_in_a_second_basin():
     search = improved_start(robot, line, VELOCITY, "x2")
     assert search.best_peak <= 1.005 * peak
     assert robot.same_pose(search.motion().q[0, 0], best, 0.02)
+
+
+def test_a_start_past_a_slews_stroke_end_is_taken_a_turn_back_inside_it():
+    """The slewing arm with its slew's stroke one turn, [−π, π], and its shoulder x2 held: on
+    the closed form's elbow −1 (the wrist clockwise of the line from the base to the start)
+    the slew of the starts runs across ±π as x2 grows. Continued from a start near −π, the
+    start at x2 = 0.84 had q1 = −3.23, outside the stroke; the same pose a turn on, q1 = 3.05,
+    is inside it, and its motion keeps every stroke with the least peak of all: 0.01581
+    rad²/s², by brute force over x2 in steps of 2 mrad from the closed form, q1 taken inside
+    the stroke. The fast search found 0.0240 (0.0335 before it searched a branch's end), the
+    sweep of 1,000 samples 0.0259, both elsewhere: continuation kept that slew outside the
+    stroke. It now takes the turn inside a joint's range where there is one: within 0.5 %
+    (the search's tolerance, 2.8 mrad)."""
+    robot = load_robot(SLEWING / "slew_held.toml")
+    start = np.array([-1.3948182450898194, -0.919903416871264])
+    line = Segment("line", start, np.array([-1.8224244790875685, -0.13712840407334548]), 0.2)
+    least = {}
+    for elbow in (1, -1):
+        values = np.linspace(-2.8, 2.8, 2801)
+        found = [shoulder_held_configuration(v, elbow, line.start) for v in values]
+        q = np.array([each for each in found if each is not None and abs(each[2]) <= 2.8])
+        q[:, 0] = modulo_turn(q[:, 0])  # the slew inside its stroke
+        motions = simulate(robot, VELOCITY.resolver, line, q)
+        peaks = np.where(motions.within_limits, motions.score(VELOCITY), np.inf)
+        least[elbow] = (peaks.min(), q[np.argmin(peaks)])
+    peak, best = least[-1]
+    assert peak < 0.7 * least[1][0] and best[1] == pytest.approx(0.84)
+    search = improved_start(robot, line, VELOCITY, "x2")
+    assert search.best_peak <= 1.005 * peak
+    q = search.motion().q[0, 0]
+    assert robot.same_pose(q, best, 0.02) and abs(q[0]) <= np.pi
 
 
 def test_the_least_peak_is_probed_beside_a_feasible_end_and_past_a_kink():

@@ -57,24 +57,24 @@ def grid_over(pieces, count) -> np.ndarray:
     return np.sort(np.concatenate([grid, missed]))
 
 
+EDGE_PARTS = 5  # parts edge_probes divide an interval beside the end of a branch into
+
+
 def edge_probes(values, margins, tolerance) -> list[float]:
-    """The midpoints of the intervals wider than ``tolerance`` between a value whose margin is
-    finite and below 0 and a neighbour where it is not defined (−inf: past the end of a branch
-    of inverse-kinematics solutions, no configuration there), where the margin rises towards
-    that end (from the value's other neighbour, if that has a margin). Such a branch ends at a
-    fold, where its configuration changes as the square root of the distance to the end, so
-    the margin may rise through 0 between the samples however steeply: no slope seen elsewhere
-    bounds it, and each round halves the interval, as bisection locates the end. A margin that
-    falls towards the end is taken to fall on to it (the square root's term dominates near
-    the fold; a margin that turns up only closer to the end than the samples is not seen)."""
+    """Probes dividing into `EDGE_PARTS` each interval wider than ``tolerance`` between a value
+    whose margin is finite and below 0 and a neighbour where it is not defined (−inf: past the
+    end of a branch of inverse-kinematics solutions, no configuration there). Such a branch
+    ends at a fold, where its configuration changes as the square root of the distance s to
+    the end: a margin μ₀ + c √s + d s may fall between the samples and still turn up through 0
+    close to the end, so no slope seen bounds it. Each round divides the interval beside the
+    end again, locating the end; a zero of the margin found beside it is then a reachable
+    bracket's (`bracket_probes`)."""
     defined = np.isfinite(margins)
-    probes = []
+    probes: list[float] = []
     for i in np.flatnonzero(defined[:-1] != defined[1:]):
-        inner, outer = (i, i - 1) if defined[i] else (i + 1, i + 2)
-        rising = not (0 <= outer < len(values) and defined[outer])
-        rising = rising or margins[inner] >= margins[outer]
-        if values[i + 1] - values[i] > tolerance and margins[inner] < 0 and rising:
-            probes.append((values[i] + values[i + 1]) / 2)
+        a, b = values[i], values[i + 1]
+        if b - a > tolerance and margins[i if defined[i] else i + 1] < 0:
+            probes += list(a + (b - a) * np.arange(1, EDGE_PARTS) / EDGE_PARTS)
     return probes
 
 

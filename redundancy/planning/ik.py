@@ -291,13 +291,21 @@ def _nearest_turn(
     side: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Configurations q (k, n) continued from ``origin`` (k, n), each revolute joint of a
-    bounded range moved by whole turns to the turn nearest its origin (Newton from far away can
-    land on the pose a turn or more away, outside the joint's range), where the moved
-    configuration still meets ``target`` [y*, x_h*] (k, m + 1) with the held actuator ``row``
-    (one driven directly is not moved by a turn); and their sides of the fold: Newton's
-    ``side`` (k,) at q, read again at a moved configuration alone."""
+    bounded range moved by whole turns to the turn inside its range, where one is, else to the
+    turn nearest its origin (Newton from far away can land on the pose a turn or more away,
+    outside the joint's range; and a slew whose stroke is one turn, crossing its end, comes
+    back inside it a turn away), where the moved configuration still meets ``target``
+    [y*, x_h*] (k, m + 1) with the held actuator ``row`` (one driven directly is not moved by a
+    turn); and their sides of the fold: Newton's ``side`` (k,) at q, read again at a moved
+    configuration alone."""
     bounded = robot.rotary_joints & ~robot.turning
     nearest = np.where(bounded, origin + modulo_turn(q - origin), q)
+    for turn in (2 * np.pi, -2 * np.pi):
+        inside = (nearest >= robot.lower) & (nearest <= robot.upper)
+        moved = nearest + turn
+        nearest = np.where(
+            bounded & ~inside & (moved >= robot.lower) & (moved <= robot.upper), moved, nearest
+        )
     turned = np.flatnonzero((np.abs(nearest - q) > np.pi).any(axis=1))
     if not turned.size:
         return q, side
