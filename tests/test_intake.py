@@ -661,7 +661,7 @@ def test_a_played_page_says_from_which_start_and_best_takes_the_sweep_it_is_give
     """play --best writes a page whose heading, and the line it prints, name the start: the
     best of the fast search's starts, or with --method sweep of the --samples it sweeps."""
     page = tmp_path / "p.html"
-    for extra, starts in (([], 13), (["--method", "sweep", "--samples", "20"], 6)):
+    for extra, starts in (([], 14), (["--method", "sweep", "--samples", "20"], 6)):
         assert main(["play", "--segment", "1-2", "--best", *extra, "--html", str(page)]) == 0
         expected = f"velocity objective, best of {starts} starts, x3 = 1090 mm"
         assert f"(segment 1-2, {expected})" in capsys.readouterr().out

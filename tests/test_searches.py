@@ -272,12 +272,17 @@ def test_edge_probes_divide_the_intervals_beside_a_branchs_end_where_its_margin_
     )
 
 
-def test_the_grid_over_pieces_samples_the_middle_of_a_piece_it_steps_over():
-    """Three values from 0 to 10 over the pieces [0, 1], [3.5, 3.7] and [9, 10]: 0, 5 and 10,
-    and 3.6, the middle of the narrow piece none of them lands in."""
+def test_the_grid_over_pieces_lies_along_them_with_their_ends_and_inside_a_narrow_one():
+    """Three values along [0, 1], [3.5, 3.7] and [9, 10] laid end to end (2.2 long): 0, 3.6
+    (1.1 along) and 10, none in the gaps, and every piece's ends. Four along [0, 1],
+    [3.5, 3.52] and [9, 10] (2.02 long, every 0.673): 0, 0.673, 9.327 and 10, the ends, and
+    3.51, the middle of the piece they step over."""
     pieces = np.array([[0.0, 1.0], [3.5, 3.7], [9.0, 10.0]])
-    np.testing.assert_allclose(grid_over(pieces, 3), [0.0, 3.6, 5.0, 10.0])
-    np.testing.assert_allclose(grid_over(pieces[[0, 2]], 3), [0.0, 5.0, 10.0])
+    np.testing.assert_allclose(grid_over(pieces, 3), [0.0, 1.0, 3.5, 3.6, 3.7, 9.0, 10.0])
+    pieces[1, 1] = 3.52
+    step = 2.02 / 3
+    expected = [0.0, step, 1.0, 3.5, 3.51, 3.52, 9.0, 9 + 2 * step - 1.02, 10.0]
+    np.testing.assert_allclose(grid_over(pieces, 4), expected)
 
 
 def test_a_piece_of_a_branch_at_its_end_narrower_than_the_reach_scan_is_searched():
@@ -383,12 +388,12 @@ def test_a_start_past_a_slews_stroke_end_is_taken_a_turn_back_inside_it():
 
 def test_the_least_peak_is_probed_beside_a_feasible_end_and_past_a_kink():
     """End probe: the least peak (1.0 at 0) has a feasible neighbour on one side only: the
-    midpoint towards it, while it is farther than half the grid's spacing. Vertex probe: the
-    parabola's vertex, unless it creeps (within an eighth of the wider side from the least
-    peak, as at a kink of the peak), then the golden section of that side."""
+    midpoint towards it, while it is farther than a quarter of the grid's spacing. Vertex
+    probe: the parabola's vertex, unless it creeps (within an eighth of the wider side from
+    the least peak, as at a kink of the peak), then the golden section of that side."""
     values, peaks = np.array([-1.0, 0.0, 1.0, 2.0]), np.array([np.inf, 1.0, 3.0, 4.0])
-    assert end_probe(values, peaks, 1.0) == [0.5]
-    assert end_probe(values, peaks, 2.0) == []
+    assert end_probe(values, peaks, 3.9) == [0.5]
+    assert end_probe(values, peaks, 4.0) == []
     assert end_probe(values, np.array([5.0, 1.0, 3.0, 4.0]), 1.0) == []  # both sides: a vertex
     assert vertex_probes(np.array([0.0, 1.0, 3.0]), np.array([2.0, 1.0, 2.0]), 0.01) == [1.5]
     values = np.array([0.0, 1.0, 9.0])

@@ -49,12 +49,17 @@ def bracket_probes(values, margins, inside, tolerance) -> list[float]:
 
 
 def grid_over(pieces, count) -> np.ndarray:
-    """``count`` values evenly from the first of the intervals ``pieces`` (p, 2), in order, to
-    the end of the last, and the middle of each piece none of them falls in: a piece narrower
-    than the grid's spacing is sampled too, so that the margin's brackets around it are seen."""
-    grid = np.linspace(pieces[0, 0], pieces[-1, 1], count)
+    """``count`` values evenly along the intervals ``pieces`` (p, 2), in order, laid end to end
+    (none spent on the gaps between them), the ends of every piece, and the middle of each
+    piece none of the ``count`` falls in: the margin's brackets at a piece's ends are seen, and
+    a piece narrower than the spacing is sampled inside too."""
+    lengths = pieces[:, 1] - pieces[:, 0]
+    ends = np.cumsum(lengths)
+    along = np.linspace(0.0, ends[-1], count)
+    piece = np.minimum(np.searchsorted(ends, along), len(pieces) - 1)
+    grid = pieces[piece, 0] + along - (ends - lengths)[piece]
     missed = [(a + b) / 2 for a, b in pieces if not ((grid >= a) & (grid <= b)).any()]
-    return np.sort(np.concatenate([grid, missed]))
+    return np.unique(np.concatenate([grid, pieces.ravel(), missed]))
 
 
 EDGE_PARTS = 5  # parts edge_probes divide an interval beside the end of a branch into
@@ -188,14 +193,16 @@ def _vertex_probe(v, p, tolerance) -> list[float]:
 def end_probe(values, peaks, spacing) -> list[float]:
     """The midpoint between the least finite peak and its one finite neighbour, where the
     other side has none (the least peak at an end of the feasible set) and that neighbour is
-    farther than half ``spacing``: the peak may dip between them, where `vertex_probe`, which
-    needs a neighbour on either side, does not look. Once that side is sampled at half the
-    spacing, no more: a dip narrower stays unseen (a heuristic, as any sampling of a peak)."""
+    farther than a quarter of ``spacing``: the peak may dip between them, where
+    `vertex_probes`, which need a neighbour on either side, do not look (a peak's least is
+    often a kink, where the motion's peak moves from one instant to another, and no parabola
+    through one side foresees it). Once that side is sampled at a quarter of the spacing, no
+    more: a dip narrower stays unseen (a heuristic, as any sampling of a peak)."""
     best = int(np.argmin(peaks))
     sides = [j for j in (best - 1, best + 1) if 0 <= j < len(values) and np.isfinite(peaks[j])]
     if not np.isfinite(peaks[best]) or len(sides) != 1:
         return []
     j = sides[0]
-    if abs(values[j] - values[best]) <= spacing / 2 * (1 + 1e-9):
+    if abs(values[j] - values[best]) <= spacing / 4 * (1 + 1e-9):
         return []
     return [(values[best] + values[j]) / 2]

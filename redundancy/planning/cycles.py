@@ -557,13 +557,13 @@ def return_map(
     count: int = MAP_SAMPLES,
     near: np.ndarray | None = None,
 ) -> ReturnMap:
-    """P sampled at ``values`` of the held actuator (default ``count`` evenly over the reachable
-    part of its stroke at the cycle's start, and inside a narrower piece of it they step over:
-    `grid_over`), all integrated as one batch. Its starts lie on the assembly branch of
-    ``near``, a configuration (n,) at the cycle's start (a repetition's last one: the branch it
-    runs on, where its first cycle changed branch), by default on the side of the fold of the
-    configuration inverse kinematics picks at mid-stroke (the first of
-    `Configurations.branches`)."""
+    """P sampled at ``values`` of the held actuator (default ``count`` evenly along the pieces
+    of its stroke over which the cycle's start is reachable, with every piece's ends and one
+    inside a narrower piece they step over: `grid_over`), all integrated as one batch. Its
+    starts lie on the assembly branch of ``near``, a configuration (n,) at the cycle's start
+    (a repetition's last one: the branch it runs on, where its first cycle changed branch), by
+    default on the side of the fold of the configuration inverse kinematics picks at
+    mid-stroke (the first of `Configurations.branches`)."""
     require_robot(robot)
     found = _held(robot, cycle, held)
     if len(found) != 1:

@@ -20,8 +20,8 @@ configuration inverse kinematics reaches from its seeds. Methods:
   v, so the ends of the feasible set are its zeros. The reachable starts are located first by
   continuation along v (no integration), pieces of them cut off from the rest too (a piece
   at the end of the branch, narrower than the scan's spacing, by bisection towards that end);
-  `GRID` of them are integrated, evenly from the first piece to the last and one inside each
-  piece they step over, and each round
+  `GRID` of them are integrated, evenly along the pieces, with every piece's ends (and one
+  inside each piece they step over), and each round
   integrates the probes of every bracket of the feasible set (`redundancy.planning.brackets`)
   and of the least peak (beside it too where it lies at an end of the feasible set), until
   every end is located to ``tolerance``. Where none of the grid's starts is feasible, a
@@ -695,7 +695,7 @@ def fast_search(configurations: Configurations, tolerance: float | None, evaluat
     tolerance = end_tolerance(configurations.robot, configurations.held, tolerance)
     pieces = configurations.reachable(tolerance)
     grid = configurations.at(grid_over(pieces, GRID))
-    spacing = (pieces[-1, 1] - pieces[0, 0]) / (GRID - 1)
+    spacing = np.sum(pieces[:, 1] - pieces[:, 0]) / (GRID - 1)
     search = evaluate(grid, True)
     if not search.feasible:  # between the grid's values, if anywhere: climb the margin there
         if not np.isfinite([s.margin for s in search.samples]).any():  # all stopped: unknown
