@@ -294,8 +294,8 @@ def test_a_piece_of_a_branch_at_its_end_narrower_than_the_reach_scan_is_searched
     over both elbows, by brute force over x3 in steps of 2 mrad from the closed form, lies on
     it, at its feasible end (0.0859 rad²/s² at x3 = −2.384), where the peak falls 0.15 per rad:
     the fast search, locating that end to within 2.8 mrad, is within 0.5 % of it. It found
-    0.0955, 11 % above, elsewhere, before the scan bisected towards the end of a
-    branch whose margin beside it rises."""
+    0.0955, 11 % above, elsewhere, before the scan searched beside a branch's end
+    (`edge_probes`)."""
     robot = load_robot(SLEWING / "robot.toml")
     line = Segment("near the base", np.array([0.453, 0.223]), np.array([0.44, -0.292]), 0.2)
     values = np.linspace(-2.8, 2.8, 2801)
