@@ -50,16 +50,18 @@ def bracket_probes(values, margins, inside, tolerance) -> list[float]:
 
 def grid_over(pieces, count) -> np.ndarray:
     """``count`` values evenly along the intervals ``pieces`` (p, 2), in order, laid end to end
-    (none spent on the gaps between them), the ends of every piece, and the middle of each
-    piece none of the ``count`` falls in: the margin's brackets at a piece's ends are seen, and
-    a piece narrower than the spacing is sampled inside too."""
+    (none spent on the gaps between them), the ends of every piece, the middle of each piece
+    none of the ``count`` falls in, and the middle of every gap: the margin's brackets at a
+    piece's ends are seen, a piece narrower than the spacing is sampled inside too, and no
+    bracket, crossing or fit spans a gap."""
     lengths = pieces[:, 1] - pieces[:, 0]
     ends = np.cumsum(lengths)
     along = np.linspace(0.0, ends[-1], count)
     piece = np.minimum(np.searchsorted(ends, along), len(pieces) - 1)
-    grid = pieces[piece, 0] + along - (ends - lengths)[piece]
+    grid = np.clip(pieces[piece, 0] + along - (ends - lengths)[piece], *pieces[piece].T)
     missed = [(a + b) / 2 for a, b in pieces if not ((grid >= a) & (grid <= b)).any()]
-    return np.unique(np.concatenate([grid, pieces.ravel(), missed]))
+    gaps = (pieces[1:, 0] + pieces[:-1, 1]) / 2
+    return np.unique(np.concatenate([grid, pieces.ravel(), missed, gaps]))
 
 
 EDGE_PARTS = 5  # parts edge_probes divide an interval beside the end of a branch into

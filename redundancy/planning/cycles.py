@@ -70,7 +70,7 @@ from redundancy.resolution.objectives import objective as as_objective
 CYCLES = 20  # repetitions by default
 STRATEGIES = ("free", "periodic")  # a repetition's law: the objective's, or drift-free
 SETTLED = 1e-6  # m (or rad): a cycle whose every actuator moves less than this is closed
-MAP_SAMPLES = 25  # starts the return map samples over the reachable held stroke
+MAP_SAMPLES = 25  # starts the return map samples along the reachable held stroke (`grid_over`)
 GAP_SPEED = 0.1  # m/s (or rad/s): the held actuators' speed in a corner's self-motion, where
 # the robot's circuit gives none
 SELF_MOTION_STEPS = 50  # held values the corners' self-motions are followed through
@@ -558,12 +558,12 @@ def return_map(
     near: np.ndarray | None = None,
 ) -> ReturnMap:
     """P sampled at ``values`` of the held actuator (default ``count`` evenly along the pieces
-    of its stroke over which the cycle's start is reachable, with every piece's ends and one
-    inside a narrower piece they step over: `grid_over`), all integrated as one batch. Its
-    starts lie on the assembly branch of ``near``, a configuration (n,) at the cycle's start
-    (a repetition's last one: the branch it runs on, where its first cycle changed branch), by
-    default on the side of the fold of the configuration inverse kinematics picks at
-    mid-stroke (the first of `Configurations.branches`)."""
+    of its stroke over which the cycle's start is reachable, with every piece's ends, one
+    inside a narrower piece they step over and one in every gap: `grid_over`), all integrated
+    as one batch. Its starts lie on the assembly branch of ``near``, a configuration (n,) at
+    the cycle's start (a repetition's last one: the branch it runs on, where its first cycle
+    changed branch), by default on the side of the fold of the configuration inverse
+    kinematics picks at mid-stroke (the first of `Configurations.branches`)."""
     require_robot(robot)
     found = _held(robot, cycle, held)
     if len(found) != 1:

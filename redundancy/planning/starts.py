@@ -18,10 +18,10 @@ configuration inverse kinematics reaches from its seeds. Methods:
 - "fast" (r = 1, the default): the margin μ(v) of a start v, the least distance of a checked
   stroke to its limits over the motion and of the start to its joint limits, is continuous in
   v, so the ends of the feasible set are its zeros. The reachable starts are located first by
-  continuation along v (no integration), pieces of them cut off from the rest too (a piece
-  at the end of the branch, narrower than the scan's spacing, by bisection towards that end);
-  `GRID` of them are integrated, evenly along the pieces, with every piece's ends (and one
-  inside each piece they step over), and each round
+  continuation along v (no integration), pieces of them cut off from the rest too (a piece at
+  the end of the branch, narrower than the scan's spacing, by dividing the interval beside that
+  end); `GRID` of them are integrated, evenly along the pieces with every piece's ends (one
+  inside each piece they step over, one in each gap), and each round
   integrates the probes of every bracket of the feasible set (`redundancy.planning.brackets`)
   and of the least peak (beside it too where it lies at an end of the feasible set), until
   every end is located to ``tolerance``. Where none of the grid's starts is feasible, a
@@ -96,7 +96,7 @@ from redundancy.resolution.state import evaluate
 
 METHODS = ("fast", "sweep")
 MAX_SAMPLES = 10_000  # starts of one sweep, integrated as one batch: about 47 MB per 1,000
-GRID = 12  # integrated starts of the fast search's first round, evenly over the reachable ones
+GRID = 12  # starts of the fast search's first round along the reachable pieces (`grid_over`)
 REACH_GRID = 24  # starts whose reachability the fast search checks first, over the stroke
 ANCHOR_SEEDS = 8  # Newton's seeds per value where the branches' configurations are sought
 SEEDED = 9  # held values, over the stroke, where they are sought (mid-stroke among them)
@@ -418,10 +418,9 @@ class Configurations:
         """The pieces (p, 2) of the held stroke over which the start is reachable, in order,
         from `REACH_GRID` starts over the stroke with the ends of the reachable ones located to
         ``tolerance`` by bisection of the joint margin, and the end of the branch located where
-        a start outside the joint limits beside it comes closer to them towards it
-        (`edge_probes`: a piece inside them, narrower than the scan's spacing, may lie at that
-        end): no integration, so one scan serves every objective's search (kept per
-        tolerance)."""
+        a start beside it lies outside the joint limits (`edge_probes`: a piece inside them,
+        narrower than the scan's spacing, may lie at that end): no integration, so one scan
+        serves every objective's search (kept per tolerance)."""
         if tolerance not in self._reach:
             reach = self.at(self.scan)
             for _ in range(ROUNDS):
