@@ -294,13 +294,12 @@ def test_a_piece_of_a_branch_at_its_end_narrower_than_the_reach_scan_is_searched
     reached inside the joint limits (|q2| ≤ 2.8) for x3 in [−0.04, 2.51] and, cut off from
     that, in [−2.508, −2.38]: a piece 0.13 rad wide at the end of the branch (its fold, past
     which no configuration of it reaches the start), which the reach scan's values, 0.24 rad
-    apart, step over. The least peak
-    over both elbows, by brute force over x3 in steps of 2 mrad from the closed form, lies on
-    it, at its feasible end (0.0859 rad²/s² at x3 = −2.384), beside which the peak changes by
-    0.019 rad²/s² per rad (for 7 mrad, then ten times faster past a kink): the fast search,
-    locating that end to within 2.8 mrad (0.06 % of the peak there), is within 0.1 %. It found
-    0.0955, 11 % above, elsewhere, before the scan searched beside a branch's end
-    (`edge_probes`)."""
+    apart, step over. The least peak over both elbows, by brute force over x3 in steps of 2
+    mrad from the closed form, lies on it, at its feasible end (0.0859 rad²/s² at x3 =
+    −2.384), beside which the peak changes by 0.019 rad²/s² per rad (for 7 mrad, then ten
+    times faster past a kink): the fast search, locating that end to within 2.8 mrad (0.06 %
+    of the peak there), is within 0.1 %. It found 0.0955, 11 % above, elsewhere, before the
+    scan searched beside a branch's end (`edge_probes`)."""
     robot = load_robot(SLEWING / "robot.toml")
     line = Segment("near the base", np.array([0.453, 0.223]), np.array([0.44, -0.292]), 0.2)
     values = np.linspace(-2.8, 2.8, 2801)
