@@ -159,33 +159,35 @@ def vertex_probes(values, peaks, tolerance) -> list[float]:
     above the first's least sample by the grid, may hold the least of all): the vertex of the
     parabola through it and its two neighbours, when both are finite and they span more than
     twice ``tolerance``. The parabola p(v) = p₁ + d (v − v₁) + a (v − v₁)², a the second
-    divided difference, dips to p₁ − d² / 4a at its vertex."""
+    divided difference, dips to p₁ − d² / 4a at its vertex v₁ − d / 2a."""
     least = int(np.argmin(peaks))
     probes = []
     for i in range(1, len(values) - 1):
         v, p = values[i - 1 : i + 2], peaks[i - 1 : i + 2]
         if not np.all(np.isfinite(p)) or v[2] - v[0] <= 2 * tolerance:
             continue
-        if i != least:
-            slopes = np.diff(p) / np.diff(v)
-            curvature = (slopes[1] - slopes[0]) / (v[2] - v[0])
-            if not (p[1] < p[0] and p[1] < p[2]):
-                continue
-            slope = slopes[0] + curvature * (v[1] - v[0])  # d, the parabola's slope at v₁
-            if p[1] - slope**2 / (4 * curvature) >= peaks[least]:
-                continue
-        probes += _vertex_probe(v, p, tolerance)
+        slope, curvature = _parabola(v, p)
+        if i != least and not (
+            p[1] < p[0] and p[1] < p[2] and p[1] - slope**2 / (4 * curvature) < peaks[least]
+        ):
+            continue
+        if curvature:
+            probes += _vertex_probe(v, v[1] - slope / (2 * curvature), tolerance)
     return probes
 
 
-def _vertex_probe(v, p, tolerance) -> list[float]:
-    """The vertex of the parabola through (v, p) (3,) each, kept ``tolerance`` / 2 inside its
-    span; where it creeps (within an eighth of the wider side from the middle value, as at a
-    kink of the peak), the golden section of that side."""
-    near, far = (v[1] - v[0]) * (p[1] - p[2]), (v[1] - v[2]) * (p[1] - p[0])
-    if near == far:
-        return []
-    vertex = v[1] - ((v[1] - v[0]) * near - (v[1] - v[2]) * far) / (2 * (near - far))
+def _parabola(v, p) -> tuple[float, float]:
+    """The slope d at the middle value v₁ and the curvature a (the second divided difference)
+    of the parabola through (v, p) (3,) each, in order of v."""
+    slopes = np.diff(p) / np.diff(v)
+    curvature = (slopes[1] - slopes[0]) / (v[2] - v[0])
+    return slopes[0] + curvature * (v[1] - v[0]), curvature
+
+
+def _vertex_probe(v, vertex, tolerance) -> list[float]:
+    """The ``vertex`` of a parabola through three values v (3,), kept ``tolerance`` / 2 inside
+    their span; where it creeps (within an eighth of the wider side from the middle value, as
+    at a kink of the peak), the golden section of that side."""
     wider = 0 if v[1] - v[0] > v[2] - v[1] else 2
     if abs(vertex - v[1]) < abs(v[wider] - v[1]) / 8:  # creeping: a kink, not a parabola
         vertex = v[1] + GOLDEN * (v[wider] - v[1])
