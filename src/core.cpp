@@ -2,7 +2,8 @@
 // x with their rows of A and Ȧ, the state's derivation in actuator coordinates (J_H, M_H, N_H,
 // q̇), the resolution laws' kernel, and the evaluation of a batch and a control step that run
 // them in one call each, the adaptive integration loop with the laws' compiled right-hand side,
-// the inverse kinematics' Newton loop, and the integral optimum's recursion over transitions.
+// the inverse kinematics' Newton loop and its continuation along a held actuator, and the
+// integral optimum's recursion over transitions.
 //
 // A `Pass` holds a copy of the robot's Pinocchio model (handed over as Pinocchio's own text
 // serialization, so that mimic joints, locked joints and added frames arrive exactly as Python
@@ -87,6 +88,10 @@ PYBIND11_MODULE(_core, m) {
   m.def("newton", &newton, py::arg("pass"), py::arg("q"), py::arg("target"), py::arg("first"),
         py::arg("iterations"), py::arg("bounded"), py::arg("lower"), py::arg("upper"),
         py::arg("tolerance"), py::arg("damping"), py::arg("stalled"));
+  m.def("continue_held", &continue_held, py::arg("pass"), py::arg("point"),
+        py::arg("known_values"), py::arg("known_q"), py::arg("known_sides"), py::arg("values"),
+        py::arg("iterations"), py::arg("lower"), py::arg("upper"), py::arg("bounded"),
+        py::arg("tolerance"), py::arg("damping"), py::arg("stalled"), py::arg("found"));
   py::class_<Controller>(m, "Controller")
       .def(py::init<const Pass&, Eigen::Index, std::vector<Eigen::Index>,
                     const py::array_t<int>&, const py::array_t<Eigen::Index>&, const Array&, int,

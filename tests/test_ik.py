@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from hiab031_closed_form import tool
-from slewing3r_closed_form import slew_held_configuration
+from slewing3r_closed_form import shoulder_held_configuration, slew_held_configuration
 
 from redundancy import (
     InvalidInputError,
@@ -52,22 +52,51 @@ def test_the_branch_inside_the_joint_limits_is_chosen(crane):
 
 
 @pytest.mark.parametrize("elbow", [1, -1])
-def test_continuation_along_the_held_value_keeps_to_its_elbow(elbow):
+def test_continuation_along_the_held_value_keeps_to_its_elbow(elbow, monkeypatch):
     """The slewing 3R arm's line start with its slew x1 held, continued from one elbow at
     x1 = −122° to 24 values across its reach at once: every configuration is that elbow's (the
     closed form's). Newton from the far start landed on the other elbow at 5 of them from the
-    elbow up (q3 > 0), so a search along x1 mixed both."""
+    elbow up (q3 > 0), so a search along x1 mixed both. The core's loop on the Python pass (a
+    kind of your own) gives the same configurations, residuals and sides to the last bit."""
     slewing = Path(__file__).parent / "data" / "slewing3r"
     robot = load_robot(slewing / "robot.toml")
     point = WorkCycle.from_toml(slewing / "line.toml", dimension=robot.m)["a-b"].start
     start, values = np.radians(-122.0), np.radians(np.linspace(-191.0, -65.0, 24))
     seed = slew_held_configuration(start, elbow, point)[None]
     known = (np.array([start]), seed, fold_side(evaluate(robot, seed), [0]))
-    q, residual, _ = continue_held(robot, point, 0, known, values)  # joint ranges not kept
+    q, residual, sides = continue_held(robot, point, 0, known, values)  # joint ranges not kept
     assert np.all(residual < 1e-9)
+    assert np.array_equal(sides, np.full(len(values), known[2][0]))
     for v, found in zip(values, q):  # every joint an angle: one pose modulo a turn each
         apart = modulo_turn(found - slew_held_configuration(v, elbow, point))
         assert np.abs(apart).max() < 1e-9
+    monkeypatch.setattr(Robot, "held_pass", lambda robot, part: None)
+    for mine, python in zip((q, residual, sides), continue_held(robot, point, 0, known, values)):
+        assert np.array_equal(mine, python)
+
+
+def test_continuation_takes_a_slew_a_turn_back_inside_its_stroke(monkeypatch):
+    """The slewing 3R arm with a slew of one turn's range, [−3.14159, 3.14159], its shoulder x2
+    held, at the line's start on elbow −1: the closed form's slew falls from −2.98 rad at
+    x2 = 0.3 to −3.38 at 1.2, past the range's end beyond x2 ≈ 0.65. Continued from x2 = 0.3,
+    every start is the closed form's pose with the slew inside its range, a turn up where the
+    closed form's is below it, on the side of the fold it started from. The core's loop on the
+    Python pass (a kind of your own) gives the same bits."""
+    robot = load_robot(Path(__file__).parent / "data" / "slewing3r" / "slew_held.toml")
+    point = np.array([-1.3948182450898194, -0.919903416871264])
+    seed = shoulder_held_configuration(0.3, -1, point)[None]
+    known = (np.array([0.3]), seed, fold_side(evaluate(robot, seed), [1]))
+    values = np.linspace(0.35, 1.2, 18)
+    exact = np.array([shoulder_held_configuration(v, -1, point) for v in values])
+    below = exact[:, 0] < robot.lower[0]
+    assert 5 <= below.sum() < len(values)
+    exact[below, 0] += 2 * np.pi
+    q, residual, sides = continue_held(robot, point, 1, known, values)
+    assert np.all(residual < 1e-9) and np.all(sides == known[2][0])
+    assert np.abs(q - exact).max() < 1e-9
+    monkeypatch.setattr(Robot, "held_pass", lambda robot, part: None)
+    for python, mine in zip(continue_held(robot, point, 1, known, values), (q, residual, sides)):
+        assert np.array_equal(python, mine)
 
 
 @pytest.mark.parametrize("compiled", [True, False])

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import lru_cache, partial
 from typing import NamedTuple
 
 import numpy as np
@@ -28,7 +28,7 @@ from redundancy.errors import (
 )
 from redundancy.model.actuators import ActuatorSet
 from redundancy.model.robot import Robot, require_robot
-from redundancy.model.values import is_real, is_whole, modulo_turn
+from redundancy.model.values import is_real, is_whole
 from redundancy.planning.angles import task_labels
 from redundancy.planning.tasks import Segment
 from redundancy.resolution.limits import amount
@@ -282,42 +282,6 @@ def fold_side(space: ActuatorSpace, rows: list[int]) -> np.ndarray:
     return np.sign(np.linalg.det(np.concatenate([space.J, space.A[:, rows]], axis=1)))
 
 
-def _nearest_turn(
-    robot: Robot,
-    q: np.ndarray,
-    origin: np.ndarray,
-    target: np.ndarray,
-    row: int,
-    side: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Configurations q (k, n) continued from ``origin`` (k, n), each revolute joint of a
-    bounded range moved by whole turns to the turn inside its range, where one is, else to the
-    turn nearest its origin (Newton from far away can land on the pose a turn or more away,
-    outside the joint's range; and a slew whose stroke is one turn, crossing its end, comes
-    back inside it a turn away), where the moved configuration still meets ``target``
-    [y*, x_h*] (k, m + 1) with the held actuator ``row`` (one driven directly is not moved by a
-    turn); and their sides of the fold: Newton's ``side`` (k,) at q, read again at a moved
-    configuration alone."""
-    bounded = robot.rotary_joints & ~robot.turning
-    nearest = np.where(bounded, origin + modulo_turn(q - origin), q)
-    for turn in (2 * np.pi, -2 * np.pi):
-        inside = (nearest >= robot.lower) & (nearest <= robot.upper)
-        moved = nearest + turn
-        nearest = np.where(
-            bounded & ~inside & (moved >= robot.lower) & (moved <= robot.upper), moved, nearest
-        )
-    turned = np.flatnonzero((np.abs(nearest - q) > np.pi).any(axis=1))
-    if not turned.size:
-        return q, side
-    space = evaluate(robot, nearest[turned])
-    reached = np.concatenate([space.y, space.x[:, [row]]], axis=1) - target[turned]
-    keep = np.linalg.norm(reached, axis=1) < FOUND
-    q, side = q.copy(), side.copy()
-    q[turned[keep]] = nearest[turned[keep]]
-    side[turned[keep]] = fold_side(space, [row])[keep]
-    return q, side
-
-
 def continue_held(
     robot: Robot,
     point: np.ndarray,
@@ -331,37 +295,36 @@ def continue_held(
     The joint limits do not bind. A configuration counts as found only on its origin's side of
     the fold (`fold_side`): Newton from far away can land on the other assembly branch, which
     continuation along the held value does not reach without crossing the fold (it tries again
-    from a nearer one). Returns q (k, n), the residuals (k,), in m (below `FOUND` where found),
-    and the sides (k,)."""
-    known_values, configurations, sides = known
-    q = np.empty((len(values), robot.n))
-    found_sides = np.zeros(len(values))
-    residual = np.full(len(values), np.inf)
-    tried = np.full(len(values), np.inf)  # distance of the value last continued from
-    pending = np.arange(len(values))
-    while pending.size:
-        distance = np.abs(values[pending, None] - known_values[None])
-        closer = distance.min(axis=1) < tried[pending]
-        pending, nearest = pending[closer], np.argmin(distance, axis=1)[closer]
-        if not pending.size:
-            break
-        tried[pending] = np.abs(values[pending] - known_values[nearest])
-        target = np.concatenate(
-            [np.broadcast_to(point, (pending.size, robot.m)), values[pending, None]], axis=1
-        )
-        q[pending], residual[pending], _, side = newton(
-            robot, configurations[nearest], [row], target, CONTINUATION_ITERATIONS
-        )
-        ok = residual[pending] < FOUND
-        at, origin = pending[ok], configurations[nearest[ok]]
-        q[at], found_sides[at] = _nearest_turn(robot, q[at], origin, target[ok], row, side[ok])
-        residual[at[found_sides[at] != sides[nearest[ok]]]] = np.inf  # the other branch: not found
-        done = residual[pending] < FOUND
-        known_values = np.concatenate([known_values, values[pending[done]]])
-        configurations = np.concatenate([configurations, q[pending[done]]])
-        sides = np.concatenate([sides, found_sides[pending[done]]])
-        pending = pending[~done]
-    return q, residual, found_sides
+    from a nearer one). Each revolute joint of a bounded range is then moved by whole turns to
+    the turn inside its range, where one is, else to the turn nearest its origin (Newton from
+    far away can land on the pose a turn or more away, outside the joint's range; and a slew
+    whose stroke is one turn, crossing its end, comes back inside it a turn away), where the
+    moved configuration still meets the point and the held value (one driven directly is not
+    moved by a turn). Returns q (k, n), the residuals (k,), in m (below `FOUND` where found),
+    and the sides (k,).
+
+    The loop is the core's (`redundancy._core.continue_held`, on `newton`'s loop), on the
+    compiled pass of the task and the held actuator, or on a Python one for a kind or a task of
+    your own."""
+    part = robot.actuators.part([row])
+    arguments = (
+        np.asarray(point, dtype=float),
+        *(np.asarray(given, dtype=float) for given in known),
+        np.asarray(values, dtype=float),
+        CONTINUATION_ITERATIONS,
+        robot.lower,
+        robot.upper,
+        robot.rotary_joints & ~robot.turning,
+        TOLERANCE,
+        DAMPING,
+        STALLED,
+        FOUND,
+    )
+    compiled = robot.held_pass(part)
+    found = None if compiled is None else _core.continue_held(compiled, *arguments)
+    if found is None:  # a kind or a task of your own, or a state a kind refused
+        found = _core.continue_held(partial(_held_pass, robot, part), *arguments)
+    return found
 
 
 def configuration_at(robot: Robot, point: np.ndarray, held: dict[str, float]) -> np.ndarray:
