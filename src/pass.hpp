@@ -96,16 +96,20 @@ class Pass {
     moving_ = v != nullptr;
     for (std::size_t f = 0; f < frames_.size(); ++f) {
       if (!moving_frames_[f]) continue;  // on the ground: as the constructor placed it
-      const auto frame = frames_[f];
+      const auto id = frames_[f];
+      const auto& frame = model_.frames[id];
+      // The point from its joint's placement; the frame's whole placement once, in the
+      // Jacobian's call by joint (by the frame's id it is computed there twice, and placing the
+      // frame first would compute it a third time).
       Eigen::Map<Eigen::Vector3d>{&positions_[3 * f]} =
-          pinocchio::updateFramePlacement(model_, data_, frame).translation();
+          data_.oMi[frame.parentJoint].act(frame.placement.translation());
       six_.setZero();
-      pinocchio::getFrameJacobian(model_, data_, frame, WORLD, six_);
+      pinocchio::getFrameJacobian(model_, data_, frame.parentJoint, frame.placement, WORLD, six_);
       Eigen::Map<Matrix>{&linear_[3 * n * f], 3, n} = six_.topRows<3>();
       Eigen::Map<Matrix>{&angular_[3 * n * f], 3, n} = six_.bottomRows<3>();
       if (v) {
         six_rate_.setZero();
-        pinocchio::getFrameJacobianTimeVariation(model_, data_, frame, WORLD, six_rate_);
+        pinocchio::getFrameJacobianTimeVariation(model_, data_, id, WORLD, six_rate_);
         Eigen::Map<Matrix>{&rates_[3 * n * f], 3, n} = six_rate_.topRows<3>();
         Eigen::Map<Eigen::Vector3d>{&velocities_[3 * f]} = six_.topRows<3>() * Vector(v, n);
       }
