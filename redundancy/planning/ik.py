@@ -209,25 +209,29 @@ def inverse_kinematics(
         raise InvalidInputError(
             f"held values must be finite numbers, shape (k, {len(rows)}); got {given!r}"
         )
-    per_seed, error, order = _from_seeds(robot, point, rows, values, seeds)
+    per_seed, error, order, _ = _from_seeds(robot, point, rows, values, seeds)
     picked = per_seed[np.arange(len(values)), order[:, 0]]
     return InverseKinematics(picked, np.any(error < FOUND, axis=1), error.min(axis=1))
 
 
 def _from_seeds(robot: Robot, point: np.ndarray, rows: list[int], values: np.ndarray, seeds: int):
     """Newton from ``seeds`` starts for each of the held ``values`` (k, r): the configurations
-    (k, seeds, n), their residuals (k, seeds) and, per value, the seeds in order of preference:
-    the converged ones nearest the joint box's middle first, then the others by residual."""
+    (k, seeds, n), their residuals (k, seeds), per value the seeds in order of preference (the
+    converged ones nearest the joint box's middle first, then the others by residual), and the
+    sides of the fold (k, seeds) Newton read at the configurations (`newton`; 0 where
+    K = [J; A_h] is not square)."""
     k, starts = len(values), _seeds(robot, seeds)
     guess = np.repeat(starts[None], k, axis=0).reshape(k * seeds, robot.n)
     target = np.concatenate([np.repeat(point[None], k, 0), values], axis=1)
-    q, error, *_ = newton(robot, guess, rows, np.repeat(target, seeds, axis=0), ITERATIONS, True)
+    q, error, _, side = newton(
+        robot, guess, rows, np.repeat(target, seeds, axis=0), ITERATIONS, True
+    )
     error = error.reshape(k, seeds)
     per_seed = q.reshape(k, seeds, robot.n)
     lower, upper = robot.span
     distance = np.linalg.norm((per_seed - (lower + upper) / 2) / (upper - lower), axis=2)
     order = np.argsort(np.where(error < FOUND, distance, 1e6 + error), axis=1, kind="stable")
-    return per_seed, error, order
+    return per_seed, error, order, side.reshape(k, seeds)
 
 
 def assembly_branches(
@@ -239,7 +243,7 @@ def assembly_branches(
     `inverse_kinematics` picks, the others in its order of preference; none where no seed
     reaches the point. Two are one pose where no joint differs by more than `SAME_POSE` (a
     turning joint modulo a turn)."""
-    q, _ = every_configuration(robot, point, held, values, seeds)  # values: one row (r,)
+    q, *_ = every_configuration(robot, point, held, values, seeds)  # values: one row (r,)
     same = robot.same_poses(q[:, None], q[None], SAME_POSE)
     kept: list[int] = []
     for i in range(len(q)):
@@ -250,18 +254,25 @@ def assembly_branches(
 
 def every_configuration(
     robot: Robot, point: np.ndarray, held: str | Sequence[str], values: ArrayLike, seeds: int = 8
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Every configuration inside the joint limits that Newton from ``seeds`` starts finds
-    reaching ``point`` (m,) with the actuators ``held`` at each of ``values`` (k, r), (j, n), and
-    the held values of each, (j, r): every assembly branch that some seed finds there, once per
-    seed that found it, value by value, each value's in `inverse_kinematics`' order of
-    preference (its pick first)."""
+    reaching ``point`` (m,) with the actuators ``held`` at each of ``values`` (k, r), (j, n), the
+    held values of each, (j, r), and the side of the fold of each (j,) (`fold_side`, as Newton
+    read it there; 0 where K = [J; A_h] is not square): every assembly branch that some seed finds
+    there, once per seed that found it, value by value, each value's in `inverse_kinematics`'
+    order of preference (its pick first)."""
     rows = held_indices(robot, held)
     values = np.asarray(values, dtype=float).reshape(-1, len(rows))
-    per_seed, error, order = _from_seeds(robot, np.asarray(point, float), rows, values, seeds)
+    per_seed, error, order, sides = _from_seeds(
+        robot, np.asarray(point, float), rows, values, seeds
+    )
     each = np.arange(len(values))[:, None]
     found = error[each, order] < FOUND
-    return per_seed[each, order][found], np.repeat(values, seeds, axis=0)[found.ravel()]
+    return (
+        per_seed[each, order][found],
+        np.repeat(values, seeds, axis=0)[found.ravel()],
+        sides[each, order][found],
+    )
 
 
 def free_configurations(robot: Robot, point: np.ndarray, seeds: int) -> tuple[np.ndarray, float]:

@@ -381,18 +381,18 @@ class Configurations:
         configuration `inverse_kinematics` picks nearest mid-stroke."""
         scan, point = sweep_values(robot, held, SEEDED), segment.start
         middle_first = scan[np.argsort(np.abs(scan - scan.mean()), kind="stable")]
-        found, at = every_configuration(robot, point, [held], middle_first, ANCHOR_SEEDS)
+        found, at, found_sides = every_configuration(
+            robot, point, [held], middle_first, ANCHOR_SEEDS
+        )
         free, miss = free_configurations(robot, point, ANCHOR_SEEDS)  # the held actuator free
         seeds = np.concatenate([found, free])
         if not len(seeds):
             how = f"with {held} anywhere in its stroke inside its joint limits"
             raise _unreachable(robot, segment, how, miss)
         row = held_indices(robot, [held])[0]
-        space = evaluate(robot, seeds)
-        values, sides = (
-            np.concatenate([at[:, 0], space.x[len(found) :, row]]),
-            fold_side(space, [row]),
-        )
+        space = evaluate(robot, free)  # where the held actuator was free: its value and side
+        values = np.concatenate([at[:, 0], space.x[:, row]])
+        sides = np.concatenate([found_sides, fold_side(space, [row])])
         return [
             cls(
                 robot,
