@@ -64,6 +64,17 @@ class HeldPass {
   Actuation actuation_;
 };
 
+// The values (u, d) and K (u, d·n) of a pass's answer (values (u, d), K (u, d, n)) at u states
+// of n joints, its shapes checked.
+inline std::pair<Matrix, Matrix> pass_answer(const py::tuple& out, py::ssize_t u,
+                                             Eigen::Index d, Eigen::Index n) {
+  const auto v = out[0].cast<Array>(), K = out[1].cast<Array>();
+  if (v.ndim() != 2 || v.shape(0) != u || v.shape(1) != d || K.ndim() != 3 ||
+      K.shape(0) != u || K.shape(1) != d || K.shape(2) != n)
+    throw py::value_error("a pass gives the values (u, m + r) and K (u, m + r, n) at u states");
+  return {ConstMatrix(v.data(), u, d), ConstMatrix(K.data(), u, d * n)};
+}
+
 // The values (u, d) and K (u, d·n) at the states (u, n) by `pass`, a `HeldPass` or a Python
 // callable (states (u, n)) → (values (u, d), K (u, d, n)); nothing where a `HeldPass` refused a
 // state.
@@ -73,13 +84,7 @@ inline std::optional<std::pair<Matrix, Matrix>> read_pass(const py::object& pass
   const auto u = states.rows(), n = states.cols();
   Array given({py::ssize_t(u), py::ssize_t(n)});
   at(given, 0, u, n) = states;
-  const auto out = pass(given).cast<py::tuple>();
-  const auto v = out[0].cast<Array>(), K = out[1].cast<Array>();
-  if (v.ndim() != 2 || v.shape(0) != u || v.shape(1) != d || K.ndim() != 3 ||
-      K.shape(0) != u || K.shape(1) != d || K.shape(2) != n)
-    throw py::value_error("a pass gives the values (u, m + r) and K (u, m + r, n) at u states");
-  return std::make_pair(Matrix(ConstMatrix(v.data(), u, d)),
-                        Matrix(ConstMatrix(K.data(), u, d * n)));
+  return pass_answer(pass(given).cast<py::tuple>(), u, d, n);
 }
 
 // Where Newton ended: q (k, n), |r| (k), the side of the fold sign det K (k) where K is square
@@ -244,14 +249,7 @@ inline py::object newton(const py::object& pass, const Array& start, const Array
     if (held.n() != n || held.values() != d) refuse();
   }
   std::optional<std::pair<Matrix, Matrix>> known;
-  if (!first.is_none()) {
-    const auto given = first.cast<py::tuple>();
-    const auto v = given[0].cast<Array>(), K = given[1].cast<Array>();
-    if (v.ndim() != 2 || v.shape(0) != k || v.shape(1) != d || K.ndim() != 3 ||
-        K.shape(0) != k || K.shape(1) != d || K.shape(2) != n)
-      throw py::value_error("a pass gives the values (u, m + r) and K (u, m + r, n) at u states");
-    known.emplace(ConstMatrix(v.data(), k, d), ConstMatrix(K.data(), k, d * n));
-  }
+  if (!first.is_none()) known = pass_answer(first.cast<py::tuple>(), k, d, n);
   const auto solved = gauss_newton(pass, ConstMatrix(start.data(), k, n),
                                    ConstMatrix(target.data(), k, d), known, iterations, bounded,
                                    row_of(lower), row_of(upper), tolerance, damping, stalled);
@@ -266,7 +264,7 @@ inline py::object newton(const py::object& pass, const Array& start, const Array
 inline double modulo_turn(double angle) {
   constexpr double turn = 2 * M_PI;
   double rest = std::fmod(angle + M_PI, turn);
-  if (rest != 0 && rest < 0) rest += turn;
+  if (rest < 0) rest += turn;
   if (rest == 0) rest = 0.0;  // +0, as numpy's
   return rest - M_PI;
 }
