@@ -386,9 +386,11 @@ def _play_motion(
                 + ("; did you give mm? the value is in m" if in_mm else "")
             )
     values = [given[h] for h in held]
-    q = configuration_at(robot, segment.start, dict(zip(held, values)))
+    configurations = assembly_branches(robot, segment.start, held, values)
+    if not len(configurations):  # says by how much the start is missed
+        configuration_at(robot, segment.start, dict(zip(held, values)))
+    q, branches = configurations[0], len(configurations)  # the pick of inverse kinematics first
     label = named_values(robot, held, values)
-    branches = len(assembly_branches(robot, segment.start, held, values))
     if branches > 1:  # the start is the branch inverse kinematics picks; the search's may differ
         label += (
             f", one of {branches} start configurations there (assembly branches), the one "

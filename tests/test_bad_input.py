@@ -96,6 +96,13 @@ CASES = [
     ("check empty", ["study", "--check", ""], {}, "unknown actuators ['']"),
     ("x3init outside", ["play", "--x3init", "5", "--html", "p.html"], {}, "--x3init 5 is outside"),
     ("x3init nan", ["play", "--x3init", "nan", "--html", "p.html"], {}, "--x3init nan is outside"),
+    (
+        "x3init out of reach",  # inside x3's stroke, but segment 1-2's start is out of reach
+        ["play", "--segment", "1-2", "--x3init", "0", "--html", "p.html"],
+        {},
+        "cannot reach task point [3.5, -0.5] with x3 = 0 mm inside its joint limits: the "
+        "closest configuration misses it by 801.5 mm",
+    ),
     ("segment unknown", ["play", "--segment", "9-9", "--html", "p.html"], {}, "no segment '9-9'"),
     (
         "listen elsewhere",
