@@ -2,7 +2,9 @@
 beside pink's step and two bare Pinocchio calls from Python (the floor of anything that calls
 Pinocchio per step), x, A, J_H and M_H at one state (as the batch object `actuator_space` gives
 them, and as `Controller.state` does in one compiled call) and per state of a batch of 1,000, the
-law on that batch, and the improved start per paper segment; this checkout after an earlier tree.
+law on that batch, and the improved start per paper segment, with the states its integration
+evaluates at the least (a floor of its cost at a batch's price per state, x, y and J_H: what a
+law reads); this checkout after an earlier tree.
 
 Run: python benchmarks/core.py [--before DIR]
 DIR is an earlier tree with its compiled core built beside its sources (e.g. `git archive REV`
@@ -23,6 +25,7 @@ from strategies import best_time, per_call  # the script's folder: the timing he
 from study_cost import environment
 
 BATCH = 1000
+STAGES = 7  # states a Dormand-Prince step evaluates: six stages, and the midpoint sampled
 SEGMENTS = ("1-2", "2-3", "3-1")  # the paper's, as the crane's task file names them
 ROWS = [  # key, what, unit, factor from seconds, target
     ("step", "one control step (min ẋᵀẋ, crane)", "µs", 1e6, 2),
@@ -31,6 +34,7 @@ ROWS = [  # key, what, unit, factor from seconds, target
     ("one", "x, A, J_H, M_H at one state (actuator_space)", "µs", 1e6, 3),
     ("state", "x, A, J_H, M_H at one state (Controller.state)", "µs", 1e6, 3),
     ("batch", f"x, A, J_H, M_H, batch of {BATCH}, per state", "µs", 1e6, 1),
+    ("read", f"x, y, J_H (what a law reads), batch of {BATCH}, per state", "µs", 1e6, None),
     ("law", f"law on a batch of {BATCH}, per state", "µs", 1e6, None),
     *((f"start {s}", f"improved start (fast), segment {s}", "ms", 1e3, 10) for s in SEGMENTS),
 ]
@@ -83,11 +87,15 @@ def measure() -> dict[str, float]:
 
     cost["one"] = per_call(lambda: full(q), 5000)
     cost["batch"] = per_call(lambda: full(batch), 20) / BATCH
+    cost["read"] = per_call(lambda: actuator_space(robot, batch).J_H, 20) / BATCH
     space = actuator_space(robot, batch)
     cost["law"] = per_call(lambda: law.resolve(space, y_dot), 50) / BATCH
     for name in SEGMENTS:
-        start = best_time(lambda s=cycle[name]: improved_start(robot, s, VELOCITY), 5)[0]
+        start, search = best_time(lambda s=cycle[name]: improved_start(robot, s, VELOCITY), 5)
         cost[f"start {name}"] = start
+        if hasattr(search, "batches"):  # the states its integration evaluated, at the least
+            steps = sum(len(motions.steps.rows) for motions in search.batches)
+            cost[f"states {name}"] = STAGES * steps + search.simulations
     return cost
 
 
@@ -119,6 +127,14 @@ def main() -> None:
         goal = f"{target:6g}  {after[key] * factor / target:.2f}" if target and key in after else ""
         print(f"{what:<{width}}  {then}  {now}  {unit:<4}  {goal}")
     for name, side in (("before", before), ("after", after)):
+        for segment in SEGMENTS:
+            if {f"states {segment}", "read"} <= side.keys():
+                states = side[f"states {segment}"]
+                print(
+                    f"{name}: improved start {segment} integrates at least {states:,.0f} states "
+                    f"(7 a step and each motion's start), at {side['read'] * 1e6:.2f} µs "
+                    f"each: {states * side['read'] * 1e3:.2f} ms"
+                )
         if {"step", "pink", "bare"} <= side.keys():
             print(
                 f"{name}: pink's step / ours {side['pink'] / side['step']:.1f} (target ≥ 25), "
