@@ -584,7 +584,7 @@ def parser() -> argparse.ArgumentParser:
         "workspace.toml --workers 2",
         [quiet],
     )
-    design.add_argument("family", help="map file (TOML; schema in the README)")
+    design.add_argument("family", help="map file (TOML; schema in docs/maps.md)")
     where = design.add_mutually_exclusive_group()
     where.add_argument("--workers", type=whole(1, 4096), help="local worker processes (cores)")
     where.add_argument("--scheduler", metavar="ADDRESS", help="a Dask cluster: tcp://HOST:8786")

@@ -128,7 +128,7 @@ class Robot:
         if self.hydraulics is None:
             raise InvalidInputError(
                 f"{self.name} has no hydraulics; declare a [hydraulics] table in its robot.toml "
-                "or give one with --hydraulics FILE (schema in the README)"
+                "or give one with --hydraulics FILE (schema in docs/hydraulics.md)"
             )
         return self.hydraulics
 

@@ -257,7 +257,7 @@ class CylinderTable(Table):
 
 class Hydraulics(Table):
     """A machine's ``[hydraulics]`` table: its supply, pressures (bar), pump flow (L/min) and
-    cylinders by actuator name; schema in the README."""
+    cylinders by actuator name; schema in docs/hydraulics.md."""
 
     supply: Literal["LS", "CP"] = Field(description="the machine's supply")
     ls_margin: float = bar("LS margin Δp_LS")
