@@ -249,7 +249,9 @@ def _check_command(args: argparse.Namespace) -> int:
 
 def _robots_command(args: argparse.Namespace) -> None:
     for name in bundled_robots():
-        robot = load_robot(name)
+        with warnings.catch_warnings():  # the list names each robot's actuators itself
+            warnings.simplefilter("ignore")
+            robot = load_robot(name)
         actuators = ", ".join(robot.actuators.names)
         print(f"{name:<16} n = {robot.n}, m = {robot.m}, actuators: {actuators}")
 

@@ -66,6 +66,16 @@ def test_describe_gives_a_rotary_actuator_s_units(capsys):
     assert "M_H (kg) =" in capsys.readouterr().out
 
 
+def test_the_list_of_robots_names_their_actuators_without_notes():
+    """Listing the bundled robots loads each; the Panda's joints driven directly are its
+    actuators in the list, not a note on standard error."""
+    run = run_cli("robots", timeout=300)
+    assert run.returncode == 0, run.stderr
+    assert "panda_joint1, panda_joint2" in run.stdout
+    assert "hiab031          n = 3, m = 2" in run.stdout
+    assert run.stderr == ""
+
+
 def test_a_closed_standard_output_is_one_line():
     run = subprocess.run(
         [sys.executable, "-m", "redundancy", "robots"],
