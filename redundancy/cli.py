@@ -276,6 +276,7 @@ def _planned_command(args: argparse.Namespace) -> None:
         write_report(result, report)
         written = {"figures": figures, "time series (CSV)": series, "playbacks": playbacks}
         write_index(out.staging, report)
+    print(f"start here: {out.target / 'index.html'}")
     print(f"report: {args.json or out.target / 'report.json'}")
     for label, paths in written.items():
         print(f"{label}: {', '.join(str(out.final(p)) for p in paths)}")

@@ -299,7 +299,9 @@ def test_study_writes_a_playback_per_segment_for_the_best_start(tmp_path, capsys
     assert best == ["1-2"]  # with 3 samples, no start of 2-1 stays inside the limits
     pages = sorted(p.name for p in out.glob("playback_*.html"))
     assert pages == [f"playback_velocity_{name}.html" for name in best]
-    assert f"playbacks: {out / pages[0]}" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert f"playbacks: {out / pages[0]}" in printed
+    assert f"start here: {out / 'index.html'}" in printed and (out / "index.html").is_file()
     for page in pages:
         commands = page_commands((out / page).read_text())
         assert [c["type"] for c in commands].count("set_animation") == 1
