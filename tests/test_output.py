@@ -724,6 +724,25 @@ def test_killed_at_any_instant_of_its_writing_a_run_leaves_the_old_or_the_new_ou
         assert sorted(p.name for p in tmp_path.iterdir()) == ["out", "report.json"]
 
 
+def test_a_bind_mount_as_the_output_folder_is_refused_before_any_work(tmp_path, monkeypatch):
+    """A bind mount on the same device (a container's volume) is a mount point that only the
+    kernel's mount table lists: refused as the folder is named, its name read with the
+    table's octal escapes; a folder beside it is not."""
+    volume, beside = tmp_path / "my volume", tmp_path / "beside"
+    volume.mkdir()
+    table = tmp_path / "mountinfo"
+    escaped = str(volume).replace(" ", "\\040")
+    table.write_text(
+        "22 1 8:1 / / rw,relatime shared:1 - ext4 /dev/sda1 rw\n"
+        f"97 22 8:1 /srv/data {escaped} rw,relatime shared:1 - ext4 /dev/sda1 rw\n"
+    )
+    monkeypatch.setattr(output, "MOUNTS", table)
+    with pytest.raises(InvalidInputError, match=f"^--out {volume} is a mount point: "):
+        OutputFolder(volume)
+    assert sorted(p.name for p in volume.iterdir()) == []
+    OutputFolder(beside).discard()
+
+
 @pytest.mark.skipif(not os.path.ismount("/proc"), reason="/proc is no mount point here")
 def test_a_mount_point_as_the_output_folder_is_refused_before_any_work(tmp_path):
     """A mount point cannot be exchanged with the staged folder (the rename fails, EBUSY): it

@@ -32,6 +32,7 @@ import glob
 import itertools
 import json
 import os
+import re
 import shutil
 import warnings
 from collections.abc import Callable
@@ -42,6 +43,7 @@ from redundancy.study.signals import check, deferred, written
 
 MARKER = ".redundancy-output"  # names the folder as one this toolkit wrote; holds its manifest
 RENAME_NOREPLACE, RENAME_EXCHANGE = 1, 2  # renameat2 flags, <linux/fs.h>
+MOUNTS = Path("/proc/self/mountinfo")  # the kernel's mount table, where it has one
 RENAMES = 100  # tries of the commit's rename while other runs change the target under it
 
 
@@ -205,7 +207,7 @@ class OutputFolder:
             self.target = _followed(Path(target), option)
             if self.target.name in ("", ".", ".."):
                 raise InvalidInputError(f"{option} {target}: give a folder by its own name")
-            if os.path.ismount(self.target):  # refused now, not after the computing
+            if _mount_point(self.target):  # refused now, not after the computing
                 raise InvalidInputError(
                     f"{option} {target} is a mount point: the output replaces its folder whole, "
                     "by a rename, which cannot move a mount point; give a folder inside it or "
@@ -408,3 +410,23 @@ def write_atomically(path: Path, write: Callable[[Path], object]) -> None:
         if isinstance(error, OSError) and error.filename is None:  # a write (a full disk)
             error.filename = str(path)
         raise
+
+
+def _mount_point(path: Path) -> bool:
+    """Whether ``path`` is a mount point: one `os.path.ismount` sees (another device, or the
+    root), or a bind mount on the same device (a container's volume), which only the kernel's
+    mount table lists (its fifth field, with space, tab, newline and backslash as octal)."""
+    if os.path.ismount(path):
+        return True
+    try:
+        table = MOUNTS.read_text(errors="surrogateescape")
+    except OSError:
+        return False
+    resolved = os.path.realpath(path)
+    points = (line.split()[4] for line in table.splitlines() if len(line.split()) > 4)
+    return any(re.sub(r"\\([0-7]{3})", _octal, point) == resolved for point in points)
+
+
+def _octal(match: re.Match) -> str:
+    """The character an octal escape of the mount table stands for."""
+    return chr(int(match.group(1), 8))
