@@ -400,7 +400,8 @@ PATH_TOLERANCE = 1e-4  # m: a path missed by less is left to the motion's own li
 def check_path(robot: Robot, segment: Segment, seeds: int = 8) -> None:
     """Refuse, before any simulation, a segment some point of which no configuration inside
     the joint limits reaches: `UnreachableError` naming the point, its time and the distance
-    it is missed by. The held actuators are free here.
+    it is missed by, and the segment's end where that is out of reach too (the point a task
+    file gives). The held actuators are free here.
 
     ``PATH_POINTS`` points y_d(t) from start to end are solved in order, each by projected
     Gauss-Newton on y(q) = y_d from every configuration found for the point before (from
@@ -417,19 +418,29 @@ def check_path(robot: Robot, segment: Segment, seeds: int = 8) -> None:
             if miss.min() < FOUND:
                 break
         if not miss.min() < PATH_TOLERANCE:
-            best = q[np.argmin(miss)][None]
-            error = robot.task_point(robot.kinematics(best))[0][0] - point
-            raise UnreachableError(
-                placed(
-                    segment.source,
-                    f"{robot.name} cannot follow segment {segment.name}: its point "
-                    f"{_point_text(robot, point)} (t = {t:.3g} s) is out of reach inside the "
-                    f"joint limits, missed by {_miss_text(robot, error)}",
-                )
+            how = (
+                f"{robot.name} cannot follow segment {segment.name}: its point "
+                f"{_point_text(robot, point)} (t = {t:.3g} s) is out of reach inside the "
+                f"joint limits, missed by {_miss_text(robot, _error(robot, q, miss, point))}"
             )
+            if i < len(times) - 1:  # where the end the task gives is out of reach too, say so
+                end = segment.position(times[-1:])[0]
+                target = np.broadcast_to(end, (len(fresh), robot.m))
+                q, miss, *_ = newton(robot, fresh, [], target, ITERATIONS, True)
+                if not miss.min() < PATH_TOLERANCE:
+                    how += (
+                        f"; so is its end {_point_text(robot, end)}, missed by "
+                        f"{_miss_text(robot, _error(robot, q, miss, end))}"
+                    )
+            raise UnreachableError(placed(segment.source, how))
         q = q[miss < FOUND] if np.any(miss < FOUND) else q
         if not i:
             _check_mobility(robot, segment, q)
+
+
+def _error(robot: Robot, q: np.ndarray, miss: np.ndarray, point: np.ndarray) -> np.ndarray:
+    """y − ``point`` (m,) at the configuration among q (k, n) that misses it least."""
+    return robot.task_point(robot.kinematics(q[np.argmin(miss)][None]))[0][0] - point
 
 
 def _point_text(robot: Robot, y: np.ndarray) -> str:
