@@ -84,8 +84,12 @@ class Pass {
   Eigen::Index n() const { return model_.nv; }
   Eigen::Index size() const { return Eigen::Index(frames_.size()); }
 
-  // The tracked frames at one state q (n), and with v (n) their velocities and Jacobian rates
-  // (Pinocchio's time variation, mimic joints included): what `frames` then reads.
+  // The tracked frames at one state q (n), and with v (n) their velocities and Jacobian rates:
+  // what `frames` then reads. The point's J_p = J_v − [p]× J_ω from the spatial (world-frame)
+  // Jacobian [J_v; J_ω], so J̇_p = J̇_v − [p]× J̇_ω − [ṗ]× J_ω, with Pinocchio's J̇ of the
+  // spatial Jacobian (its world-aligned J̇ at a point leaves a mimic joint's share out of the
+  // [ṗ]× J_ω term, in Pinocchio 4.1) and J_ω of the world-aligned Jacobian, mimic joints
+  // included in both.
   void at(const double* q, const double* v) {
     const auto n = model_.nv;
     const Vector qi(q, n);
@@ -107,11 +111,16 @@ class Pass {
       pinocchio::getFrameJacobian(model_, data_, frame.parentJoint, frame.placement, WORLD, six_);
       Eigen::Map<Matrix>{&linear_[3 * n * f], 3, n} = six_.topRows<3>();
       Eigen::Map<Matrix>{&angular_[3 * n * f], 3, n} = six_.bottomRows<3>();
-      if (v) {
+      if (v) {  // ṗ = J_p v, and J̇_p from the rate of the spatial Jacobian
         six_rate_.setZero();
-        pinocchio::getFrameJacobianTimeVariation(model_, data_, id, WORLD, six_rate_);
-        Eigen::Map<Matrix>{&rates_[3 * n * f], 3, n} = six_rate_.topRows<3>();
-        Eigen::Map<Eigen::Vector3d>{&velocities_[3 * f]} = six_.topRows<3>() * Vector(v, n);
+        pinocchio::getFrameJacobianTimeVariation(model_, data_, id, pinocchio::WORLD, six_rate_);
+        const Eigen::Vector3d p = Point(&positions_[3 * f]);
+        const Eigen::Vector3d p_dot = six_.topRows<3>() * Vector(v, n);
+        Eigen::Map<Eigen::Vector3d>{&velocities_[3 * f]} = p_dot;
+        Eigen::Map<Matrix> rate{&rates_[3 * n * f], 3, n};
+        for (Eigen::Index j = 0; j < n; ++j)
+          rate.col(j) = six_rate_.col(j).head<3>() - p.cross(six_rate_.col(j).tail<3>()) -
+                        p_dot.cross(six_.col(j).tail<3>());
       }
     }
   }

@@ -72,14 +72,23 @@ def test_rates_read_from_the_pass_equal_pinocchios(robot):
     assert_rates_equal_pinocchios(robot)
 
 
-def test_a_mimic_joints_rates_equal_pinocchios():
-    """A mimic joint shares its column with the joint it follows: its robot's rates are
-    Pinocchio's, and equal them."""
+def test_a_mimic_joints_rates_match_finite_differences():
+    """A mimic joint shares its column with the joint it follows, in J and in J̇: every tracked
+    point's Jacobian rate (the tool's on the mimic joint among them) and Ȧ are the derivatives
+    of the pass's own J_p and A along v. (Pinocchio 4.1's world-aligned J̇ at a point beyond a
+    mimic joint misses that joint's share: 1.65 off on the tool here, where |J̇| is 3.3.)"""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         robot = load_robot(Path(__file__).parent / "fixtures" / "intake" / "mimic" / "robot.toml")
     assert any("Mimic" in joint.shortname() for joint in robot.model.joints)
-    assert_rates_equal_pinocchios(robot)
+    q = random_configurations(robot, 10, seed=18, margin=0.01)
+    v = random_velocities(robot, 10, seed=19)
+    moving, space = robot.kinematics(q, v), actuator_space(robot, q, v)
+    for i, (qi, vi) in enumerate(zip(q, v)):
+        J_dot = central_difference(lambda qq: robot.kinematics(qq[None]).jacobians[0], qi, vi)
+        np.testing.assert_allclose(moving.jacobian_rates[i], J_dot, atol=1e-7)
+        A_dot = central_difference(lambda qq: actuator_space(robot, qq).A[0], qi, vi)
+        np.testing.assert_allclose(space.A_dot[i], A_dot, atol=1e-7)
 
 
 def assert_rates_equal_pinocchios(robot):

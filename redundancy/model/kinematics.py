@@ -7,9 +7,11 @@ point Jacobian J_p = ∂p/∂q and the angular rows J_ω. Everything else in the
 coordinates y and J, actuator strokes x and A) is read from this one result.
 
 With joint velocities v the same pass runs Pinocchio's `computeJointJacobiansTimeVariation`
-instead, and adds each point's velocity ṗ = J_p v and Jacobian rate J̇_p = dJ_p/dt (mimic joints
-included). A law solves for v after the pass; `Kinematics.moving` then runs the pass with them,
-which in C++ costs less than deriving the rates from the stored Jacobians in numpy.
+instead, and adds each point's velocity ṗ = J_p v and Jacobian rate J̇_p = dJ_p/dt, mimic joints
+included: J̇_p = J̇_v − [p]× J̇_ω − [ṗ]× J_ω from the rate of the spatial Jacobian [J_v; J_ω] (J_p
+= J_v − [p]× J_ω), since Pinocchio's own world-aligned J̇ at a point leaves a mimic joint's share
+out of the [ṗ]× J_ω term. A law solves for v after the pass; `Kinematics.moving` then runs the pass
+with them, which in C++ costs less than deriving the rates from the stored Jacobians in numpy.
 """
 
 from __future__ import annotations
