@@ -128,8 +128,9 @@ class GlobalOptimum(Refined):
     @property
     def bound(self) -> float:
         """The optimal peak on the finest grid: the bound on every start's peak where the
-        optimum `converged`; otherwise `failure` says why it is none (the least peak the
-        solver found, at most its start's)."""
+        optimum `converged`; otherwise no bound, and `failure` says why: the finest grid's
+        solution, where the solver failed, may peak above the motion it started from, even
+        above the improved start's peak."""
         return self.optimum
 
 
