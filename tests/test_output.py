@@ -98,6 +98,8 @@ def test_a_folder_of_other_files_is_refused_not_replaced(tmp_path):
     (tmp_path / "file").write_text("")
     with pytest.raises(InvalidInputError, match=r"--out .*file is a file; give a folder"):
         OutputFolder(tmp_path / "file")
+    with pytest.raises(InvalidInputError, match=r"^--out /dev/null is a device, a pipe or a soc"):
+        OutputFolder("/dev/null")
     with pytest.raises(InvalidInputError, match=r"--json .*file is a file, not a folder"):
         writable(tmp_path / "file" / "report.json", "--json")
     assert (tmp_path / "thesis.tex").read_text() == "mine"

@@ -233,7 +233,8 @@ class OutputFolder:
         if not self.target.exists():
             return False
         if not self.target.is_dir():
-            raise InvalidInputError(f"{self.option} {self.target} is a file; give a folder")
+            what = "a file" if self.target.is_file() else "a device, a pipe or a socket"
+            raise InvalidInputError(f"{self.option} {self.target} is {what}; give a folder")
         manifest = _manifest(self.target)
         names = sorted(e.name for e in self.target.iterdir())
         if manifest is None and names:
