@@ -132,7 +132,7 @@ def main() -> None:
                 states = side[f"states {segment}"]
                 print(
                     f"{name}: improved start {segment} integrates at least {states:,.0f} states "
-                    f"(7 a step and each motion's start), at {side['read'] * 1e6:.2f} µs "
+                    f"({STAGES} a step and each motion's start), at {side['read'] * 1e6:.2f} µs "
                     f"each: {states * side['read'] * 1e3:.2f} ms"
                 )
         if {"step", "pink", "bare"} <= side.keys():
