@@ -12,8 +12,9 @@ import yourdfpy
 from lxml import etree
 from test_intake import quietly, run
 
-from redundancy import RobotDescriptionError, bundled_robots, load_robot
+from redundancy import RobotDescriptionError, actuator_space, bundled_robots, load_robot
 from redundancy.model.loading import bundled_root
+from redundancy.planning.integrate import rate_on_grid
 
 CRANE = bundled_root() / "hiab031"
 
@@ -249,6 +250,61 @@ def test_a_mimic_of_a_mimic_follows_its_leaders_leader(tmp_path):
         np.testing.assert_allclose(
             ours["telescope"][:3, :3] @ turn, ours["third"][:3, :3], atol=1e-12
         )
+
+
+def test_the_power_balance_holds_where_mimic_joints_move_the_actuators(tmp_path):
+    """Σ F_i ẋ_i = d/dt (T + V), T = ½ q̇ᵀ M q̇ and V = −m g·c (c the centre of mass), along
+    q(t) = q0 + v0 t + ½ a t² over 1 s on the sibling-mimic arm, its lamp given a mass, with
+    x1's base on the lamp and x4's rod on the right finger: both ends move by mimic joints, so
+    Ȧ beyond them is in N_H of the forces F_H = M_H ẍ + N_H. ẍ (the rate of ẋ = A q̇) and the
+    energy's rate are fourth-order differences on an h = 10 ms grid: they agree to h⁴ of the
+    peak power on the motion's 1 s scale (1e-10 of it measured; 3e-3 to 0.2 of it off with J̇
+    beyond a mimic joint missing that joint's share). x1 and x4 each do over a thousand times
+    that work at every sample, so the balance weighs them."""
+    lamp = (
+        '<link name="lamp"><inertial><mass value="5"/><origin xyz="0.2 0 0"/>'
+        '<inertia ixx="0.01" iyy="0.05" izz="0.05" ixy="0" ixz="0" iyz="0"/></inertial></link>'
+    )
+    robot = loaded(
+        tmp_path,
+        SIBLINGS.replace('<link name="lamp"/>', lamp),
+        toml="""
+        [actuators.x1]
+        kind = "LinearCylinder"
+        joint = "boom_joint"
+        base = {link = "lamp", xyz = [0.5, 0, -0.6]}
+        rod = {link = "boom", xyz = [0.9, 0, -0.2]}
+        [actuators.x2]
+        kind = "LinearCylinder"
+        joint = "stick_joint"
+        base = {link = "boom", xyz = [1, 0, 0.3]}
+        rod = {link = "stick", xyz = [-0.35, 0, 0.15]}
+        [actuators.x3]
+        kind = "Prismatic"
+        joint = "telescope_joint"
+        [actuators.x4]
+        kind = "LinearCylinder"
+        joint = "b_left_joint"
+        base = {link = "telescope", xyz = [0.3, 0, 0.1]}
+        rod = {link = "right", xyz = [0.1, 0, 0]}
+        """,
+    )
+    t = np.linspace(0.0, 1.0, 101)
+    v0, a = np.array([0.4, -0.3, 0.2, 0.5]), np.array([0.1, 0.2, -0.1, -0.3])
+    q = np.array([0.3, -1.0, 0.4, 0.2]) + np.outer(t, v0) + np.outer(t**2 / 2, a)
+    space = actuator_space(robot, q, v0 + np.outer(t, a))
+    forces = space.forces(rate_on_grid(space.x_dot[None], t)[0])
+    # T from the CRBA's M and V from the centre of mass: Pinocchio's energies refuse mimic joints
+    model, data = robot.model, robot.model.createData()
+    weight = pin.computeTotalMass(model) * model.gravity.linear
+    potential = [-weight @ pin.centerOfMass(model, data, qi) for qi in q]
+    kinetic = np.einsum("ti,tij,tj->t", space.v, space.M, space.v) / 2
+    stored = rate_on_grid((kinetic + potential)[None], t)[0]
+    work = (forces * space.x_dot)[2:-2]  # inside, where both rates are fourth-order
+    tolerance = (t[1] - t[0]) ** 4 * np.abs(work.sum(axis=1)).max()
+    assert np.abs(work[:, [0, 3]]).min() > 1e3 * tolerance
+    error = np.abs(work.sum(axis=1) - stored[2:-2]).max()
+    assert error <= tolerance, error
 
 
 def test_a_chain_deeper_than_pythons_recursion_loads(tmp_path):
