@@ -38,3 +38,19 @@ def inverse_dynamics(robot, q, v, a):
     """τ = M(q) a + V(q, v) + G(q) (Eq. 18) by RNEA, (n,) or (k, n)."""
     data = robot.model.createData()
     return _each(robot, lambda *s: pin.rnea(robot.model, data, *s), q, v, a)
+
+
+def mechanical_energy(robot, q, v):
+    """T + V (k,), J, at the states q, v (k, n): T = ½ q̇ᵀ M q̇ with Pinocchio's CRBA and
+    V = −m g·c with its centre of mass c (Pinocchio's own energy functions refuse mimic
+    joints)."""
+    model, data = robot.model, robot.model.createData()
+    weight = pin.computeTotalMass(model) * model.gravity.linear
+
+    def energy(qi, vi):
+        upper = np.triu(pin.crba(model, data, qi))  # the CRBA fills the upper triangle
+        return vi @ (upper + np.triu(upper, 1).T) @ vi / 2 - weight @ pin.centerOfMass(
+            model, data, qi
+        )
+
+    return np.array([energy(qi, vi) for qi, vi in zip(q, v)])

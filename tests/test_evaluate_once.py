@@ -3,9 +3,9 @@ configuration through the one Pinocchio pass about once, and the motions the pro
 keep the power balance on their own grid."""
 
 import numpy as np
-import pinocchio as pin
 import pytest
 from counting import counting
+from joint_space import mechanical_energy
 
 from redundancy.errors import InvalidInputError
 from redundancy.planning.bound import global_optimum
@@ -124,17 +124,6 @@ def test_searches_made_otherwise_are_refused(crane, paper_cycle):
         plan_cycle(crane, paper_cycle, VELOCITY, segments=())
 
 
-def _mechanical_energy(robot, q, v):
-    """T + V (T,), J, by Pinocchio at each sample."""
-    model, data = robot.model, robot.model.createData()
-    return np.array(
-        [
-            pin.computeKineticEnergy(model, data, a, b) + pin.computePotentialEnergy(model, data, a)
-            for a, b in zip(q, v)
-        ]
-    )
-
-
 @pytest.mark.parametrize("objective", [o.name for o in OBJECTIVES])
 @pytest.mark.parametrize("name", SEGMENTS)
 def test_reported_motions_keep_the_power_balance_on_their_grid(crane, searches, name, objective):
@@ -146,7 +135,7 @@ def test_reported_motions_keep_the_power_balance_on_their_grid(crane, searches, 
     assert t[1] - t[0] <= 0.01
     v = motion.states.v.reshape(q.shape)
     power = np.einsum("ti,ti->t", motion.forces[0], motion.x_dot[0])
-    stored = rate_on_grid(_mechanical_energy(crane, q, v)[None], t)[0]
+    stored = rate_on_grid(mechanical_energy(crane, q, v)[None], t)[0]
     inside = slice(2, -2)
     error = np.abs(power[inside] - stored[inside]).max()
     assert error <= 1e-5 * np.abs(power).max(), error

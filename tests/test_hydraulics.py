@@ -10,9 +10,9 @@ import re
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 import pytest
 from commands import run_cli
+from joint_space import mechanical_energy
 from sampling import random_configurations
 
 from redundancy import load_robot
@@ -129,17 +129,6 @@ def test_static_pressures_hold_the_crane(crane):
     np.testing.assert_array_equal(flows.flow, 0.0)
 
 
-def _mechanical_energy(robot, q, v):
-    """Kinetic plus potential energy (J) of each state, from Pinocchio."""
-    return np.array(
-        [
-            pin.computeKineticEnergy(robot.model, robot.data, a, b)
-            + pin.computePotentialEnergy(robot.model, robot.data, a)
-            for a, b in zip(q, v)
-        ]
-    )
-
-
 def test_power_balance_along_the_paper_segments(crane, motions):
     """Σ F_i ẋ_i = d/dt (T + V), payload included, along every baseline motion: the actuator
     forces F_H = M_H ẍ + N_H do the work the crane stores. ẍ and the energy's rate are both
@@ -151,7 +140,7 @@ def test_power_balance_along_the_paper_segments(crane, motions):
             t, q = motion.t[0], motion.q[0]
             v = motion.states.v.reshape(q.shape)
             power = np.einsum("ti,ti->t", motion.forces[0], motion.x_dot[0])
-            stored = np.gradient(_mechanical_energy(crane, q, v), t, edge_order=2)
+            stored = np.gradient(mechanical_energy(crane, q, v), t, edge_order=2)
             inside = slice(2, -2)
             error = np.abs(power[inside] - stored[inside]).max()
             assert error <= 1e-5 * np.abs(power).max(), error
@@ -169,7 +158,7 @@ def test_energy_chain(crane, motions):
             useful = np.trapezoid(motion.flows.useful_power[0], t)
             mechanical = np.trapezoid(np.einsum("ti,ti->t", motion.forces[0], motion.x_dot[0]), t)
             v = motion.states.v.reshape(motion.q.shape)[0]
-            stored = _mechanical_energy(crane, motion.q[0], v)
+            stored = mechanical_energy(crane, motion.q[0], v)
             assert mechanical == pytest.approx(stored[-1] - stored[0], abs=1e-3 * ls)
             assert ls >= useful >= mechanical
             assert motion.flows.load[0].max() < 180e5 - 20e5

@@ -9,6 +9,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 import yourdfpy
+from joint_space import mechanical_energy
 from lxml import etree
 from test_intake import quietly, run
 
@@ -294,12 +295,7 @@ def test_the_power_balance_holds_where_mimic_joints_move_the_actuators(tmp_path)
     q = np.array([0.3, -1.0, 0.4, 0.2]) + np.outer(t, v0) + np.outer(t**2 / 2, a)
     space = actuator_space(robot, q, v0 + np.outer(t, a))
     forces = space.forces(rate_on_grid(space.x_dot[None], t)[0])
-    # T from the CRBA's M and V from the centre of mass: Pinocchio's energies refuse mimic joints
-    model, data = robot.model, robot.model.createData()
-    weight = pin.computeTotalMass(model) * model.gravity.linear
-    potential = [-weight @ pin.centerOfMass(model, data, qi) for qi in q]
-    kinetic = np.einsum("ti,tij,tj->t", space.v, space.M, space.v) / 2
-    stored = rate_on_grid((kinetic + potential)[None], t)[0]
+    stored = rate_on_grid(mechanical_energy(robot, q, space.v)[None], t)[0]
     work = (forces * space.x_dot)[2:-2]  # inside, where both rates are fourth-order
     tolerance = (t[1] - t[0]) ** 4 * np.abs(work.sum(axis=1)).max()
     assert np.abs(work[:, [0, 3]]).min() > 1e3 * tolerance
