@@ -25,7 +25,6 @@ from redundancy.cli import _load_task, _play_motion, main, parser
 from redundancy.model.hydraulics import BAR
 from redundancy.model.loading import bundled_root
 from redundancy.planning.integrate import simulate
-from redundancy.planning.starts import improved_start
 from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.limits import amount
 from redundancy.study.check import span
@@ -74,31 +73,29 @@ def arm(tmp_path, held='["stick_joint"]', axes="xz", one="[2.8, -0.2]", two="[2.
     return str(tmp_path / "robot.toml")
 
 
-def test_a_held_continuous_joint_without_a_stroke_is_searched_over_a_turn(tmp_path, capsys):
-    """The stick joint, continuous and driven directly, held with no stroke: `check` finds the
-    machine ready for a study, and `play --best` starts where the improved start found over a
-    turn [−π, π] starts."""
-    path = arm(tmp_path)
-    status, out, lines = run(["check", "--robot", path], capsys)
-    assert status == 0 and not errors(lines) and "ready for a study" in out, (out, lines)
-    html = str(tmp_path / "p.html")
-    status, out, lines = run(["play", "--robot", path, "--best", "--html", html], capsys)
-    assert status == 0 and not errors(lines), lines
-    with pytest.warns(UserWarning, match="driven directly"):
-        robot = load_robot(path)
-    segment = WorkCycle.from_toml(robot.task_file, dimension=robot.m)["1-2"]
-    best = improved_start(robot, segment, VELOCITY, "stick_joint").best.value
-    assert -np.pi <= best <= np.pi
-    assert f"stick_joint = {amount(best, 'rad')})" in out, out
+@pytest.mark.parametrize("command", ["study", "cycle", "play"])
+def test_a_held_joint_without_a_stroke_names_the_table_that_gives_it_one(tmp_path, capsys, command):
+    argv = [command, "--robot", arm(tmp_path)]
+    if command == "play":
+        argv += ["--html", str(tmp_path / "p.html")]
+    else:
+        argv += ["--quiet", "--out", str(tmp_path / "out")]
+    status, _, lines = run(argv, capsys)
+    found = errors(lines)
+    assert status == 2 and len(found) == 1, found
+    assert "held actuator stick_joint has no finite stroke to sample, [-∞, ∞]" in found[0]
+    assert (
+        f"{tmp_path / 'arm' / 'robot.toml'}: [actuators.stick_joint] (a table to add, with kind = "
+        "\"Identity\" and joint = 'stick_joint'): stroke = [lower, upper] (rad)" in found[0]
+    ), found[0]
+    assert not (tmp_path / "out").exists()
 
 
-def test_check_reports_a_held_actuator_without_a_stroke_instead_of_aborting(tmp_path, capsys):
-    path = arm(tmp_path, held='["x3"]')
-    Path(path).write_text(Path(path).read_text().replace("stroke = [0.2, 1.1]\n", ""))
-    status, out, lines = run(["check", "--robot", path], capsys)
+def test_check_reports_a_held_joint_without_a_stroke_instead_of_aborting(tmp_path, capsys):
+    status, out, lines = run(["check", "--robot", arm(tmp_path)], capsys)
     assert status == 2 and not errors(lines), lines
     assert "actuators (values over the joint's range" in out  # the whole screen, not one error
-    assert "a study: held actuator x3 has no finite stroke" in out
+    assert "a study: held actuator stick_joint has no finite stroke" in out
 
 
 def test_a_declared_held_actuator_without_a_stroke_names_its_own_table(tmp_path, capsys):

@@ -441,17 +441,13 @@ class ActuatorSet:
         """Which actuators are angles (rad) rather than lengths (m), (n,) bool."""
         return np.array([a.rotary for a in self.maps])
 
-    @property
-    def turning(self) -> np.ndarray:
-        """Which actuators are rotary with no stroke end (on a continuous joint), (n,) bool:
-        turning one once around leaves the machine as it was."""
-        return self.rotary & ~(np.isfinite(self.lower) | np.isfinite(self.upper))
-
     def turned(self, change: np.ndarray) -> np.ndarray:
-        """Changes of the strokes (..., n), those of `turning` actuators modulo a turn, within
-        [−π, π)."""
+        """Changes of the strokes (..., n), those of rotary actuators with no stroke end (on a
+        continuous joint) modulo a turn, within [−π, π): turning one once around leaves the
+        machine as it was."""
+        turning = self.rotary & ~(np.isfinite(self.lower) | np.isfinite(self.upper))
         change = np.array(change, dtype=float)
-        change[..., self.turning] = modulo_turn(change[..., self.turning])
+        change[..., turning] = modulo_turn(change[..., turning])
         return change
 
     def _groups(self) -> list[tuple[type[ActuatorMap], list[ActuatorMap], slice | np.ndarray]]:

@@ -514,11 +514,7 @@ def _on_branch(
     strokes = Limits.strokes(robot, checked)
     lower, upper = robot.actuators.lower[rows], robot.actuators.upper[rows]
     if not np.all(np.isfinite(upper - lower)):
-        raise InvalidInputError(
-            f"the held actuators {names} need finite strokes, which the optimum's grid of held "
-            "values spans (a turn of one with neither stroke end would need histories that "
-            "wrap around it)"
-        )
+        raise InvalidInputError(f"the held actuators {names} need finite strokes")
     counts = (SPANNING, VALUES) if len(rows) == 1 else (SPANNING_EACH, VALUES_EACH)
     last = counts[1] ** len(rows)  # held values per node of every grid's last pass
     start, end = segment.velocity_at(np.array([0.0, segment.duration]))

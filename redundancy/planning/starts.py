@@ -274,25 +274,11 @@ def held_actuators(robot: Robot, cycle: WorkCycle) -> tuple[str, ...]:
 
 
 def stroke_box(robot: Robot, held: tuple[str, ...]) -> np.ndarray:
-    """What the held actuators are sampled over (r, 2): each one's stroke, or one turn
-    [−π, π] of a `turning` one (no stroke end, on a continuous joint: every pose it takes is
-    one of that turn's). Any other open end is refused: nothing bounds where to sample."""
-    rows = held_indices(robot, held)
-    actuators = robot.actuators
-    box = np.column_stack([actuators.lower[rows], actuators.upper[rows]])
-    box[actuators.turning[rows]] = (-np.pi, np.pi)
-    for name, (lower, upper) in zip(held, box):
-        if not np.isfinite(upper - lower):
-            actuator = actuators[name]
-            raise InvalidInputError(
-                placed(
-                    actuator.declared_in,
-                    f"held actuator {name}'s stroke [{lower:g}, {upper:g}] {actuator.unit} "
-                    "has an open end, and a search samples a held actuator over its stroke; "
-                    "declare stroke = [lower, upper] for it (a rotary actuator with neither "
-                    "end is sampled over a turn)",
-                )
-            )
+    """The held actuators' strokes (r, 2), checked finite."""
+    held_indices(robot, held)
+    box = np.array([[robot.actuators[h].lower, robot.actuators[h].upper] for h in held])
+    if not np.all(np.isfinite(box)):
+        raise InvalidInputError(f"held actuators {list(held)} need finite strokes to sample")
     return box
 
 

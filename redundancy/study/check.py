@@ -159,7 +159,7 @@ def held_problems(robot: Robot, cycle: WorkCycle, sampled: bool = True) -> list[
     that fix it: the task must hold as many actuators as the robot has redundant degrees, n − m
     (a machine whose undeclared joints move freely, a chassis say, has too many: lock them), and
     each held actuator needs a finite stroke where its values are ``sampled`` (a search, the
-    default start), but for a rotary one with no stroke end, sampled over a turn."""
+    default start)."""
     source = robot.actuators.source
     if not source.endswith(".toml"):
         source = f"a robot.toml beside {source or 'the URDF'}"
@@ -185,11 +185,14 @@ def held_problems(robot: Robot, cycle: WorkCycle, sampled: bool = True) -> list[
             )
         return [placed(cycle.source and f"{cycle.source}: held", line)]
     problems = []
-    for name, row in zip(held, robot.actuators.rows(held)) if sampled else ():
+    for name in held if sampled else ():
         actuator = robot.actuators[name]
-        if np.isfinite(actuator.upper - actuator.lower) or robot.actuators.turning[row]:
-            continue  # sampled over its stroke, or a turn (`redundancy.planning.starts.stroke_box`)
-        place = actuator.declared_in or f"{source}: [actuators.{name}]"
+        if np.isfinite(actuator.lower) and np.isfinite(actuator.upper):
+            continue
+        place = actuator.declared_in or (
+            f'{source}: [actuators.{name}] (a table to add, with kind = "Identity" and joint '
+            f"= {actuator.joint!r})"
+        )
         syntax = (
             '<stroke lower=".." upper=".."/>'
             if "<transmission" in place
