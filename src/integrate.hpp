@@ -183,8 +183,9 @@ inline bool shaped(const py::array& a, std::initializer_list<py::ssize_t> shape)
 // crosses one of the sorted times `breaks` in (0, duration), where the path's ẏ_d is not smooth
 // (a speed profile's ramp ends, a polyline's corners): a step that straddles one is as accurate
 // as its order there, not as the error estimate says. Where ẏ_d jumps there, a step that ends on a
-// break reads its last stage just before it (the piece it integrated), and the next step's first
-// slope is the law's at the break (the next piece), one more evaluation per break. With `stop`, a
+// break reads its stages at its end (c = 1: Dormand-Prince has two) just before it (the piece it
+// integrated), and the next step's first slope is the law's at the break (the next piece), one
+// more evaluation per break. With `stop`, a
 // motion whose end of step is past a stroke [lower, upper] (n,) by more than `allowance`, as are
 // its neighbours in the batch, stops. A start whose error estimate is not finite (a Python
 // right-hand side's q̇ NaN) is frozen too.
@@ -278,8 +279,9 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
         for (py::ssize_t j = 0; j < stage; ++j)
           increment.row(i) += a.at(stage - 1, j) * slopes[j].row(i);
         times(i) = t[rows[i]] + c.at(stage - 1) * step[i];
-        // ending on a break: ẏ_d of the piece before it
-        if (stage == s && on_break[i]) times(i) -= 1e-12 * duration;
+        // a stage at the end of a step that ends on a break (the tableau has two): ẏ_d of the
+        // piece before it
+        if (on_break[i] && c.at(stage - 1) >= 1) times(i) -= 1e-12 * duration;
         states.row(i) = at(q, rows[i], 1, n) + step[i] * increment.row(i);
       }
       // the last stage is the step's end: recorded where the ends are kept (a sample each)
