@@ -5,7 +5,7 @@ import pytest
 
 from redundancy import InvalidInputError
 from redundancy.model.loading import bundled_root
-from redundancy.planning.tasks import Segment, WorkCycle
+from redundancy.planning.tasks import Polyline, Segment, WorkCycle
 
 
 def test_segment_follows_eqs_33_34():
@@ -69,3 +69,13 @@ def test_a_task_file_may_start_with_a_byte_order_mark(tmp_path):
     path.write_bytes("\ufeff".encode() + text.encode())
     cycle = WorkCycle.from_toml(path, dimension=2)
     assert [s.name for s in cycle.segments] == ["1-2", "2-3", "3-1"]
+
+
+def test_a_polyline_takes_nested_lists_and_refuses_what_is_not_a_table_of_points():
+    """Points typed as lists are numbers (K, m) like an array's; text, NaN, rows of unequal
+    length or a single row are refused in one line that shows them."""
+    line = Polyline([[0, 0], [3, 4]])
+    assert line.points.dtype == float and line.cumulative[-1] == 5.0
+    for points in ([[0, "a"], [1, 1]], [[0, np.nan], [1, 1]], [[0, 0], [1]], [1, 2]):
+        with pytest.raises(InvalidInputError, match=r"polyline's points must be \(K, m\) finite"):
+            Polyline(points)

@@ -103,6 +103,15 @@ class Polyline(Shape):
     kind = "polyline"
 
     def __post_init__(self) -> None:
+        try:
+            points = np.asarray(self.points, dtype=float)
+        except (TypeError, ValueError):  # not numbers, or rows of unequal length
+            points = np.empty(0)
+        if points.ndim != 2 or not np.isfinite(points).all():
+            raise InvalidInputError(
+                f"a polyline's points must be (K, m) finite numbers; got {self.points!r}"
+            )
+        object.__setattr__(self, "points", points)
         if len(self.points) < 2:
             raise InvalidInputError("a polyline needs at least two points")
         if not np.all(np.diff(self.cumulative) > CLOSED):
