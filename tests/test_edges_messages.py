@@ -352,6 +352,17 @@ def test_a_round_off_is_shown_as_zero_not_as_a_tiny_number():
     assert amount(2e-12, "m") == "2e-09 mm" and amount(0.8279, "m") == "827.9 mm"
 
 
+def test_a_length_of_ten_metres_or_more_is_written_out_in_mm(tmp_path, capsys):
+    """A task point 30 m out was shown by check as "[3e+04 mm, -500 mm]": a length of 10 m
+    or more is written out to the whole mm, with no power of ten."""
+    task = (bundled_root() / "hiab031" / "task.toml").read_text()
+    (tmp_path / "t.toml").write_text(task.replace("1 = [3.5, -0.5]", "1 = [30.0, -0.5]"))
+    status, out, _ = run(["check", "--task", str(tmp_path / "t.toml")], capsys)
+    assert status == 2 and "  [30000 mm, -500 mm]: NOT reached" in out.splitlines(), out
+    assert amount(96.1263, "m") == "96126 mm" and amount(9.99996, "m") == "10000 mm"
+    assert amount(1100.0, "m") == "1100000 mm" and amount(1e300, "m") == "1e+303 mm"
+
+
 def test_a_cylinder_point_in_mm_names_the_number_and_the_fix(tmp_path, capsys):
     """A rod pin written in mm in robot.toml: the line named the pin only as a cut excerpt
     of its table and the general shape; it names the coordinate out of range and the fix."""

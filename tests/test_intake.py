@@ -652,7 +652,7 @@ def test_play_starts_from_the_held_values_given_for_two_held_actuators(tmp_path,
     ]
     status, errors = run([*argv[:-1], "x2=1100,x3=0.5", "--html", str(tmp_path / "p.html")], capsys)
     assert status == 2 and errors == [  # a length given in mm, as the strokes are shown
-        "redundancy: error: --start x2=1100 is outside the stroke of x2: 1.1e+06 mm, stroke "
+        "redundancy: error: --start x2=1100 is outside the stroke of x2: 1100000 mm, stroke "
         "[830 mm, 1375 mm]; did you give mm? the value is in m"
     ]
 

@@ -22,6 +22,8 @@ TOLERANCE = 1e-9  # m or rad: a value this close past a limit counts as inside
 
 
 SHOWN_ZERO = 1e-12  # SI units: what Newton's converged residual is (1e-12 m), shown as 0
+WRITTEN_OUT = 1e9  # shown units: a value below is written out (30000 mm, not 3e+04 mm); one
+# beyond is no machine's (1000 km) but a mistake's, and keeps its power of ten
 # SI unit → (factor, shown unit) for messages
 SHOWN = {
     "m": (1e3, " mm"),
@@ -35,10 +37,15 @@ SHOWN = {
 
 def amount(value: float, unit: str) -> str:
     """``value`` in the SI ``unit`` (a key of `SHOWN`) as messages show it: m in mm, rad in
-    degrees, Pa in bar, m³/s in L/min; one below `SHOWN_ZERO` as 0 (a round-off's 1e-13 rad
-    is no 6e-12°)."""
+    degrees, Pa in bar, m³/s in L/min, to 4 significant digits, and from 10⁴ up (below
+    `WRITTEN_OUT`) to the whole unit: 827.9 mm, 30000 mm; one below `SHOWN_ZERO` as 0 (a
+    round-off's 1e-13 rad is no 6e-12°)."""
     factor, shown = SHOWN[unit]
-    return f"{(0.0 if abs(value) < SHOWN_ZERO else value) * factor:z.4g}{shown}"
+    number = (0.0 if abs(value) < SHOWN_ZERO else value) * factor
+    text = f"{number:z.4g}"
+    if "e+" in text and abs(number) < WRITTEN_OUT:
+        text = f"{number:z.0f}"
+    return f"{text}{shown}"
 
 
 @dataclass(frozen=True)
