@@ -170,7 +170,7 @@ CASES = [
             message,
         )
         for v, message in (
-            ('"1-2"', "segments = '1-2' must be a list"),
+            ('"1-2"', 'segments = "1-2" must be a list'),
             ("[12]", "segments = [12] must be a list"),
             ('["1-9"]', "segment '1-9' must be '<from>-<to>'"),
             ('["1"]', "segment '1' must be '<from>-<to>'"),
@@ -204,14 +204,14 @@ CASES = [
             message,
         )
         for v, message in (
-            ('["a", "b"]', "[points] 1 = ['a', 'b'] must be a list of finite numbers"),
+            ('["a", "b"]', '[points] 1 = ["a", "b"] must be a list of finite numbers'),
             ("[3.5, -0.5, 1.0]", "point 1 has 3 coordinates; the robot's task has 2"),
             ("[3.5]", "point 1 has 1 coordinates"),
             ("[nan, 0]", "[points] 1 = [nan, 0] must be a list of finite numbers"),
             ("[inf, 0]", "[points] 1 = [inf, 0] must be a list of finite numbers"),
             ("[1e308, 0]", "point 1: 1e+308 lies beyond ±1000 (m, or degrees for the tool's"),
-            ('"3.5, -0.5"', "[points] 1 = '3.5, -0.5' must be a list of finite numbers"),
-            ("[true, 0]", "[points] 1 = [True, 0] must be a list of finite numbers"),
+            ('"3.5, -0.5"', '[points] 1 = "3.5, -0.5" must be a list of finite numbers'),
+            ("[true, 0]", "[points] 1 = [true, 0] must be a list of finite numbers"),
             ("[100.0, -0.5]", "cannot follow segment 1-2: its point [100.0, -0.5] m (t = 0 s)"),
         )
     ],
@@ -227,7 +227,7 @@ CASES = [
             f"robot.toml {key} = {v}",
             ["describe", "--robot", "r.toml"],
             {"r.toml": _description(**{key: v})},
-            f"{key} = ",
+            f"{key} = {v} must be",  # the value as the file writes it: true, not True
         )
         for key in ("urdf", "tool_frame", "task_axes", "task")
         for v in ("3", "true", "[1]", "{a = 1}")
@@ -249,7 +249,7 @@ CASES = [
             message,
         )
         for v, message in (
-            ('"boom1_joint"', "locked_joints = 'boom1_joint' must be a list of names"),
+            ('"boom1_joint"', 'locked_joints = "boom1_joint" must be a list of names'),
             ("[1]", "must be a list of names"),
             ('["nope"]', "locked joints ['nope'] are not joints"),
         )
@@ -264,7 +264,7 @@ CASES = [
         "robot.toml axes unknown",
         ["describe", "--robot", "r.toml"],
         {"r.toml": _description(task_axes='"xq"')},
-        "r.toml: task_axes = 'xq' must be distinct letters among 'x', 'y', 'z'",
+        "r.toml: task_axes = \"xq\" must be distinct letters among 'x', 'y', 'z'",
     ),
     (
         "robot.toml unknown key",
@@ -351,7 +351,7 @@ CASES = [
         "unknown kind",
         ["describe", "--robot", "b.urdf"],
         {"b.urdf": URDF.replace("redundancy/LinearCylinder", "redundancy/Nope", 1)},
-        "'redundancy/Nope' is not an actuator kind; kinds: ",
+        '"redundancy/Nope" is not an actuator kind; kinds: ',
     ),
     (
         "missing joint",
@@ -596,7 +596,7 @@ CASES = [
         "hydraulics supply",
         ["describe", "--hydraulics", "h.toml"],
         {"h.toml": HYDRAULICS.replace('supply = "LS"', 'supply = "XX"')},
-        "[hydraulics] supply = 'XX' must be one of 'LS', 'CP'",
+        '[hydraulics] supply = "XX" must be one of "LS", "CP"',
     ),
     (
         "hydraulics rod too big",
@@ -732,7 +732,7 @@ CASES = [
                 "grid attachment end",
                 '[task]\n[grid]\nattachment = {actuator = "x1", '
                 'end = "top", axis = "x", values = [0.1]}\n',
-                "[grid.attachment] end = 'top' must be one of 'base', 'rod'",
+                '[grid.attachment] end = "top" must be one of "base", "rod"',
             ),
             (
                 "grid attachment kind",
@@ -776,13 +776,13 @@ CASES = [
             (
                 "objectives twice",
                 'objectives = ["velocity", "velocity"]\n[task]\n',
-                "objectives = ['velocity', 'velocity'] names 'velocity' more than once; give each "
+                'objectives = ["velocity", "velocity"] names "velocity" more than once; give each '
                 "once (objectives: velocity, energy",
             ),
             (
                 "task segments twice",
                 '[task]\nsegments = ["1-2", "1-2"]\n',
-                "segments = ['1-2', '1-2'] names '1-2' more than once",
+                'segments = ["1-2", "1-2"] names "1-2" more than once',
             ),
             (
                 "too many problems",
@@ -927,14 +927,14 @@ API = [
         )
         for gain in (np.nan, np.inf, 1e308, -0.1, "0.1", True)
     ],
-    ("load_robot payload text", lambda r: load_robot("hiab031", payload="abc"), "payload = 'abc'"),
+    ("load_robot payload text", lambda r: load_robot("hiab031", payload="abc"), 'payload = "abc"'),
     ("load_robot payload nan", lambda r: load_robot("hiab031", payload=np.nan), "payload = nan"),
     ("load_robot payload huge", lambda r: load_robot("hiab031", payload=1e18), "payload = 1e+18"),
     ("load_robot robot int", lambda r: load_robot(3), "robot must be a name or a path"),
     (
         "load_robot axes",
         lambda r: load_robot("hiab031", task_axes="xq"),
-        "load_robot: task_axes = 'xq' must be distinct letters",
+        'load_robot: task_axes = "xq" must be distinct letters',
     ),
     (
         "forces of one row for two states",  # one row serves a batch of one alone

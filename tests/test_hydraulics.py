@@ -422,8 +422,8 @@ def test_hydraulics_file_errors_name_the_value_and_the_choices(tmp_path):
     }
     assert circuit_from_table(good, "f.toml", names, rotary).names == ("x1",)
     cases = [
-        ({"supply": "XX"}, "[hydraulics] supply = 'XX' must be one of 'LS', 'CP'"),
-        ({"relief": "high"}, "relief = 'high' must be a finite number (relief pressure, bar)"),
+        ({"supply": "XX"}, '[hydraulics] supply = "XX" must be one of "LS", "CP"'),
+        ({"relief": "high"}, 'relief = "high" must be a finite number (relief pressure, bar)'),
         (
             {"cylinders": {"x9": good["cylinders"]["x1"]}},
             "no actuator 'x9'; actuators: ['x1', 'x2', 'x3']",

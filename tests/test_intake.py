@@ -395,12 +395,12 @@ BAD = [
     (
         'kind = "Prismatic"',
         'kind = "Telescope"',
-        "[actuators.x3] kind = 'Telescope' is not an actuator kind; kinds: ",
+        '[actuators.x3] kind = "Telescope" is not an actuator kind; kinds: ',
     ),
     (
         "xyz = [0.5, 0.0, 0.4]}",
         "xyz = [0.5, 0.4]}",
-        "[actuators.x1] base = {'link': 'base', 'xyz': [0.5, 0.4]} must be {link = ",
+        '[actuators.x1] base = {link = "base", xyz = [0.5, 0.4]} must be {link = ',
     ),
     (
         "stroke = [0.3, 1.3]",
@@ -415,7 +415,7 @@ BAD = [
     (
         "offset = 0.2",
         'offset = "a"',
-        "[actuators.x3] offset = 'a' must be a finite number (x − q, m)",
+        '[actuators.x3] offset = "a" must be a finite number (x − q, m)',
     ),
     (
         'joint = "stick_joint"',
@@ -435,19 +435,19 @@ BAD = [
     (
         'task_axes = "xz"',
         'task_axes = "xz"\nlocked_joints = {stick_joint = "a"}',
-        "[locked_joints] stick_joint = 'a' must be a finite number",
+        '[locked_joints] stick_joint = "a" must be a finite number',
     ),
     (
         'tool = {link = "telescope", xyz = [0.8, 0.0, 0.0]}',
         'tool = {link = "nope", xyz = [0.8, 0.0, 0.0]}',
-        "tool.link = 'nope' is not a link of the URDF; links:",
+        'tool.link = "nope" is not a link of the URDF; links:',
     ),
     (
         'tool = {link = "telescope", xyz = [0.8, 0.0, 0.0]}',
         'tool = {link = "telescope"}',
         "robot.toml: [tool]: missing key 'xyz'",
     ),
-    ('urdf = "arm.urdf"', 'urdf = "arm.urdf.xacro"', "urdf = 'arm.urdf.xacro': no such file"),
+    ('urdf = "arm.urdf"', 'urdf = "arm.urdf.xacro"', 'urdf = "arm.urdf.xacro": no such file'),
 ]
 
 
@@ -468,7 +468,7 @@ def test_braces_in_a_folder_or_an_actuator_name_stay_text_in_the_one_line(tmp_pa
     toml = sidecar(braced, replace=[('tool = {link = "telescope"', 'tool = {link = "nope"')])
     status, errors = run(["describe", "--robot", str(toml)], capsys)
     assert status == 2 and len(errors) == 1, errors
-    assert "run_{v2}" in errors[0] and "tool.link = 'nope' is not a link of the URDF" in errors[0]
+    assert "run_{v2}" in errors[0] and 'tool.link = "nope" is not a link of the URDF' in errors[0]
     toml = sidecar(tmp_path, replace=[("[actuators.x1]", '[actuators."x{1}"]')])
     text = toml.read_text().replace('link = "boom"', 'link = "nope"', 1)
     toml.write_text(text)

@@ -352,6 +352,8 @@ def test_with_circuit_limits_a_heavier_payload_needs_a_wider_lift_cylinder(tmp_p
     ("text", "expected"),
     [
         (WORKSPACE.format(chunk=1, nx=0), "count 0 must be a whole number ≥ 1"),
+        (WORKSPACE.format(chunk=1, nx="true"), "count true must be a whole number ≥ 1"),
+        (WORKSPACE.replace("[1.5, 4.0, {nx}]", '"all"').format(chunk=1), 'x = "all" must be'),
         ("[task]\n[grid]\npayload = []\n", "gives no values"),
         ("[task]\n[grid]\nspeed = {from = 0.1, to = 0.5, count = 0}\n", "count = 0"),
         ('objectives = ["fast"]\n[task]\n', "objective 'fast' unknown; objectives: velocity"),

@@ -238,14 +238,14 @@ def test_a_task_of_polylines_alone_needs_no_points(tmp_path, points):
     "text, message",
     [
         ('segments = [{ from = "a" }]\n[points]\na = [0, 0]\n', "missing 'to'"),
-        ('segments = [{ from = "a", to = "z" }]\n[points]\na = [0, 0]\n', "to = 'z' must name"),
+        ('segments = [{ from = "a", to = "z" }]\n[points]\na = [0, 0]\n', 'to = "z" must name'),
         (
             'segments = [{ from = "a", to = "b", bend = 1 }]\n[points]\na = [0, 0]\nb = [1, 0]\n',
             "unknown keys \\['bend'\\]",
         ),
         (
             'profile = "trapezoidal"\nsegments = ["a-b"]\n[points]\na = [0, 0]\nb = [1, 0]\n',
-            "toml: profile = 'trapezoidal' needs acceleration",
+            'toml: profile = "trapezoidal" needs acceleration',
         ),
         (
             'segments = [{ from = "a", to = "b", profile = "trapezoidal" }]\n[points]\n'
@@ -255,7 +255,7 @@ def test_a_task_of_polylines_alone_needs_no_points(tmp_path, points):
         ),
         (
             'profile = "smooth"\nsegments = ["a-b"]\n[points]\na = [0, 0]\nb = [1, 0]\n',
-            "profile = 'smooth' must be one of 'constant', 'trapezoidal'",
+            'profile = "smooth" must be one of "constant", "trapezoidal"',
         ),
         (
             'segments = [{ from = "a", to = "b", centre = "o" }]\n[points]\na = [1, 0]\n'
@@ -265,7 +265,7 @@ def test_a_task_of_polylines_alone_needs_no_points(tmp_path, points):
         (
             'segments = [{ from = "a", to = "b", centre = "o", direction = "up" }]\n[points]\n'
             "a = [1, 0]\nb = [0, 1]\no = [0, 0]\n",
-            r"segments\[0\] direction = 'up' must be one of 'ccw', 'cw'",
+            r'segments\[0\] direction = "up" must be one of "ccw", "cw"',
         ),
         (
             'tool_angle = true\nsegments = ["a-b"]\n[points]\na = [0, 0]\nb = [1, 0]\n',
@@ -273,7 +273,7 @@ def test_a_task_of_polylines_alone_needs_no_points(tmp_path, points):
         ),
         (
             'tool_angle = "yes"\nsegments = ["a-b"]\n[points]\na = [0, 0]\nb = [1, 0]\n',
-            "tool_angle = 'yes' must be true or false",
+            'tool_angle = "yes" must be true or false',
         ),
         ('segments = ["a-b", "a-b"]\n[points]\na = [0, 0]\nb = [1, 0]\n', "two segments are "),
         ('segment = ["a-b"]\n[points]\na = [0, 0]\nb = [1, 0]\n', "unknown keys \\['segment'\\]"),

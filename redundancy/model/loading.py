@@ -19,7 +19,7 @@ from redundancy.errors import InvalidInputError, RobotDescriptionError, Singular
 from redundancy.model.actuators import ActuatorMap, ActuatorSet, attach_frame
 from redundancy.model.hydraulics import Circuit, circuit_from_table, read_hydraulics_file
 from redundancy.model.robot import AXES, Robot, frame_id
-from redundancy.model.schema import Description, Overrides, read_toml, validate
+from redundancy.model.schema import Description, Overrides, excerpt, read_toml, toml, validate
 from redundancy.model.transmissions import read_actuator_tables, read_cylinders, read_transmissions
 from redundancy.model.urdf import Urdf, build_model, read_urdf
 
@@ -129,7 +129,8 @@ def _tool(model: pin.Model, description: Description, where: str) -> str:
     if tool is not None:
 
         def refused(links: str) -> str:
-            return f"{where} tool.link = {tool.link!r} is not a link of the URDF; links: {links}"
+            link = excerpt(tool.link, toml)
+            return f"{where} tool.link = {link} is not a link of the URDF; links: {links}"
 
         names = itertools.chain([TOOL_POINT], (f"{TOOL_POINT} {i}" for i in itertools.count(2)))
         name = next(n for n in names if not model.existFrame(n))
@@ -261,7 +262,7 @@ def load_robot(
     urdf_path = _urdf_path(folder, description.urdf)
     if not urdf_path.is_file():
         raise RobotDescriptionError(
-            f"{where}: urdf = {description.urdf!r}: no such file {urdf_path}"
+            f"{where}: urdf = {excerpt(description.urdf, toml)}: no such file {urdf_path}"
         )
     urdf = read_urdf(urdf_path)
     if urdf.missing_meshes:

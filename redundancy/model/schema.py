@@ -6,16 +6,19 @@ families of `redundancy.study.families` and the ``[actuators.<name>]`` tables of
 `redundancy.model.transmissions` are built from the pieces here. Every model refuses unknown
 keys, reads numbers strictly and finite, and declares each quantity's unit, range and likely
 unit mistakes (`quantity`). `message` turns a `pydantic.ValidationError` into one line, read
-against the model's JSON schema: the file, the table and key, the value given (at most
-`EXCERPT` characters of it) and what it must be.
+against the model's JSON schema: the file, the table and key, the value given as the file
+writes it (`toml`, at most `EXCERPT` characters of it) and what it must be.
 """
 
 from __future__ import annotations
 
 import functools
+import json
 import os
+import re
 import stat
 import tomllib
+from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any, ClassVar, Literal, TypeVar, Union
 
@@ -36,6 +39,7 @@ from redundancy.model.values import MAX_ACCELERATION, MAX_PAYLOAD, MAX_SPEED
 
 MAX_BYTES = 1 << 24  # 16 MiB: far beyond any description, task, circuit, family or recorded path
 EXCERPT = 40  # characters of a user's value a message quotes at most
+BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")  # a TOML key written without quotes
 MAX_OFFSET = 100.0  # m: a point on a link, a length or a stroke; beyond is surely mm given as m
 MM_PER_S = "did you give mm/s? 1 m/s = 1000 mm/s"
 DECLARED = "declared"  # the error type of the rules declared here, whose text is the message
@@ -68,10 +72,27 @@ def read_toml(path: Path, what: str, error: type[Exception] = InvalidInputError)
         raise error(f"{path}: not valid TOML: {failure}") from None
 
 
-def excerpt(value: object) -> str:
-    """``value``'s repr, cut to `EXCERPT` characters: a message never echoes a whole file."""
-    text = repr(value)
+def excerpt(value: object, written: Callable[[object], str] = repr) -> str:
+    """``value`` as ``written`` writes it (its repr; `toml` for a file's value), cut to
+    `EXCERPT` characters: a message never echoes a whole file."""
+    text = written(value)
     return text if len(text) <= EXCERPT else text[: EXCERPT - 3] + "..."
+
+
+def toml(value: object) -> str:
+    """``value`` read from a TOML file as the file writes it: true, "text", [1.0, 2], {a = 1}."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)  # a TOML basic string's escapes are JSON's
+    if isinstance(value, list):
+        return f"[{', '.join(map(toml, value))}]"
+    if isinstance(value, dict):
+        pairs = (
+            f"{k if BARE_KEY.fullmatch(str(k)) else toml(k)} = {toml(v)}" for k, v in value.items()
+        )
+        return f"{{{', '.join(pairs)}}}"
+    return str(value)  # a number (inf, nan), a date or a time
 
 
 class Table(BaseModel):
@@ -128,7 +149,7 @@ def _distinct(names: list[str]) -> list[str]:
     repeated = sorted({name for name in names if names.count(name) > 1})
     if repeated:
         raise PydanticCustomError(
-            DECLARED, f"names {', '.join(map(repr, repeated))} more than once; give each once"
+            DECLARED, f"names {', '.join(map(toml, repeated))} more than once; give each once"
         )
     return names
 
@@ -379,9 +400,11 @@ def message(
         return f"{_place(source, table, path)}: {said}"
     path, forms, exact = _walk(model, loc)
     if not path or (kind == DECLARED and _is_table(forms)):  # a rule across a table's keys
-        said = f": {first['msg']}" if kind == DECLARED else f" = {excerpt(data)} must be a table"
+        said = (
+            f": {first['msg']}" if kind == DECLARED else f" = {excerpt(data, toml)} must be a table"
+        )
         return _place(source, table, path) + said
-    value = excerpt(_get(data, path))
+    value = excerpt(_get(data, path), toml)
     where = f"{_place(source, table, path[:-1], keyed=True)}{path[-1]} = {value}"
     return f"{where} {_problem(first, forms, exact)}"
 
@@ -420,7 +443,7 @@ def _shape(form: dict) -> str:
     if "shape" in form:
         return str(form["shape"])
     if "enum" in form:
-        return "one of " + ", ".join(map(repr, form["enum"]))
+        return "one of " + ", ".join(map(toml, form["enum"]))
     if form.get("type") == "array":
         item = form.get("items", {}).get("type")
         return "a list of " + {"string": "names", "number": "finite numbers"}.get(item, "values")

@@ -33,7 +33,7 @@ from redundancy.errors import RobotDescriptionError
 from redundancy.model.actuators import ActuatorMap
 from redundancy.model.linkage import LinkageCylinder
 from redundancy.model.parameters import REQUIRED, number_or_text
-from redundancy.model.schema import MAX_OFFSET, CylinderTable, Table, excerpt, validate
+from redundancy.model.schema import MAX_OFFSET, CylinderTable, Table, excerpt, toml, validate
 from redundancy.model.urdf import written
 from redundancy.model.values import is_real
 
@@ -50,7 +50,7 @@ def _kind(kind_name: object, where: str, prefix: str = "") -> type[ActuatorMap]:
     bare = kind_name[len(prefix) :] if isinstance(kind_name, str) else kind_name
     if not isinstance(kind_name, str) or not kind_name.startswith(prefix) or bare not in kinds:
         raise RobotDescriptionError(
-            f"{where} = {kind_name!r} is not an actuator kind; kinds: "
+            f"{where} = {excerpt(kind_name, toml)} is not an actuator kind; kinds: "
             f"{', '.join(prefix + k for k in sorted(kinds))}"
         )
     return kinds[bare]  # type: ignore[index]
@@ -126,7 +126,7 @@ def read_actuator_tables(tables: dict[str, dict], source: str) -> list[ActuatorM
         kind = _kind(table.get("kind"), f"{where} kind")
         joint = validate(_table(kind), table, source, f"actuators.{name}", RobotDescriptionError)
         texts = {p.name: f"{where}: missing key {p.name}" for p in kind.parameters}
-        texts |= {key: f"{where} {key} = {excerpt(value)}" for key, value in table.items()}
+        texts |= {key: f"{where} {key} = {excerpt(value, toml)}" for key, value in table.items()}
         maps.append(_declare(kind, name, joint.joint, table, texts, where))  # type: ignore[attr-defined]
     return maps
 

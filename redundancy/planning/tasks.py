@@ -31,6 +31,7 @@ from redundancy.model.schema import (
     excerpt,
     read_text,
     read_toml,
+    toml,
     validate,
 )
 from redundancy.model.values import MAX_ACCELERATION, MAX_SPEED, decimal, is_real
@@ -614,7 +615,7 @@ class WorkCycle(Chain):
         timing = {"speed": 0.5, **task.model_dump(include=set(TIMING), exclude_none=True)}
         if timing.get("profile") == "trapezoidal" and "acceleration" not in timing:
             raise InvalidInputError(
-                f"{path}: profile = 'trapezoidal' needs acceleration (m/s², the tool's maximum)"
+                f'{path}: profile = "trapezoidal" needs acceleration (m/s², the tool\'s maximum)'
             )
         segments = [
             _segment(entry, found, timing, task.tool_angle, size, path, f"{path}: segments[{i}]")
@@ -698,7 +699,9 @@ def _segment(
         if name is None:
             raise InvalidInputError(f"missing {key!r} (a point's name)")
         if name not in points:
-            raise InvalidInputError(f"{key} = {name!r} must name a point among {known}")
+            raise InvalidInputError(
+                f"{key} = {excerpt(name, toml)} must name a point among {known}"
+            )
         return points[name]
 
     if isinstance(entry, str):

@@ -72,6 +72,7 @@ from redundancy.model.schema import (
     excerpt,
     quantity,
     read_toml,
+    toml,
     validate,
 )
 from redundancy.model.values import MAX_PAYLOAD, MAX_SPEED, is_real, is_whole
@@ -374,10 +375,12 @@ def _axis_values(value: object, where: str, extent: tuple[float, float]) -> tupl
         and all(is_real(v) and math.isfinite(v) for v in value[:2])
     ):
         raise InvalidInputError(
-            f"{where} = {excerpt(value)} must be [from, to, count] (m) or a count alone"
+            f"{where} = {excerpt(value, toml)} must be [from, to, count] (m) or a count alone"
         )
     if not is_whole(value[2], 1, MAX_COUNT):
-        raise InvalidInputError(f"{where}: count {value[2]!r} must be a whole number ≥ 1")
+        raise InvalidInputError(
+            f"{where}: count {excerpt(value[2], toml)} must be a whole number ≥ 1"
+        )
     return tuple(float(v) for v in np.linspace(*value))
 
 
