@@ -296,7 +296,7 @@ CASES = [
         "urdf broken xml",
         ["describe", "--robot", "b.urdf"],
         {"b.urdf": "<robot><link"},
-        "not readable XML",
+        "b.urdf line 1: not readable XML: Couldn't find end of Start Tag link",
     ),
     (
         "urdf not a robot",

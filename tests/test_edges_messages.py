@@ -379,6 +379,25 @@ def test_a_cylinder_point_in_mm_names_the_number_and_the_fix(tmp_path, capsys):
     ), found[0]
 
 
+def test_a_broken_urdf_is_named_by_its_path_and_its_xml_by_the_line(tmp_path, capsys):
+    """A URDF was named by its file name alone, and bad XML with the parser's "(<string>,
+    line 3)" after the message: the line names the file by its path, and bad XML by its line,
+    once."""
+    path = tmp_path.resolve() / "sub" / "arm.urdf"
+    path.parent.mkdir()
+    path.write_text('<robot name="a">\n  <link name="b">\n</robot>\n')
+    status, _, lines = run(["describe", "--robot", str(path)], capsys)
+    assert status == 2 and lines == [
+        f"redundancy: error: {path} line 3: not readable XML: Opening and ending tag mismatch: "
+        "link line 2 and robot"
+    ]
+    path.write_text('<robot name="a">\n  <joint name="j" type="fixed"/>\n</robot>\n')
+    status, _, lines = run(["describe", "--robot", str(path)], capsys)
+    assert status == 2 and lines == [
+        f"redundancy: error: {path}: joint 'j': it needs <parent link=\"...\"/>"
+    ]
+
+
 def test_a_held_value_with_two_start_configurations_is_said_so_in_play(tmp_path, capsys):
     """The slewing 3R arm's line: the improved start's held value is reached on both elbows;
     played from that value, the motion is of the elbow inverse kinematics picks, whose peak is

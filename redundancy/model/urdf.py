@@ -42,7 +42,7 @@ INERTIA_TOLERANCE = 1e-6  # of the largest principal moment: what a file's round
 @dataclass(frozen=True)
 class Urdf:
     """A URDF read: its XML ``root`` (meshes by absolute path), yourdfpy's ``parse``, the
-    file's name ``source``, the mesh references no file answers and the links of mass 0."""
+    file's path ``source``, the mesh references no file answers and the links of mass 0."""
 
     root: etree._Element
     parse: yourdfpy.Robot
@@ -58,12 +58,15 @@ class Urdf:
 
 def read_urdf(path: Path) -> Urdf:
     """The URDF of ``path`` (a ``.xacro`` file expanded by xacro), checked: XML, a ``<robot>``
-    with `_check_inertials` and `_check_joints`, which yourdfpy reads, and `_check_tree`."""
-    source = path.name
+    with `_check_inertials` and `_check_joints`, which yourdfpy reads, and `_check_tree`.
+    Messages name the file by ``path``, and bad XML by its line too."""
+    source = str(path)
     try:
         root = etree.fromstring(_document(path))
     except etree.XMLSyntaxError as error:
-        raise RobotDescriptionError(f"{source}: not readable XML: {error}") from None
+        line, column = error.position  # which the parser's message ends with: named once, first
+        said = error.msg.removesuffix(f", line {line}, column {column}")
+        raise RobotDescriptionError(f"{source} line {line}: not readable XML: {said}") from None
     if root.tag != "robot":
         raise RobotDescriptionError(
             f"{source}: not a valid URDF: Could not find the 'robot' element"
