@@ -492,7 +492,10 @@ def parser() -> argparse.ArgumentParser:
     written = argparse.ArgumentParser(add_help=False, parents=[quiet])
     written.add_argument("--json", help="report path (default: OUT/report.json)")
     minimised = argparse.ArgumentParser(add_help=False)
-    minimised.add_argument("--objective", choices=list(OBJECTIVES), default="velocity")
+    minimise = "what to minimise"
+    minimised.add_argument(
+        "--objective", choices=list(OBJECTIVES), default="velocity", help=minimise
+    )
     main = OneLineParser(
         prog="redundancy",
         description="Redundancy resolution of hydraulic manipulators in actuator coordinates.",
@@ -533,7 +536,7 @@ def parser() -> argparse.ArgumentParser:
         "--objective",
         choices=[*OBJECTIVES, "both"],
         default="both",
-        help="what to minimise; both: the paper's velocity and energy",
+        help=f"{minimise}; both: the paper's velocity and energy",
     )
     study.add_argument(
         "--no-bound",

@@ -1,6 +1,7 @@
 """The console: --version, help with defaults and an example, no progress frames in a log, and
 one line (never a traceback) where the output streams are odd."""
 
+import argparse
 import os
 import subprocess
 import sys
@@ -30,6 +31,17 @@ def test_help_shows_defaults_and_an_example(command, capsys):
     if command in ("study", "cycle"):
         assert "(default: 100)" in shown  # --samples
         assert "(default: None)" not in shown
+
+
+def test_every_option_says_what_it_does():
+    """play's and cycle's --objective had no help: every option of every command has some,
+    and --objective the same words wherever it is."""
+    found = next(a for a in parser()._actions if isinstance(a, argparse._SubParsersAction))
+    options = [(name, a) for name, command in found.choices.items() for a in command._actions]
+    assert [f"{name} {a.option_strings}" for name, a in options if not a.help] == []
+    minimise = {name: a.help for name, a in options if "--objective" in a.option_strings}
+    assert sorted(minimise) == ["cycle", "play", "study"]
+    assert minimise["play"] == minimise["cycle"] and minimise["study"].startswith(minimise["play"])
 
 
 def test_a_run_into_a_log_draws_no_progress_frames(tmp_path):
