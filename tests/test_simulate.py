@@ -204,7 +204,7 @@ def test_a_motion_as_a_table_round_trips_its_arrays(crane, cycle):
         "p_L_x3 (bar)",
         "Q_x3 (L/min)",
         "Q_pump (L/min)",
-        "P_pump (kW)",
+        "pump_power_LS (kW)",  # p_P Q_P under the crane's own supply
     ]
     np.testing.assert_array_equal(frame["t (s)"], motion.t[0])
     np.testing.assert_array_equal(frame.filter(like="q_").to_numpy(), motion.q[0])
@@ -217,6 +217,21 @@ def test_a_motion_as_a_table_round_trips_its_arrays(crane, cycle):
         columns = [f"{part}{name} " for name in crane.actuators.names]
         picked = frame[[c for c in frame.columns if any(c.startswith(p) for p in columns)]]
         np.testing.assert_array_equal(picked.to_numpy(), values[0])
+
+
+def test_a_motion_as_a_table_names_the_supply_its_pump_power_is_under(crane, cycle, tmp_path):
+    """The pump's power was "P_pump (kW)", which said neither that it is a power (p_P is the
+    pump's pressure) nor under which supply: it is p_P Q_P under the machine's own."""
+    text = (crane.task_file.parent / "robot.toml").read_text()
+    table = text[text.index("[hydraulics]") :].replace('supply = "LS"', 'supply = "CP"')
+    (tmp_path / "cp.toml").write_text(table)
+    robot = load_robot("hiab031", hydraulics=tmp_path / "cp.toml")
+    segment = cycle["2-3"]
+    motion = simulate(robot, VELOCITY.resolver, segment, reachable_starts(robot, segment, [0.4]))
+    power = motion.flows.power(robot.circuit().constant_pressure)[0]
+    frame = motion.to_frame()
+    np.testing.assert_allclose(frame["pump_power_CP (kW)"] * 1e3, power, rtol=1e-12)
+    assert not [c for c in frame.columns if "LS" in c]
 
 
 def test_a_motion_sent_to_another_process_is_sampled_there_as_here(crane, cycle):

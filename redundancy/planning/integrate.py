@@ -219,8 +219,9 @@ class Trajectory:
         """Motion ``i`` as a table, one row per sample: t, the joints q, per actuator x, ẋ, ẍ
         and F_H (where the robot has masses), each column named with its unit (a rotary
         actuator's in rad and N·m); where the machine has a hydraulic circuit, per cylinder the
-        load pressure p_L (bar) and flow Q (L/min), and the pump's flow (L/min) and power (kW)
-        under the machine's supply."""
+        load pressure p_L (bar) and flow Q (L/min), and the pump's flow (L/min) and its power
+        p_P Q_P (kW) under the machine's supply, which the column names (pump_power_LS (kW)
+        under load sensing)."""
         import pandas as pd
 
         robot = self.robot
@@ -245,7 +246,7 @@ class Trajectory:
                 columns[f"p_L_{name} (bar)"] = flows.load[i, :, c] / BAR
                 columns[f"Q_{name} (L/min)"] = flows.flow[i, :, c] / LITRES_PER_MINUTE
             columns["Q_pump (L/min)"] = flows.pump_flow[i] / LITRES_PER_MINUTE
-            columns["P_pump (kW)"] = flows.power(circuit.supply)[i] / 1e3
+            columns[f"pump_power_{circuit.supply.name} (kW)"] = flows.power(circuit.supply)[i] / 1e3
         return pd.DataFrame(columns)
 
     @cached_property
