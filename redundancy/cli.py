@@ -36,7 +36,12 @@ from redundancy.model.robot import Robot
 from redundancy.model.values import MAX_PAYLOAD
 from redundancy.planning.angles import task_labels, task_robot
 from redundancy.planning.cycles import CYCLES
-from redundancy.planning.ik import assembly_branches, check_path, configuration_at
+from redundancy.planning.ik import (
+    assembly_branches,
+    check_path,
+    configuration_at,
+    named_values,
+)
 from redundancy.planning.integrate import Trajectory, simulate
 from redundancy.planning.starts import (
     MAX_SAMPLES,
@@ -51,7 +56,7 @@ from redundancy.resolution.objectives import OBJECTIVES, Objective, objective
 from redundancy.resolution.state import actuator_space
 from redundancy.study.background import Background
 from redundancy.study.check import check, held_problems, span, task_point
-from redundancy.study.cycles import CHOICES, named_values, run_cycle
+from redundancy.study.cycles import CHOICES, run_cycle
 from redundancy.study.families import read_family
 from redundancy.study.maps import CONNECT_TIMEOUT, connect, design_map, summary
 from redundancy.study.output import OutputFolder, writable

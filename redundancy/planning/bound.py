@@ -48,6 +48,7 @@ from redundancy.planning.ik import (
     held_indices,
     held_names,
     inverse_kinematics,
+    named_values,
     newton,
 )
 from redundancy.planning.integrate import Trajectory
@@ -643,7 +644,7 @@ def _from_each_start(robot, segment, objective, names, values, intervals, solve,
             t = motions.t[i]
             candidates.append(solve(intervals, t, motions.x[i][:, rows], t, motions.q[i]))
         except InvalidInputError as error:  # the solver stepped where the task is out of reach
-            at = ", ".join(f"{n} = {v:.4g}" for n, v in zip(names, value))
+            at = named_values(robot, names, value)
             failures.append(f"from {at}: {error}")
     if not candidates:
         raise InvalidInputError(f"the bound found no optimum; {'; '.join(failures)}")

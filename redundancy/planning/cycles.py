@@ -48,7 +48,13 @@ from redundancy.planning.bound import (
     solve_transcription,
 )
 from redundancy.planning.brackets import grid_over
-from redundancy.planning.ik import CONTINUATION_ITERATIONS, FOUND, held_names, newton
+from redundancy.planning.ik import (
+    CONTINUATION_ITERATIONS,
+    FOUND,
+    held_names,
+    named_values,
+    newton,
+)
 from redundancy.planning.integrate import FAILED, TIME_STEP, Trajectory
 from redundancy.planning.motions import Laws, per_segment, simulate_path
 from redundancy.planning.refinement import Refined, checked_grids
@@ -201,7 +207,7 @@ def _corner(robot, after, end, before, start, held, speed, checked) -> Corner:
             robot, q[i - 1 : i], rows, target, CONTINUATION_ITERATIONS, start=spaces[-1]
         )
         if solved.miss[0] >= FOUND:
-            at = ", ".join(f"{h} = {v:.4g}" for h, v in zip(held, path[i]))
+            at = named_values(robot, held, path[i])
             return found(False, f"the self-motion loses the task point at {at}", q[:i])
         q[i] = solved.q[0]
         spaces.append(solved.space)  # type: ignore[arg-type]

@@ -77,6 +77,11 @@ def held_indices(robot: Robot, held: str | Sequence[str]) -> list[int]:
     return rows
 
 
+def named_values(robot: Robot, held, values) -> str:
+    """The held actuators' values by name, in mm or degrees: "x3 = 812.3 mm"."""
+    return ", ".join(f"{h} = {amount(v, robot.actuators[h].unit)}" for h, v in zip(held, values))
+
+
 def held_names(robot: Robot, held: str | Sequence[str]) -> tuple[str, ...]:
     """The held actuators (one name, or several) as a tuple of names, checked as
     `held_indices` checks them."""

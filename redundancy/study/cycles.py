@@ -37,6 +37,7 @@ from redundancy.planning.cycles import (
     repeat,
     return_map,
 )
+from redundancy.planning.ik import named_values
 from redundancy.planning.integrate import Trajectory
 from redundancy.planning.starts import SearchResult, default_start, held_actuators, scalar_or_list
 from redundancy.planning.tasks import WorkCycle
@@ -334,11 +335,6 @@ def map_report(mapped: ReturnMap) -> dict:
         "within_limits": mapped.within.tolist(),
         "fixed_points": [{**p._asdict(), "stable": p.stable} for p in mapped.fixed_points],
     }
-
-
-def named_values(robot: Robot, held, values) -> str:
-    """The held actuators' values by name, in mm or degrees: "x3 = 812.3 mm"."""
-    return ", ".join(f"{h} = {amount(v, robot.actuators[h].unit)}" for h, v in zip(held, values))
 
 
 @contextlib.contextmanager

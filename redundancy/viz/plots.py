@@ -18,10 +18,11 @@ from redundancy.model.hydraulics import BAR, LITRES_PER_MINUTE
 from redundancy.model.linkage import LinkageCylinder
 from redundancy.model.robot import AXES
 from redundancy.planning.cycles import ReturnMap
+from redundancy.planning.ik import named_values
 from redundancy.planning.integrate import Trajectory
 from redundancy.planning.starts import SearchResult
 from redundancy.resolution.objectives import VELOCITY
-from redundancy.study.cycles import CycleStudy, named_values
+from redundancy.study.cycles import CycleStudy
 from redundancy.study.output import write_atomically
 from redundancy.study.study import Study
 

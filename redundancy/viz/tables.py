@@ -12,10 +12,11 @@ import numpy as np
 
 from redundancy.model.hydraulics import BAR, BEYOND_RELIEF, KILOJOULE, SUPPLIES
 from redundancy.planning.cycles import ReturnMap
+from redundancy.planning.ik import named_values
 from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import VELOCITY
 from redundancy.study.check import Check, span, task_point
-from redundancy.study.cycles import CycleStudy, named_values, settling_words
+from redundancy.study.cycles import CycleStudy, settling_words
 from redundancy.study.study import Study
 
 RUN_COLUMNS = {"segment": "<", "strategy": "<"}  # the first columns of a table of runs
