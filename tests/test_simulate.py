@@ -638,16 +638,34 @@ def test_an_integral_over_steps_and_their_midpoints_is_exact_for_a_cubic():
     assert abs(integral(t, cubic)[0] / exact - 1) > 1e-2
 
 
-def test_a_step_from_a_break_is_integrated_from_its_middle_alone():
-    """At a break, where ẏ_d jumps (a polyline's corner), the sample is the piece before's: f
-    = t² up to t = 1 s, 5 + t after it. Simpson's rule on the first step and the midpoint rule
-    on the step from the break, exact for those, give ∫ f dt over [0, 2.5] s; Simpson's rule
-    there, from the value before the jump, misses it by 12 %."""
+def test_a_step_from_a_jump_is_integrated_from_its_middle_alone():
+    """Where ẏ_d jumps (a polyline's corner), the sample is the piece before's: f = t² up to
+    t = 1 s, 5 + t after it. Simpson's rule on the first step and the midpoint rule on the
+    step from the jump, exact for those, give ∫ f dt over [0, 2.5] s; Simpson's rule there,
+    from the value before the jump, misses it by 12 %."""
     t = np.array([[0.0, 0.5, 1.0, 1.75, 2.5]])
     f = np.where(t <= 1.0, t**2, 5 + t)
     exact = 1 / 3 + 5 * 1.5 + (2.5**2 - 1) / 2
     assert integral(t, f, np.array([1.0]))[0] == pytest.approx(exact, rel=1e-14)
     assert abs(integral(t, f, np.empty(0))[0] / exact - 1) > 0.1
+
+
+def test_a_path_jumps_at_its_corners_turned_at_speed_not_at_its_ramp_ends(crane):
+    """Steps end at every break of a path, but ẏ_d jumps at a polyline's corners alone: at a
+    ramp's end only its rate does, and there Simpson's rule is kept (the midpoint rule there
+    missed ∫ ẋᵀẋ dt on a ramped line by 0.9 %); the estimate on the steps is the integral on a
+    1 ms grid at the reports' tolerance to 1e-3."""
+    corners = np.array([[3.5, -0.5], [1.0, -0.5], [2.25, 3.0], [3.5, -0.5]])
+    turning = Segment.along("triangle", Polyline(corners), 0.5, "trapezoidal", 1.0)
+    np.testing.assert_allclose(integrate.jumps(turning), turning.breaks[1:-1])
+    assert len(turning.breaks) == 4
+    ramped = Segment("ramped", corners[0], corners[1], 0.5, None, "trapezoidal", 1.0)
+    assert len(ramped.breaks) == 2 and len(integrate.jumps(ramped)) == 0
+    travel = replace(VELOCITY, name="travel", reduction="integral")
+    starts = reachable_starts(crane, ramped, [0.9, 1.0, 1.09])
+    sparse = simulate(crane, travel.resolver, ramped, starts, sparse=True)
+    grid = simulate(crane, travel.resolver, ramped, starts, 1e-3, tolerance=REPORT_TOLERANCE)
+    np.testing.assert_allclose(sparse.score(travel), grid.score(travel), rtol=1e-3)
 
 
 def test_an_integral_objective_on_a_motions_steps_is_its_integral_on_a_fine_grid():

@@ -277,8 +277,9 @@ class Trajectory:
         stay (on the crane's LS pump energy, Simpson's rule missed the grid's integral by up to
         2.3 %, the trapezoids by 1.1 %)."""
         steps = self.sparse and not objective.dynamic
-        breaks = self.segment.breaks if steps else None
-        return objective.reduce(self.t, self.values(objective), breaks)
+        return objective.reduce(
+            self.t, self.values(objective), jumps(self.segment) if steps else None
+        )
 
     @cached_property
     def M_H(self) -> np.ndarray:
@@ -515,6 +516,17 @@ def rate_on_grid(values: np.ndarray, t: np.ndarray) -> np.ndarray:
         f, h = values, steps[0]
         rate[:, 2:-2] = (f[:, :-4] - 8 * f[:, 1:-3] + 8 * f[:, 3:-1] - f[:, 4:]) / (12 * h)
     return rate
+
+
+def jumps(path: Segment | Chain) -> np.ndarray:
+    """The times (j,) s among the path's `breaks` where ẏ_d jumps: a polyline's corner or a
+    cycle's turned at speed, not a speed profile's ramp end (where only its rate does) nor a
+    corner at rest. Probed 1e-9 of the duration either side, a change of more than 1e-6 of
+    the speed there."""
+    breaks = path.breaks
+    before, after = (path.velocity_at(breaks + side * 1e-9 * path.duration) for side in (-1, 1))
+    speed = np.maximum(np.linalg.norm(before, axis=-1), np.linalg.norm(after, axis=-1))
+    return breaks[np.linalg.norm(after - before, axis=-1) > 1e-6 * speed]
 
 
 def _pieces(t: np.ndarray, breaks: np.ndarray, duration: float) -> list[slice]:

@@ -88,31 +88,33 @@ class Objective:
             return max(known) if known else None
         return sum(known) if known and len(known) == len(values) else None
 
-    def reduce(self, t: np.ndarray, values: np.ndarray, breaks: np.ndarray | None = None):
+    def reduce(self, t: np.ndarray, values: np.ndarray, jumps: np.ndarray | None = None):
         """The objective of k motions from the measure ``values`` (k, T) at times t (k, T),
-        sampled at steps and their midpoints where ``breaks`` are given (`integral`)."""
+        sampled at steps and their midpoints where the path's ``jumps`` are given
+        (`integral`)."""
         if self.reduction == "peak":
             return values.max(axis=1)
-        return integral(t, values, breaks)
+        return integral(t, values, jumps)
 
 
-def integral(t: np.ndarray, values: np.ndarray, breaks: np.ndarray | None = None) -> np.ndarray:
+def integral(t: np.ndarray, values: np.ndarray, jumps: np.ndarray | None = None) -> np.ndarray:
     """∫ values dt (k,) for samples values (k, T) at times t (k, T): by the trapezoidal rule;
-    or, given the path's ``breaks`` (b,) (samples at t₀, then each step's middle and end, no
-    step across a break: an adaptive motion's sparse samples, `redundancy.planning.integrate`),
-    by Simpson's rule on every step, h/6 (f₀ + 4 f_½ + f₁): exact for cubics, an error of
-    O(h⁵) a step where the trapezoids between the same samples err by O(h³), which on an
-    adaptive motion's few long steps is percents (1.9 % on a 4R arm's joint speeds over 3
-    steps, against 5e-5 by Simpson). A step from a break, whose sample there is the piece
-    before's (ẏ_d jumps at a polyline's corner), takes its middle alone, h f_½ (exact for
-    lines). A motion's repeated last samples (h = 0) add nothing."""
-    if breaks is None:
+    or, given the times ``jumps`` (j,) where the path's ẏ_d jumps (samples at t₀, then each
+    step's middle and end, no step across a break of the path: an adaptive motion's sparse
+    samples, `redundancy.planning.integrate`), by Simpson's rule on every step,
+    h/6 (f₀ + 4 f_½ + f₁): exact for cubics, an error of O(h⁵) a step where the trapezoids
+    between the same samples err by O(h³), which on an adaptive motion's few long steps is
+    percents (1.9 % on a 4R arm's joint speeds over 3 steps, against 5e-5 by Simpson). A step
+    from a jump (a polyline's corner turned at speed), whose sample there is the piece
+    before's, takes its middle alone, h f_½ (exact for lines). A motion's repeated last
+    samples (h = 0) add nothing."""
+    if jumps is None:
         return np.sum((values[:, 1:] + values[:, :-1]) / 2 * np.diff(t, axis=1), axis=1)
     ends, middles = values[:, ::2], values[:, 1::2]
     steps = np.diff(t[:, ::2], axis=1)
     simpson = (ends[:, :-1] + 4 * middles + ends[:, 1:]) / 6
-    at_break = np.abs(t[:, :-1:2, None] - breaks).min(axis=-1, initial=np.inf) <= 1e-9 * t.max()
-    return np.sum(np.where(at_break, middles, simpson) * steps, axis=1)
+    at_jump = np.abs(t[:, :-1:2, None] - jumps).min(axis=-1, initial=np.inf) <= 1e-9 * t.max()
+    return np.sum(np.where(at_jump, middles, simpson) * steps, axis=1)
 
 
 def velocity_norm(space: ActuatorSpace, x_dot: np.ndarray) -> np.ndarray:
