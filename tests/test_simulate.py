@@ -683,3 +683,23 @@ def test_an_integral_objective_on_a_motions_steps_is_its_integral_on_a_fine_grid
     fine = grid.score(SQUARED)
     np.testing.assert_allclose(sparse.score(SQUARED), fine, rtol=1e-3)
     assert np.all(np.abs(integral(sparse.t, sparse.values(SQUARED)) / fine - 1) > 1e-2)
+
+
+def test_a_grid_time_a_rounding_error_past_a_steps_end_is_sampled_once(crane):
+    """A step here ends at 1.4 s, and the grid's time there is 1.4000000000000001 s: the step
+    took it within its margin, and so did the next step, from just below it. That motion had
+    one sample too many, every later one a slot late and the last dropped: its tool 5 mm
+    behind the path (0.5 m/s × 10 ms). Each grid time is now sampled once, by one step, and the
+    motion tracks its path."""
+    path = Segment(
+        "ramped", np.array([3.5, -0.5]), np.array([1.0, -0.5]), 0.5, None, "trapezoidal", 1.0
+    )
+    found = inverse_kinematics(crane, path.start, ["x3"], np.array([[0.9845454545454546]]))
+    motion = simulate(crane, VELOCITY.resolver, path, found.q)
+    grid = integrate.time_grid(path)
+    ends = motion.steps.t0 + motion.steps.h
+    near = np.abs(ends[:, None] - grid).min(axis=0)
+    assert np.any((near > 0) & (near < 1e-12 * grid[-1]))  # a step's end at a grid time, rounded
+    times = motion.steps.dense(grid)[1]
+    assert len(times) == len(grid) - 1 and np.all(np.diff(times) > 0)
+    assert motion.max_tracking_error[0] < 1e-4

@@ -866,8 +866,9 @@ class Steps:
     def dense(self, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The dense output at the times of ``grid`` (T,) in (t0, t0 + h] of each step: the
         rows, times and configurations of those samples."""
-        first = np.searchsorted(grid, self.t0, side="right")
-        last = np.searchsorted(grid, self.t0 + self.h * (1 + 1e-12), side="right")
+        reach = 1e-12 * grid[-1]  # past a step's end, to rounding: the next step's start too
+        first = np.searchsorted(grid, self.t0 + reach, side="right")
+        last = np.searchsorted(grid, self.t0 + self.h + reach, side="right")
         counts = last - first
         owner = np.repeat(np.arange(len(self.rows)), counts)
         start = np.repeat(np.cumsum(counts) - counts, counts)
