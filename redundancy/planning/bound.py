@@ -633,7 +633,7 @@ def _from_each_start(robot, segment, objective, names, values, intervals, solve,
     if not reached.any():
         raise UnreachableError(
             f"{robot.name} cannot reach the start {segment.start.tolist()} of {segment.label} "
-            f"with {', '.join(names)} at any of {values.tolist()}"
+            f"at any of {'; '.join(named_values(robot, names, v) for v in values)}"
         )
     motions = simulate_path(
         robot, objective.resolver, segment, q[reached], segment.duration / intervals

@@ -110,7 +110,7 @@ class Polyline(Shape):
             points = np.empty(0)
         if points.ndim != 2 or not np.isfinite(points).all():
             raise InvalidInputError(
-                f"a polyline's points must be (K, m) finite numbers; got {self.points!r}"
+                f"a polyline's points must be (K, m) finite numbers; got {excerpt(self.points)}"
             )
         object.__setattr__(self, "points", points)
         if len(self.points) < 2:
