@@ -88,7 +88,9 @@ class Objective:
             return max(known) if known else None
         return sum(known) if known and len(known) == len(values) else None
 
-    def reduce(self, t: np.ndarray, values: np.ndarray, jumps: np.ndarray | None = None):
+    def reduce(
+        self, t: np.ndarray, values: np.ndarray, jumps: np.ndarray | None = None
+    ) -> np.ndarray:
         """The objective of k motions from the measure ``values`` (k, T) at times t (k, T),
         sampled at steps and their midpoints where the path's ``jumps`` are given
         (`integral`)."""
