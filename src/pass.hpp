@@ -24,6 +24,10 @@ using Array = py::array_t<double, py::array::c_style | py::array::forcecast>;
 using Matrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 using ConstMatrix = Eigen::Map<const Matrix>;
 using Vector = Eigen::Map<const Eigen::VectorXd>;
+// A configuration or velocity as Pinocchio's algorithms take it here: the argument type of the
+// instantiations compiled into the `pin` wheel's library, which this module links against
+// instead of instantiating the algorithms again (PINOCCHIO_ENABLE_TEMPLATE_INSTANTIATION).
+using Config = Eigen::Ref<const Eigen::VectorXd>;
 using Point = Eigen::Map<const Eigen::Vector3d>;
 constexpr auto WORLD = pinocchio::LOCAL_WORLD_ALIGNED;
 
@@ -92,9 +96,9 @@ class Pass {
   // included in both.
   void at(const double* q, const double* v) {
     const auto n = model_.nv;
-    const Vector qi(q, n);
+    const Config qi = Vector(q, n);
     if (v)
-      pinocchio::computeJointJacobiansTimeVariation(model_, data_, qi, Vector(v, n));
+      pinocchio::computeJointJacobiansTimeVariation(model_, data_, qi, Config(Vector(v, n)));
     else
       pinocchio::computeJointJacobians(model_, data_, qi);
     moving_ = v != nullptr;
@@ -133,7 +137,7 @@ class Pass {
 
   // M(q) (n, n) by CRBA, both triangles filled.
   const Eigen::MatrixXd& mass(const double* q) {
-    pinocchio::crba(model_, data_, Vector(q, model_.nv));
+    pinocchio::crba(model_, data_, Config(Vector(q, model_.nv)));
     data_.M.triangularView<Eigen::StrictlyLower>() = data_.M.transpose();
     return data_.M;
   }
@@ -213,8 +217,9 @@ class Pass {
     const auto n = py::ssize_t(model_.nv);
     Array out({k, n});
     for (py::ssize_t i = 0; i < k; ++i) {
-      Eigen::Map<Eigen::VectorXd>(out.mutable_data() + i * n, n) = pinocchio::nonLinearEffects(
-          model_, data_, Vector(q.data() + i * n, n), Vector(v.data() + i * n, n));
+      const Config qi = Vector(q.data() + i * n, n), vi = Vector(v.data() + i * n, n);
+      Eigen::Map<Eigen::VectorXd>(out.mutable_data() + i * n, n) =
+          pinocchio::nonLinearEffects(model_, data_, qi, vi);
     }
     return out;
   }
