@@ -33,8 +33,8 @@ from redundancy.planning.integral_optimum import (
 from redundancy.planning.integrate import MIN_INTERVALS, simulate
 from redundancy.planning.refinement import CONVERGED
 from redundancy.planning.starts import default_start, improved_start
-from redundancy.planning.tasks import Line, Polyline, Segment, WorkCycle
-from redundancy.planning.time_scaling import corners, shortest_duration
+from redundancy.planning.tasks import Line, Polyline, Segment, WorkCycle, corners
+from redundancy.planning.time_scaling import shortest_duration
 from redundancy.resolution.laws import MinFlow
 from redundancy.resolution.limits import TOLERANCE, Limits, hydraulic_values
 from redundancy.resolution.objectives import CP_ENERGY, ENERGY, FLOW, LS_ENERGY, VELOCITY

@@ -15,7 +15,7 @@ from redundancy.planning import integrate
 from redundancy.planning.cycles import HeldReference
 from redundancy.planning.ik import inverse_kinematics
 from redundancy.planning.integrate import REPORT_TOLERANCE, simulate
-from redundancy.planning.tasks import Polyline, Segment, WorkCycle
+from redundancy.planning.tasks import Polyline, Segment, WorkCycle, jumps
 from redundancy.resolution.laws import GradientProjection, MinFlow, MinVelocityNorm, Resolver
 from redundancy.resolution.objectives import (
     ENERGY,
@@ -657,10 +657,10 @@ def test_a_path_jumps_at_its_corners_turned_at_speed_not_at_its_ramp_ends(crane)
     1 ms grid at the reports' tolerance to 1e-3."""
     corners = np.array([[3.5, -0.5], [1.0, -0.5], [2.25, 3.0], [3.5, -0.5]])
     turning = Segment.along("triangle", Polyline(corners), 0.5, "trapezoidal", 1.0)
-    np.testing.assert_allclose(integrate.jumps(turning), turning.breaks[1:-1])
+    np.testing.assert_allclose(jumps(turning), turning.breaks[1:-1])
     assert len(turning.breaks) == 4
     ramped = Segment("ramped", corners[0], corners[1], 0.5, None, "trapezoidal", 1.0)
-    assert len(ramped.breaks) == 2 and len(integrate.jumps(ramped)) == 0
+    assert len(ramped.breaks) == 2 and len(jumps(ramped)) == 0
     travel = replace(VELOCITY, name="travel", reduction="integral")
     starts = reachable_starts(crane, ramped, [0.9, 1.0, 1.09])
     sparse = simulate(crane, travel.resolver, ramped, starts, sparse=True)

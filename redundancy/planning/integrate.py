@@ -43,7 +43,7 @@ from redundancy.model.hydraulics import BAR, LITRES_PER_MINUTE, Flows, Supply
 from redundancy.model.kinematics import join
 from redundancy.model.robot import Robot, require_robot
 from redundancy.model.values import is_finite
-from redundancy.planning.tasks import Chain, Segment
+from redundancy.planning.tasks import Chain, Segment, jumps
 from redundancy.resolution.laws import Resolver, compiled_rates, require_resolver
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
 from redundancy.resolution.limits import Limits, Violation, hydraulic_values
@@ -516,17 +516,6 @@ def rate_on_grid(values: np.ndarray, t: np.ndarray) -> np.ndarray:
         f, h = values, steps[0]
         rate[:, 2:-2] = (f[:, :-4] - 8 * f[:, 1:-3] + 8 * f[:, 3:-1] - f[:, 4:]) / (12 * h)
     return rate
-
-
-def jumps(path: Segment | Chain) -> np.ndarray:
-    """The times (j,) s among the path's `breaks` where ẏ_d jumps: a polyline's corner or a
-    cycle's turned at speed, not a speed profile's ramp end (where only its rate does) nor a
-    corner at rest. Probed 1e-9 of the duration either side, a change of more than 1e-6 of
-    the speed there."""
-    breaks = path.breaks
-    before, after = (path.velocity_at(breaks + side * 1e-9 * path.duration) for side in (-1, 1))
-    speed = np.maximum(np.linalg.norm(before, axis=-1), np.linalg.norm(after, axis=-1))
-    return breaks[np.linalg.norm(after - before, axis=-1) > 1e-6 * speed]
 
 
 def _pieces(t: np.ndarray, breaks: np.ndarray, duration: float) -> list[slice]:

@@ -47,6 +47,10 @@ ARC_MISMATCH = 1e-6  # relative: an arc's ends must lie this close to one circle
 OUTLINE = 64  # points per full turn when a curved path is drawn
 TIMING = ("speed", "profile", "acceleration")  # the keys a task file and a segment's table share
 ARC_KEYS = ("from", "to", "via", "centre", "center", "direction")  # a line's or an arc's keys
+PROBE = 1e-9  # of the shortest time between breaks: how far either side of one ẏ_d is read
+JUMP = 1e-6  # of the speed: a smaller change of ẏ_d across a break is none (a ramp's end)
+TURN = 1e-6  # rad: ẏ_d's directions either side of a break closer than this are one (round-off
+# in a recorded polyline's points on one line, a curve's own turn over the `PROBE`)
 
 
 def finite_vector(value: object) -> np.ndarray | None:
@@ -545,6 +549,37 @@ class Chain:
     def label(self) -> str:
         """The path as messages name it."""
         return f"cycle {self.name!r}"
+
+
+def either_side(path: Segment | Chain) -> tuple[np.ndarray, np.ndarray]:
+    """ẏ_d (b, m) just before and just after each of the path's `breaks` (b,): read `PROBE` × the
+    shortest time between two breaks, or a break and an end, either side of it, so that no
+    probe reaches past the next break."""
+    breaks = path.breaks
+    probe = PROBE * np.diff(np.concatenate([[0.0], breaks, [path.duration]])).min()
+    before, after = (path.velocity_at(breaks + side * probe) for side in (-1.0, 1.0))
+    return before, after
+
+
+def jumps(path: Segment | Chain) -> np.ndarray:
+    """The times (j,) s among the path's `breaks` where ẏ_d jumps: a polyline's corner or a
+    cycle's, turned at speed; not a speed profile's ramp end (where only its rate does) nor a
+    corner at rest. A change of more than `JUMP` of the speed either side (`either_side`)."""
+    before, after = either_side(path)
+    speed = np.maximum(np.linalg.norm(before, axis=-1), np.linalg.norm(after, axis=-1))
+    return path.breaks[np.linalg.norm(after - before, axis=-1) > JUMP * speed]
+
+
+def corners(path: Segment | Chain) -> np.ndarray:
+    """The times (c,) s among the path's `breaks` where the direction of ẏ_d turns: its unit
+    vectors u± either side (`either_side`) differ by more than `TURN` (|u₊ − u₋| = 2 sin(θ/2)
+    for a turn by θ). A polyline's inner points and a cycle's corners between segments, where
+    the path turns; not a speed profile's ramp ends, nor a polyline's point on the line through
+    its neighbours, nor a corner where the path stops."""
+    before, after = either_side(path)
+    with np.errstate(invalid="ignore"):  # at rest there is no direction: not a turn
+        units = [v / np.linalg.norm(v, axis=-1, keepdims=True) for v in (before, after)]
+    return path.breaks[np.linalg.norm(units[1] - units[0], axis=-1) > TURN]
 
 
 @dataclass(frozen=True)

@@ -42,13 +42,10 @@ from redundancy.errors import InvalidInputError, RedundancyError
 from redundancy.model.robot import Robot
 from redundancy.model.values import is_whole
 from redundancy.planning.integrate import FAILED, Trajectory
-from redundancy.planning.tasks import Chain, Segment
+from redundancy.planning.tasks import corners
 
 SAMPLES = 400  # path points fed to TOPP-RA (at most; fewer if the motion has fewer), corners
 # aside
-TURN = 1e-6  # rad: ẏ_d's directions either side of a break closer than this are one (round-off
-# in a recorded polyline's points on one line, a curve's own turn over the `PROBE`)
-PROBE = 1e-9  # of the shortest time between breaks: how far either side of one ẏ_d is read
 
 
 @dataclass(frozen=True)
@@ -80,22 +77,6 @@ def pumped_volume(robot: Robot, x: np.ndarray) -> np.ndarray:
     circuit = robot.circuit()
     oil = circuit.cylinder_flows(np.diff(x[:, circuit.columns], axis=0)).sum(axis=1)
     return np.concatenate([[0.0], np.cumsum(oil)])
-
-
-def corners(path: Segment | Chain) -> np.ndarray:
-    """The times (c,) s among the path's `breaks` where the direction of ẏ_d turns: its unit
-    vectors u± = ẏ_d(t ± ε) / |ẏ_d(t ± ε)| differ by more than `TURN` (|u₊ − u₋| = 2 sin(θ/2)
-    for a turn by θ), ε = `PROBE` × the shortest time between two breaks or a break and an
-    end, so that no probe reaches past the next break. A polyline's inner points and a cycle's
-    corners between segments, where the path turns; not a speed profile's ramp ends, nor a
-    polyline's point on the line through its neighbours."""
-    breaks = path.breaks
-    probe = PROBE * np.diff(np.concatenate([[0.0], breaks, [path.duration]])).min()
-    before, after = (path.velocity_at(breaks + side * probe) for side in (-1.0, 1.0))
-    unit_before, unit_after = (
-        v / np.linalg.norm(v, axis=-1, keepdims=True) for v in (before, after)
-    )
-    return breaks[np.linalg.norm(unit_after - unit_before, axis=-1) > TURN]
 
 
 def shortest_duration(motion: Trajectory, row: int = 0, samples: int = SAMPLES) -> Retimed:
