@@ -78,7 +78,7 @@ PYBIND11_MODULE(_core, m) {
         py::arg("f"), py::arg("failed"), py::arg("duration"), py::arg("breaks"),
         py::arg("tolerance"), py::arg("c"),
         py::arg("a"), py::arg("e"), py::arg("lower"), py::arg("upper"), py::arg("allowance"),
-        py::arg("stop"), py::arg("keep"), py::arg("max_steps"));
+        py::arg("stop"), py::arg("keep"), py::arg("max_steps"), py::arg("max_singular"));
   m.def("stroke_extremes", &stroke_extremes, py::arg("t"), py::arg("x"), py::arg("x_dot"));
   py::class_<HeldPass>(m, "HeldPass")
       .def(py::init<const Pass&, Eigen::Index, std::vector<Eigen::Index>, const py::array_t<int>&,

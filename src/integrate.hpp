@@ -13,12 +13,15 @@
 using Flags = py::array_t<bool, py::array::c_style | py::array::forcecast>;  // a batch's (k,)
 
 // What a right-hand side gives at r states: q̇ (r, n), the strokes x (r, n), where the state is
-// bad (r,) (A singular or not finite, or a kind refused it: there q̇ = 0) and, where asked, its
-// record of the states (for the ends of accepted steps, where the integration samples them).
+// bad (r,) (A singular or not finite, or a kind refused it: there q̇ = 0), where asked its record
+// of the states (for the ends of accepted steps, where the integration samples them), and where
+// a built-in weighted law damped its solve (r,) (J_H singular to its ratio; empty where the law
+// does not say: a held law's, or one in Python).
 struct Stage {
   Matrix q_dot, x;
   std::vector<bool> bad;
   py::object record;
+  std::vector<bool> damped;
 };
 
 // The task velocity ẏ (r, m) at times t (r,) where the tool is at y (r, m): `velocity` is ẏ
@@ -100,6 +103,7 @@ class Rates {
     const auto h = targets ? targets->shape(1) : 0;
     Matrix x_dot;  // ẋ, which only the record reads
     if (record) x_dot.setZero(r, n);
+    if (rule_) out.damped.assign(std::size_t(r), false);
     for (Eigen::Index i = 0; i < r; ++i) {
       if (out.bad[std::size_t(i)]) continue;
       auto& factors = factors_[std::size_t(i)];  // of Aᵀ, as the evaluation derived them
@@ -110,6 +114,7 @@ class Rates {
                 : (*rule_)(evaluator.pass(), q.row(i).data(), out.x.row(i).transpose(), factors,
                            J_H_i, y_dot_i);
       if (!solved) return std::nullopt;
+      if (rule_) out.damped[std::size_t(i)] = rule_->damped();
       auto vi = out.q_dot.row(i).transpose();
       factors.solve(*solved, vi);  // q̇ = A⁻¹ ẋ
       if (!vi.allFinite()) {
@@ -177,9 +182,10 @@ inline bool shaped(const py::array& a, std::initializer_list<py::ssize_t> shape)
 // and failures (k,) are known, to `duration`, on the tableau of nodes c (s,), stage weights a
 // (s, s) (the last row the 5th-order step), error weights e (s + 1,). A step's relative and
 // absolute error ≤ `tolerance`; a start whose state turns bad, whose step shrinks below
-// 1e-9 × duration, or that has tried `max_steps` steps (accepted or not) short of the end, is
-// frozen (failed): where a law chatters (a path that leaves the arm's reach), steps a millionth
-// of the duration would otherwise run on for a million steps, and keep them all. No step
+// 1e-9 × duration, that has tried `max_steps` steps (accepted or not) short of the end, or whose
+// last `max_singular` accepted steps all ended where the law damped its solve (J_H singular: the
+// path has left the arm's reach, and the law crawls along its edge), is frozen (failed): steps a
+// millionth of the duration would otherwise run on for a million steps, and keep them all. No step
 // crosses one of the sorted times `breaks` in (0, duration), where the path's ẏ_d is not smooth
 // (a speed profile's ramp ends, a polyline's corners): a step that straddles one is as accurate
 // as its order there, not as the error estimate says. Where ẏ_d jumps there, a step that ends on a
@@ -196,7 +202,7 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
                                  Array f, Flags failed, double duration, const Array& breaks,
                                  double tolerance, const Array& c, const Array& a, const Array& e,
                                  const Array& lower, const Array& upper, double allowance,
-                                 bool stop, bool keep, long max_steps) {
+                                 bool stop, bool keep, long max_steps, long max_singular) {
   if (q.ndim() != 2) throw py::value_error("the starts q must have shape (k, n)");
   const auto k = q.shape(0), n = q.shape(1), s = c.shape(0);
   if (!shaped(f, {k, n}) || !shaped(failed, {k}) || !shaped(lower, {n}) || !shaped(upper, {n}))
@@ -205,7 +211,8 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
     throw py::value_error("the tableau is c (s,), a (s, s) and e (s + 1,), s ≥ 1");
   if (!(duration > 0 && std::isfinite(duration) && tolerance > 0 && std::isfinite(tolerance)))
     throw py::value_error("the duration and the tolerance must be finite and > 0");
-  if (max_steps < 1) throw py::value_error("max_steps must be at least 1");
+  if (max_steps < 1 || max_singular < 1)
+    throw py::value_error("max_steps and max_singular must be at least 1");
   if (breaks.ndim() != 1 || !std::is_sorted(breaks.data(), breaks.data() + breaks.size()))
     throw py::value_error("the breaks must be sorted times (b,)");
   // the end of a step from t: the first break past t (one reached, to rounding, is passed),
@@ -220,7 +227,7 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
   failed = Flags(failed.request());
   auto* dead = failed.mutable_data();
   std::vector<double> t(k, 0.0), h(k);
-  std::vector<long> tried(k, 0);
+  std::vector<long> tried(k, 0), singular(k, 0);  // steps tried; accepted, in a row, damped
   std::vector<bool> past(k, false), stopped(k, false), broken(k, false);
   for (py::ssize_t i = 0; i < k; ++i) {  // the first step's size, from q and its slope
     const auto qi = at(q, i, 1, n), fi = at(f, i, 1, n);
@@ -316,6 +323,9 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
         t[row] = on_break[i] ? ends[i] : t[row] + step[i];
         at(q, row, 1, n) = q_new;
         at(f, row, 1, n) = slopes[s].row(i);
+        const bool damped = !end->damped.empty() && end->damped[std::size_t(i)];
+        singular[row] = damped ? singular[row] + 1 : 0;
+        if (singular[row] >= max_singular && t[row] < duration) dead[row] = true;
       }
       const double growth = std::clamp(0.9 * std::pow(std::max(error, 1e-10), -0.2), 0.2, 10.0);
       const double proposed = step[i] * (accept ? growth : std::min(growth, 1.0));

@@ -35,6 +35,9 @@ class Law {
     return x_dot_;
   }
 
+  // Whether the last state's G was damped: J_H singular to the law's ratio.
+  bool damped() const { return damped_; }
+
  private:
   // d₀ (in x_dot_) moved along the null space of J_H to d = d₀ + N u, Nᵀ W d = 0.
   template <class JH>
@@ -75,11 +78,13 @@ class Law {
     if (cholesky.info() == Eigen::Success) {
       const double root = cholesky.matrixLLT().diagonal().prod();
       if (root * root >= ratio * std::pow(G_.trace(), double(G_.rows()))) {
+        damped_ = false;
         lambda_ = target_;
         cholesky.solveInPlace(lambda_);  // a solve's expression would copy at m = 1
         return lambda_;
       }
     }
+    damped_ = true;
     const Eigen::VectorXd eigenvalues =
         Eigen::SelfAdjointEigenSolver<Dense>(G_, Eigen::EigenvaluesOnly).eigenvalues();
     const double threshold = ratio * eigenvalues(eigenvalues.size() - 1);
@@ -94,6 +99,7 @@ class Law {
   Factor factor_;
   Eigen::LLT<Dense> cholesky_;
   Eigen::VectorXd target_, lambda_, x_dot_, W_d_, u_;
+  bool damped_ = false;
 };
 
 // A law that moves the held actuators `rows` (h) at rates of its own and the others so as to

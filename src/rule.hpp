@@ -46,6 +46,9 @@ struct Rule {
     return &law_(J_H, y_dot, weighting, pull.size() ? &z_ : nullptr, ratio);
   }
 
+  // Whether the last state's J_H was singular to the ratio (its G damped).
+  bool damped() const { return law_.damped(); }
+
   Weight weight;
   Dense W, M_H;
   Eigen::VectorXd pull, middle;

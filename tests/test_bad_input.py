@@ -1089,8 +1089,8 @@ API = [
         lambda r: shortest_duration(simulate(r, VELOCITY.resolver, _segment(r), np.zeros(3))),
         "motion 0 along segment 1-2 failed, where A turned singular or an actuator could not be "
         "evaluated (a cylinder of zero length, a linkage that cannot close), or where its steps "
-        "shrank to a crawl (2,000 steps short of the end: the law chattering, as where the path "
-        "leaves the arm's reach): it has no path to time",
+        "shrank to a crawl (2,000 steps short of the end, or 50 in a row at a singular J_H: the "
+        "law chattering, as where the path leaves the arm's reach): it has no path to time",
     ),
     (
         "forces of nan",

@@ -27,7 +27,7 @@ from redundancy import (
 )
 from redundancy.model.actuators import ActuatorSet
 from redundancy.planning.cycles import repeat
-from redundancy.planning.integrate import MAX_STEPS, TABLEAU
+from redundancy.planning.integrate import MAX_SINGULAR, MAX_STEPS, TABLEAU
 from redundancy.planning.starts import improved_start
 from redundancy.resolution import laws
 from redundancy.resolution.laws import (
@@ -266,8 +266,8 @@ def test_the_compiled_right_hand_side_refuses_times_that_are_not_one_per_state(c
 
 
 # The integration loop's last arguments where the strokes do not matter: no error allowance, no
-# motion stopped past a stroke, no ends of steps kept, the documented cap on steps.
-PLAIN = (0.0, False, False, MAX_STEPS)
+# motion stopped past a stroke, no ends of steps kept, the documented caps on steps.
+PLAIN = (0.0, False, False, MAX_STEPS, MAX_SINGULAR)
 
 
 def test_the_integration_loop_refuses_states_it_cannot_read(crane):

@@ -10,13 +10,19 @@ import pytest
 from joint_space import fk, inverse_dynamics
 from slewing3r_closed_form import slew_held_configuration
 
-from redundancy import InvalidInputError, actuator_space, default_start, load_robot
+from redundancy import InvalidInputError, actuator_space, default_start, improved_start, load_robot
 from redundancy.planning import integrate
 from redundancy.planning.cycles import HeldReference
 from redundancy.planning.ik import inverse_kinematics
 from redundancy.planning.integrate import REPORT_TOLERANCE, simulate
 from redundancy.planning.tasks import Polyline, Segment, WorkCycle, jumps
-from redundancy.resolution.laws import GradientProjection, MinFlow, MinVelocityNorm, Resolver
+from redundancy.resolution.laws import (
+    SINGULAR_RATIO,
+    GradientProjection,
+    MinFlow,
+    MinVelocityNorm,
+    Resolver,
+)
 from redundancy.resolution.objectives import (
     ENERGY,
     LS_ENERGY,
@@ -325,6 +331,7 @@ def test_the_loop_s_inner_stages_are_the_recorded_ones_to_the_last_bit(crane, cy
             *fixed,
             keep,
             integrate.MAX_STEPS,
+            integrate.MAX_SINGULAR,
         )
         for keep in (False, True)
     )
@@ -588,22 +595,46 @@ def test_the_time_at_an_arc_length_inverts_the_speed_profile():
     np.testing.assert_allclose(steady.time_at(s), s / 0.5)
 
 
-def test_a_motion_whose_path_leaves_the_reach_fails_at_its_edge_within_max_steps():
+def test_a_motion_whose_path_leaves_the_reach_fails_at_its_edge_once_it_crawls_there():
     """The slewing 3R arm (links 1, 0.8 and 0.5 m: it reaches 2.3 m at most) from the closed
     form's elbow up at (2, 0) m, along x at 0.2 m/s to 2.6 m: the path leaves the reach at
-    t = 1.5 s. There the law holds the tool at the edge, stretched, and chatters; its steps
-    shrank to a few microseconds and ran on, each kept, until the process ran out of memory
-    (a random line of a search did so at 24 GB). The motion is now frozen as failed once it has
-    tried `MAX_STEPS` steps: at the edge, just past 1.5 s, far short of the end at 3 s."""
+    t = 1.5 s. There the law holds the tool at the edge, stretched, J_H singular, and chatters;
+    its steps shrank to a few microseconds and ran on, each kept, until the process ran out of
+    memory (a random line of a search did so at 24 GB), then until `MAX_STEPS` had been tried
+    (a sweep of 200 starts along a line out of the excavator's reach took 15 s and 5.3 GB). The
+    motion is now frozen as failed once `MAX_SINGULAR` accepted steps in a row have ended where
+    the law damps its solve, J_H singular: at the edge, just past 1.5 s, after 84 steps; a sweep
+    of 200 starts keeps 44 steps a start."""
     robot = load_robot(Path(__file__).parent / "data" / "slewing3r" / "robot.toml")
     segment = Segment("out", np.array([2.0, 0.0]), np.array([2.6, 0.0]), 0.2)
     start = slew_held_configuration(0.0, 1, segment.start)[None]
     motion = simulate(robot, VELOCITY.resolver, segment, start, sparse=True)
     assert motion.failed[0]
-    assert len(motion.steps.rows) <= integrate.MAX_STEPS
+    assert len(motion.steps.rows) < 3 * integrate.MAX_SINGULAR
     frozen = (motion.steps.t0 + motion.steps.h).max()
     assert 1.5 <= frozen < 1.6
     assert abs(np.linalg.norm(motion.y[0, -1]) - 2.3) < 1e-6  # stretched at the edge
+    sigma = np.linalg.svd(actuator_space(robot, motion.q[0, -1]).J_H[0], compute_uv=False)
+    assert sigma[-1] / sigma[0] < np.sqrt(SINGULAR_RATIO)  # where G = J_H J_Hᵀ is damped
+    sweep = improved_start(robot, segment, VELOCITY, "x3", samples=200, method="sweep")
+    assert not sweep.feasible
+    assert sum(len(b.steps.rows) for b in sweep.batches) < 200 * 3 * integrate.MAX_SINGULAR
+
+
+def test_a_motion_that_touches_the_edge_of_the_reach_and_turns_back_passes():
+    """The slewing 3R arm out to its reach, 2.3 m, and back: stretched at the corner, J_H is
+    singular there (σ_min / σ_max 7e-5) and the law damps a step or two, fewer than the
+    `MAX_SINGULAR` in a row that fail a motion crawling along the edge. The motion runs to its
+    end and keeps its path to 1e-6 m."""
+    robot = load_robot(Path(__file__).parent / "data" / "slewing3r" / "robot.toml")
+    points = np.array([[2.0, 0.0], [2.3, 0.0], [2.0, 0.3]])
+    segment = Segment.along("touch", Polyline(points), 0.2)
+    start = slew_held_configuration(0.0, 1, segment.start)[None]
+    motion = simulate(robot, VELOCITY.resolver, segment, start, sparse=True)
+    assert not motion.failed[0]
+    sigma = np.linalg.svd(actuator_space(robot, motion.q[0]).J_H, compute_uv=False)
+    assert (sigma[:, -1] / sigma[:, 0]).min() < np.sqrt(SINGULAR_RATIO)  # it did pass one
+    np.testing.assert_allclose(motion.y[0, -1], segment.end, atol=1e-6)
 
 
 def test_a_recorded_path_of_many_points_is_not_cut_short_by_the_step_cap(crane):

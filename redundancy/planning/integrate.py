@@ -22,9 +22,11 @@ A start whose actuator Jacobian turns singular, whose state stops being finite, 
 actuator cannot be evaluated (a cylinder of zero length, a four-bar linkage that cannot close,
 past its toggle) is frozen there and flagged (`Trajectory.failed`, `FAILED`), so one bad start
 never spoils the batch. So is an adaptive one that has tried `MAX_STEPS` steps short of the end,
-beyond the one step each of the path's breaks (a recorded path's points) forces: where the law
-chatters (the path leaves the arm's reach, and the tool is held at its edge), the steps shrink
-to a millionth of the duration and would run on for a million of them, each kept.
+beyond the one step each of the path's breaks (a recorded path's points) forces, or whose last
+`MAX_SINGULAR` accepted steps all ended at a J_H singular to the law's ratio, where it damps its
+solve (a built-in weighted law; `redundancy.resolution.laws`): where the path leaves the arm's
+reach, the law holds the tool at its edge and chatters, and the steps shrink to a millionth of
+the duration and would run on for a million of them, each kept.
 """
 
 from __future__ import annotations
@@ -62,10 +64,13 @@ if TYPE_CHECKING:
 TIME_STEP = 0.01  # s
 MAX_STEPS = 2_000  # an adaptive motion's steps, tried, per segment beyond one per break (the
 # bundled robots' take 3-40 at the reports' tolerance; a recorded path has a break per point)
+MAX_SINGULAR = 50  # accepted steps in a row ending at a singular J_H (the law damping its solve)
+# that fail a motion: where its path leaves the arm's reach it would crawl on for 1,000s of them
 FAILED = (  # why a motion failed (`Trajectory.failed`), in words
     "where A turned singular or an actuator could not be evaluated (a cylinder of zero length, "
     f"a linkage that cannot close), or where its steps shrank to a crawl ({MAX_STEPS:,} steps "
-    "short of the end: the law chattering, as where the path leaves the arm's reach)"
+    f"short of the end, or {MAX_SINGULAR} in a row at a singular J_H: the law chattering, as "
+    "where the path leaves the arm's reach)"
 )
 MIN_INTERVALS = 10  # of a motion's grid, however short its segment
 MAX_INTERVALS = 1_000_000  # of a motion's grid: 24 MB of q alone for a 3-joint robot
@@ -792,6 +797,7 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
         bounds is not None,
         sparse,
         MAX_STEPS + len(law.segment.breaks),  # no step crosses a break
+        MAX_SINGULAR,
     )
     rates, velocity = law.compiled, law.loop_velocity
     found = None if rates is None else _core.dormand_prince(rates, velocity, *arguments)
