@@ -15,7 +15,7 @@ from redundancy.planning import integrate
 from redundancy.planning.cycles import HeldReference
 from redundancy.planning.ik import inverse_kinematics
 from redundancy.planning.integrate import REPORT_TOLERANCE, simulate
-from redundancy.planning.tasks import Polyline, Segment, WorkCycle, jumps
+from redundancy.planning.tasks import Chain, Polyline, Segment, WorkCycle, corners, jumps
 from redundancy.resolution.laws import (
     SINGULAR_RATIO,
     GradientProjection,
@@ -679,6 +679,26 @@ def test_a_step_from_a_jump_is_integrated_from_its_middle_alone():
     exact = 1 / 3 + 5 * 1.5 + (2.5**2 - 1) / 2
     assert integral(t, f, np.array([1.0]))[0] == pytest.approx(exact, rel=1e-14)
     assert abs(integral(t, f, np.empty(0))[0] / exact - 1) > 0.1
+
+
+def test_breaks_a_rounding_error_apart_are_one_and_hide_no_corner():
+    """A trapezoidal segment too short to reach its speed ends its ramp up where its ramp down
+    begins, and its two ramp ends fell a rounding error apart, both kept as breaks. The probes
+    either side of every break, a billionth of the shortest time between two breaks, then read
+    the very time of the cycle's corners, and found none there (the shortest duration ran
+    straight through them). The twins are one break, and each break is probed by the time to its
+    own nearest neighbour."""
+    short = Segment(
+        "short", np.array([2.0, 0.0]), np.array([2.1, 0.0]), 5.0, None, "trapezoidal", 1.0
+    )
+    up = Segment("up", short.end, np.array([2.1, 2.0]), 0.5)
+    back = Segment("back", up.end, short.start, 0.5)
+    cycle = Chain("triangle", (short, up, back))
+    np.testing.assert_allclose(short.breaks, [short.duration / 2], rtol=1e-15)
+    turns = cycle.offsets[1:-1]
+    np.testing.assert_allclose(cycle.breaks, [short.duration / 2, *turns], rtol=1e-15)
+    np.testing.assert_allclose(corners(cycle), turns)
+    np.testing.assert_allclose(jumps(cycle), turns)
 
 
 def test_a_path_jumps_at_its_corners_turned_at_speed_not_at_its_ramp_ends(crane):

@@ -47,7 +47,8 @@ ARC_MISMATCH = 1e-6  # relative: an arc's ends must lie this close to one circle
 OUTLINE = 64  # points per full turn when a curved path is drawn
 TIMING = ("speed", "profile", "acceleration")  # the keys a task file and a segment's table share
 ARC_KEYS = ("from", "to", "via", "centre", "center", "direction")  # a line's or an arc's keys
-PROBE = 1e-9  # of the shortest time between breaks: how far either side of one ẏ_d is read
+SAME_TIME = 1e-12  # of the duration: breaks closer than this are one (the steps take them so)
+PROBE = 1e-9  # of the time to a break's nearest neighbour: how far either side ẏ_d is read
 JUMP = 1e-6  # of the speed: a smaller change of ẏ_d across a break is none (a ramp's end)
 TURN = 1e-6  # rad: ẏ_d's directions either side of a break closer than this are one (round-off
 # in a recorded polyline's points on one line, a curve's own turn over the `PROBE`)
@@ -389,7 +390,7 @@ class Segment:
         corners = getattr(self.shape, "cumulative", np.empty(0))[1:-1]
         ramps = [] if self.profile == "constant" else [self.ramp, self.duration - self.ramp]
         times = np.concatenate([self.time_at(corners), ramps])
-        return np.unique(times[(times > 0) & (times < self.duration)])
+        return distinct(times, self.duration)
 
     def time_at(self, s: np.ndarray) -> np.ndarray:
         """The times (...,) in s at which the path has come the arc lengths s (...,), within
@@ -525,7 +526,7 @@ class Chain:
         """The times in (0, duration), s, where ẏ_d is not smooth, (b,): the corners between
         segments and each segment's own `Segment.breaks`."""
         inner = [s.breaks + offset for s, offset in zip(self.segments, self.offsets)]
-        return np.unique(np.concatenate([self.offsets[1:-1], *inner]))
+        return distinct(np.concatenate([self.offsets[1:-1], *inner]), self.duration)
 
     def _each(self, t, method):
         t, piece = _piece(self.offsets, t)
@@ -551,20 +552,34 @@ class Chain:
         return f"cycle {self.name!r}"
 
 
+def distinct(times: np.ndarray, duration: float) -> np.ndarray:
+    """The sorted times (b,) among ``times`` inside (0, duration), each of them and the ends
+    more than `SAME_TIME` × the duration apart: a break and its twin a rounding error away (a
+    trapezoidal profile that never reaches its speed ends its ramp up where its ramp down begins)
+    are one, as the integration's steps take them."""
+    times = np.unique(times)
+    edges = np.concatenate([[0.0], times])
+    keep = (np.diff(edges) > SAME_TIME * duration) & (times < (1 - SAME_TIME) * duration)
+    return times[keep]
+
+
 def either_side(path: Segment | Chain) -> tuple[np.ndarray, np.ndarray]:
     """ẏ_d (b, m) just before and just after each of the path's `breaks` (b,): read `PROBE` × the
-    shortest time between two breaks, or a break and an end, either side of it, so that no
-    probe reaches past the next break."""
+    time to its nearest neighbour (a break or an end) either side of it, so that no probe
+    reaches past the next break, and at least a few rounding steps of the time, so that every
+    probe reads another time than the break's."""
     breaks = path.breaks
-    probe = PROBE * np.diff(np.concatenate([[0.0], breaks, [path.duration]])).min()
+    gaps = np.diff(np.concatenate([[0.0], breaks, [path.duration]]))
+    probe = np.maximum(PROBE * np.minimum(gaps[:-1], gaps[1:]), 8 * np.spacing(breaks))
     before, after = (path.velocity_at(breaks + side * probe) for side in (-1.0, 1.0))
     return before, after
 
 
 def jumps(path: Segment | Chain) -> np.ndarray:
     """The times (j,) s among the path's `breaks` where ẏ_d jumps: a polyline's corner or a
-    cycle's, turned at speed; not a speed profile's ramp end (where only its rate does) nor a
-    corner at rest. A change of more than `JUMP` of the speed either side (`either_side`)."""
+    cycle's, turned at speed; not a speed profile's ramp end, where only its rate does. A change
+    of more than `JUMP` of the speed either side (`either_side`). A corner where the path stops
+    and turns counts too: ẏ_d, tiny either side of it, changes its direction there."""
     before, after = either_side(path)
     speed = np.maximum(np.linalg.norm(before, axis=-1), np.linalg.norm(after, axis=-1))
     return path.breaks[np.linalg.norm(after - before, axis=-1) > JUMP * speed]
@@ -574,10 +589,10 @@ def corners(path: Segment | Chain) -> np.ndarray:
     """The times (c,) s among the path's `breaks` where the direction of ẏ_d turns: its unit
     vectors u± either side (`either_side`) differ by more than `TURN` (|u₊ − u₋| = 2 sin(θ/2)
     for a turn by θ). A polyline's inner points and a cycle's corners between segments, where
-    the path turns; not a speed profile's ramp ends, nor a polyline's point on the line through
-    its neighbours, nor a corner where the path stops."""
+    the path turns, at speed or where it stops; not a speed profile's ramp ends, nor a
+    polyline's point on the line through its neighbours."""
     before, after = either_side(path)
-    with np.errstate(invalid="ignore"):  # at rest there is no direction: not a turn
+    with np.errstate(invalid="ignore"):  # a ẏ_d of exactly 0 has no direction: not a turn
         units = [v / np.linalg.norm(v, axis=-1, keepdims=True) for v in (before, after)]
     return path.breaks[np.linalg.norm(units[1] - units[0], axis=-1) > TURN]
 
