@@ -35,7 +35,7 @@ class Law {
     return x_dot_;
   }
 
-  // Whether the last state's G was damped: J_H singular to the law's ratio.
+  // Whether the last state's G was damped, λ² > 0: J_H singular to the law's ratio.
   bool damped() const { return damped_; }
 
  private:
@@ -84,11 +84,11 @@ class Law {
         return lambda_;
       }
     }
-    damped_ = true;
     const Eigen::VectorXd eigenvalues =
         Eigen::SelfAdjointEigenSolver<Dense>(G_, Eigen::EigenvaluesOnly).eigenvalues();
     const double threshold = ratio * eigenvalues(eigenvalues.size() - 1);
     const double r = std::clamp(eigenvalues(0) / threshold, 0.0, 1.0);
+    damped_ = r < 1;  // λ² > 0: the determinant's test is sufficient only, at m ≥ 3
     G_.diagonal().array() += threshold * (1 - r * r);
     lambda_ = G_.partialPivLu().solve(target_);
     return lambda_;

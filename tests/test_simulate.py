@@ -615,7 +615,7 @@ def test_a_motion_whose_path_leaves_the_reach_fails_at_its_edge_once_it_crawls_t
     assert 1.5 <= frozen < 1.6
     assert abs(np.linalg.norm(motion.y[0, -1]) - 2.3) < 1e-6  # stretched at the edge
     sigma = np.linalg.svd(actuator_space(robot, motion.q[0, -1]).J_H[0], compute_uv=False)
-    assert sigma[-1] / sigma[0] < np.sqrt(SINGULAR_RATIO)  # where G = J_H J_Hᵀ is damped
+    assert sigma[-1] / sigma[0] < np.sqrt(SINGULAR_RATIO)  # at m = 2, where G = J_H J_Hᵀ is damped
     sweep = improved_start(robot, segment, VELOCITY, "x3", samples=200, method="sweep")
     assert not sweep.feasible
     assert sum(len(b.steps.rows) for b in sweep.batches) < 200 * 3 * integrate.MAX_SINGULAR

@@ -24,9 +24,10 @@ past its toggle) is frozen there and flagged (`Trajectory.failed`, `FAILED`), so
 never spoils the batch. So is an adaptive one that has tried `MAX_STEPS` steps short of the end,
 beyond the one step each of the path's breaks (a recorded path's points) forces, or whose last
 `MAX_SINGULAR` accepted steps all ended at a J_H singular to the law's ratio, where it damps its
-solve (a built-in weighted law; `redundancy.resolution.laws`): where the path leaves the arm's
-reach, the law holds the tool at its edge and chatters, and the steps shrink to a millionth of
-the duration and would run on for a million of them, each kept.
+solve (`redundancy.resolution.laws`; a built-in weighted law on built-in actuator kinds, which
+the core runs: a held law, or a law or kind of your own, runs on to `MAX_STEPS`): where the path
+leaves the arm's reach, the law holds the tool at its edge and chatters, and the steps shrink to
+a millionth of the duration and would run on for a million of them, each kept.
 """
 
 from __future__ import annotations
