@@ -176,7 +176,9 @@ def test_a_users_own_actuator_kind_plugs_in_through_the_urdf(tmp_path, crane):
 
 
 def test_bundled_robots_load_after_a_plain_install_elsewhere(tmp_path):
-    """``pip install .`` (not editable) into a fresh folder, then load from another directory."""
+    """``pip install .`` (not editable) into a fresh folder, then load from another directory.
+    Built as `scripts/env.sh` builds the editable install, with the environment's own build
+    requirements: the same compiler command line, so the compiled core is not compiled again."""
     target = tmp_path / "site"
     subprocess.run(
         [
@@ -186,6 +188,7 @@ def test_bundled_robots_load_after_a_plain_install_elsewhere(tmp_path):
             "install",
             "--quiet",
             "--no-deps",
+            "--no-build-isolation",
             "--target",
             str(target),
             str(REPO),
