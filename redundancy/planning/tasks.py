@@ -49,7 +49,8 @@ TIMING = ("speed", "profile", "acceleration")  # the keys a task file and a segm
 ARC_KEYS = ("from", "to", "via", "centre", "center", "direction")  # a line's or an arc's keys
 SAME_TIME = 1e-12  # of the duration: breaks closer than this are one (the steps take them so)
 PROBE = 1e-9  # of the time to a break's nearest neighbour: how far either side ẏ_d is read
-JUMP = 1e-6  # of the speed: a smaller change of ẏ_d across a break is none (a ramp's end)
+JUMP = 1e-6  # of the path's peak speed: a smaller change of ẏ_d across a break is none (a ramp's
+# end, a corner where the path comes to rest)
 TURN = 1e-6  # rad: ẏ_d's directions either side of a break closer than this are one (round-off
 # in a recorded polyline's points on one line, a curve's own turn over the `PROBE`)
 
@@ -521,6 +522,11 @@ class Chain:
         """One pass through every segment, s."""
         return float(self.offsets[-1])
 
+    @property
+    def peak(self) -> float:
+        """The highest speed any of its segments reaches, m/s."""
+        return max(s.peak for s in self.segments)
+
     @cached_property
     def breaks(self) -> np.ndarray:
         """The times in (0, duration), s, where ẏ_d is not smooth, (b,): the corners between
@@ -557,7 +563,7 @@ def distinct(times: np.ndarray, duration: float) -> np.ndarray:
     more than `SAME_TIME` × the duration apart: a break and its twin a rounding error away (a
     trapezoidal profile that never reaches its speed ends its ramp up where its ramp down begins)
     are one, as the integration's steps take them."""
-    times = np.unique(times)
+    times = np.unique(times[(times > 0) & (times < duration)])
     edges = np.concatenate([[0.0], times])
     keep = (np.diff(edges) > SAME_TIME * duration) & (times < (1 - SAME_TIME) * duration)
     return times[keep]
@@ -577,12 +583,11 @@ def either_side(path: Segment | Chain) -> tuple[np.ndarray, np.ndarray]:
 
 def jumps(path: Segment | Chain) -> np.ndarray:
     """The times (j,) s among the path's `breaks` where ẏ_d jumps: a polyline's corner or a
-    cycle's, turned at speed; not a speed profile's ramp end, where only its rate does. A change
-    of more than `JUMP` of the speed either side (`either_side`). A corner where the path stops
-    and turns counts too: ẏ_d, tiny either side of it, changes its direction there."""
+    cycle's, turned at speed; not a speed profile's ramp end, where only its rate does, nor a
+    corner where the path comes to rest and turns (ẏ_d is 0 either side). A change either side
+    (`either_side`) of more than `JUMP` of the path's peak speed."""
     before, after = either_side(path)
-    speed = np.maximum(np.linalg.norm(before, axis=-1), np.linalg.norm(after, axis=-1))
-    return path.breaks[np.linalg.norm(after - before, axis=-1) > JUMP * speed]
+    return path.breaks[np.linalg.norm(after - before, axis=-1) > JUMP * path.peak]
 
 
 def corners(path: Segment | Chain) -> np.ndarray:
