@@ -22,15 +22,17 @@ else:
         print(*tomllib.load(file)["build-system"]["requires"], sep="\n")
 ' "$@"
 }
-# Install the requirements `build_requirements "$@"` names, if any.
+# Install the requirements `build_requirements "$@"` names, if any; fail where it fails.
 install_requirements() {
-  local requirements
-  mapfile -t requirements < <(build_requirements "$@")
+  local named requirements
+  named=$(build_requirements "$@") || return
+  mapfile -t requirements < <(grep . <<<"$named" || true)
   if [ ${#requirements[@]} -gt 0 ]; then
     "$VENV/bin/python" -m pip install "${requirements[@]}"
   fi
 }
-if [ ! -f "$stamp" ] || [ -n "$(find pyproject.toml CMakeLists.txt src -newer "$stamp")" ]; then
+if [ ! -f "$stamp" ] ||
+  [ -n "$(find pyproject.toml CMakeLists.txt src scripts/env.sh -newer "$stamp")" ]; then
   "$VENV/bin/python" -m pip install --quiet --upgrade pip
   # The core is built in .venv, its build's requirements installed there first, not in a fresh
   # environment of pip's for each build: the compiler's command line then stays the same from
