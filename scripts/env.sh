@@ -1,6 +1,6 @@
 # Sourced by the other scripts: create or reuse .venv with the package and its dev tools.
 # Installing compiles the package's C++ core (redundancy._core): it needs a C++17 compiler. It is
-# reinstalled whenever pyproject.toml, CMakeLists.txt or the C++ sources in src/ change.
+# reinstalled whenever pyproject.toml, CMakeLists.txt, the C++ sources in src/ or this file change.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 VENV=${VENV:-.venv}
