@@ -46,7 +46,7 @@ from redundancy.model.hydraulics import BAR, LITRES_PER_MINUTE, Flows, Supply
 from redundancy.model.kinematics import join
 from redundancy.model.robot import Robot, require_robot
 from redundancy.model.values import is_finite
-from redundancy.planning.tasks import Chain, Segment, jumps
+from redundancy.planning.tasks import SAME_TIME, Chain, Segment, jumps
 from redundancy.resolution.laws import Resolver, compiled_rates, require_resolver
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
 from redundancy.resolution.limits import Limits, Violation, hydraulic_values
@@ -862,7 +862,7 @@ class Steps:
     def dense(self, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The dense output at the times of ``grid`` (T,) in (t0, t0 + h] of each step: the
         rows, times and configurations of those samples."""
-        reach = 1e-12 * grid[-1]  # past a step's end, to rounding: the next step's start too
+        reach = SAME_TIME * grid[-1]  # past a step's end, to rounding: the next step's start too
         first = np.searchsorted(grid, self.t0 + reach, side="right")
         last = np.searchsorted(grid, self.t0 + self.h + reach, side="right")
         counts = last - first

@@ -47,7 +47,8 @@ ARC_MISMATCH = 1e-6  # relative: an arc's ends must lie this close to one circle
 OUTLINE = 64  # points per full turn when a curved path is drawn
 TIMING = ("speed", "profile", "acceleration")  # the keys a task file and a segment's table share
 ARC_KEYS = ("from", "to", "via", "centre", "center", "direction")  # a line's or an arc's keys
-SAME_TIME = 1e-12  # of the duration: breaks closer than this are one (the steps take them so)
+SAME_TIME = 1e-12  # of the duration: times closer are one (breaks, as the core's steps take them;
+# a grid time and a step's end in the dense output)
 PROBE = 1e-9  # of the time to a break's nearest neighbour: how far either side ẏ_d is read
 JUMP = 1e-6  # of the path's peak speed: a smaller change of ẏ_d across a break is none (a ramp's
 # end, a corner where the path comes to rest)
