@@ -106,19 +106,21 @@ class Pass {
       if (!moving_frames_[f]) continue;  // on the ground: as the constructor placed it
       const auto id = frames_[f];
       const auto& frame = model_.frames[id];
-      // The point from its joint's placement; the frame's whole placement once, in the
-      // Jacobian's call by joint (by the frame's id it is computed there twice, and placing the
-      // frame first would compute it a third time).
-      Eigen::Map<Eigen::Vector3d>{&positions_[3 * f]} =
-          data_.oMi[frame.parentJoint].act(frame.placement.translation());
+      // The point from its joint's placement, and its world-aligned Jacobian from the joint
+      // Jacobians by the point alone: what `getFrameJacobian` computes, without the frame's
+      // orientation (a 3 × 3 product per frame, an eighth of a state's cost), which a
+      // world-aligned Jacobian does not read.
+      const Eigen::Vector3d p = data_.oMi[frame.parentJoint].act(frame.placement.translation());
+      Eigen::Map<Eigen::Vector3d>{&positions_[3 * f]} = p;
       six_.setZero();
-      pinocchio::getFrameJacobian(model_, data_, frame.parentJoint, frame.placement, WORLD, six_);
+      pinocchio::details::translateJointJacobian(model_, data_, frame.parentJoint, WORLD,
+                                                 pinocchio::SE3(Eigen::Matrix3d::Identity(), p),
+                                                 data_.J, six_);
       Eigen::Map<Matrix>{&linear_[3 * n * f], 3, n} = six_.topRows<3>();
       Eigen::Map<Matrix>{&angular_[3 * n * f], 3, n} = six_.bottomRows<3>();
       if (v) {  // ṗ = J_p v, and J̇_p from the rate of the spatial Jacobian
         six_rate_.setZero();
         pinocchio::getFrameJacobianTimeVariation(model_, data_, id, pinocchio::WORLD, six_rate_);
-        const Eigen::Vector3d p = Point(&positions_[3 * f]);
         const Eigen::Vector3d p_dot = six_.topRows<3>() * Vector(v, n);
         Eigen::Map<Eigen::Vector3d>{&velocities_[3 * f]} = p_dot;
         Eigen::Map<Matrix> rate{&rates_[3 * n * f], 3, n};

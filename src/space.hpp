@@ -128,9 +128,10 @@ class Factors {
 template <class Square>
 bool singular(const Square& A, const Factors& factors, double tolerance) {
   if (!A.allFinite()) return true;
-  const double n = double(A.rows());
-  if (std::abs(factors.determinant()) > tolerance * std::pow(A.squaredNorm(), n / 2))
-    return false;
+  const double norm = A.norm();
+  double bound = tolerance;  // tolerance ‖A‖_F^n, by products (std::pow costs as much as the LU)
+  for (Eigen::Index i = 0; i < A.rows(); ++i) bound *= norm;
+  if (std::abs(factors.determinant()) > bound) return false;
   const Eigen::VectorXd sigma = Eigen::JacobiSVD<Dense>(A).singularValues();
   return sigma[sigma.size() - 1] / std::max(sigma[0], std::numeric_limits<double>::min()) <
          tolerance;
