@@ -26,26 +26,40 @@ def bracket_probes(values, margins, inside, tolerance) -> list[float]:
     through its two nearest values, at 0.45 of a tolerance either side of each (so that a zero
     that close closes the bracket); and the bracket's midpoint where those zeros disagree by
     more than a quarter of it."""
+    values, margins, inside = _floats(values), _floats(margins), np.asarray(inside).tolist()
     probes: list[float] = []
-    usable = np.isfinite(margins)
-    for i in np.flatnonzero(inside[:-1] != inside[1:]):
+    usable = [math.isfinite(margin) for margin in margins]
+    for i in range(len(values) - 1):
         a, b = values[i], values[i + 1]
-        if b - a <= tolerance:
+        if inside[i] == inside[i + 1] or b - a <= tolerance:
             continue
         fits = [(i, i + 1), (i - 1, i + 1), (i, i + 2)]  # across the bracket
         sides = [j for j in (i - 1, i + 1) if 0 <= j < len(values) - 1]
         fits += [(j, j + 1) for j in sides if inside[j] == inside[j + 1]]  # each side's own
         zeros = []
         for first, last in fits:
-            if first < 0 or last >= len(values) or not usable[first : last + 1].all():
+            if first < 0 or last >= len(values) or not all(usable[first : last + 1]):
                 continue
-            u, m = values[first : last + 1] - a, margins[first : last + 1]
-            zeros += [a + z for z in interpolant_zeros(u.tolist(), m.tolist()) if 0 < z < b - a]
+            u = [value - a for value in values[first : last + 1]]
+            zeros += [
+                a + z for z in interpolant_zeros(u, margins[first : last + 1]) if 0 < z < b - a
+            ]
         if not zeros or max(zeros) - min(zeros) > (b - a) / 4:
             probes.append((a + b) / 2)
         for zero in clusters(sorted(zeros), tolerance):
-            probes += list(np.clip(zero + tolerance * np.array([-0.45, 0.45]), a, b))
+            probes += [_clip(zero + tolerance * side, a, b) for side in (-0.45, 0.45)]
     return probes
+
+
+def _floats(values) -> list[float]:
+    """An array's values as Python floats: these helpers walk a few dozen samples one by one,
+    which numpy's per-call cost would make ten times slower, alike to the last bit."""
+    return np.asarray(values, dtype=float).tolist()
+
+
+def _clip(value: float, low: float, high: float) -> float:
+    """``value`` within [low, high], as numpy's clip."""
+    return min(max(value, low), high)
 
 
 def grid_over(pieces, count) -> np.ndarray:
@@ -161,14 +175,18 @@ def vertex_probes(values, peaks, tolerance) -> list[float]:
     twice ``tolerance``. The parabola p(v) = p₁ + d (v − v₁) + a (v − v₁)², a the second
     divided difference, dips to p₁ − d² / 4a at its vertex v₁ − d / 2a."""
     least = int(np.argmin(peaks))
+    values, peaks = _floats(values), _floats(peaks)
     probes = []
     for i in range(1, len(values) - 1):
         v, p = values[i - 1 : i + 2], peaks[i - 1 : i + 2]
-        if not np.all(np.isfinite(p)) or v[2] - v[0] <= 2 * tolerance:
+        if not all(map(math.isfinite, p)) or v[2] - v[0] <= 2 * tolerance:
             continue
         slope, curvature = _parabola(v, p)
-        if i != least and not (
-            p[1] < p[0] and p[1] < p[2] and p[1] - slope**2 / (4 * curvature) < peaks[least]
+        if i != least and not (  # a local minimum: its curvature is > 0
+            p[1] < p[0]
+            and p[1] < p[2]
+            and curvature > 0
+            and p[1] - slope**2 / (4 * curvature) < peaks[least]
         ):
             continue
         if curvature:
@@ -179,7 +197,7 @@ def vertex_probes(values, peaks, tolerance) -> list[float]:
 def _parabola(v, p) -> tuple[float, float]:
     """The slope d at the middle value v₁ and the curvature a (the second divided difference)
     of the parabola through (v, p) (3,) each, in order of v."""
-    slopes = np.diff(p) / np.diff(v)
+    slopes = [(p[1] - p[0]) / (v[1] - v[0]), (p[2] - p[1]) / (v[2] - v[1])]
     curvature = (slopes[1] - slopes[0]) / (v[2] - v[0])
     return slopes[0] + curvature * (v[1] - v[0]), curvature
 
@@ -191,7 +209,7 @@ def _vertex_probe(v, vertex, tolerance) -> list[float]:
     wider = 0 if v[1] - v[0] > v[2] - v[1] else 2
     if abs(vertex - v[1]) < abs(v[wider] - v[1]) / 8:  # creeping: a kink, not a parabola
         vertex = v[1] + GOLDEN * (v[wider] - v[1])
-    return [float(np.clip(vertex, v[0] + tolerance / 2, v[2] - tolerance / 2))]
+    return [_clip(vertex, v[0] + tolerance / 2, v[2] - tolerance / 2)]
 
 
 def end_probe(values, peaks, spacing) -> list[float]:
