@@ -34,7 +34,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
-from functools import cached_property
+from functools import cached_property, partial
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -612,14 +612,35 @@ class Law:
         return {name: value for name, value in vars(self).items() if name != "compiled"}
 
     def __call__(self, t: np.ndarray, q: np.ndarray) -> Rates:
-        """At times t (k,) and configurations q (k, n): by one call of the compiled right-hand
-        side where there is one and it serves the states, else in Python, alike to rounding."""
+        """At times t (k,) and configurations q (k, n): `evaluated`, as `Rates`."""
+        return self.rates([self.evaluated(t, q)])
+
+    def evaluated(self, t: np.ndarray, q: np.ndarray) -> Rates | tuple:
+        """The law at times t (k,) and configurations q (k, n), as a record for `rates`: by one
+        call of the compiled right-hand side where there is one and it serves the states (the
+        evaluator's arrays, ẋ and q̇), else `Rates` in Python, alike to rounding."""
         record = None if self.compiled is None else self.compiled(t, q, self.loop_velocity)
-        if record is not None:
-            found, x_dot, q_dot = record
-            space, bad = regularised(compiled_space(self.robot, found))
-            return self._rates(space, x_dot, q_dot, bad)
-        return self._python(t, q)
+        return self._python(t, q) if record is None else record
+
+    def rates(self, records: Sequence[Rates | tuple], rows: np.ndarray | None = None) -> Rates:
+        """The `Rates` of ``records`` (`evaluated`'s, `stage`'s, or the core loop's records of
+        the ends of its steps) joined into one batch in order, and of its states ``rows`` alone
+        where given: one join and one take, however many batches the samples came in."""
+        if any(isinstance(record, Rates) for record in records):  # in Python, in part or all
+            rates = joined([self._record_rates(record) for record in records])
+        else:
+            found = joined_found([record[0] for record in records])
+            x_dot, q_dot = (np.concatenate([record[i] for record in records]) for i in (1, 2))
+            rates = self._record_rates((found, x_dot, q_dot))
+        return rates if rows is None else rates.take(rows)
+
+    def _record_rates(self, record: Rates | tuple) -> Rates:
+        """The `Rates` of one record: itself, or those of the compiled right-hand side's."""
+        if isinstance(record, Rates):
+            return record
+        found, x_dot, q_dot = record
+        space, bad = regularised(compiled_space(self.robot, found))
+        return self._rates(space, x_dot, q_dot, bad)
 
     def _python(self, t: np.ndarray, q: np.ndarray) -> Rates:
         """`__call__` in Python: the evaluation, the law's own methods, the solve for q̇. A state
@@ -645,21 +666,6 @@ class Law:
         right-hand side does not serve: (its `Rates`, q̇, bad, x), in Python."""
         rates = self._python(t, q)
         return rates, rates.q_dot, rates.bad, rates.space.x
-
-    def ends(self, kept: list[tuple]) -> Rates:
-        """The `Rates` at the ends of the accepted steps, in order, from the core loop's
-        ``kept`` batches (a stage's record, the positions of its accepted steps): the records,
-        `stage`'s own or the compiled right-hand side's (the evaluator's arrays, ẋ and q̇),
-        joined into one batch, then taken."""
-        records = [record for record, _ in kept]
-        if isinstance(records[0], Rates):
-            rates = joined(records)
-        else:
-            found = joined_found([record[0] for record in records])
-            x_dot, q_dot = (np.concatenate([record[i] for record in records]) for i in (1, 2))
-            rates = self._rates(compiled_space(self.robot, found), x_dot, q_dot, found[-2])
-        offsets = np.cumsum([0] + [len(record[-1]) for record in records])  # bad, or q̇
-        return rates.take(np.concatenate([at + offsets[i] for i, (_, at) in enumerate(kept)]))
 
 
 def simulate(
@@ -767,8 +773,8 @@ def _runge_kutta(law: Law, starts: np.ndarray, t: np.ndarray):
         step = h / 6 * (first.q_dot + 2 * k2 + 2 * k3 + k4)
         q = q + np.where(failed[:, None], 0.0, step)
     records.append(rates(t[-1], q))
-    evaluated = [(np.tile(np.arange(k), len(t)), np.repeat(t, k), joined(records))]
-    return _assemble(k, evaluated, failed.copy(), np.zeros(k, dtype=bool), t)
+    rows, times = np.tile(np.arange(k), len(t)), np.repeat(t, k)
+    return _assemble(k, rows, times, law.rates(records).take, failed.copy(), np.zeros(k, bool), t)
 
 
 def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
@@ -779,7 +785,8 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
     ``bounds`` = (limits, allowance) stops motions that with both neighbours passed them. No
     step crosses the segment's `breaks` (a speed profile's ramp ends, a polyline's corners)."""
     k, n = starts.shape
-    first = law(np.zeros(k), starts)
+    start = law.evaluated(np.zeros(k), starts)
+    first = law.rates([start])
     lower, upper = np.full(n, -np.inf), np.full(n, np.inf)
     limits, allowance = bounds or (None, 0.0)
     if limits is not None:
@@ -808,12 +815,20 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
     steps = Steps(law, first, *accepted)
     if not sparse:
         return on_grid(steps, grid, failed, stopped), steps
-    evaluated = [(np.arange(k), np.zeros(k), first)]
-    if kept:  # the ends of the accepted steps, in the order the steps were accepted
-        evaluated.append((steps.rows, steps.t0 + steps.h, law.ends(kept)))
-    rows, times, configurations = steps.midpoints()
-    evaluated.append((rows, times, law(times, configurations)))
-    return _assemble(k, evaluated, failed, stopped, None), steps
+    # The samples: the starts, the ends of the accepted steps (in the records of the batches
+    # the core's loop kept, at the positions of the steps it accepted, in the order it accepted
+    # them) and the steps' midpoints, all taken from one batch of their records.
+    middle, halfway, configurations = steps.midpoints()
+    records = [start, *(record for record, _ in kept), law.evaluated(halfway, configurations)]
+    offsets = np.cumsum([0] + [len(record[-1]) for record in records])  # q̇, or bad: (r, ...)
+    ends = [positions + offsets[i + 1] for i, (_, positions) in enumerate(kept)]
+    flat = np.concatenate([np.arange(k), *ends, offsets[-2] + np.arange(len(middle))])
+    rows = np.concatenate([np.arange(k), steps.rows, middle])
+    times = np.concatenate([np.zeros(k), steps.t0 + steps.h, halfway])
+    samples = _assemble(
+        k, rows, times, lambda index: law.rates(records, flat[index]), failed, stopped, None
+    )
+    return samples, steps
 
 
 @dataclass(frozen=True, eq=False)
@@ -887,11 +902,11 @@ def on_grid(steps: Steps, grid: np.ndarray, failed, stopped):
     """The samples on ``grid`` (T,) of the motions that took ``steps`` (those ``failed`` or
     ``stopped`` stay where they ended): the law at their starts, as the integration began,
     and at the dense output, evaluated as one batch."""
-    start = steps.start
-    k = len(start.bad)
+    k, law = len(steps.start.bad), steps.law
     rows, times, q = steps.dense(grid)
-    evaluated = [(np.arange(k), np.zeros(k), start), (rows, times, steps.law(times, q))]
-    return _assemble(k, evaluated, failed, stopped, grid)
+    records = [steps.start, law.evaluated(times, q)]
+    rows, times = np.concatenate([np.arange(k), rows]), np.concatenate([np.zeros(k), times])
+    return _assemble(k, rows, times, partial(law.rates, records), failed, stopped, grid)
 
 
 def joined(parts: list[Rates]) -> Rates:
@@ -904,13 +919,12 @@ def joined(parts: list[Rates]) -> Rates:
     )
 
 
-def _assemble(k, evaluated, failed, stopped, grid) -> dict:
-    """The `Trajectory` fields of the samples (rows, times, rates) of k motions, in time order
-    per motion, padded by repeating each motion's last sample; on a ``grid``, a motion frozen
-    early stays at rest over the grid's remaining times. The states come as one flat batch of
-    k·T, motion by motion."""
-    rows = np.concatenate([part[0] for part in evaluated])
-    times = np.concatenate([part[1] for part in evaluated])
+def _assemble(k, rows, times, rates_at, failed, stopped, grid) -> dict:
+    """The `Trajectory` fields of the samples of k motions at ``rows`` (p,) and ``times`` (p,),
+    in time order per motion, padded by repeating each motion's last sample; on a ``grid``, a
+    motion frozen early stays at rest over the grid's remaining times. ``rates_at(index)`` gives
+    the `Rates` of the samples ``index`` (indices into rows and times): the states come as one
+    flat batch of k·T, motion by motion."""
     order = np.lexsort((times, rows))
     counts = np.bincount(rows, minlength=k)
     length = counts.max() if grid is None else len(grid)
@@ -918,7 +932,7 @@ def _assemble(k, evaluated, failed, stopped, grid) -> dict:
     index = order[start[:, None] + np.minimum(np.arange(length)[None], counts[:, None] - 1)]
     padded = np.arange(length)[None] >= counts[:, None]
 
-    rates = joined([part[2] for part in evaluated]).take(index.ravel())
+    rates = rates_at(index.ravel())
     x_dot, measure, space = rates.x_dot.reshape(k, length, -1), rates.measure, rates.space
     t = times[index]
     if grid is not None:
