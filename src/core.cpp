@@ -76,7 +76,7 @@ PYBIND11_MODULE(_core, m) {
           py::arg("t"), py::arg("q"), py::arg("velocity"));
   m.def("dormand_prince", &dormand_prince, py::arg("rates"), py::arg("velocity"), py::arg("q"),
         py::arg("f"), py::arg("failed"), py::arg("duration"), py::arg("breaks"),
-        py::arg("tolerance"), py::arg("c"),
+        py::arg("same_time"), py::arg("tolerance"), py::arg("c"),
         py::arg("a"), py::arg("e"), py::arg("lower"), py::arg("upper"), py::arg("allowance"),
         py::arg("stop"), py::arg("keep"), py::arg("max_steps"), py::arg("max_singular"));
   m.def("stroke_extremes", &stroke_extremes, py::arg("t"), py::arg("x"), py::arg("x_dot"));

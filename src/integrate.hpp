@@ -188,10 +188,11 @@ inline bool shaped(const py::array& a, std::initializer_list<py::ssize_t> shape)
 // millionth of the duration would otherwise run on for a million steps, and keep them all. No step
 // crosses one of the sorted times `breaks` in (0, duration), where the path's ẏ_d is not smooth
 // (a speed profile's ramp ends, a polyline's corners): a step that straddles one is as accurate
-// as its order there, not as the error estimate says. Where ẏ_d jumps there, a step that ends on a
-// break reads its stages at its end (c = 1: Dormand-Prince has two) just before it (the piece it
-// integrated), and the next step's first slope is the law's at the break (the next piece), one
-// more evaluation per break. With `stop`, a
+// as its order there, not as the error estimate says. Times closer than `same_time` × duration
+// are one (the path's `SAME_TIME`): a break a step reached to rounding is passed. Where ẏ_d
+// jumps there, a step that ends on a break reads its stages at its end (c = 1: Dormand-Prince
+// has two) that much before it (the piece it integrated), and the next step's first slope is the
+// law's that much after it (the next piece), one more evaluation per break. With `stop`, a
 // motion whose end of step is past a stroke [lower, upper] (n,) by more than `allowance`, as are
 // its neighbours in the batch, stops. A start whose error estimate is not finite (a Python
 // right-hand side's q̇ NaN) is frozen too.
@@ -200,9 +201,10 @@ inline bool shaped(const py::array& a, std::initializer_list<py::ssize_t> shape)
 // where `Rates` could not serve a batch.
 inline py::object dormand_prince(const py::object& rates, const py::object& velocity, Array q,
                                  Array f, Flags failed, double duration, const Array& breaks,
-                                 double tolerance, const Array& c, const Array& a, const Array& e,
-                                 const Array& lower, const Array& upper, double allowance,
-                                 bool stop, bool keep, long max_steps, long max_singular) {
+                                 double same_time, double tolerance, const Array& c,
+                                 const Array& a, const Array& e, const Array& lower,
+                                 const Array& upper, double allowance, bool stop, bool keep,
+                                 long max_steps, long max_singular) {
   if (q.ndim() != 2) throw py::value_error("the starts q must have shape (k, n)");
   const auto k = q.shape(0), n = q.shape(1), s = c.shape(0);
   if (!shaped(f, {k, n}) || !shaped(failed, {k}) || !shaped(lower, {n}) || !shaped(upper, {n}))
@@ -215,11 +217,14 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
     throw py::value_error("max_steps and max_singular must be at least 1");
   if (breaks.ndim() != 1 || !std::is_sorted(breaks.data(), breaks.data() + breaks.size()))
     throw py::value_error("the breaks must be sorted times (b,)");
+  if (!(same_time > 0 && same_time < 1))
+    throw py::value_error("same_time must lie in (0, 1): a fraction of the duration");
+  const double rounding = same_time * duration;  // times closer are one
   // the end of a step from t: the first break past t (one reached, to rounding, is passed),
   // else the duration
   const auto reach = [&](double from) {
     const double* next = std::upper_bound(breaks.data(), breaks.data() + breaks.size(),
-                                          from + 1e-12 * duration);
+                                          from + rounding);
     return next == breaks.data() + breaks.size() ? duration : std::min(*next, duration);
   };
   q = Array(q.request());  // own copies: the loop writes them
@@ -253,7 +258,7 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
       Eigen::VectorXd when(py::ssize_t(fresh.size()));
       Matrix where(py::ssize_t(fresh.size()), n);
       for (std::size_t i = 0; i < fresh.size(); ++i) {
-        when(py::ssize_t(i)) = t[fresh[i]] + 1e-12 * duration;  // ẏ_d of the piece after it
+        when(py::ssize_t(i)) = t[fresh[i]] + rounding;  // ẏ_d of the piece after it
         where.row(py::ssize_t(i)) = at(q, fresh[i], 1, n);
       }
       const auto slope = rates_at(rates, velocity, when, where, false);
@@ -288,7 +293,7 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
         times(i) = t[rows[i]] + c.at(stage - 1) * step[i];
         // a stage at the end of a step that ends on a break (the tableau has two): ẏ_d of the
         // piece before it
-        if (on_break[i] && c.at(stage - 1) >= 1) times(i) -= 1e-12 * duration;
+        if (on_break[i] && c.at(stage - 1) >= 1) times(i) -= rounding;
         states.row(i) = at(q, rows[i], 1, n) + step[i] * increment.row(i);
       }
       // the last stage is the step's end: recorded where the ends are kept (a sample each)

@@ -29,6 +29,7 @@ from redundancy.model.actuators import ActuatorSet
 from redundancy.planning.cycles import repeat
 from redundancy.planning.integrate import MAX_SINGULAR, MAX_STEPS, TABLEAU
 from redundancy.planning.starts import improved_start
+from redundancy.planning.tasks import SAME_TIME
 from redundancy.resolution import laws
 from redundancy.resolution.laws import (
     SINGULAR_RATIO,
@@ -281,7 +282,18 @@ def test_the_integration_loop_refuses_states_it_cannot_read(crane):
         zeros, n = np.zeros_like(starts), starts.shape[1]
         flags, bounds = np.zeros(len(starts), dtype=bool), (np.full(n, -np.inf), np.full(n, np.inf))
         return _core.dormand_prince(
-            rates, velocity, starts, zeros, flags, 1.0, NONE, 1e-6, *TABLEAU, *bounds, *PLAIN
+            rates,
+            velocity,
+            starts,
+            zeros,
+            flags,
+            1.0,
+            NONE,
+            SAME_TIME,
+            1e-6,
+            *TABLEAU,
+            *bounds,
+            *PLAIN,
         )
 
     assert loop(compiled_rates(crane, MinVelocityNorm()), np.zeros((3, 4))) is None
@@ -302,7 +314,7 @@ def test_the_loop_refuses_arrays_that_do_not_fit_and_freezes_a_start_it_cannot_s
         f = np.zeros_like(q) if f is None else f
         failed = np.zeros(len(q), dtype=bool) if failed is None else failed
         return _core.dormand_prince(
-            rates, None, q, f, failed, duration, NONE, 1e-6, c, a, e, *strokes, *PLAIN
+            rates, None, q, f, failed, duration, NONE, SAME_TIME, 1e-6, c, a, e, *strokes, *PLAIN
         )
 
     def still(flags):  # a right-hand side at rest, its flags given as ``flags(r)``

@@ -16,7 +16,7 @@ from redundancy.planning.cycles import HeldReference
 from redundancy.planning.ik import inverse_kinematics
 from redundancy.planning.integrate import REPORT_TOLERANCE, simulate
 from redundancy.planning.motions import simulate_path
-from redundancy.planning.tasks import Chain, Polyline, Segment, WorkCycle, corners, jumps
+from redundancy.planning.tasks import SAME_TIME, Chain, Polyline, Segment, WorkCycle, corners, jumps
 from redundancy.resolution.laws import (
     SINGULAR_RATIO,
     GradientProjection,
@@ -329,6 +329,7 @@ def test_the_loop_s_inner_stages_are_the_recorded_ones_to_the_last_bit(crane, cy
             first.bad,
             segment.duration,
             segment.breaks,
+            SAME_TIME,
             *fixed,
             keep,
             integrate.MAX_STEPS,

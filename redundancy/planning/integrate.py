@@ -797,6 +797,7 @@ def _dormand_prince(law, starts, duration, tolerance, grid, sparse, bounds):
         first.bad,
         duration,
         law.segment.breaks,
+        SAME_TIME,
         tolerance,
         *TABLEAU,
         lower,
