@@ -66,7 +66,7 @@ from redundancy.planning.starts import (
     held_actuators,
     improved_start,
 )
-from redundancy.planning.tasks import Chain, Segment, WorkCycle, finite_vector
+from redundancy.planning.tasks import Chain, Segment, WorkCycle, finite_vector, jumped
 from redundancy.resolution.laws import HeldRates, Resolver
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
 from redundancy.resolution.limits import Limits
@@ -91,8 +91,6 @@ PERIODIC_MARGIN = 5e-4  # m (or rad): the periodic plan keeps the strokes this f
 # its nodes, so that the motion a machine runs between them keeps them too
 SMOOTHNESS = 1e-4  # s²: the periodic plan's tie-break on mean r̈², beside the bound's on ṙ²
 # (on the crane it halves the rms of ẍ_h and moves the peak by 2e-4 of itself)
-STEADY_CORNER = 1e-9  # m/s (or rad/s): a corner where the path's ẏ_d changes less asks no
-# step of ẋ
 
 
 def improved_cycle_start(
@@ -299,11 +297,12 @@ def cycle_accelerations(cycle: WorkCycle, motion: Trajectory) -> np.ndarray:
 
     Within each piece of the path it is `Trajectory.x_ddot`, which takes no difference across
     a corner: where the path turns at speed, ẏ_d jumps and so does ẋ, the path's own step. Where
-    ẏ_d is continuous through a corner (within `STEADY_CORNER`: a trapezoidal profile at rest
-    there), and at the cycle's end, where the next cycle starts, when it is continuous there
-    too, the task asks no step, yet a strategy may take one (the drift-free plan's held rates
-    are solved segment by segment). At such a corner's sample t_c, ẍ is the mean acceleration
-    across it, from the samples on either side:
+    ẏ_d is continuous through a corner (it does not jump there, by the path's own rule
+    `redundancy.planning.tasks.jumped`: a trapezoidal profile at rest there), and at the cycle's
+    end, where the next cycle starts, when it is continuous there too, the task asks no step,
+    yet a strategy may take one (the drift-free plan's held rates are solved segment by
+    segment). At such a corner's sample t_c, ẍ is the mean acceleration across it, from the
+    samples on either side:
 
         ẍ(t_c) = (ẋ(t_c + h₊) − ẋ(t_c − h₋)) / (h₊ + h₋),
 
@@ -314,8 +313,7 @@ def cycle_accelerations(cycle: WorkCycle, motion: Trajectory) -> np.ndarray:
     x_ddot = motion.x_ddot[0].copy()
     segments = cycle.segments
     for k, (before, after) in enumerate(zip(segments, (*segments[1:], segments[0]))):
-        step = before.velocity_at(before.duration) - after.velocity_at(0.0)
-        if np.abs(step).max() > STEADY_CORNER:
+        if jumped(before.velocity_at(before.duration), after.velocity_at(0.0), cycle.peak):
             continue
         if k == len(segments) - 1:  # the cycle's end, the next cycle's start
             x_ddot[-1] = (x_dot[1] - x_dot[-2]) / (t[-1] + t[1] - t[0] - t[-2])

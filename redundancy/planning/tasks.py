@@ -583,16 +583,19 @@ def either_side(path: Segment | Chain) -> tuple[np.ndarray, np.ndarray]:
 
 
 def jumps(path: Segment | Chain) -> np.ndarray:
-    """The times (j,) s among the path's `breaks` where ẏ_d jumps: a polyline's corner or a
-    cycle's, turned at speed; not a speed profile's ramp end, where only its rate does, nor a
-    corner where the path comes to rest and turns (ẏ_d is 0 either side). A change either side
-    (`either_side`) of more than `JUMP` of the path's peak speed, or of ẏ_d there where that is
-    more (a tool's angle turning fast while its point moves slowly)."""
-    before, after = either_side(path)
+    """The times (j,) s among the path's `breaks` where ẏ_d jumps (`jumped`, either side of
+    each: `either_side`): a polyline's corner or a cycle's, turned at speed; not a speed
+    profile's ramp end, where only its rate does, nor a corner where the path comes to rest and
+    turns (ẏ_d is 0 either side)."""
+    return path.breaks[jumped(*either_side(path), path.peak)]
+
+
+def jumped(before: np.ndarray, after: np.ndarray, peak: float) -> np.ndarray:
+    """Whether ẏ_d jumps from ``before`` to ``after`` (..., m), (...): it changes by more than
+    `JUMP` of the path's ``peak`` speed, or of ẏ_d there where that is more (a tool's angle
+    turning fast while its point moves slowly)."""
     speed = np.maximum(np.linalg.norm(before, axis=-1), np.linalg.norm(after, axis=-1))
-    return path.breaks[
-        np.linalg.norm(after - before, axis=-1) > JUMP * np.maximum(path.peak, speed)
-    ]
+    return np.linalg.norm(after - before, axis=-1) > JUMP * np.maximum(peak, speed)
 
 
 def corners(path: Segment | Chain) -> np.ndarray:
