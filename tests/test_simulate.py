@@ -623,6 +623,33 @@ def test_a_motion_whose_path_leaves_the_reach_fails_at_its_edge_once_it_crawls_t
     assert sum(len(b.steps.rows) for b in sweep.batches) < 200 * 3 * integrate.MAX_SINGULAR
 
 
+def test_at_three_task_coordinates_a_motion_that_leaves_the_reach_fails_at_its_edge_too():
+    """The Panda (m = 3, seven joints driven directly) from mid-range, along the line from its
+    shoulder (joint 2, 0.333 m up) through the tool, outward 1.5 m at 0.2 m/s: the line leaves
+    the reach about 0.95 m from the shoulder. At m ≥ 3 the law's determinant test of G = J_H
+    J_Hᵀ is a sufficient condition only, so the rule that fails a crawling motion reads whether
+    the law damped (λ² > 0), not that test. Without the rule the motion tried `MAX_STEPS` steps
+    and kept 1,959 of them; it is now frozen after 89, stretched (σ_min / σ_max of J_H 6e-7),
+    the tool still on the line."""
+    with pytest.warns(UserWarning, match="driven directly"):
+        robot = load_robot("panda")
+    start = (robot.lower + robot.upper) / 2
+    tool = actuator_space(robot, start).y[0]
+    shoulder = np.array([0.0, 0.0, 0.333])
+    out = (tool - shoulder) / np.linalg.norm(tool - shoulder)
+    segment = Segment("out", tool, tool + 1.5 * out, 0.2)
+    motion = simulate(robot, VELOCITY.resolver, segment, start[None], sparse=True)
+    assert motion.failed[0]
+    assert len(motion.steps.rows) < 3 * integrate.MAX_SINGULAR
+    end = motion.y[0, -1]
+    reach = np.linalg.norm(end - shoulder)
+    assert 0.9 < reach < 1.0  # as far as it came: it chattered at the edge, stretched
+    assert np.linalg.norm(motion.y[0] - shoulder, axis=1).max() - reach < 1e-9
+    assert np.linalg.norm(np.cross(end - tool, out)) < 1e-6  # on the line
+    sigma = np.linalg.svd(actuator_space(robot, motion.q[0, -1]).J_H[0], compute_uv=False)
+    assert sigma[-1] / sigma[0] < np.sqrt(SINGULAR_RATIO)
+
+
 def test_a_motion_that_touches_the_edge_of_the_reach_and_turns_back_passes():
     """The slewing 3R arm out to its reach, 2.3 m, and back: stretched at the corner, J_H is
     singular there (σ_min / σ_max 7e-5) and the law damps a step or two, fewer than the
