@@ -64,7 +64,7 @@ class Controller {
     if (masses_) {
       const Dense& M = evaluator_.pass().mass(qi);
       if (!M.allFinite() || !(M.diagonal().array() > 0).all()) return state_fallback_(q);
-      factors_.inertia(M, M_H_);
+      inertia(factors_, M, first_, second_, M_H_);
       M_H = array(M_H_);
     }
     return filled(state_, {array(x_), array(A_), array(J_H_), M_H});
@@ -108,7 +108,7 @@ class Controller {
   Evaluator evaluator_;
   Rule rule_;
   Matrix A_, J_, J_H_;  // row-major, as `Evaluator::derived` writes them
-  Dense M_H_;
+  Dense M_H_, first_, second_;
   Factors factors_;
   Eigen::VectorXd x_, y_, q_dot_;
   bool masses_;

@@ -39,7 +39,7 @@ struct Rule {
     if (weight == INERTIA) {
       const Dense& M = pass.mass(q);
       if (!(M.diagonal().array() > 0).all()) return nullptr;
-      factors.inertia(M, M_H);
+      inertia(factors, M, first_, second_, M_H);
       weighting = &M_H;
     }
     if (pull.size()) z_ = pull.cwiseProduct(x - middle);
@@ -56,5 +56,6 @@ struct Rule {
 
  private:
   Law law_;
+  Dense first_, second_;
   Eigen::VectorXd z_;
 };

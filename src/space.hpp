@@ -51,22 +51,9 @@ class SizedFactors {
     out = lu_.permutationP().transpose() * column_;
   }
 
-  // out = A⁻ᵀ M A⁻¹ = A⁻ᵀ (A⁻ᵀ M)ᵀ for a symmetric M (n, n), symmetrised, column by column.
-  template <class Square, class Out>
-  void congruence(const Square& M, Out&& out) {
-    const auto n = M.rows();
-    first_.resize(n, n);
-    second_.resize(n, n);
-    for (Eigen::Index j = 0; j < n; ++j) solve_transposed(M.col(j), first_.col(j));
-    for (Eigen::Index j = 0; j < n; ++j)
-      solve_transposed(first_.row(j).transpose(), second_.col(j));
-    out = (second_ + second_.transpose()) / 2;
-  }
-
  private:
   Eigen::PartialPivLU<Eigen::Matrix<double, N, N>> lu_;
   Eigen::Matrix<double, N, 1> column_;
-  Eigen::Matrix<double, N, N> first_, second_;  // the two solves of `congruence`
 };
 
 // The LU factors of Aᵀ of one state at its n: Eigen's fixed-size kernels up to `MAX_FIXED`
@@ -96,13 +83,6 @@ class Factors {
   template <class In, class Out>
   void solve(const In& b, Out&& out) {
     current([&](auto& factors) { factors.solve(b, out); });
-  }
-
-  // M_H = A⁻ᵀ M A⁻¹ (n, n) for a symmetric M (n, n), symmetrised, into `out`: at the factors'
-  // own size, chosen once, not per column.
-  template <class Square, class Out>
-  void inertia(const Square& M, Out&& out) {
-    current([&](auto& factors) { factors.congruence(M, out); });
   }
 
  private:
@@ -172,6 +152,19 @@ bool derive_state(Factors& factors, const Square& A, const Rows& J, Out&& out,
   factors.compute(A);
   task_jacobian(factors, J, std::forward<Out>(out));
   return singular(A, factors, tolerance);
+}
+
+// M_H = A⁻ᵀ M A⁻¹ = A⁻ᵀ (A⁻ᵀ M)ᵀ for a symmetric M, symmetrised, into `out`, column by column;
+// `first` and `second` hold the two solves.
+template <class Square, class Out>
+void inertia(Factors& factors, const Square& M, Dense& first, Dense& second, Out&& out) {
+  const auto n = M.rows();
+  first.resize(n, n);
+  second.resize(n, n);
+  for (Eigen::Index j = 0; j < n; ++j) factors.solve_transposed(M.col(j), first.col(j));
+  for (Eigen::Index j = 0; j < n; ++j)
+    factors.solve_transposed(first.row(j).transpose(), second.col(j));
+  out = (second + second.transpose()) / 2;
 }
 
 // The k of a batch of square matrices A (k, n, n), checked against the other batches' shapes:
@@ -244,9 +237,10 @@ inline Array inertias(const Array& A, const Array& M) {
   const auto [k, n] = square_batch(A, {{&M, 3, "M"}});
   Array out({k, n, n});
   Factors factors;
+  Dense first, second;
   for (py::ssize_t i = 0; i < k; ++i) {
     factors.compute(at(A, i, n, n));
-    factors.inertia(at(M, i, n, n), at(out, i, n, n));
+    inertia(factors, at(M, i, n, n), first, second, at(out, i, n, n));
   }
   return out;
 }
