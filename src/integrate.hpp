@@ -57,7 +57,7 @@ inline Matrix task_velocity(const py::object& velocity, const Eigen::VectorXd& t
 // steady path, or one call of Python per batch): a weighted pseudoinverse (`Rule`), or a held
 // law (`Held`) whose held actuators' rates `held(t, x_h)` → (r, h) Python gives, once per
 // batch, from the times and their strokes. Where a record is asked for, it is (the evaluator's
-// tuple, ẋ, q̇), which is also what a call from Python returns (`Law.__call__`: the first states,
+// tuple, ẋ, q̇), which is also what a call from Python returns (`Law.evaluated`: the starts,
 // the samples between steps and on a grid); without one, the states are derived without the
 // pass's arrays (`Evaluator::derive`), alike to the last bit. A state a kind refused is bad, as
 // where A is singular. None where the core cannot serve the states (Python evaluates them again

@@ -53,7 +53,9 @@ def bracket_probes(values, margins, inside, tolerance) -> list[float]:
 
 def _floats(values) -> list[float]:
     """An array's values as Python floats: these helpers walk a few dozen samples one by one,
-    which numpy's per-call cost would make ten times slower, alike to the last bit."""
+    which numpy's per-call cost would make ten times slower, alike to the last bit. The values
+    are distinct, as a search's are (`grid_over`, `new_probes`): a fit through two equal ones
+    divides by zero."""
     return np.asarray(values, dtype=float).tolist()
 
 

@@ -35,7 +35,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from functools import cached_property, partial
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING, NamedTuple, cast
 
 import numpy as np
 from scipy.integrate import RK45
@@ -626,11 +626,14 @@ class Law:
         """The `Rates` of ``records`` (`evaluated`'s, `stage`'s, or the core loop's records of
         the ends of its steps) joined into one batch in order, and of its states ``rows`` alone
         where given: one join and one take, however many batches the samples came in."""
-        if any(isinstance(record, Rates) for record in records):  # in Python, in part or all
+        if len(records) == 1:
+            rates = self._record_rates(records[0])
+        elif any(isinstance(record, Rates) for record in records):  # in Python, in part or all
             rates = joined([self._record_rates(record) for record in records])
         else:
-            found = joined_found([record[0] for record in records])
-            x_dot, q_dot = (np.concatenate([record[i] for record in records]) for i in (1, 2))
+            raw = cast(Sequence[tuple], records)
+            found = joined_found([record[0] for record in raw])
+            x_dot, q_dot = (np.concatenate([record[i] for record in raw]) for i in (1, 2))
             rates = self._record_rates((found, x_dot, q_dot))
         return rates if rows is None else rates.take(rows)
 
