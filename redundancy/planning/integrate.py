@@ -646,7 +646,7 @@ class Law:
         return self._rates(space, x_dot, q_dot, bad)
 
     def _python(self, t: np.ndarray, q: np.ndarray) -> Rates:
-        """`__call__` in Python: the evaluation, the law's own methods, the solve for q̇. A state
+        """`evaluated` in Python: the evaluation, the law's own methods, the solve for q̇. A state
         whose ẏ is not finite (a task of your own out of its domain) is bad, as the compiled
         right-hand side finds it."""
         space, bad = regularised(evaluate(self.robot, q))

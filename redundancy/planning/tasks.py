@@ -586,8 +586,8 @@ def jumps(path: Segment | Chain) -> np.ndarray:
     """The times (j,) s among the path's `breaks` where ẏ_d jumps (`jumped`, either side of
     each: `either_side`): a polyline's corner or a cycle's, turned at speed; not a speed
     profile's ramp end, where only its rate does, nor a corner where the path comes to rest and
-    turns (ẏ_d is 0 either side). Found once and kept with the path, read-only, as its `breaks`
-    are: a search scores every batch of motions by them."""
+    turns (ẏ_d is 0 either side). Found once and kept with the path (read-only), as its
+    `breaks` are kept: a search scores every batch of motions by them."""
     kept = vars(path)  # a frozen path's derived values live there, as a cached_property's do
     if "jumps" not in kept:
         found = path.breaks[jumped(*either_side(path), path.peak)]
