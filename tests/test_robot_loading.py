@@ -1,9 +1,11 @@
 """Loading robots: bundled files, user-defined actuator kinds, and every bad input named."""
 
 import importlib.util
+import re
 import site
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -273,3 +275,26 @@ def test_a_robot_toml_reached_through_a_symbolic_link_reads_from_its_own_folder(
     assert (linked.hydraulics is None) == (bundled.hydraulics is None)
     q = (bundled.lower + bundled.upper) / 2
     np.testing.assert_array_equal(fk(linked, q), fk(bundled, q))
+
+
+def test_a_folder_named_like_a_bundled_robot_is_loaded_with_a_word(tmp_path, monkeypatch):
+    """A bare name is a folder of the working directory first, where one holds a robot.toml
+    (a user's edited copy of a bundled robot, say), and then a bundled robot: where it is both,
+    the folder's robot loads and a warning says it is not the bundled one. A path that says it
+    is one loads without a word."""
+    import shutil
+
+    shutil.copytree(bundled_root() / "hiab031", tmp_path / "hiab031")
+    toml = tmp_path / "hiab031" / "robot.toml"
+    bundled = load_robot("hiab031")
+    toml.write_text(
+        re.sub(r"(?m)^payload = .*$", f"payload = {bundled.payload + 1}", toml.read_text())
+    )
+    monkeypatch.chdir(tmp_path)
+    with pytest.warns(UserWarning, match=r"'hiab031' is the folder .*hiab031 .*not the bundled"):
+        copy = load_robot("hiab031")
+    assert copy.payload == bundled.payload + 1
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        load_robot("./hiab031")
+        load_robot(Path("hiab031"))

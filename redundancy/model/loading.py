@@ -44,6 +44,12 @@ def _describe(robot: str | Path) -> tuple[str, Path, Description, str]:
         raise InvalidInputError(f"robot must be a name or a path; got {robot!r}")
     path = Path(robot)
     if path.is_dir() and (path / "robot.toml").is_file():  # a robot's folder
+        if str(robot) in bundled_robots() and not isinstance(robot, Path):
+            warnings.warn(
+                f"robot {str(robot)!r} is the folder {path.resolve()} (its robot.toml), not the "
+                "bundled robot of that name",
+                stacklevel=3,
+            )
         path = path / "robot.toml"
     urdf = path.suffix.lower() in URDF_SUFFIXES
     if urdf or path.suffix.lower() == ".toml":
