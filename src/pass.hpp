@@ -137,9 +137,16 @@ class Pass {
             moving_ ? rates_.data() : nullptr, model_.nv};
   }
 
-  // M(q) (n, n) by CRBA, both triangles filled.
+  // M(q) (n, n) by CRBA, both triangles filled: in the world convention where the model has
+  // mimic joints, as Pinocchio 4.1's default (local) CRBA adds a mimic joint's share to M again
+  // at every call where moving joints lie below it (the world one does not, and differs from
+  // the local one by rounding elsewhere).
   const Eigen::MatrixXd& mass(const double* q) {
-    pinocchio::crba(model_, data_, Config(Vector(q, model_.nv)));
+    const Config at(Vector(q, model_.nv));
+    if (model_.mimicking_joints.empty())
+      pinocchio::crba(model_, data_, at);
+    else
+      pinocchio::crba(model_, data_, at, pinocchio::Convention::WORLD);
     data_.M.triangularView<Eigen::StrictlyLower>() = data_.M.transpose();
     return data_.M;
   }
