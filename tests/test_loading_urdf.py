@@ -93,6 +93,50 @@ def test_a_mimic_joint_on_another_branch_loads_and_follows_its_leader(tmp_path):
     np.testing.assert_allclose(lamp[:2, 0], [np.cos(angle), np.sin(angle)], atol=1e-12)
 
 
+# Three branches from the base: c, on a's branch, mimics b; d mimics a. Built in the file's
+# order, a's branch would meet c before b is built; b's branch must come first.
+CROSSED = """<robot name="crossed">
+  <link name="base"/><link name="A"/><link name="B"/><link name="C"/><link name="D"/>
+  <joint name="a" type="revolute"><parent link="base"/><child link="A"/><axis xyz="0 1 0"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <joint name="c" type="revolute"><parent link="A"/><child link="C"/><origin xyz="1 0 0"/>
+    <axis xyz="0 1 0"/><limit lower="-1" upper="1" effort="1" velocity="1"/>
+    <mimic joint="b" multiplier="0.5" offset="0.1"/></joint>
+  <joint name="b" type="prismatic"><parent link="base"/><child link="B"/>
+    <origin xyz="0 0.5 0"/><axis xyz="1 0 0"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+  <joint name="d" type="revolute"><parent link="base"/><child link="D"/>
+    <origin xyz="0 -0.5 0" rpy="0 0 0.3"/><axis xyz="0 0 1"/>
+    <limit lower="-1" upper="1" effort="1" velocity="1"/><mimic joint="a"/></joint>
+</robot>
+"""
+
+
+def test_mimic_joints_following_joints_on_each_others_sibling_branches_load(tmp_path):
+    """Where a mimic joint on one branch follows a joint on a second, and a mimic joint on a
+    third follows one on the first, the branches are built leaders first: every link is where
+    yourdfpy's forward kinematics puts it. Where two branches each hold the leader of a mimic
+    joint on the other, no model numbers a branch's joints together: one line names them."""
+    path = tmp_path / "crossed.urdf"
+    path.write_text(CROSSED)
+    robot = quietly(path)
+    assert sorted(robot.joint_names) == ["a", "b"]
+    reference = yourdfpy.URDF.load(str(path), load_meshes=False)
+    rng = np.random.default_rng(5)
+    for q in rng.uniform(robot.lower, robot.upper, size=(5, robot.n)):
+        reference.update_cfg(
+            q[[robot.joint_names.index(n) for n in reference.actuated_joint_names]]
+        )
+        for link, placement in placements(robot.model, q).items():
+            np.testing.assert_allclose(placement, reference.get_transform(link), atol=1e-12)
+    d_on_b = '<joint name="d" type="revolute"><parent link="B"/>'  # d, on b's branch, mimics a
+    path.write_text(
+        CROSSED.replace('<joint name="d" type="revolute"><parent link="base"/>', d_on_b)
+    )
+    with pytest.raises(RobotDescriptionError, match=r"mimic joints 'c', 'd' follow joints on one"):
+        quietly(path)
+
+
 @pytest.mark.filterwarnings("ignore:joints without an actuator declaration")
 @pytest.mark.parametrize("name", bundled_robots())
 def test_each_bundled_robots_model_is_pinocchios_own(name):

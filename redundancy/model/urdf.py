@@ -1,11 +1,11 @@
 """The URDF front end: a URDF (or xacro) file read, checked, and built into a Pinocchio model.
 
-yourdfpy parses the document; Pinocchio's model graph builds the model from that parse, the
-branch holding a joint that a mimic joint follows first, so that a mimic joint may follow a
-joint on any branch. A bad element is said in one line: the file, the element as written and
-what it must be. A continuous joint is one unbounded angle (rad), not Pinocchio's (cos, sin)
-pair; a floating or planar joint is refused unless locked; a mimic joint following a locked
-joint is locked too, where it follows.
+yourdfpy parses the document; Pinocchio's model graph builds the model from that parse, a
+branch holding a joint that a mimic joint on another branch follows before that branch, so that
+a mimic joint may follow a joint on any branch (`_build_order`). A bad element is said in one
+line: the file, the element as written and what it must be. A continuous joint is one unbounded
+angle (rad), not Pinocchio's (cos, sin) pair; a floating or planar joint is refused unless
+locked; a mimic joint following a locked joint is locked too, where it follows.
 """
 
 from __future__ import annotations
@@ -257,9 +257,8 @@ def build_model(urdf: Urdf, locked: dict[str, float | None]) -> tuple[pin.Model,
     for link in robot.links:
         model_graph.addBody(link.name, _inertia(link.inertial))
     followed = urdf.mimics
-    leaders = {leader for name, (leader, _, _) in followed.items() if name not in locked}
-    first = _branches(robot, leaders)
-    for joint in sorted(robot.joints, key=lambda j: j.name not in first):
+    root = next(iter({link.name for link in robot.links} - {j.child for j in robot.joints}))
+    for joint in _build_order(robot, root, followed, locked, urdf.source):
         mimic = followed.get(joint.name)
         if mimic is not None and mimic[0] in locked and joint.name not in locked:
             leader, multiplier, offset = mimic
@@ -275,7 +274,6 @@ def build_model(urdf: Urdf, locked: dict[str, float | None]) -> tuple[pin.Model,
         if kind.nq == 1 and mimic is None:
             edge = edge.withMinConfig(np.array([lower])).withMaxConfig(np.array([upper]))
         edge.build()
-    root = next(iter({link.name for link in robot.links} - {j.child for j in robot.joints}))
     try:
         model = graph.buildModel(model_graph, root, pin.SE3.Identity())
     except (ValueError, RuntimeError) as error:
@@ -285,18 +283,59 @@ def build_model(urdf: Urdf, locked: dict[str, float | None]) -> tuple[pin.Model,
     return model, [j.name for j in robot.joints if j.type == "continuous"]
 
 
-def _branches(robot: yourdfpy.Robot, leaders: set[str]) -> set[str]:
-    """The joints from the root down to each of the ``leaders`` (joints mimic joints follow),
-    the leaders included: their branches are built first."""
+def _build_order(
+    robot: yourdfpy.Robot,
+    root: str,
+    followed: Mapping[str, tuple[str, float, float]],
+    locked: Mapping[str, float | None],
+    source: str,
+) -> list[yourdfpy.Joint]:
+    """The joints in the order the model is built: depth first from the ``root`` link, a
+    branch whole before the next (Pinocchio numbers a branch's joints together), each link's
+    branches in the file's order, except that where a mimic joint (not locked, nor its leader)
+    follows a joint on another branch, the branch holding the leader comes first where the two
+    part. One line where two branches each hold the leader of a mimic joint on the other."""
     joints = {joint.name: joint for joint in robot.joints}
     above = {joint.child: joint.name for joint in robot.joints}  # the joint above each link
-    first: set[str] = set()
-    for leader in leaders:
-        name: str | None = leader
-        while name is not None and name not in first:
-            first.add(name)
+
+    def path(name: str | None) -> list[str]:  # the joints from the root down to ``name``
+        found = []
+        while name is not None:
+            found.append(name)
             name = above.get(joints[name].parent)
-    return first
+        return found[::-1]
+
+    after: dict[str, dict[str, str]] = {}  # a branch's first joint: those before it, and why
+    for name, (leader, _, _) in followed.items():
+        if name in locked or leader in locked:
+            continue
+        parted = next(
+            ((own, other) for own, other in zip(path(name), path(leader)) if own != other), None
+        )
+        if parted is not None:  # the two branches part at a link: the leader's goes first
+            after.setdefault(parted[0], {})[parted[1]] = name
+    order: list[yourdfpy.Joint] = []
+    pending = [[j.name for j in robot.joints if j.parent == root]]  # per link, depth first
+    while pending:
+        siblings = pending[-1]
+        if not siblings:
+            pending.pop()
+            continue
+        ready = next((j for j in siblings if not set(after.get(j, ())) & set(siblings)), None)
+        if ready is None:
+            waiting = sorted(
+                {after[j][k] for j in siblings for k in after.get(j, ()) if k in siblings}
+            )
+            raise RobotDescriptionError(
+                f"{source}: the mimic joints {', '.join(map(excerpt, waiting))} follow joints on "
+                f"one another's branches (from link {excerpt(joints[siblings[0]].parent)}); a "
+                "model builds one branch whole before the next, so one of them must follow a "
+                "joint on its own branch, above it, or on a third branch"
+            )
+        siblings.remove(ready)
+        order.append(joints[ready])
+        pending.append([j.name for j in robot.joints if j.parent == joints[ready].child])
+    return order
 
 
 JOINTS = {  # URDF joint types: the model graph's joint of an axis (unit vector)
