@@ -67,6 +67,11 @@ def test_unknown_robot_lists_the_bundled_ones():
         load_robot("hiab32")
 
 
+def test_a_folder_without_a_robot_description_is_named_as_one(tmp_path):
+    with pytest.raises(RobotDescriptionError, match=r"is a folder without a robot.toml.*hiab031"):
+        load_robot(tmp_path)
+
+
 def test_malformed_urdf_is_named(tmp_path):
     path = crane_variant(tmp_path, "</robot>", "")
     with pytest.raises(RobotDescriptionError, match="not readable XML"):
@@ -91,6 +96,20 @@ def test_actuator_on_a_missing_link_lists_the_links(tmp_path):
 def test_a_joint_driven_twice_is_refused(tmp_path):
     path = crane_variant(tmp_path, '<joint name="boom2_joint"/>', '<joint name="boom1_joint"/>')
     with pytest.raises(RobotDescriptionError, match="'boom1_joint' is driven twice"):
+        load_robot(path)
+
+
+def test_an_actuator_named_like_a_joint_driven_directly_is_refused(tmp_path):
+    """A joint no actuator drives is driven directly by an actuator named after it: a declared
+    actuator of that name, on another joint, would make two actuators of one name."""
+    path = crane_variant(tmp_path, 'name="x2"', 'name="telescope_joint"')
+    text = path.read_text()
+    path.write_text(text[: text.index('<transmission name="x3">')] + "</robot>\n")
+    with pytest.raises(
+        RobotDescriptionError,
+        match=r"actuator 'telescope_joint' drives joint 'boom2_joint' and is named like joint "
+        r"'telescope_joint', which no actuator drives",
+    ):
         load_robot(path)
 
 

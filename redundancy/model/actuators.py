@@ -373,6 +373,17 @@ class ActuatorSet:
         if len(set(names)) != len(names):
             raise RobotDescriptionError(f"actuator names must be distinct; got {names}")
         undriven = [j for j in joints if j not in bound]
+        named = {a.name: a for a in bound.values()}
+        if clash := next((j for j in undriven if j in named), None):
+            actuator = named[clash]
+            raise RobotDescriptionError(
+                placed(
+                    actuator.declared_in,
+                    f"actuator {clash!r} drives joint {actuator.joint!r} and is named like joint "
+                    f"{clash!r}, which no actuator drives: its direct drive takes the joint's "
+                    f"name; rename the actuator, or declare one on joint {clash!r}",
+                )
+            )
         if undriven:
             warnings.warn(
                 f"joints without an actuator declaration are driven directly (Identity): "

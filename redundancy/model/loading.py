@@ -61,6 +61,12 @@ def _describe(robot: str | Path) -> tuple[str, Path, Description, str]:
     elif str(robot) in bundled_robots():
         folder = bundled_root() / str(robot)
         path = folder / "robot.toml"
+    elif path.is_dir():
+        raise RobotDescriptionError(
+            f"robot {str(robot)!r} is a folder without a robot.toml; give a robot's folder, the "
+            f"path of a .urdf, .xacro or robot.toml file, or a bundled robot: "
+            f"{', '.join(bundled_robots())}"
+        )
     else:
         raise RobotDescriptionError(
             f"unknown robot {str(robot)!r}; bundled robots: {', '.join(bundled_robots())}; "
