@@ -5,18 +5,21 @@ line from its first moment, while the libraries still load (`redundancy.study.si
 Its first statements hold the two signals back (blocked, not lost) until their handler is in
 place: one that arrives while this module loads what the handler needs then ends the command
 with that line, where Python's default would print a KeyboardInterrupt traceback. (The
-interpreter's own start, before this module runs, is beyond its reach.)"""
+interpreter's own start, before this module runs, is beyond its reach.) A signal after the
+command's last exit function is ignored (`signals.ignored_at_exit`): it has finished."""
 
 import signal
 
 _before = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
 
-import gc  # noqa: E402  (after the signals are held back)
+import atexit  # noqa: E402  (after the signals are held back)
+import gc  # noqa: E402
 import sys  # noqa: E402
 
 from redundancy.study import signals  # noqa: E402
 
 signals.install()
+atexit.register(signals.ignored_at_exit)  # the first exit function: it runs last
 signal.pthread_sigmask(signal.SIG_SETMASK, _before)  # a signal held back is handled now
 
 

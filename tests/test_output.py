@@ -129,6 +129,32 @@ def test_unwritable_paths_fail_before_any_computing(tmp_path):
     assert run.returncode == 2 and "--html" in run.stderr and run.stderr.count("\n") == 1
 
 
+def _as_a_user(*args: str) -> subprocess.CompletedProcess:
+    """``redundancy ARGS`` run as a user without root's licence to write anywhere: where the
+    suite runs as root, with the capabilities that override a folder's permissions dropped."""
+    exempt = ["setpriv", "--bounding-set=-dac_override,-dac_read_search,-fowner", "--"]
+    command = [*(exempt if os.geteuid() == 0 else []), sys.executable, "-m", "redundancy", *args]
+    return subprocess.run(command, capture_output=True, text=True, timeout=600)
+
+
+def test_a_read_only_earlier_output_is_refused_before_any_computing_and_kept(tmp_path):
+    """The output replaces an earlier output folder whole and removes the files it replaces:
+    where that folder is read-only, the command says so at once, before it loads the robot,
+    and leaves the folder as it was, with nothing beside it."""
+    target = tmp_path / "out"
+    _earlier_output(target)
+    before = _contents(target)
+    target.chmod(0o555)
+    try:
+        run = _as_a_user("study", *NO_ROBOT, "--out", str(target))
+    finally:
+        target.chmod(0o755)
+    assert run.returncode == 2 and run.stderr.count("\n") == 1, run.stderr
+    assert f"--out {target}: cannot write there (the folder is not writable" in run.stderr
+    assert _contents(target) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
 def test_devices_and_pipes_are_refused_and_links_followed(tmp_path):
     """A rename would replace a device or a pipe: refused. A link stays a link, and the file or
     folder it names (even one still to be made) is written."""
@@ -388,6 +414,33 @@ sys.exit(main())
     )
     assert done.stderr == "redundancy: interrupted\n", done.stderr
     assert done.returncode == 130 and done.stdout == ""
+
+
+def test_a_signal_once_the_command_has_finished_changes_nothing():
+    """Ctrl-C after the command's last exit function, where the interpreter's end would put
+    the default action back (which ends a process by the signal, without a word): ignored, as
+    the command has finished; its output and status stand."""
+    script = """
+import atexit, os, signal, sys, time
+
+def late():  # registered before the command's own, so run after them
+    os.kill(os.getpid(), signal.SIGINT)
+    time.sleep(0.5)  # where a handler would run
+
+atexit.register(late)
+sys.argv = ["redundancy", "robots"]
+from redundancy.__main__ import main
+sys.exit(main())
+"""
+    done = subprocess.run(
+        [sys.executable, "-c", script],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        preexec_fn=as_foreground,
+    )
+    assert (done.returncode, done.stderr) == (0, "")
+    assert "hiab031" in done.stdout
 
 
 def test_a_signal_while_the_staging_folder_is_made_leaves_nothing(tmp_path, monkeypatch):
@@ -674,6 +727,59 @@ def test_a_new_run_removes_the_staging_folders_of_dead_runs_and_says_so(tmp_path
     ):
         (out / "report.json").write_text("new")
     assert sorted(p.name for p in tmp_path.iterdir()) == [alive.name, "out"]
+
+
+def _refusing_unlink(monkeypatch, refused) -> None:
+    """Removing a file for which ``refused(path)`` holds fails as an immutable file's does."""
+    unlink = Path.unlink
+
+    def refusing(path, missing_ok=False):
+        if refused(path):
+            raise PermissionError(errno.EPERM, os.strerror(errno.EPERM), str(path))
+        unlink(path, missing_ok=missing_ok)
+
+    monkeypatch.setattr(Path, "unlink", refusing)
+
+
+def test_an_earlier_output_that_cannot_be_removed_is_named_and_the_new_one_kept(
+    tmp_path, monkeypatch
+):
+    """Once the new output has taken the folder's place, a file of the earlier one the file
+    system will not remove leaves that folder beside it, named in a note: the run is done, its
+    output whole, and no error says otherwise."""
+    target = tmp_path / "out"
+    _earlier_output(target)
+    _refusing_unlink(monkeypatch, lambda path: path.parent.name.startswith(".out.partial-"))
+    with (
+        pytest.warns(UserWarning, match=r"could not remove this earlier output \(Operation"),
+        OutputFolder(target) as out,
+    ):
+        (out / "report.json").write_text("new")
+    assert (target / "report.json").read_text() == "new"
+    (left,) = (p for p in tmp_path.iterdir() if p.name.startswith(".out.partial-"))
+    assert (left / "report.json").read_text() == "old"
+
+
+def test_a_dead_runs_folder_that_cannot_be_removed_does_not_block_the_next_run(
+    tmp_path, monkeypatch
+):
+    """A dead run's staging folder holding an earlier output the file system will not remove
+    is named in a note, left where it is, and the run goes on: it does not fail every later run
+    into the same folder."""
+    target = tmp_path / "out"
+    _earlier_output(target)
+    dead = tmp_path / f".out.partial-{_dead_pid()}-abc"
+    shutil.copytree(target, dead)
+    _refusing_unlink(monkeypatch, lambda path: path == dead / "report.json")
+    for version in ("new", "newer"):
+        with warnings.catch_warnings(record=True) as notes:
+            warnings.simplefilter("always")
+            with OutputFolder(target) as out:
+                (out / "report.json").write_text(version)
+        (note,) = (str(n.message) for n in notes)  # not "removed": it is still there
+        assert note.startswith(f"{dead}: could not remove this earlier output (Operation")
+        assert (target / "report.json").read_text() == version
+    assert (dead / "report.json").read_text() == "old"
 
 
 CHURN = """

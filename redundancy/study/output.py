@@ -166,6 +166,18 @@ def _retire(folder: Path, into: Path, manifest: dict) -> None:
         folder.rmdir()
 
 
+def _retired(folder: Path, into: Path, manifest: dict) -> bool:
+    """`_retire`, and where the file system refuses (a file of the earlier output made
+    immutable, say), a note that names the folder left: the run's own output is whole, and the
+    next run into the same folder tries again. Whether the folder is gone."""
+    try:
+        _retire(folder, into, manifest)
+    except OSError as error:
+        reason = error.strerror or type(error).__name__
+        _note(f"{folder}: could not remove this earlier output ({reason}); remove it by hand")
+    return not folder.exists()
+
+
 def _alive(pid: str) -> bool:
     """Whether the process ``pid`` runs (a name that is no pid, or another user's process,
     counts as running)."""
@@ -188,10 +200,9 @@ def _clean_up_after_killed_runs(target: Path) -> None:
     prefix = f".{target.name}.partial-"
     found = sorted(target.parent.glob(f"{glob.escape(prefix)}*"))
     dead = [f for f in found if not _alive(f.name.removeprefix(prefix).partition("-")[0])]
-    for folder in dead:
-        _retire(folder, target, _manifest(folder) or {"files": None})
-    if dead:
-        _note(f"removed {', '.join(f.name for f in dead)}: staged by runs that were stopped")
+    removed = [f for f in dead if _retired(f, target, _manifest(f) or {"files": None})]
+    if removed:
+        _note(f"removed {', '.join(f.name for f in removed)}: staged by runs that were stopped")
 
 
 class OutputFolder:
@@ -235,6 +246,11 @@ class OutputFolder:
         if not self.target.is_dir():
             what = "a file" if self.target.is_file() else "a device, a pipe or a socket"
             raise InvalidInputError(f"{self.option} {self.target} is {what}; give a folder")
+        if not os.access(self.target, os.W_OK | os.X_OK):  # a read-only or immutable folder
+            raise InvalidInputError(
+                f"{self.option} {self.target}: cannot write there (the folder is not "
+                "writable: the output replaces it whole, and removes what it replaces)"
+            )
         manifest = _manifest(self.target)
         names = sorted(e.name for e in self.target.iterdir())
         if manifest is None and names:
@@ -312,7 +328,7 @@ class OutputFolder:
             for folder in {self.target.parent, *(final.parent for _, final in self.others)}:
                 _sync(folder)
             if exists:  # the earlier output, now where the staged one was
-                _retire(self.staging, self.target, _manifest(self.staging) or {"files": []})
+                _retired(self.staging, self.target, _manifest(self.staging) or {"files": []})
 
     def discard(self) -> None:
         """Before the commit, remove what was staged, and the folders made for it where they

@@ -71,6 +71,15 @@ def install(interrupt: bool = False) -> dict:
     return {number: signal.signal(number, stop) for number in numbers}
 
 
+def ignored_at_exit() -> None:
+    """SIGINT and SIGTERM ignored from here to the process's end. The command registers it as
+    its first exit function, so that it runs last, once its own (a child joined, a server taken
+    down) are done and the command has finished: the interpreter's end then puts the default
+    actions back, which would end the finished command by the signal, without its line."""
+    for number in STOPPING:
+        signal.signal(number, signal.SIG_IGN)
+
+
 def check() -> None:
     """Within `caught`, raise a signal received that a library swallowed (`received`) where
     the program is now: a long loop stops at its next turn, and a block that must not outlast
