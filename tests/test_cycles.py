@@ -43,7 +43,7 @@ from redundancy.resolution.limits import Limits, amount
 from redundancy.resolution.objectives import VELOCITY
 from redundancy.resolution.state import evaluate
 from redundancy.study.cycles import repetition_report, run_cycle
-from redundancy.viz.tables import cycle_table
+from redundancy.viz.tables import cycle_table, fixed_point_words
 
 ARM = Path(__file__).parent / "data" / "planar4r"
 SLEWING = Path(__file__).parent / "data" / "slewing3r"
@@ -330,6 +330,23 @@ def test_a_fixed_point_on_a_sample_has_the_maps_slope_whichever_side_rounding_pu
     ((value, slope, keeps),) = mapped.fixed_points
     assert abs(value) < 1e-11 and keeps
     assert slope == pytest.approx(0.178, abs=1e-9)
+
+
+def test_a_map_within_its_accuracy_of_the_identity_has_no_limit_cycles():
+    """A cycle that retraces its path brings every start back to itself: P(v) − v is the
+    integration's error, of either sign, below `SETTLED`. Its sign changes are not limit
+    cycles; the map is the identity, and says so. A slowly contracting map (P' = 0.999, so
+    that the samples beside v* move by 1e-5) keeps its fixed point."""
+    values = np.linspace(0.2, 0.8, 13)
+    noise = 4e-7 * np.sin(37 * values)  # changes sign four times
+    retraced = ReturnMap("x3", values, values + noise, np.ones(13, dtype=bool))
+    assert np.count_nonzero(np.diff(np.sign(noise))) >= 3
+    assert retraced.fixed_points == [] and retraced.identity
+    assert fixed_point_words(retraced, "m").startswith("every start comes back to itself")
+    slow = ReturnMap("x3", values, 0.501 + 0.999 * (values - 0.501), np.ones(13, dtype=bool))
+    ((value, slope, _),) = slow.fixed_points
+    assert value == pytest.approx(0.501, abs=1e-9) and slope == pytest.approx(0.999, abs=1e-9)
+    assert not slow.identity
 
 
 def test_the_return_map_follows_the_branch_the_free_cycles_run_on(slewing_study):

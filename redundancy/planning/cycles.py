@@ -513,18 +513,30 @@ class ReturnMap:
 
     @property
     def fixed_points(self) -> list[FixedPoint]:
-        """Where P(v) − v changes sign between two samples (linear in between), with the slope
-        P'(v*) of the parabola through those two and the next sample nearer v* (a secant
-        alone gave one side's slope where v* fell on a sample, whichever side rounding put
-        P(v*) − v* on: 0.173 or 0.185 where the map contracts by 0.178)."""
+        """Where P(v) − v changes sign between two samples (linear in between), one of them
+        moved by more than `SETTLED` (the drift a repetition counts as none: a map within that
+        of the identity, as a cycle that retraces its path has, changes sign by integration
+        error alone), with the slope P'(v*) of the parabola through those two and the next
+        sample nearer v* (a secant alone gave one side's slope where v* fell on a sample,
+        whichever side rounding put P(v*) − v* on: 0.173 or 0.185 where the map contracts by
+        0.178)."""
         v, p = self.values, self.following
         g = p - v
         a, b = g[:-1], g[1:]
-        i = np.flatnonzero(np.isfinite(a) & np.isfinite(b) & (a * b <= 0) & (a != b))
+        crossed = np.isfinite(a) & np.isfinite(b) & (a * b <= 0) & (a != b)
+        i = np.flatnonzero(crossed & (np.maximum(np.abs(a), np.abs(b)) > SETTLED))
         root = v[i] - g[i] * (v[i + 1] - v[i]) / (g[i + 1] - g[i])
         slope = [self._slope(int(k), r) for k, r in zip(i, root)]
         kept = self.within[i] & self.within[i + 1]
         return [FixedPoint(float(r), float(s), bool(k)) for r, s, k in zip(root, slope, kept)]
+
+    @property
+    def identity(self) -> bool:
+        """Whether every start it reached comes back within `SETTLED` of itself: P(v) = v to
+        the accuracy at which a repetition counts as closed."""
+        drift = np.abs(self.following - self.values)
+        drift = drift[np.isfinite(drift)]
+        return bool(drift.size) and bool(np.all(drift <= SETTLED))
 
     def _slope(self, i: int, root: float) -> float:
         """P' at ``root`` in [v_i, v_i+1]: of the parabola through those samples and the next

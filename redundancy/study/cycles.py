@@ -334,6 +334,7 @@ def map_report(mapped: ReturnMap) -> dict:
         "next": [None if not np.isfinite(p) else float(p) for p in mapped.following],
         "within_limits": mapped.within.tolist(),
         "fixed_points": [{**p._asdict(), "stable": p.stable} for p in mapped.fixed_points],
+        "identity": mapped.identity,
     }
 
 

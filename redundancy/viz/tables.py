@@ -11,7 +11,7 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 
 from redundancy.model.hydraulics import BAR, BEYOND_RELIEF, KILOJOULE, SUPPLIES
-from redundancy.planning.cycles import ReturnMap
+from redundancy.planning.cycles import SETTLED, ReturnMap
 from redundancy.planning.ik import named_values
 from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import VELOCITY
@@ -277,6 +277,8 @@ def _repetition_table(study: CycleStudy) -> str:
 def fixed_point_words(mapped: ReturnMap, unit: str) -> str:
     """The return map's limit cycles in words, the held actuator's values in ``unit`` (SI)."""
     found = mapped.fixed_points
+    if not found and mapped.identity:
+        return f"every start comes back to itself (within {SETTLED:g} {unit}): no drift to settle"
     if not found:
         return "no fixed point over the reachable stroke"
     return "; ".join(
