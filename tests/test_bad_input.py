@@ -89,7 +89,7 @@ CASES = [
     ("payload with a digit separator", ["describe", "--payload", "1_000"], {}, "'1_000' must be"),
     ("unknown command", ["frobnicate"], {}, "invalid choice: 'frobnicate'"),
     ("unknown robot", ["describe", "--robot", "nope"], {}, "unknown robot 'nope'"),
-    ("robot folder", ["describe", "--robot", "/"], {}, "robot '/' is a folder without a robot.toml"),
+    ("robot folder", ["describe", "--robot", "/"], {}, "robot '/' is a folder without a"),
     ("missing urdf", ["describe", "--robot", "none.urdf"], {}, "no URDF file at none.urdf"),
     ("missing toml", ["describe", "--robot", "none.toml"], {}, "no robot description at"),
     ("check unknown", ["study", "--check", "x9"], {}, "--check x9: unknown actuators ['x9']"),
