@@ -291,6 +291,27 @@ def test_missing_meshes_are_named_once_and_their_links_drawn_as_hulls_through_th
     )
 
 
+def test_a_mesh_the_loader_cannot_read_is_named_and_its_link_drawn_as_a_hull(tmp_path):
+    """A mesh file that is there but holds no mesh the loader reads leaves the playback (and
+    the study that writes one) drawing its link as a hull, as a missing one does, with a
+    warning that names the file; the other links keep their visuals."""
+    folder = tmp_path / "meshes"
+    shutil.copytree(FIXTURES / "meshes", folder)
+    shutil.copy(FIXTURES / "task.toml", tmp_path)
+    (folder / "meshes").mkdir()
+    (folder / "meshes" / "stick.dae").write_text("not a mesh")
+    with pytest.warns(UserWarning, match="meshes not found") as said:
+        robot = load_robot(folder / "robot.toml")
+    assert not any("stick.dae" in str(w.message) for w in said)
+    segment = WorkCycle.from_toml(robot.task_file, dimension=robot.m).segments[0]
+    start = configuration_at(robot, segment.start, {"x3": 0.6})[None]
+    motion = simulate(robot, VELOCITY.resolver, segment, start)
+    with pytest.warns(UserWarning, match=r"meshes that cannot be read.*meshes/stick\.dae"):
+        playback = Playback(motion)
+    assert sorted(playback.hulls) == ["base", "boom", "stick"]
+    assert playback.visuals is not None and playback.visuals.ngeoms >= 1
+
+
 def test_a_robot_without_inertias_is_kinematic_only(capsys):
     robot = quietly(FIXTURES / "massless" / "robot.toml")
     assert robot.kinematic_only and robot.massless_links == ["boom", "stick", "telescope"]

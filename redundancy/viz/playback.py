@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import base64
 import contextlib
+import copy
 import html
 import io
 import json
@@ -30,6 +31,7 @@ import subprocess
 import sys
 import tempfile
 import threading
+import warnings
 from collections.abc import Callable, Iterator
 from itertools import product
 from pathlib import Path
@@ -145,35 +147,66 @@ def at_stroke_limit(x: np.ndarray, lower, upper) -> np.ndarray:
     return np.minimum(x - lower, upper - x) <= LIMIT_MARGIN
 
 
-def _visual_model(robot):
-    """Pinocchio's model of the URDF's visual geometry (the visuals whose meshes are found), or
-    None where there is none."""
+def _visual_model(robot) -> tuple[Any, tuple[str, ...]]:
+    """Pinocchio's model of the URDF's visual geometry (None where there is none), and the mesh
+    files it leaves out, whose links are drawn as hulls: those no file answers
+    (`Robot.missing_meshes`) and those the mesh loader cannot read, named in a warning (found
+    one by one where the whole fails)."""
     import pinocchio as pin
     from lxml import etree
 
     from redundancy.model.urdf import pinocchio_message
 
     description = etree.fromstring(robot.description.encode())
-    for visual in description.findall("link/visual"):
-        mesh = visual.find("geometry/mesh")
-        if mesh is not None and mesh.get("filename", "") in robot.missing_meshes:
-            visual.getparent().remove(visual)
-    if description.find("link/visual") is None:
-        return None
-    try:  # the description names every mesh by its absolute path
-        text = etree.tostring(description, encoding="unicode")
+    meshes = {m.get("filename", "") for m in description.findall("link/visual/geometry/mesh")}
+
+    def built(left_out: set[str]):
+        kept = copy.deepcopy(description)
+        for visual in kept.findall("link/visual"):
+            mesh = visual.find("geometry/mesh")
+            if mesh is not None and mesh.get("filename", "") in left_out:
+                visual.getparent().remove(visual)
+        if kept.find("link/visual") is None:
+            return None
+        text = etree.tostring(kept, encoding="unicode")  # every mesh named by its absolute path
         return pin.buildGeomFromUrdfString(robot.model, text, pin.GeometryType.VISUAL)
+
+    missing = set(robot.missing_meshes)
+    try:
+        return built(missing), tuple(sorted(missing))
     except (ValueError, RuntimeError) as error:
+        failure = error
+
+    def loads(mesh: str) -> bool:  # with that mesh alone
+        try:
+            built(meshes - {mesh})
+        except (ValueError, RuntimeError):
+            return False
+        return True
+
+    unreadable = [mesh for mesh in sorted(meshes - missing) if not loads(mesh)]
+    try:
+        if not unreadable:  # no mesh is to blame
+            raise failure
+        visuals = built(missing | set(unreadable))
+    except (ValueError, RuntimeError):
         raise RobotDescriptionError(
-            f"{robot.urdf}: cannot load its visual geometry: {pinocchio_message(error)}"
-        ) from error
+            f"{robot.urdf}: cannot load its visual geometry: {pinocchio_message(failure)}"
+        ) from failure
+    warnings.warn(
+        f"{robot.urdf}: meshes that cannot be read, the playback draws those links as hulls: "
+        f"{', '.join(unreadable)} ({pinocchio_message(failure)})",
+        stacklevel=3,
+    )
+    return visuals, tuple(sorted(missing | set(unreadable)))
 
 
-def link_points(robot) -> dict[str, np.ndarray]:
-    """The points fixed on each link without a drawable visual, (P, 3) in m in the link's own
-    frame: its origin, the origins of the joints it carries and the actuators' points on it
-    (a cylinder's base and rod, a linkage's pins), locked links included. A link is drawn as
-    their convex hull, so that the cylinders sit on it."""
+def link_points(robot, undrawn: tuple[str, ...]) -> dict[str, np.ndarray]:
+    """The points fixed on each link without a drawn visual (a shape, or a mesh not among
+    ``undrawn``), (P, 3) in m in the link's own frame: its origin, the origins of the joints it
+    carries and the actuators' points on it (a cylinder's base and rod, a linkage's pins),
+    locked links included. A link is drawn as their convex hull, so that the cylinders sit on
+    it."""
     import yourdfpy
 
     from redundancy.model.parameters import Point
@@ -181,12 +214,11 @@ def link_points(robot) -> dict[str, np.ndarray]:
     # the robot's URDF text: a xacro expanded, the meshes found by absolute path
     text = io.BytesIO(robot.description.encode())
     parse = yourdfpy.URDF.load(text, build_scene_graph=False, load_meshes=False).robot
-    missing = robot.missing_meshes
-    points = {  # the links none of whose visuals is a shape or a mesh that a file answers
+    points = {  # the links none of whose visuals is a shape or a mesh drawn (not ``undrawn``)
         link.name: [np.zeros(3)]
         for link in parse.links
         if all(
-            v.geometry.mesh is not None and v.geometry.mesh.filename in missing
+            v.geometry.mesh is not None and v.geometry.mesh.filename in undrawn
             for v in link.visuals
         )
     }
@@ -231,7 +263,7 @@ class Playback:
             raise InvalidInputError(f"a playback shows one motion; got {len(motion)}")
         self.motion = motion
         self.robot = robot = motion.robot
-        self.visuals = _visual_model(robot)
+        self.visuals, undrawn = _visual_model(robot)
         segment = motion.segment
         self.q = motion.q[0]
         self.t = motion.t[0]
@@ -267,7 +299,7 @@ class Playback:
             if isinstance(actuator, LinkageCylinder)
             for bar, (a, b) in actuator.bars(kinematics).items()
         ]
-        self.hulls = link_points(robot)  # the links without a drawable visual, drawn as hulls
+        self.hulls = link_points(robot, undrawn)  # the links without a drawn visual, as hulls
         self.frames = {link: frame_id(robot.model, link) for link in self.hulls}
         self._poses, extent = self._link_poses(self.q[self.samples])  # the links' at the samples
         self._fit_camera(np.concatenate([extent, self.traced, self.points]))
