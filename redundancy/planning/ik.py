@@ -58,10 +58,12 @@ class InverseKinematics:
 def require_redundancy(robot: Robot) -> None:
     """One line where ``robot`` has no redundancy to resolve: n ≤ m."""
     if robot.n <= robot.m:
+        bare = robot.actuators.source.lower().endswith((".urdf", ".xacro"))  # no robot.toml
+        where = "a robot.toml that names its URDF" if bare else "its robot.toml"
         raise InvalidInputError(
             f"{robot.name} has n = {robot.n} joints for a task of m = {robot.m} coordinates "
-            f"(tool {robot.task_axes}): no redundancy to resolve; give fewer task_axes in its "
-            'robot.toml (e.g. "xz" for a planar task)'
+            f"(tool {robot.task_axes}): no redundancy to resolve; give fewer task_axes in "
+            f'{where} (e.g. task_axes = "xz" for a planar task), or to load_robot'
         )
 
 
