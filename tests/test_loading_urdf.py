@@ -509,6 +509,20 @@ def test_a_cylinder_on_its_joints_axis_is_one_line_naming_it(tmp_path, capsys, o
     assert "attach each at least 10 mm off it" in errors[0]
 
 
+def test_a_cylinder_whose_points_its_joint_does_not_move_apart_names_their_links(
+    tmp_path, capsys
+):
+    """Both points of the boom cylinder on the column: the boom joint moves neither, and the
+    message says so, not that a point lies on the joint's axis."""
+    text = (CRANE / "hiab031.urdf").read_text()
+    rod = '<attachment link="column" xyz="0.4 0 -0.5"/>'
+    (tmp_path / "crane.urdf").write_text(text.replace(ROD, rod))
+    status, errors = run(["describe", "--robot", str(tmp_path / "crane.urdf")], capsys)
+    assert status == 2 and len(errors) == 1, errors
+    assert "x1 cannot move boom1_joint" in errors[0]
+    assert "its points lie on 'column', which boom1_joint does not move one against" in errors[0]
+
+
 def test_a_cylinder_table_on_its_joints_axis_names_the_table(tmp_path):
     """(The table gives no stroke: a cylinder's is unbounded by default, as a transmission's.)"""
     (tmp_path / "robot.toml").write_text(

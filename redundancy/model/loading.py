@@ -234,12 +234,33 @@ def _check_arms(robot: Robot) -> None:
         if arm >= ARM:
             continue
         per = "rad" if robot.rotary_joints[column] else "m"
+        links = _apart(robot, actuator)
+        why = (
+            f"its points lie on {', '.join(map(repr, links))}, which {actuator.joint} does not "
+            "move one against the other; attach them on links either side of the joint"
+            if links
+            else "an attachment point lies on or near the joint's axis; attach each at least "
+            f"{ARM * 1000:g} mm off it"
+        )
         raise RobotDescriptionError(
             f"{actuator.declared_in}: {actuator.name} cannot move {actuator.joint}: |∂x/∂q| is "
             f"at most {arm:.3g} {actuator.unit}/{per} over the joint's range, below {ARM:g} (A is "
-            f"singular): an attachment point lies on or near the joint's axis; attach each "
-            f"at least {ARM * 1000:g} mm off it"
+            f"singular): {why}"
         )
+
+
+def _apart(robot: Robot, actuator) -> list[str]:
+    """The links ``actuator``'s points lie on, where its joint moves all of them or none (each
+    from the root to the link's joint, a mimic joint counting for the joint it follows): then
+    no point moves against another; else none."""
+    model = robot.model
+    joint = model.getJointId(actuator.joint)
+    followers = {m for m, led in zip(model.mimicking_joints, model.mimicked_joints) if led == joint}
+    frames = [model.frames[f] for f in actuator.frames]
+    moved = {bool({joint, *followers} & set(model.supports[f.parentJoint])) for f in frames}
+    if len(frames) < 2 or len(moved) != 1:
+        return []
+    return list(dict.fromkeys(model.frames[f.parentFrame].name for f in frames))
 
 
 def _bound_by_strokes(robot: Robot, continuous: list[str]) -> None:
