@@ -509,9 +509,7 @@ def test_a_cylinder_on_its_joints_axis_is_one_line_naming_it(tmp_path, capsys, o
     assert "attach each at least 10 mm off it" in errors[0]
 
 
-def test_a_cylinder_whose_points_its_joint_does_not_move_apart_names_their_links(
-    tmp_path, capsys
-):
+def test_a_cylinder_whose_points_its_joint_does_not_move_apart_names_their_links(tmp_path, capsys):
     """Both points of the boom cylinder on the column: the boom joint moves neither, and the
     message says so, not that a point lies on the joint's axis."""
     text = (CRANE / "hiab031.urdf").read_text()
