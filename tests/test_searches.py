@@ -782,3 +782,28 @@ def test_mirrored_branches_are_a_tie_and_the_first_is_kept():
     assert robot.same_pose(
         search.start_configuration(search.best), start_configuration(value, 1, cycle.start), 1e-6
     )
+
+
+def test_a_sweep_whose_samples_all_miss_begins_where_free_configurations_reach_the_start():
+    """The Panda holding four joints, its tool 0.7 m out: the held values that reach the point
+    are a small part of the stroke box, and 16 Halton samples all miss it (as 256 candidates of
+    the default start do). Both then begin from the held values of configurations that reach
+    the point with every actuator free: the sweep integrates motions that start on the point,
+    and the default start reaches it, where both refused the point as out of reach."""
+    robot = load_robot("panda")
+    held = tuple(robot.actuators.names[3:])
+    segment = Segment("out", np.array([0.7, 0.0, 0.4]), np.array([0.7, 0.05, 0.4]), 0.1)
+    box = starts.stroke_box(robot, held)
+    halton = starts._halton(box, 16, seed=1)
+    assert not inverse_kinematics(robot, segment.start, held, halton).reached.any()
+    search = improved_start(robot, segment, VELOCITY, held=held, samples=16)
+    assert search.simulations >= 1
+    for sample in (s for s, row in zip(search.samples, search.rows) if row >= 0):
+        q = search.start_configuration(sample)
+        np.testing.assert_allclose(evaluate(robot, q[None]).y[0], segment.start, atol=1e-9)
+        x_held = evaluate(robot, q[None]).x[0, [robot.actuators.names.index(h) for h in held]]
+        np.testing.assert_allclose(x_held, sample.values, atol=1e-9)
+    values, q = starts.default_start(robot, segment, held)
+    space = evaluate(robot, q[None])
+    np.testing.assert_allclose(space.y[0], segment.start, atol=1e-9)
+    np.testing.assert_allclose(space.x[0, robot.actuators.rows(held)], values, atol=1e-9)

@@ -38,7 +38,10 @@ configuration inverse kinematics reaches from its seeds. Methods:
   h when none improved, from h = stroke / samples^(1/r) down to stroke / 1000; a round whose
   trials are all out of reach is recorded as unreachable samples. That refinement is local:
   where the peak has several basins over the box, the best start found may lie in the wrong
-  one; more ``samples`` sample the box more finely.
+  one; more ``samples`` sample the box more finely. Where no Halton point reaches the path's
+  start (the held values that do can be a small part of the box where r is large), the sweep
+  begins from the held values of configurations that reach it with every actuator free
+  (`free_held_values`).
 
 Each round's samples are integrated as one batch, adaptively and sampled sparsely
 (`redundancy.planning.integrate`); they rank the starts. The best start's figure,
@@ -735,7 +738,13 @@ def _compass(robot, segment, held, samples, run) -> SearchResult:
     if samples == 1:  # one sample is the default start, as with one held actuator
         result = run(default_start(robot, segment, held)[0][None])
     else:
-        result = run(_halton(box, samples, seed=1))
+        try:
+            result = run(_halton(box, samples, seed=1))
+        except UnreachableError:  # the reachable starts lie between the samples, if anywhere
+            reached = free_held_values(robot, segment, held)
+            if not len(reached):
+                raise
+            result = run(reached)
     leaders = sorted(result.feasible, key=lambda s: s.peak)[:REFINED_AROUND]  # type: ignore[arg-type,return-value]
     step = 1 / samples ** (1 / len(held))  # fraction of each stroke
     for turn in _poll_bases(len(held), REFINEMENT_ROUNDS):
@@ -756,6 +765,18 @@ def _compass(robot, segment, held, samples, run) -> SearchResult:
         if not improved:
             step /= 2
     return result
+
+
+def free_held_values(robot: Robot, path: Segment | Chain, held: tuple[str, ...]) -> np.ndarray:
+    """The held actuators' values (j, r), inside their strokes, of the configurations that
+    reach the start of ``path`` with every actuator free (`free_configurations`, from
+    `ANCHOR_SEEDS` seeds): starts for a search whose samples of the stroke box all miss the
+    set of held values that reaches it, a small part of the box where r is large."""
+    q, _ = free_configurations(robot, path.start, ANCHOR_SEEDS)
+    values = evaluate(robot, q).x[:, held_indices(robot, held)] if len(q) else np.empty((0, 0))
+    box = stroke_box(robot, held)
+    inside = np.all((values >= box[:, 0]) & (values <= box[:, 1]), axis=1)
+    return values[inside].reshape(-1, len(held))
 
 
 def _poll_bases(r: int, rounds: int) -> np.ndarray:
@@ -782,7 +803,9 @@ def _halton(box: np.ndarray, count: int, seed: int) -> np.ndarray:
 def default_start(robot: Robot, segment: Segment | Chain, held: str | Sequence[str] = "x3"):
     """The documented default start: the held actuators at mid-stroke or, where the segment's
     start is out of reach there, the reachable candidate nearest mid-stroke (candidates: 101
-    values per held actuator for one, 256 Halton points for several).
+    values per held actuator for one, 256 Halton points for several; where none reaches it,
+    the held values of configurations that reach it with every actuator free,
+    `free_held_values`).
 
     Returns (values (r,), q (n,)).
     """
@@ -794,17 +817,22 @@ def default_start(robot: Robot, segment: Segment | Chain, held: str | Sequence[s
         candidates = sweep_values(robot, held[0], 101)[:, None]
     else:
         candidates = _halton(box, 256, seed=3)
-    middle = box.mean(axis=1)
-    distance = np.linalg.norm((candidates - middle) / (box[:, 1] - box[:, 0]), axis=1)
-    ordered = candidates[np.argsort(distance, kind="stable")]
-    tried, miss = 0, np.inf
-    while tried < len(ordered):  # nearest first, in batches doubling in size: 1, 2, 4, ...
-        batch = ordered[tried : 2 * tried + 1]
-        ik = inverse_kinematics(robot, segment.start, held, batch)
-        if ik.reached.any():
-            first = int(np.argmax(ik.reached))
-            return batch[first], ik.q[first]
-        tried, miss = tried + len(batch), min(miss, float(ik.miss.min()))
+    middle, span = box.mean(axis=1), box[:, 1] - box[:, 0]
+    miss = np.inf
+    # the candidates; where none reaches it, the held values of free configurations
+    for found in (lambda: candidates, lambda: free_held_values(robot, segment, held)):
+        values = found()
+        ordered = values[
+            np.argsort(np.linalg.norm((values - middle) / span, axis=1), kind="stable")
+        ]
+        tried = 0
+        while tried < len(ordered):  # nearest first, in batches doubling in size: 1, 2, 4, ...
+            batch = ordered[tried : 2 * tried + 1]
+            ik = inverse_kinematics(robot, segment.start, held, batch)
+            if ik.reached.any():
+                first = int(np.argmax(ik.reached))
+                return batch[first], ik.q[first]
+            tried, miss = tried + len(batch), min(miss, float(ik.miss.min()))
     raise _unreachable(robot, segment, f"with {', '.join(held)} anywhere in their strokes", miss)
 
 
