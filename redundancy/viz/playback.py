@@ -195,7 +195,7 @@ def _visual_model(robot) -> tuple[Any, tuple[str, ...]]:
         ) from failure
     warnings.warn(
         f"{robot.urdf}: meshes that cannot be read, the playback draws those links as hulls: "
-        f"{', '.join(unreadable)} ({pinocchio_message(failure)})",
+        f"{', '.join(unreadable)}",
         stacklevel=3,
     )
     return visuals, tuple(sorted(missing | set(unreadable)))
