@@ -61,6 +61,25 @@ def test_every_figure_has_a_caption_that_explains_it(rendered):
         assert caption.startswith(name) and len(caption) > len(name) + 60, name
 
 
+def test_the_figures_come_in_the_order_the_report_page_describes(rendered):
+    """The paper's figures, the circuit (velocity, then energy), the workspace, then the
+    cycle's strokes, drift and return map (docs/report.md)."""
+    shown = [name.removesuffix(".png") for name in rendered.xpath("//figure/img/@src")]
+    assert shown == [
+        "fig4a_peak_velocity",
+        "fig4b_best_velocity_1-2",
+        "fig4c_nonoptimal_velocity_1-2",
+        "fig5a_peak_energy",
+        "fig5b_best_energy_1-2",
+        "hydraulics_best_velocity_1-2",
+        "hydraulics_best_energy_1-2",
+        "workspace",
+        "cycle_strokes",
+        "cycle_drift",
+        "cycle_return_map",
+    ]
+
+
 def test_every_segment_and_strategy_of_the_report_appears_in_a_table(study, rendered):
     report = json.loads((study / "report.json").read_text())
     shown = rows(rendered)

@@ -512,12 +512,29 @@ def _caption(name: str, several_held: bool = False) -> str:
     return next((text for pattern, text in captions if fnmatch(name, pattern)), "")
 
 
+FIGURE_ORDER = (  # a figure's place on the page by how its name starts (docs/report.md)
+    "fig4",
+    "fig5",
+    "hydraulics_best_velocity",
+    "hydraulics_",
+    "workspace",
+    "cycle_strokes",
+    "cycle_drift",
+    "cycle_return_map",
+    "",  # any other, last
+)
+
+
 def _figures(files: Iterable[str], several_held: bool = False) -> str:
-    """Every figure among ``files``, captioned (`_caption`)."""
+    """Every figure among ``files``, captioned (`_caption`), in `FIGURE_ORDER`, then by name."""
+
+    def place(name: str) -> tuple[int, str]:
+        return next(i for i, start in enumerate(FIGURE_ORDER) if name.startswith(start)), name
+
     shown = [
         f'<figure><img src="{_e(f)}" alt="{_e(f)}"><figcaption><b>{_e(f)}</b>. '
         f"{_e(_caption(f, several_held))}</figcaption></figure>\n"
-        for f in sorted(files, key=lambda f: (f.startswith("cycle_"), f))
+        for f in sorted(files, key=place)
         if f.endswith(".png")
     ]
     return "<h2>Figures</h2>\n" + "".join(shown) if shown else ""
