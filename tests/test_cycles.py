@@ -508,10 +508,15 @@ def test_the_cycle_command_writes_its_report_figures_and_playback(tmp_path):
     page = (out / "playback_cycle_free.html").read_text()
     assert "planar4r: cycle" in page
     assert "work cycle" in run.stdout and "drift/cycle" in run.stdout
+    actuators = load_robot(ARM / "robot.toml").actuators
     for strategy in report["strategies"].values():  # the table's tool drift is the page's
         last = amount(strategy["repetition"]["tool_drift_per_cycle"][-1], "m")
         (row,) = [line for line in run.stdout.splitlines() if line.startswith(strategy["name"])]
         assert f"  {last}  " in row, (row, last)
+        drifts = strategy["repetition"]["drift_per_cycle"]  # the first cycle's largest, named
+        name = max(drifts, key=lambda a: abs(drifts[a][0]))
+        first = f"{amount(abs(drifts[name][0]), actuators[name].unit)} {name}"
+        assert f"  {first}  " in row, (row, first)
 
 
 @pytest.mark.parametrize(

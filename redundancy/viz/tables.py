@@ -258,11 +258,16 @@ def _circuit_lines(study: CycleStudy) -> list[str]:
 
 
 def _repetition_table(study: CycleStudy) -> str:
-    units = [a.unit for a in study.robot.actuators]
+    actuators = study.robot.actuators
+
+    def largest(drift: np.ndarray) -> str:  # of one cycle's, named: they differ in unit
+        i = int(drift.argmax())
+        return f"{amount(drift[i], actuators.maps[i].unit)} {actuators.maps[i].name}"
+
     rows = []
     for name, repetition in study.repetitions.items():
         drift = np.abs(repetition.drift)  # (cycles, n): each actuator's, in its own unit
-        first_cycle, last_cycle = (amount(d.max(), units[d.argmax()]) for d in drift[[0, -1]])
+        first_cycle, last_cycle = (largest(d) for d in drift[[0, -1]])
         first = repetition.first_violation
         passed = "none" if first is None else f"cycle {first[0]}: {first[1]}"
         settling = settling_words(repetition, study.fixed_points(name))
