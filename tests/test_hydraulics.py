@@ -442,6 +442,13 @@ def test_hydraulics_file_errors_name_the_value_and_the_choices(tmp_path):
     for change, message in cases:
         with pytest.raises(InvalidInputError, match=re.escape(message)):
             circuit_from_table({**good, **change}, "f.toml", names, rotary)
+    dotted = {"bore": 80, "rod": 45, "max_speed": 1}  # a name TOML writes quoted
+    with pytest.raises(
+        InvalidInputError, match=re.escape('f.toml: [hydraulics.cylinders."lift-cyl.1"]: missing')
+    ):
+        circuit_from_table(
+            {**good, "cylinders": {"lift-cyl.1": dotted}}, "f.toml", ["lift-cyl.1"], [False]
+        )
     path = tmp_path / "h.toml"
     path.write_text("[hydraulics]\nsupply = 'CP'\n")
     with pytest.raises(

@@ -454,6 +454,8 @@ def _place(source: str, table: str, path: list, keyed: bool = False) -> str:
     """Where a key lies: the file and, unless the file's top level, its table."""
     parts = [table] if table else []
     for part in path:
+        if not isinstance(part, int) and not re.fullmatch(r"[A-Za-z0-9_-]+", str(part)):
+            part = toml(str(part))  # a key TOML writes quoted: "lift-cyl.1"
         parts.append(f"[{part}]" if isinstance(part, int) else f".{part}" if parts else part)
     name = "".join(parts)
     where = f"[{name}]" if name and "[" not in name else name
