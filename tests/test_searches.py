@@ -784,6 +784,7 @@ def test_mirrored_branches_are_a_tie_and_the_first_is_kept():
     )
 
 
+@pytest.mark.filterwarnings("ignore:joints without an actuator declaration")
 def test_a_sweep_whose_samples_all_miss_begins_where_free_configurations_reach_the_start():
     """The Panda holding four joints, its tool 0.7 m out: the held values that reach the point
     are a small part of the stroke box, and 16 Halton samples all miss it (as 256 candidates of
