@@ -6,6 +6,7 @@ import itertools
 import json
 import math
 import re
+import shutil
 from dataclasses import replace
 from pathlib import Path
 
@@ -28,6 +29,8 @@ from redundancy.planning.cycles import (
     TASK_GAIN,
     FixedPoint,
     ReturnMap,
+    _corner,
+    gap_speed,
     improved_cycle_start,
     periodic_optimum,
     plan_cycle,
@@ -749,3 +752,42 @@ def test_a_held_speed_stepped_at_a_corner_where_the_tool_rests_passes_its_accele
     assert found.excess == pytest.approx(across - maximum, rel=1e-12)
     assert f"x3 acceleration {across - maximum:.4g} m/s² past its upper limit" in cycle_table(study)
     assert study.costs["free"].circuit_violations == ()
+
+
+def test_a_corner_turns_a_slew_whose_stroke_spans_more_than_a_turn_the_short_way(tmp_path):
+    """The slewing 3R arm with its slew x1 held over [−4, 4] rad, there and back along a line:
+    a start of b-a one turn below the plan's own is the same pose, and the corner from a-b's
+    end goes to it the short way, as to the plan's own start, where it turned the slew a whole
+    turn round and lost the task point on the way."""
+    shutil.copy(SLEWING / "arm.urdf", tmp_path)
+    toml = (SLEWING / "slew_held.toml").read_text()
+    toml = toml.replace("stroke = [-3.14159, 3.14159]", "stroke = [-4.0, 4.0]")
+    (tmp_path / "robot.toml").write_text(toml.replace('task = "line.toml"', 'task = "c.toml"'))
+    line = (SLEWING / "line.toml").read_text()
+    (tmp_path / "c.toml").write_text(line.replace('["a-b"]', '["a-b", "b-a"]'))
+    robot = load_robot(tmp_path / "robot.toml")
+    cycle = WorkCycle.from_toml(robot.task_file, dimension=robot.m)
+    plan = plan_cycle(robot, cycle, VELOCITY)
+    there, back = plan.segment_motions
+    lower = back.q[0, 0].copy()
+    lower[0] -= 2 * np.pi
+    assert lower[0] >= -4.0 and robot.same_pose(lower, back.q[0, 0], 1e-12)
+    turned = simulate(robot, VELOCITY.resolver, cycle["b-a"], lower[None])
+    corners = [
+        _corner(
+            robot,
+            cycle["a-b"],
+            there,
+            cycle["b-a"],
+            start,
+            ("x1",),
+            gap_speed(robot, ("x1",)),
+            None,
+        )
+        for start in (back, turned)
+    ]
+    for corner in corners:
+        assert corner.within_limits and corner.reason is None, corner.reason
+        assert abs(corner.held_delta[0]) < np.pi  # the short way round
+    assert corners[1].held_delta == pytest.approx(corners[0].held_delta, abs=1e-12)
+    np.testing.assert_allclose(corners[1].path, corners[0].path, atol=1e-12)

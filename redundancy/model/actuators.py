@@ -461,6 +461,20 @@ class ActuatorSet:
         change[..., turning] = modulo_turn(change[..., turning])
         return change
 
+    def nearest_turn(self, values: np.ndarray, to: np.ndarray) -> np.ndarray:
+        """The strokes ``values`` (n,), each rotary actuator's whose stroke spans more than a
+        turn (so that its joint turns, and a whole turn apart is one pose) moved by the whole
+        turns that bring it nearest ``to`` (n,) inside its stroke: where a self-motion from
+        ``to`` to that pose goes the short way."""
+        turns = self.rotary & (self.upper - self.lower > 2 * np.pi)
+        whole = np.round((to - values) / (2 * np.pi))
+        candidates = values + 2 * np.pi * (whole + np.array([[-1.0], [0.0], [1.0]]))
+        candidates = np.concatenate([candidates, [values]])  # values itself is always inside
+        inside = (candidates >= self.lower) & (candidates <= self.upper)
+        nearest = np.argmin(np.where(inside, np.abs(candidates - to), np.inf), axis=0)
+        moved = candidates[nearest, np.arange(len(values))]
+        return np.where(turns, moved, values)
+
     def _groups(self) -> list[tuple[type[ActuatorMap], list[ActuatorMap], slice | np.ndarray]]:
         """The maps by kind, with their rows (a slice where they are consecutive):
         [(kind, maps, rows)]."""

@@ -129,7 +129,9 @@ def checked_cycles(cycles: object) -> int:
 class Corner:
     """A corner of the per-segment plan, at ``point`` where segment ``after`` ends and
     ``before`` starts: the plan's motion along ``after`` ends with the strokes ``end`` (n,), its
-    best start of ``before`` has ``start`` (n,) (None where a segment has no feasible start).
+    best start of ``before`` has ``start`` (n,) (None where a segment has no feasible start),
+    a rotary actuator whose stroke spans more than a turn taken the whole turns nearest ``end``
+    (`ActuatorSet.nearest_turn`: one pose).
     Between them the tool is held at the point while the held actuators move along a line from
     end to start, the fastest at ``speed`` (m/s or rad/s); ``within_limits`` whether that
     self-motion keeps every checked stroke, ``reason`` why it fails or there is no gap, ``path``
@@ -192,7 +194,8 @@ def _corner(robot, after, end, before, start, held, speed, checked) -> Corner:
     if end is None or start is None:
         missing = after.name if end is None else before.name
         return corner(None, None, speed, None, f"segment {missing} has no feasible start")
-    end_x, start_x = end.x[0, -1], start.x[0, 0]
+    end_x = end.x[0, -1]
+    start_x = robot.actuators.nearest_turn(start.x[0, 0], end_x)  # a slew the short way round
     found = partial(corner, end_x, start_x, speed)
     rows = [names.index(h) for h in held]
     path = np.linspace(end_x[rows], start_x[rows], SELF_MOTION_STEPS + 1)  # a line in r-space
