@@ -349,7 +349,9 @@ def settling(
     per cycle (N, n) and the return map's ``fixed_points`` (`ReturnMap.fixed_points`, inside
     the reachable range it samples). Closed where every drift falls below `SETTLED` for good;
     else settling only towards a stable fixed point v* (|P'| < 1) that the last cycle heads
-    for, in about log(`SETTLED` / |v − v*|) / log |P'| more cycles. A geometric trend of the
+    for, in about log(`SETTLED` / D) / log |P'| more cycles, D the last cycle's largest drift:
+    near v* every drift shrinks by |P'| a cycle (the held one is (1 − P') (v − v*)), and the
+    repetition closes once the largest falls below `SETTLED`. A geometric trend of the
     drifts alone is no verdict: extrapolated from a few cycles, it can point at a value no start
     reaches while longer runs wander (the contraction is reported all the same)."""
     largest = np.abs(drift).max(axis=1)
@@ -369,10 +371,10 @@ def settling(
     if not heading:
         return Settling(False, None, rho, None, None)
     target = min(heading, key=lambda p: abs(p.value - values[-1]))
-    distance, slope = abs(target.value - values[-1]), abs(target.slope)
+    slope = abs(target.slope)
     more = 1
-    if distance > SETTLED and slope > 0:
-        more = math.ceil(math.log(SETTLED / distance) / math.log(slope))
+    if slope > 0:
+        more = math.ceil(math.log(SETTLED / largest[-1]) / math.log(slope))
     return Settling(True, None, rho, target.value, max(more, 1))
 
 
@@ -516,22 +518,21 @@ class ReturnMap:
 
     @property
     def fixed_points(self) -> list[FixedPoint]:
-        """Where P(v) − v changes sign between two samples (linear in between), one of them
-        moved by more than `SETTLED` (the drift a repetition counts as none: a map within that
-        of the identity, as a cycle that retraces its path has, changes sign by integration
-        error alone), with the slope P'(v*) of the parabola through those two and the next
-        sample nearer v* (a secant alone gave one side's slope where v* fell on a sample,
-        whichever side rounding put P(v*) − v* on: 0.173 or 0.185 where the map contracts by
-        0.178)."""
+        """Where P(v) − v changes sign between two samples, one of them moved by more than
+        `SETTLED` (the drift a repetition counts as none: a map within that of the identity, as
+        a cycle that retraces its path has, changes sign by integration error alone): v* and
+        P'(v*) of the parabola through those two samples and the next one nearer v*, else of
+        the secant (a secant alone gave one side's slope where v* fell on a sample, whichever
+        side rounding put P(v*) − v* on: 0.173 or 0.185 where the map contracts by 0.178, and
+        put the crane's limit cycle 4e-5 m off between samples 12 mm apart)."""
         v, p = self.values, self.following
         g = p - v
         a, b = g[:-1], g[1:]
         crossed = np.isfinite(a) & np.isfinite(b) & (a * b <= 0) & (a != b)
         i = np.flatnonzero(crossed & (np.maximum(np.abs(a), np.abs(b)) > SETTLED))
-        root = v[i] - g[i] * (v[i + 1] - v[i]) / (g[i + 1] - g[i])
-        slope = [self._slope(int(k), r) for k, r in zip(i, root)]
         kept = self.within[i] & self.within[i + 1]
-        return [FixedPoint(float(r), float(s), bool(k)) for r, s, k in zip(root, slope, kept)]
+        found = [self._fixed_point(int(k)) for k in i]
+        return [FixedPoint(r, s, bool(k)) for (r, s), k in zip(found, kept)]
 
     @property
     def identity(self) -> bool:
@@ -541,16 +542,21 @@ class ReturnMap:
         drift = drift[np.isfinite(drift)]
         return bool(drift.size) and bool(np.all(drift <= SETTLED))
 
-    def _slope(self, i: int, root: float) -> float:
-        """P' at ``root`` in [v_i, v_i+1]: of the parabola through those samples and the next
-        one nearer the root where it is known, else of the secant."""
+    def _fixed_point(self, i: int) -> tuple[float, float]:
+        """v* in [v_i, v_i+1] and P'(v*) (see `fixed_points`)."""
         v, p = self.values, self.following
+        g = p - v
+        root = v[i] - g[i] * (v[i + 1] - v[i]) / (g[i + 1] - g[i])  # the secant's
         third = i - 1 if root - v[i] < v[i + 1] - root else i + 2
         if not (0 <= third < len(v) and np.isfinite(p[third])):
-            return float((p[i + 1] - p[i]) / (v[i + 1] - v[i]))
+            return float(root), float((p[i + 1] - p[i]) / (v[i + 1] - v[i]))
         rows = [i, i + 1, third]
-        curvature, linear, _ = np.polyfit(v[rows], p[rows], 2)
-        return float(2 * curvature * root + linear)
+        curvature, linear, constant = np.polyfit(v[rows], p[rows], 2)
+        roots = np.roots([curvature, linear - 1, constant])  # P(v) = v on the parabola
+        inside = [r.real for r in roots if r.imag == 0 and v[i] <= r.real <= v[i + 1]]
+        if inside:
+            root = min(inside, key=lambda r: abs(r - root))
+        return float(root), float(2 * curvature * root + linear)
 
 
 class FixedPoint(NamedTuple):
