@@ -808,3 +808,24 @@ def test_a_sweep_whose_samples_all_miss_begins_where_free_configurations_reach_t
     space = evaluate(robot, q[None])
     np.testing.assert_allclose(space.y[0], segment.start, atol=1e-9)
     np.testing.assert_allclose(space.x[0, robot.actuators.rows(held)], values, atol=1e-9)
+
+
+def test_a_dynamic_objectives_best_start_is_the_least_on_the_grid_among_its_samples():
+    """The excavator's LS pump energy along 3-1. The figure at sparse samples reads ẍ from
+    differences of ẋ between the steps, 4 % low for the start at 1.3515 m, which it ranked
+    first (20.03 kJ on the grid), where a 40-sample sweep holds a start that keeps every limit
+    at 19.58 kJ. Ranked again on the grid, the search's best start is at most the sweep's."""
+    from redundancy import LS_ENERGY
+    from redundancy.planning.integrate import REPORT_TOLERANCE
+
+    robot = load_robot("excavator")
+    segment = WorkCycle.from_toml(robot.task_file, dimension=robot.m)["3-1"]
+    search = improved_start(robot, segment, LS_ENERGY, held="bucket")
+    sweep = improved_start(robot, segment, LS_ENERGY, held="bucket", method="sweep", samples=40)
+    starts = np.array([sweep.start_configuration(sample) for sample in sweep.feasible])
+    grid = simulate(
+        robot, LS_ENERGY.resolver, segment, starts, tolerance=REPORT_TOLERANCE, objective=LS_ENERGY
+    )
+    least = np.where(grid.within_limits, grid.score(LS_ENERGY), np.inf).min()
+    assert search.best_peak <= least * (1 + 1e-3)
+    assert search.best_motion.within_limits[0]
