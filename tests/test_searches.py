@@ -601,7 +601,7 @@ def test_the_compass_search_follows_a_limit_oblique_to_the_held_strokes():
             for v in values.tolist()
         )
         return starts.SearchResult(
-            arm, None, None, ("x3", "x4"), samples, (), np.full(len(samples), -1)
+            arm, None, VELOCITY, ("x3", "x4"), samples, (), np.full(len(samples), -1)
         )
 
     best = starts._compass(arm, None, ("x3", "x4"), 100, run).best
