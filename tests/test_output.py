@@ -296,6 +296,52 @@ def test_a_full_disk_is_one_line_naming_the_output(tmp_path, monkeypatch, capsys
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_page_the_file_system_will_not_replace_is_one_line_naming_it(
+    tmp_path, monkeypatch, capsys
+):
+    """The playback page written whole by a rename onto the path given, which the file system
+    refuses (an immutable file there): one line naming that path, status 2, and no temporary
+    file left beside it."""
+    from redundancy.cli import main
+
+    page, replace = tmp_path / "page.html", os.replace
+
+    def refused(source, target):
+        if Path(target) == page:
+            raise PermissionError(errno.EPERM, os.strerror(errno.EPERM), source, None, target)
+        replace(source, target)
+
+    monkeypatch.setattr(output.os, "replace", refused)
+    status = main(["play", "--html", str(page)])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert status == 2 and len(lines) == 1, lines
+    assert lines[0] == f"redundancy: error: {page}: cannot write there (Operation not permitted)"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_an_immutable_report_or_page_is_refused_before_any_computing(tmp_path, capsys):
+    """A --json or --html file marked immutable (chattr +i), which no rename may replace: one
+    line naming the option, before the robot is loaded, and nothing written beside it."""
+    from redundancy.cli import main
+
+    kept = tmp_path / "kept.json"
+    kept.write_text("old")
+    if subprocess.run(["chattr", "+i", str(kept)], capture_output=True).returncode:
+        pytest.skip("this file system (or user) cannot mark a file immutable")
+    try:
+        assert output._unchangeable(kept) and not output._unchangeable(tmp_path / "none")
+        for option in ("--json", "--html"):
+            command = "study" if option == "--json" else "play"
+            status = main([command, *NO_ROBOT, option, str(kept)])
+            lines = capsys.readouterr().err.strip().splitlines()
+            assert status == 2 and len(lines) == 1, lines
+            assert f"{option} {kept}: cannot write there (the file is marked immutable" in lines[0]
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["kept.json"]
+        assert kept.read_text() == "old"
+    finally:
+        subprocess.run(["chattr", "-i", str(kept)], check=True)
+
+
 def test_a_full_disk_under_the_json_report_names_that_file(tmp_path, monkeypatch, capsys):
     """No space left for --json's report, kept outside --out: the line names that file, which
     it used to blame on --out, and nothing of the run is left."""

@@ -25,9 +25,11 @@ a note. A target that is a symbolic link stays one: what it names is written.
 
 from __future__ import annotations
 
+import array
 import contextlib
 import ctypes
 import errno
+import fcntl
 import glob
 import itertools
 import json
@@ -45,6 +47,8 @@ MARKER = ".redundancy-output"  # names the folder as one this toolkit wrote; hol
 RENAME_NOREPLACE, RENAME_EXCHANGE = 1, 2  # renameat2 flags, <linux/fs.h>
 MOUNTS = Path("/proc/self/mountinfo")  # the kernel's mount table, where it has one
 RENAMES = 100  # tries of the commit's rename while other runs change the target under it
+FS_IOC_GETFLAGS = 0x80086601  # <linux/fs.h>: a file's flags, as lsattr reads them
+UNCHANGEABLE = 0x10 | 0x20  # FS_IMMUTABLE_FL, FS_APPEND_FL
 
 
 def _unwritable(path: Path, error: OSError, option: str) -> InvalidInputError:
@@ -323,7 +327,15 @@ class OutputFolder:
                         raise
             self._committed = True
             for staged, final in self.others:
-                os.replace(staged, final)
+                try:
+                    os.replace(staged, final)
+                except OSError as error:  # where the check before any computing could not tell
+                    with contextlib.suppress(OSError):
+                        staged.unlink()
+                    raise InvalidInputError(
+                        f"{final}: cannot write there ({error.strerror}); {self.target} was "
+                        "written whole, without it"
+                    ) from None
             written.extend(str(path) for path in (self.target, *(f for _, f in self.others)))
             for folder in {self.target.parent, *(final.parent for _, final in self.others)}:
                 _sync(folder)
@@ -389,11 +401,33 @@ def _create_beside(path: Path, staged: Path, option: str) -> list[Path]:
                 f"{option} {path} is not a regular file (a device, pipe or socket); give a "
                 "file path"
             )
+        if path.is_file() and _unchangeable(path):
+            raise InvalidInputError(
+                f"{option} {path}: cannot write there (the file is marked immutable or "
+                "append-only, and the output replaces it whole)"
+            )
         created = _make_parent(path, option)
         staged.open("x").close()
     except OSError as error:
         raise _unwritable(path, error, option) from None
     return created
+
+
+def _unchangeable(path: Path) -> bool:
+    """Whether the file ``path`` is marked immutable or append-only (``chattr +i``, ``+a``),
+    which no rename may replace (Linux's file flags); False where they cannot be read."""
+    try:
+        descriptor = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    except OSError:
+        return False
+    try:
+        flags = array.array("l", [0])
+        fcntl.ioctl(descriptor, FS_IOC_GETFLAGS, flags)
+        return bool(flags[0] & UNCHANGEABLE)
+    except OSError:  # a file system without the flags
+        return False
+    finally:
+        os.close(descriptor)
 
 
 def writable(path: Path | str, option: str) -> Path:
