@@ -418,8 +418,9 @@ def _play_command(args: argparse.Namespace) -> None:
     motion, start = _play_motion(robot, cycle, segment, chosen, args)
     points = task_points(cycle)
     heading = f"segment {segment.name}, {chosen.name} objective, {start}"
+    strategy = f"{chosen.name} objective, {start}"  # the pages' headings, live or exported
     if html is not None:
-        page = export_html(motion, html, points, f"{chosen.name} objective, {start}")
+        page = export_html(motion, html, points, strategy)
         print(f"playback: {page} ({heading})")
         return
     # Ctrl-C and termination both stop the loop (`main` catches them, even where a shell started
@@ -429,6 +430,7 @@ def _play_command(args: argparse.Namespace) -> None:
         points,
         lambda url: print(f"{heading}: open {url} (Ctrl-C stops)", flush=True),
         args.listen,
+        strategy,
     )
 
 

@@ -480,8 +480,8 @@ def test_the_live_page_explains_itself_as_the_exported_one_does(crane, motion, t
     """The page ``play`` serves, opened at ``?t=4`` in Chromium: after virtual time the
     animation the server sent has arrived, so the clock reads "t = 4.00 s" and each gauge
     gives its actuator's value and speed in m at that instant; the tab is titled after the
-    robot and segment, the heading names the law, play and the time slider are on the page,
-    and the grid's spacing is stated."""
+    robot and segment, the heading says what the command line said it plays (objective and
+    start), play and the time slider are on the page, and the grid's spacing is stated."""
     run, watchdog = launched_play()
     try:
         line = run.stdout.readline()
@@ -495,7 +495,8 @@ def test_the_live_page_explains_itself_as_the_exported_one_does(crane, motion, t
     shown = html.fromstring(served)
     assert shown.findtext(".//title") == "hiab031: segment 1-2"
     heading = shown.get_element_by_id("heading").text_content()
-    assert heading == f"hiab031: segment 1-2, {VELOCITY.resolver.name}"
+    said = line.split(": open ")[0]  # "segment 1-2, velocity objective, default start, x3 = …"
+    assert said.startswith("segment 1-2, velocity objective, ") and heading == f"hiab031: {said}"
     assert shown.get_element_by_id("clock").text_content() == "t = 4.00 s"
     assert shown.get_element_by_id("play").text_content() == "play"  # paused at the instant
     assert shown.get_element_by_id("slider").get("type") == "range"

@@ -717,17 +717,20 @@ def play(
     points: np.ndarray | None = None,
     announce: Callable[[str], None] = print,
     address: str = LOCALHOST,
+    strategy: str | None = None,
 ) -> None:
     """Serve the playback of ``motion`` on ``address`` (this machine only by default) until
     interrupted (KeyboardInterrupt, which propagates): `export_html`'s page, its scene sent by
-    the server. ``announce`` is given the page's address once it is served. The server stops
-    when this returns or raises."""
-    title, heading = _titles(motion, None)
+    the server, its heading naming ``strategy`` as that page's does. ``announce`` is given the
+    page's address once it is served (an IPv6 address in brackets). The server stops when this
+    returns or raises."""
+    title, heading = _titles(motion, strategy)
     playback = Playback(motion, points)
     viewer = '<script src="main.min.js"></script>'  # meshcat's, beside the page
     live = _html(title, playback.overlay(heading), viewer, "viewer.connect();")
     with served(live, address) as vis:
         _shown(playback, vis)
         url = vis.url()
-        announce(url if address == LOCALHOST else url.replace(LOCALHOST, address, 1))
+        host = f"[{address}]" if ":" in address else address  # an IPv6 address, as URLs write it
+        announce(url if address == LOCALHOST else url.replace(LOCALHOST, host, 1))
         threading.Event().wait()
