@@ -805,3 +805,16 @@ def test_a_corner_turns_a_slew_whose_stroke_spans_more_than_a_turn_the_short_way
         assert abs(corner.held_delta[0]) < np.pi  # the short way round
     assert corners[1].held_delta == pytest.approx(corners[0].held_delta, abs=1e-12)
     np.testing.assert_allclose(corners[1].path, corners[0].path, atol=1e-12)
+
+
+def test_an_integral_objective_runs_the_free_strategy_alone_and_says_why(crane, paper_cycle):
+    """The drift-free plan minimises a peak: asked for by name with the LS pump energy, an
+    integral, it is refused before any work; with both strategies, the free one runs and the
+    cycle study says why the periodic one does not."""
+    from redundancy import LS_ENERGY
+
+    with pytest.raises(InvalidInputError, match=r"periodic strategy minimises a peak.*'integral'"):
+        run_cycle(crane, paper_cycle, LS_ENERGY, cycles=1, strategy="periodic")
+    study = run_cycle(crane, paper_cycle, LS_ENERGY, cycles=1)
+    assert set(study.repetitions) == {"free"}
+    assert study.failures["periodic"].endswith("only the free strategy runs")

@@ -43,6 +43,7 @@ from redundancy.planning.starts import SearchResult, default_start, held_actuato
 from redundancy.planning.tasks import WorkCycle
 from redundancy.resolution.limits import Limits, Violation, amount
 from redundancy.resolution.objectives import VELOCITY, Objective
+from redundancy.resolution.objectives import objective as as_objective
 from redundancy.study.peers import pump_energies
 
 CHOICES = (*STRATEGIES, "both")
@@ -373,13 +374,26 @@ def run_cycle(
         raise InvalidInputError(f"unknown strategy {strategy!r}; strategies: {', '.join(CHOICES)}")
     cycles = checked_cycles(cycles)
     cycle.check_continuous(closed=True)
+    objective = as_objective(objective)
+    if strategy == "periodic" and objective.reduction != "peak":
+        raise InvalidInputError(
+            f"the periodic strategy minimises a peak; objective {objective.name!r} reduces its "
+            f"measure by {objective.reduction!r}: run the free strategy (--strategy free), or "
+            "a peak objective"
+        )
     chosen = STRATEGIES if strategy == "both" else (strategy,)
+    failures: dict[str, str] = {}
+    if objective.reduction != "peak":  # the drift-free plan minimises a peak only
+        chosen = ("free",)
+        failures["periodic"] = (
+            f"the periodic optimum minimises a peak; objective {objective.name!r} reduces its "
+            f"measure by {objective.reduction!r}: only the free strategy runs"
+        )
     held = held_actuators(robot, cycle)
     if circuit:
         robot.circuit()  # says how to declare one before any work
     steps = 2 + 2 * len(chosen)
     bar = tqdm(total=steps, unit="step", desc="cycle", disable=not progress, mininterval=0.5)
-    failures: dict[str, str] = {}
     with bar:
         bar.set_description("cycle: plan")
         plan = plan_cycle(
