@@ -362,6 +362,8 @@ def test_with_circuit_limits_a_heavier_payload_needs_a_wider_lift_cylinder(tmp_p
         ("[task]\n[grid]\nwidth = [1]\n", "unknown parameters ['width']"),
         ("chunk = 0\n[task]\n", "chunk = 0 must be a whole number"),
         ("robot = 3\n[task]\n", "robot = 3 must be a string"),
+        ("[task]\nsegments = []\n", "[task] segments = [] must not be empty: a list of names"),
+        ('name = ""\n[task]\n', 'name = "" must not be empty: a string'),
     ],
 )
 def test_a_bad_family_gets_one_line(tmp_path, text, expected):

@@ -427,6 +427,9 @@ def _problem(error: Any, forms: list[dict], exact: bool) -> str:
     meaning = f" ({form['description']})" if form.get("description") else ""
     if error["type"] == DECLARED:
         return f"{error['msg']}{meaning}"
+    empty = error["type"] in ("too_short", "string_too_short") and not len(error["input"])
+    if exact and empty:  # an empty list or text where one is needed
+        return f"must not be empty: {' or '.join(dict.fromkeys(map(_shape, forms)))}{meaning}"
     lower, upper = form.get("minimum", form.get("exclusiveMinimum")), form.get("maximum")
     if not (exact and error["type"] in _RANGE and None not in (lower, upper)):
         return f"must be {' or '.join(dict.fromkeys(map(_shape, forms)))}{meaning}"

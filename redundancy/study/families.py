@@ -138,7 +138,9 @@ class TaskTable(Table):
     """The ``[task]`` table: segments of a task file."""
 
     file: str | None = Field(None, description="the task file, relative to the map file")
-    segments: Names = Field([], description="segments of the task file")
+    segments: Names | None = Field(
+        None, min_length=1, description="segments of the task file (default: every one)"
+    )
 
 
 class Attachment(Table):
@@ -170,7 +172,7 @@ class Grid(Table):
 class Family(Table):
     """A map file (see the module docstring)."""
 
-    name: str | None = None
+    name: str | None = Field(None, min_length=1, description="the family's name")
     robot: str = Field("hiab031", description="bundled name or robot path")
     hydraulics: str | None = Field(None, description="a [hydraulics] file")
     objectives: Names = Field(
@@ -443,7 +445,8 @@ def _task_segments(robot: Robot, table: TaskTable, folder: Path, where: str):
         raise InvalidInputError(f"{where}: [task] needs file = ...; {robot.name} has no task")
     cycle = WorkCycle.from_toml(path, dimension=robot.m)
     with prefixed(f"{where}: [task] segments"):
-        segments = tuple(cycle[s] for s in table.segments) if table.segments else cycle.segments
+        chosen = table.segments
+        segments = cycle.segments if chosen is None else tuple(cycle[s] for s in chosen)
     return segments, cycle
 
 
