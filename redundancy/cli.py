@@ -417,8 +417,8 @@ def _play_command(args: argparse.Namespace) -> None:
     check_path(robot, segment)
     motion, start = _play_motion(robot, cycle, segment, chosen, args)
     points = task_points(cycle)
-    heading = f"segment {segment.name}, {chosen.name} objective, {start}"
     strategy = f"{chosen.name} objective, {start}"  # the pages' headings, live or exported
+    heading = f"segment {segment.name}, {strategy}"
     if html is not None:
         page = export_html(motion, html, points, strategy)
         print(f"playback: {page} ({heading})")
@@ -677,9 +677,6 @@ def one_line(text: str) -> str:
     return "".join(repr(c)[1:-1] if unicodedata.category(c) == "Cc" else c for c in text)
 
 
-REFUSED = (errno.EPERM, errno.EACCES, errno.EROFS)  # a write the file system refuses
-
-
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; exit status 0, 2 for a user's error (one line), 130 / 143 when
     interrupted / terminated, 1 for an internal error (one line with the exception's type)."""
@@ -731,14 +728,6 @@ def main(argv: list[str] | None = None) -> int:
         elif isinstance(error, OSError) and error.errno == errno.ENAMETOOLONG:
             name = one_line(str(error.filename))  # a path given on the command line
             print(f"redundancy: error: {name}: {os.strerror(error.errno)}", file=sys.stderr)
-            status = 2
-        elif isinstance(error, OSError) and error.errno in REFUSED and error.filename:
-            # a file written whole by a rename onto the path given (the second name), which the
-            # file system refused: an immutable file, a read-only mount
-            name = one_line(str(error.filename2 or error.filename))
-            print(
-                f"redundancy: error: {name}: cannot write there ({error.strerror})", file=sys.stderr
-            )
             status = 2
         elif isinstance(error, SystemExit):
             raise

@@ -808,6 +808,13 @@ def test_a_sweep_whose_samples_all_miss_begins_where_free_configurations_reach_t
     space = evaluate(robot, q[None])
     np.testing.assert_allclose(space.y[0], segment.start, atol=1e-9)
     np.testing.assert_allclose(space.x[0, robot.actuators.rows(held)], values, atol=1e-9)
+    far = Segment("far", np.array([3.0, 0.0, 1.0]), np.array([3.1, 0.0, 1.0]), 0.1)  # no reach
+    for search in (
+        lambda: improved_start(robot, far, VELOCITY, held=held, samples=16),
+        lambda: starts.default_start(robot, far, held),
+    ):
+        with pytest.raises(UnreachableError, match="panda cannot reach the start"):
+            search()
 
 
 def test_a_dynamic_objectives_best_start_is_the_least_on_the_grid_among_its_samples():

@@ -466,7 +466,8 @@ class ActuatorSet:
         turn (so that its joint turns, and a whole turn apart is one pose) moved by the whole
         turns that bring it nearest ``to`` (n,) inside its stroke: where a self-motion from
         ``to`` to that pose goes the short way."""
-        turns = self.rotary & (self.upper - self.lower > 2 * np.pi)
+        identity = np.array([type(a) is Identity for a in self.maps])  # x = q + offset
+        turns = identity & self.rotary & (self.upper - self.lower > 2 * np.pi)
         whole = np.round((to - values) / (2 * np.pi))
         candidates = values + 2 * np.pi * (whole + np.array([[-1.0], [0.0], [1.0]]))
         candidates = np.concatenate([candidates, [values]])  # values itself is always inside

@@ -373,7 +373,7 @@ def settling(
     target = min(heading, key=lambda p: abs(p.value - values[-1]))
     slope = abs(target.slope)
     more = 1
-    if slope > 0:
+    if slope > 0 and largest[-1] > SETTLED:
         more = math.ceil(math.log(SETTLED / largest[-1]) / math.log(slope))
     return Settling(True, None, rho, target.value, max(more, 1))
 
@@ -553,7 +553,8 @@ class ReturnMap:
         rows = [i, i + 1, third]
         curvature, linear, constant = np.polyfit(v[rows], p[rows], 2)
         roots = np.roots([curvature, linear - 1, constant])  # P(v) = v on the parabola
-        inside = [r.real for r in roots if r.imag == 0 and v[i] <= r.real <= v[i + 1]]
+        low, high = sorted((v[i], v[i + 1]))  # values in any order
+        inside = [r.real for r in roots if r.imag == 0 and low <= r.real <= high]
         if inside:
             root = min(inside, key=lambda r: abs(r - root))
         return float(root), float(2 * curvature * root + linear)

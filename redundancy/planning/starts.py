@@ -223,7 +223,10 @@ class SearchResult:
             return ranked[0] if ranked else None
         ranked = ranked[:RANKED]
         starts = np.array([self.start_configuration(sample) for sample in ranked])
-        return ranked[int(np.argmin(self._on_grid(starts).score(self.objective)))]
+        motions = self._on_grid(starts)
+        scores = np.where(motions.within_limits, motions.score(self.objective), np.inf)
+        scores[np.isnan(scores)] = np.inf
+        return ranked[int(np.argmin(scores))] if np.isfinite(scores).any() else ranked[0]
 
     @cached_property
     def best_motion(self) -> Trajectory:
@@ -788,7 +791,8 @@ def free_held_values(robot: Robot, path: Segment | Chain, held: tuple[str, ...])
     `ANCHOR_SEEDS` seeds): starts for a search whose samples of the stroke box all miss the
     set of held values that reaches it, a small part of the box where r is large."""
     q, _ = free_configurations(robot, path.start, ANCHOR_SEEDS)
-    values = evaluate(robot, q).x[:, held_indices(robot, held)] if len(q) else np.empty((0, 0))
+    rows = held_indices(robot, held)
+    values = evaluate(robot, q).x[:, rows] if len(q) else np.empty((0, len(held)))
     box = stroke_box(robot, held)
     inside = np.all((values >= box[:, 0]) & (values <= box[:, 1]), axis=1)
     return values[inside].reshape(-1, len(held))

@@ -383,7 +383,7 @@ def run_cycle(
         )
     chosen = STRATEGIES if strategy == "both" else (strategy,)
     failures: dict[str, str] = {}
-    if objective.reduction != "peak":  # the drift-free plan minimises a peak only
+    if strategy == "both" and objective.reduction != "peak":  # it minimises a peak only
         chosen = ("free",)
         failures["periodic"] = (
             f"the periodic optimum minimises a peak; objective {objective.name!r} reduces its "

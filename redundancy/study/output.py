@@ -250,13 +250,13 @@ class OutputFolder:
         if not self.target.is_dir():
             what = "a file" if self.target.is_file() else "a device, a pipe or a socket"
             raise InvalidInputError(f"{self.option} {self.target} is {what}; give a folder")
-        if not os.access(self.target, os.W_OK | os.X_OK):  # a read-only or immutable folder
+        manifest = _manifest(self.target)
+        names = sorted(e.name for e in self.target.iterdir())
+        if names and not os.access(self.target, os.W_OK | os.X_OK):  # read-only, immutable
             raise InvalidInputError(
                 f"{self.option} {self.target}: cannot write there (the folder is not "
                 "writable: the output replaces it whole, and removes what it replaces)"
             )
-        manifest = _manifest(self.target)
-        names = sorted(e.name for e in self.target.iterdir())
         if manifest is None and names:
             shown = ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
             raise InvalidInputError(
@@ -326,21 +326,21 @@ class OutputFolder:
                     if not self.staging.is_dir() or attempt == RENAMES:
                         raise
             self._committed = True
+            refused = []  # where the check before any computing could not tell
             for staged, final in self.others:
                 try:
                     os.replace(staged, final)
-                except OSError as error:  # where the check before any computing could not tell
+                except OSError as error:
                     with contextlib.suppress(OSError):
                         staged.unlink()
-                    raise InvalidInputError(
-                        f"{final}: cannot write there ({error.strerror}); {self.target} was "
-                        "written whole, without it"
-                    ) from None
+                    refused.append(f"{final}: cannot write there ({error.strerror})")
             written.extend(str(path) for path in (self.target, *(f for _, f in self.others)))
             for folder in {self.target.parent, *(final.parent for _, final in self.others)}:
                 _sync(folder)
             if exists:  # the earlier output, now where the staged one was
                 _retired(self.staging, self.target, _manifest(self.staging) or {"files": []})
+            if refused:
+                raise InvalidInputError(f"{'; '.join(refused)}; {self.target} was written whole")
 
     def discard(self) -> None:
         """Before the commit, remove what was staged, and the folders made for it where they
@@ -421,7 +421,7 @@ def _unchangeable(path: Path) -> bool:
     except OSError:
         return False
     try:
-        flags = array.array("l", [0])
+        flags = array.array("i", [0])  # the kernel writes an int
         fcntl.ioctl(descriptor, FS_IOC_GETFLAGS, flags)
         return bool(flags[0] & UNCHANGEABLE)
     except OSError:  # a file system without the flags
@@ -453,7 +453,12 @@ def write_atomically(path: Path, write: Callable[[Path], object]) -> None:
         _create_beside(path, temporary, "output")
         write(temporary)
         _sync(temporary)
-        os.replace(temporary, path)
+        try:
+            os.replace(temporary, path)
+        except OSError as error:  # the file system refused (an immutable file there)
+            if error.errno not in (errno.EPERM, errno.EACCES, errno.EROFS):
+                raise
+            raise InvalidInputError(f"{path}: cannot write there ({error.strerror})") from None
         _sync(path.parent)
     except BaseException as error:
         with contextlib.suppress(OSError):  # where it could not be made, the first error says why

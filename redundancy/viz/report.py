@@ -513,8 +513,7 @@ def _caption(name: str, several_held: bool = False) -> str:
 
 
 FIGURE_ORDER = (  # a figure's place on the page by how its name starts (docs/report.md)
-    "fig4",
-    "fig5",
+    "fig",  # the paper's 4 and 5, then any other objective's, by name
     "hydraulics_best_velocity",
     "hydraulics_",
     "workspace",
