@@ -818,3 +818,14 @@ def test_an_integral_objective_runs_the_free_strategy_alone_and_says_why(crane, 
     assert study.failures["periodic"].endswith("only the free strategy runs")
     alone = run_cycle(crane, paper_cycle, LS_ENERGY, cycles=1, strategy="free")
     assert set(alone.repetitions) == {"free"} and "periodic" not in alone.failures
+
+
+def test_a_cycle_whose_actuators_all_stayed_put_names_none_of_them(crane_study):
+    """The drift-free plan closes every cycle: where no actuator moved in a cycle the table's
+    largest drift is 0, naming no actuator, where it named whichever came first."""
+    periodic = crane_study.repetitions["periodic"]
+    (row,) = [r for r in cycle_table(crane_study).splitlines() if r.startswith("periodic")]
+    cells = [cell for cell in row.split("  ") if cell.strip()]
+    last = np.abs(periodic.drift[-1]).max()
+    assert (cells[3].strip() == "0") == (last == 0)
+    assert last > 0 or not any(name in cells[3] for name in crane_study.robot.actuators.names)

@@ -163,6 +163,12 @@ def test_a_cycle_folder_gets_its_own_index(study, tmp_path):
     ]
     assert f"Δ{turned} (rad)" in headers and f"Δ{cycle['held_actuator']} (m)" in headers
     assert "largest drift, last cycle (m or rad)" in headers
+    assert not cycle["failures"]  # a part the cycle study left out is said on the page
+    cycle["failures"] = {"return map": "the start is out of reach on this branch"}
+    (tmp_path / "report.json").write_text(json.dumps(cycle))
+    notes = html.fromstring(write_index(tmp_path).read_text()).xpath("//p[@class='note']")
+    said = [n.text_content() for n in notes]
+    assert "Not computed, return map: the start is out of reach on this branch" in said
 
 
 def test_a_cycle_with_a_segment_no_start_keeps_gets_its_page(tmp_path):

@@ -482,6 +482,8 @@ def _cycle_body(cycle: dict) -> str:
         for p in mapped.get("fixed_points", [])
     ]
     text += _table(points, "The return map's fixed points: the limit cycles of the free law.")
+    for part, why in cycle.get("failures", {}).items():  # what the cycle study left out
+        text += f'<p class="note">Not computed, {_e(part.replace("_", " "))}: {_e(why)}</p>\n'
     return text
 
 

@@ -262,6 +262,8 @@ def _repetition_table(study: CycleStudy) -> str:
 
     def largest(drift: np.ndarray) -> str:  # of one cycle's, named: they differ in unit
         i = int(drift.argmax())
+        if not drift[i]:  # none moved: no one's to name
+            return "0"
         return f"{amount(drift[i], actuators.maps[i].unit)} {actuators.maps[i].name}"
 
     rows = []
