@@ -327,14 +327,15 @@ class OutputFolder:
                         raise
             self._committed = True
             refused = []  # where the check before any computing could not tell
+            written.append(str(self.target))
             for staged, final in self.others:
                 try:
                     os.replace(staged, final)
+                    written.append(str(final))
                 except OSError as error:
                     with contextlib.suppress(OSError):
                         staged.unlink()
                     refused.append(f"{final}: cannot write there ({error.strerror})")
-            written.extend(str(path) for path in (self.target, *(f for _, f in self.others)))
             for folder in {self.target.parent, *(final.parent for _, final in self.others)}:
                 _sync(folder)
             if exists:  # the earlier output, now where the staged one was
