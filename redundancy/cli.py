@@ -58,7 +58,13 @@ from redundancy.study.background import Background
 from redundancy.study.check import check, held_problems, span, task_point
 from redundancy.study.cycles import CHOICES, run_cycle
 from redundancy.study.families import read_family
-from redundancy.study.maps import CONNECT_TIMEOUT, connect, design_map, summary
+from redundancy.study.maps import (
+    CONNECT_TIMEOUT,
+    connect,
+    design_map,
+    local_workers,
+    summary,
+)
 from redundancy.study.output import OutputFolder, writable
 from redundancy.study.signals import Terminated, announce, caught, received
 from redundancy.study.signals import written as committed  # the outputs committed whole
@@ -436,6 +442,8 @@ def _play_command(args: argparse.Namespace) -> None:
 
 def _map_command(args: argparse.Namespace) -> None:
     family = read_family(args.family)
+    if args.workers is not None:  # more than the memory holds: refused before any output
+        local_workers(args.workers, f"--workers {args.workers}")
     target = Path(Path("maps") / Path(args.family).stem if args.out is None else args.out)
     with OutputFolder(target) as out:  # committed only if everything below succeeds
         store = target.parent / f".{target.name}.chunks"  # finished chunks, kept for a rerun

@@ -703,6 +703,13 @@ CASES = [
         (f"map --workers {v}", ["map", "m.toml", "--workers", v], {}, "must be a whole number")
         for v in ("0", "2.5", "x", "5000")
     ],
+    # 4096 local workers would hold over 1.2 TB: refused before the first one starts
+    (
+        "map --workers beyond memory",
+        ["map", "m.toml", "--workers", "4096"],
+        {"m.toml": "[task]\n"},
+        "--workers 4096: that many local worker processes need about 1228.8 GB",
+    ),
     *[
         (f"map --timeout {v}", ["map", "m.toml", "--timeout", v], {}, "must be seconds")
         for v in ("0", "nan", "inf", "x", "1e9")

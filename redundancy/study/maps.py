@@ -407,8 +407,9 @@ def design_map(
     pandas DataFrame, in problem order.
 
     Runs on ``client`` if given, else on a local cluster of ``workers`` worker processes (one
-    thread each; default: the core count). With ``store``, finished chunks are kept there and
-    a rerun solves only the missing ones (see the module docstring)."""
+    thread each; default: the core count, at most what the free memory holds: `local_workers`).
+    With ``store``, finished chunks are kept there and a rerun solves only the missing ones (see
+    the module docstring)."""
     import pandas as pd
     from tqdm import tqdm
 
@@ -418,6 +419,7 @@ def design_map(
         isinstance(workers, bool) or not isinstance(workers, int) or not workers >= 1
     ):
         raise InvalidInputError(f"workers must be a whole number ≥ 1; got {workers!r}")
+    local = None if client is not None else local_workers(workers)  # a local cluster's size
     typed = columns(family, family.robot_for(Design()).task_axes)
     with contextlib.ExitStack() as stack:
         chunks = None if store is None else stack.enter_context(_store(Path(store), family, typed))
@@ -434,16 +436,15 @@ def design_map(
             )
         )
         if pending:
-            local = client is None
-            if local:
-                client = stack.enter_context(local_client(workers))
+            if local is not None:
+                client = stack.enter_context(local_client(local))
             from distributed import as_completed
 
             run = uuid.uuid4().hex[:8]  # keys of this run alone: a shared client may hold others
             # the family goes to each worker once, not with every chunk (a workspace family of
             # 100,000 starts pickles to 23 MB); a local cluster closed while its scheduler copies
             # it between workers logs that scheduler's failure: a signal waits for the copy
-            with deferred() if local else contextlib.nullcontext():
+            with deferred() if local is not None else contextlib.nullcontext():
                 shared = client.scatter(family, broadcast=True, hash=False)
             futures = {
                 client.submit(solve_chunk, shared, c, key=f"map-{run}-chunk-{c}"): c
@@ -477,10 +478,37 @@ def design_map(
     return table
 
 
+WORKER_MEMORY = 300e6
+"""Bytes a local worker process holds once it has loaded the toolkit and solved a chunk (about
+235 MB measured on the crane, with room for larger robots' chunks)."""
+
+
+def local_workers(workers: int | None, named: str | None = None) -> int:
+    """How many worker processes a local cluster starts: ``workers``, or by default one per
+    core this process may run on; at most as many as the memory now available holds at
+    `WORKER_MEMORY` each (a thousand workers asked for exhaust a workstation's memory before
+    the first problem is solved). More asked for than fit is refused in one line, which begins
+    with ``named`` (default "workers = N"); the default is cut to what fits."""
+    import psutil
+
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    available = psutil.virtual_memory().available
+    fit = max(1, int(available // WORKER_MEMORY))
+    if workers is None:
+        return min(cores or 1, fit)
+    if workers > fit:
+        raise InvalidInputError(
+            f"{named or f'workers = {workers}'}: that many local worker processes need about "
+            f"{workers * WORKER_MEMORY / 1e9:.1f} GB, and {available / 1e9:.1f} GB is free; "
+            f"give at most {fit} (this machine has {cores} cores: one worker each is fastest)"
+        )
+    return workers
+
+
 @contextlib.contextmanager
-def local_client(workers: int | None):
-    """A `distributed.Client` on a local cluster of ``workers`` worker processes (default: the
-    core count), one thread each, closed with the block.
+def local_client(workers: int):
+    """A `distributed.Client` on a local cluster of ``workers`` worker processes
+    (`local_workers`), one thread each, closed with the block.
 
     A Ctrl-C at a terminal reaches the whole process group: the map, not each of its workers
     with a traceback of its own, ends in one line and closes them. The workers never hear it
@@ -491,7 +519,6 @@ def local_client(workers: int | None):
 
     from distributed import Client, LocalCluster
 
-    count = workers or os.cpu_count() or 1
     # Python's tracker of the processes' shared resources unblocks SIGINT in the thread that
     # starts it, with the first worker: started first, from here
     resource_tracker.ensure_running()
@@ -499,7 +526,7 @@ def local_client(workers: int | None):
         with deferred(), unheard():
             cluster = stack.enter_context(
                 LocalCluster(
-                    n_workers=count,
+                    n_workers=workers,
                     threads_per_worker=1,
                     processes=True,
                     dashboard_address="127.0.0.1:0",  # a free port: two maps can run at once
