@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from commands import run_cli
+from geared import GearedMotor
 from slewing3r_closed_form import start_configuration
 
 from redundancy import InvalidInputError, load_robot
@@ -115,22 +116,27 @@ def test_the_periodic_plan_is_periodic_and_keeps_the_strokes(arm_runs, circle):
     assert limits.margin(evaluate(robot, periodic.q).x).min() > 0
 
 
-def test_a_slew_that_turns_once_around_a_cycle_does_not_drift(tmp_path):
+@pytest.mark.parametrize("ratio", [None, 2.5], ids=["driven directly", "through a gear"])
+def test_a_slew_that_turns_once_around_a_cycle_does_not_drift(tmp_path, ratio):
     """The slewing crane with a continuous slew joint and no slew stroke, following a full
     circle about its column: each cycle turns the slew by 2π and leaves the machine as it
     found it. Its drift is taken modulo a turn, ~1e-8 rad as the others', and the repetition
     closes (it counted 2π of drift a cycle and never settled). So is the per-segment plan's
     change at a corner, where the slew ends one half at π and starts the next at −π, one pose:
     no change, and the corner's self-motion ends at the next start (it said 2π, and another
-    branch)."""
+    branch). Driven through a gear of a user's own kind, x = 2.5 q, a turn of the joint is
+    5π of the motor, and 2π of the motor is no turn: it was taken modulo 2π, as an angle of
+    the joint's own, and drifted π a cycle unseen."""
     urdf = (bundled_root() / "hiab031_slewing" / "hiab031_slewing.urdf").read_text()
     urdf = urdf.replace(
         '<joint name="slew_joint" type="revolute">', '<joint name="slew_joint" type="continuous">'
     )
     urdf = re.sub(r'<transmission name="slew">.*?</transmission>', "", urdf, flags=re.S)
     (tmp_path / "crane.urdf").write_text(urdf)
+    geared = f'[actuators.slew]\nkind = "GearedMotor"\njoint = "slew_joint"\nratio = {ratio}\n'
     (tmp_path / "robot.toml").write_text(
         'urdf = "crane.urdf"\ntool_frame = "tool"\ntask_axes = "xyz"\npayload = 100.0\n'
+        + (geared if ratio else "")
     )
     (tmp_path / "task.toml").write_text(
         'name = "circle"\nspeed = 0.5\nheld = ["x3"]\nsegments = [\n'
@@ -139,19 +145,28 @@ def test_a_slew_that_turns_once_around_a_cycle_does_not_drift(tmp_path):
         "[points]\na = [2.5, 0.0, 0.5]\nb = [-2.5, 0.0, 0.5]\nn = [0.0, 2.5, 0.5]\n"
         "s = [0.0, -2.5, 0.5]\n"
     )
-    with pytest.warns(UserWarning, match=r"driven directly \(Identity\): slew_joint"):
+    if ratio:
         crane = load_robot(tmp_path / "robot.toml")
-    slew = crane.actuators["slew_joint"]
+        slew = crane.actuators["slew"]
+        assert isinstance(slew, GearedMotor)
+    else:
+        with pytest.warns(UserWarning, match=r"driven directly \(Identity\): slew_joint"):
+            crane = load_robot(tmp_path / "robot.toml")
+        slew = crane.actuators["slew_joint"]
+    turn = 2 * np.pi * (ratio or 1)  # x(q + 2π e_slew) − x(q), by x = ratio q
     assert slew.rotary and slew.lower == -np.inf and slew.upper == np.inf
+    np.testing.assert_allclose(crane.actuator_turns, [turn, 0, 0, 0], rtol=1e-12, atol=1e-12)
+    change = np.array([[turn + 0.1, 0, 0, 0], [2 * np.pi, 0.5, 0, 0]])
+    np.testing.assert_allclose(crane.turned(change)[:, 0], [0.1, 2 * np.pi if ratio else 0])
     cycle = WorkCycle.from_toml(tmp_path / "task.toml", dimension=crane.m)
     plan = plan_cycle(crane, cycle, VELOCITY)
     first, second = plan.segment_motions
     raw = [abs(second.x[0, 0, 0] - first.x[0, -1, 0]), abs(first.x[0, 0, 0] - second.x[0, -1, 0])]
-    assert max(raw) == pytest.approx(2 * np.pi)  # the two halves' starts a turn apart
+    assert max(raw) == pytest.approx(turn)  # the two halves' starts a turn apart
     for corner in plan.corners:
         assert abs(corner.delta[0]) < 1e-9 and corner.within_limits and corner.reason is None
     repetition = repeat(crane, cycle, VELOCITY.resolver, plan.motion.q[0, 0], cycles=3)
-    np.testing.assert_allclose(np.diff(repetition.x[:, 0]), 2 * np.pi, atol=1e-6)
+    np.testing.assert_allclose(np.diff(repetition.x[:, 0]), turn, atol=1e-6)
     assert np.abs(repetition.drift).max() < 1e-6
     assert repetition.settling.settles
 

@@ -12,10 +12,10 @@ import numpy as np
 import pinocchio as pin
 import pytest
 from declarations import write_transmissions
+from geared import GearedMotor
 from joint_space import fk, mass
 
 from redundancy import (
-    ActuatorMap,
     InvalidInputError,
     LinearCylinder,
     Prismatic,
@@ -25,7 +25,6 @@ from redundancy import (
     load_robot,
 )
 from redundancy.model.loading import bundled_root
-from redundancy.model.parameters import Number
 
 CRANE_URDF = bundled_root() / "hiab031" / "hiab031.urdf"
 REPO = Path(__file__).resolve().parents[1]
@@ -164,24 +163,6 @@ def test_actuator_map_written_from_python_loads_back(tmp_path, crane):
             b.upper,
         )
     np.testing.assert_array_equal(actuator_space(again, q).A, actuator_space(crane, q).A)
-
-
-class GearedMotor(ActuatorMap):
-    """A user's own kind: a rotary motor through a gear, x = ratio * q."""
-
-    parameters = (Number("ratio", "motor turns per joint turn"),)
-
-    def __init__(self, name, joint, lower=-np.inf, upper=np.inf, ratio=1.0):
-        super().__init__(name, joint, lower, upper)
-        self.ratio = ratio
-
-    def evaluate(self, kinematics):
-        row = np.zeros_like(kinematics.q)
-        row[:, self.index] = self.ratio
-        return self.ratio * kinematics.q[:, self.index], row
-
-    def rate(self, kinematics):
-        return np.zeros_like(kinematics.q)
 
 
 def test_a_users_own_actuator_kind_plugs_in_through_the_urdf(tmp_path, crane):

@@ -25,7 +25,6 @@ from redundancy.errors import (
 )
 from redundancy.model.kinematics import Kinematics
 from redundancy.model.parameters import Number, Parameter, Point
-from redundancy.model.values import modulo_turn
 
 
 def driven_joints(model: pin.Model) -> list[str]:
@@ -451,30 +450,6 @@ class ActuatorSet:
     def rotary(self) -> np.ndarray:
         """Which actuators are angles (rad) rather than lengths (m), (n,) bool."""
         return np.array([a.rotary for a in self.maps])
-
-    def turned(self, change: np.ndarray) -> np.ndarray:
-        """Changes of the strokes (..., n), those of rotary actuators with no stroke end (on a
-        continuous joint) modulo a turn, within [−π, π): turning one once around leaves the
-        machine as it was."""
-        turning = self.rotary & ~(np.isfinite(self.lower) | np.isfinite(self.upper))
-        change = np.array(change, dtype=float)
-        change[..., turning] = modulo_turn(change[..., turning])
-        return change
-
-    def nearest_turn(self, values: np.ndarray, to: np.ndarray) -> np.ndarray:
-        """The strokes ``values`` (n,), each rotary actuator's whose stroke spans more than a
-        turn (so that its joint turns, and a whole turn apart is one pose) moved by the whole
-        turns that bring it nearest ``to`` (n,) inside its stroke: where a self-motion from
-        ``to`` to that pose goes the short way."""
-        identity = np.array([type(a) is Identity for a in self.maps])  # x = q + offset
-        turns = identity & self.rotary & (self.upper - self.lower > 2 * np.pi)
-        whole = np.round((to - values) / (2 * np.pi))
-        candidates = values + 2 * np.pi * (whole + np.array([[-1.0], [0.0], [1.0]]))
-        candidates = np.concatenate([candidates, [values]])  # values itself is always inside
-        inside = (candidates >= self.lower) & (candidates <= self.upper)
-        nearest = np.argmin(np.where(inside, np.abs(candidates - to), np.inf), axis=0)
-        moved = candidates[nearest, np.arange(len(values))]
-        return np.where(turns, moved, values)
 
     def _groups(self) -> list[tuple[type[ActuatorMap], list[ActuatorMap], slice | np.ndarray]]:
         """The maps by kind, with their rows (a slice where they are consecutive):

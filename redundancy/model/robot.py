@@ -178,6 +178,54 @@ class Robot:
         joint's among them, whose values a whole turn apart are one pose."""
         return self.rotary_joints & (self.upper - self.lower > 2 * np.pi)
 
+    @cached_property
+    def actuator_turns(self) -> np.ndarray:
+        """How much each actuator's stroke changes where its joint turns once, the others held
+        (n,), rad or m: 2π for a slew driven directly, 2π × its ratio through a gear (a kind of
+        your own), and 0 where the stroke comes back to itself (a cylinder) or the joint does
+        not turn (`turning`). Read by the actuators' own evaluation, at the middle of `span`
+        and a turn beyond it; a change below 1e-9 of the stroke is rounding."""
+        turns = np.zeros(self.n)
+        joints = np.array([a.index for a in self.actuators.maps])
+        rows = np.flatnonzero(self.turning[joints])
+        if len(rows):
+            lower, upper = self.span
+            q = np.repeat(((lower + upper) / 2)[None], 1 + len(rows), axis=0)
+            q[1 + np.arange(len(rows)), joints[rows]] += 2 * np.pi
+            x, _ = self.actuators.evaluate(self.kinematics(q))
+            change = x[1 + np.arange(len(rows)), rows] - x[0, rows]
+            turns[rows] = np.where(np.abs(change) > 1e-9 * (1 + np.abs(x[0, rows])), change, 0)
+        return turns
+
+    def turned(self, change: np.ndarray) -> np.ndarray:
+        """Changes of the strokes (..., n), of an actuator with no stroke end that its joint
+        turns (`actuator_turns`: T ≠ 0) within [−|T|/2, |T|/2), a whole number of turns from
+        the change: turning it once round leaves the machine as it was and winds nothing up (a
+        stroke with ends counts every turn)."""
+        turn = np.abs(self.actuator_turns)
+        endless = ~(np.isfinite(self.actuators.lower) | np.isfinite(self.actuators.upper))
+        free = (turn > 0) & endless
+        change = np.array(change, dtype=float)
+        change[..., free] = np.remainder(change[..., free] + turn[free] / 2, turn[free])
+        change[..., free] -= turn[free] / 2
+        return change
+
+    def nearest_turn(self, values: np.ndarray, to: np.ndarray) -> np.ndarray:
+        """The strokes ``values`` (n,), each of an actuator that its joint turns
+        (`actuator_turns`) with a stroke wider than its turn moved by the whole turns that
+        bring it nearest ``to`` (n,) inside its stroke: where a self-motion from ``to`` to
+        that pose goes the short way."""
+        turn, lower, upper = np.abs(self.actuator_turns), self.actuators.lower, self.actuators.upper
+        turns = (turn > 0) & (upper - lower > turn)
+        step = np.where(turns, turn, 1.0)
+        whole = np.round((to - values) / step)
+        candidates = values + step * (whole + np.array([[-1.0], [0.0], [1.0]]))
+        candidates = np.concatenate([candidates, [values]])  # values itself is always inside
+        inside = (candidates >= lower) & (candidates <= upper)
+        nearest = np.argmin(np.where(inside, np.abs(candidates - to), np.inf), axis=0)
+        moved = candidates[nearest, np.arange(len(values))]
+        return np.where(turns, moved, values)
+
     def same_poses(self, q: np.ndarray, other: np.ndarray, tolerance: float) -> np.ndarray:
         """Whether configurations ``q`` and ``other`` (..., n), broadcast against each other,
         are one pose to ``tolerance``: each joint within it, a `turning` one modulo a turn."""

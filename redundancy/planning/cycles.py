@@ -36,7 +36,6 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from redundancy.errors import InvalidInputError
-from redundancy.model.actuators import ActuatorSet
 from redundancy.model.robot import Robot, require_robot
 from redundancy.model.values import is_real, is_whole
 from redundancy.planning.bound import (
@@ -130,12 +129,12 @@ class Corner:
     """A corner of the per-segment plan, at ``point`` where segment ``after`` ends and
     ``before`` starts: the plan's motion along ``after`` ends with the strokes ``end`` (n,), its
     best start of ``before`` has ``start`` (n,) (None where a segment has no feasible start),
-    a rotary actuator whose stroke spans more than a turn taken the whole turns nearest ``end``
-    (`ActuatorSet.nearest_turn`: one pose).
+    an actuator that its joint turns, with a stroke wider than a turn, taken the whole turns
+    nearest ``end`` (`Robot.nearest_turn`: one pose).
     Between them the tool is held at the point while the held actuators move along a line from
     end to start, the fastest at ``speed`` (m/s or rad/s); ``within_limits`` whether that
     self-motion keeps every checked stroke, ``reason`` why it fails or there is no gap, ``path``
-    its configurations (k, n) as far as it was followed; ``actuators`` say which Δ count modulo
+    its configurations (k, n) as far as it was followed; ``robot`` says which Δ count modulo
     a turn."""
 
     after: str
@@ -149,16 +148,16 @@ class Corner:
     within_limits: bool | None = None
     reason: str | None = None
     path: np.ndarray | None = field(default=None, repr=False)
-    actuators: ActuatorSet | None = field(default=None, repr=False, compare=False)
+    robot: Robot | None = field(default=None, repr=False, compare=False)
 
     @property
     def delta(self) -> np.ndarray | None:
-        """Δx = start − end of every actuator (n,), or None; of one on a continuous joint
-        modulo a turn (`ActuatorSet.turned`)."""
+        """Δx = start − end of every actuator (n,), or None; of one with no stroke end that its
+        joint turns, modulo its turn (`Robot.turned`)."""
         if self.start is None or self.end is None:
             return None
         change = self.start - self.end
-        return change if self.actuators is None else self.actuators.turned(change)
+        return change if self.robot is None else self.robot.turned(change)
 
     @property
     def held_delta(self) -> np.ndarray | None:
@@ -188,14 +187,12 @@ def _corner(robot, after, end, before, start, held, speed, checked) -> Corner:
     best motion ``end`` along one and the start of the best motion ``start`` along the other
     (None where a segment has no feasible start)."""
     names = tuple(robot.actuators.names)
-    corner = partial(
-        Corner, after.name, before.name, after.end, names, held, actuators=robot.actuators
-    )
+    corner = partial(Corner, after.name, before.name, after.end, names, held, robot=robot)
     if end is None or start is None:
         missing = after.name if end is None else before.name
         return corner(None, None, speed, None, f"segment {missing} has no feasible start")
     end_x = end.x[0, -1]
-    start_x = robot.actuators.nearest_turn(start.x[0, 0], end_x)  # a slew the short way round
+    start_x = robot.nearest_turn(start.x[0, 0], end_x)  # a slew the short way round
     found = partial(corner, end_x, start_x, speed)
     rows = [names.index(h) for h in held]
     path = np.linspace(end_x[rows], start_x[rows], SELF_MOTION_STEPS + 1)  # a line in r-space
@@ -433,10 +430,10 @@ class Repetition:
     @property
     def drift(self) -> np.ndarray:
         """Each actuator's drift per cycle (N, n): stroke at its end − at its start, m or rad;
-        of a rotary actuator with no stroke (on a continuous joint), modulo a turn, within
-        [−π, π): a cycle that turns it once around (a slew following a circle) leaves the
-        machine as it found it."""
-        return self.robot.actuators.turned(np.diff(self.x, axis=0))
+        of one with no stroke end that its joint turns, modulo its turn (`Robot.turned`): a
+        cycle that turns it once around (a slew following a circle) leaves the machine as it
+        found it."""
+        return self.robot.turned(np.diff(self.x, axis=0))
 
     @property
     def tool_drift(self) -> np.ndarray:
