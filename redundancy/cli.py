@@ -119,15 +119,18 @@ def describe(robot: Robot) -> str:
         f"y = {task_point(robot, space.y[0])}"
     )
     if not robot.kinematic_only:
+        turning = robot.actuators.rotary
         rotary = ", ".join(a.name for a in robot.actuators if a.rotary)
         inertia, force = (
             ("kg", "N")
-            if not rotary
+            if not turning.any()
+            else ("kg·m²", "N·m")
+            if turning.all()
             else (f"kg; kg·m in a row or column of {rotary}, kg·m² in both", f"N; N·m for {rotary}")
         )
+        held = np.round(space.forces(np.zeros_like(space.x))[0], 4) + 0.0  # no −0 printed
         with np.printoptions(precision=4, suppress=True):
             lines.append(f"M_H ({inertia}) =\n{space.M_H[0]}")
-            held = space.forces(np.zeros_like(space.x))[0]
             lines.append(f"F_H holding still ({force}) = {held}")
     return "\n".join(lines)
 
@@ -527,7 +530,7 @@ def parser() -> argparse.ArgumentParser:
             formatter_class=Help,
             epilog=f"example:\n  redundancy {name} {example}".rstrip(),
         )
-        found.set_defaults(run=run, **defaults)
+        found.set_defaults(run=run, parser=found, **defaults)
         return found
 
     command("robots", _robots_command, "list the bundled robots", "")
@@ -696,7 +699,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     for stream in (sys.stdout, sys.stderr):  # a terminal that cannot show m², ±, ẋ: a '?'
         stream.reconfigure(errors="replace")  # type: ignore[union-attr]
-    args = parser().parse_args(argv)
+    args, unknown = parser().parse_known_args(argv)
+    if unknown:  # said by the command they were given to, with its own help
+        args.parser.error(f"unrecognized arguments: {' '.join(unknown)}")
     args.progress = not getattr(args, "quiet", True) and sys.stderr.isatty()
     warnings.showwarning = _note
     stdout, sys.stdout = sys.stdout, _Output(sys.stdout)

@@ -85,7 +85,13 @@ CASES = [
         (f"--{option} bad", ["study", f"--{option}", "bad"], {}, f"argument --{option}: invalid")
         for option in ("method", "objective")
     ],
-    ("unknown option", ["study", "--bogus"], {}, "unrecognized arguments: --bogus"),
+    # said by the command it was given to, with that command's help
+    (
+        "unknown option",
+        ["study", "--bogus"],
+        {},
+        "redundancy study: error: unrecognized arguments: --bogus; see redundancy study --help",
+    ),
     ("payload with a digit separator", ["describe", "--payload", "1_000"], {}, "'1_000' must be"),
     ("unknown command", ["frobnicate"], {}, "invalid choice: 'frobnicate'"),
     ("unknown robot", ["describe", "--robot", "nope"], {}, "unknown robot 'nope'"),
