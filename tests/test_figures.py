@@ -169,6 +169,17 @@ def test_the_map_figure_has_a_panel_per_held_actuator(crane, request):
     request.addfinalizer(lambda: pyplot().close(figure))
     titles = [axes.get_title() for axes in figure.axes if axes.get_label() != "<colorbar>"]
     assert titles[1:3] == ["best initial x2 (m)", "best initial x3 (m)"]
+    # a panel of one value has one tick on its colour bar, that value; a share spans [0, 1]
+    table["best_x3"] = 0.95
+    table["payload"] = [250.0, 250.001]  # two grid values alike to 3 digits
+    figure = map_figure(table, family, "velocity")
+    request.addfinalizer(lambda: pyplot().close(figure))
+    figure.canvas.draw()
+    bars = [axes for axes in figure.axes if axes.get_label() == "<colorbar>"]
+    assert [t.get_text() for t in bars[2].get_yticklabels()] == ["0.95"]
+    assert bars[3].get_ylim() == (0.0, 1.0)
+    ticks = [t.get_text() for t in figure.axes[0].get_yticklabels()]
+    assert ticks == ["250", "250.001"]
 
 
 def test_no_title_reaches_past_its_figure(two_held):

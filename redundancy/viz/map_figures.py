@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from redundancy.study.families import Design, MapFamily
 from redundancy.study.maps import UNITS, axes_of
 from redundancy.viz.plots import pyplot, suptitled, write_pngs
@@ -40,15 +42,20 @@ def map_figure(table, family: MapFamily, objective: str):
             if y
             else rows.groupby(x)[column].mean().to_frame().T
         )
-        image = pane.imshow(
-            grid.to_numpy(dtype=float), origin="lower", aspect="auto", cmap="viridis"
-        )
-        pane.set_xticks(range(grid.shape[1]), [_tick(v) for v in grid.columns], rotation=45)
-        pane.set_yticks(range(grid.shape[0]), [_tick(v) for v in grid.index])
+        values = grid.to_numpy(dtype=float)
+        image = pane.imshow(values, origin="lower", aspect="auto", cmap="viridis")
+        pane.set_xticks(range(grid.shape[1]), _ticks(grid.columns), rotation=45)
+        pane.set_yticks(range(grid.shape[0]), _ticks(grid.index))
         pane.set_xlabel(_label(x))
         pane.set_ylabel(_label(y) if y else "")
         pane.set_title(label)
-        figure.colorbar(image, ax=pane)
+        bar = figure.colorbar(image, ax=pane)
+        finite = values[np.isfinite(values)]
+        if column == "feasible":  # a share: its whole range, whatever the map found
+            image.set_clim(0, 1)
+        elif finite.size and finite.min() == finite.max():  # one value: one tick, no range
+            image.set_clim(finite[0] - 1, finite[0] + 1)
+            bar.set_ticks([finite[0]], labels=[_tick(finite[0])])
     rest = axes_names[2:]
     suffix = f" (mean over {', '.join(rest)})" if rest else ""
     suptitled(
@@ -66,8 +73,19 @@ def _label(axis: str) -> str:
     return f"{axis} ({unit})" if unit else axis
 
 
-def _tick(value) -> str:
-    return f"{value:.3g}" if isinstance(value, float) else str(value)
+def _tick(value, digits: int = 3) -> str:
+    return f"{value:.{digits}g}" if isinstance(value, float) else str(value)
+
+
+def _ticks(values) -> list[str]:
+    """The labels of an axis's values: 3 significant digits, more where two would read alike
+    (3.501 and 3.502 m are not both 3.5)."""
+    values = list(values)
+    for digits in range(3, 16):
+        labels = [_tick(v, digits) for v in values]
+        if len(set(labels)) == len(labels):
+            return labels
+    return labels
 
 
 def write_map_figures(table, family: MapFamily, folder: Path) -> list[Path]:
