@@ -22,7 +22,7 @@ import pinocchio as pin
 import pytest
 from commands import as_foreground, run_cli
 
-from redundancy import VELOCITY, WorkCycle, actuator_space, improved_start, load_robot
+from redundancy import LS_ENERGY, VELOCITY, WorkCycle, actuator_space, improved_start, load_robot
 from redundancy.errors import InvalidInputError
 from redundancy.planning.tasks import Arc, Polyline, Segment
 from redundancy.study import families
@@ -322,6 +322,12 @@ def test_the_map_summary_gives_units_and_says_where_designs_tie():
     table.loc[3, "peak"] = np.nextafter(0.013, 1.0)
     line = summary(table, family)
     assert "best design payload = 250 kg, attachment = 0.35 m:" in line and "tie" not in line
+    assert "mean best velocity peak 0.013 m²/s²" in line
+    # a pump energy is an integral: its least value, not a peak
+    family.objectives = ("ls_energy",)
+    table["objective"], table["unit"] = "ls_energy", "kJ"
+    line = summary(table, family)
+    assert "mean best ls_energy 0.013 kJ over 1 segment" in line and "peak" not in line
 
 
 def test_with_circuit_limits_a_heavier_payload_needs_a_wider_lift_cylinder(tmp_path, client):
@@ -512,20 +518,28 @@ def test_a_map_whose_scheduler_does_not_answer_leaves_nothing_behind(tmp_path):
 
 def test_bound_and_energy_columns_agree_with_the_searches_they_come_from(tmp_path, crane, client):
     """The bound is never above the improved start's peak; the energy figures are those of
-    the best start's motion under each supply."""
+    the best start's motion under each supply. An integral objective has no min-max bound,
+    and its row says why and where its least value is found (its columns were empty)."""
     rows = design_map(
         write(
             tmp_path,
             "e.toml",
-            'objectives = ["velocity"]\nbound = true\nenergy = true\n'
+            'objectives = ["velocity", "ls_energy"]\nbound = true\nenergy = true\n'
             '[task]\nsegments = ["1-2", "3-1"]\n',
         ),
         client,
     )
     cycle = WorkCycle.from_toml(crane.task_file, dimension=crane.m)
     circuit = crane.circuit()
-    for row in rows.itertuples():
-        assert row.feasible
+    pumped = rows[rows["objective"] == "ls_energy"]
+    assert len(pumped) == 2 and pumped["bound_peak"].isna().all()
+    for row in pumped.itertuples():
+        search = improved_start(crane, cycle[row.segment], LS_ENERGY)
+        assert row.motion_peak == pytest.approx(search.best_peak, rel=1e-9)
+        assert "reduces its measure by 'integral'" in row.bound_reason
+        assert "redundancy.integral_optimum" in row.bound_reason
+    for row in rows[rows["objective"] == "velocity"].itertuples():
+        assert row.feasible and pd.isna(row.bound_reason)
         motion = improved_start(crane, cycle[row.segment], VELOCITY).motion()
         assert row.motion_peak == pytest.approx(motion.peak_velocity_norm[0], rel=1e-9)
         assert row.bound_peak <= row.motion_peak * (1 + 1e-9)

@@ -74,6 +74,9 @@ LIMIT_MARGIN = 1e-6  # m: the strokes are kept this far inside their limits, so 
 # round-off never puts a node outside them
 SMOOTHING = 1e-4  # weight of mean ṙ² against the peak ẋᵀẋ: picks one optimum where many share
 # the peak, and moves the peak by less than this fraction
+ABOVE = 1e-4  # a bound above the improved start's peak by more than this fraction is withheld:
+# below it, the improved motion's 10 ms grid and the bound's nodes sample a peak every history
+# shares (the slewing crane's lift-swing, 1e-5)
 DIFFERENCE_STEP = 1e-6  # m (and m/s): step of the central differences through q and ṙ
 UNREACHED = 1e3  # the measure at a node Newton's method does not reach, in starting peaks: a
 # trial step of the solver into strokes the task cannot be tracked with is a step it backs out of
@@ -133,6 +136,18 @@ class GlobalOptimum(Refined):
         solution, where the solver failed, may peak above the motion it started from, even
         above the improved start's peak."""
         return self.optimum
+
+    def withheld(self, peak: float | None) -> str | None:
+        """Why the bound is no result against the improved start's ``peak`` (its motion's, on
+        the grid), in one line, or None: it did not converge (`failure`), or it lies above that
+        peak by more than `ABOVE`, which a bound cannot (the solver stopped at a local
+        optimum)."""
+        if self.failure is None and peak is not None and self.bound > peak * (1 + ABOVE):
+            return (
+                f"the solver's optimum {self.bound:.5g} lies above the improved start's peak "
+                f"{peak:.5g}: a local optimum, not the least"
+            )
+        return self.failure
 
 
 def backward_differentiation(intervals: int, h: float) -> np.ndarray:
@@ -544,7 +559,7 @@ def global_optimum(
     if objective.reduction != "peak":
         raise InvalidInputError(
             f"the bound minimises a peak; objective {objective.name!r} reduces its measure by "
-            f"{objective.reduction!r}"
+            f"{objective.reduction!r}: its least value is redundancy.integral_optimum's"
         )
     limits = Limits.strokes(robot, checked)
     near = None

@@ -26,9 +26,10 @@ grid varies (``payload`` kg, ``speed`` m/s, ``attachment`` m, ``bore`` m), ``obj
 ``unit``, ``reachable``, ``feasible``, per held actuator ``low_<a>``/``high_<a>`` (the feasible
 range) and ``best_<a>``, ``peak``, ``default_<a>``, ``default_peak``, ``default_feasible``,
 ``gain_pct``; with the family's ``bound``, ``bound_peak``, ``motion_peak`` (the best start's
-motion's peak on the 10 ms grid, where ``peak`` is the search's estimate at its samples) and
-``gap_pct`` against it; with ``energy``, the best motion's ``ls_energy_kj``, ``cp_energy_kj``
-and ``peak_flow_lpm``; and ``reason``, why a problem has no feasible start.
+motion's peak on the 10 ms grid, where ``peak`` is the search's estimate at its samples),
+``gap_pct`` against it and ``bound_reason``, why a problem has no bound; with ``energy``, the
+best motion's ``ls_energy_kj``, ``cp_energy_kj`` and ``peak_flow_lpm``; and ``reason``, why a
+problem has no feasible start.
 """
 
 from __future__ import annotations
@@ -151,21 +152,23 @@ def _why_none(search) -> str:
 
 
 def _bound(family, robot, segment, objective, search) -> dict:
-    """The min-max bound and the improved start's gap to it, where both exist (one held
-    actuator, a peak objective)."""
-    row: dict = {"bound_peak": None, "motion_peak": None, "gap_pct": None}
-    if search.best is None or len(family.held) != 1 or objective.reduction != "peak":
-        return row
+    """The min-max bound over the held actuators' histories, the best start's motion's peak
+    and its gap to the bound; ``bound_reason`` says why there is no bound: no feasible start,
+    an integral objective, the solver's failure, or a bound withheld against the peak
+    (`GlobalOptimum.withheld`), as the study says it."""
+    row: dict = {"bound_peak": None, "motion_peak": None, "gap_pct": None, "bound_reason": None}
+    if search.best is None:
+        return row | {"bound_reason": "no feasible start"}
+    row["motion_peak"] = peak = search.best_peak
     try:
-        optimum = global_optimum(robot, segment, objective, family.held[0], search=search)
-    except RedundancyError:
-        return row
-    if not optimum.converged:  # not a result: withheld, as in the study
-        return row
-    peak = search.best_peak
-    row.update(bound_peak=optimum.bound, motion_peak=peak)
-    row["gap_pct"] = 100 * (peak - optimum.bound) / optimum.bound
-    return row
+        optimum = global_optimum(robot, segment, objective, family.held, search=search)
+    except RedundancyError as error:
+        return row | {"bound_reason": str(error)}
+    withheld = optimum.withheld(peak)
+    if withheld is not None:
+        return row | {"bound_reason": withheld}
+    gap = 100 * (peak - optimum.bound) / optimum.bound
+    return row | {"bound_peak": optimum.bound, "gap_pct": gap}
 
 
 def _energy(search) -> dict:
@@ -305,6 +308,7 @@ def columns(family: MapFamily, task_axes: str) -> dict[str, str]:
     typed |= {"default_peak": "float64", "default_feasible": "boolean", "gain_pct": "float64"}
     if family.bound:
         typed |= {"bound_peak": "float64", "motion_peak": "float64", "gap_pct": "float64"}
+        typed["bound_reason"] = "string"
     if family.energy:
         typed |= {"ls_energy_kj": "float64", "cp_energy_kj": "float64", "peak_flow_lpm": "float64"}
     typed["reason"] = "string"
@@ -555,12 +559,14 @@ def design_words(parameters: list[str], design) -> str:
 
 def summary(table, family: MapFamily) -> str:
     """One line: for a design grid, the design whose problems are all feasible with the least
-    mean best peak of the first objective over the segments, or every design that ties with it
-    exactly (the velocity peak does not depend on the payload); otherwise, where the improved
-    start gains most over the default start, among the problems where both keep the strokes
-    (as the heatmap shows the gain)."""
+    mean best peak (or integral) of the first objective over the segments, or every design
+    that ties with it exactly (the velocity peak does not depend on the payload); otherwise,
+    where the improved start gains most over the default start, among the problems where both
+    keep the strokes (as the heatmap shows the gain)."""
     first = table[table["objective"] == family.objectives[0]]
     unit = first["unit"].iloc[0]
+    peaked = OBJECTIVES[family.objectives[0]].reduction == "peak"
+    measure = f"{family.objectives[0]}{' peak' if peaked else ''}"  # an integral: its value
     counts = f"{int(first['feasible'].sum())} of {len(first)} problems feasible"
     designs = [key for key, values in family.grid if len(values) > 1]
     if designs:
@@ -573,7 +579,7 @@ def summary(table, family: MapFamily) -> str:
         tied = [design_words(designs, d) for d in mean_peak.index[mean_peak == least]]
         segments = first["segment"].nunique()
         peak = (
-            f"mean best {family.objectives[0]} peak {least:.4g} {unit} over {segments} "
+            f"mean best {measure} {least:.4g} {unit} over {segments} "
             f"segment{'s' if segments > 1 else ''}"
         )
         if len(tied) > 1:
@@ -594,6 +600,6 @@ def summary(table, family: MapFamily) -> str:
     where = ", ".join(f"{c[6:]} = {row[c]:.3g}" for c in starts)
     return (
         f"{family.name}: the improved start gains most, {row['gain_pct']:.1f} % on the "
-        f"{family.objectives[0]} peak, on segment {row['segment']} ({where} m); "
+        f"{measure}, on segment {row['segment']} ({where} m); "
         f"median gain {gains['gain_pct'].median():.1f} % ({counts})"
     )

@@ -65,9 +65,6 @@ INTEGRAL = (  # an integral objective's: its optimum by dynamic programming take
     "the min-max bound bounds peaks; an integral's least value: redundancy.integral_optimum (the "
     "pump energy's within the circuit: --energy-bound)"
 )
-ABOVE = 1e-4  # a bound above the improved start's peak by more than this fraction is withheld:
-# below it, the improved motion's 10 ms grid and the bound's nodes sample a peak every history
-# shares (the slewing crane's lift-swing, 1e-5)
 STUDY_CYCLES = 3  # the cycle section's repetitions: enough to show the drift; `redundancy cycle`
 # runs `redundancy.planning.cycles.CYCLES` (20), at about 0.3 s per cycle of the crane
 
@@ -158,19 +155,13 @@ class Study:
 
     def withheld(self, objective: str, segment: str) -> str | None:
         """Why ``segment``'s bound of ``objective`` is no result, in one line, or None: the
-        bound failed, did not converge (`Refined.failure`), or lies above the improved start's
-        peak, which a bound cannot (the solver stopped at a local optimum)."""
+        bound failed, or it is withheld against the improved start's peak
+        (`GlobalOptimum.withheld`)."""
         failure = (self.bound_failures or {}).get(f"{objective}/{segment}")
         bound = self.bound(objective, segment)
         if failure is not None or bound is None:
             return failure
-        peak = self.search(objective, segment).best_peak
-        if bound.failure is None and peak is not None and bound.bound > peak * (1 + ABOVE):
-            return (
-                f"the solver's optimum {bound.bound:.5g} lies above the improved start's peak "
-                f"{peak:.5g}: a local optimum, not the least"
-            )
-        return bound.failure
+        return bound.withheld(self.search(objective, segment).best_peak)
 
     def result(self, objective: str, segment: str) -> GlobalOptimum | None:
         """The bound where it is a result (not `withheld`), else None."""
