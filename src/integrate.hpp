@@ -290,6 +290,10 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
     for (py::ssize_t i = 0; i < r; ++i) {
       ends[i] = reach(t[rows[i]]);
       step[i] = std::min(h[rows[i]], ends[i] - t[rows[i]]);
+      // a step that would stop short of a break or the end by a time that is one with it goes
+      // to it: a step of an ulp would follow, its sample an ulp after the last (ẍ by
+      // differences of ẋ then divided by that ulp)
+      if (ends[i] - t[rows[i]] - step[i] <= rounding) step[i] = ends[i] - t[rows[i]];
       on_break[i] = step[i] == ends[i] - t[rows[i]] && ends[i] < duration;
       slopes[0].row(i) = at(f, rows[i], 1, n);
     }
@@ -334,7 +338,8 @@ inline py::object dormand_prince(const py::object& rates, const py::object& velo
           slopes_out.insert(slopes_out.end(), slopes[j].row(i).data(),
                             slopes[j].row(i).data() + n);
         broken[row] = on_break[i];
-        t[row] = on_break[i] ? ends[i] : t[row] + step[i];
+        // a step to a break or to the end lands on it (t + (end − t) may fall an ulp short)
+        t[row] = step[i] == ends[i] - t[row] ? ends[i] : t[row] + step[i];
         at(q, row, 1, n) = q_new;
         at(f, row, 1, n) = slopes[s].row(i);
         const bool damped = !end->damped.empty() && end->damped[std::size_t(i)];

@@ -325,6 +325,31 @@ def test_the_integration_loop_refuses_states_it_cannot_read(crane):
         loop(lambda t, states: short, q)
 
 
+def test_a_step_to_the_end_lands_on_it():
+    """A step that would stop an ulp short of the end goes to it: a step of an ulp followed,
+    its sample an ulp after the last, and ẍ by differences of ẋ divided by that ulp (a study
+    of a pump energy failed on a forestry crane's segment of √13 s so). At a constant q̇ the
+    error is 0 and each step is ten times the last: 0.01, 0.1 and 1 s end at 1.11 s."""
+
+    def steps(duration):
+        def rates(t, states):
+            return None, np.ones_like(states), np.zeros(len(t), dtype=bool), states
+
+        ones, limits = np.ones((1, 1)), (np.full(1, -np.inf), np.full(1, np.inf))
+        found = _core.dormand_prince(
+            rates, None, ones, ones, np.zeros(1, dtype=bool), duration, NONE, SAME_TIME, 1e-6,
+            *TABLEAU, *limits, *PLAIN,
+        )  # fmt: skip
+        return found[1] + found[2], found[3][:, 0]  # the steps' ends and starts' q
+
+    ends, _ = steps(100.0)
+    np.testing.assert_allclose(ends[:4], [0.01, 0.11, 1.11, 11.11], rtol=1e-15)
+    duration = np.nextafter(ends[2], np.inf)  # an ulp past the third step's end
+    ends, q = steps(duration)
+    assert len(ends) == 3 and ends[-1] == duration and np.diff(ends).min() > 1e-3
+    np.testing.assert_allclose(q, [1.0, 1.01, 1.11], rtol=1e-15)  # q = 1 + t
+
+
 def test_the_loop_refuses_arrays_that_do_not_fit_and_freezes_a_start_it_cannot_step(crane):
     """The loop's own arrays are checked against q before it writes its copies of them, and a
     Python right-hand side's flags are read as their values, whatever their strides. A q̇ that
