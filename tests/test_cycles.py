@@ -43,13 +43,14 @@ from redundancy.planning.motions import simulate_path
 from redundancy.planning.starts import Configurations, evaluate_starts, improved_start
 from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.resolution.limits import Limits, amount
-from redundancy.resolution.objectives import VELOCITY
+from redundancy.resolution.objectives import ENERGY, VELOCITY
 from redundancy.resolution.state import evaluate
 from redundancy.study.cycles import repetition_report, run_cycle
 from redundancy.viz.tables import cycle_table, fixed_point_words
 
 ARM = Path(__file__).parent / "data" / "planar4r"
 SLEWING = Path(__file__).parent / "data" / "slewing3r"
+ARM3 = Path(__file__).parent / "data" / "arm3"
 
 
 @pytest.fixture(scope="module")
@@ -425,6 +426,25 @@ def test_a_plan_that_changes_branch_still_finds_the_periodic_optimum(slewing_stu
     assert periodic.settling.settled_at == 1
     limit = study.repetitions["free"].motions[-1].score(VELOCITY)[0]
     assert study.periodic.peak <= limit * (1 + 1e-6)
+
+
+def test_the_periodic_plan_is_solved_afresh_from_the_solution_s_own_states():
+    """A planar arm of three cylinders, there and back along a line at least kinetic energy:
+    the solver's last trial reached no node of the final grid, so the plan's configurations,
+    continued from the last states that reached them all (an earlier iterate's), missed one
+    ("no configuration reaches the task at t = 0.104 s with c3 = 248.3 mm", where one does).
+    They are continued from the solution's own: the plan puts the tool on the path at every
+    node, closes on itself and keeps the strokes."""
+    robot = load_robot(ARM3 / "robot.toml")
+    cycle = WorkCycle.from_toml(robot.task_file, dimension=robot.m)
+    plan = plan_cycle(robot, cycle, ENERGY)
+    periodic = periodic_optimum(robot, cycle, plan.motion, ENERGY, grids=(24, 48))
+    space = evaluate(robot, periodic.q)
+    targets = cycle.position(periodic.t)
+    assert np.abs(space.y - targets).max() < 1e-9
+    np.testing.assert_allclose(space.x[:, 2], periodic.r, atol=1e-9)  # c3, as the plan holds it
+    np.testing.assert_allclose(periodic.q[0], periodic.q[-1], atol=1e-9)
+    assert Limits.strokes(robot).margin(space.x).min() > 0
 
 
 def test_without_the_free_strategy_the_branch_is_that_of_the_free_cycles_all_the_same():

@@ -270,15 +270,18 @@ class Transcription:
         """The held strokes (U, r) of the unknowns z = (r, σ) or r alone."""
         return z[: self.D.shape[1] * len(self.rows)].reshape(-1, len(self.rows))
 
-    def reach(self, r: np.ndarray) -> tuple[ActuatorSpace, np.ndarray]:
-        """The states at every node for the held strokes r (U, r), Newton-continued from the
-        last ones that reached every node (evaluated already), and which nodes it did not
-        reach."""
+    def reach(
+        self, r: np.ndarray, start: ActuatorSpace | None = None
+    ) -> tuple[ActuatorSpace, np.ndarray]:
+        """The states at every node for the held strokes r (U, r), Newton-continued from
+        ``start`` (a solution's nodes) or else the last ones that reached every node (evaluated
+        already), and which nodes it did not reach."""
         target = np.concatenate([self.points, r[self.owner]], axis=1)
         if self.space is None:
             self.space = evaluate(self.robot, self.q)
+        start = self.space if start is None else start
         solved = newton(
-            self.robot, self.q, self.rows, target, CONTINUATION_ITERATIONS, start=self.space
+            self.robot, start.q, self.rows, target, CONTINUATION_ITERATIONS, start=start
         )
         space = cast(ActuatorSpace, solved.space)  # given the states it starts from, Newton's
         missed = solved.miss > FOUND
@@ -298,9 +301,10 @@ class Transcription:
             f"no configuration reaches the task at t = {self.t[first]:.3f} s with {strokes}"
         )
 
-    def configurations(self, r: np.ndarray) -> np.ndarray:
-        """q at every node for the held strokes r, or an error where a node is not reached."""
-        space, missed = self.reach(r)
+    def configurations(self, r: np.ndarray, start: ActuatorSpace | None = None) -> np.ndarray:
+        """q at every node for the held strokes r, from ``start`` (see `reach`), or an error
+        where a node is not reached."""
+        space, missed = self.reach(r, start)
         if missed.any():
             raise self.unreached(r, missed)
         return space.q

@@ -767,13 +767,14 @@ def periodic_optimum(
     # the peak is taken at the nodes with central differences, blind to a held history that
     # alternates node by node; the plan a machine runs is that history with the alternation
     # filtered out ((1, 2, 1) / 4 inside each segment; the corners, where the held rate may
-    # jump, kept), its configurations solved afresh
+    # jump, kept), its configurations solved afresh from the solution's (the last states that
+    # reached every node may be an earlier iterate's, too far for a continuation's few steps)
     smooth = (np.roll(r, 1, axis=0) + 2 * r + np.roll(r, -1, axis=0)) / 4
     corners = problem.owner[np.flatnonzero(np.diff(problem.piece, prepend=-1))]
     smooth[corners] = r[corners]
     r_nodes = smooth[problem.owner]
     r_dot = problem.D @ smooth
-    q = problem.configurations(smooth)
+    q = problem.configurations(smooth, nodes.space)
     one = len(names) == 1
     return PeriodicOptimum(
         robot,
