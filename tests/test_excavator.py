@@ -59,3 +59,20 @@ def test_improved_start_keeps_every_stroke_and_beats_the_default_start(excavator
         default = runs["unweighted, default start"]
         assert improved.within_limits[0], segment.name
         assert improved.peak_velocity_norm[0] <= default.peak_velocity_norm[0], segment.name
+
+
+def test_the_searches_hold_the_excavators_bucket_unless_told_otherwise(excavator):
+    """Without ``held``, a search, the default start and the bound hold what a work cycle
+    holds: the task's actuators (the bucket), or the last n − m; they held "x3", the crane's
+    telescope, which the excavator has not. A cycle iterates over its segments in order."""
+    from redundancy import default_start, global_optimum, improved_start
+
+    cycle = WorkCycle.from_toml(excavator.task_file, dimension=excavator.m)
+    assert cycle.held == ("bucket",) and [s.name for s in cycle] == ["1-2", "2-3", "3-1"]
+    segment = cycle["1-2"]
+    assert improved_start(excavator, segment, VELOCITY).held == ("bucket",)
+    assert improved_start(excavator, cycle, VELOCITY).held == ("bucket",)
+    values, q = default_start(excavator, segment)
+    assert actuator_space(excavator, q).x[0, 2] == pytest.approx(values[0], abs=1e-9)
+    assert values == pytest.approx(default_start(excavator, segment, "bucket")[0], abs=0)
+    assert global_optimum(excavator, segment, VELOCITY, grids=(8,)).held == "bucket"

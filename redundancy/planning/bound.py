@@ -46,7 +46,6 @@ from redundancy.planning.ik import (
     CONTINUATION_ITERATIONS,
     FOUND,
     held_indices,
-    held_names,
     inverse_kinematics,
     named_values,
     newton,
@@ -54,7 +53,12 @@ from redundancy.planning.ik import (
 from redundancy.planning.integrate import Trajectory
 from redundancy.planning.motions import simulate_path
 from redundancy.planning.refinement import Refined, checked_grids
-from redundancy.planning.starts import Configurations, SearchResult, improved_start
+from redundancy.planning.starts import (
+    Configurations,
+    SearchResult,
+    chosen_held,
+    improved_start,
+)
 from redundancy.planning.tasks import Chain, Segment, checked_path
 from redundancy.resolution.limits import Limits, amount
 from redundancy.resolution.objectives import VELOCITY, Objective
@@ -533,17 +537,18 @@ def global_optimum(
     robot: Robot,
     segment: Segment | Chain,
     objective: Objective = VELOCITY,
-    held: str | Sequence[str] = "x3",
+    held: str | Sequence[str] | None = None,
     checked: tuple[str, ...] | None = None,
     grids: tuple[int, ...] | None = None,
     initial: Sequence | None = None,
     search: SearchResult | None = None,
 ) -> GlobalOptimum:
     """The motion along ``segment`` (any path: a segment, or a chain of them) of least peak of
-    ``objective`` over every history of the held actuators (one name, or the r names of a
-    task with r held; see the module docstring), on each of ``grids`` (intervals) in turn; by
-    default `GRIDS`, then grids twice as fine while the last refinement still moves the
-    optimum by `redundancy.planning.refinement.CONVERGED` or more, up to `MAX_INTERVALS`.
+    ``objective`` over every history of the held actuators (one name, or the r names of a task
+    with r held; by default `held_actuators`; see the module docstring), on each of ``grids``
+    (intervals) in turn; by default `GRIDS`, then grids twice as fine while the last refinement
+    still moves the optimum by `redundancy.planning.refinement.CONVERGED` or more, up to
+    `MAX_INTERVALS`.
 
     The problem is not convex: the first grid is solved from the law's motion from each
     ``initial`` start (held strokes at t = 0, m or rad, one value or (r,) each; by default the
@@ -556,7 +561,7 @@ def global_optimum(
     """
     require_robot(robot)
     segment, objective = checked_path(segment), as_objective(objective)
-    names = held_names(robot, held)
+    names = chosen_held(robot, segment, held)
     rows = held_indices(robot, names)
     refine = grids is None
     grids = checked_grids(GRIDS if grids is None else grids, 3)

@@ -92,7 +92,7 @@ from redundancy.planning.integrate import (
     concatenated,
 )
 from redundancy.planning.motions import simulate_path
-from redundancy.planning.tasks import Chain, Segment, WorkCycle, checked_path
+from redundancy.planning.tasks import Chain, Segment, checked_path
 from redundancy.resolution.limits import TOLERANCE as LIMIT_TOLERANCE
 from redundancy.resolution.limits import Limits, Violation, amount
 from redundancy.resolution.objectives import Objective, objectives_of
@@ -288,10 +288,17 @@ class SearchResult:
         )
 
 
-def held_actuators(robot: Robot, cycle: WorkCycle) -> tuple[str, ...]:
-    """The actuators a search holds on ``cycle``: the task's ``held``, or the last n − m."""
+def held_actuators(robot: Robot, path: Segment | Chain) -> tuple[str, ...]:
+    """The actuators a search holds on ``path`` where none are named: a work cycle's task's
+    ``held``, or the last n − m."""
     require_redundancy(robot)
-    return cycle.held or tuple(robot.actuators.names[robot.m :])
+    return getattr(path, "held", ()) or tuple(robot.actuators.names[robot.m :])
+
+
+def chosen_held(robot: Robot, path: Segment | Chain, held) -> tuple[str, ...]:
+    """The held actuators' names: ``held`` (one name, or several), or by default
+    `held_actuators` on ``path``."""
+    return held_names(robot, held_actuators(robot, path) if held is None else held)
 
 
 def stroke_box(robot: Robot, held: tuple[str, ...]) -> np.ndarray:
@@ -561,14 +568,16 @@ def improved_start(
     robot: Robot,
     segment: Segment | Chain,
     objective: Objective,
-    held: str | Sequence[str] = "x3",
+    held: str | Sequence[str] | None = None,
     samples: int = 100,
     checked: tuple[str, ...] | None = None,
     method: str | None = None,
     tolerance: float | None = None,
     circuit: bool = False,
 ) -> SearchResult:
-    """The paper's improved initial configuration (steps i-v), searching the held actuators.
+    """The paper's improved initial configuration (steps i-v), searching the held actuators
+    ``held`` (one name, or several; by default a work cycle's task's, else the last n − m:
+    `held_actuators`).
 
     ``method`` "fast" (the default for one held actuator) or "sweep" (the default, and the only
     method, for several): see the module docstring. ``samples`` is the sweep's count (the
@@ -588,7 +597,7 @@ def improved_starts(
     robot: Robot,
     segment: Segment | Chain,
     objectives: Sequence[Objective],
-    held: str | Sequence[str] = "x3",
+    held: str | Sequence[str] | None = None,
     samples: int = 100,
     checked: tuple[str, ...] | None = None,
     method: str | None = None,
@@ -601,7 +610,7 @@ def improved_starts(
     require_robot(robot)
     segment = checked_path(segment)
     objectives = objectives_of(objectives)
-    held = held_names(robot, held)
+    held = chosen_held(robot, segment, held)
     method = search_method(held, samples, method)
 
     def run(objective, starts, stop_past=False, extending=False):
@@ -819,8 +828,9 @@ def _halton(box: np.ndarray, count: int, seed: int) -> np.ndarray:
     return qmc.scale(qmc.Halton(len(box), seed=seed).random(count), box[:, 0], box[:, 1])
 
 
-def default_start(robot: Robot, segment: Segment | Chain, held: str | Sequence[str] = "x3"):
-    """The documented default start: the held actuators at mid-stroke or, where the segment's
+def default_start(robot: Robot, segment: Segment | Chain, held: str | Sequence[str] | None = None):
+    """The documented default start: the held actuators (by default `held_actuators`) at
+    mid-stroke or, where the segment's
     start is out of reach there, the reachable candidate nearest mid-stroke (candidates: 101
     values per held actuator for one, 256 Halton points for several; where none reaches it,
     the held values of configurations that reach it with every actuator free,
@@ -830,7 +840,7 @@ def default_start(robot: Robot, segment: Segment | Chain, held: str | Sequence[s
     """
     require_robot(robot)
     segment = checked_path(segment)
-    held = held_names(robot, held)
+    held = chosen_held(robot, segment, held)
     box = stroke_box(robot, held)
     if len(held) == 1:
         candidates = sweep_values(robot, held[0], 101)[:, None]

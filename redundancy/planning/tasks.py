@@ -18,6 +18,7 @@ from __future__ import annotations
 import csv
 import math
 from abc import ABC, abstractmethod
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -624,6 +625,10 @@ class WorkCycle(Chain):
     held: tuple[str, ...] = ()
     tool_angle: bool = False
     source: str = field(default="", compare=False, repr=False)
+
+    def __iter__(self) -> Iterator[Segment]:
+        """The segments, in order (the cycle is indexed by their names)."""
+        return iter(self.segments)
 
     def __getitem__(self, name: str) -> Segment:
         for segment in self.segments:

@@ -103,7 +103,7 @@ def fixed_start_run(
     resolver: Resolver,
     name: str,
     segment: Segment,
-    held: str | Sequence[str] = "x3",
+    held: str | Sequence[str] | None = None,
     start: tuple[np.ndarray, np.ndarray] | None = None,
     checked: tuple[str, ...] | None = None,
     time_step: float = TIME_STEP,
