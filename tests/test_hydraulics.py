@@ -33,7 +33,7 @@ from redundancy.planning.integral_optimum import (
 from redundancy.planning.integrate import MIN_INTERVALS, simulate
 from redundancy.planning.refinement import CONVERGED
 from redundancy.planning.starts import default_start, improved_start
-from redundancy.planning.tasks import Line, Polyline, Segment, WorkCycle, corners
+from redundancy.planning.tasks import Arc, Line, Polyline, Segment, WorkCycle, corners
 from redundancy.planning.time_scaling import shortest_duration
 from redundancy.resolution.laws import MinFlow
 from redundancy.resolution.limits import TOLERANCE, Limits, hydraulic_values
@@ -590,6 +590,31 @@ def test_shortest_duration_goes_on_where_the_path_does_not_turn(crane):
     assert durations[1] == pytest.approx(durations[0], rel=1e-6)
 
 
+def test_a_slew_alone_has_no_shortest_duration(crane, tmp_path):
+    """The slewing crane with the planar crane's circuit, its slew driven directly, following a
+    quarter circle about its column at one radius and height: the slew alone moves the tool,
+    every cylinder stands still, and no limit of the circuit bounds the path's speed. TOPP-RA
+    timed it in 0.2 ms (a tool at 17 km/s); it has no shortest duration, and says why."""
+    folder = crane.urdf.parent.parent / "hiab031_slewing"
+    text = (crane.urdf.parent / "robot.toml").read_text()
+    (tmp_path / "circuit.toml").write_text(text[text.index("[hydraulics]") :])
+    slewing = load_robot(folder / "robot.toml", hydraulics=tmp_path / "circuit.toml")
+    assert "slew" not in [slewing.actuators.names[c] for c in slewing.circuit().columns]
+    radius, height = 2.2, 1.8
+    corner = np.array([radius, radius, 0.0]) / np.sqrt(2) + [0, 0, height]
+    arc = Arc.through(np.array([radius, 0, height]), corner, np.array([0, radius, height]))
+    quarter = Segment.along("swing", arc, 0.5)
+    start = default_start(slewing, quarter, ["x3"])[1][None]
+    motion = simulate(slewing, VELOCITY.resolver, quarter, start)
+    cylinders = motion.x[0][:, slewing.circuit().columns]
+    assert np.ptp(cylinders, axis=0).max() < 1e-9 and np.ptp(motion.x[0, :, 0]) > 1.5
+    with pytest.raises(RedundancyError, match=r"^unbounded: slew alone moves the tool from"):
+        shortest_duration(motion)
+    figures = peers.hydraulics(motion)
+    assert figures["shortest_duration_s"] is None
+    assert "circuit limits only cylinders" in figures["shortest_duration_reason"]
+
+
 def test_circuit_limits_count_in_the_searches(crane, cycle, tmp_path):
     """With the circuit's limits counted, a pump of 70 L/min cuts the feasible starts of 1-2 and
     3-1 where the pump flow passes it; the fast search and the sweep agree on the new ends within
@@ -719,7 +744,8 @@ def test_a_segment_shorter_than_a_time_step_gets_every_figure(crane, monkeypatch
     cycle = WorkCycle("short", (short,))
     study = run_study(crane, cycle, (VELOCITY,), 3, bound=False, progress=False, cycles=0)
     study = dataclasses.replace(study, runs=(untimed,))
-    assert hydraulic_table(study).splitlines()[-1].split()[-2] == "-"
+    last = hydraulic_table(study).splitlines()[-1]
+    assert last.endswith("-  t_min: TOPP-RA found no timing; held")
 
 
 def _no_timing(motion):

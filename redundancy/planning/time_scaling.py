@@ -9,7 +9,9 @@ A_B |dx| where it retracts, `redundancy.model.hydraulics`). Along a re-timed pat
 
 so the pump's flow is a velocity limit on the coordinate V. TOPP-RA (Pham & Pham, IEEE T-RO
 34(3), 2018; the ``toppra`` package) finds the fastest s(t) from rest to rest, with constant s̈
-between its grid points. The limits hold at its grid points; where the dense re-timed samples
+between its grid points. A path along which an actuator the circuit does not limit (a slew)
+moves while every cylinder stands still has no shortest duration: nothing bounds its speed
+there. The limits hold at its grid points; where the dense re-timed samples
 pass one by a hair, the timing is stretched uniformly by the least factor k that brings it back
 (velocities scale by 1/k, accelerations by 1/k²). Actuators that are not cylinders are left
 unconstrained.
@@ -46,6 +48,7 @@ from redundancy.planning.tasks import corners
 
 SAMPLES = 400  # path points fed to TOPP-RA (at most; fewer if the motion has fewer), corners
 # aside
+STILL = 1e-9  # m: a cylinder whose stroke changes less than this between samples stands still
 
 
 @dataclass(frozen=True)
@@ -97,9 +100,10 @@ def shortest_duration(motion: Trajectory, row: int = 0, samples: int = SAMPLES) 
             "path to time"
         )
     robot = motion.robot
-    robot.circuit()  # says how to declare one before any work
+    circuit = robot.circuit()  # says how to declare one before any work
     t = motion.t[row]
     last = int(motion.counts[row])  # a motion repeats its last sample to pad
+    _require_bounded(motion, row, last, circuit.columns)
     chosen = np.unique(np.linspace(0, last - 1, min(samples, last)).round().astype(int))
     turns = corners(motion.segment)
     turns = turns[turns < t[last - 1]]  # a motion stopped early ends before some
@@ -125,6 +129,25 @@ def shortest_duration(motion: Trajectory, row: int = 0, samples: int = SAMPLES) 
             for name in ("x", "x_dot", "x_ddot", "pump_flow")
         ),
     )
+
+
+def _require_bounded(motion: Trajectory, row: int, last: int, cylinders) -> None:
+    """Refuse a path whose speed no limit bounds: where every cylinder stands still (`STILL`)
+    while an actuator the circuit does not limit moves (a slew following an arc about its
+    column), ṡ is bounded by nothing, and TOPP-RA's "fastest" timing is its grid's artefact."""
+    steps = np.abs(np.diff(motion.x[row, :last], axis=0))
+    others = [j for j in range(steps.shape[1]) if j not in set(cylinders)]
+    still = steps[:, cylinders].max(axis=1, initial=0.0) <= STILL
+    moving = steps[:, others].max(axis=1, initial=0.0) > STILL
+    alone = np.flatnonzero(still & moving)
+    if alone.size:
+        names = motion.robot.actuators.names
+        moved = sorted({names[j] for j in others if (steps[alone, j] > STILL).any()})
+        t = motion.t[row]
+        raise RedundancyError(
+            f"unbounded: {', '.join(moved)} alone moves the tool from t = {t[alone[0]]:.2f} s "
+            "with every cylinder still, and the circuit limits only cylinders and the pump"
+        )
 
 
 def _at_corners(motion: Trajectory, row: int, turns: np.ndarray) -> np.ndarray:

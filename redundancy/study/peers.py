@@ -64,17 +64,20 @@ def hydraulics(motion: Trajectory) -> dict:
     peak pump flow (L/min), highest load pressure (bar), pump energy under load sensing and
     constant pressure (kJ), whether a load overran, the circuit's limits passed, the
     shortest duration of its path within the circuit's limits (s, `shortest_duration`; None
-    where TOPP-RA finds no timing), whether the highest load pressure is one the relief
-    valve never lets build (`Circuit.unphysical`), and the supplies that cannot serve the
-    highest load pressure of a moving cylinder (``unserved``: its pump would run past what
-    `Supply.available` gives under the relief, so its energy is no machine's)."""
+    where there is none, ``shortest_duration_reason`` saying why), whether the highest load
+    pressure is one the relief valve never lets build (`Circuit.unphysical`), and the supplies
+    that cannot serve the highest load pressure of a moving cylinder (``unserved``: its pump
+    would run past what `Supply.available` gives under the relief, so its energy is no
+    machine's)."""
     flows, circuit = motion.flows, motion.robot.circuit()
     violations = motion.hydraulic_violations(0)
     moving = np.where(flows.moving[0], flows.load[0], -np.inf).max(initial=-np.inf)
+    shortest: float | None = None
+    reason: str | None = None
     try:
-        shortest: float | None = shortest_duration(motion).duration
-    except RedundancyError:
-        shortest = None
+        shortest = shortest_duration(motion).duration
+    except RedundancyError as error:
+        reason = str(error)
     return {
         "peak_pump_flow_l_min": float(flows.pump_flow[0].max() / LITRES_PER_MINUTE),
         "max_load_pressure_bar": float(flows.load[0].max() / BAR),
@@ -83,6 +86,7 @@ def hydraulics(motion: Trajectory) -> dict:
         "within_limits": not violations,
         "violations": [str(v) for v in violations],
         "shortest_duration_s": shortest,
+        "shortest_duration_reason": reason,
         "unphysical": circuit.unphysical(float(flows.load[0].max())),
         "unserved": [
             supply.name for supply in circuit.supplies if moving > supply.available(circuit.relief)

@@ -325,7 +325,8 @@ def _hydraulics(comparison: list[dict], bounds: dict | None) -> str:
                 "CP energy (kJ)": beyond or unserved.get("CP") or _number(h["cp_energy_kj"]),
                 "above LS bound (%)": beyond or unserved.get("LS") or _percent(above.get("LS")),
                 "above CP bound (%)": beyond or unserved.get("CP") or _percent(above.get("CP")),
-                "shortest duration (s)": _number(h["shortest_duration_s"], 3),
+                "shortest duration (s)": h.get("shortest_duration_reason")
+                or _number(h["shortest_duration_s"], 3),
                 "overrunning": _number(h["overrunning"]),
                 "circuit": _limits(h["violations"]),
             }

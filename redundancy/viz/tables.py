@@ -124,7 +124,13 @@ def hydraulic_table(study: Study) -> str:
                     f"{above[s]:.1f}" if s in above and s not in unserved else "-" for s in SUPPLIES
                 ),
                 "-" if shortest is None else f"{shortest:.2f}",
-                note + ("held" if figures["within_limits"] else "; ".join(figures["violations"])),
+                note
+                + (
+                    ""
+                    if shortest is not None
+                    else f"t_min: {figures['shortest_duration_reason']}; "
+                )
+                + ("held" if figures["within_limits"] else "; ".join(figures["violations"])),
             ]
         )
     for segment in study.energy_bounds or {}:
