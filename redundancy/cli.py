@@ -246,7 +246,10 @@ def _holdable(robot: Robot, cycle: WorkCycle, sampled: bool = True) -> None:
 def _describe_command(args: argparse.Namespace) -> None:
     robot = _robot(args)
     if robot.task_file is not None:  # read on its task: the tool's angle may be a coordinate
-        robot = _load_task(robot, None)[0]
+        try:
+            robot = _load_task(robot, None)[0]
+        except RedundancyError as error:  # the robot is described all the same
+            warnings.warn(f"its task is not read, {error}", stacklevel=1)
     print(describe(robot))
 
 

@@ -3,8 +3,10 @@ one line (never a traceback) where the output streams are odd."""
 
 import argparse
 import os
+import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 from commands import run_cli
@@ -76,6 +78,27 @@ def test_describe_gives_a_rotary_actuator_s_units(capsys):
     assert "F_H holding still (N; N·m for slew) = [    0.     18433.9429" in out
     assert main(["describe"]) == 0
     assert "M_H (kg) =" in capsys.readouterr().out
+    # an arm of joints driven directly: every entry kg·m², every force a torque
+    assert main(["describe", "--robot", "panda"]) == 0
+    out = capsys.readouterr().out
+    assert "M_H (kg·m²) =" in out and "F_H holding still (N·m) = [" in out and "-0. " not in out
+
+
+def test_describe_describes_a_robot_whose_task_is_broken(tmp_path, capsys):
+    """describe reads the robot's task only for a tool angle among its coordinates: a task
+    file it cannot read is noted, and the robot described all the same."""
+    from redundancy.cli import main
+
+    crane = Path(__file__).parents[1] / "redundancy" / "robots" / "hiab031"
+    shutil.copy(crane / "hiab031.urdf", tmp_path)
+    (tmp_path / "robot.toml").write_text(
+        'urdf = "hiab031.urdf"\ntool_frame = "tool"\ntask_axes = "xz"\ntask = "task.toml"\n'
+    )
+    (tmp_path / "task.toml").write_text("speed = 0.5\nsegments = ['a-b']\n[points]\na = [3, 0]\n")
+    assert main(["describe", "--robot", str(tmp_path / "robot.toml")]) == 0
+    out, err = capsys.readouterr()
+    assert out.startswith(f"{tmp_path.name}: n = 3 joints, task = tool xz (m = 2)")
+    assert err.startswith("redundancy: note: its task is not read, ") and "'a-b'" in err
 
 
 def test_the_list_of_robots_names_their_actuators_without_notes():
