@@ -358,7 +358,15 @@ def test_a_length_of_ten_metres_or_more_is_written_out_in_mm(tmp_path, capsys):
     task = (bundled_root() / "hiab031" / "task.toml").read_text()
     (tmp_path / "t.toml").write_text(task.replace("1 = [3.5, -0.5]", "1 = [30.0, -0.5]"))
     status, out, _ = run(["check", "--task", str(tmp_path / "t.toml")], capsys)
-    assert status == 2 and "  [30000 mm, -500 mm]: NOT reached" in out.splitlines(), out
+    assert status == 2 and "  1 at [30000 mm, -500 mm]: NOT reached" in out.splitlines(), out
+    # the points by their names, in the order the cycle meets them, with the payload's share
+    assert out.splitlines()[-5:-1] == [
+        "task points:",
+        "  1 at [30000 mm, -500 mm]: NOT reached",
+        "  2 at [1000 mm, -500 mm]: reached",
+        "  3 at [2250 mm, 3000 mm]: reached",
+    ], out
+    assert "masses: on every moving link, 316.0 kg in all, of which payload 100.0 kg" in out
     assert amount(96.1263, "m") == "96126 mm" and amount(9.99996, "m") == "10000 mm"
     assert amount(1100.0, "m") == "1100000 mm" and amount(1e300, "m") == "1e+303 mm"
 

@@ -625,6 +625,11 @@ class WorkCycle(Chain):
     held: tuple[str, ...] = ()
     tool_angle: bool = False
     source: str = field(default="", compare=False, repr=False)
+    points: tuple[tuple[str, np.ndarray], ...] = field(default=(), compare=False, repr=False)
+
+    def point_name(self, point: np.ndarray) -> str | None:
+        """The name the task file gives ``point`` (m,) among its ``points``, or None."""
+        return next((name for name, p in self.points if np.array_equal(p, point)), None)
 
     def __iter__(self) -> Iterator[Segment]:
         """The segments, in order (the cycle is indexed by their names)."""
@@ -707,7 +712,8 @@ class WorkCycle(Chain):
                 "leave it out for the default)"
             )
         name = path.stem if task.name is None else task.name
-        cycle = cls(name, tuple(segments), tuple(task.held or ()), task.tool_angle, str(path))
+        held = tuple(task.held or ())
+        cycle = cls(name, tuple(segments), held, task.tool_angle, str(path), tuple(found.items()))
         lowest, highest = cycle.angle_range
         if highest - lowest >= 2 * np.pi:
             raise InvalidInputError(

@@ -120,8 +120,9 @@ class ActuatorCheck:
 
 @dataclass(frozen=True)
 class Check:
-    """The checks of one robot and, where a task is given, of its points: ``points`` (P, m)
-    and whether each is ``reached`` with every stroke kept."""
+    """The checks of one robot and, where a task is given, of its points: ``points`` (P, m),
+    in the order the segments meet them, their ``names`` in the task file (None for a CSV
+    polyline's end) and whether each is ``reached`` with every stroke kept."""
 
     robot: Robot
     actuators: tuple[ActuatorCheck, ...]
@@ -129,6 +130,13 @@ class Check:
     reached: tuple[bool, ...]
     held: tuple[str, ...] = ()  # why the task's held actuators cannot be held (`held_problems`)
     paths: tuple[str, ...] = ()  # the segments a study refuses between their ends (`_paths`)
+    names: tuple[str | None, ...] = ()
+
+    def point(self, i: int) -> str:
+        """Point ``i`` as the check names it: its name in the task file, then where it is."""
+        name = self.names[i] if i < len(self.names) else None
+        where = task_point(self.robot, np.asarray(self.points)[i])
+        return where if name is None else f"{name} at {where}"
 
     def blocking(self) -> list[str]:
         """What stops a study, one line each (empty when the robot is ready)."""
@@ -146,9 +154,8 @@ class Check:
         found += self.held
         if self.points is not None:
             found += [
-                f"task point {task_point(robot, p)} is not reached inside the joint ranges and "
-                "strokes"
-                for p, ok in zip(self.points, self.reached)
+                f"task point {self.point(i)} is not reached inside the joint ranges and strokes"
+                for i, ok in enumerate(self.reached)
                 if not ok
             ]
         return found + list(self.paths)
@@ -261,7 +268,10 @@ def _reached(robot: Robot, cycle: WorkCycle) -> tuple[np.ndarray, tuple[bool, ..
     grids = [np.linspace(lower, upper, count) for lower, upper in stroke_box(robot, held)]
     values = np.array(list(itertools.product(*grids)))
     strokes = Limits.strokes(robot)
-    points = np.unique([p for s in cycle.segments for p in (s.start, s.end)], axis=0)
+    met = [p for s in cycle.segments for p in (s.start, s.end)]
+    points = np.array(
+        [p for i, p in enumerate(met) if not any(np.array_equal(p, o) for o in met[:i])]
+    )
     reached = []
     for point in points:
         found = inverse_kinematics(robot, point, held, values)
@@ -293,12 +303,14 @@ def check(robot: Robot, cycle: WorkCycle | None = None) -> Check:
     reached_points: tuple[bool, ...] = ()
     held: list[str] = []
     paths: tuple[str, ...] = ()
+    names: tuple[str | None, ...] = ()
     if cycle is not None and robot.n > robot.m:  # with no redundancy, the one blocking line
         held = held_problems(robot, cycle)
         if not held and not any(a.undefined for a in actuators):  # its points next, if it can
             points, reached_points = _reached(robot, cycle)
+            names = tuple(cycle.point_name(p) for p in points)
             paths = _paths(robot, cycle, points[~np.array(reached_points)])
-    return Check(robot, actuators, points, reached_points, tuple(held), paths)
+    return Check(robot, actuators, points, reached_points, tuple(held), paths, names)
 
 
 def _paths(robot: Robot, cycle: WorkCycle, missed: np.ndarray) -> tuple[str, ...]:

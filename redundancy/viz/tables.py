@@ -15,7 +15,7 @@ from redundancy.planning.cycles import SETTLED, ReturnMap
 from redundancy.planning.ik import named_values
 from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import VELOCITY
-from redundancy.study.check import Check, span, task_point
+from redundancy.study.check import Check, span
 from redundancy.study.cycles import CycleStudy, settling_words
 from redundancy.study.study import Study
 
@@ -344,7 +344,10 @@ def check_table(found: Check) -> str:
         )
     else:
         total = sum(inertia.mass for inertia in robot.model.inertias)
-        lines.append(f"masses: on every link, {total:.1f} kg in all")
+        lines.append(
+            f"masses: on every moving link, {total:.1f} kg in all, of which payload "
+            f"{robot.payload:.1f} kg"
+        )
     lines.append(
         "meshes: "
         + (
@@ -356,8 +359,8 @@ def check_table(found: Check) -> str:
     if found.points is not None:
         lines.append("task points:")
         lines += [
-            f"  {task_point(robot, p)}: {'reached' if ok else 'NOT reached'}"
-            for p, ok in zip(found.points, found.reached)
+            f"  {found.point(i)}: {'reached' if ok else 'NOT reached'}"
+            for i, ok in enumerate(found.reached)
         ]
     problems = found.blocking()
     lines.append(
