@@ -650,8 +650,16 @@ def parser() -> argparse.ArgumentParser:
 
 
 def _note(message, category, filename, lineno, file=None, line=None) -> None:
-    """Warnings (e.g. joints driven directly for want of declarations) as one line each."""
-    print(f"redundancy: note: {message}", file=sys.stderr)
+    """Warnings (e.g. joints driven directly for want of declarations) as one line each, each
+    once: a robot loaded again (a design map's variants) says the same again, and a library's
+    `warnings.catch_warnings` resets what Python's filters remember as said."""
+    text = f"redundancy: note: {message}"
+    if text not in _said:
+        _said.add(text)
+        print(text, file=sys.stderr)
+
+
+_said: set[str] = set()  # the notes this command has printed
 
 
 class _Output:
@@ -707,6 +715,7 @@ def main(argv: list[str] | None = None) -> int:
         args.parser.error(f"unrecognized arguments: {' '.join(unknown)}")
     args.progress = not getattr(args, "quiet", True) and sys.stderr.isatty()
     warnings.showwarning = _note
+    _said.clear()  # each command says its notes once (main may run again in one process)
     stdout, sys.stdout = sys.stdout, _Output(sys.stdout)
     try:
         # play's loop is stopped by Ctrl-C even where the shell started it as a background job

@@ -6,6 +6,7 @@ import dataclasses
 import functools
 import itertools
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -24,6 +25,7 @@ from commands import as_foreground, run_cli
 
 from redundancy import LS_ENERGY, VELOCITY, WorkCycle, actuator_space, improved_start, load_robot
 from redundancy.errors import InvalidInputError
+from redundancy.model.loading import bundled_root
 from redundancy.planning.tasks import Arc, Polyline, Segment
 from redundancy.study import families
 from redundancy.study.families import Design, MapFamily, read_family
@@ -390,6 +392,31 @@ def test_a_family_is_counted_before_any_segment_is_built(tmp_path, monkeypatch):
     text = WORKSPACE.format(chunk=8, nx=3000).replace("[-1.0, 2.0, 3]", "[-1.0, 2.0, 1000]")
     with pytest.raises(InvalidInputError, match="the family has 3,000,000 problems"):
         read_family(write(tmp_path, "big.toml", text))
+
+
+def test_a_robot_s_note_is_said_once_not_again_by_each_worker(tmp_path):
+    """The slewing crane with its slew's declaration left out: loading it says once that the
+    slew is driven directly. The workers load it (and its payload variants) again, and each
+    printed Python's raw warning, its source line included."""
+    urdf = (bundled_root() / "hiab031_slewing" / "hiab031_slewing.urdf").read_text()
+    urdf = re.sub(r'<transmission name="slew">.*?</transmission>', "", urdf, flags=re.S)
+    (tmp_path / "crane.urdf").write_text(urdf)
+    (tmp_path / "robot.toml").write_text(
+        'urdf = "crane.urdf"\ntool_frame = "tool"\ntask_axes = "xyz"\npayload = 100.0\n'
+    )
+    family = write(
+        tmp_path,
+        "m.toml",
+        'robot = "robot.toml"\nobjectives = ["velocity"]\nheld = ["x3"]\nchunk = 1\n'
+        '[task]\nfile = "t.toml"\n[grid]\npayload = [0, 200]\n',
+    )
+    (tmp_path / "t.toml").write_text(
+        'segments = ["a-b"]\n[points]\na = [2.5, 0.0, 0.5]\nb = [2.5, 0.5, 0.5]\n'
+    )
+    result = run_cli("map", str(family), "--workers", "2", "--out", str(tmp_path / "out"))
+    assert result.returncode == 0, result.stderr
+    notes = result.stderr.strip().splitlines()
+    assert len(notes) == 1 and notes[0].startswith("redundancy: note: joints without"), notes
 
 
 def test_bad_map_runs_get_one_line_and_exit_2(tmp_path):
