@@ -429,6 +429,19 @@ CASES = [
         },
         "kinematic only: links boom1, boom2, telescope",
     ),
+    # the slew held, the boom's cylinders move the tool in its vertical plane alone: a 3-D
+    # task cannot be followed (the study said no start was reachable, play ran from one)
+    (
+        "held slew on a 3-D task",
+        ["study", "--robot", "hiab031_slewing", "--task", "t.toml"],
+        {
+            "t.toml": 'held = ["slew"]\nsegments = ["a-b"]\n[points]\na = [2.2, 0.0, 1.8]\n'
+            "b = [2.0, 0.0, 1.8]\n"
+        },
+        "t.toml: held: holding slew leaves x1, x2, x3 at most 2 of the task's 3 directions to "
+        "move the tool in, anywhere in the joint ranges: the task cannot be followed; hold other "
+        "actuators",
+    ),
     (
         "task axis never moved along",
         ["study", "--robot", "r.toml", "--task", "t.toml"],

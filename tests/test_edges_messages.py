@@ -146,7 +146,7 @@ def test_check_shows_task_points_in_the_units_of_the_task_file(capsys):
     """The planar arm's task gives its tool angle in degrees: check shows 30°, not 0.5236."""
     status, out, _ = run(["check", "--robot", str(PLANAR / "robot.toml")], capsys)
     assert status == 0
-    assert "  [1900 mm, 0 mm, 30°]: reached" in out
+    assert "  a at [1900 mm, 0 mm, 30°]: reached" in out
 
 
 def test_a_rotary_held_start_is_shown_in_degrees(capsys):

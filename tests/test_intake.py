@@ -609,13 +609,15 @@ def test_check_refuses_a_segment_the_study_refuses_between_reachable_ends(tmp_pa
 
 
 def test_check_reaches_a_point_a_grid_of_four_held_joints_passes_between(tmp_path):
-    """The Panda holds four joints: a grid of 3 values each (81 combinations) reaches neither
+    """The Panda holds four joints (2, 4, 6, 7: its last four, the default, leave its shoulder
+    a sphere to move the tool on): a grid of 3 values each (81 combinations) reaches neither
     of these points, which the arm reaches with its joints free, inside their ranges; check
     finds them reached, and a point beyond its reach (2 m out) not."""
     from redundancy.planning.ik import FOUND
 
     (tmp_path / "t.toml").write_text(
-        'segments = ["a-b", "b-c"]\n[points]\na = [0.45, 0.0, 0.55]\nb = [0.5, 0.0, 0.5]\n'
+        'segments = ["a-b", "b-c"]\nheld = ["panda_joint2", "panda_joint4", "panda_joint6", '
+        '"panda_joint7"]\n[points]\na = [0.45, 0.0, 0.55]\nb = [0.5, 0.0, 0.5]\n'
         "c = [2.0, 0.0, 0.5]\n"
     )
     import itertools

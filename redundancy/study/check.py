@@ -41,6 +41,8 @@ HELD_SAMPLES = 9  # held values tried for each task point, with one held actuato
 HELD_BUDGET = 81  # held value combinations tried for each task point, with several
 FREE_SEEDS = 64  # seeds of the free inverse kinematics where no held value reaches a point
 MISMATCH = 1e-3  # m or rad: a stroke end this far beyond the values reached is a mismatch
+HELD_PROBES = 16  # configurations over the joint ranges where the held actuators' others are
+# asked to move the tool along every task axis
 NO_LIMIT = 1e3  # m or rad: a joint range wider is a URDF's "no limit" (±1e16), swept a turn
 
 
@@ -210,7 +212,43 @@ def held_problems(robot: Robot, cycle: WorkCycle, sampled: bool = True) -> list[
             f"{span(actuator.lower, actuator.upper, actuator.unit)}: give it one in {place}: "
             f"{syntax} ({actuator.unit})"
         )
+    most, all_free = held_motions(robot, held)
+    if most < all_free == robot.m:  # a task axis no actuator moves along is said at the path
+        others = [name for name in robot.actuators.names if name not in held]
+        line = (
+            f"holding {', '.join(held)} leaves {', '.join(others)} at most {most} of the task's "
+            f"{robot.m} directions to move the tool in, anywhere in the joint ranges: the task "
+            "cannot be followed; hold other actuators"
+        )
+        problems.append(placed(cycle.source and f"{cycle.source}: held", line))
     return problems
+
+
+def held_motions(robot: Robot, held: tuple[str, ...]) -> tuple[int, int]:
+    """In how many task directions, at most, the other actuators move the tool while ``held``
+    keep their strokes: the rank of J N, N a basis of the motions A_h q̇ = 0 (the null space of
+    the held rows of A), the most over `HELD_PROBES` configurations over the joint ranges; and
+    in how many every actuator does, the rank of J. A slew held on a crane whose task is 3-D
+    leaves the boom's cylinders the vertical plane: 2 of 3; the Panda's four last joints held
+    leave its shoulder, whose three axes meet in one point, a sphere about it: 2 of 3. Probes
+    where A or J is not finite are left out; where none is left, (m, m)."""
+    rows = robot.actuators.rows(list(held))
+    lower, upper = robot.span
+    q = lower + (upper - lower) * np.random.default_rng(0).random((HELD_PROBES, robot.n))
+    space = evaluate(robot, q)
+    finite = np.isfinite(space.A).all(axis=(1, 2)) & np.isfinite(space.J).all(axis=(1, 2))
+    if not finite.any():  # nowhere to tell (a linkage past its dead centres): not refused
+        return robot.m, robot.m
+
+    def rank(matrix: np.ndarray) -> int:
+        singular = np.linalg.svd(matrix, compute_uv=False)
+        return int(np.sum(singular > 1e-9 * max(singular[0], 1e-300)))
+
+    most = free = 0
+    for A, J in zip(space.A[finite], space.J[finite]):
+        N = np.linalg.svd(A[rows])[2][len(rows) :].T  # the motions that keep the held strokes
+        most, free = max(most, rank(J @ N)), max(free, rank(J))
+    return most, free
 
 
 def task_point(robot: Robot, point: np.ndarray) -> str:
