@@ -16,6 +16,7 @@ reached inside the joint ranges with every stroke kept, for some value of the he
 from __future__ import annotations
 
 import itertools
+import json
 from dataclasses import dataclass
 
 import numpy as np
@@ -214,12 +215,21 @@ def held_problems(robot: Robot, cycle: WorkCycle, sampled: bool = True) -> list[
         )
     most, all_free = held_motions(robot, held)
     if most < all_free == robot.m:  # a task axis no actuator moves along is said at the path
-        others = [name for name in robot.actuators.names if name not in held]
+        names = robot.actuators.names
+        others = [name for name in names if name not in held]
         line = (
             f"holding {', '.join(held)} leaves {', '.join(others)} at most {most} of the task's "
             f"{robot.m} directions to move the tool in, anywhere in the joint ranges: the task "
             "cannot be followed; hold other actuators"
         )
+        working = (  # the latest actuators that work, as the default takes the last ones
+            list(chosen)
+            for chosen in itertools.combinations(reversed(names), len(held))
+            if held_motions(robot, chosen)[0] == robot.m
+        )
+        example = next(working, None)
+        if example is not None:
+            line += f", e.g. held = {json.dumps(example[::-1], ensure_ascii=False)}"
         problems.append(placed(cycle.source and f"{cycle.source}: held", line))
     return problems
 
