@@ -57,8 +57,9 @@ def peaks_figure(
     searches: tuple[SearchResult, ...], title: str, chosen: tuple[SearchResult, ...] | None = None
 ):
     """Peak of the objective against the held actuator's start value, one curve per segment
-    (each search's samples), feasible samples solid with their range shaded, the best start a
-    star: ``chosen``'s, the search that chose it, by default the curve's own (Figs. 4a, 5a).
+    (each search's samples), feasible samples solid, the best start a star and the feasible
+    range shaded: ``chosen``'s, the search that chose it and located the range's ends (the
+    study's tables give both), by default the curve's own (Figs. 4a, 5a).
     With several held actuators, each sample is a point over the first of them (two held
     actuators have `peak_map_figure`)."""
     from matplotlib.lines import Line2D
@@ -84,8 +85,8 @@ def peaks_figure(
         axes.plot(
             [s.values[0] for s in feasible], [s.peak for s in feasible], style, ms=2.5, color=colour
         )
-        if search.feasible_box is not None:
-            axes.axvspan(*search.feasible_box[0], color=colour, alpha=0.08)
+        if choice.feasible_box is not None:  # as the search that chose the star located it
+            axes.axvspan(*choice.feasible_box[0], color=colour, alpha=0.08)
         if choice.best is not None:
             axes.plot(choice.best.values[0], choice.best.peak, "*", ms=12, color=colour)
     objective, held = searches[0].objective, searches[0].held[0]

@@ -27,8 +27,9 @@ CAPTIONS = (
         "fig4a_*",
         "The paper's Fig. 4a: the peak of ẋᵀẋ (m²/s²) along each segment's motion under the "
         "unweighted pseudoinverse, against the held actuator's initial value. One colour per "
-        "segment; dotted: every reachable start, solid with dots: the starts whose motion keeps "
-        "every checked stroke, over the shaded feasible range; ★ the improved start.",
+        "segment; dotted: every reachable start of the sweep, solid with dots: those whose "
+        "motion keeps every checked stroke; shaded: the feasible range whose ends the improved "
+        "search located (the table's); ★ the improved start.",
     ),
     (
         "fig5a_*",
