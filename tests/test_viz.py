@@ -200,7 +200,8 @@ def test_the_animation_keys_each_frame_as_the_scene_shows_it(crane, motion):
     names = crane.actuators.names
     for frame in range(0, len(playback.samples), 7):
         poses = posed(playback, playback.q[playback.samples[frame]])
-        assert len(poses) == 9  # 4 links, the column (a hull), 2 cylinders of 2 parts
+        # 4 links, the column (a hull), 2 brackets, 2 cylinders of 2 parts
+        assert len(poses) == 11
         for path, T in poses.items():
             keys = {t["name"]: t["keys"][frame]["value"] for t in clips[path]["tracks"]}
             np.testing.assert_allclose(keys[".position"], T[:3, 3], rtol=0, atol=1e-12)
@@ -215,6 +216,22 @@ def test_the_animation_keys_each_frame_as_the_scene_shows_it(crane, motion):
                 expected = [((colour >> shift) & 0xFF) / 255 for shift in (16, 8, 0)]
                 assert track["name"] == ".material.color"
                 assert track["keys"][frame]["value"] == pytest.approx(expected, abs=1e-15)
+
+
+def test_a_pin_off_its_link_s_mesh_is_held_by_a_bracket_that_moves_with_it(crane, motion):
+    """The lift cylinder's base beside the column and the fold cylinder's base below boom 1 lie
+    off their links' boxes, and floated: each has a bracket from the pin, where the cylinder's
+    end is at every shown pose, to the nearest point of its link's box."""
+    playback, _, _ = recorded(motion)
+    assert sorted(playback.brackets) == ["x1_base", "x2_base"]
+    kinematics = crane.kinematics(playback.q[playback.samples])
+    for name, (_, points) in playback.brackets.items():
+        actuator = crane.actuators[name.split("_")[0]]
+        base = actuator.ends(kinematics)[0]
+        poses = playback.placements(playback.q[playback.samples])[0][f"links/brackets/{name}"]
+        pins = poses[:, :3, :3] @ points[0] + poses[:, :3, 3]
+        np.testing.assert_allclose(pins, base, rtol=0, atol=1e-12)
+        assert np.linalg.norm(points[1] - points[0]) > 0.1  # m: well off the box
 
 
 def test_a_recorded_page_holds_the_bytes_meshcats_encoder_gives(motion):
@@ -324,7 +341,7 @@ def screenshots(page, times, folder):
 
 def pixel(playback, point, size):
     """Where the camera shows a world point (3,) in a (width, height) image: (column, row)."""
-    offset = point - playback.centre
+    offset = point - playback.aim
     right = np.cross([0.0, 0.0, 1.0], playback.view)
     right /= np.linalg.norm(right)
     up = np.cross(playback.view, right)
@@ -358,7 +375,8 @@ def test_exported_page_draws_the_crane_and_animates_it_in_a_browser(crane, motio
 def test_the_page_shows_the_time_and_each_actuator_red_at_its_stroke_limit(crane, tmp_path):
     """From x3init at the top of x3's stroke: after virtual time, at t = 0 the page's clock
     reads "t = 0.00 s" and x3's gauge is red and says why; at t = 4 s x3 is back inside its
-    stroke and no gauge is red. Every gauge gives its actuator's value and speed in m."""
+    stroke and no gauge is red. Every gauge gives its actuator's value and speed in mm, as the
+    command line does."""
     segment = WorkCycle.from_toml(crane.task_file, dimension=crane.m)["1-2"]
     q = configuration_at(crane, segment.start, {"x3": crane.actuators["x3"].upper})
     motion = simulate(crane, VELOCITY.resolver, segment, q[None])
@@ -380,9 +398,10 @@ def test_the_page_shows_the_time_and_each_actuator_red_at_its_stroke_limit(crane
             j = crane.actuators.names.index(name)
             assert label.text_content() == name
             ends = crane.actuators[name].lower, crane.actuators[name].upper
-            assert stroke.text_content() == f"stroke {ends[0]:.3f}–{ends[1]:.3f} m"
-            speed = f"{motion.x_dot[0, i, j]:z.3f} m/s"  # a rounded −0 is 0, as on the page
-            assert value.text_content().startswith(f"{motion.x[0, i, j]:z.3f} m, ẋ = {speed}")
+            assert stroke.text_content() == f"stroke [{1e3 * ends[0]:.1f}, {1e3 * ends[1]:.1f}] mm"
+            # the page's values (rounded to 10 µm) in mm; a rounded −0 is 0, as on the page
+            at, rate = (np.round(v[0, i, j], 5) * 1e3 for v in (motion.x, motion.x_dot))
+            assert value.text_content().startswith(f"{at:z.1f} mm, ẋ = {rate:z.1f} mm/s")
             if "at-limit" in value.get("class", ""):
                 assert value.text_content().endswith("at its stroke limit")
                 at_limit.add(name)
@@ -509,9 +528,9 @@ def test_the_live_page_explains_itself_as_the_exported_one_does(crane, motion, t
         j = crane.actuators.names.index(name)
         assert label.text_content() == name
         ends = crane.actuators[name].lower, crane.actuators[name].upper
-        assert stroke.text_content() == f"stroke {ends[0]:.3f}–{ends[1]:.3f} m"
-        speed = f"{motion.x_dot[0, i, j]:z.3f} m/s"
-        assert value.text_content().startswith(f"{motion.x[0, i, j]:z.3f} m, ẋ = {speed}")
+        assert stroke.text_content() == f"stroke [{1e3 * ends[0]:.1f}, {1e3 * ends[1]:.1f}] mm"
+        at, rate = (np.round(v[0, i, j], 5) * 1e3 for v in (motion.x, motion.x_dot))
+        assert value.text_content().startswith(f"{at:z.1f} mm, ẋ = {rate:z.1f} mm/s")
 
 
 @pytest.mark.skipif(not Path("/proc/net/tcp").exists(), reason="reads processes from /proc")

@@ -55,8 +55,10 @@ STARTUP = 30.0  # s: the meshcat server must have said where it listens by then
 FRAME_RATE = 30.0  # frames per second of playback; the motion is sampled at most this often
 FIELD_OF_VIEW = 30.0  # degrees, vertical
 ASPECT = 4 / 3  # width / height the camera distance is fitted for
-MARGIN = 1.3  # the camera's distance, in units of the distance that just fits the scene: room
-# for the page's title above and its controls below
+MARGIN = 1.45  # the camera's distance, in units of the distance that just fits the scene: room
+# for the page's title and gauges above and its controls below
+LIFT = 0.12  # the camera aims this share of the view's half-height above the scene's centre, so
+# that the scene sits lower, clear of the title and gauges, which take more room than controls
 LIMIT_MARGIN = 1e-3  # m: a cylinder this close to a stroke limit counts as at it
 ROOT = "playback"  # every drawn object hangs below this node
 PARTS = ("barrel", "rod")
@@ -75,9 +77,12 @@ COLOURS = {
 BACKGROUND = [0.93, 0.94, 0.96]  # RGB, 0-1: light, yet light links stand out
 
 # Camera direction (from the scene towards the camera) for each planar task, so the task axes
-# appear left to right and bottom to top; other tasks get an oblique view.
+# appear left to right and bottom to top; other tasks get a view raised by ELEVATION that faces
+# the tool's path (`Playback.view`).
 VIEWS = {"xz": (0.0, -1.0, 0.0), "yz": (1.0, 0.0, 0.0), "xy": (0.0, -0.3, 1.0)}
-OBLIQUE = (1.0, -1.0, 0.7)
+ELEVATION = 1.0  # the camera's rise over its horizontal distance for a task in space (45°)
+ASIDE = np.radians(-35.0)  # and its turn about the vertical away from facing the path square on
+UPRIGHT = 0.1  # a path whose horizontal spread is below this share of its height is upright
 
 
 def _meshcat():
@@ -234,6 +239,50 @@ def link_points(robot, undrawn: tuple[str, ...]) -> dict[str, np.ndarray]:
     return {link: np.unique(found, axis=0) for link, found in points.items() if len(found) > 1}
 
 
+def brackets(robot, visuals) -> dict[str, tuple[int, np.ndarray]]:
+    """For each cylinder pin (a base or a rod end, a linkage's pins) on a link drawn by its
+    visual geometry that lies off it, a bracket: the pin and the nearest point of the nearest
+    of the visuals its joint carries (each a box, its local bounding box placed and scaled as
+    drawn), by node name: (the joint, the two points (2, 3) in m in the joint's frame). Without
+    one, a pin the mesh does not reach (the crane's fold cylinder below its boom) floats."""
+    from redundancy.model.parameters import Point
+
+    if visuals is None:
+        return {}
+    model, found = robot.model, {}
+    boxes = []  # (joint, placement, lower, upper) of each visual
+    for item in visuals.geometryObjects:
+        item.geometry.computeLocalAABB()
+        box, scale = item.geometry.aabb_local, np.asarray(item.meshScale)
+        lower, upper = np.asarray(box.min_) * scale, np.asarray(box.max_) * scale
+        boxes.append(
+            (item.parentJoint, item.placement, np.minimum(lower, upper), np.maximum(lower, upper))
+        )
+    for actuator in robot.actuators:
+        for parameter in actuator.parameters:
+            if not isinstance(parameter, Point):
+                continue
+            link, xyz = getattr(actuator, parameter.name)[:2]
+            if not model.existFrame(link):
+                continue
+            frame = model.frames[model.getFrameId(link)]
+            pin = frame.placement.act(np.asarray(xyz, dtype=float))  # in its joint's frame
+            nearest, gap = None, np.inf
+            for joint, placement, lower, upper in boxes:
+                if joint != frame.parentJoint:
+                    continue
+                local = placement.actInv(pin)
+                foot = placement.act(np.clip(local, lower, upper))
+                if np.linalg.norm(pin - foot) < gap:
+                    nearest, gap = foot, float(np.linalg.norm(pin - foot))
+            if nearest is not None and gap > 1e-3:  # m: a pin on its mesh needs none
+                found[f"{actuator.name}_{parameter.name}"] = (
+                    frame.parentJoint,
+                    np.array([pin, nearest]),
+                )
+    return found
+
+
 def hull(points: np.ndarray, thickness: float) -> tuple[np.ndarray, np.ndarray]:
     """The convex hull of ``points`` (P, 3), each grown into a cube of side ``thickness`` (m) so
     that points on a line or in a plane still enclose a body: vertices (V, 3) and triangles
@@ -252,10 +301,11 @@ class Playback:
 
     ``points`` (P, m) are task points to mark, in task coordinates (default: the segment's
     ends). ``samples`` are the indices of the motion's times that playback shows, at most
-    `FRAME_RATE` per second and always the last. ``centre`` (3,) is the world point shown at the
-    middle of the view and ``distance`` (m) the camera's distance from it, fitted so that every
-    link's visual geometry (or every frame), the paths and the points are in view over the whole
-    motion; ``size`` (m) is the scene's largest extent, which sizes the markers and the grid.
+    `FRAME_RATE` per second and always the last. ``centre`` (3,) is the middle of the scene's
+    box, ``aim`` (3,) the world point shown at the middle of the view (above the centre: `LIFT`)
+    and ``distance`` (m) the camera's distance from it, fitted so that every link's visual
+    geometry (or every frame), the paths and the points are in view over the whole motion;
+    ``size`` (m) is the scene's largest extent, which sizes the markers and the grid.
     """
 
     def __init__(self, motion: Trajectory, points: np.ndarray | None = None) -> None:
@@ -301,6 +351,7 @@ class Playback:
         ]
         self.hulls = link_points(robot, undrawn)  # the links without a drawn visual, as hulls
         self.frames = {link: frame_id(robot.model, link) for link in self.hulls}
+        self.brackets = brackets(robot, self.visuals)  # pins off their links' meshes
         self._poses, extent = self._link_poses(self.q[self.samples])  # the links' at the samples
         self._fit_camera(np.concatenate([extent, self.traced, self.points]))
 
@@ -327,6 +378,8 @@ class Playback:
             found.append(np.array([frame.translation for frame in data.oMf]))
             for link, frame in self.frames.items():
                 poses.setdefault(f"links/hulls/{link}", []).append(data.oMf[frame].homogeneous)
+            for name, (joint, _) in self.brackets.items():
+                poses.setdefault(f"links/brackets/{name}", []).append(data.oMi[joint].homogeneous)
             if geometry is not None:
                 pin.updateGeometryPlacements(model, data, self.visuals, geometry)
                 for item, corners, placed in zip(items, boxes, geometry.oMg):
@@ -335,9 +388,36 @@ class Playback:
                     poses.setdefault(f"links/visuals/{item.name}", []).append(scaled)
         return {path: np.array(kept) for path, kept in poses.items()}, np.concatenate(found)
 
-    def _fit_camera(self, points: np.ndarray) -> None:
+    def _view(self) -> np.ndarray:
+        """The direction from the scene towards the camera: facing a planar task's plane
+        (`VIEWS`); for a task in space, raised by `ELEVATION` over the horizontal direction
+        along which the tool's path (desired and traced) spreads least, from the side of the
+        path away from the machine's base (the world's origin), turned `ASIDE` about the
+        vertical: the path is seen nearly broadside (a slew's swing over a quarter turn was seen
+        edge-on) and a boom that points along the view at the swing's middle is seen from the
+        side all the same. A path that spreads little horizontally (`UPRIGHT`: a lift) is seen
+        across the vertical plane through the base and the path, where the boom moves."""
         axes = "".join(sorted(self.robot.task_axes))
-        self.view = np.array(VIEWS.get(axes, OBLIQUE))
+        if axes in VIEWS:
+            return np.array(VIEWS[axes])
+        path = np.concatenate([self.desired, self.traced])
+        centre = path.mean(axis=0)
+        spread, directions = np.linalg.eigh(np.cov((path - centre)[:, :2].T) + 1e-30 * np.eye(2))
+        height = np.ptp(path[:, 2])
+        if np.sqrt(spread[-1]) < UPRIGHT * height or np.sqrt(spread[-1]) < 1e-9:
+            outward = centre[:2] if np.linalg.norm(centre[:2]) > 1e-9 else np.array([1.0, 0.0])
+            horizontal = np.array([outward[1], -outward[0]])  # across that plane
+        else:
+            horizontal = directions[:, 0]  # the path's least horizontal spread
+            if horizontal @ centre[:2] < 0:
+                horizontal = -horizontal
+            turn = np.array([[np.cos(ASIDE), -np.sin(ASIDE)], [np.sin(ASIDE), np.cos(ASIDE)]])
+            horizontal = turn @ horizontal
+        horizontal /= np.linalg.norm(horizontal)
+        return np.array([*horizontal, ELEVATION])
+
+    def _fit_camera(self, points: np.ndarray) -> None:
+        self.view = self._view()
         self.view /= np.linalg.norm(self.view)
         low, high = points.min(axis=0), points.max(axis=0)
         self.centre = (low + high) / 2
@@ -351,6 +431,8 @@ class Playback:
         fit = max(half_height, half_width / ASPECT) / math.tan(math.radians(FIELD_OF_VIEW) / 2)
         self.distance = float(np.max(offsets @ self.view) + MARGIN * fit)
         self.depth = float(np.max(-offsets @ self.view))  # how far the scene reaches behind
+        reach = self.distance * math.tan(math.radians(FIELD_OF_VIEW) / 2)  # at the centre
+        self.aim = self.centre + LIFT * reach * up
 
     def draw(self, vis) -> None:
         """Put the scene into the meshcat visualizer ``vis`` and show the motion's first pose."""
@@ -365,13 +447,19 @@ class Playback:
         camera.set_property("fov", FIELD_OF_VIEW)
         x, y, z = self.distance * self.view
         camera.set_property("position", [x, z, -y])  # the camera's frame has y up
-        # The camera orbits the world origin, so the scene is moved to put its centre there.
+        # The camera orbits the world origin, so the scene is moved to put its aim there.
         root = vis[ROOT]
-        root.set_transform(meshcat.transformations.translation_matrix(-self.centre))
+        root.set_transform(meshcat.transformations.translation_matrix(-self.aim))
 
         # the links: the hulls, ``size`` / 50 thick (m), and the visual geometry as
         # Pinocchio's visualizer loads it; both posed by `placements`
         material = mg.MeshLambertMaterial(color=COLOURS["hull"])
+        for name, (_, points) in self.brackets.items():
+            vertices, faces = hull(points, self.size / 80)
+            geometry = mg.TriangularMeshGeometry(vertices, faces)
+            root[f"links/brackets/{name}"].set_object(
+                geometry, mg.MeshLambertMaterial(color=COLOURS["bar"])
+            )
         for link, points in self.hulls.items():
             vertices, faces = hull(points, self.size / 50)
             mesh = mg.TriangularMeshGeometry(vertices, faces)
@@ -500,7 +588,8 @@ class Playback:
     def overlay(self, title: str) -> dict:
         """What the page shows over the scene, JSON-ready: its ``title``, the grid's spacing (m),
         the shown samples' times (S,) s, each actuator's name, unit, stroke ends (None where
-        unbounded), values and speeds (S, n) and `alarms`."""
+        unbounded), values and speeds (S, n) and `alarms`, and the legend of the scene's
+        colours, (colour, what) pairs."""
         actuators = self.robot.actuators
         finite = [
             float(v) if np.isfinite(v) else None for v in (*actuators.lower, *actuators.upper)
@@ -517,6 +606,15 @@ class Playback:
             "x": np.round(self.motion.x[0, self.samples], 5).tolist(),
             "x_dot": np.round(self.motion.x_dot[0, self.samples], 5).tolist(),
             "alarm": self.alarms().tolist(),
+            "legend": [
+                (f"#{COLOURS[key]:06x}", what)
+                for key, what in (
+                    ("desired", "the task's path"),
+                    ("traced", "the tool's path"),
+                    ("points", "task points"),
+                    ("limit", "an actuator at or past a limit"),
+                )
+            ],
         }
 
     def animation(self, vis):
