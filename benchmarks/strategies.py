@@ -100,7 +100,7 @@ def gap(peak: float, bound: float) -> str:
 def limits(run: StrategyRun) -> str:
     motion = run.trajectory
     if motion.within_limits[0]:
-        return "held"
+        return "kept"
     return f"**no**: {max(motion.violations(0), key=lambda v: v.excess)}"
 
 

@@ -745,7 +745,7 @@ def test_a_segment_shorter_than_a_time_step_gets_every_figure(crane, monkeypatch
     study = run_study(crane, cycle, (VELOCITY,), 3, bound=False, progress=False, cycles=0)
     study = dataclasses.replace(study, runs=(untimed,))
     last = hydraulic_table(study).splitlines()[-1]
-    assert last.endswith("-  t_min: TOPP-RA found no timing; held")
+    assert last.endswith("-  t_min: TOPP-RA found no timing; kept")
 
 
 def _no_timing(motion):

@@ -199,7 +199,7 @@ def _units(report: dict, names: str | list[str] | None = None) -> str:
 
 
 def _limits(violations: list[str]) -> str:
-    return "held" if not violations else "; ".join(violations)
+    return "kept" if not violations else "; ".join(violations)
 
 
 def _headline(study: dict, s: dict, held: str, units: dict[str, str]) -> str:
@@ -223,9 +223,11 @@ def _headline(study: dict, s: dict, held: str, units: dict[str, str]) -> str:
         if name not in held_names
     )
     beside = f" ({_e(others)})" if others else ""
+    kinds = {units.get(name, "") for name in held_names}
+    unit = f" {kinds.pop()}" if len(kinds) == 1 else ""  # one unit for every held value
     return (
         f"<li>{study['objective']}, segment {_e(s['name'])}: improved start {held} = "
-        f"{_number(s['best']['value'])}{beside}, {study['measure']} "
+        f"{_number(s['best']['value'])}{unit}{beside}, {study['measure']} "
         f"{s['best']['peak']:.4g} {study['unit']}{above}</li>"
     )
 
@@ -324,8 +326,14 @@ def _hydraulics(comparison: list[dict], bounds: dict | None) -> str:
                 "highest load pressure (bar)": beyond or _number(h["max_load_pressure_bar"], 3),
                 "LS energy (kJ)": beyond or unserved.get("LS") or _number(h["ls_energy_kj"]),
                 "CP energy (kJ)": beyond or unserved.get("CP") or _number(h["cp_energy_kj"]),
-                "above LS bound (%)": beyond or unserved.get("LS") or _percent(above.get("LS")),
-                "above CP bound (%)": beyond or unserved.get("CP") or _percent(above.get("CP")),
+                **(
+                    {
+                        f"above {s} bound (%)": beyond or unserved.get(s) or _percent(above.get(s))
+                        for s in ("LS", "CP")
+                    }
+                    if bounds
+                    else {}  # no energy bound asked for: no column of dashes
+                ),
                 "shortest duration (s)": h.get("shortest_duration_reason")
                 or _number(h["shortest_duration_s"], 3),
                 "overrunning": _number(h["overrunning"]),

@@ -48,7 +48,7 @@ def study_table(study: Study) -> str:
         row = run.summary()
         # a limit passed is named: the first violation (in time), the count of the others
         passed = row["violations"]
-        held = "held" if row["within_limits"] else f"passed: {passed[0]}" if passed else "failed"
+        held = "kept" if row["within_limits"] else f"passed: {passed[0]}" if passed else "failed"
         more = f" (+{len(passed) - 1} more)" if len(passed) > 1 else ""
         kinetic = "-" if row["peak_kinetic"] is None else f"{row['peak_kinetic']:.3f}"
         values = ",".join(amount(v, unit) for v, unit in zip(run.start, units))
@@ -92,6 +92,7 @@ def hydraulic_table(study: Study) -> str:
     """The hydraulic comparison: peak pump flow, highest load pressure, pump energies, shortest
     duration and, with energy bounds, per cent above them, then the bounds."""
     circuit = study.robot.circuit()
+    bounded = bool(study.energy_bounds)  # without energy bounds, no columns of dashes for them
     rows = []
     for run in study.runs:
         figures, above = run.summary()["hydraulics"], study.above_energy_bound(run)
@@ -121,7 +122,8 @@ def hydraulic_table(study: Study) -> str:
                 "(!)" if unphysical else f"{pressure:.1f}",
                 *energies,
                 *(  # per cent above a bound, of energies not shown: not shown either
-                    f"{above[s]:.1f}" if s in above and s not in unserved else "-" for s in SUPPLIES
+                    f"{above[s]:.1f}" if s in above and s not in unserved else "-"
+                    for s in (SUPPLIES if bounded else ())
                 ),
                 "-" if shortest is None else f"{shortest:.2f}",
                 note
@@ -130,7 +132,7 @@ def hydraulic_table(study: Study) -> str:
                     if shortest is not None
                     else f"t_min: {figures['shortest_duration_reason']}; "
                 )
-                + ("held" if figures["within_limits"] else "; ".join(figures["violations"])),
+                + ("kept" if figures["within_limits"] else "; ".join(figures["violations"])),
             ]
         )
     for segment in study.energy_bounds or {}:
@@ -141,7 +143,8 @@ def hydraulic_table(study: Study) -> str:
             ls, cp = (energy, "") if supply == "LS" else ("", energy)
             note = "" if failure is None else f"no bound: {failure}"
             rows.append([segment, f"energy bound, {supply}", "", "", ls, cp, "", "", "", note])
-    return "\n".join(text_table(RUN_COLUMNS | HYDRAULIC_COLUMNS | {"circuit": "<"}, rows))
+    columns = {k: v for k, v in HYDRAULIC_COLUMNS.items() if bounded or not k.endswith("+%")}
+    return "\n".join(text_table(RUN_COLUMNS | columns | {"circuit": "<"}, rows))
 
 
 def _served(circuit, supply: str) -> float:
