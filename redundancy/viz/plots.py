@@ -28,6 +28,7 @@ from redundancy.study.study import Study
 
 DPI = 110  # dots per inch of the written figures
 PNG_COMPRESSION = 1  # zlib level of the written figures: the fastest
+FLOOR = 1e-9  # m or rad: a drift per cycle below this is rounding; the drift figure draws it here
 TITLE_SPAN = 0.9  # of a figure's width, the most its title takes: clear of the edges by more
 # than the layout's padding, so that laying the figure out again does not move it
 
@@ -146,23 +147,65 @@ def peak_map_figure(
     return figure
 
 
+def limit_dashes(row: int, count: int) -> tuple[int, tuple[int, int]]:
+    """The dash pattern of actuator ``row``'s stroke limits among ``count``: dashes of 3 points
+    with room for the others' between them, shifted by its row, so that limits that coincide
+    (the crane's x1 and x2 share their stroke) show every colour in turn."""
+    return (3 * row, (3, 3 * max(count - 1, 1)))
+
+
+def _by_unit(axes, actuators) -> list:
+    """The axes each actuator is drawn on: ``axes``, and where lengths and angles mix, a twin
+    on the right for the angles, so that a slew's radians do not squash the cylinders' metres."""
+    rotary = [a.rotary for a in actuators]
+    if all(rotary) or not any(rotary):
+        return [axes] * len(rotary)
+    twin = axes.twinx()
+    return [twin if turning else axes for turning in rotary]
+
+
+def _key(axes, drawn: list, label: str, **legend) -> None:
+    """Label the angles' axes among ``drawn`` (a twin of ``axes``, `_by_unit`) ``label`` and
+    give ``axes`` one legend of every line drawn on both."""
+    shown = list(dict.fromkeys(drawn))
+    for twin in shown:
+        if twin is not axes:
+            twin.set_ylabel(label)
+    handles = [h for a in shown for h in a.get_legend_handles_labels()[0]]
+    axes.legend(handles=handles, **legend)
+
+
 def motion_figure(trajectory: Trajectory, title: str):
     """Actuator displacements and velocities along one motion (Figs. 4b, 4c, 5b), with the
-    stroke limits dashed."""
+    stroke limits dashed; where lengths and angles mix, the angles on an axis of their own on
+    the right."""
     plt = pyplot()
     figure, (top, bottom) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
     actuators = trajectory.robot.actuators
     t = trajectory.t[0]
+    tops, bottoms = _by_unit(top, actuators), _by_unit(bottom, actuators)
     for row, actuator in enumerate(actuators):
-        line = top.plot(t, trajectory.x[0, :, row], label=actuator.name)[0]
+        colour = f"C{row}"
+        tops[row].plot(t, trajectory.x[0, :, row], color=colour, label=actuator.name)
         for bound in (actuator.lower, actuator.upper):
-            top.axhline(bound, ls="--", lw=0.8, color=line.get_color(), alpha=0.6)
-        bottom.plot(t, trajectory.x_dot[0, :, row], label=f"ẋ of {actuator.name}")
-    labels = (
-        f"actuator displacement x ({unit(actuators)})",
-        f"actuator velocity ẋ ({unit(actuators, rate='/s')})",
+            dashes = limit_dashes(row, len(actuators))
+            tops[row].axhline(bound, ls=dashes, lw=0.8, color=colour, alpha=0.6)
+        bottoms[row].plot(
+            t, trajectory.x_dot[0, :, row], color=colour, label=f"ẋ of {actuator.name}"
+        )
+    lengths = [a for a in actuators if not a.rotary] or list(actuators)
+    angles = [a for a in actuators if a.rotary] or list(actuators)
+    what = ("actuator displacement x", "actuator velocity ẋ")
+    _labelled(
+        figure,
+        title + "\ndashed: stroke limits",
+        (f"{what[0]} ({unit(lengths)})", f"{what[1]} ({unit(lengths, rate='/s')})"),
+        legend={},
     )
-    return _labelled(figure, title + "\ndashed: stroke limits", labels)
+    right = (f"{what[0]} ({unit(angles)})", f"{what[1]} ({unit(angles, rate='/s')})")
+    for axes, drawn, label in zip((top, bottom), (tops, bottoms), right):
+        _key(axes, drawn, label, loc="best", fontsize=8)
+    return figure
 
 
 def hydraulics_figure(trajectory: Trajectory, title: str):
@@ -186,8 +229,9 @@ def hydraulics_figure(trajectory: Trajectory, title: str):
         middle.plot(t, load, color=colour, label=f"p_L of {name}")
         overrun = flows.overrunning[0, :, column]
         if overrun.any():
-            shaded = {"color": colour, "alpha": 0.2, "lw": 0, "label": f"{name} overrunning"}
-            middle.fill_between(t, 0, load, where=overrun, **shaded)
+            shaded = {"color": colour, "alpha": 0.15, "lw": 0, "label": f"{name} overrunning"}
+            across = middle.get_xaxis_transform()  # the panel's height: a p_L near 0 shows too
+            middle.fill_between(t, 0, 1, where=overrun, transform=across, **shaded)
     middle.plot(
         t, flows.pump_pressure(circuit.load_sensing)[0] / BAR, "k", lw=1, label="LS pump pressure"
     )
@@ -220,7 +264,7 @@ def _labelled(
         axes.grid(alpha=0.3)
         if legend != {}:
             axes.legend(**(legend or {"loc": "best", "fontsize": 8}))
-    figure.axes[-1].set_xlabel(along)
+    figure.axes[len(labels) - 1].set_xlabel(along)  # the lowest labelled, not a twin
     titled(figure.axes[0], title, pad=pad)
     return figure
 
@@ -388,26 +432,27 @@ def cycle_figure(study: CycleStudy, title: str):
     actuators = study.robot.actuators
     offsets = study.cycle.chain().offsets
     styles = {"free": "-", "periodic": "--"}
-    colours: dict[str, str] = {}
+    colours = {a.name: f"C{row}" for row, a in enumerate(actuators)}
+    tops, bottoms = _by_unit(top, actuators), _by_unit(bottom, actuators)
     # the curves carry no labels: one key, by colour and by line style, names them all
     for name, whole in study.firsts.items():
         t, style = whole.t[0], styles.get(name, "-")
         for row, actuator in enumerate(actuators):
             width = 2.0 if actuator.name in study.held else 1.0
-            colour = colours.get(actuator.name)
-            line = top.plot(t, whole.x[0, :, row], style, lw=width, color=colour)[0]
-            colours.setdefault(actuator.name, line.get_color())
-            bottom.plot(t, whole.x_dot[0, :, row], style, lw=1.0, color=line.get_color())
+            colour = colours[actuator.name]
+            tops[row].plot(t, whole.x[0, :, row], style, lw=width, color=colour)
+            bottoms[row].plot(t, whole.x_dot[0, :, row], style, lw=1.0, color=colour)
     for offset, motion in zip(offsets, study.plan.segment_motions):
         if motion is None:
             continue
         for row, actuator in enumerate(actuators):
-            colour = colours.get(actuator.name)
-            top.plot(motion.t[0] + offset, motion.x[0, :, row], ":", lw=1.2, color=colour)
-    for actuator in actuators:
+            colour = colours[actuator.name]
+            tops[row].plot(motion.t[0] + offset, motion.x[0, :, row], ":", lw=1.2, color=colour)
+    for row, actuator in enumerate(actuators):
         for bound in (actuator.lower, actuator.upper):
             if np.isfinite(bound):
-                top.axhline(bound, ls="--", lw=0.6, color=colours.get(actuator.name), alpha=0.5)
+                dashes = limit_dashes(row, len(actuators))
+                tops[row].axhline(bound, ls=dashes, lw=0.6, color=colours[actuator.name], alpha=0.5)
     for axes in (top, bottom):
         for corner in offsets[1:-1]:
             axes.axvline(corner, color="k", lw=0.6, alpha=0.4)
@@ -422,14 +467,25 @@ def cycle_figure(study: CycleStudy, title: str):
         for style, label in (("-", "free"), ("--", "drift-free"), (":", "per-segment plan"))
     ]
     key.append(Line2D([], [], ls="--", lw=0.6, color="0.5", label="stroke limits"))
-    top.legend(handles=key, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
-    labels = (f"stroke x ({unit(actuators)})", f"velocity ẋ ({unit(actuators, rate='/s')})")
-    return _labelled(figure, title, labels, legend={}, pad=16)  # above the segments' names
+    twinned = any(a is not top for a in tops)
+    anchor = (1.12, 1.0) if twinned else (1.01, 1.0)  # beside the angles' axis, where drawn
+    top.legend(handles=key, loc="upper left", bbox_to_anchor=anchor, fontsize=8)
+    lengths = [a for a in actuators if not a.rotary] or list(actuators)
+    angles = [a for a in actuators if a.rotary] or list(actuators)
+    labels = (f"stroke x ({unit(lengths)})", f"velocity ẋ ({unit(lengths, rate='/s')})")
+    _labelled(figure, title, labels, legend={}, pad=16)  # above the segments' names
+    right = (f"stroke x ({unit(angles)})", f"velocity ẋ ({unit(angles, rate='/s')})")
+    for drawn, label in zip((tops, bottoms), right):
+        for twin in dict.fromkeys(drawn):
+            if twin is not top and twin is not bottom:
+                twin.set_ylabel(label)
+    return figure
 
 
 def drift_figure(study: CycleStudy, title: str):
-    """Each actuator's |drift| per cycle against cycle number, per strategy (log scale);
-    below, each held actuator's start of each cycle less its first."""
+    """Each actuator's |drift| per cycle against cycle number, per strategy (log scale, a drift
+    below `FLOOR`, rounding, drawn at it); below, each held actuator's start of each cycle less
+    its first."""
     from redundancy.planning.cycles import SETTLED
 
     plt = pyplot()
@@ -439,15 +495,18 @@ def drift_figure(study: CycleStudy, title: str):
     markers = {"free": "o-", "periodic": "s--"}
     for name, repetition in study.repetitions.items():
         cycles = np.arange(1, repetition.cycles + 1)
-        drift = np.maximum(np.abs(repetition.drift), 1e-17)
+        drift = np.maximum(np.abs(repetition.drift), FLOOR)
         marker = markers.get(name, "o-")
-        for j, moved in enumerate(actuators.names):
-            top.semilogy(cycles, drift[:, j], marker, ms=3, lw=1, label=f"{moved}, {name}")
+        for j, moved in enumerate(actuators.names):  # an actuator's colour in every strategy
+            shown = f"{moved}, {name}"
+            top.semilogy(cycles, drift[:, j], marker, ms=3, lw=1, color=f"C{j}", label=shown)
         for actuator, start in zip(held, repetition.held_values.T):
             shown = f"{actuator.name}, {name}, from {start[0]:.4f} {actuator.unit}"
-            change = start - start[0]
-            bottom.plot(np.arange(repetition.cycles + 1), change, marker, ms=3, label=shown)
+            change, colour = start - start[0], f"C{actuators.names.index(actuator.name)}"
+            cycles = np.arange(repetition.cycles + 1)
+            bottom.plot(cycles, change, marker, ms=3, color=colour, label=shown)
     top.axhline(SETTLED, ls=":", color="k", lw=0.8, label=f"closed: {SETTLED:g}")
+    top.set_ylim(bottom=FLOOR / 2)
     # the change, not the value: its scale is the drift's, however far the stroke's ends are
     bottom.ticklabel_format(axis="y", useOffset=False)
     bottom.xaxis.get_major_locator().set_params(integer=True)

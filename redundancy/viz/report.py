@@ -47,8 +47,9 @@ CAPTIONS = (
     (
         "fig*b_best_*",
         "Actuator strokes x (m; rad for a rotary actuator) and velocities ẋ along the best "
-        "motion (the paper's Figs. 4b and 5b); dashed: each actuator's stroke limits, in its "
-        "colour.",
+        "motion (the paper's Figs. 4b and 5b), angles on an axis of their own on the right "
+        "where lengths and angles mix; dashed: each actuator's stroke limits, in its colour "
+        "(limits that coincide in turns of each colour).",
     ),
     (
         "fig4c_*",
@@ -61,8 +62,9 @@ CAPTIONS = (
         "The circuit along the best motion: pump flow Q_P and each cylinder's flow (L/min) "
         "with the pump's maximum dashed; each cylinder's load pressure p_L and the "
         "load-sensing pump pressure (bar), with the highest load pressure the supply serves "
-        "dashed, and overrunning stretches (the load drives the cylinder) shaded under the "
-        "curve; the pump power (kW) under load sensing (LS) and constant pressure (CP).",
+        "dashed, and overrunning stretches (the load drives the cylinder) shaded across the "
+        "panel in its colour; the pump power (kW) under load sensing (LS) and constant "
+        "pressure (CP).",
     ),
     (
         "workspace*",
@@ -78,13 +80,15 @@ CAPTIONS = (
         "(solid: free, dashed: drift-free), the per-segment plan's best motions dotted (they "
         "jump at the corners by the self-motions the plan leaves out); thick: each held "
         "actuator; thin dashed: stroke limits; grey lines: the corners between the segments "
-        "named above. Below, the velocities.",
+        "named above; angles (a slew) on an axis of their own on the right. Below, the "
+        "velocities.",
     ),
     (
         "cycle_drift*",
         "Above, how far each actuator ends a cycle from where it began (|drift| per cycle, log "
-        "scale), per strategy, the closing threshold dotted; below, how far each held actuator "
-        "at each cycle's start has moved from its first value.",
+        "scale; below 1e-9, rounding, drawn at 1e-9), per strategy, the closing threshold "
+        "dotted; below, how far each held actuator at each cycle's start has moved from its "
+        "first value.",
     ),
     (
         "cycle_return_map*",
