@@ -75,6 +75,7 @@ from redundancy.resolution.objectives import objective as as_objective
 CYCLES = 20  # repetitions by default
 STRATEGIES = ("free", "periodic")  # a repetition's law: the objective's, or drift-free
 SETTLED = 1e-6  # m (or rad): a cycle whose every actuator moves less than this is closed
+ROUNDING = 1e-9  # m or rad: a drift or a corner's Δ below this is the integration's rounding
 MAP_SAMPLES = 25  # starts the return map samples along the reachable held stroke (`grid_over`)
 GAP_SPEED = 0.1  # m/s (or rad/s): the held actuators' speed in a corner's self-motion, where
 # the robot's circuit gives none

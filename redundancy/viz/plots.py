@@ -28,7 +28,6 @@ from redundancy.study.study import Study
 
 DPI = 110  # dots per inch of the written figures
 PNG_COMPRESSION = 1  # zlib level of the written figures: the fastest
-FLOOR = 1e-9  # m or rad: a drift per cycle below this is rounding; the drift figure draws it here
 TITLE_SPAN = 0.9  # of a figure's width, the most its title takes: clear of the edges by more
 # than the layout's padding, so that laying the figure out again does not move it
 
@@ -484,9 +483,9 @@ def cycle_figure(study: CycleStudy, title: str):
 
 def drift_figure(study: CycleStudy, title: str):
     """Each actuator's |drift| per cycle against cycle number, per strategy (log scale, a drift
-    below `FLOOR`, rounding, drawn at it); below, each held actuator's start of each cycle less
-    its first."""
-    from redundancy.planning.cycles import SETTLED
+    below `redundancy.planning.cycles.ROUNDING` drawn at it); below, each held actuator's start
+    of each cycle less its first."""
+    from redundancy.planning.cycles import ROUNDING, SETTLED
 
     plt = pyplot()
     figure, (top, bottom) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
@@ -495,7 +494,7 @@ def drift_figure(study: CycleStudy, title: str):
     markers = {"free": "o-", "periodic": "s--"}
     for name, repetition in study.repetitions.items():
         cycles = np.arange(1, repetition.cycles + 1)
-        drift = np.maximum(np.abs(repetition.drift), FLOOR)
+        drift = np.maximum(np.abs(repetition.drift), ROUNDING)
         marker = markers.get(name, "o-")
         for j, moved in enumerate(actuators.names):  # an actuator's colour in every strategy
             shown = f"{moved}, {name}"
@@ -506,7 +505,7 @@ def drift_figure(study: CycleStudy, title: str):
             cycles = np.arange(repetition.cycles + 1)
             bottom.plot(cycles, change, marker, ms=3, color=colour, label=shown)
     top.axhline(SETTLED, ls=":", color="k", lw=0.8, label=f"closed: {SETTLED:g}")
-    top.set_ylim(bottom=FLOOR / 2)
+    top.set_ylim(bottom=ROUNDING / 2)
     # the change, not the value: its scale is the drift's, however far the stroke's ends are
     bottom.ticklabel_format(axis="y", useOffset=False)
     bottom.xaxis.get_major_locator().set_params(integer=True)

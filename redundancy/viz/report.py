@@ -18,6 +18,7 @@ from pathlib import Path
 from string import Template
 from types import SimpleNamespace
 
+from redundancy.planning.cycles import ROUNDING
 from redundancy.resolution.objectives import OBJECTIVES, VELOCITY
 from redundancy.study.output import write_atomically
 
@@ -86,7 +87,7 @@ CAPTIONS = (
     (
         "cycle_drift*",
         "Above, how far each actuator ends a cycle from where it began (|drift| per cycle, log "
-        "scale; below 1e-9, rounding, drawn at 1e-9), per strategy, the closing threshold "
+        f"scale; below {ROUNDING:g}, rounding, drawn at it), per strategy, the closing threshold "
         "dotted; below, how far each held actuator at each cycle's start has moved from its "
         "first value.",
     ),
@@ -168,6 +169,14 @@ def _number(value, digits: int = 4) -> str:
     if isinstance(value, int | float):
         return f"{value:.{digits}g}"
     return str(value)
+
+
+def _rounded(value) -> str:
+    """A change (a corner's Δ, a drift) to 3 significant digits, one below the integration's
+    rounding (`ROUNDING`) as 0."""
+    if isinstance(value, int | float) and abs(value) < ROUNDING:
+        value = 0.0
+    return _number(value, 3)
 
 
 def _percent(value) -> str:
@@ -423,7 +432,7 @@ def _cycle_body(cycle: dict) -> str:
     corners = [
         {"corner": f"{c['after']} → {c['before']}"}
         | {  # no Δ where a segment beside the corner has no feasible start
-            f"Δ{name} ({_units(cycle, name)})": _number(d, 3)
+            f"Δ{name} ({_units(cycle, name)})": _rounded(d)
             for name, d in (c["delta"] or dict.fromkeys(cycle["units"])).items()
         }
         | {
@@ -455,9 +464,9 @@ def _cycle_body(cycle: dict) -> str:
                 measure: _number(s["objective"]),
                 f"{priced['ls_energy_kj']} (kJ)": _number(s.get("ls_energy_kj")),
                 f"{priced['cp_energy_kj']} (kJ)": _number(s.get("cp_energy_kj")),
-                f"largest drift, first cycle ({_units(cycle)})": _number(drift[0], 3),
-                f"largest drift, last cycle ({_units(cycle)})": _number(drift[-1], 3),
-                "tool drift, last cycle (m)": _number(tool[-1], 3),
+                f"largest drift, first cycle ({_units(cycle)})": _rounded(drift[0]),
+                f"largest drift, last cycle ({_units(cycle)})": _rounded(drift[-1]),
+                "tool drift, last cycle (m)": _rounded(tool[-1]),
                 "first cycle past a stroke": _number(repetition.get("first_cycle_past_a_limit")),
                 "settling": repetition.get("settling", "–"),
             }
