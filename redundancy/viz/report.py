@@ -143,7 +143,7 @@ def write_index(folder: Path | str, report: Path | str | None = None) -> Path:
     elif "studies" in data:
         title, body = _study_page(data)
     else:
-        title, body = f"{data['robot']}: work cycle {data['task']}", _cycle_body(data)
+        title, body = f"{data['robot']}: work cycle “{data['task']}”", _cycle_body(data)
     several = isinstance(_held(data), list)
     body += _figures(files, several) + _playbacks(files) + _data_files(files)
     page = Template((Path(__file__).parent / "report.html").read_text(encoding="utf-8"))
@@ -428,7 +428,9 @@ def _cycle_body(cycle: dict) -> str:
         | {measure: _number(s["best"] and s["best"]["peak"])}
         for s in per["segments"]
     ]
-    text += _table(plan, "The paper's per-segment plan: each segment from its own best start.")
+    text += _table(
+        plan, "The per-segment plan (the paper's method): each segment from its own best start."
+    )
     corners = [
         {"corner": f"{c['after']} → {c['before']}"}
         | {  # no Δ where a segment beside the corner has no feasible start
