@@ -484,7 +484,7 @@ def cycle_figure(study: CycleStudy, title: str):
 def drift_figure(study: CycleStudy, title: str):
     """Each actuator's |drift| per cycle against cycle number, per strategy (log scale, a drift
     below `redundancy.planning.cycles.ROUNDING` drawn at it); below, each held actuator's start
-    of each cycle less its first."""
+    of each cycle less its first, and a stroke end those starts pass, dashed."""
     from redundancy.planning.cycles import ROUNDING, SETTLED
 
     plt = pyplot()
@@ -504,6 +504,11 @@ def drift_figure(study: CycleStudy, title: str):
             change, colour = start - start[0], f"C{actuators.names.index(actuator.name)}"
             cycles = np.arange(repetition.cycles + 1)
             bottom.plot(cycles, change, marker, ms=3, color=colour, label=shown)
+            for end in (actuator.lower, actuator.upper):  # a stroke end the starts pass
+                reach = end - start[0]
+                if np.isfinite(reach) and np.any(np.sign(reach) * (change - reach) > 0):
+                    stroke = f"{actuator.name}'s stroke end ({name})"
+                    bottom.axhline(reach, ls="--", lw=0.8, color=colour, label=stroke)
     top.axhline(SETTLED, ls=":", color="k", lw=0.8, label=f"closed: {SETTLED:g}")
     top.set_ylim(bottom=ROUNDING / 2)
     # the change, not the value: its scale is the drift's, however far the stroke's ends are

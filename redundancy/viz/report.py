@@ -89,7 +89,7 @@ CAPTIONS = (
         "Above, how far each actuator ends a cycle from where it began (|drift| per cycle, log "
         f"scale; below {ROUNDING:g}, rounding, drawn at it), per strategy, the closing threshold "
         "dotted; below, how far each held actuator at each cycle's start has moved from its "
-        "first value.",
+        "first value, and a stroke end it passes, dashed.",
     ),
     (
         "cycle_return_map*",
