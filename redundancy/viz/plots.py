@@ -396,6 +396,7 @@ def workspace_figure(study: Study, title: str):
     if study.reachable is not None:
         axes.scatter(*study.reachable[:, :2].T, s=1, color="0.85", rasterized=True, zorder=0)
         axes.plot([], [], "s", color="0.85", label="reachable, strokes kept (sampled)")
+    named: set[str] = set()  # each cylinder named once, at the first machine drawn
     for i, segment in enumerate(study.cycle.segments):
         colour = f"C{i}"
         path = segment.outline()[:, : len(rows)]
@@ -405,18 +406,20 @@ def workspace_figure(study: Study, title: str):
         if motion is None or motion.space is None:
             continue
         for a, b in study.best_poses[first, segment.name][:, :, rows]:
-            axes.plot(*np.transpose([a, b]), lw=1.5, color="0.25")
+            axes.plot(*np.transpose([a, b]), lw=1.5, color=colour)
         kinematics = motion.space.kinematics
         for actuator in robot.actuators:
             if isinstance(actuator, LinearCylinder | LinkageCylinder):
                 base, rod = (end[0, rows] for end in actuator.ends(kinematics))
                 axes.plot(*np.transpose([base, rod]), lw=5, alpha=0.4, color=colour)
-                axes.annotate(actuator.name, (base + rod) / 2, fontsize=8, color="0.3")
+                if actuator.name not in named:
+                    named.add(actuator.name)
+                    axes.annotate(actuator.name, (base + rod) / 2, fontsize=8, color="0.3")
         axes.plot(*robot.tool(kinematics).position[0, rows], "o", color=colour)
     grey = "0.45"
     axes.plot([], [], lw=5, alpha=0.4, color=grey, label="cylinders at the best start")
     axes.plot([], [], "o", color=grey, label="tool at the best start")
-    axes.plot([], [], lw=1.5, color="0.25", label="links at the best start")
+    axes.plot([], [], lw=1.5, color=grey, label="links at the best start")
     axes.set_aspect("equal", adjustable="datalim")
     across, up = (f"world {a} (m)" for a in robot.task_axes[:2])
     beside = {"loc": "upper left", "bbox_to_anchor": (1.02, 1), "fontsize": 8}  # off the machine
