@@ -202,7 +202,7 @@ def _table(rows: list[dict], caption: str = "") -> str:
         return ""
     frame = pd.DataFrame(rows).fillna("–")
     text = frame.to_html(index=False, escape=True, border=0)
-    return (f"<p>{_e(caption)}</p>\n" if caption else "") + text + "\n"
+    return (f"<p>{_e(caption)}</p>\n" if caption else "") + f'<div class="wide">{text}</div>\n'
 
 
 def _units(report: dict, names: str | list[str] | None = None) -> str:
