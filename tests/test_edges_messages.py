@@ -208,7 +208,10 @@ def test_a_load_pressure_beyond_the_circuits_physics_is_flagged_not_reported(tmp
     assert f"{weighted['ls_energy_kj']:.2f}" not in line
     assert f"{weighted['cp_energy_kj']:.2f}" not in line
     page = _hydraulics(study.report()["comparison"], None)
-    assert page.count("beyond the circuit's physics") == 5  # p_L, the energies, their excess
+    assert page.count("beyond the circuit's physics") == 3  # p_L, the energies
+    assert "above LS bound" not in page  # no energy bound asked for: no column of dashes
+    bounded = _hydraulics(study.report()["comparison"], {"1-2": {}})
+    assert bounded.count("beyond the circuit's physics") == 5  # and the energies' excess
 
 
 def test_an_energy_no_supply_could_deliver_is_flagged_not_reported(tmp_path):
