@@ -594,7 +594,8 @@ def test_a_slew_alone_has_no_shortest_duration(crane, tmp_path):
     """The slewing crane with the planar crane's circuit, its slew driven directly, following a
     quarter circle about its column at one radius and height: the slew alone moves the tool,
     every cylinder stands still, and no limit of the circuit bounds the path's speed. TOPP-RA
-    timed it in 0.2 ms (a tool at 17 km/s); it has no shortest duration, and says why."""
+    timed it in 0.2 ms (a tool at 17 km/s); it has no shortest duration, and says why. A
+    chord, where they stand still for an instant only, has one."""
     folder = crane.urdf.parent.parent / "hiab031_slewing"
     text = (crane.urdf.parent / "robot.toml").read_text()
     (tmp_path / "circuit.toml").write_text(text[text.index("[hydraulics]") :])
@@ -613,6 +614,14 @@ def test_a_slew_alone_has_no_shortest_duration(crane, tmp_path):
     figures = peers.hydraulics(motion)
     assert figures["shortest_duration_s"] is None
     assert "circuit limits only cylinders" in figures["shortest_duration_reason"]
+    # the task's chord from lift to swing at 0.15 m/s: the cylinders turn back together at its
+    # middle and stand still there for one sample, which is no stretch: its speed is bounded
+    chord = WorkCycle.from_toml(slewing.task_file, dimension=slewing.m)["lift-swing"]
+    slow = Segment.along("slow", chord.shape, 0.15)
+    motion = simulate(slewing, VELOCITY.resolver, slow, default_start(slewing, slow)[1][None])
+    steps = np.abs(np.diff(motion.x[0][:, slewing.circuit().columns], axis=0)).max(axis=1)
+    assert steps.min() < 1e-9 and steps.max() > 1e-4  # still for an instant, moving elsewhere
+    assert 1.0 < shortest_duration(motion).duration < slow.duration
 
 
 def test_circuit_limits_count_in_the_searches(crane, cycle, tmp_path):

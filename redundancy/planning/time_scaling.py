@@ -49,6 +49,8 @@ from redundancy.planning.tasks import corners
 SAMPLES = 400  # path points fed to TOPP-RA (at most; fewer if the motion has fewer), corners
 # aside
 STILL = 1e-9  # m: a cylinder whose stroke changes less than this between samples stands still
+ALONE = 0.01  # of a motion's duration: a stretch this long where the cylinders stand still while
+# another actuator moves the tool leaves its speed unbounded
 
 
 @dataclass(frozen=True)
@@ -132,21 +134,31 @@ def shortest_duration(motion: Trajectory, row: int = 0, samples: int = SAMPLES) 
 
 
 def _require_bounded(motion: Trajectory, row: int, last: int, cylinders) -> None:
-    """Refuse a path whose speed no limit bounds: where every cylinder stands still (`STILL`)
-    while an actuator the circuit does not limit moves (a slew following an arc about its
-    column), ṡ is bounded by nothing, and TOPP-RA's "fastest" timing is its grid's artefact."""
+    """Refuse a path whose speed no limit bounds: where every cylinder stands still (`STILL`
+    between samples) while an actuator the circuit does not limit moves (a slew following an
+    arc about its column), over a stretch of at least `ALONE` of the motion's duration, ṡ is
+    bounded by nothing, and TOPP-RA's "fastest" timing is its grid's artefact. An instant where
+    the cylinders turn back together (a slew's chord, whose radial speed passes through zero
+    at its middle) is no such stretch: their accelerations bound the timing there."""
     steps = np.abs(np.diff(motion.x[row, :last], axis=0))
     others = [j for j in range(steps.shape[1]) if j not in set(cylinders)]
     still = steps[:, cylinders].max(axis=1, initial=0.0) <= STILL
     moving = steps[:, others].max(axis=1, initial=0.0) > STILL
-    alone = np.flatnonzero(still & moving)
-    if alone.size:
+    alone = np.concatenate([[False], still & moving, [False]])
+    starts, ends = (
+        np.flatnonzero(np.diff(alone.astype(int)) == 1),
+        np.flatnonzero(np.diff(alone.astype(int)) == -1),
+    )  # runs of steps [start, end) with the others alone moving
+    t = motion.t[row]
+    spans = t[ends] - t[starts]
+    if spans.size and spans.max() >= ALONE * (t[last - 1] - t[0]):
+        first = int(starts[np.argmax(spans)])
         names = motion.robot.actuators.names
-        moved = sorted({names[j] for j in others if (steps[alone, j] > STILL).any()})
-        t = motion.t[row]
+        moved = sorted({names[j] for j in others if steps[first, j] > STILL})
         raise RedundancyError(
-            f"unbounded: {', '.join(moved)} alone moves the tool from t = {t[alone[0]]:.2f} s "
-            "with every cylinder still, and the circuit limits only cylinders and the pump"
+            f"unbounded: {', '.join(moved)} alone moves the tool from t = {t[first]:.2f} s to "
+            f"{t[ends[np.argmax(spans)]]:.2f} s with every cylinder still, and the circuit "
+            "limits only cylinders and the pump"
         )
 
 
