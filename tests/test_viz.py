@@ -2,9 +2,11 @@
 the live server's clean exit."""
 
 import base64
+import itertools
 import json
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -232,6 +234,41 @@ def test_a_pin_off_its_link_s_mesh_is_held_by_a_bracket_that_moves_with_it(crane
         pins = poses[:, :3, :3] @ points[0] + poses[:, :3, 3]
         np.testing.assert_allclose(pins, base, rtol=0, atol=1e-12)
         assert np.linalg.norm(points[1] - points[0]) > 0.1  # m: well off the box
+
+
+def test_a_bracket_reaches_a_scaled_mesh_as_it_reaches_the_box_it_draws(crane, tmp_path):
+    """The crane's boxes drawn as a unit cube's mesh scaled to each box: a mesh's bounding box
+    as loaded holds its scale, and the brackets are the boxes' (scaled twice, every pin lay
+    off its shrunken mesh and had one)."""
+    from redundancy.viz.playback import _visual_model, brackets
+
+    corners = list(itertools.product((-0.5, 0.5), repeat=3))
+    faces = [(0, 1, 3), (0, 3, 2), (4, 6, 7), (4, 7, 5), (0, 4, 5), (0, 5, 1)]
+    faces += [(2, 3, 7), (2, 7, 6), (0, 2, 6), (0, 6, 4), (1, 5, 7), (1, 7, 3)]
+    facets = "".join(
+        "facet normal 0 0 0\nouter loop\n"
+        + "".join(f"vertex {x} {y} {z}\n" for x, y, z in (corners[i] for i in face))
+        + "endloop\nendfacet\n"
+        for face in faces
+    )
+    (tmp_path / "cube.stl").write_text(f"solid cube\n{facets}endsolid cube\n")
+    urdf = re.sub(
+        r'<box size="([^"]+)"/>',
+        r'<mesh filename="cube.stl" scale="\1"/>',
+        crane.urdf.read_text(),
+    )
+    (tmp_path / "crane.urdf").write_text(urdf)
+    shutil.copy(crane.urdf.parent / "robot.toml", tmp_path)
+    toml = (tmp_path / "robot.toml").read_text()
+    toml = toml.replace('urdf = "hiab031.urdf"', 'urdf = "crane.urdf"')
+    (tmp_path / "robot.toml").write_text(toml.replace('task = "task.toml"', ""))
+    meshed = load_robot(tmp_path / "robot.toml")
+    boxes = brackets(crane, _visual_model(crane)[0])
+    meshes = brackets(meshed, _visual_model(meshed)[0])
+    assert sorted(meshes) == sorted(boxes) == ["x1_base", "x2_base"]
+    for name, (joint, points) in boxes.items():
+        assert meshes[name][0] == joint
+        np.testing.assert_allclose(meshes[name][1], points, rtol=0, atol=1e-9)
 
 
 def test_a_recorded_page_holds_the_bytes_meshcats_encoder_gives(motion):

@@ -242,8 +242,8 @@ def link_points(robot, undrawn: tuple[str, ...]) -> dict[str, np.ndarray]:
 def brackets(robot, visuals) -> dict[str, tuple[int, np.ndarray]]:
     """For each cylinder pin (a base or a rod end, a linkage's pins) on a link drawn by its
     visual geometry that lies off it, a bracket: the pin and the nearest point of the nearest
-    of the visuals its joint carries (each a box, its local bounding box placed and scaled as
-    drawn), by node name: (the joint, the two points (2, 3) in m in the joint's frame). Without
+    of the visuals its joint carries (each a box, its local bounding box placed as drawn), by
+    node name: (the joint, the two points (2, 3) in m in the joint's frame). Without
     one, a pin the mesh does not reach (the crane's fold cylinder below its boom) floats."""
     from redundancy.model.parameters import Point
 
@@ -253,11 +253,8 @@ def brackets(robot, visuals) -> dict[str, tuple[int, np.ndarray]]:
     boxes = []  # (joint, placement, lower, upper) of each visual
     for item in visuals.geometryObjects:
         item.geometry.computeLocalAABB()
-        box, scale = item.geometry.aabb_local, np.asarray(item.meshScale)
-        lower, upper = np.asarray(box.min_) * scale, np.asarray(box.max_) * scale
-        boxes.append(
-            (item.parentJoint, item.placement, np.minimum(lower, upper), np.maximum(lower, upper))
-        )
+        box = item.geometry.aabb_local  # a mesh's, as loaded: its scale is in it already
+        boxes.append((item.parentJoint, item.placement, np.asarray(box.min_), np.asarray(box.max_)))
     for actuator in robot.actuators:
         for parameter in actuator.parameters:
             if not isinstance(parameter, Point):
