@@ -289,10 +289,12 @@ class SearchResult:
 
 
 def held_actuators(robot: Robot, path: Segment | Chain) -> tuple[str, ...]:
-    """The actuators a search holds on ``path`` where none are named: a work cycle's task's
-    ``held``, or the last n − m."""
+    """The actuators a search holds on ``path`` where none are named: its task's ``held`` (a
+    work cycle's, or that of the task a segment or chain was read from), or the last n − m."""
     require_redundancy(robot)
-    return getattr(path, "held", ()) or tuple(robot.actuators.names[robot.m :])
+    pieces = path.segments if isinstance(path, Chain) else (path,)
+    told = getattr(path, "held", ()) or next((s.held for s in pieces if s.held), ())
+    return told or tuple(robot.actuators.names[robot.m :])
 
 
 def chosen_held(robot: Robot, path: Segment | Chain, held) -> tuple[str, ...]:

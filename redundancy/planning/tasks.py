@@ -19,7 +19,7 @@ import csv
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 
@@ -313,6 +313,7 @@ class Segment:
     profile: str = "constant"
     acceleration: float | None = None
     source: str = field(default="", compare=False, repr=False)  # its task file's entry, if read
+    held: tuple[str, ...] = field(default=(), compare=False, repr=False)  # its task's, if read
 
     def __post_init__(self) -> None:
         name = self.name
@@ -713,6 +714,7 @@ class WorkCycle(Chain):
             )
         name = path.stem if task.name is None else task.name
         held = tuple(task.held or ())
+        segments = [replace(segment, held=held) for segment in segments]  # each knows its task's
         cycle = cls(name, tuple(segments), held, task.tool_angle, str(path), tuple(found.items()))
         lowest, highest = cycle.angle_range
         if highest - lowest >= 2 * np.pi:
