@@ -76,25 +76,3 @@ def test_the_searches_hold_the_excavators_bucket_unless_told_otherwise(excavator
     assert actuator_space(excavator, q).x[0, 2] == pytest.approx(values[0], abs=1e-9)
     assert values == pytest.approx(default_start(excavator, segment, "bucket")[0], abs=0)
     assert global_optimum(excavator, segment, VELOCITY, grids=(8,)).held == "bucket"
-
-
-def test_a_segment_read_from_a_task_holds_that_task_s_actuators():
-    """The Panda's task holds joints 3, 5, 6 and 7; its last four joints, the default without
-    a task, leave its shoulder a sphere to move the tool on. A segment or the chain of the
-    task's cycle holds the task's by default (a segment held the last four), a segment of
-    one's own the last n − m."""
-    import warnings
-
-    from redundancy.planning.starts import held_actuators
-    from redundancy.planning.tasks import Segment
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # its joints driven directly: said where it loads
-        panda = load_robot("panda")
-    cycle = WorkCycle.from_toml(panda.task_file, dimension=panda.m)
-    told = ("panda_joint3", "panda_joint5", "panda_joint6", "panda_joint7")
-    assert cycle.held == told
-    for path in (cycle, cycle["pick-lift"], cycle.chain()):
-        assert held_actuators(panda, path) == told
-    own = Segment("own", cycle["pick-lift"].start, cycle["pick-lift"].end, 0.25)
-    assert held_actuators(panda, own) == tuple(panda.actuators.names[3:])

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from redundancy import InvalidInputError
+from redundancy import InvalidInputError, load_robot
 from redundancy.model.loading import bundled_root
 from redundancy.planning.tasks import Polyline, Segment, WorkCycle
 
@@ -79,3 +79,24 @@ def test_a_polyline_takes_nested_lists_and_refuses_what_is_not_a_table_of_points
     for points in ([[0, "a"], [1, 1]], [[0, np.nan], [1, 1]], [[0, 0], [1]], [1, 2]):
         with pytest.raises(InvalidInputError, match=r"polyline's points must be \(K, m\) finite"):
             Polyline(points)
+
+
+def test_a_segment_read_from_a_task_holds_that_task_s_actuators():
+    """The Panda's task holds joints 3, 5, 6 and 7; its last four joints, the default without
+    a task, leave its shoulder a sphere to move the tool on. A segment or the chain of the
+    task's cycle holds the task's by default (a segment held the last four), a segment of
+    one's own the last n − m."""
+    import warnings
+
+    from redundancy.planning.starts import held_actuators
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # its joints driven directly: said where it loads
+        panda = load_robot("panda")
+    cycle = WorkCycle.from_toml(panda.task_file, dimension=panda.m)
+    told = ("panda_joint3", "panda_joint5", "panda_joint6", "panda_joint7")
+    assert cycle.held == told
+    for path in (cycle, cycle["pick-lift"], cycle.chain()):
+        assert held_actuators(panda, path) == told
+    own = Segment("own", cycle["pick-lift"].start, cycle["pick-lift"].end, 0.25)
+    assert held_actuators(panda, own) == tuple(panda.actuators.names[3:])
