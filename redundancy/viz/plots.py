@@ -163,6 +163,16 @@ def _by_unit(axes, actuators) -> list:
     return [twin if turning else axes for turning in rotary]
 
 
+def _still(axes) -> None:
+    """Scale ``axes`` ±0.1 about its lines' value where they vary by rounding alone (a slew that
+    stays put: its velocity of 1e-63 rad/s is no scale to read)."""
+    values = np.concatenate([line.get_ydata() for line in axes.get_lines()] or [np.zeros(1)])
+    values = values[np.isfinite(values)]
+    if values.size and np.ptp(values) < 1e-9:
+        middle = round(float(values.mean()), 9)
+        axes.set_ylim(middle - 0.1, middle + 0.1)
+
+
 def _key(axes, drawn: list, label: str, **legend) -> None:
     """Label the angles' axes among ``drawn`` (a twin of ``axes``, `_by_unit`) ``label`` and
     give ``axes`` one legend of every line drawn on both."""
@@ -204,6 +214,9 @@ def motion_figure(trajectory: Trajectory, title: str):
     right = (f"{what[0]} ({unit(angles)})", f"{what[1]} ({unit(angles, rate='/s')})")
     for axes, drawn, label in zip((top, bottom), (tops, bottoms), right):
         _key(axes, drawn, label, loc="best", fontsize=8)
+        for shown in dict.fromkeys(drawn):
+            _still(shown)
+    figure.tight_layout()  # room for the angles' labels on the right
     return figure
 
 
@@ -481,6 +494,7 @@ def cycle_figure(study: CycleStudy, title: str):
         for twin in dict.fromkeys(drawn):
             if twin is not top and twin is not bottom:
                 twin.set_ylabel(label)
+    figure.tight_layout()  # room for the angles' labels on the right
     return figure
 
 
