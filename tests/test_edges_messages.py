@@ -370,6 +370,9 @@ def test_a_length_of_ten_metres_or_more_is_written_out_in_mm(tmp_path, capsys):
         "  3 at [2250 mm, 3000 mm]: reached",
     ], out
     assert "masses: on every moving link, 316.0 kg in all, of which payload 100.0 kg" in out
+    # the Panda's base, panda_link0 (0.63 kg), is fixed to the ground: not on a moving link
+    _, out, _ = run(["check", "--robot", "panda"], capsys)
+    assert "masses: on every moving link, 16.8 kg in all, of which payload 0.0 kg" in out, out
     assert amount(96.1263, "m") == "96126 mm" and amount(9.99996, "m") == "10000 mm"
     assert amount(1100.0, "m") == "1100000 mm" and amount(1e300, "m") == "1e+303 mm"
 

@@ -346,7 +346,7 @@ def check_table(found: Check) -> str:
             "velocity objective, play and check work; the energy objective refuses)"
         )
     else:
-        total = sum(inertia.mass for inertia in robot.model.inertias)
+        total = sum(inertia.mass for inertia in robot.model.inertias[1:])  # not the ground's
         lines.append(
             f"masses: on every moving link, {total:.1f} kg in all, of which payload "
             f"{robot.payload:.1f} kg"
