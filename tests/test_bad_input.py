@@ -741,6 +741,11 @@ CASES = [
             ("no segments", "name = 'x'\n", "give the segments by one table"),
             ("objectives string", 'objectives = "velocity"\n[task]\n', "must be a list of"),
             ("held unknown", 'held = ["x9"]\n[task]\n', "unknown actuators ['x9']"),
+            (  # refused before any worker starts, naming the map file that holds it
+                "held slew",
+                'robot = "hiab031_slewing"\nheld = ["slew"]\n[task]\n',
+                "m.toml: held: holding slew leaves x1, x2, x3 at most 2 of the task's 3 directions",
+            ),
             (
                 "workspace axis",
                 "[workspace]\nlength = 1\ndirection = [1, 0]\n[workspace.grid]\nx = 2\ny = 2\n",

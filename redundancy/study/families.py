@@ -76,10 +76,10 @@ from redundancy.model.schema import (
     validate,
 )
 from redundancy.model.values import MAX_PAYLOAD, MAX_SPEED, is_real, is_whole
-from redundancy.planning.ik import held_indices
 from redundancy.planning.starts import held_actuators
 from redundancy.planning.tasks import Segment, WorkCycle
 from redundancy.resolution.objectives import OBJECTIVES
+from redundancy.study.check import held_problems
 
 PARAMETERS = ("payload", "speed", "attachment", "bore")  # the design grid's keys, in order
 MAX_PROBLEMS = 2_000_000  # problems of one family: its table, held in memory at about 200 bytes
@@ -479,14 +479,16 @@ def read_family(path: Path | str) -> MapFamily:
             Segment(f"start {i}", np.array(start), np.array(start) + step, speed)
             for i, start in enumerate(itertools.product(*axes))
         )
-        cycle = WorkCycle("workspace", segments[:1], held)
+        cycle = WorkCycle("workspace", segments[:1], held, source=where)
     else:
         segments, cycle = _task_segments(robot, family.task, folder, where)  # type: ignore[arg-type]
         _check_size(len(segments), grid, where)
-        cycle = WorkCycle(cycle.name, cycle.segments, held or cycle.held, source=cycle.source)
+        source = where if family.held else cycle.source  # the file that names them
+        cycle = WorkCycle(cycle.name, cycle.segments, held or cycle.held, source=source)
     held = held_actuators(robot, cycle)
-    with prefixed(f"{where}: held" if family.held else cycle.source and f"{cycle.source}: held"):
-        held_indices(robot, held)  # names checked before any work
+    problems = held_problems(robot, cycle)  # names, count, strokes, directions: before any work
+    if problems:
+        raise InvalidInputError(problems[0])
     return MapFamily(
         path.stem if family.name is None else family.name,
         robot_name,
