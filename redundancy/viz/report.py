@@ -299,6 +299,8 @@ def _study_page(report: dict) -> tuple[str, str]:
         body += _table(rows)
     actuators = [SimpleNamespace(name=n, rotary=u == "rad") for n, u in report["units"].items()]
     squared = VELOCITY.unit_of(actuators)
+    # what the column checks: the strokes, and the circuit's limits where they count
+    limits = "strokes, circuit" if report.get("circuit_limits_checked") else "strokes"
     rows = [
         {
             "segment": r["segment"],
@@ -307,7 +309,7 @@ def _study_page(report: dict) -> tuple[str, str]:
             f"peak ẋᵀẋ ({squared})": _number(r["peak_velocity_norm"]),
             "peak ẋᵀ M_H ẋ (J)": _number(r["peak_kinetic"]),
             "largest tracking error (m)": _number(r.get("max_tracking_error"), 2),
-            "limits": _limits(r["violations"]),
+            limits: _limits(r["violations"]),
         }
         for r in report["comparison"]
     ]

@@ -57,7 +57,8 @@ def study_table(study: Study) -> str:
     squared = VELOCITY.unit_of(actuators)
     start = "start " + ",".join(study.held)
     columns = dict.fromkeys([start, f"peak ẋᵀẋ {squared}", "peak ẋᵀM_Hẋ J"], ">")
-    lines = text_table(RUN_COLUMNS | columns | {"limits": "<"}, rows)
+    limits = "strokes, circuit" if study.circuit else "strokes"  # what the column checks
+    lines = text_table(RUN_COLUMNS | columns | {limits: "<"}, rows)
     bounds = []
     for name, searches in study.searches.items():
         unit = searches[0].objective.value_unit(actuators)
