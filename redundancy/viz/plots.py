@@ -400,6 +400,8 @@ def workspace_figure(study: Study, title: str):
     """The task in its plane (the first two task axes, m), the machine at each segment's
     improved start for the first objective (its best motion's first state, `Study.best_poses`)
     and the reachable area the study sampled (`Study.reachable`), as its caption says."""
+    from matplotlib.colors import to_rgb
+
     plt = pyplot()
     robot = study.robot
     rows = [AXES.index(a) for a in robot.task_axes][:2]
@@ -418,8 +420,9 @@ def workspace_figure(study: Study, title: str):
         motion = motions.get((first, segment.name))
         if motion is None or motion.space is None:
             continue
+        dark = tuple(0.55 * c for c in to_rgb(colour))  # its links: apart from its path
         for a, b in study.best_poses[first, segment.name][:, :, rows]:
-            axes.plot(*np.transpose([a, b]), lw=1.5, color=colour)
+            axes.plot(*np.transpose([a, b]), lw=1.5, color=dark)
         kinematics = motion.space.kinematics
         for actuator in robot.actuators:
             if isinstance(actuator, LinearCylinder | LinkageCylinder):
@@ -432,7 +435,7 @@ def workspace_figure(study: Study, title: str):
     grey = "0.45"
     axes.plot([], [], lw=5, alpha=0.4, color=grey, label="cylinders at the best start")
     axes.plot([], [], "o", color=grey, label="tool at the best start")
-    axes.plot([], [], lw=1.5, color=grey, label="links at the best start")
+    axes.plot([], [], lw=1.5, color="0.25", label="links at the best start (dark)")
     axes.set_aspect("equal", adjustable="datalim")
     across, up = (f"world {a} (m)" for a in robot.task_axes[:2])
     beside = {"loc": "upper left", "bbox_to_anchor": (1.02, 1), "fontsize": 8}  # off the machine

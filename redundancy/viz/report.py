@@ -72,7 +72,7 @@ CAPTIONS = (
         "The task in its plane (m): each segment's path in its colour, and at each segment's "
         "improved start for the first objective the machine's cylinders from base to rod pin "
         "(thick, pale, in the segment's colour, each named once), its links as rods between "
-        "the joints' origins (thin, in the segment's colour), and the tool (●) where the "
+        "the joints' origins (thin, in a dark shade of that colour), and the tool (●) where the "
         "segment begins; grey: the reachable area, tool "
         "points of 20,000 random configurations that keep every checked stroke.",
     ),
