@@ -11,7 +11,7 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 
 from redundancy.model.hydraulics import BAR, BEYOND_RELIEF, KILOJOULE, SUPPLIES
-from redundancy.planning.cycles import SETTLED, ReturnMap
+from redundancy.planning.cycles import ROUNDING, SETTLED, ReturnMap
 from redundancy.planning.ik import named_values
 from redundancy.resolution.limits import amount
 from redundancy.resolution.objectives import VELOCITY
@@ -272,7 +272,7 @@ def _repetition_table(study: CycleStudy) -> str:
 
     def largest(drift: np.ndarray) -> str:  # of one cycle's, named: they differ in unit
         i = int(drift.argmax())
-        if not drift[i]:  # none moved: no one's to name
+        if drift[i] < ROUNDING:  # none moved, to the integration's rounding: none to name
             return "0"
         return f"{amount(drift[i], actuators.maps[i].unit)} {actuators.maps[i].name}"
 
