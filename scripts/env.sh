@@ -42,7 +42,10 @@ if [ ! -f "$stamp" ] ||
   if ! { install_requirements && install_requirements backend &&
     "$VENV/bin/python" -m pip install --no-build-isolation -e '.[dev,bench]'; } \
     >"$VENV/install.log" 2>&1; then
-    missing=$(grep -o -m 1 'redundancy: .*' "$VENV/install.log" || true)
+    # the first message of ours, its lines joined (CMake wraps a long one)
+    missing=$(awk '/redundancy: /{found = 1; sub(/^.*redundancy: /, "redundancy: ")}
+      found && /^[[:space:]]*$/ {exit}
+      found {sub(/^[[:space:]]+/, ""); printf "%s%s", sep, $0; sep = " "}' "$VENV/install.log")
     echo "${missing:-installing the package failed}; the whole log: $VENV/install.log" >&2
     exit 1
   fi
