@@ -464,6 +464,7 @@ def _map_command(args: argparse.Namespace) -> None:
         table.to_parquet(out / "map.parquet")
         outline = {
             "name": family.name,
+            "objectives": list(family.objectives),
             "summary": line,
             "problems": len(family),
             "rows": len(table),
@@ -472,6 +473,7 @@ def _map_command(args: argparse.Namespace) -> None:
         figures = [out.final(p) for p in write_map_figures(table, family, out.staging)]
         write_index(out.staging)
     shutil.rmtree(store, ignore_errors=True)
+    print(f"start here: {out.target / 'index.html'}")
     print(f"map: {out.target / 'map.parquet'} ({len(table)} rows)")
     print(f"figures: {', '.join(str(p) for p in figures)}")
 

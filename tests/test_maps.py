@@ -415,6 +415,7 @@ def test_a_robot_s_note_is_said_once_not_again_by_each_worker(tmp_path):
     )
     result = run_cli("map", str(family), "--workers", "2", "--out", str(tmp_path / "out"))
     assert result.returncode == 0, result.stderr
+    assert f"start here: {tmp_path / 'out' / 'index.html'}" in result.stdout  # as study's
     notes = result.stderr.strip().splitlines()
     assert len(notes) == 1 and notes[0].startswith("redundancy: note: joints without"), notes
 

@@ -208,6 +208,12 @@ def test_a_map_folder_gets_its_own_index(tmp_path):
     assert {"map.parquet", "summary.json", "map_velocity.png"} <= set(referenced(page))
     caption = page.xpath("//figcaption")[0].text_content()
     assert "gain over the default start (%)" in caption
+    # the heatmaps in the family's order of objectives, not by name (energy came first)
+    summary["objectives"] = ["velocity", "energy"]
+    (tmp_path / "summary.json").write_text(json.dumps(summary | {"rows": 8}))
+    (tmp_path / "map_energy.png").write_bytes(b"")
+    page = html.fromstring(write_index(tmp_path).read_text())
+    assert [img.get("src") for img in page.xpath("//img")] == ["map_velocity.png", "map_energy.png"]
 
 
 def test_each_written_figure_name_has_a_caption():

@@ -141,6 +141,9 @@ def write_index(folder: Path | str, report: Path | str | None = None) -> Path:
     files = sorted(p.name for p in folder.iterdir())
     if "summary" in data:
         title, body = _map_page(data, data["name"])
+        # the heatmaps in the family's order of objectives, the rest by name
+        order = [f"map_{o}.png" for o in data.get("objectives", [])]
+        files.sort(key=lambda f: (order.index(f) if f in order else len(order), f))
     elif "studies" in data:
         title, body = _study_page(data)
     else:
@@ -555,10 +558,11 @@ FIGURE_ORDER = (  # a figure's place on the page by how its name starts (docs/re
 
 
 def _figures(files: Iterable[str], several_held: bool = False) -> str:
-    """Every figure among ``files``, captioned (`_caption`), in `FIGURE_ORDER`, then by name."""
+    """Every figure among ``files``, captioned (`_caption`), in `FIGURE_ORDER`, then in the
+    order given (by name, or a map's objectives')."""
 
-    def place(name: str) -> tuple[int, str]:
-        return next(i for i, start in enumerate(FIGURE_ORDER) if name.startswith(start)), name
+    def place(name: str) -> int:  # a stable sort: files of one place keep their order
+        return next(i for i, start in enumerate(FIGURE_ORDER) if name.startswith(start))
 
     shown = [
         f'<figure><img src="{_e(f)}" alt="{_e(f)}"><figcaption><b>{_e(f)}</b>. '
