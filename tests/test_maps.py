@@ -325,6 +325,12 @@ def test_the_map_summary_gives_units_and_says_where_designs_tie():
     line = summary(table, family)
     assert "best design payload = 250 kg, attachment = 0.35 m:" in line and "tie" not in line
     assert "mean best velocity peak 0.013 m²/s²" in line
+    # a segment out of every design's reach (a workspace grid's far start) judges no design:
+    # it said "no design keeps every stroke on every segment"
+    far = table.assign(segment="far", feasible=False, peak=np.nan)
+    line = summary(pd.concat([table, far], ignore_index=True), family)
+    assert "best design payload = 250 kg, attachment = 0.35 m:" in line
+    assert "over 1 segment (of 2: no design keeps the others)" in line
     # a pump energy is an integral: its least value, not a peak
     family.objectives = ("ls_energy",)
     table["objective"], table["unit"] = "ls_energy", "kJ"
@@ -379,6 +385,17 @@ def test_a_bad_family_gets_one_line(tmp_path, text, expected):
         read_family(write(tmp_path, "bad.toml", text))
     assert expected in str(raised.value)
     assert "\n" not in str(raised.value)
+
+
+def test_the_documented_family_reads_as_the_page_says(tmp_path):
+    """docs/maps.md's family, saved as workspace.toml, runs as it stands: it named a
+    hydraulics file that no one has. 48 starts of the crane's workspace times two payloads and
+    two lift-cylinder bases are 192 problems."""
+    text = (Path(__file__).parents[1] / "docs" / "maps.md").read_text()
+    start = text.index('```toml\nname = "workspace gain"') + len("```toml\n")
+    family = read_family(write(tmp_path, "workspace.toml", text[start : text.index("```", start)]))
+    assert family.name == "workspace gain" and len(family) == 192
+    assert [key for key, _ in family.grid] == ["payload", "attachment"]
 
 
 def test_a_family_is_counted_before_any_segment_is_built(tmp_path, monkeypatch):

@@ -563,8 +563,10 @@ def design_words(parameters: list[str], design) -> str:
 
 def summary(table, family: MapFamily) -> str:
     """One line: for a design grid, the design whose problems are all feasible with the least
-    mean best peak (or integral) of the first objective over the segments, or every design
-    that ties with it exactly (the velocity peak does not depend on the payload); otherwise,
+    mean best peak (or integral) of the first objective over the segments (those some design
+    keeps feasible: a workspace grid's start out of every design's reach says nothing of the
+    designs), or every design that ties with it exactly (the velocity peak does not depend on
+    the payload); otherwise,
     where the improved start gains most over the default start, among the problems where both
     keep the strokes (as the heatmap shows the gain)."""
     first = table[table["objective"] == family.objectives[0]]
@@ -574,17 +576,24 @@ def summary(table, family: MapFamily) -> str:
     counts = f"{int(first['feasible'].sum())} of {len(first)} problems feasible"
     designs = [key for key, values in family.grid if len(values) > 1]
     if designs:
-        grouped = first.groupby(designs, sort=True)
+        # the segments some design keeps feasible: a workspace grid's start out of every
+        # design's reach says nothing of the designs
+        considered = first[first.groupby("segment")["feasible"].transform("any")]
+        if considered.empty:
+            return f"{family.name}: no design keeps every stroke on any segment ({counts})"
+        grouped = considered.groupby(designs, sort=True)
         everywhere = grouped["feasible"].all()
         mean_peak = grouped["peak"].mean()[everywhere]
+        segments, total = considered["segment"].nunique(), first["segment"].nunique()
+        some = "" if segments == total else f" of the {segments} some design keeps"
         if mean_peak.empty:
-            return f"{family.name}: no design keeps every stroke on every segment ({counts})"
+            return f"{family.name}: no design keeps every stroke on every segment{some} ({counts})"
         least = mean_peak.min()
         tied = [design_words(designs, d) for d in mean_peak.index[mean_peak == least]]
-        segments = first["segment"].nunique()
         peak = (
             f"mean best {measure} {least:.4g} {unit} over {segments} "
             f"segment{'s' if segments > 1 else ''}"
+            + ("" if segments == total else f" (of {total}: no design keeps the others)")
         )
         if len(tied) > 1:
             return (
