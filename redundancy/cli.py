@@ -712,9 +712,12 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     for stream in (sys.stdout, sys.stderr):  # a terminal that cannot show m², ±, ẋ: a '?'
         stream.reconfigure(errors="replace")  # type: ignore[union-attr]
-    args, unknown = parser().parse_known_args(argv)
-    if unknown:  # said by the command they were given to, with its own help
-        args.parser.error(f"unrecognized arguments: {' '.join(unknown)}")
+    line = parser()
+    args, unknown = line.parse_known_args(argv)
+    if unknown:  # said by the command they were given to (or before it: the command line's)
+        given = sys.argv[1:] if argv is None else argv
+        before = given.index(unknown[0]) < given.index(args.parser.prog.split()[-1])
+        (line if before else args.parser).error(f"unrecognized arguments: {' '.join(unknown)}")
     args.progress = not getattr(args, "quiet", True) and sys.stderr.isatty()
     warnings.showwarning = _note
     _said.clear()  # each command says its notes once (main may run again in one process)

@@ -92,6 +92,12 @@ CASES = [
         {},
         "redundancy study: error: unrecognized arguments: --bogus; see redundancy study --help",
     ),
+    (  # before the command: the command line's own
+        "unknown option before the command",
+        ["--bogus", "robots"],
+        {},
+        "redundancy: error: unrecognized arguments: --bogus; see redundancy --help",
+    ),
     ("payload with a digit separator", ["describe", "--payload", "1_000"], {}, "'1_000' must be"),
     ("unknown command", ["frobnicate"], {}, "invalid choice: 'frobnicate'"),
     ("unknown robot", ["describe", "--robot", "nope"], {}, "unknown robot 'nope'"),
@@ -439,8 +445,8 @@ CASES = [
             "b = [2.0, 0.0, 1.8]\n"
         },
         "t.toml: held: holding slew leaves x1, x2, x3 at most 2 of the task's 3 directions to "
-        "move the tool in, anywhere in the joint ranges: the task cannot be followed; hold other "
-        "actuators",
+        "move the tool in, anywhere in the joint ranges: they reach a task point at isolated held "
+        'values at most, which no search can sample; hold other actuators, e.g. held = ["x3"]',
     ),
     (
         "task axis never moved along",

@@ -219,8 +219,9 @@ def held_problems(robot: Robot, cycle: WorkCycle, sampled: bool = True) -> list[
         others = [name for name in names if name not in held]
         line = (
             f"holding {', '.join(held)} leaves {', '.join(others)} at most {most} of the task's "
-            f"{robot.m} directions to move the tool in, anywhere in the joint ranges: the task "
-            "cannot be followed; hold other actuators"
+            f"{robot.m} directions to move the tool in, anywhere in the joint ranges: they reach "
+            "a task point at isolated held values at most, which no search can sample; hold "
+            "other actuators"
         )
         working = (  # the latest actuators that work, as the default takes the last ones
             list(chosen)

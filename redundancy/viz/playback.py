@@ -400,7 +400,7 @@ class Playback:
         path = np.concatenate([self.desired, self.traced])
         centre = path.mean(axis=0)
         spread, directions = np.linalg.eigh(np.cov((path - centre)[:, :2].T) + 1e-30 * np.eye(2))
-        height = np.ptp(path[:, 2])
+        height = np.std(path[:, 2])  # the vertical spread, as the horizontal one is measured
         if np.sqrt(spread[-1]) < UPRIGHT * height or np.sqrt(spread[-1]) < 1e-9:
             outward = centre[:2] if np.linalg.norm(centre[:2]) > 1e-9 else np.array([1.0, 0.0])
             horizontal = np.array([outward[1], -outward[0]])  # across that plane
