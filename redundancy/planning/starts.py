@@ -832,11 +832,10 @@ def _halton(box: np.ndarray, count: int, seed: int) -> np.ndarray:
 
 def default_start(robot: Robot, segment: Segment | Chain, held: str | Sequence[str] | None = None):
     """The documented default start: the held actuators (by default `held_actuators`) at
-    mid-stroke or, where the segment's
-    start is out of reach there, the reachable candidate nearest mid-stroke (candidates: 101
-    values per held actuator for one, 256 Halton points for several; where none reaches it,
-    the held values of configurations that reach it with every actuator free,
-    `free_held_values`).
+    mid-stroke or, where the segment's start is out of reach there, the reachable candidate
+    nearest mid-stroke (candidates: 101 values per held actuator for one, 256 Halton points for
+    several; where none reaches it, the held values of configurations that reach it with every
+    actuator free, `free_held_values`).
 
     Returns (values (r,), q (n,)).
     """

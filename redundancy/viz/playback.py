@@ -82,7 +82,7 @@ BACKGROUND = [0.93, 0.94, 0.96]  # RGB, 0-1: light, yet light links stand out
 VIEWS = {"xz": (0.0, -1.0, 0.0), "yz": (1.0, 0.0, 0.0), "xy": (0.0, -0.3, 1.0)}
 ELEVATION = 1.0  # the camera's rise over its horizontal distance for a task in space (45°)
 ASIDE = np.radians(-35.0)  # and its turn about the vertical away from facing the path square on
-UPRIGHT = 0.1  # a path whose horizontal spread is below this share of its height is upright
+UPRIGHT = 0.1  # a path whose horizontal spread is below this share of its vertical one is upright
 
 
 def _meshcat():
