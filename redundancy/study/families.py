@@ -48,6 +48,7 @@ import dataclasses
 import hashlib
 import itertools
 import math
+import warnings
 from dataclasses import dataclass
 from functools import cached_property, lru_cache
 from pathlib import Path
@@ -325,8 +326,12 @@ def _variant(
     bore: float | None,
 ) -> Robot:
     """``robot`` with a payload, one attachment coordinate moved to ``offset`` (m, in its link's
-    frame) and one cylinder's bore set to ``bore`` (m)."""
-    loaded = load_robot(robot, payload=payload, hydraulics=hydraulics)
+    frame) and one cylinder's bore set to ``bore`` (m). Its loading notes (a joint driven
+    directly, an actuator dropped) are not said again: `read_family` said them, where it loaded
+    the robot, and a map's workers, each loading its variants, printed them raw."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        loaded = load_robot(robot, payload=payload, hydraulics=hydraulics)
     if attachment is None and bore_of is None:
         return loaded
     maps = list(loaded.actuators.maps)

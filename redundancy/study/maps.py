@@ -80,13 +80,9 @@ def solve_chunk(family: MapFamily, chunk: int):
     """The rows of chunk number ``chunk`` of ``family`` (problem-major, objectives in order),
     as a DataFrame with the map's columns: built where the chunk is solved, on its worker."""
     rows = []
-    with warnings.catch_warnings():
-        # the robot's notes (a joint driven directly, an actuator dropped) were said once, where
-        # the command read the family: each worker loading its variants said them again, raw
-        warnings.simplefilter("ignore", UserWarning)
-        for index, segment, design in family.problems(chunk):
-            rows.extend(solve_problem(family, index, segment, design))
-        return _frame(rows, columns(family, family.robot_for(Design()).task_axes))
+    for index, segment, design in family.problems(chunk):
+        rows.extend(solve_problem(family, index, segment, design))
+    return _frame(rows, columns(family, family.robot_for(Design()).task_axes))
 
 
 def solve_problem(family: MapFamily, index: int, segment, design: Design) -> list[dict]:
