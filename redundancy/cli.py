@@ -119,14 +119,14 @@ def describe(robot: Robot) -> str:
         f"y = {task_point(robot, space.y[0])}"
     )
     if not robot.kinematic_only:
-        turning = robot.actuators.rotary
-        rotary = ", ".join(a.name for a in robot.actuators if a.rotary)
+        rotary = [a.name for a in robot.actuators if a.rotary]
+        named = ", ".join(rotary)
         inertia, force = (
             ("kg", "N")
-            if not turning.any()
+            if not rotary
             else ("kg·m²", "N·m")
-            if turning.all()
-            else (f"kg; kg·m in a row or column of {rotary}, kg·m² in both", f"N; N·m for {rotary}")
+            if len(rotary) == robot.n
+            else (f"kg; kg·m in a row or column of {named}, kg·m² in both", f"N; N·m for {named}")
         )
         held = np.round(space.forces(np.zeros_like(space.x))[0], 4) + 0.0  # no −0 printed
         with np.printoptions(precision=4, suppress=True):

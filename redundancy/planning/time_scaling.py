@@ -141,14 +141,11 @@ def _require_bounded(motion: Trajectory, row: int, last: int, cylinders) -> None
     the cylinders turn back together (a slew's chord, whose radial speed passes through zero
     at its middle) is no such stretch: their accelerations bound the timing there."""
     steps = np.abs(np.diff(motion.x[row, :last], axis=0))
-    others = [j for j in range(steps.shape[1]) if j not in set(cylinders)]
+    others = np.setdiff1d(np.arange(steps.shape[1]), cylinders)
     still = steps[:, cylinders].max(axis=1, initial=0.0) <= STILL
     moving = steps[:, others].max(axis=1, initial=0.0) > STILL
-    alone = np.concatenate([[False], still & moving, [False]])
-    starts, ends = (
-        np.flatnonzero(np.diff(alone.astype(int)) == 1),
-        np.flatnonzero(np.diff(alone.astype(int)) == -1),
-    )  # runs of steps [start, end) with the others alone moving
+    edges = np.diff(np.concatenate([[0], still & moving, [0]]).astype(int))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)  # runs [start, end)
     t = motion.t[row]
     spans = t[ends] - t[starts]
     if spans.size and spans.max() >= ALONE * (t[last - 1] - t[0]):

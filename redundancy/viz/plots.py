@@ -173,14 +173,17 @@ def _still(axes) -> None:
         axes.set_ylim(middle - 0.1, middle + 0.1)
 
 
-def _key(axes, drawn: list, label: str, **legend) -> None:
-    """Label the angles' axes among ``drawn`` (a twin of ``axes``, `_by_unit`) ``label`` and
-    give ``axes`` one legend of every line drawn on both."""
-    shown = list(dict.fromkeys(drawn))
-    for twin in shown:
+def _twin_label(axes, drawn: list, label: str) -> None:
+    """Label the angles' axes among ``drawn`` (a twin of ``axes``, `_by_unit`) ``label``."""
+    for twin in dict.fromkeys(drawn):
         if twin is not axes:
             twin.set_ylabel(label)
-    handles = [h for a in shown for h in a.get_legend_handles_labels()[0]]
+
+
+def _key(axes, drawn: list, label: str, **legend) -> None:
+    """`_twin_label`, and one legend on ``axes`` of every line drawn on it and its twin."""
+    _twin_label(axes, drawn, label)
+    handles = [h for a in dict.fromkeys(drawn) for h in a.get_legend_handles_labels()[0]]
     axes.legend(handles=handles, **legend)
 
 
@@ -493,10 +496,8 @@ def cycle_figure(study: CycleStudy, title: str):
     labels = (f"stroke x ({unit(lengths)})", f"velocity ẋ ({unit(lengths, rate='/s')})")
     _labelled(figure, title, labels, legend={}, pad=16)  # above the segments' names
     right = (f"stroke x ({unit(angles)})", f"velocity ẋ ({unit(angles, rate='/s')})")
-    for drawn, label in zip((tops, bottoms), right):
-        for twin in dict.fromkeys(drawn):
-            if twin is not top and twin is not bottom:
-                twin.set_ylabel(label)
+    for axes, drawn, label in zip((top, bottom), (tops, bottoms), right):
+        _twin_label(axes, drawn, label)
     figure.tight_layout()  # room for the angles' labels on the right
     return figure
 
